@@ -1,0 +1,228 @@
+"""Command line: ``python -m laughlab [overrides]``, ``python -m laughlab plugins``.
+
+User errors end with one line on stderr (``laughlab: error: ...``), exit status
+2, no traceback and no half-written run directory.  The configuration is
+composed and every plugin built and checked *before* Hydra creates the run
+directory, so most errors leave nothing behind; an error during the run removes
+what the run wrote.
+"""
+from __future__ import annotations
+
+import re
+import shutil
+import sys
+from pathlib import Path
+
+from .errors import LaughlabError
+
+CONFIG_MODULE = "laughlab_conf"
+GROUP_KINDS = {"input": "source", "extractor": "extractor", "face": "face", "body": "body",
+               "scheduler": "scheduler", "output": "sink"}
+#: outputs that mark a folder as holding an earlier run
+RUN_MARKERS = ("channels.csv", "events.csv", "motion.bvh", "metrics.json")
+_HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--version",
+                "--shell-completion", "-sc", "--resolve", "--package", "-p", "--config-path", "-cp",
+                "--config-name", "-cn", "--config-dir", "-cd", "--experimental-rerun"}
+
+
+def fail(message: str, code: int = 2) -> "None":
+    print(f"laughlab: error: {message}", file=sys.stderr)
+    sys.exit(code)
+
+
+def _conf_dir():
+    from importlib.resources import files
+
+    return files(CONFIG_MODULE)
+
+
+def group_options(group: str) -> list[str]:
+    """Names selectable in a config group: YAML files plus registered plugins."""
+    names = {p.name[:-5] for p in _conf_dir().joinpath(group).iterdir() if p.name.endswith(".yaml")} \
+        if _conf_dir().joinpath(group).is_dir() else set()
+    if group in GROUP_KINDS and group != "output":
+        from . import plugins
+
+        names |= set(plugins.registry()[GROUP_KINDS[group]])
+    return sorted(names)
+
+
+def register_plugin_configs() -> None:
+    """Give every registered plugin without a YAML file a config group option.
+
+    Third-party plugins then work as ``extractor=NAME`` with their dataclass defaults.
+    """
+    from dataclasses import asdict, is_dataclass
+
+    from hydra.core.config_store import ConfigStore
+
+    from . import plugins
+
+    cs = ConfigStore.instance()
+    reg = plugins.registry()
+    for group, kind in GROUP_KINDS.items():
+        if group == "output":
+            continue
+        folder = _conf_dir().joinpath(group)
+        have = {p.name[:-5] for p in folder.iterdir()} if folder.is_dir() else set()
+        for name, info in reg[kind].items():
+            if name in have:
+                continue
+            params_cls = getattr(info.obj, "Params", None)
+            node = {"name": name}
+            if params_cls is not None and is_dataclass(params_cls):
+                node.update(asdict(params_cls()))
+            cs.store(group=group, name=name, node=node)
+
+
+def _overrides(argv: list[str]) -> list[str]:
+    return [a for a in argv if not a.startswith("-")]
+
+
+def _check_overrides(overrides: list[str]) -> None:
+    """Unknown group options fail with the list of valid ones."""
+    for ov in overrides:
+        m = re.fullmatch(r"\+?([a-z_]+)=(.*)", ov)
+        if not m or m.group(1) not in (*GROUP_KINDS, "experiment"):
+            continue
+        group, value = m.groups()
+        choices = [v.strip() for v in value.strip("[]").split(",")] if value not in ("null", "") else []
+        options = group_options(group)
+        for choice in choices:
+            if choice not in options:
+                fail(f"unknown {group} {choice!r}; choose one of: {', '.join(options) or '(none)'}")
+
+
+def _composition_error(exc: Exception) -> str:
+    text = str(exc)
+    m = re.search(r"Could not override '([^']+)'", text)
+    if m:
+        key = m.group(1)
+        group = key.split(".")[0]
+        valid = ""
+        if group in GROUP_KINDS and group != "output" and "." in key:
+            try:
+                valid = "; valid: " + ", ".join(_valid_keys(group, key))
+            except Exception:  # listing the keys is a courtesy
+                valid = ""
+        return f"unknown parameter {key}{valid}"
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    return lines[0] if lines else type(exc).__name__
+
+
+def _valid_keys(group: str, key: str) -> list[str]:
+    from dataclasses import fields
+
+    from hydra import compose
+
+    cfg = compose("config")
+    from . import plugins
+
+    info = plugins.get(GROUP_KINDS[group], cfg[group]["name"])
+    return [f.name for f in fields(info.obj.Params)]
+
+
+def compose_config(overrides: list[str]):
+    """Compose the configuration as Hydra would, turning errors into LaughlabError."""
+    from hydra import compose, initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
+        try:
+            return compose("config", overrides=overrides, return_hydra_config=True)
+        except Exception as exc:
+            if isinstance(exc, LaughlabError):
+                raise
+            raise LaughlabError(_composition_error(exc)) from None
+
+
+def preflight(argv: list[str]) -> None:
+    """Check everything a run needs before Hydra writes anything."""
+    from omegaconf import OmegaConf
+
+    from . import pipeline, plugins
+
+    overrides = _overrides(argv)
+    for ov in overrides:
+        if ov.startswith("plugins_dir="):
+            plugins.load_plugin_dir(ov.split("=", 1)[1])
+    register_plugin_configs()
+    _check_overrides(overrides)
+    cfg = compose_config(overrides)
+    run_dir = Path(cfg.hydra.run.dir)
+    if run_dir.exists() and not cfg.get("overwrite", False):
+        if not run_dir.is_dir():
+            raise LaughlabError(f"hydra.run.dir {run_dir} exists and is not a folder")
+        if any((run_dir / m).exists() for m in RUN_MARKERS):
+            raise LaughlabError(f"{run_dir} already holds a run; choose another hydra.run.dir or add overwrite=true")
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    pipe = pipeline.build(cfg)
+    pipe.source.close()
+
+
+def list_plugins() -> None:
+    """Print every plugin: kind, name and where it comes from."""
+    from . import plugins
+
+    rows = [(kind, name, info.origin) for kind, named in plugins.registry().items() for name, info in named.items()]
+    width = [max(len(r[i]) for r in rows + [("kind", "name", "origin")]) for i in range(2)]
+    print(f"{'kind':<{width[0]}}  {'name':<{width[1]}}  origin")
+    for kind, name, origin in rows:
+        print(f"{kind:<{width[0]}}  {name:<{width[1]}}  {origin}")
+
+
+def _run_dir_state(path: Path) -> set[str]:
+    return {p.name for p in path.iterdir()} if path.is_dir() else set()
+
+
+def task(cfg) -> dict:
+    """The Hydra task: build and run the pipeline into the run directory."""
+    from hydra.core.hydra_config import HydraConfig
+    from omegaconf import OmegaConf
+
+    from . import pipeline
+
+    out_dir = Path(HydraConfig.get().runtime.output_dir)
+    try:
+        pipe = pipeline.build(cfg)
+        return pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
+    except LaughlabError as exc:
+        _remove_new_run_dir(out_dir)
+        fail(str(exc))
+    except KeyboardInterrupt:
+        _remove_new_run_dir(out_dir)
+        fail("interrupted; the run's partial output was removed", code=130)
+
+
+def _remove_new_run_dir(out_dir: Path) -> None:
+    """Remove what Hydra created for a failed run (.hydra/), and the folder if then empty."""
+    shutil.rmtree(out_dir / ".hydra", ignore_errors=True)
+    try:
+        out_dir.rmdir()
+    except OSError:
+        pass
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["plugins"]:
+        try:
+            list_plugins()
+        except LaughlabError as exc:
+            fail(str(exc))
+        return
+    multirun = any(a in ("-m", "--multirun") for a in argv)
+    hydra_only = any(a.split("=")[0] in _HYDRA_FLAGS for a in argv)
+    try:
+        if not multirun and not hydra_only:
+            preflight(argv)
+        else:
+            register_plugin_configs()
+            _check_overrides(_overrides(argv))
+    except LaughlabError as exc:
+        fail(str(exc))
+    import hydra
+
+    sys.argv = [sys.argv[0], *argv]
+    hydra.main(config_path=f"pkg://{CONFIG_MODULE}", config_name="config", version_base="1.3")(task)()

@@ -1,0 +1,101 @@
+"""Figures in the style of the thesis (van Duijn 2014): Fig. 3.2 and Fig. 4.2."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from .smoothing import THESIS_TICK_HZ, rate_limit_series  # noqa: E402
+
+#: the two rise/fall settings of the thesis' Fig. 3.2 (per tick): green 0.5/0.3, blue 0.2/0.1
+FIG32_SETTINGS = ((0.5, 0.3, "tab:green"), (0.2, 0.1, "tab:blue"))
+
+
+def _shade_bouts(ax, bouts) -> None:
+    for i, b in enumerate(bouts or ()):
+        ax.axvspan(b[0], b[1], color="0.9", zorder=0, label="laughter bout (truth)" if i == 0 else None)
+
+
+def _setup_axis(ax) -> None:
+    ax.spines[["top", "right"]].set_visible(False)
+    ax.grid(alpha=0.3, linewidth=0.5)
+
+
+def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, power: float = 2.0,
+               bouts: Sequence | None = None, title: str = "") -> Path:
+    """Fig. 3.2: the MCS unfiltered and with two rise/fall settings (Eq. 3.2).
+
+    Rates are the thesis' per-tick values converted at 60 ticks/s; all three
+    curves are raised to ``power`` like the final MCS (listing 5.2).
+    """
+    fig, ax = plt.subplots(figsize=(7.0, 2.8), dpi=150, layout="constrained")
+    _shade_bouts(ax, bouts)
+    ax.plot(times, np.asarray(mcs_raw) ** power, color="tab:red", lw=0.8, label="MCS, no rise/fall")
+    for rise, fall, color in FIG32_SETTINGS:
+        y = rate_limit_series(mcs_raw, rise * THESIS_TICK_HZ, fall * THESIS_TICK_HZ, dt) ** power
+        ax.plot(times, y, color=color, lw=1.1, label=f"rise {rise}, fall {fall} per tick")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("motion control signal")
+    ax.set_ylim(-0.02, 1.05)
+    ax.set_xlim(times[0] if len(times) else 0, times[-1] if len(times) else 1)
+    ax.set_title(title or "Motion control signal and rise/fall (cf. van Duijn 2014, Fig. 3.2)", fontsize=9)
+    ax.legend(fontsize=7, loc="upper right", ncols=2, frameon=False)
+    _setup_axis(ax)
+    fig.savefig(path, format="png")
+    plt.close(fig)
+    return path
+
+
+def clip_blocks(events: Sequence, end_time: float) -> list[tuple[str, float, float, float]]:
+    """Pair clip start and stop events into ``(clip, start_s, stop_s, energy)`` blocks."""
+    blocks, open_ = [], {}
+    for ev in events:
+        if ev.kind == "start":
+            open_[ev.clip] = ev
+        elif ev.kind == "stop" and ev.clip in open_:
+            s = open_.pop(ev.clip)
+            blocks.append((ev.clip, s.time_s, ev.time_s, s.energy))
+    for name, s in open_.items():
+        blocks.append((name, s.time_s, end_time, s.energy))
+    return sorted(blocks, key=lambda b: b[1])
+
+
+def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
+               bouts: Sequence | None = None, title: str = "") -> Path:
+    """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom)."""
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.0, 4.2), dpi=150, sharex=True, layout="constrained",
+                                   height_ratios=(1, 2))
+    _shade_bouts(ax1, bouts)
+    _shade_bouts(ax2, bouts)
+    ax1.plot(times, mcs, color="tab:red", lw=0.8, label="MCS")
+    ax1.set_ylabel("MCS")
+    ax1.set_ylim(-0.02, 1.05)
+    end = float(times[-1]) if len(times) else 0.0
+    blocks = clip_blocks(events, end)
+    names = sorted({b[0] for b in blocks})
+    cmap = plt.get_cmap("tab20")
+    colors = {n: cmap(i % 20) for i, n in enumerate(names)}
+    for name, t0, t1, e in blocks:
+        ax2.add_patch(plt.Rectangle((t0, 0), t1 - t0, e, facecolor=colors[name], alpha=0.55,
+                                    edgecolor="0.3", lw=0.4))
+        if t1 - t0 > 0.04 * max(end, 1e-9):
+            ax2.text(t0 + 0.01 * end, e, name, fontsize=5.5, va="bottom", ha="left", rotation=0)
+    ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L")
+    ax2.set_ylabel("laughing energy / clip energy")
+    ax2.set_xlabel("time (s)")
+    top = max([b[3] for b in blocks] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
+    ax2.set_ylim(0, top * 1.15)
+    ax2.set_xlim(times[0] if len(times) else 0, end or 1)
+    ax1.set_title(title or "Laughing energy and clip selection (cf. van Duijn 2014, Fig. 4.2)", fontsize=9)
+    handles, labels = ax2.get_legend_handles_labels()
+    ax2.legend(handles, labels, fontsize=7, loc="upper right", frameon=False)
+    for ax in (ax1, ax2):
+        _setup_axis(ax)
+    fig.savefig(path, format="png")
+    plt.close(fig)
+    return path

@@ -1,0 +1,122 @@
+"""Rise/fall rate limiting and the thesis' ``Smoother`` (van Duijn 2014, Eq. 3.2 and 5.3).
+
+The thesis applies its constants once per 60 Hz game tick; here every rate is
+per second (per-tick value x 60), so results do not change with the frame rate.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: ticks per second of the thesis' Blender game engine, used to convert its per-tick constants
+THESIS_TICK_HZ = 60.0
+
+
+def rate_limit(x: float, prev: float, rise: float, fall: float) -> float:
+    """One step of the rise/fall limit (van Duijn 2014, Eq. 3.2).
+
+    ``final = min(x, prev + rise)`` if ``x > prev`` else ``max(x, prev - fall)``.
+
+    Parameters
+    ----------
+    x : float
+        New value of the signal.
+    prev : float
+        Limited value of the previous step.
+    rise, fall : float
+        Largest increase and decrease in this step (signal units per step,
+        i.e. rate per second times dt).
+    """
+    if x > prev:
+        return min(x, prev + rise)
+    return max(x, prev - fall)
+
+
+def rate_limit_series(x: np.ndarray, rise_per_s: float, fall_per_s: float, dt: float,
+                      start: float = 0.0) -> np.ndarray:
+    """Apply :func:`rate_limit` along a series (Eq. 3.2), starting from ``start``.
+
+    Rates are in signal units per second; ``dt`` is the step (s).
+    """
+    out = np.empty(len(x))
+    prev = float(start)
+    rise, fall = rise_per_s * dt, fall_per_s * dt
+    for i, v in enumerate(np.asarray(x, dtype=float).tolist()):
+        prev = rate_limit(v, prev, rise, fall)
+        out[i] = prev
+    return out
+
+
+@dataclass
+class SmootherParams:
+    """Parameters of one :class:`Smoother` (thesis 5.3), rates per second.
+
+    Attributes
+    ----------
+    rise : float
+        Largest rise of the smoothed signal (1/s).
+    fall : float
+        Largest fall (1/s).
+    min_e, max_e : float
+        Input range re-scaled to [0, 1]: below ``min_e`` gives 0, above ``max_e`` gives 1.
+    """
+
+    rise: float
+    fall: float
+    min_e: float = 0.0
+    max_e: float = 1.0
+
+    def __post_init__(self) -> None:
+        if not self.rise > 0 or not self.fall > 0:
+            raise ValueError(f"rise and fall must be > 0 (got {self.rise}, {self.fall})")
+        if not self.max_e > self.min_e:
+            raise ValueError(f"max_e must be > min_e (got {self.min_e}, {self.max_e})")
+
+
+def thesis_smoother(rise_per_tick: float, fall_per_tick: float, min_e: float = 0.0,
+                    max_e: float = 1.0) -> SmootherParams:
+    """SmootherParams from the thesis' per-tick constants (x 60 ticks/s)."""
+    return SmootherParams(rise_per_tick * THESIS_TICK_HZ, fall_per_tick * THESIS_TICK_HZ, min_e, max_e)
+
+
+#: the thesis' four smoothers (5.3), converted to per-second rates
+JAW = thesis_smoother(0.03, 0.01, 0.0, 0.8)
+SMILE = thesis_smoother(0.03, 0.001, 0.0, 0.3)
+CHEST = thesis_smoother(0.2, 0.1, 0.0, 1.0)
+BELLY = thesis_smoother(0.1, 0.05, 0.0, 1.0)
+
+
+class Smoother:
+    """Rise/fall limit followed by re-scaling to [0, 1] (van Duijn 2014, listing in 5.3).
+
+    ``e <- rate_limit(x, e, rise*dt, fall*dt)``; output is 0 if ``e < min_e``,
+    1 if ``e > max_e``, else ``(e - min_e) / (max_e - min_e)``.
+    """
+
+    __slots__ = ("rise", "fall", "min_e", "max_e", "range", "e")
+
+    def __init__(self, params: SmootherParams, dt: float):
+        self.rise = params.rise * dt
+        self.fall = params.fall * dt
+        self.min_e = params.min_e
+        self.max_e = params.max_e
+        self.range = params.max_e - params.min_e
+        self.e = 0.0
+
+    def reset(self) -> None:
+        self.e = 0.0
+
+    def smooth(self, x: float) -> float:
+        """One step: the smoothed and re-scaled value of input ``x`` (dimensionless)."""
+        e = self.e
+        if x > e:
+            e = min(x, e + self.rise)
+        else:
+            e = max(x, e - self.fall)
+        self.e = e
+        if e < self.min_e:
+            return 0.0
+        if e > self.max_e:
+            return 1.0
+        return (e - self.min_e) / self.range

@@ -1,0 +1,150 @@
+"""Extractor ``rms``: the motion control signal (MCS) of van Duijn 2014 (ch. 3.1, listing 5.2).
+
+Per frame, in the order of the thesis listing (reading notes in shared/papers):
+amplitude (RMS, Eq. 3.1), running min/max update, mapping to [0, 1], falloff of
+min/max, rise/fall limit (Eq. 3.2), store previous, raise to the power 2.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from laughlab import hookimpl
+from laughlab.bases import Extractor
+from laughlab.plugins import check_range
+from laughlab.smoothing import THESIS_TICK_HZ
+
+
+@dataclass
+class RmsParams:
+    """Parameters of the ``rms`` extractor (thesis values converted at 60 ticks/s).
+
+    Attributes
+    ----------
+    rise_per_s : float
+        Largest rise of the MCS per second (thesis ``ampRise`` 0.4 per tick = 24 /s).
+    fall_per_s : float
+        Largest fall per second (thesis ``ampFall`` 0.2 per tick = 12 /s).
+    falloff_per_s : float
+        Amount by which maxAmp falls and minAmp rises per second, in full-scale
+        RMS units (thesis ``fallof`` 0.001 per tick = 0.06 /s).
+    power : float
+        Exponent of the final mapping (thesis: 2).
+    min_amp, max_amp : float
+        Calibrated minimum and maximum RMS at the start (full-scale units); the
+        thesis sets them with a short calibration burst.  Defaults: silence and
+        a moderate laugh at -20 dBFS RMS.
+    max_floor : float
+        maxAmp never falls below this (full-scale RMS).  Departure from the
+        thesis: without it a long silence lets the falloff shrink the range to
+        the noise floor, which then maps to full-scale MCS.
+    """
+
+    rise_per_s: float = 0.4 * THESIS_TICK_HZ
+    fall_per_s: float = 0.2 * THESIS_TICK_HZ
+    falloff_per_s: float = 0.001 * THESIS_TICK_HZ
+    power: float = 2.0
+    min_amp: float = 0.0
+    max_amp: float = 0.1
+    max_floor: float = 0.01
+
+    def __post_init__(self) -> None:
+        check_range("rise_per_s", self.rise_per_s, 0, lo_open=True)
+        check_range("fall_per_s", self.fall_per_s, 0, lo_open=True)
+        check_range("falloff_per_s", self.falloff_per_s, 0)
+        check_range("power", self.power, 0, lo_open=True)
+        check_range("min_amp", self.min_amp, 0)
+        check_range("max_floor", self.max_floor, 0)
+        if not self.max_amp >= self.min_amp:
+            raise ValueError(f"max_amp must be >= min_amp (got {self.max_amp} < {self.min_amp})")
+
+
+def frame_rms(block: np.ndarray) -> tuple[float, int]:
+    """RMS amplitude of one frame of samples (van Duijn 2014, Eq. 3.1), full-scale units.
+
+    ``x_rms = sqrt((x_1^2 + ... + x_n^2) / n)``.  Non-finite samples (NaN, +/-Inf)
+    are treated as silence (0) and counted; an empty block has RMS 0.
+
+    Returns
+    -------
+    rms : float
+    n_bad : int
+        Number of non-finite samples that were replaced.
+    """
+    n = block.shape[0]
+    if n == 0:
+        return 0.0, 0
+    x = block.astype(np.float64)  # float32 squares overflow above 1.8e19
+    ms = float(np.dot(x, x)) / n
+    if math.isfinite(ms):
+        return math.sqrt(ms), 0
+    bad = ~np.isfinite(x)
+    x[bad] = 0.0
+    return math.sqrt(float(np.dot(x, x)) / n), int(bad.sum())
+
+
+class RmsExtractor(Extractor):
+    """Motion control signal from RMS amplitude (van Duijn 2014, 3.1 and listing 5.2).
+
+    Writes ``control['rms']`` (full-scale RMS), ``control['mcs_raw']`` (the
+    min/max mapping in [0, 1], before rise/fall) and ``control['mcs']`` (final MCS
+    in [0, 1]).
+    """
+
+    name = "rms"
+    Params = RmsParams
+
+    def __init__(self, params=None, ctx=None):
+        super().__init__(params, ctx)
+        p, dt = self.params, self.ctx.dt
+        self._rise = p.rise_per_s * dt
+        self._fall = p.fall_per_s * dt
+        self._falloff = p.falloff_per_s * dt
+        self.nonfinite_samples = 0
+        self.reset()
+
+    def reset(self) -> None:
+        self.min_amp = float(self.params.min_amp)
+        self.max_amp = float(max(self.params.max_amp, self.params.max_floor))
+        self.prev = 0.0
+        self.nonfinite_samples = 0
+
+    def calibrate(self, audio: np.ndarray) -> None:
+        """Set min/max amplitude from a calibration recording (thesis 3.1.1)."""
+        n = max(1, int(round(self.ctx.sample_rate / self.ctx.fps)))
+        levels = [frame_rms(audio[i:i + n])[0] for i in range(0, max(1, len(audio) - n + 1), n)]
+        self.min_amp = min(levels)
+        self.max_amp = max(max(levels), self.params.max_floor)
+
+    def step(self, block, frame) -> None:
+        amp, bad = frame_rms(block)
+        if bad:
+            self.nonfinite_samples += bad
+        # min/max update and mapping (listing 5.2 lines 6-8); max == min is silence
+        if amp > self.max_amp:
+            self.max_amp = amp
+        if amp < self.min_amp:
+            self.min_amp = amp
+        span = self.max_amp - self.min_amp
+        mapped = (amp - self.min_amp) / span if span > 0.0 else 0.0
+        # falloff (lines 11-13), keeping maxAmp above the floor and minAmp below maxAmp
+        self.max_amp = max(self.max_amp - self._falloff, self.params.max_floor)
+        self.min_amp = min(self.min_amp + self._falloff, self.max_amp)
+        # rise/fall limit (Eq. 3.2; lines 16-20), store previous, pow 2 (line 25)
+        prev = self.prev
+        if mapped > prev:
+            mcs = min(mapped, prev + self._rise)
+        else:
+            mcs = max(mapped, prev - self._fall)
+        self.prev = mcs
+        c = frame.control
+        c["rms"] = amp
+        c["mcs_raw"] = mapped
+        c["mcs"] = mcs ** self.params.power
+
+
+@hookimpl
+def register_extractors(register):
+    register(RmsExtractor)

@@ -1,0 +1,107 @@
+"""Face ``smile``: one smile shape, the jaw, and the eyes (van Duijn 2014, 3.3 and 5.3)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from laughlab import hookimpl
+from laughlab.bases import Face
+from laughlab.plugins import check_range
+from laughlab.smoothing import JAW, SMILE, Smoother, SmootherParams
+
+
+@dataclass
+class SmileParams:
+    """Parameters of the ``smile`` face.
+
+    Attributes
+    ----------
+    smile, jaw : SmootherParams
+        Thesis 5.3: smile rise 0.03, fall 0.001, maxE 0.3; jaw rise 0.03,
+        fall 0.01, maxE 0.8 (per tick, x 60 /s).
+    blink_mean_s, blink_sd_s : float
+        Blink interval ~ N(4 s, 2 s) (thesis 3.3.3, after Doughty [43]).
+    blink_min_interval_s : float
+        Shortest interval; draws below it (the normal can go negative) are raised to it.
+    blink_close_s, blink_open_s : float
+        Duration of the closing and the opening half of a blink (s).
+    """
+
+    smile: SmootherParams = field(default_factory=lambda: SmootherParams(**vars(SMILE)))
+    jaw: SmootherParams = field(default_factory=lambda: SmootherParams(**vars(JAW)))
+    blink_mean_s: float = 4.0
+    blink_sd_s: float = 2.0
+    blink_min_interval_s: float = 0.5
+    blink_close_s: float = 0.08
+    blink_open_s: float = 0.12
+
+    def __post_init__(self) -> None:
+        check_range("blink_mean_s", self.blink_mean_s, 0, lo_open=True)
+        check_range("blink_sd_s", self.blink_sd_s, 0)
+        check_range("blink_min_interval_s", self.blink_min_interval_s, 0, lo_open=True)
+        check_range("blink_close_s", self.blink_close_s, 0, lo_open=True)
+        check_range("blink_open_s", self.blink_open_s, 0, lo_open=True)
+
+
+class SmileFace(Face):
+    """Smile and jaw weights from the smoothed MCS, eyes from clip keys plus blinks.
+
+    Channels (dimensionless shape weights in [0, 1]): ``smile`` = S_smile(MCS),
+    ``jaw`` = S_jaw(MCS) (thesis 3.3.1-3.3.2, 5.3); ``blink`` the blink
+    animation; ``eyes_closed`` = max(clip eye key, blink) (3.3.3).  A blink due
+    while the playing clip holds the eyes closed or closing is skipped and the
+    next interval drawn.
+    """
+
+    name = "smile"
+    Params = SmileParams
+
+    def __init__(self, params=None, ctx=None):
+        super().__init__(params, ctx)
+        self.smile = Smoother(self.params.smile, self.ctx.dt)
+        self.jaw = Smoother(self.params.jaw, self.ctx.dt)
+        self.reset()
+
+    def _interval(self) -> float:
+        p = self.params
+        return max(p.blink_min_interval_s, float(self.ctx.rng.normal(p.blink_mean_s, p.blink_sd_s)))
+
+    def reset(self) -> None:
+        self.smile.reset()
+        self.jaw.reset()
+        self.next_blink = None
+        self.blink_start = None
+
+    def _blink(self, t: float, clip_eyes: float) -> float:
+        if self.next_blink is None:
+            self.next_blink = t + self._interval()
+        p = self.params
+        if self.blink_start is None and t >= self.next_blink:
+            if clip_eyes > 0.0:  # eyes closed or closing in the clip: skip this blink
+                self.next_blink = t + self._interval()
+            else:
+                self.blink_start = t
+        if self.blink_start is None:
+            return 0.0
+        u = t - self.blink_start
+        if u < p.blink_close_s:
+            return u / p.blink_close_s
+        u -= p.blink_close_s
+        if u < p.blink_open_s:
+            return 1.0 - u / p.blink_open_s
+        self.blink_start = None
+        self.next_blink = t + self._interval()
+        return 0.0
+
+    def step(self, frame) -> None:
+        mcs = frame.control["mcs"]
+        ch = frame.channels
+        ch["smile"] = self.smile.smooth(mcs)
+        ch["jaw"] = self.jaw.smooth(mcs)
+        blink = self._blink(frame.time_s, frame.clip_eyes)
+        ch["blink"] = blink
+        ch["eyes_closed"] = max(frame.clip_eyes, blink)
+
+
+@hookimpl
+def register_faces(register):
+    register(SmileFace)

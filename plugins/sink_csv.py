@@ -1,0 +1,84 @@
+"""Sink ``csv``: ``channels.csv`` (time, then one column per channel) and ``events.csv``."""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+
+import numpy as np
+
+from laughlab import hookimpl
+from laughlab.bases import Sink
+from laughlab.outfiles import Staging
+
+
+@dataclass
+class CsvParams:
+    """Parameters of the ``csv`` sink.
+
+    Attributes
+    ----------
+    precision : int
+        Decimals written for channel values.
+    """
+
+    precision: int = 6
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.precision <= 17:
+            raise ValueError(f"precision must be in 1..17 (got {self.precision})")
+
+
+EVENT_COLUMNS = ("time", "event", "clip", "energy", "speed", "reason")
+
+
+class CsvSink(Sink):
+    """Streams ``channels.csv`` chunk by chunk; writes ``events.csv`` at the end.
+
+    ``channels.csv``: column ``time`` (s), one column per named channel in the
+    order the plugins wrote them, and ``label`` when the extractor gives
+    pseudo-phoneme labels.  ``events.csv``: one row per clip start or stop with
+    ``time`` (s), ``event``, ``clip``, ``energy``, ``speed`` and ``reason``.
+    """
+
+    name = "csv"
+    Params = CsvParams
+
+    def open(self, run) -> None:
+        super().open(run)
+        self.staging = Staging()
+        self._f = open(self.staging.path(run.out_dir / "channels.csv"), "w", newline="")
+        self._events: list = []
+        self._columns = None
+
+    def write(self, chunk) -> None:
+        if self._columns is None:
+            self._columns = list(chunk.channels)
+            self._labels = any(lab is not None for lab in chunk.labels)
+            self._f.write(",".join(["time", *self._columns] + (["label"] if self._labels else [])) + "\n")
+        data = np.column_stack([chunk.times] + [chunk.channels[c] for c in self._columns])
+        fmt = f"%.{self.params.precision}f"
+        if self._labels:
+            rows = [",".join([fmt % v for v in row] + [lab or ""]) for row, lab in zip(data, chunk.labels)]
+            self._f.write("\n".join(rows) + "\n")
+        else:
+            np.savetxt(self._f, data, fmt=fmt, delimiter=",")
+        self._events.extend(chunk.events)
+
+    def close(self):
+        self._f.close()
+        with open(self.staging.path(self.run.out_dir / "events.csv"), "w", newline="") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(EVENT_COLUMNS)
+            for ev in self._events:
+                w.writerow([f"{ev.time_s:.6f}", ev.kind, ev.clip, f"{ev.energy:g}", f"{ev.speed:.6f}", ev.reason])
+        return self.staging.commit()
+
+    def abort(self) -> None:
+        if not self._f.closed:
+            self._f.close()
+        self.staging.abort()
+
+
+@hookimpl
+def register_sinks(register):
+    register(CsvSink)

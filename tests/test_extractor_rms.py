@@ -1,0 +1,95 @@
+"""The rms extractor (van Duijn 2014, 3.1, Eq. 3.1-3.2, listing 5.2) against hand-computed values."""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from laughlab.bases import Context
+from laughlab.frame import Frame
+from laughlab_plugins.extractor_rms import RmsExtractor, RmsParams, frame_rms
+
+
+def run(blocks, params=None, fps=60.0, sr=600):
+    ext = RmsExtractor(params or RmsParams(), Context(fps=fps, sample_rate=sr))
+    out = []
+    for i, b in enumerate(blocks):
+        f = Frame(i, i / fps, 1 / fps)
+        ext.step(np.asarray(b, dtype=np.float32), f)
+        out.append(dict(f.control))
+    return ext, out
+
+
+def test_rms_eq_3_1():
+    x = np.array([3.0, -4.0, 0.0, 0.0], dtype=np.float32)
+    assert frame_rms(x)[0] == pytest.approx(math.sqrt((9 + 16) / 4))
+    assert frame_rms(np.zeros(0, dtype=np.float32)) == (0.0, 0)
+
+
+def test_listing_5_2_by_hand():
+    # 10 samples per frame; initial min 0, max 0.1; falloff 0.001, rise 0.4, fall 0.2 per tick
+    blocks = [np.full(10, a) for a in (0.05, 0.2, 0.0)]
+    _, out = run(blocks)
+    # frame 1: mapped (0.05-0)/(0.1-0) = 0.5; rise-limited to 0.4; pow 2 -> 0.16
+    assert out[0]["mcs_raw"] == pytest.approx(0.5)
+    assert out[0]["mcs"] == pytest.approx(0.16)
+    # frame 2: max -> 0.2, min = 0.001 after falloff: mapped 1.0; 0.4 + 0.4 = 0.8; -> 0.64
+    assert out[1]["mcs_raw"] == pytest.approx(1.0)
+    assert out[1]["mcs"] == pytest.approx(0.64)
+    # frame 3: silence, min -> 0: mapped 0; fall-limited to 0.8 - 0.2 = 0.6 -> 0.36
+    assert out[2]["mcs_raw"] == pytest.approx(0.0)
+    assert out[2]["mcs"] == pytest.approx(0.36)
+
+
+def test_falloff_moves_max_down_and_min_up():
+    ext, _ = run([np.full(10, 0.05)] * 10)
+    # max: 0.1 - 10 * 0.001; min: 0 + 10 * 0.001 (the amplitude never falls below it)
+    assert ext.max_amp == pytest.approx(0.09)
+    assert ext.min_amp == pytest.approx(0.01)
+
+
+def test_silence_does_not_divide_by_zero():
+    p = RmsParams(min_amp=0.0, max_amp=0.0, max_floor=0.0)
+    _, out = run([np.zeros(10)] * 5, p)
+    assert all(o["mcs"] == 0.0 for o in out)
+
+
+def test_max_floor_keeps_long_silence_silent():
+    # after a loud laugh, 20 s of faint noise must not map to a large MCS
+    rng = np.random.default_rng(1)
+    blocks = [np.full(10, 0.3)] * 30 + [rng.normal(0, 1e-3, 10) for _ in range(1200)]
+    _, out = run(blocks)
+    assert max(o["mcs"] for o in out[-600:]) < 0.05
+
+
+def test_rates_scale_with_frame_rate():
+    # the same audio at 60 and 120 fps rises at the same rate per second
+    _, o60 = run([np.full(10, 0.1)] * 6, fps=60, sr=600)
+    _, o120 = run([np.full(5, 0.1)] * 12, fps=120, sr=600)
+    assert o60[1]["mcs"] == pytest.approx(o120[3]["mcs"], rel=1e-6)
+
+
+samples = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32), st.sampled_from([0.0, 1.0, -1.0]))
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.lists(samples, min_size=0, max_size=20), min_size=1, max_size=40))
+def test_mcs_in_unit_interval_for_any_input(blocks):
+    """Silence, DC, clipping, NaN and Inf samples: MCS stays in [0, 1] and finite."""
+    ext, out = run([np.array(b, dtype=np.float32) for b in blocks])
+    for o in out:
+        assert 0.0 <= o["mcs"] <= 1.0
+        assert all(math.isfinite(v) for v in o.values())
+
+
+def test_nonfinite_samples_are_counted_and_treated_as_silence():
+    ext, out = run([np.array([np.nan, np.inf, 0.5, -np.inf] + [0.5] * 6)])
+    assert ext.nonfinite_samples == 3
+    assert out[0]["rms"] == pytest.approx(math.sqrt(7 * 0.25 / 10))
+
+
+def test_bad_params_rejected():
+    with pytest.raises(ValueError, match="rise_per_s"):
+        RmsParams(rise_per_s=0)
+    with pytest.raises(ValueError, match="max_amp"):
+        RmsParams(min_amp=0.5, max_amp=0.1)
