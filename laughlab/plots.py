@@ -26,26 +26,49 @@ def _setup_axis(ax) -> None:
     ax.grid(alpha=0.3, linewidth=0.5)
 
 
+def busiest_window(times: np.ndarray, signal: np.ndarray, window_s: float) -> tuple[float, float]:
+    """The ``window_s``-long stretch of ``times`` where ``signal`` has the most mass."""
+    if len(times) < 2 or times[-1] - times[0] <= window_s:
+        return (float(times[0]) if len(times) else 0.0, float(times[-1]) if len(times) else window_s)
+    dt = times[1] - times[0]
+    n = max(1, int(round(window_s / dt)))
+    mass = np.convolve(np.asarray(signal, float), np.ones(n), mode="valid")
+    i = int(np.argmax(mass))
+    return float(times[i]), float(times[i] + window_s)
+
+
 def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, power: float = 2.0,
-               bouts: Sequence | None = None, title: str = "") -> Path:
+               bouts: Sequence | None = None, title: str = "", window_s: float = 4.0) -> Path:
     """Fig. 3.2: the MCS unfiltered and with two rise/fall settings (Eq. 3.2).
 
     Rates are the thesis' per-tick values converted at 60 ticks/s; all three
-    curves are raised to ``power`` like the final MCS (listing 5.2).
+    curves are raised to ``power`` like the final MCS (listing 5.2).  Left: the
+    whole run; right: the ``window_s`` seconds with the most laughter, where the
+    individual calls and the effect of rise and fall can be seen.
     """
-    fig, ax = plt.subplots(figsize=(7.0, 2.8), dpi=150, layout="constrained")
-    _shade_bouts(ax, bouts)
-    ax.plot(times, np.asarray(mcs_raw) ** power, color="tab:red", lw=0.8, label="MCS, no rise/fall")
+    raw = np.asarray(mcs_raw, float)
+    curves = [(raw ** power, "tab:red", 0.8, "MCS, no rise/fall")]
     for rise, fall, color in FIG32_SETTINGS:
-        y = rate_limit_series(mcs_raw, rise * THESIS_TICK_HZ, fall * THESIS_TICK_HZ, dt) ** power
-        ax.plot(times, y, color=color, lw=1.1, label=f"rise {rise}, fall {fall} per tick")
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("motion control signal")
-    ax.set_ylim(-0.02, 1.05)
-    ax.set_xlim(times[0] if len(times) else 0, times[-1] if len(times) else 1)
-    ax.set_title(title or "Motion control signal and rise/fall (cf. van Duijn 2014, Fig. 3.2)", fontsize=9)
-    ax.legend(fontsize=7, loc="upper right", ncols=2, frameon=False)
-    _setup_axis(ax)
+        y = rate_limit_series(raw, rise * THESIS_TICK_HZ, fall * THESIS_TICK_HZ, dt) ** power
+        curves.append((y, color, 1.1, f"rise {rise}, fall {fall} per tick"))
+    fig, (ax_all, ax_zoom) = plt.subplots(1, 2, figsize=(8.0, 2.9), dpi=150, layout="constrained",
+                                          width_ratios=(1, 1.6), sharey=True)
+    t0, t1 = busiest_window(times, raw, window_s)
+    for ax, lo, hi in ((ax_all, times[0] if len(times) else 0, times[-1] if len(times) else 1), (ax_zoom, t0, t1)):
+        _shade_bouts(ax, bouts)
+        for y, color, lw, label in (curves if ax is ax_zoom else curves[:1]):
+            ax.plot(times, y, color=color, lw=lw, label=label)
+        ax.set_xlim(lo, hi)
+        ax.set_xlabel("time (s)")
+        _setup_axis(ax)
+    ax_all.axvspan(t0, t1, color="tab:orange", alpha=0.15, lw=0)
+    ax_all.set_ylabel("motion control signal")
+    ax_all.set_ylim(-0.02, 1.05)
+    ax_all.set_title("whole run (zoom shaded)", fontsize=8)
+    ax_zoom.set_title(f"zoom: {t0:.1f}-{t1:.1f} s", fontsize=8)
+    fig.suptitle(title or "Motion control signal and rise/fall (cf. van Duijn 2014, Fig. 3.2)", fontsize=9)
+    fig.legend(*ax_zoom.get_legend_handles_labels(), fontsize=7, loc="outside lower center", ncols=4,
+               frameon=False)
     fig.savefig(path, format="png")
     plt.close(fig)
     return path

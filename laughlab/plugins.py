@@ -150,7 +150,9 @@ def make_params(cls: type, values: Any, where: str) -> Any:
         return OmegaConf.to_object(merged)
     except OmegaConfBaseException as exc:
         msg = str(exc).splitlines()[0]
-        raise LaughlabError(f"bad parameter in {where}: {msg}") from None
+        key = getattr(exc, "full_key", None)
+        raise LaughlabError(f"bad parameter {where}.{key}: {msg}" if key else f"bad parameter in {where}: {msg}") \
+            from None
     except (ValueError, TypeError) as exc:
         raise LaughlabError(f"bad parameter in {where}: {exc}") from None
 

@@ -17,48 +17,66 @@ from laughlab.plugins import check_range
 from laughlab.smoothing import THESIS_TICK_HZ
 
 
+#: the floor of SoundAnalyse's loudness: RMS below 1e-7 counts as 1e-7
+LOUDNESS_FLOOR_RMS = 1e-7
+#: default maxAmp floor per scale (loudness: RMS 0.003, about -50 dBFS)
+DEFAULT_MAX_FLOOR = {"loudness": -25.0, "linear": 0.003}
+
+
 @dataclass
 class RmsParams:
     """Parameters of the ``rms`` extractor (thesis values converted at 60 ticks/s).
 
     Attributes
     ----------
+    scale : str
+        Amplitude measure.  ``loudness`` (default): ``10 log10(RMS)`` of
+        full-scale samples, floored at RMS 1e-7, which is what SoundAnalyse's
+        ``loudness()`` returns, the module the thesis used for ``getAmplitude``
+        (5.2); the per-tick falloff of 0.001 is then slow, as Fig. 3.1 asks.
+        ``linear``: the RMS itself (Eq. 3.1), full-scale units.
     rise_per_s : float
         Largest rise of the MCS per second (thesis ``ampRise`` 0.4 per tick = 24 /s).
     fall_per_s : float
         Largest fall per second (thesis ``ampFall`` 0.2 per tick = 12 /s).
     falloff_per_s : float
-        Amount by which maxAmp falls and minAmp rises per second, in full-scale
-        RMS units (thesis ``fallof`` 0.001 per tick = 0.06 /s).
+        Amount by which maxAmp falls and minAmp rises per second, in amplitude
+        units of ``scale`` (thesis ``fallof`` 0.001 per tick = 0.06 /s).
     power : float
         Exponent of the final mapping (thesis: 2).
-    min_amp, max_amp : float
-        Calibrated minimum and maximum RMS at the start (full-scale units); the
-        thesis sets them with a short calibration burst.  Defaults: silence and
-        a moderate laugh at -20 dBFS RMS.
-    max_floor : float
-        maxAmp never falls below this (full-scale RMS).  Departure from the
-        thesis: without it a long silence lets the falloff shrink the range to
-        the noise floor, which then maps to full-scale MCS.
+    min_amp, max_amp : float or None
+        Calibrated minimum and maximum amplitude at the start (units of
+        ``scale``), as the thesis' calibration burst sets them; None lets the
+        first frame set them.
+    max_floor : float or None
+        maxAmp never falls below this (units of ``scale``; None: -25 for
+        loudness, 0.003 for linear).  Departure from the thesis: without it a
+        long silence lets the falloff shrink the range to the noise floor,
+        which then maps to full-scale MCS.
     """
 
+    scale: str = "loudness"
     rise_per_s: float = 0.4 * THESIS_TICK_HZ
     fall_per_s: float = 0.2 * THESIS_TICK_HZ
     falloff_per_s: float = 0.001 * THESIS_TICK_HZ
     power: float = 2.0
-    min_amp: float = 0.0
-    max_amp: float = 0.1
-    max_floor: float = 0.01
+    min_amp: float | None = None
+    max_amp: float | None = None
+    max_floor: float | None = None
 
     def __post_init__(self) -> None:
+        if self.scale not in DEFAULT_MAX_FLOOR:
+            raise ValueError(f"scale must be loudness or linear (got {self.scale!r})")
         check_range("rise_per_s", self.rise_per_s, 0, lo_open=True)
         check_range("fall_per_s", self.fall_per_s, 0, lo_open=True)
         check_range("falloff_per_s", self.falloff_per_s, 0)
         check_range("power", self.power, 0, lo_open=True)
-        check_range("min_amp", self.min_amp, 0)
-        check_range("max_floor", self.max_floor, 0)
-        if not self.max_amp >= self.min_amp:
+        if self.min_amp is not None and self.max_amp is not None and not self.max_amp >= self.min_amp:
             raise ValueError(f"max_amp must be >= min_amp (got {self.max_amp} < {self.min_amp})")
+
+    @property
+    def floor(self) -> float:
+        return DEFAULT_MAX_FLOOR[self.scale] if self.max_floor is None else self.max_floor
 
 
 def frame_rms(block: np.ndarray) -> tuple[float, int]:
@@ -88,9 +106,9 @@ def frame_rms(block: np.ndarray) -> tuple[float, int]:
 class RmsExtractor(Extractor):
     """Motion control signal from RMS amplitude (van Duijn 2014, 3.1 and listing 5.2).
 
-    Writes ``control['rms']`` (full-scale RMS), ``control['mcs_raw']`` (the
-    min/max mapping in [0, 1], before rise/fall) and ``control['mcs']`` (final MCS
-    in [0, 1]).
+    Writes ``control['rms']`` (full-scale RMS), ``control['amp']`` (the
+    amplitude in units of ``scale``), ``control['mcs_raw']`` (the min/max
+    mapping in [0, 1], before rise/fall) and ``control['mcs']`` (final MCS in [0, 1]).
     """
 
     name = "rms"
@@ -102,26 +120,36 @@ class RmsExtractor(Extractor):
         self._rise = p.rise_per_s * dt
         self._fall = p.fall_per_s * dt
         self._falloff = p.falloff_per_s * dt
+        self._floor = p.floor
+        self._loudness = p.scale == "loudness"
         self.nonfinite_samples = 0
         self.reset()
 
     def reset(self) -> None:
-        self.min_amp = float(self.params.min_amp)
-        self.max_amp = float(max(self.params.max_amp, self.params.max_floor))
+        p = self.params
+        self.min_amp = math.inf if p.min_amp is None else float(p.min_amp)
+        self.max_amp = -math.inf if p.max_amp is None else float(max(p.max_amp, self._floor))
         self.prev = 0.0
         self.nonfinite_samples = 0
+
+    def amplitude(self, rms: float) -> float:
+        """The amplitude of ``scale``: ``10 log10(max(rms, 1e-7))`` (SoundAnalyse loudness) or ``rms``."""
+        if self._loudness:
+            return 10.0 * math.log10(rms if rms > LOUDNESS_FLOOR_RMS else LOUDNESS_FLOOR_RMS)
+        return rms
 
     def calibrate(self, audio: np.ndarray) -> None:
         """Set min/max amplitude from a calibration recording (thesis 3.1.1)."""
         n = max(1, int(round(self.ctx.sample_rate / self.ctx.fps)))
-        levels = [frame_rms(audio[i:i + n])[0] for i in range(0, max(1, len(audio) - n + 1), n)]
+        levels = [self.amplitude(frame_rms(audio[i:i + n])[0]) for i in range(0, max(1, len(audio) - n + 1), n)]
         self.min_amp = min(levels)
-        self.max_amp = max(max(levels), self.params.max_floor)
+        self.max_amp = max(max(levels), self._floor)
 
     def step(self, block, frame) -> None:
-        amp, bad = frame_rms(block)
+        rms, bad = frame_rms(block)
         if bad:
             self.nonfinite_samples += bad
+        amp = self.amplitude(rms)
         # min/max update and mapping (listing 5.2 lines 6-8); max == min is silence
         if amp > self.max_amp:
             self.max_amp = amp
@@ -130,7 +158,7 @@ class RmsExtractor(Extractor):
         span = self.max_amp - self.min_amp
         mapped = (amp - self.min_amp) / span if span > 0.0 else 0.0
         # falloff (lines 11-13), keeping maxAmp above the floor and minAmp below maxAmp
-        self.max_amp = max(self.max_amp - self._falloff, self.params.max_floor)
+        self.max_amp = max(self.max_amp - self._falloff, self._floor)
         self.min_amp = min(self.min_amp + self._falloff, self.max_amp)
         # rise/fall limit (Eq. 3.2; lines 16-20), store previous, pow 2 (line 25)
         prev = self.prev
@@ -140,7 +168,8 @@ class RmsExtractor(Extractor):
             mcs = max(mapped, prev - self._fall)
         self.prev = mcs
         c = frame.control
-        c["rms"] = amp
+        c["rms"] = rms
+        c["amp"] = amp
         c["mcs_raw"] = mapped
         c["mcs"] = mcs ** self.params.power
 

@@ -1,17 +1,21 @@
 """Sink ``bvh``: the skeleton's motion as ``motion.bvh``, streamed chunk by chunk."""
 from __future__ import annotations
 
+import numpy as np
+
 from laughlab import hookimpl
 from laughlab.bases import Sink
-from laughlab.bvh import BvhStreamWriter
+from laughlab.bvh import format_frames, hierarchy_lines
 from laughlab.outfiles import Staging
+
+_COUNT_WIDTH = 12  # room for the frame count, patched in when the run ends
 
 
 class BvhSink(Sink):
-    """Writes ``motion.bvh``: one frame per animation frame, Frame Time 1/fps.
+    """Writes ``motion.bvh``: one BVH frame per animation frame, Frame Time 1/fps.
 
     Frames are appended as they come, so memory does not grow with the run's
-    length; the ``Frames:`` count is filled in when the run ends.
+    length; the ``Frames:`` count is written when the run ends.
     """
 
     name = "bvh"
@@ -19,17 +23,27 @@ class BvhSink(Sink):
     def open(self, run) -> None:
         super().open(run)
         self.staging = Staging()
-        self.writer = BvhStreamWriter(self.staging.path(run.out_dir / "motion.bvh"), run.skeleton, 1.0 / run.fps)
+        self.skeleton = run.skeleton
+        self._f = open(self.staging.path(run.out_dir / "motion.bvh"), "w", encoding="ascii", newline="\n")
+        self._f.write("\n".join(hierarchy_lines(run.skeleton)) + "\nMOTION\n")
+        self._count_at = self._f.tell() + len("Frames: ")
+        self._f.write(f"Frames: {'0':<{_COUNT_WIDTH}}\nFrame Time: {1.0 / run.fps:.7f}\n")
+        self.n = 0
 
     def write(self, chunk) -> None:
-        self.writer.write(chunk.poses)
+        if len(chunk.poses):
+            self._f.write(format_frames(self.skeleton, np.asarray(chunk.poses)))
+            self.n += len(chunk.poses)
 
     def close(self):
-        self.writer.close()
+        self._f.seek(self._count_at)
+        self._f.write(f"{self.n:<{_COUNT_WIDTH}}")
+        self._f.close()
         return self.staging.commit()
 
     def abort(self) -> None:
-        self.writer.close()
+        if not self._f.closed:
+            self._f.close()
         self.staging.abort()
 
 

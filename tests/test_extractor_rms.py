@@ -10,8 +10,11 @@ from laughlab.frame import Frame
 from laughlab_plugins.extractor_rms import RmsExtractor, RmsParams, frame_rms
 
 
+LINEAR = dict(scale="linear", min_amp=0.0, max_amp=0.1, max_floor=0.01)
+
+
 def run(blocks, params=None, fps=60.0, sr=600):
-    ext = RmsExtractor(params or RmsParams(), Context(fps=fps, sample_rate=sr))
+    ext = RmsExtractor(params or RmsParams(**LINEAR), Context(fps=fps, sample_rate=sr))
     out = []
     for i, b in enumerate(blocks):
         f = Frame(i, i / fps, 1 / fps)
@@ -49,9 +52,27 @@ def test_falloff_moves_max_down_and_min_up():
 
 
 def test_silence_does_not_divide_by_zero():
-    p = RmsParams(min_amp=0.0, max_amp=0.0, max_floor=0.0)
-    _, out = run([np.zeros(10)] * 5, p)
-    assert all(o["mcs"] == 0.0 for o in out)
+    for p in (RmsParams(scale="linear", min_amp=0.0, max_amp=0.0, max_floor=0.0),
+              RmsParams()):
+        _, out = run([np.zeros(10)] * 5, p)
+        assert all(o["mcs"] == 0.0 for o in out)
+
+
+def test_loudness_scale_is_soundanalyse_db_by_hand():
+    # SoundAnalyse loudness: 10 log10(rms), rms floored at 1e-7.  First frame sets min = max.
+    blocks = [np.full(10, 0.001), np.full(10, 0.1), np.full(10, 0.01)]
+    _, out = run(blocks, RmsParams())
+    assert [o["amp"] for o in out] == pytest.approx([-30.0, -10.0, -20.0])
+    assert out[0]["mcs"] == 0.0   # min = max = -30 -> silence
+    # frame 2: max -10, min -30 + 0.001 -> mapped (20 - 0.001) / (20 - 0.001) = 1, rise-limited to 0.4
+    assert out[1]["mcs_raw"] == pytest.approx(1.0)
+    assert out[1]["mcs"] == pytest.approx(0.16)
+    # frame 3: max -10.001, min -29.998: mapped (9.998) / (19.997); 0.4 + 0.4 limit does not bind
+    mapped = (-20 + 29.998) / (-10.001 + 29.998)
+    assert out[2]["mcs_raw"] == pytest.approx(mapped)
+    assert out[2]["mcs"] == pytest.approx(mapped ** 2)
+    _, out = run([np.zeros(10)], RmsParams(min_amp=-80, max_amp=0))
+    assert out[0]["amp"] == pytest.approx(-70.0)
 
 
 def test_max_floor_keeps_long_silence_silent():
@@ -76,7 +97,12 @@ samples = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32), st
 @given(st.lists(st.lists(samples, min_size=0, max_size=20), min_size=1, max_size=40))
 def test_mcs_in_unit_interval_for_any_input(blocks):
     """Silence, DC, clipping, NaN and Inf samples: MCS stays in [0, 1] and finite."""
-    ext, out = run([np.array(b, dtype=np.float32) for b in blocks])
+    for params in (RmsParams(**LINEAR), RmsParams()):
+        ext, out = run([np.array(b, dtype=np.float32) for b in blocks], params)
+        check_unit(out)
+
+
+def check_unit(out):
     for o in out:
         assert 0.0 <= o["mcs"] <= 1.0
         assert all(math.isfinite(v) for v in o.values())
@@ -93,3 +119,5 @@ def test_bad_params_rejected():
         RmsParams(rise_per_s=0)
     with pytest.raises(ValueError, match="max_amp"):
         RmsParams(min_amp=0.5, max_amp=0.1)
+    with pytest.raises(ValueError, match="scale"):
+        RmsParams(scale="log")

@@ -1,0 +1,36 @@
+# laughlab: every target builds the local virtual environment first.
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test test-all bench clips clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+## demo: run the default pipeline on the built-in synthetic laughter into runs/demo
+demo: $(STAMP)
+	$(PY) -m laughlab hydra.run.dir=runs/demo overwrite=true
+
+## test: the default test suite (slow end-to-end checks excluded)
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+## test-all: every test, the slow ones too
+test-all: $(STAMP)
+	$(PY) -m pytest -q -m ''
+
+## bench: the pipeline benchmark (per-frame time, throughput, memory)
+bench: $(STAMP)
+	$(PY) benchmarks/bench_pipeline.py
+
+## clips: regenerate the clip library's BVH files from their keyframes
+clips: $(STAMP)
+	$(PY) -m laughlab_plugins.clips.author
+
+clean:
+	rm -rf $(VENV) runs outputs multirun .pytest_cache .hypothesis

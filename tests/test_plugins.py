@@ -1,0 +1,123 @@
+"""Plugin registry: entry points, fake plugins registered in code, a plugins folder."""
+from dataclasses import dataclass
+
+import pytest
+
+from laughlab import hookimpl, plugins
+from laughlab.bases import Extractor
+from laughlab.errors import LaughlabError
+
+BUILTIN = {
+    "source": {"synthetic", "file", "mic"},
+    "extractor": {"rms"},
+    "face": {"smile"},
+    "body": {"shapes"},
+    "scheduler": {"energy", "none"},
+    "sink": {"csv", "bvh", "plots"},
+}
+
+
+def test_builtins_come_from_entry_points():
+    reg = plugins.registry()
+    for kind, names in BUILTIN.items():
+        assert names <= set(reg[kind]), kind
+        for name in names:
+            assert "laughlab" in reg[kind][name].origin and "entry point" in reg[kind][name].origin
+
+
+@dataclass
+class LoudParams:
+    gain: float = 2.0
+
+    def __post_init__(self):
+        if self.gain <= 0:
+            raise ValueError("gain must be > 0")
+
+
+class Loud(Extractor):
+    name = "loud"
+    Params = LoudParams
+
+    def step(self, block, frame):
+        frame.control["mcs"] = min(1.0, float(abs(block).max(initial=0.0)) * self.params.gain)
+
+
+class FakePlugin:
+    @hookimpl
+    def register_extractors(self, register):
+        register(Loud)
+
+
+@pytest.fixture
+def fake():
+    obj = FakePlugin()
+    plugins.pm.register(obj, name="fake-loud")
+    yield obj
+    plugins.pm.unregister(obj)
+
+
+def test_register_and_unregister_fake_plugin(fake):
+    info = plugins.get("extractor", "loud")
+    assert info.obj is Loud and info.origin == "registered: fake-loud"
+    ext = plugins.create("extractor", "loud", {"gain": 3.0}, None)
+    assert ext.params.gain == 3.0
+    plugins.pm.unregister(fake)
+    assert "loud" not in plugins.registry()["extractor"]
+    plugins.pm.register(fake, name="fake-loud")
+
+
+def test_unknown_plugin_lists_known_ones():
+    with pytest.raises(LaughlabError, match=r"unknown extractor 'nope'; choose one of: .*rms"):
+        plugins.get("extractor", "nope")
+
+
+def test_unknown_parameter_lists_valid_ones(fake):
+    with pytest.raises(LaughlabError, match=r"unknown parameter extractor.loud.gian; valid: gain"):
+        plugins.create("extractor", "loud", {"gian": 1}, None, where="extractor.loud")
+
+
+def test_bad_type_and_range_are_one_line(fake):
+    with pytest.raises(LaughlabError) as e:
+        plugins.create("extractor", "loud", {"gain": "lots"}, None)
+    assert "\n" not in str(e.value) and "gain" in str(e.value)
+    with pytest.raises(LaughlabError, match="gain must be > 0"):
+        plugins.create("extractor", "loud", {"gain": -1.0}, None)
+
+
+def test_duplicate_names_are_refused(fake):
+    other = FakePlugin()
+    plugins.pm.register(other, name="fake-loud-2")
+    try:
+        with pytest.raises(LaughlabError, match="registered twice"):
+            plugins.registry()
+    finally:
+        plugins.pm.unregister(other)
+
+
+def test_plugins_dir(tmp_path):
+    (tmp_path / "quiet_face.py").write_text(
+        "import laughlab\n"
+        "from laughlab.bases import Face\n"
+        "class Quiet(Face):\n"
+        "    name = 'quiet'\n"
+        "    def step(self, frame):\n"
+        "        frame.channels['smile'] = 0.0\n"
+        "@laughlab.hookimpl\n"
+        "def register_faces(register):\n"
+        "    register(Quiet)\n"
+    )
+    loaded = plugins.load_plugin_dir(tmp_path)
+    try:
+        info = plugins.get("face", "quiet")
+        assert info.origin.startswith("plugins dir:") and "quiet_face.py" in info.origin
+    finally:
+        for name in loaded:
+            plugins.pm.unregister(name=name)
+
+
+def test_plugins_dir_errors(tmp_path):
+    with pytest.raises(LaughlabError, match="not a folder"):
+        plugins.load_plugin_dir(tmp_path / "missing")
+    (tmp_path / "broken.py").write_text("raise RuntimeError('boom')\n")
+    with pytest.raises(LaughlabError, match="broken.py failed to import: RuntimeError: boom"):
+        plugins.load_plugin_dir(tmp_path)

@@ -1,0 +1,151 @@
+"""The energy scheduler (van Duijn 2014, Eq. 4.1, constraints 1-3, listings 5.4-5.5) by hand."""
+from dataclasses import dataclass
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from laughlab.bases import Context
+from laughlab.frame import Frame
+from laughlab_plugins.scheduler_energy import EnergyParams, EnergyScheduler
+
+
+@dataclass
+class FakeClip:
+    name: str
+    energy: float
+    duration_s: float
+    loop: bool = False
+
+
+class FakeLibrary:
+    def __init__(self, *clips):
+        self.clips = {c.name: c for c in clips}
+        self.names = list(self.clips)
+
+    def __iter__(self):
+        return iter(self.clips.values())
+
+    def __getitem__(self, name):
+        return self.clips[name]
+
+
+def make(clips, seed=0, **kw):
+    ctx = Context(fps=60.0, rng=np.random.default_rng(seed))
+    ctx._clips = FakeLibrary(*clips)
+    kw = {"decrease_per_s": 0.0, "min_inactive_s": 0.0, **kw}
+    return EnergyScheduler(EnergyParams(**kw), ctx)
+
+
+def drive(s, mcs):
+    frames = []
+    for k, m in enumerate(mcs):
+        f = Frame(k, k / 60, 1 / 60, {"mcs": m})
+        s.step(f)
+        frames.append(f)
+    return frames
+
+
+def events(frames):
+    return [(f.index, e.kind, e.clip, e.reason) for f in frames for e in f.events]
+
+
+def test_eq_4_1_energy_accumulates_mcs_once_per_tick():
+    s = make([FakeClip("big", 100.0, 1.0)], max_energy=1000)
+    frames = drive(s, [0.5] * 60)
+    # L_t = L_{t-1} + MCS(t): 0.5 per 60 Hz tick -> 30 after one second
+    assert frames[-1].channels["energy"] == pytest.approx(30.0)
+    assert not events(frames)
+
+
+def test_constraint_1_start_when_energy_exceeds_clip_energy():
+    s = make([FakeClip("a", 5.0, 1.0)])
+    frames = drive(s, [1.0] * 8)
+    # L = 1, 2, ... per frame; L > 5 first at frame index 5 (L = 6)
+    assert events(frames) == [(5, "start", "a", "")]
+    assert frames[5].channels["clip_energy"] == 5.0
+
+
+def test_active_clip_consumes_e_over_its_length():
+    s = make([FakeClip("a", 5.0, 1.0)], speed_min=1.0, speed_max=1.0)
+    frames = drive(s, [1.0] * 6 + [0.0] * 70)
+    # consumption 5 per second = 1/12 per frame for 60 frames from the start frame on
+    e = [f.channels["energy"] for f in frames]
+    assert e[5] == pytest.approx(6.0 - 5 / 60)
+    assert e[6] == pytest.approx(6.0 - 10 / 60)
+    stop = [x for x in events(frames) if x[1] == "stop"]
+    assert stop == [(65, "stop", "a", "finished")]
+    assert e[65] == pytest.approx(1.0)   # the whole energy e = 5 was used up
+
+
+def test_constraint_2_overrule_needs_c_times_energy():
+    clips = [FakeClip("a", 5.0, 1.0), FakeClip("b", 10.0, 2.0)]
+    # c = 2: 10 > 2 * 5 is false, b never overrules a
+    ev = events(drive(make(clips, overrule_c=2.0), [1.0] * 40))
+    assert ("b" not in [x[2] for x in ev if x[1] == "start" and x[0] < 65])
+    # c = 1.5: L = 6 - 1/12 when a starts, then grows by 1 - 1/12 per frame; > 10 at frame 10
+    ev = events(drive(make(clips, overrule_c=1.5, speed_min=1.0, speed_max=1.0), [1.0] * 40))
+    assert ev[:3] == [(5, "start", "a", ""), (10, "stop", "a", "overruled"), (10, "start", "b", "")]
+
+
+def test_constraint_3_minimum_inactive_time():
+    clips = [FakeClip("a", 1.0, 0.1)]
+    ev = events(drive(make(clips, min_inactive_s=0.5), [1.0] * 120))
+    starts = [x[0] for x in ev if x[1] == "start"]
+    # each restart waits more than 0.5 s (30 frames) after the clip ended
+    stops = [x[0] for x in ev if x[1] == "stop"]
+    for stop, nxt in zip(stops, starts[1:]):
+        assert nxt - stop > 30
+
+
+def test_highest_energy_candidate_wins():
+    clips = [FakeClip("small", 2.0, 1.0), FakeClip("mid", 4.0, 1.0), FakeClip("large", 50.0, 1.0)]
+    s = make(clips)
+    s.energy = 10.0
+    f = drive(s, [0.0])[0]
+    assert [(e.kind, e.clip) for e in f.events] == [("start", "mid")]
+
+
+def test_ties_are_broken_at_random_and_reproducibly():
+    clips = [FakeClip("front", 5.0, 1.0), FakeClip("back", 5.0, 1.0)]
+    picks = set()
+    for seed in range(20):
+        s = make(clips, seed=seed)
+        s.energy = 10.0
+        picks.add(drive(s, [0.0])[0].events[0].clip)
+    assert picks == {"front", "back"}
+    runs = [events(drive(make(clips, seed=3), [0.6] * 300)) for _ in range(2)]
+    assert runs[0] == runs[1]
+
+
+def test_fixed_decrease_cap_and_floor():
+    s = make([FakeClip("x", 1000.0, 1.0)], decrease_per_s=6.0, max_energy=20.0)
+    frames = drive(s, [1.0] * 60)
+    # listing 5.4 per frame: -0.1, cap at 20, +1 -> settles at 20 + 1 = 21
+    assert frames[-1].channels["energy"] == pytest.approx(21.0)
+    frames = drive(s, [0.0] * 600)
+    assert frames[-1].channels["energy"] == 0.0    # floor_zero keeps L >= 0
+
+
+def test_speed_drawn_in_range():
+    s = make([FakeClip("a", 1.0, 0.2)])
+    speeds = [e.speed for f in drive(s, [1.0] * 2000) for e in f.events if e.kind == "start"]
+    assert len(speeds) > 20 and all(0.9 <= v <= 1.4 for v in speeds)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(0, 1), min_size=1, max_size=400), st.integers(0, 2**31))
+def test_energy_finite_capped_and_one_clip_at_a_time(mcs, seed):
+    clips = [FakeClip(n, e, d) for n, e, d in [("a", 5, .9), ("b", 10, 1.7), ("c", 20, 3.0), ("d", 40, 4.9)]]
+    s = make(clips, seed=seed, decrease_per_s=3.0, min_inactive_s=2.0)
+    playing = None
+    for f in drive(s, mcs):
+        L = f.channels["energy"]
+        assert np.isfinite(L) and 0.0 <= L <= 60.0 + 60.0 / 60
+        for e in f.events:
+            if e.kind == "stop":
+                assert e.clip == playing
+                playing = None
+            else:
+                assert playing is None
+                playing = e.clip
