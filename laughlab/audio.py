@@ -97,3 +97,43 @@ def read_blocks(path: str | Path, block_s: float = 1.0) -> Iterator[np.ndarray]:
             if len(data) == 0:
                 break
             yield to_mono(data)
+
+
+class FloatWavWriter:
+    """Streams mono 32-bit float WAV (IEEE float, format 3) with a deterministic header.
+
+    libsndfile adds a PEAK chunk with a time stamp to float WAV files, so the
+    same audio would give different bytes on every run; this writer does not.
+    """
+
+    def __init__(self, path: str | Path, sample_rate: int):
+        self.f = open(path, "wb")
+        self.sample_rate = int(sample_rate)
+        self.n = 0
+        self._header()
+
+    def _header(self) -> None:
+        import struct
+
+        data_bytes = 4 * self.n
+        self.f.write(b"RIFF" + struct.pack("<I", 4 + 26 + 12 + 8 + data_bytes) + b"WAVE")
+        # fmt chunk: IEEE float, mono, rate, byte rate, block align 4, 32 bits, cbSize 0
+        self.f.write(b"fmt " + struct.pack("<IHHIIHHH", 18, 3, 1, self.sample_rate, 4 * self.sample_rate, 4, 32, 0))
+        self.f.write(b"fact" + struct.pack("<II", 4, self.n))
+        self.f.write(b"data" + struct.pack("<I", data_bytes))
+
+    def write(self, samples: np.ndarray) -> None:
+        x = np.asarray(samples, dtype="<f4")
+        self.f.write(x.tobytes())
+        self.n += len(x)
+
+    def close(self) -> None:
+        self.f.seek(0)
+        self._header()
+        self.f.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

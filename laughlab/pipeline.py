@@ -76,7 +76,7 @@ def _section(cfg: DictConfig, key: str) -> dict:
         raise LaughlabError(f"the configuration has no '{key}' group")
     missing = sorted(OmegaConf.missing_keys(node))
     if missing:
-        raise LaughlabError(f"{key}.{missing[0]} is required: set {key}.{missing[0]}=VALUE")
+        raise LaughlabError(f"{missing[0]} is required: set {missing[0]}=VALUE")
     return OmegaConf.to_container(node, resolve=True)
 
 

@@ -4,11 +4,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-import soundfile as sf
-
 from laughlab import hookimpl
-from laughlab.audio import cut_frames, n_frames_for
+from laughlab.audio import FloatWavWriter, cut_frames, n_frames_for
 from laughlab.bases import Source
 from laughlab.plugins import check_range
 from laughlab.synth import PROFILES, SyntheticLaughter
@@ -73,9 +70,9 @@ class SyntheticSource(Source):
         self.truth.write_truth(out[0])
         if self.params.save_audio:
             wav = Path(out_dir) / "input.wav"
-            with sf.SoundFile(str(wav), "w", self.sample_rate, 1, subtype="FLOAT") as f:
+            with FloatWavWriter(wav, self.sample_rate) as f:
                 for chunk in self._chunks():
-                    f.write(np.asarray(chunk, dtype=np.float32))
+                    f.write(chunk)
             out.append(wav)
         return out
 
