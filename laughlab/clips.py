@@ -93,8 +93,23 @@ class Clip:
         return (1.0 - w) * self.poses[i0] + w * self.poses[i1]
 
     def sample(self, t_s: float) -> np.ndarray:
-        """Pose vector at time ``t_s`` seconds (clamped to the end, or wrapped if ``loop``)."""
-        return self.sample_many(np.array([t_s]))[0]
+        """Pose vector at time ``t_s`` seconds (clamped to the end, or wrapped if ``loop``).
+
+        The same arithmetic as :meth:`sample_many`, without array set-up: this
+        runs once per frame in the mixer.
+        """
+        n = self.length_frames
+        f = t_s * self.fps
+        if self.loop:
+            f %= n
+        elif f <= 0.0:
+            return self.poses[0].copy()
+        elif f >= n - 1:
+            return self.poses[n - 1].copy()
+        i0 = int(f)
+        w = f - i0
+        i1 = i0 + 1 if i0 + 1 < n else 0
+        return (1.0 - w) * self.poses[i0] + w * self.poses[i1]
 
     def eyes_closed_many(self, t_s: np.ndarray) -> np.ndarray:
         """Eye closure in ``[0, 1]`` at times ``t_s`` (seconds, array-like)."""
@@ -104,7 +119,10 @@ class Clip:
 
     def eyes_closed(self, t_s: float) -> float:
         """Eye closure in ``[0, 1]`` at time ``t_s`` seconds (1 = closed)."""
-        return float(self.eyes_closed_many(t_s))
+        f = t_s * self.fps
+        if self.loop:
+            f %= self.length_frames
+        return float(np.interp(f, self._eye_x, self._eye_y))
 
 
 def _default_folder() -> Path:

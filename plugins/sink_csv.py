@@ -56,12 +56,13 @@ class CsvSink(Sink):
             self._labels = any(lab is not None for lab in chunk.labels)
             self._f.write(",".join(["time", *self._columns] + (["label"] if self._labels else [])) + "\n")
         data = np.column_stack([chunk.times] + [chunk.channels[c] for c in self._columns])
-        fmt = f"%.{self.params.precision}f"
+        n, c = data.shape
+        row = ",".join([f"%.{self.params.precision}f"] * c) + (",%s" if self._labels else "") + "\n"
+        values = (data + 0.0).tolist()  # + 0.0 writes -0.0 as 0.0
         if self._labels:
-            rows = [",".join([fmt % v for v in row] + [lab or ""]) for row, lab in zip(data, chunk.labels)]
-            self._f.write("\n".join(rows) + "\n")
-        else:
-            np.savetxt(self._f, data, fmt=fmt, delimiter=",")
+            values = [[*r, lab or ""] for r, lab in zip(values, chunk.labels)]
+        # one %-format over the whole chunk: several times faster than np.savetxt's per-row loop
+        self._f.write((row * n) % tuple(v for r in values for v in r))
         self._events.extend(chunk.events)
 
     def close(self):

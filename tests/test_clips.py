@@ -208,3 +208,17 @@ def test_contact_sheet(tmp_path, lib):
     small = ClipLibrary([lib["clap_hands"], lib["rofl"]], lib.skeleton, lib.fps)
     out = contact_sheet(tmp_path / "sheet.png", small, n_frames=3)
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_scalar_sample_equals_vectorised():
+    from laughlab.clips import ClipLibrary
+
+    lib = ClipLibrary.load()
+    rng = np.random.default_rng(0)
+    for clip in lib:
+        ts = np.r_[-0.5, 0.0, rng.uniform(-0.1, clip.duration_s * 1.5, 50), clip.duration_s]
+        many = clip.sample_many(ts)
+        eyes = clip.eyes_closed_many(ts)
+        for t, row, e in zip(ts, many, eyes):
+            assert np.array_equal(clip.sample(float(t)), row)
+            assert clip.eyes_closed(float(t)) == e
