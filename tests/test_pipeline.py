@@ -1,0 +1,281 @@
+"""The pipeline in-process: body/face/mixer by hand, streaming == offline, finiteness for any input."""
+import math
+from dataclasses import fields, is_dataclass
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import given, settings, strategies as st
+from omegaconf import OmegaConf
+
+from laughlab import pipeline, plugins
+from laughlab.audio import cut_frames, frame_edges
+from laughlab.bases import Context, Source
+from laughlab.cli import CONFIG_MODULE, _conf_dir, compose_config
+from laughlab.frame import ClipEvent, Frame
+from laughlab.mixer import Mixer
+from laughlab_plugins.body_shapes import ShapesBody, ShapesParams
+from laughlab_plugins.face_smile import SmileFace, SmileParams
+
+
+def cfg_for(*overrides):
+    cfg = compose_config(list(overrides))
+    return OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+
+
+# --- body ``shapes`` (Eqs. 3.3, 3.4) and face ``smile`` (3.3, 5.3) -------------------------
+
+def test_shapes_eq_3_3_and_3_4_by_hand():
+    body = ShapesBody(ShapesParams(), Context(fps=60))
+    f = Frame(control={"mcs": 1.0})
+    body.step(f)
+    # chest smoother rise 0.2/tick -> S = 0.2, chest = 1 - 0.2; belly rise 0.1/tick -> 0.1
+    assert f.channels["chest"] == pytest.approx(0.8)
+    assert f.channels["belly"] == pytest.approx(0.1)
+
+
+def test_shapes_extrapolate_outside_unit_interval():
+    body = ShapesBody(ShapesParams(chest_gain=2.0, chest_offset=-0.5, belly_gain=3.0), Context(fps=60))
+    for _ in range(120):
+        f = Frame(control={"mcs": 1.0})
+        body.step(f)
+    assert f.channels["chest"] == pytest.approx(-0.5)      # fully exhaled: below rest
+    assert f.channels["belly"] == pytest.approx(3.0)       # exaggerated beyond the sculpted shape
+
+
+def test_smile_and_jaw_smoothers():
+    face = SmileFace(SmileParams(), Context(fps=60))
+    f = Frame(control={"mcs": 1.0}, time_s=0.0)
+    face.step(f)
+    assert f.channels["smile"] == pytest.approx(0.03 / 0.3)
+    assert f.channels["jaw"] == pytest.approx(0.03 / 0.8)
+
+
+def blink_starts(face, seconds, clip_eyes=lambda t: 0.0, fps=60):
+    starts, prev = [], 0.0
+    for k in range(int(seconds * fps)):
+        f = Frame(k, k / fps, 1 / fps, {"mcs": 0.0})
+        f.clip_eyes = clip_eyes(k / fps)
+        face.step(f)
+        b = f.channels["blink"]
+        if b > 0 and prev == 0:
+            starts.append(k / fps)
+        prev = b
+        assert 0.0 <= f.channels["eyes_closed"] <= 1.0
+    return np.array(starts)
+
+
+def test_blink_intervals_follow_n_4_2():
+    face = SmileFace(SmileParams(), Context(fps=60, rng=np.random.default_rng(7)))
+    starts = blink_starts(face, 2000)
+    gaps = np.diff(starts) - 0.2          # interval counts from the end of a blink
+    assert len(gaps) > 300
+    assert gaps.mean() == pytest.approx(4.0 + 0.03, abs=0.3)   # N(4, 2) truncated at 0.5 s
+    assert gaps.std() == pytest.approx(1.9, abs=0.3)
+    assert gaps.min() >= 0.5 - 1 / 60
+
+
+def test_no_blink_while_a_clip_holds_the_eyes_closed():
+    face = SmileFace(SmileParams(), Context(fps=60, rng=np.random.default_rng(1)))
+    closed = lambda t: 1.0 if (t % 20) < 10 else 0.0
+    starts = blink_starts(face, 400, closed)
+    assert len(starts) > 20
+    assert all(closed(t) == 0.0 for t in starts)
+
+
+# --- mixer ------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def lib():
+    return Context().clips
+
+
+def test_mixer_plays_idle_then_clip_with_linear_blend(lib):
+    mix = Mixer(lib)
+    dt = 1 / 60
+    poses = []
+    for k in range(60):
+        f = Frame(k, k * dt, dt)
+        if k == 30:
+            f.events.append(ClipEvent(f.time_s, "start", "clap_hands", 15, 1.0, blend_s=10 / 24))
+        mix.advance(f)
+        poses.append(mix.pose(f))
+    assert np.array_equal(poses[10], lib.idle.sample(10 * dt))
+    # 5 frames into a 25-frame blend: 1/5 of the way from the idle pose at frame 29 to the clip
+    w = (5 * dt) / (10 / 24)
+    expect = poses[29] + w * (lib["clap_hands"].sample(5 * dt) - poses[29])
+    assert poses[35] == pytest.approx(expect)
+    assert poses[59] == pytest.approx(lib["clap_hands"].sample(29 * dt), abs=1e-9)
+
+
+def test_mixer_speed_clip_eyes_and_offsets(lib):
+    mix = Mixer(lib)
+    f = Frame(0, 0.0, 1 / 60, events=[ClipEvent(0.0, "start", "rofl", 40, 1.25)])
+    mix.advance(f)
+    mix.pose(f)
+    t = 2.0
+    f = Frame(120, t, 1 / 60, offsets={"spine": (1.0, 2.0, 3.0)})
+    mix.advance(f)
+    pose = mix.pose(f)
+    clip = lib["rofl"]
+    assert f.clip_eyes == clip.eyes_closed(t * 1.25)
+    c = 3 + 3 * lib.skeleton.index("spine")
+    assert pose[c:c + 3] == pytest.approx(clip.sample(t * 1.25)[c:c + 3] + [1.0, 2.0, 3.0])
+
+
+def test_mixer_returns_to_idle_when_a_clip_ends(lib):
+    mix = Mixer(lib)
+    f = Frame(0, 0.0, 1 / 60, events=[ClipEvent(0.0, "start", "lean_front1", 5, 1.0)])
+    mix.advance(f)
+    mix.pose(f)
+    for k in range(1, 200):
+        f = Frame(k, k / 60, 1 / 60)
+        mix.advance(f)
+        mix.pose(f)
+    assert mix.clip is None and f.clip_eyes == 0.0
+
+
+# --- streaming == offline -----------------------------------------------------------------
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(8000, 48000), st.sampled_from([24.0, 30.0, 60.0, 90.0]), st.integers(1, 5000),
+       st.lists(st.integers(1, 3000), min_size=1, max_size=30))
+def test_cut_frames_is_independent_of_chunking(sr, fps, n, sizes):
+    x = np.arange(n, dtype=np.float32)
+    chunks, i = [], 0
+    while i < n:
+        size = sizes[len(chunks) % len(sizes)]
+        chunks.append(x[i:i + size])
+        i += size
+    got = [b.copy() for b in cut_frames(chunks, sr, fps)]
+    edges = frame_edges(len(got), sr, fps)
+    assert np.array_equal(np.concatenate(got), x)
+    for k, b in enumerate(got[:-1]):
+        assert b[0] == edges[k] and len(b) == edges[k + 1] - edges[k]
+
+
+class ChunkedSource(Source):
+    """A stand-in for the microphone: the same audio delivered in irregular device blocks."""
+
+    name = "chunked"
+    live = True
+
+    def __init__(self, audio, sr, ctx, sizes):
+        super().__init__(None, ctx)
+        self.audio, self.sample_rate, self.sizes = audio, sr, sizes
+        self.n_frames = None
+
+    def blocks(self):
+        def chunks():
+            i, k = 0, 0
+            while i < len(self.audio):
+                s = self.sizes[k % len(self.sizes)]
+                yield self.audio[i:i + s]
+                i, k = i + s, k + 1
+        return cut_frames(chunks(), self.sample_rate, self.ctx.fps)
+
+
+def run_channels(pipe, tmp_path):
+    pipe.sinks = [plugins.create("sink", "csv", {}, pipe.ctx)]
+    pipeline.execute(pipe, tmp_path)
+    return (tmp_path / "channels.csv").read_bytes(), (tmp_path / "events.csv").read_bytes()
+
+
+def test_live_chunked_run_equals_offline_run(tmp_path):
+    offline = pipeline.build(cfg_for("input.duration_s=8", "input.save_audio=false"))
+    audio = offline.source.truth.audio()
+    a = run_channels(offline, tmp_path / "a")
+    live = pipeline.build(cfg_for("input.duration_s=8", "input.save_audio=false"))
+    live.source = ChunkedSource(audio, 16000, live.ctx, [160, 1024, 37, 4096, 512])
+    b = run_channels(live, tmp_path / "b")
+    assert a == b
+
+
+# --- every channel finite for any input -----------------------------------------------------
+
+class ArraySource(Source):
+    name = "array"
+
+    def __init__(self, audio, ctx):
+        super().__init__(None, ctx)
+        self.audio, self.sample_rate = audio, 8000
+        self.n_frames = None
+
+    def blocks(self):
+        return cut_frames([self.audio], self.sample_rate, self.ctx.fps)
+
+
+special = st.sampled_from([0.0, 1.0, -1.0, 1e30, -1e30, float("nan"), float("inf"), -float("inf"), 1e-30])
+audio_strategy = st.one_of(
+    st.lists(st.one_of(st.floats(-1.5, 1.5, width=32), special), min_size=1, max_size=4000),
+    st.tuples(st.floats(-1, 1), st.integers(1, 8000)).map(lambda t: [t[0]] * t[1]),   # DC and silence
+)
+
+
+@pytest.fixture(scope="module")
+def built():
+    return pipeline.build(cfg_for("input.duration_s=1", "input.save_audio=false"))
+
+
+@settings(max_examples=40, deadline=None)
+@given(samples=audio_strategy, seed=st.integers(0, 1000))
+def test_every_channel_finite_and_mcs_in_unit_interval(built, tmp_path_factory, samples, seed):
+    pipe = built
+    pipe.ctx.rng = np.random.default_rng(seed)
+    pipe.source = ArraySource(np.array(samples, dtype=np.float32), pipe.ctx)
+    rec = []
+
+    class Collect:
+        def open(self, run): pass
+        def write(self, chunk): rec.append(chunk)
+        def close(self): return []
+        def abort(self): pass
+
+    pipe.sinks = [Collect()]
+    pipeline.execute(pipe, tmp_path_factory.mktemp("finite"))
+    for chunk in rec:
+        assert np.isfinite(chunk.poses).all()
+        for name, v in chunk.channels.items():
+            assert np.isfinite(v).all(), name
+        assert ((chunk.channels["mcs"] >= 0) & (chunk.channels["mcs"] <= 1)).all()
+
+
+# --- configuration ------------------------------------------------------------------------
+
+GROUP_KIND = {"input": "source", "extractor": "extractor", "face": "face", "body": "body", "scheduler": "scheduler"}
+
+
+@pytest.mark.parametrize("group", list(GROUP_KIND))
+def test_yaml_defaults_equal_the_dataclass_defaults(group):
+    folder = _conf_dir().joinpath(group)
+    for f in folder.iterdir():
+        if not f.name.endswith(".yaml"):
+            continue
+        values = yaml.safe_load(f.read_text())
+        info = plugins.get(GROUP_KIND[group], values.pop("name"))
+        params = info.obj.Params
+        if not is_dataclass(params):
+            assert not values
+            continue
+        defaults = OmegaConf.to_container(OmegaConf.structured(params))
+        assert set(values) == {fl.name for fl in fields(params)}, f.name
+        for key, v in values.items():
+            if v != "???":
+                assert same(v, defaults[key]), (f.name, key, v, defaults[key])
+
+
+def same(a, b):
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
+    if isinstance(a, float) or isinstance(b, float):
+        return a == pytest.approx(b, rel=1e-6)
+    return a == b
+
+
+@pytest.mark.parametrize("group", ["input", "extractor", "face", "body", "scheduler", "output"])
+def test_every_config_option_composes(group):
+    for f in _conf_dir().joinpath(group).iterdir():
+        if f.name.endswith(".yaml"):
+            extra = ["input.path=x.wav"] if (group, f.name) == ("input", "file.yaml") else []
+            cfg = cfg_for(f"{group}={f.name[:-5]}", *extra)
+            assert cfg[group] is not None
