@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-all bench clips clean
+.PHONY: demo test test-all bench clips docs clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -34,3 +34,11 @@ clips: $(STAMP)
 
 clean:
 	rm -rf $(VENV) runs outputs multirun .pytest_cache .hypothesis
+
+## docs: regenerate the README's pictures from a fixed run (seed 0, 30 s of synthetic laughter)
+docs: $(STAMP)
+	rm -rf runs/docs
+	$(PY) -m laughlab hydra.run.dir=runs/docs seed=0
+	mkdir -p docs/img
+	cp runs/docs/plots/fig3_2_mcs.png runs/docs/plots/fig4_2_energy.png runs/docs/plots/filmstrip.png docs/img/
+	$(PY) -c "from laughlab.clips import ClipLibrary; from laughlab.figure import contact_sheet; contact_sheet('docs/img/clips.png', ClipLibrary.load())"

@@ -206,8 +206,13 @@ def _remove_new_run_dir(out_dir: Path) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv[:1] == ["plugins"]:
+    if "plugins" in argv:
         try:
+            from . import plugins
+
+            for a in argv:
+                if a.startswith("plugins_dir="):
+                    plugins.load_plugin_dir(a.split("=", 1)[1])
             list_plugins()
         except LaughlabError as exc:
             fail(str(exc))

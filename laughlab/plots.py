@@ -122,3 +122,29 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     fig.savefig(path, format="png")
     plt.close(fig)
     return path
+
+
+def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captions: Sequence[str],
+              title: str = "") -> Path:
+    """A row of stick figures (the run's skeleton at chosen frames) with a caption under each."""
+    from .figure import draw_skeleton
+    from .skeleton import forward_kinematics
+
+    n = len(times)
+    fig, axes = plt.subplots(1, max(n, 1), figsize=(1.25 * max(n, 1), 2.0), dpi=150, squeeze=False)
+    if n:
+        pos = forward_kinematics(skeleton, np.asarray(poses), end_sites=True)
+    for k, ax in enumerate(axes[0]):
+        ax.set_axis_off()
+        if k >= n:
+            continue
+        draw_skeleton(ax, skeleton, pos[k, :skeleton.n_joints], pos[k, skeleton.n_joints:], 60.0, 10.0, lw=1.4)
+        ax.set_xlim(-110, 110)
+        ax.set_ylim(-8, 195)
+        ax.set_title(f"{times[k]:.1f} s", fontsize=7, pad=1)
+        ax.text(0.5, -0.02, captions[k], transform=ax.transAxes, ha="center", va="top", fontsize=5.5)
+    fig.suptitle(title or "The character at each clip (skeleton from motion.bvh)", fontsize=8)
+    fig.subplots_adjust(left=0.01, right=0.99, top=0.84, bottom=0.2, wspace=0.05)
+    fig.savefig(path, format="png")
+    plt.close(fig)
+    return path

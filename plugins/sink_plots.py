@@ -21,25 +21,33 @@ class PlotsParams:
         Plot at most this many seconds from the start (long runs stay readable).
     power : float
         Exponent of the MCS for Fig. 3.2 (the ``rms`` extractor's ``power``).
+    filmstrip_frames : int
+        Stick figures in ``plots/filmstrip.png`` (0: no filmstrip): one in the
+        middle of each clip played, in order, else evenly spaced.
     """
 
     max_seconds: float = 60.0
     power: float = 2.0
+    filmstrip_frames: int = 8
 
     def __post_init__(self) -> None:
         check_range("max_seconds", self.max_seconds, 0, lo_open=True)
+        check_range("filmstrip_frames", self.filmstrip_frames, 0, 24)
 
 
 class PlotsSink(Sink):
     """Keeps the signals the figures need (a few floats per frame) and draws them at the end.
 
     ``plots/fig3_2_mcs.png`` needs the ``mcs_raw`` control (``rms`` extractor);
-    ``plots/fig4_2_energy.png`` needs ``mcs`` and the ``energy`` channel.
+    ``plots/fig4_2_energy.png`` needs ``mcs`` and the ``energy`` channel;
+    ``plots/filmstrip.png`` shows the skeleton at a few moments (poses are kept
+    at 5 Hz over the plotted stretch).
     """
 
     name = "plots"
     Params = PlotsParams
-    _keys = ("mcs_raw", "mcs", "energy")
+    _keys = ("mcs_raw", "mcs", "energy", "smile", "jaw", "eyes_closed")
+    _pose_hz = 5.0
 
     def open(self, run) -> None:
         super().open(run)
@@ -48,6 +56,9 @@ class PlotsSink(Sink):
         self.events: list = []
         self.limit = int(self.params.max_seconds * run.fps)
         self.n = 0
+        self.pose_every = max(1, int(round(run.fps / self._pose_hz)))
+        self.pose_idx: list = []
+        self.poses: list = []
 
     def write(self, chunk) -> None:
         take = max(0, min(len(chunk.times), self.limit - self.n))
@@ -57,6 +68,10 @@ class PlotsSink(Sink):
                 if k in chunk.channels:
                     self.cols[k].append(chunk.channels[k][:take])
             self.events.extend(ev for ev in chunk.events if ev.time_s < self.params.max_seconds)
+            first = (-self.n) % self.pose_every
+            idx = np.arange(first, take, self.pose_every)
+            self.pose_idx.append(idx + self.n)
+            self.poses.append(chunk.poses[idx])
         self.n += len(chunk.times)
 
     def close(self):
@@ -75,7 +90,27 @@ class PlotsSink(Sink):
         if "mcs" in data and "energy" in data:
             plots.figure_4_2(self.staging.path(out / "fig4_2_energy.png"), t, data["mcs"], data["energy"],
                              self.events, bouts)
+        if self.params.filmstrip_frames and self.poses:
+            self._filmstrip(out / "filmstrip.png", data)
         return self.staging.commit()
+
+    def _filmstrip(self, path, data) -> None:
+        from laughlab import plots
+
+        idx = np.concatenate(self.pose_idx)
+        poses = np.concatenate(self.poses)
+        n = self.params.filmstrip_frames
+        blocks = plots.clip_blocks(self.events, float(data["time"][-1]))
+        wanted = [(0.5 * (b[1] + b[2]), b[0]) for b in blocks][:n]
+        if not wanted:
+            wanted = [(t, "idle") for t in np.linspace(0, data["time"][-1], n)]
+        pick = [int(np.argmin(np.abs(idx / self.run.fps - t))) for t, _ in wanted]
+        frames = idx[pick]
+        caps = []
+        for (t, name), f in zip(wanted, frames):
+            face = ", ".join(f"{k} {data[k][f]:.2f}" for k in ("smile", "jaw") if k in data)
+            caps.append(f"{name}\n{face}")
+        plots.filmstrip(self.staging.path(path), self.run.skeleton, frames / self.run.fps, poses[pick], caps)
 
     def abort(self) -> None:
         self.staging.abort()
