@@ -1,0 +1,79 @@
+"""Audio sources: file formats, sample rates, channel mixing, block reading, the microphone error."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from laughlab.audio import n_frames_for, probe_file, read_blocks
+from laughlab.bases import Context
+from laughlab.errors import LaughlabError
+from laughlab_plugins.source_file import FileParams, FileSource
+
+
+def tone(sr, seconds=1.0, channels=1):
+    t = np.arange(int(sr * seconds)) / sr
+    x = 0.3 * np.sin(2 * np.pi * 220 * t) * (t % 0.25 < 0.12)
+    return np.repeat(x[:, None], channels, axis=1) if channels > 1 else x
+
+
+@pytest.mark.parametrize("ext, fmt, subtype", [
+    ("wav", "WAV", "PCM_16"), ("wav", "WAV", "FLOAT"), ("flac", "FLAC", "PCM_24"),
+    ("ogg", "OGG", "VORBIS"), ("mp3", "MP3", "MPEG_LAYER_III"),
+])
+def test_formats_read_in_frames(tmp_path, ext, fmt, subtype):
+    path = tmp_path / f"laugh.{ext}"
+    sf.write(path, tone(44100), 44100, format=fmt, subtype=subtype)
+    src = FileSource(FileParams(str(path)), Context(fps=60))
+    src.open()
+    blocks = list(src.blocks())
+    info = sf.info(str(path))
+    assert len(blocks) == src.n_frames == n_frames_for(info.frames, 44100, 60)
+    assert sum(len(b) for b in blocks) == info.frames
+    assert all(b.dtype == np.float32 for b in blocks)
+    loud = [float(np.sqrt(np.mean(np.square(b)))) for b in blocks]
+    assert max(loud) > 0.1
+
+
+@pytest.mark.parametrize("sr", [8000, 11025, 22050, 44100, 48000, 96000, 192000])
+def test_sample_rates_8_to_192k(tmp_path, sr):
+    path = tmp_path / "x.wav"
+    sf.write(path, tone(sr, 0.5), sr)
+    src = FileSource(FileParams(str(path)), Context(fps=60))
+    src.open()
+    blocks = list(src.blocks())
+    assert src.sample_rate == sr and len(blocks) == 30
+    assert [len(b) for b in blocks[:3]] == [round(sr / 60 * (k + 1)) - round(sr / 60 * k) for k in range(3)]
+
+
+@pytest.mark.parametrize("sr", [4000, 384000])
+def test_rates_outside_the_range_are_refused(tmp_path, sr):
+    path = tmp_path / "x.wav"
+    sf.write(path, tone(sr, 0.1), sr)
+    with pytest.raises(LaughlabError, match="outside 8000-192000 Hz"):
+        probe_file(path)
+
+
+def test_channels_mixed_to_mono(tmp_path):
+    path = tmp_path / "st.wav"
+    x = np.stack([np.full(1600, 0.5), np.full(1600, -0.1), np.full(1600, 0.2)], axis=1)
+    sf.write(path, x, 16000, subtype="FLOAT")
+    mono = np.concatenate(list(read_blocks(path)))
+    assert mono == pytest.approx(np.full(1600, 0.2), abs=1e-6)
+
+
+def test_reads_in_blocks_of_about_a_second(tmp_path):
+    path = tmp_path / "long.wav"
+    sf.write(path, np.zeros(16000 * 5 + 7), 16000)
+    sizes = [len(b) for b in read_blocks(path)]
+    assert max(sizes) == 16000 and sum(sizes) == 16000 * 5 + 7
+
+
+def test_microphone_without_a_device_is_one_clear_line(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "laughlab", "input=mic", f"hydra.run.dir={tmp_path / 'run'}"],
+                       capture_output=True, text=True, env={"PATH": "/usr/bin:/bin", "HOME": str(tmp_path)})
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and ("microphone" in lines[0] or "sounddevice" in lines[0])
+    assert not (tmp_path / "run").exists()
