@@ -28,6 +28,11 @@ class ClipEvent:
         Playback speed factor (1 = the clip's authored speed).
     blend_s : float
         Blend-in time of a start (s).
+    offset_s : float
+        Where in the clip playback starts (s of clip time); 0 = its first frame.
+    end_s : float or None
+        Where in the clip playback ends (s of clip time); None = the clip's end.
+        With ``offset_s`` this plays a segment of a clip (segment concatenation).
     reason : str
         For stops: ``"finished"``, ``"overruled"`` or ``"end"`` (end of input).
     """
@@ -39,6 +44,8 @@ class ClipEvent:
     speed: float = 1.0
     blend_s: float = 0.0
     reason: str = ""
+    offset_s: float = 0.0
+    end_s: float | None = None
 
 
 @dataclass(slots=True)

@@ -39,6 +39,8 @@ class Mixer:
         self.clip = None          # the playing clip, or None for idle
         self.clip_start = 0.0     # time the clip started (s)
         self.speed = 1.0
+        self.offset = 0.0         # clip time at the start (s)
+        self.end = 0.0            # clip time where playback ends (s)
         self.idle_start = 0.0     # time idle (re)started (s)
         self.blend_from: np.ndarray | None = None
         self.blend_start = 0.0
@@ -59,13 +61,14 @@ class Mixer:
             if ev.kind == "start":
                 self._switch(t, ev.blend_s)
                 self.clip = self.library[ev.clip]
-                self.clip_start, self.speed = t, ev.speed
+                self.clip_start, self.speed, self.offset = t, ev.speed, ev.offset_s
+                self.end = self.clip.duration_s if ev.end_s is None else ev.end_s
             elif ev.kind == "stop" and self.clip is not None and ev.clip == self.clip.name:
                 self._switch(t, self.idle_blend_s)
                 self.clip, self.idle_start = None, t
         if self.clip is not None:
-            local = (t - self.clip_start) * self.speed
-            if local >= self.clip.duration_s:  # scheduler-less end of a clip
+            local = self.offset + (t - self.clip_start) * self.speed
+            if local >= self.end:  # the clip (or segment) played to its end
                 self._switch(t, self.idle_blend_s)
                 self.clip, self.idle_start = None, t
                 frame.clip_eyes = 0.0
@@ -78,7 +81,7 @@ class Mixer:
         """The skeleton pose of this frame (BVH channel vector)."""
         t = frame.time_s
         if self.clip is not None:
-            pose = self.clip.sample((t - self.clip_start) * self.speed)
+            pose = self.clip.sample(self.offset + (t - self.clip_start) * self.speed)
         else:
             pose = self.idle.sample(t - self.idle_start)
         if self.blend_from is not None:
