@@ -28,7 +28,7 @@ class CsvParams:
             raise ValueError(f"precision must be in 1..17 (got {self.precision})")
 
 
-EVENT_COLUMNS = ("time", "event", "clip", "energy", "speed", "reason")
+EVENT_COLUMNS = ("time", "event", "clip", "energy", "speed", "reason", "offset", "end")
 
 
 class CsvSink(Sink):
@@ -37,7 +37,9 @@ class CsvSink(Sink):
     ``channels.csv``: column ``time`` (s), one column per named channel in the
     order the plugins wrote them, and ``label`` when the extractor gives
     pseudo-phoneme labels.  ``events.csv``: one row per clip start or stop with
-    ``time`` (s), ``event``, ``clip``, ``energy``, ``speed`` and ``reason``.
+    ``time`` (s), ``event``, ``clip``, ``energy``, ``speed``, ``reason``, and
+    ``offset``/``end``: the stretch of clip time played (s; ``end`` empty = the
+    clip's end), which segment concatenation uses.
     """
 
     name = "csv"
@@ -71,7 +73,9 @@ class CsvSink(Sink):
             w = csv.writer(f, lineterminator="\n")
             w.writerow(EVENT_COLUMNS)
             for ev in self._events:
-                w.writerow([f"{ev.time_s:.6f}", ev.kind, ev.clip, f"{ev.energy:g}", f"{ev.speed:.6f}", ev.reason])
+                end = "" if ev.end_s is None else f"{ev.end_s:.6f}"
+                w.writerow([f"{ev.time_s:.6f}", ev.kind, ev.clip, f"{ev.energy:g}", f"{ev.speed:.6f}", ev.reason,
+                            f"{ev.offset_s:.6f}", end])
         return self.staging.commit()
 
     def abort(self) -> None:

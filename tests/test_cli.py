@@ -44,7 +44,7 @@ def test_run_directory_contract(default_run):
     assert np.allclose(np.diff(ch.time), 1 / 60, atol=1e-6)
     assert np.isfinite(ch.drop(columns="time").to_numpy()).all()
     ev = pd.read_csv(d / "events.csv")
-    assert list(ev.columns) == ["time", "event", "clip", "energy", "speed", "reason"]
+    assert list(ev.columns) == ["time", "event", "clip", "energy", "speed", "reason", "offset", "end"]
     assert (ev.event == "start").sum() >= 1
     m = json.loads((d / "metrics.json").read_text())
     for key in ("frame_ms_p50", "frame_ms_p99", "realtime_factor", "n_frames"):

@@ -1,0 +1,1 @@
+"""The evaluation harness: corpus, trials, metrics, results and reports (ARCHITECTURE.md section 5)."""

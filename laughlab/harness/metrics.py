@@ -1,0 +1,103 @@
+"""Metrics registered by name (the pattern of lm-evaluation-harness).
+
+A metric is a function of one trial's outputs (:class:`~laughlab.harness.trialdata.TrialData`)
+returning a float (NaN when it does not apply, e.g. no ground truth).  Each has
+a stable name, ``higher_is_better`` (None when neither is), units, and a
+docstring with its formula.  Built-in metrics are a plugin
+(``laughlab_plugins.metrics_laughter``) registered through ``register_metrics``
+like any third-party metric.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from .trialdata import TrialData
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A named metric.
+
+    Attributes
+    ----------
+    name : str
+    fn : callable
+        ``fn(trial) -> float``.
+    higher_is_better : bool or None
+    units : str
+    """
+
+    name: str
+    fn: Callable[[TrialData], float]
+    higher_is_better: bool | None
+    units: str
+
+    @property
+    def description(self) -> str:
+        doc = (self.fn.__doc__ or "").strip()
+        return doc.splitlines()[0] if doc else ""
+
+    def __call__(self, trial: TrialData) -> float:
+        return self.fn(trial)
+
+
+def metric(name: str, higher_is_better: bool | None, units: str):
+    """Decorator turning ``fn(trial) -> float`` into a :class:`Metric`."""
+
+    def wrap(fn):
+        return Metric(name, fn, higher_is_better, units)
+
+    return wrap
+
+
+def registered() -> dict[str, Metric]:
+    """All metrics, by name."""
+    from .. import plugins
+
+    return {name: info.obj for name, info in plugins.registry()["metric"].items()}
+
+
+def compute(trial: TrialData, names: list[str] | None = None) -> dict[str, float]:
+    """Evaluate metrics on one trial; a metric that fails on missing data gives NaN."""
+    out = {}
+    for name, m in registered().items():
+        if names is not None and name not in names:
+            continue
+        try:
+            v = float(m(trial))
+        except (KeyError, ValueError, ZeroDivisionError):
+            v = float("nan")
+        out[name] = v if math.isfinite(v) else float("nan")
+    return out
+
+
+def best_lag_correlation(x: np.ndarray, y: np.ndarray, fps: float, max_lag_s: float) -> tuple[float, float, int]:
+    """Pearson r between ``x`` and ``y`` delayed by a lag in [0, max_lag_s]; the lag maximising r.
+
+    ``r(k) = corr(x[t], y[t + k])`` for k = 0 .. round(max_lag_s * fps) frames:
+    the animation ``y`` answers the sound ``x`` k frames later.
+
+    Returns
+    -------
+    r : float
+        Pearson correlation at the best lag (NaN if either signal is constant).
+    lag_s : float
+        The best lag (s).
+    k : int
+        The best lag (frames).
+    """
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    n = min(len(x), len(y))
+    best = (float("nan"), float("nan"), 0)
+    for k in range(0, min(int(round(max_lag_s * fps)), n - 3) + 1):
+        a, b = x[: n - k], y[k:n]
+        if a.std() == 0 or b.std() == 0:
+            continue
+        r = float(np.corrcoef(a, b)[0, 1])
+        if not r <= best[0]:  # also replaces the NaN start
+            best = (r, k / fps, k)
+    return best

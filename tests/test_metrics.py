@@ -1,0 +1,125 @@
+"""Every metric on hand-built channels, events and ground truth with known answers."""
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from laughlab.harness.metrics import best_lag_correlation, compute, registered
+from laughlab.harness.trialdata import Truth, TrialData
+
+FPS = 10.0
+
+
+def truth(bouts, calls=()):
+    rows = [("bout", i, on, off, inten, np.nan) for i, (on, off, inten) in enumerate(bouts)]
+    rows += [("call", b, on, off, inten, 300.0) for b, on, off, inten in calls]
+    t = pd.DataFrame(rows, columns=["kind", "bout", "onset_s", "offset_s", "intensity", "f0_hz"])
+    return Truth(t[t.kind == "bout"].reset_index(drop=True), t[t.kind == "call"].reset_index(drop=True))
+
+
+def events(rows):
+    """rows: (time, event, clip, energy, speed, reason[, offset, end])"""
+    full = [tuple(r) + (0.0, np.nan)[len(r) - 6:] if len(r) < 8 else tuple(r) for r in rows]
+    return pd.DataFrame(full, columns=["time", "event", "clip", "energy", "speed", "reason", "offset", "end"])
+
+
+def trial(seconds=20.0, tr=None, ev=(), **channels):
+    n = int(seconds * FPS)
+    ch = {"time": np.arange(n) / FPS}
+    for k, v in channels.items():
+        ch[k] = v(ch["time"]) if callable(v) else v
+    return TrialData(pd.DataFrame(ch), events(list(ev)), FPS, tr,
+                     {"frame_ms_p50": 0.02, "frame_ms_p99": 0.05, "realtime_factor": 800.0})
+
+
+def test_registry_has_stable_names_with_docs():
+    names = set(registered())
+    assert {"intensity_r_clip", "onset_latency_median_s", "miss_rate", "cutoff_rate", "clip_entropy",
+            "jaw_onset_latency_s", "frame_ms_p99", "realtime_factor"} <= names
+    for m in registered().values():
+        assert m.description and m.units
+        assert m.higher_is_better in (True, False, None)
+
+
+def test_best_lag_correlation_finds_a_known_delay():
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=400)
+    y = np.r_[np.zeros(7), x[:-7]]            # y(t + 7 frames) = x(t)
+    r, lag_s, k = best_lag_correlation(x, y, FPS, 2.0)
+    assert k == 7 and lag_s == pytest.approx(0.7) and r == pytest.approx(1.0)
+
+
+def test_intensity_tracking_with_a_delayed_copy():
+    tr = truth([(2.0, 6.0, 0.8)], [(0, 2.0, 2.2, 0.5), (0, 3.0, 3.2, 1.0), (0, 4.0, 4.2, 0.3)])
+    t = trial(tr=tr)
+    delayed = np.r_[np.zeros(5), t.laughter_intensity[:-5]] * 40.0   # clip energy answers 0.5 s late
+    t.channels["clip_energy"] = delayed
+    m = compute(t)
+    assert m["intensity_r_clip"] == pytest.approx(1.0)
+    assert m["intensity_rho_clip"] == pytest.approx(1.0, abs=0.02)
+    assert m["intensity_lag_clip_s"] == pytest.approx(0.5)
+    assert math.isnan(m["intensity_r_kinetic"])          # no motion.bvh
+
+
+def test_onset_latency_miss_rate_offset_and_silent_starts():
+    tr = truth([(1.0, 3.0, 0.5), (6.0, 8.0, 0.9), (12.0, 13.0, 0.4)])
+    ev = [(1.5, "start", "lean_front1", 5, 1.0, ""),          # 0.5 s into bout 0
+          (2.5, "stop", "lean_front1", 5, 1.0, "overruled"),
+          (2.5, "start", "clap_hands", 15, 1.0, ""),           # plays until 4.5: tail 1.5 s after bout 0
+          (4.5, "stop", "clap_hands", 15, 1.0, "finished"),
+          (7.0, "start", "rofl", 40, 1.0, ""),                 # 1.0 s into bout 1; ends 9.0 -> tail 1.0
+          (9.0, "stop", "rofl", 40, 1.0, "finished"),
+          (10.5, "start", "point1", 20, 1.0, ""),              # 2.5 s after bout 1 ended: silent start
+          (11.5, "stop", "point1", 20, 1.0, "overruled")]      # bout 2 has no start: a miss
+    m = compute(trial(tr=tr, ev=ev))
+    assert m["onset_latency_median_s"] == pytest.approx(0.75)   # median(0.5, 1.0)
+    assert m["onset_latency_p90_s"] == pytest.approx(0.95)      # 0.5 + 0.9 * 0.5
+    assert m["miss_rate"] == pytest.approx(1 / 3)
+    # tails: bout 0 -> 1.5; bout 1 -> max(9.0, 11.5) - 8 = 3.5; bout 2 -> 0 (nothing plays after 13)
+    assert m["offset_tail_s"] == pytest.approx(1.5)
+    assert m["silent_start_rate"] == pytest.approx(1 / 4)
+
+
+def test_cutoff_repetition_and_entropy():
+    # lean_front1 lasts 22/24 s; stopped after 0.2 s at speed 1 -> 22% played: a cut-off
+    ev = [(0.0, "start", "lean_front1", 5, 1.0, ""), (0.2, "stop", "lean_front1", 5, 1.0, "overruled"),
+          (0.2, "start", "rofl", 40, 1.0, ""), (5.075, "stop", "rofl", 40, 1.0, "finished"),
+          (6.0, "start", "lean_front1", 5, 1.0, ""), (6.5, "stop", "lean_front1", 5, 1.0, "overruled"),
+          (6.5, "start", "lean_front1", 5, 1.0, ""), (7.5, "stop", "lean_front1", 5, 1.0, "finished")]
+    m = compute(trial(ev=ev))
+    assert m["cutoff_rate"] == pytest.approx(1 / 4)            # 0.5 s of 0.917 s is more than half
+    assert m["repetition_rate"] == pytest.approx(1 / 4)        # only the start at 6.5 (after 6.0)
+    p = np.array([3, 1]) / 4
+    assert m["clip_entropy"] == pytest.approx(-(p * np.log(p)).sum() / np.log(11))
+
+
+def test_segment_played_fraction_uses_offset_and_end():
+    ev = [(0.0, "start", "rofl", 40, 2.0, "", 1.0, 2.0),        # a 1 s segment at double speed
+          (0.2, "stop", "rofl", 40, 2.0, "next", 1.0, 2.0)]     # 0.4 s of clip time played
+    t = trial(ev=ev)
+    p = t.plays()
+    assert p.fraction[0] == pytest.approx(0.4) and p.length[0] == pytest.approx(1.0)
+    assert compute(t)["cutoff_rate"] == 1.0
+
+
+def test_face_latency_and_jaw_correlation():
+    tr = truth([(1.0, 5.0, 0.8)], [(0, 1.0, 1.3, 1.0), (0, 3.0, 3.3, 0.5)])
+    t = trial(10.0, tr=tr)
+    env = tr.intensity(t.times)
+    jaw = np.r_[np.zeros(2), env[:-2]]                       # rises 0.2 s after each call onset
+    smile = np.clip((t.times - 1.4) * 0.5, 0, 1)             # starts rising at 1.4 s, 0.05 every 0.1 s
+    t.channels["jaw"] = jaw
+    t.channels["smile"] = smile
+    m = compute(t)
+    assert m["jaw_onset_latency_s"] == pytest.approx(0.2)
+    assert m["jaw_call_r"] == pytest.approx(1.0)
+    # call 1 at 1.0: smile rises 0.05 at 1.5 s -> 0.5 s; call 2 at 3.0: already rising -> 0.1 s
+    assert m["smile_onset_latency_s"] == pytest.approx(0.3)
+
+
+def test_compute_metrics_pass_through_and_missing_truth_gives_nan():
+    m = compute(trial(rms=lambda t: np.abs(np.sin(t))))
+    assert m["frame_ms_p99"] == 0.05 and m["realtime_factor"] == 800.0
+    for name in ("onset_latency_median_s", "miss_rate", "silent_start_rate", "jaw_onset_latency_s"):
+        assert math.isnan(m[name]), name
