@@ -156,7 +156,13 @@ def preflight(argv: list[str]) -> None:
             raise LaughlabError(f"hydra.run.dir {run_dir} exists and is not a folder")
         if any((run_dir / m).exists() for m in RUN_MARKERS):
             raise LaughlabError(f"{run_dir} already holds a run; choose another hydra.run.dir or add overwrite=true")
-    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    if cfg.get("harness"):
+        from .harness.corpus import build_corpus
+        from .harness.runner import check_conditions
+
+        check_conditions(cfg.harness.get("conditions"))
+        build_corpus(OmegaConf.to_container(cfg.harness.get("corpus") or {}, resolve=True))
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
     pipe = pipeline.build(cfg)
     pipe.source.close()
 
@@ -185,6 +191,13 @@ def task(cfg) -> dict:
 
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     try:
+        if cfg.get("harness"):
+            from .harness.experiment import run_experiment
+
+            doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
+            print(f"{doc['experiment']}: {doc['n_trials']} trials -> {out_dir / 'results.json'}; "
+                  f"report: python -m laughlab report {out_dir}")
+            return doc
         pipe = pipeline.build(cfg)
         return pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
     except LaughlabError as exc:
@@ -204,8 +217,30 @@ def _remove_new_run_dir(out_dir: Path) -> None:
         pass
 
 
+def report_command(args: list[str]) -> None:
+    """``python -m laughlab report RUN_DIR [--out DIR]``: Markdown report with figures."""
+    import argparse
+
+    from .harness.report import write_report
+
+    parser = argparse.ArgumentParser(prog="python -m laughlab report",
+                                     description="Write reports/<experiment>/README.md from a run or sweep folder.")
+    parser.add_argument("run_dir", help="an experiment's run folder (results.json) or a multirun sweep folder")
+    parser.add_argument("--out", help="report folder (default: reports/<experiment>)")
+    ns = parser.parse_args(args)
+    command = "python -m laughlab report " + " ".join(args)
+    path = write_report(ns.run_dir, ns.out, command)
+    print(f"report written: {path}")
+
+
 def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["report"]:
+        try:
+            report_command(argv[1:])
+        except LaughlabError as exc:
+            fail(str(exc))
+        return
     if "plugins" in argv:
         try:
             from . import plugins

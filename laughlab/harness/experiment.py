@@ -1,0 +1,137 @@
+"""Running an experiment: the corpus x conditions x seeds, then results, plots and a summary.
+
+An experiment is a config under ``conf/experiment/`` with a ``harness``
+section, plus optional code under ``experiments/`` (``harness.module``) that
+adds experiment-specific numbers and figures::
+
+    harness:
+      name: energy_vs_concat
+      module: laughlab_experiments.energy_vs_concat   # optional: def extra(run) -> dict
+      conditions: {energy: [scheduler=energy], concat: [scheduler=concat]}
+      corpus: {profiles: [mild, intense], seeds: 20, duration_s: 30.0, folder: null}
+      run_seeds: [0]          # seeds of recordings (synthetic inputs use their own seed)
+      showcase: mixed-s00     # the input drawn for every condition (Fig. 4.2 style)
+      jobs: 2                 # parallel trial processes
+      keep_trials: false      # keep every trial's outputs
+"""
+from __future__ import annotations
+
+import importlib
+import shutil
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from omegaconf import OmegaConf
+
+from ..errors import LaughlabError
+from . import results as res
+from .corpus import Item, build_corpus, synthetic_items
+from .metrics import registered
+from .runner import Trial, check_conditions, make_trials, run_trials, write_records
+
+
+@dataclass
+class ExperimentRun:
+    """What experiment code sees: the config, the output folder, the records."""
+
+    cfg: object
+    out_dir: Path
+    harness: dict
+    conditions: dict
+    items: list
+    records: list = field(default_factory=list)
+    showcase: dict = field(default_factory=dict)  # condition -> run dir of the showcase trial
+
+
+def _task_overrides() -> list[str]:
+    """The command line's overrides of this (Hydra) job, to repeat in every trial."""
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        ovs = list(HydraConfig.get().overrides.task)
+    except ValueError:  # not under Hydra (tests call run_experiment directly)
+        return []
+    return [o for o in ovs if not o.split("=")[0].lstrip("+~").startswith(("hydra", "overwrite", "progress"))]
+
+
+def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, progress: bool = True) -> dict:
+    """Run the experiment described by ``cfg.harness`` into ``out_dir``; return results.json's content."""
+    h = OmegaConf.to_container(cfg.harness, resolve=True)
+    name = h.get("name") or "experiment"
+    conditions = check_conditions(h.get("conditions"))
+    items = build_corpus(h.get("corpus") or {})
+    run_seeds = [int(s) for s in h.get("run_seeds") or [0]]
+    base = _task_overrides() if base_overrides is None else list(base_overrides)
+    out_dir = Path(out_dir)
+    jobs = int(h.get("jobs", 1))
+
+    def seeds_for(item: Item):
+        return [item.seed] if item.seed is not None else run_seeds
+
+    run = ExperimentRun(cfg, out_dir, h, conditions, items)
+    trials = make_trials(items, conditions, seeds_for, base, out_dir, bool(h.get("keep_trials", False)))
+    run.records = run_trials(trials, jobs, progress, desc=name)
+    write_records(out_dir / "metrics.jsonl", run.records)
+    _remove_empty_dirs(out_dir / "trials")
+
+    show = h.get("showcase")
+    if show:
+        item = next((i for i in items if i.id == show), None)
+        if item is None and "-s" in show:  # a synthetic input outside the corpus
+            prof, seed = show.rsplit("-s", 1)
+            item = synthetic_items([prof], [int(seed)], float((h.get("corpus") or {}).get("duration_s", 30.0)))[0]
+        if item is None:
+            raise LaughlabError(f"showcase input {show!r} is not in the corpus")
+        plots = out_dir / "plots"
+        plots.mkdir(parents=True, exist_ok=True)
+        shows = [Trial(c, item, seeds_for(item)[0], (*base, *ov, *item.overrides, f"seed={seeds_for(item)[0]}"),
+                       str(out_dir / "showcase" / c), keep=True, plots=True) for c, ov in conditions.items()]
+        for rec in run_trials(shows, jobs, progress, desc="showcase"):
+            run.showcase[rec["condition"]] = rec["run_dir"]
+            for png in Path(rec["run_dir"], "plots").glob("*.png"):
+                shutil.copyfile(png, plots / f"{rec['condition']}_{png.name}")
+
+    metric_info = {n: {"higher_is_better": m.higher_is_better, "units": m.units, "description": m.description}
+                   for n, m in registered().items()}
+    results, by_profile = res.aggregate(run.records, list(metric_info))
+    extra = {}
+    if h.get("module"):
+        try:
+            module = importlib.import_module(h["module"])
+        except ImportError as exc:
+            raise LaughlabError(f"experiment module {h['module']!r} not found: {exc}") from None
+        if hasattr(module, "extra"):
+            extra = module.extra(run) or {}
+    doc = {
+        "schema": res.SCHEMA,
+        "experiment": name,
+        "date": res.now_iso(),
+        "git_hash": res.git_hash(),
+        "versions": res.versions(),
+        "plugins": res.plugin_origins(),
+        "config": OmegaConf.to_container(cfg, resolve=True),
+        "corpus": {"inputs": [i.id for i in items], "profiles": sorted({i.profile for i in items}),
+                   "seeds": sorted({r["seed"] for r in run.records})},
+        "conditions": conditions,
+        "n_trials": len(run.records),
+        "metrics": metric_info,
+        "results": results,
+        "by_profile": by_profile,
+        "extra": extra,
+    }
+    res.write_json(out_dir / "results.json", doc)
+    from .report import comparison_figure
+
+    comparison_figure(doc, out_dir / "plots" / "metrics.png")
+    return doc
+
+
+def _remove_empty_dirs(root: Path) -> None:
+    """Remove the folders of trials whose outputs were not kept."""
+    if not root.is_dir():
+        return
+    for d in sorted(root.rglob("*"), key=lambda p: len(p.parts), reverse=True):
+        if d.is_dir() and not any(d.iterdir()):
+            d.rmdir()
+    if not any(root.iterdir()):
+        root.rmdir()

@@ -1,0 +1,116 @@
+"""Aggregating trial records into ``results.json`` (schema ``laughlab.results/1``).
+
+Schema of ``results.json``::
+
+    {
+      "schema": "laughlab.results/1",
+      "experiment": str,                  # experiment name
+      "date": str,                        # ISO 8601, UTC
+      "git_hash": str | null,             # commit of the laughlab checkout, "+dirty" if modified
+      "versions": {"laughlab": str, "python": str, "numpy": str, ...},
+      "plugins": {"kind/name": "origin (distribution version)"},
+      "config": {...},                    # the composed experiment configuration
+      "corpus": {"inputs": [str], "profiles": [str], "seeds": [int]},
+      "conditions": {name: [override, ...]},
+      "n_trials": int,
+      "metrics": {name: {"higher_is_better": bool | null, "units": str, "description": str}},
+      "results": {condition: {metric: {"mean": float, "ci95": [lo, hi], "std": float, "n": int}}},
+      "by_profile": {condition: {profile: {metric: mean}}},
+      "extra": {...}                      # experiment-specific numbers
+    }
+
+Means and 95 % confidence intervals use the trials with a finite value
+(t distribution, ``mean +/- t_{0.975, n-1} * sd / sqrt(n)``); NaN where n = 0.
+"""
+from __future__ import annotations
+
+import datetime as dt
+import json
+import math
+import platform
+import subprocess
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+SCHEMA = "laughlab.results/1"
+
+
+def mean_ci(values) -> dict:
+    """Mean, 95 % CI (t distribution), sd and n of the finite values."""
+    x = np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=float)
+    n = len(x)
+    if n == 0:
+        return {"mean": float("nan"), "ci95": [float("nan"), float("nan")], "std": float("nan"), "n": 0}
+    m = float(x.mean())
+    if n == 1:
+        return {"mean": m, "ci95": [m, m], "std": 0.0, "n": 1}
+    sd = float(x.std(ddof=1))
+    h = float(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n))
+    return {"mean": m, "ci95": [m - h, m + h], "std": sd, "n": n}
+
+
+def aggregate(records: list[dict], metric_names: list[str]) -> tuple[dict, dict]:
+    """Per condition and metric, :func:`mean_ci`; per condition, profile and metric, the mean."""
+    results, by_profile = {}, {}
+    for cond in sorted({r["condition"] for r in records}):
+        rs = [r for r in records if r["condition"] == cond]
+        results[cond] = {m: mean_ci([r["metrics"].get(m) for r in rs]) for m in metric_names}
+        by_profile[cond] = {}
+        for prof in sorted({r["profile"] for r in rs}):
+            pr = [r for r in rs if r["profile"] == prof]
+            by_profile[cond][prof] = {m: mean_ci([r["metrics"].get(m) for r in pr])["mean"] for m in metric_names}
+    return results, by_profile
+
+
+def git_hash(root: Path | None = None) -> str | None:
+    root = root or Path(__file__).resolve().parents[2]
+    try:
+        h = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
+        if h.returncode != 0:
+            return None
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+        return h.stdout.strip() + ("+dirty" if dirty else "")
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def versions() -> dict:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {"python": platform.python_version()}
+    for pkg in ("laughlab", "numpy", "scipy", "hydra-core", "pluggy"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg] = None
+    return out
+
+
+def plugin_origins() -> dict:
+    from .. import plugins
+
+    return {f"{kind}/{name}": info.origin for kind, named in plugins.registry().items() for name, info in named.items()}
+
+
+def json_clean(obj):
+    """NaN and infinities become null (strict JSON)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: json_clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_clean(v) for v in obj]
+    return obj
+
+
+def write_json(path: Path, obj) -> None:
+    tmp = path.with_name(f".{path.name}.part")
+    tmp.write_text(json.dumps(json_clean(obj), indent=2, sort_keys=False) + "\n")
+    tmp.replace(path)
+
+
+def now_iso() -> str:
+    return dt.datetime.now(dt.timezone.utc).replace(microsecond=0).isoformat()

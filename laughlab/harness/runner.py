@@ -1,0 +1,126 @@
+"""Running trials: one input x one plugin combination x one seed each.
+
+Every trial composes its configuration exactly as the command line would
+(the experiment's own overrides, then the condition's, then the input's and the
+seed), runs the pipeline into its own folder, computes every registered metric
+from the outputs and gives one record.  Trials run in parallel processes
+(joblib); records are written to ``metrics.jsonl`` sorted by condition, input
+and seed, so the file does not depend on the order in which trials finish.
+"""
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from omegaconf import OmegaConf
+
+from .. import pipeline
+from ..errors import LaughlabError
+from .corpus import Item
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One trial: condition, input, seed, and where it writes."""
+
+    condition: str
+    item: Item
+    seed: int
+    overrides: tuple
+    out_dir: str
+    keep: bool = False
+    plots: bool = False
+
+    @property
+    def key(self) -> tuple:
+        return (self.condition, self.item.id, self.seed)
+
+
+def _compose(overrides: list[str]):
+    from ..cli import compose_config, register_plugin_configs
+
+    register_plugin_configs()
+    cfg = compose_config(overrides)
+    return OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+
+
+def run_trial(trial: Trial) -> dict:
+    """Run one trial and return its record (metrics computed from its outputs)."""
+    from .metrics import compute
+    from .trialdata import TrialData
+
+    out = Path(trial.out_dir)
+    cfg = _compose([*trial.overrides, "output=files" if trial.plots else "output=trial"])
+    if out.exists():
+        shutil.rmtree(out)
+    out.mkdir(parents=True)
+    pipe = pipeline.build(cfg)
+    pipeline.execute(pipe, out, OmegaConf.to_container(cfg, resolve=True))
+    data = TrialData.load(out, trial.item.truth)
+    metrics = compute(data)
+    record = {"condition": trial.condition, "input": trial.item.id, "profile": trial.item.profile,
+              "seed": trial.seed, "duration_s": data.duration_s, "metrics": metrics}
+    if trial.keep or trial.plots:
+        record["run_dir"] = str(out)
+    else:
+        shutil.rmtree(out, ignore_errors=True)
+    return record
+
+
+def make_trials(items: list[Item], conditions: dict, seeds_for, base_overrides: list[str], out_dir: Path,
+                keep: bool = False) -> list[Trial]:
+    """The cross product of conditions, items and seeds.
+
+    ``seeds_for(item)`` gives the run seeds of an item (a synthetic item's own
+    seed; for recordings the experiment's seed list).
+    """
+    trials = []
+    for cond, cond_overrides in conditions.items():
+        for item in items:
+            for seed in seeds_for(item):
+                trials.append(Trial(cond, item, int(seed),
+                                    (*base_overrides, *cond_overrides, *item.overrides, f"seed={int(seed)}"),
+                                    str(out_dir / "trials" / cond / f"{item.id}-seed{int(seed)}"), keep))
+    return trials
+
+
+def run_trials(trials: list[Trial], jobs: int = 1, progress: bool = True, desc: str = "trials") -> list[dict]:
+    """Run trials (in ``jobs`` processes); return their records sorted by condition, input and seed."""
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(trials), desc=desc, unit="trial", file=sys.stderr, disable=not progress)
+    records = []
+    try:
+        if jobs <= 1:
+            for t in trials:
+                records.append(run_trial(t))
+                bar.update()
+        else:
+            from joblib import Parallel, delayed
+
+            for rec in Parallel(n_jobs=jobs, return_as="generator_unordered")(delayed(run_trial)(t) for t in trials):
+                records.append(rec)
+                bar.update()
+    finally:
+        bar.close()
+    return sorted(records, key=lambda r: (r["condition"], r["input"], r["seed"]))
+
+
+def write_records(path: Path, records: list[dict]) -> None:
+    """``metrics.jsonl``: one JSON record per trial (NaN written as null)."""
+    from .results import json_clean
+
+    tmp = path.with_name(f".{path.name}.part")
+    with open(tmp, "w") as f:
+        for r in records:
+            f.write(json.dumps(json_clean(r), sort_keys=True) + "\n")
+    tmp.replace(path)
+
+
+def check_conditions(conditions) -> dict:
+    if not conditions:
+        raise LaughlabError("the experiment has no conditions (harness.conditions)")
+    return {str(k): [str(o) for o in (v or [])] for k, v in dict(conditions).items()}
