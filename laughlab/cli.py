@@ -15,6 +15,17 @@ from pathlib import Path
 
 from .errors import LaughlabError
 
+
+def _register_resolvers() -> None:
+    """``${div:a,b}`` for configs that tie one parameter to another (e.g. fall = rise / 2)."""
+    from omegaconf import OmegaConf
+
+    if not OmegaConf.has_resolver("div"):
+        OmegaConf.register_new_resolver("div", lambda a, b: float(a) / float(b))
+
+
+_register_resolvers()
+
 CONFIG_MODULE = "laughlab_conf"
 GROUP_KINDS = {"input": "source", "extractor": "extractor", "face": "face", "body": "body",
                "scheduler": "scheduler", "output": "sink"}

@@ -226,7 +226,8 @@ def _heatmaps(points, a, b, metrics, val, path, info) -> None:
         im = ax.imshow(grid, origin="lower", cmap=cmap, aspect="auto")
         for i in range(len(ys)):
             for j in range(len(xs)):
-                ax.text(j, i, _fmt(grid[i, j], 2), ha="center", va="center", fontsize=6, color="w")
+                bright = np.mean(im.cmap(im.norm(grid[i, j]))[:3]) > 0.5
+                ax.text(j, i, _fmt(grid[i, j], 2), ha="center", va="center", fontsize=6, color="k" if bright else "w")
         ax.set_xticks(range(len(xs)), xs, fontsize=7)
         ax.set_yticks(range(len(ys)), ys, fontsize=7)
         ax.set_xlabel(a, fontsize=7)
