@@ -1,0 +1,133 @@
+"""The harness: corpus, confidence intervals, trials, results.json, reports, sweeps."""
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import soundfile as sf
+from omegaconf import OmegaConf
+
+from laughlab.errors import LaughlabError
+from laughlab.harness.corpus import build_corpus, folder_items
+from laughlab.harness.experiment import run_experiment
+from laughlab.harness.report import write_report
+from laughlab.harness.results import SCHEMA, mean_ci
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_mean_ci_by_hand():
+    r = mean_ci([1.0, 2.0, 3.0, float("nan")])
+    # sd = 1, t(0.975, 2) = 4.3027 -> half width 4.3027 / sqrt(3) = 2.4842
+    assert r["n"] == 3 and r["mean"] == 2.0 and r["std"] == pytest.approx(1.0)
+    assert r["ci95"] == pytest.approx([2 - 2.48414, 2 + 2.48414], abs=1e-4)
+    assert mean_ci([5.0])["ci95"] == [5.0, 5.0]
+    assert mean_ci([])["n"] == 0 and math.isnan(mean_ci([])["mean"])
+
+
+def test_corpus_profiles_seeds_and_folder(tmp_path):
+    items = build_corpus({"profiles": ["mild", "giggle"], "seeds": 3, "duration_s": 10})
+    assert [i.id for i in items] == ["mild-s00", "mild-s01", "mild-s02", "giggle-s00", "giggle-s01", "giggle-s02"]
+    assert "input.seed=2" in items[2].overrides and "input.profile=mild" in items[2].overrides
+    sf.write(tmp_path / "b.wav", np.zeros(800), 8000)
+    sf.write(tmp_path / "a.flac", np.zeros(800), 8000)
+    (tmp_path / "a.truth.csv").write_text("kind,bout,onset_s,offset_s,intensity\nbout,0,0.0,0.1,0.5\n")
+    (tmp_path / "notes.txt").write_text("x")
+    rec = folder_items(tmp_path)
+    assert [i.id for i in rec] == ["rec-a", "rec-b"]
+    assert rec[0].truth.endswith("a.truth.csv") and rec[1].truth is None
+    with pytest.raises(LaughlabError, match="unknown synthetic profile"):
+        build_corpus({"profiles": ["loud"], "seeds": 1})
+    with pytest.raises(LaughlabError, match="no audio files"):
+        folder_items(_empty(tmp_path))
+
+
+def _empty(tmp_path):
+    d = tmp_path / "empty"
+    d.mkdir()
+    return d
+
+
+def tiny_cfg(**harness):
+    from laughlab.cli import compose_config
+
+    cfg = compose_config(["experiment=smoke"])
+    h = {"name": "tiny", "conditions": {"energy": ["scheduler=energy"], "none": ["scheduler=none"]},
+         "corpus": {"profiles": ["intense"], "seeds": 2, "duration_s": 4.0}, "showcase": "intense-s00", "jobs": 1}
+    h.update(harness)
+    cfg.harness = OmegaConf.create(h)
+    return cfg
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("exp")
+    doc = run_experiment(tiny_cfg(), out, base_overrides=[], progress=False)
+    return out, doc
+
+
+def test_experiment_records_and_results_schema(tiny_run):
+    out, doc = tiny_run
+    lines = (out / "metrics.jsonl").read_text().splitlines()
+    records = [json.loads(x) for x in lines]
+    assert len(records) == 4 == doc["n_trials"]
+    assert [(r["condition"], r["input"]) for r in records] == [
+        ("energy", "intense-s00"), ("energy", "intense-s01"), ("none", "intense-s00"), ("none", "intense-s01")]
+    saved = json.loads((out / "results.json").read_text())
+    for key in ("schema", "experiment", "date", "git_hash", "versions", "plugins", "config", "corpus",
+                "conditions", "n_trials", "metrics", "results", "by_profile", "extra"):
+        assert key in saved
+    assert saved["schema"] == SCHEMA and saved["versions"]["laughlab"]
+    r = saved["results"]["energy"]["miss_rate"]
+    assert set(r) == {"mean", "ci95", "std", "n"} and r["n"] == 2
+    assert saved["results"]["none"]["miss_rate"]["mean"] == 1.0       # no clip ever starts
+    assert (out / "plots" / "energy_fig4_2_energy.png").exists() and (out / "plots" / "metrics.png").exists()
+    assert not (out / "trials").exists()                               # trial outputs not kept
+
+
+def test_experiment_is_reproducible(tiny_run, tmp_path):
+    out, doc = tiny_run
+    doc2 = run_experiment(tiny_cfg(showcase=None), tmp_path, base_overrides=[], progress=False)
+    for cond in ("energy", "none"):
+        for m in ("intensity_r_clip", "miss_rate", "clip_entropy", "onset_latency_median_s"):
+            a, b = doc["results"][cond][m]["mean"], doc2["results"][cond][m]["mean"]
+            assert (a == b) or (math.isnan(a) and math.isnan(b)), (cond, m)
+
+
+def test_report_tables_and_figures(tiny_run, tmp_path):
+    out, _ = tiny_run
+    readme = write_report(out, tmp_path / "rep", "python -m laughlab report X")
+    text = readme.read_text()
+    assert text.startswith("# tiny")
+    assert "| metric | units | energy mean [95% CI] | none mean [95% CI] |" in text
+    assert "| miss_rate ↓ | fraction | **0 [0, 0]** | 1 [1, 1] |" in text
+    assert (tmp_path / "rep" / "figures" / "metrics.png").exists()
+    assert (tmp_path / "rep" / "figures" / "energy_fig4_2_energy.png").exists()
+
+
+def test_report_of_nothing_is_one_line(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "laughlab", "report", str(tmp_path)], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.strip().count("\n") == 0 and "no results.json" in r.stderr
+
+
+def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
+    sweep = tmp_path / "sweep"
+    r = subprocess.run([sys.executable, "-m", "laughlab", "-m", "experiment=energy_ablation",
+                        "extractor.rise_per_s=24", "scheduler.min_inactive_s=2",
+                        "scheduler.overrule_c=1.5,3", "scheduler.decrease_per_s=6,20",
+                        "harness.corpus.seeds=1", "harness.corpus.profiles=[intense]", "harness.corpus.duration_s=5",
+                        f"hydra.sweep.dir={sweep}"], capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert r.returncode == 0, r.stderr
+    docs = sorted(sweep.glob("*/results.json"))
+    assert len(docs) == 4
+    c = {json.loads(d.read_text())["config"]["scheduler"]["overrule_c"] for d in docs}
+    assert c == {1.5, 3.0}                       # each point's trials used its own parameters
+    fall = {json.loads(d.read_text())["config"]["extractor"]["fall_per_s"] for d in docs}
+    assert fall == {12.0}                        # fall tied to rise / 2
+    readme = write_report(sweep, tmp_path / "rep", "cmd")
+    text = readme.read_text()
+    assert "swept: scheduler.decrease_per_s, scheduler.overrule_c" in text
+    assert len(list((tmp_path / "rep" / "figures").glob("heatmap_*.png"))) == 1
