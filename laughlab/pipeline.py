@@ -188,6 +188,8 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             plugin.reset()
         ext, sch, body, face, mixer = pipe.extractor, pipe.scheduler, pipe.body, pipe.face, pipe.mixer
         dt = ctx.dt
+        if getattr(sch, "offline_plan", False):
+            _plan_offline(pipe)
         clock = time.perf_counter_ns
         wall0 = time.perf_counter()
         k = 0
@@ -239,6 +241,24 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
         if bar is not None:
             bar.close()
         src.close()
+
+
+def _plan_offline(pipe: Pipeline) -> None:
+    """First pass for offline schedulers: the extractor's label of every frame, then ``plan``.
+
+    The look-ahead is the whole input, so a live source is refused.
+    """
+    src, ext, sch = pipe.source, pipe.extractor, pipe.scheduler
+    if src.live:
+        raise LaughlabError(f"scheduler {sch.name} plans over the whole input and cannot run on a live source; "
+                            "use its real-time mode")
+    labels = []
+    for k, block in enumerate(src.blocks()):
+        frame = Frame(k, k * pipe.ctx.dt, pipe.ctx.dt, {}, None, {}, {}, [], 0.0)
+        ext.step(block, frame)
+        labels.append(sch.label_of(frame))
+    sch.plan(labels)
+    ext.reset()
 
 
 def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, wall_s: float) -> dict:
