@@ -40,6 +40,7 @@ class ExperimentRun:
     conditions: dict
     items: list
     records: list = field(default_factory=list)
+    base_overrides: list = field(default_factory=list)  # the command line's overrides, repeated in trials
     showcase: dict = field(default_factory=dict)  # condition -> run dir of the showcase trial
 
 
@@ -68,7 +69,7 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     def seeds_for(item: Item):
         return [item.seed] if item.seed is not None else run_seeds
 
-    run = ExperimentRun(cfg, out_dir, h, conditions, items)
+    run = ExperimentRun(cfg, out_dir, h, conditions, items, base_overrides=base)
     trials = make_trials(items, conditions, seeds_for, base, out_dir, bool(h.get("keep_trials", False)))
     run.records = run_trials(trials, jobs, progress, desc=name)
     write_records(out_dir / "metrics.jsonl", run.records)

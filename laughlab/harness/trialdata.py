@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+#: the library's idle clip: its plays are not laughter clips
+IDLE = "idle"
 #: smoothing window of intensity signals (s)
 SMOOTH_S = 1.0
 
@@ -144,13 +146,18 @@ class TrialData:
         return x / x.max() if x.max() > 0 else x
 
     def starts(self) -> pd.DataFrame:
-        return self.events[self.events.event == "start"].reset_index(drop=True)
+        """Start events of laughter clips (the idle clip, which segment concatenation also
+        plays pieces of during silence, is not a laughter clip)."""
+        ev = self.events
+        return ev[(ev.event == "start") & (ev["clip"] != IDLE)].reset_index(drop=True)
 
     def plays(self) -> pd.DataFrame:
         """One row per played clip: clip, energy, start, stop (s), speed, length (clip s), played fraction, reason."""
         rows, open_ = [], {}
         end_of_run = self.duration_s
         for ev in self.events.itertuples(index=False):
+            if ev.clip == IDLE:
+                continue
             if ev.event == "start":
                 open_[ev.clip] = ev
             elif ev.event == "stop" and ev.clip in open_:
