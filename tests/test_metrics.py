@@ -123,3 +123,24 @@ def test_compute_metrics_pass_through_and_missing_truth_gives_nan():
     assert m["frame_ms_p99"] == 0.05 and m["realtime_factor"] == 800.0
     for name in ("onset_latency_median_s", "miss_rate", "silent_start_rate", "jaw_onset_latency_s"):
         assert math.isnan(m[name]), name
+
+
+def test_kinetic_energy_of_a_skeleton_gliding_at_1_m_per_s(tmp_path):
+    """Every joint moves at 1 m/s: K = 0.5 * J * 1^2 = 11 (m/s)^2 for the 22 joints."""
+    from laughlab.bvh import write_bvh
+    from laughlab.skeleton import HUMANOID, rest_pose
+
+    poses = np.tile(rest_pose(HUMANOID), (40, 1))
+    poses[:, 0] = np.arange(40) * 100.0 / FPS        # root x in cm: 1 m/s
+    write_bvh(tmp_path / "motion.bvh", HUMANOID, poses, 1 / FPS)
+    t = trial(4.0)
+    t.motion_path = tmp_path / "motion.bvh"
+    assert t.kinetic_energy == pytest.approx(np.full(40, 0.5 * HUMANOID.n_joints), rel=1e-6)
+    # kinetic energy that follows the intensity 0.3 s later gives r = 1 at lag 0.3 s
+    tr = truth([(0.5, 3.5, 1.0)], [(0, 1.0, 1.3, 1.0), (0, 2.0, 2.6, 0.4)])
+    t2 = trial(4.0, tr=tr)
+    ke = np.r_[np.zeros(3), t2.laughter_intensity[:-3]]
+    t2.__dict__["kinetic_energy"] = ke                  # cached_property: set the value directly
+    m = compute(t2)
+    assert m["intensity_lag_kinetic_s"] == pytest.approx(0.3, abs=0.11)
+    assert m["intensity_r_kinetic"] > 0.9             # K is smoothed once more over 1 s by the metric
