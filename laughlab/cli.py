@@ -203,8 +203,11 @@ def task(cfg) -> dict:
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     try:
         if cfg.get("harness"):
-            from .harness.experiment import run_experiment
+            from .harness.experiment import experiment_module, run_experiment
 
+            module = experiment_module(cfg.harness.get("module"))
+            if module is not None and hasattr(module, "run"):  # an experiment with its own procedure
+                return module.run(cfg, out_dir)
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
             print(f"{doc['experiment']}: {doc['n_trials']} trials -> {out_dir / 'results.json'}; "
                   f"report: python -m laughlab report {out_dir}")

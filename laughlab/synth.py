@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
+from numbers import Integral, Real
 from os import PathLike
 
 import numpy as np
@@ -60,7 +61,7 @@ PROFILES: tuple[str, ...] = (
 BOUT_DURATION_S = (3.7, 2.2)  # mean, sd (Filippelli 2001)
 BOUT_DURATION_RANGE_S = (0.6, 9.0)  # clip range (ours)
 CALL_RATE_HZ = (4.6, 1.1)  # mean, sd (Filippelli 2001)
-CALL_RATE_RANGE_HZ = (4.0, 7.0)  # truncation range
+CALL_RATE_RANGE_HZ = (4.0, 7.0)  # truncation range (truncated mean ~5.0 Hz)
 VOICED_RANGE_S = (0.06, 0.15)  # voiced part of a call (Bachorowski 2001)
 ASPIRATION_RANGE_S = (0.02, 0.05)  # breathy 'h' onset
 DECAY_RANGE_S = (0.02, 0.04)
@@ -72,10 +73,12 @@ INHALE_RESONANCES_HZ = ((1100.0, 500.0), (2700.0, 900.0))
 NOISE_FLOOR_DBFS = -60.0  # RMS of the floor
 FLOOR_CHUNK = 4096  # samples per independently seeded floor chunk
 
-_ASP_REL = 0.35  # aspiration amplitude relative to the voiced peak
+_ASP_REL = 0.35  # aspiration envelope peak relative to the voiced envelope
+_ASP_NOISE_GAIN = 2.0  # aspiration noise level relative to the glottal pulses
 _GAP_TRUTH = 0.05  # ground-truth intensity between calls, times bout intensity
-_GAP_NOISE_REL = 0.03  # breath noise between calls, relative to call peak
+_GAP_NOISE_GAIN = 0.015  # breath noise between calls, relative to the pulses
 _INHALE_REL = 0.15  # in-breath peak, relative to the bout's peak call
+_LOUDNESS_EXP = 0.7  # call peak ~ intensity**0.7 (mildly compressive)
 _CACHE_EVENTS = 16  # rendered events kept for blocks that split an event
 
 
@@ -202,7 +205,8 @@ class SyntheticLaughter:
     profile : str
         One of :data:`PROFILES`.
     level_dbfs : float
-        Peak level in dBFS of a call of intensity 1.
+        Peak level in dBFS of a call of intensity 1; a call of intensity
+        ``i`` peaks at ``level_dbfs + 14 * log10(i)`` dBFS.
 
     Attributes
     ----------
@@ -221,13 +225,16 @@ class SyntheticLaughter:
                  profile: str = "mixed", level_dbfs: float = -12.0):
         if profile not in _PROFILE_SPECS:
             raise ValueError(f"unknown profile {profile!r}; valid choices: {', '.join(PROFILES)}")
-        if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s) and duration_s > 0):
-            raise ValueError(f"duration_s must be a positive finite number of seconds, got {duration_s!r}")
-        if not (isinstance(sample_rate, (int, np.integer)) and sample_rate > 0):
-            raise ValueError(f"sample_rate must be a positive integer in Hz (e.g. 8000-192000), got {sample_rate!r}")
-        if not (isinstance(seed, (int, np.integer)) and seed >= 0):
+        if not (isinstance(duration_s, Real) and math.isfinite(duration_s) and duration_s > 0):
+            raise ValueError(f"duration_s must be a positive finite number of seconds, "
+                             f"got {duration_s!r}")
+        if not (isinstance(sample_rate, Real) and sample_rate > 0
+                and float(sample_rate).is_integer()):
+            raise ValueError("sample_rate must be a positive integer in Hz (e.g. 8000-192000), "
+                             f"got {sample_rate!r}")
+        if not (isinstance(seed, Integral) and seed >= 0):
             raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-        if not math.isfinite(level_dbfs):
+        if not (isinstance(level_dbfs, Real) and math.isfinite(level_dbfs)):
             raise ValueError(f"level_dbfs must be finite (dBFS, e.g. -12.0), got {level_dbfs!r}")
         self.seed = int(seed)
         self.duration_s = float(duration_s)
@@ -254,7 +261,10 @@ class SyntheticLaughter:
         self._speaker_f0 = rng.uniform(200.0, 300.0)
         vt = rng.uniform(0.95, 1.05)
         fs = self.sample_rate
-        self._vowel = _resonators([(f * vt, bw) for f, bw in FORMANTS_HZ], fs)
+        b, a = _resonators([(f * vt, bw) for f, bw in FORMANTS_HZ], fs)
+        # Mild pre-emphasis (+6 dB/oct above ~1 kHz) stands in for the higher
+        # formants omitted from the cascade.
+        self._vowel = (np.convolve(b, [1.0, -math.exp(-2.0 * math.pi * 1000.0 / fs)]), a)
         self._breath = _resonators(INHALE_RESONANCES_HZ, fs)
 
         t = min(rng.uniform(0.3, 1.0), 0.1 * dur)
@@ -324,15 +334,17 @@ class SyntheticLaughter:
             limit = t0 + d - gap - length
         else:
             limit = t0 + d
+        # Call parts scale with the period so a call fills at most 85 % of it.
+        (a_lo, a_hi), (d_lo, d_hi) = ASPIRATION_RANGE_S, DECAY_RANGE_S
+        a_hi, d_hi = max(a_lo, min(a_hi, 0.2 * period)), max(d_lo, min(d_hi, 0.15 * period))
         tau, plan = t0, []
         while len(plan) < max_calls:
-            asp = rng.uniform(ASPIRATION_RANGE_S[0], max(ASPIRATION_RANGE_S[0], min(ASPIRATION_RANGE_S[1], 0.2 * period)))
-            dec = rng.uniform(DECAY_RANGE_S[0], max(DECAY_RANGE_S[0], min(DECAY_RANGE_S[1], 0.15 * period)))
+            asp, dec = rng.uniform(a_lo, a_hi), rng.uniform(d_lo, d_hi)
             voi = float(np.clip(rng.uniform(0.35, 0.5) * period, *VOICED_RANGE_S))
             if giggle:
                 voi = min(voi, 0.08)
             length = asp + voi + dec
-            if plan and tau + length > limit:
+            if tau + length > limit:
                 break
             plan.append((self._q(tau), asp, voi, dec))
             x = (tau - t0) / max(limit - t0, 1e-9)
@@ -340,9 +352,11 @@ class SyntheticLaughter:
             step = period * (0.95 + 0.1 * x) * (1.0 + rng.normal(0.0, 0.04))
             tau += max(step, length + 0.015)
         n = len(plan)
+        if n == 0:  # only possible for a giggle in a very short clip
+            return
         x = np.arange(n) / max(n - 1, 1)
         # Crescendo then decrescendo across the calls of a bout.
-        shape = 0.4 + 0.6 * np.sin(np.pi * x ** 0.6)
+        shape = 0.5 + 0.5 * np.sin(np.pi * x ** 0.6)
         ints = np.clip(level * shape * rng.lognormal(0.0, 0.08, n), 0.02, 1.0)
         f0s = self._speaker_f0 * (0.95 + 0.55 * ints) * (1.2 if giggle else 1.0)
         f0s = np.clip(f0s * (1.0 - 0.05 * x) * rng.lognormal(0.0, 0.03, n), *F0_RANGE_HZ)
@@ -391,6 +405,10 @@ class SyntheticLaughter:
         -------
         ndarray of float32, shape (n,)
             Mono samples in [-1, 1]; samples past ``n_samples`` are 0.
+
+        Notes
+        -----
+        Keeps a small cache of rendered events; not thread-safe.
         """
         start, n = int(start), int(n)
         if start < 0 or n < 0:
@@ -459,7 +477,7 @@ class SyntheticLaughter:
         asp_env, voice_env = _call_shapes(tau, asp, voi, dec)
         noise = rng.standard_normal(n)
         src = np.empty(n)
-        src[:n_call] = 1.5 * asp_env * noise[:n_call]
+        src[:n_call] = _ASP_NOISE_GAIN * asp_env * noise[:n_call]
         # Voiced part: rise-fall F0 contour whose mean over the voiced part is
         # c.f0_hz; Rosenberg pulses plus some breathiness.
         v0 = min(n_call, int(asp * fs))
@@ -474,17 +492,18 @@ class SyntheticLaughter:
         src[v0:n_call] += voice_env[v0:] * (glottal + breathy * noise[v0:n_call])
         # Weak breath noise in the gap up to the next call of the bout.
         g = n - n_call
-        src[n_call:] = (0.5 * _GAP_NOISE_REL) * np.sin(np.pi * np.arange(g) / g) * noise[n_call:]
+        src[n_call:] = _GAP_NOISE_GAIN * np.sin(np.pi * np.arange(g) / g) * noise[n_call:]
         y = lfilter(self._vowel[0], self._vowel[1], src)
         peak = np.max(np.abs(y[:max(n_call, 1)]))
-        y *= 10.0 ** (self.level_dbfs / 20.0) * c.intensity / max(peak, 1e-12)
+        gain = 10.0 ** (self.level_dbfs / 20.0) * c.intensity ** _LOUDNESS_EXP
+        y *= gain / max(peak, 1e-12)
         fade = min(n, max(1, int(0.002 * fs)))
         y[n - fade:] *= np.linspace(1.0, 0.0, fade)
         return y
 
     def _render_inhale(self, k: int, n: int, rng: np.random.Generator) -> np.ndarray:
         """A noisy in-breath of ``n`` samples at the end of a bout."""
-        on, off, b = self._inhales[k]
+        b = self._inhales[k][2]
         u = np.arange(n) / max(n - 1, 1)
         env = np.sin(np.pi * u ** 0.7) ** 1.5  # quick rise, slow release
         y = lfilter(self._breath[0], self._breath[1], rng.standard_normal(n) * env)
@@ -542,7 +561,8 @@ class SyntheticLaughter:
                 c = self.calls[i]
                 rows.append(("call", b, c.onset_s, c.offset_s, c.intensity, c.f0_hz))
                 i += 1
-        return pd.DataFrame(rows, columns=["kind", "bout", "onset_s", "offset_s", "intensity", "f0_hz"])
+        columns = ["kind", "bout", "onset_s", "offset_s", "intensity", "f0_hz"]
+        return pd.DataFrame(rows, columns=columns)
 
     def write_truth(self, path: str | PathLike) -> None:
         """Write :meth:`truth_table` as CSV to ``path``."""

@@ -44,6 +44,20 @@ class ExperimentRun:
     showcase: dict = field(default_factory=dict)  # condition -> run dir of the showcase trial
 
 
+def experiment_module(name: str | None):
+    """Import an experiment's code (``harness.module``); None when it has none.
+
+    A module defining ``run(cfg, out_dir)`` replaces the trial harness with its
+    own procedure; one defining ``extra(run) -> dict`` adds numbers to results.json.
+    """
+    if not name:
+        return None
+    try:
+        return importlib.import_module(name)
+    except ImportError as exc:
+        raise LaughlabError(f"experiment module {name!r} not found: {exc}") from None
+
+
 def _task_overrides() -> list[str]:
     """The command line's overrides of this (Hydra) job, to repeat in every trial."""
     try:
@@ -96,13 +110,9 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
                    for n, m in registered().items()}
     results, by_profile = res.aggregate(run.records, list(metric_info))
     extra = {}
-    if h.get("module"):
-        try:
-            module = importlib.import_module(h["module"])
-        except ImportError as exc:
-            raise LaughlabError(f"experiment module {h['module']!r} not found: {exc}") from None
-        if hasattr(module, "extra"):
-            extra = module.extra(run) or {}
+    module = experiment_module(h.get("module"))
+    if module is not None and hasattr(module, "extra"):
+        extra = module.extra(run) or {}
     doc = {
         "schema": res.SCHEMA,
         "experiment": name,
