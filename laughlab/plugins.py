@@ -38,6 +38,7 @@ KINDS: dict[str, str] = {
 pm = pluggy.PluginManager("laughlab")
 pm.add_hookspecs(hookspecs)
 _loaded_entry_points = False
+_EP_ORIGINS: dict[str, str] = {}  # entry-point plugin name -> "distribution version (entry point)"
 
 
 @dataclass(frozen=True)
@@ -54,8 +55,20 @@ def load_entry_points() -> None:
     """Load every plugin of the ``laughlab`` entry-point group (once)."""
     global _loaded_entry_points
     if not _loaded_entry_points:
-        pm.load_setuptools_entrypoints("laughlab")
         _loaded_entry_points = True
+        from importlib.metadata import entry_points
+
+        for ep in entry_points(group="laughlab"):
+            if pm.get_plugin(ep.name) is not None or pm.is_blocked(ep.name):
+                continue
+            try:
+                plugin = ep.load()
+            except Exception as exc:  # one broken plugin: say which, do not crash with a traceback
+                raise LaughlabError(f"plugin {ep.name} ({ep.value}) failed to load: {type(exc).__name__}: {exc}") \
+                    from exc
+            pm.register(plugin, name=ep.name)
+            dist = ep.dist
+            _EP_ORIGINS[ep.name] = f"{dist.metadata['name']} {dist.version} (entry point)" if dist else "entry point"
 
 
 def load_plugin_dir(path: str | Path) -> list[str]:
@@ -85,10 +98,9 @@ def load_plugin_dir(path: str | Path) -> list[str]:
 
 
 def _origin(plugin: Any) -> str:
-    for plug, dist in pm.list_plugin_distinfo():
-        if plug is plugin:
-            return f"{dist.project_name} {dist.version} (entry point)"
     name = pm.get_name(plugin) or repr(plugin)
+    if name in _EP_ORIGINS:
+        return _EP_ORIGINS[name]
     if name.startswith("laughlab_local_plugins."):
         return f"plugins dir: {getattr(plugin, '__file__', name)}"
     return f"registered: {name}"
