@@ -265,6 +265,10 @@ def main(argv: list[str] | None = None) -> None:
             list_plugins()
         except LaughlabError as exc:
             fail(str(exc))
+        except BrokenPipeError:  # e.g. piped into head: stop quietly
+            import os
+
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return
     multirun = any(a in ("-m", "--multirun") for a in argv)
     hydra_only = any(a.split("=")[0] in _HYDRA_FLAGS for a in argv)
