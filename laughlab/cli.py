@@ -104,7 +104,7 @@ def _check_overrides(overrides: list[str]) -> None:
                 fail(f"unknown {group} {choice!r}; choose one of: {', '.join(options) or '(none)'}")
 
 
-def _composition_error(exc: Exception) -> str:
+def _composition_error(exc: Exception, overrides: list[str] = ()) -> str:
     text = str(exc)
     m = re.search(r"Could not override '([^']+)'", text)
     if m:
@@ -113,7 +113,7 @@ def _composition_error(exc: Exception) -> str:
         valid = ""
         if group in GROUP_KINDS and group != "output" and "." in key:
             try:
-                valid = "; valid: " + ", ".join(_valid_keys(group, key))
+                valid = "; valid: " + ", ".join(_valid_keys(group, overrides))
             except Exception:  # listing the keys is a courtesy
                 valid = ""
         return f"unknown parameter {key}{valid}"
@@ -121,12 +121,14 @@ def _composition_error(exc: Exception) -> str:
     return lines[0] if lines else type(exc).__name__
 
 
-def _valid_keys(group: str, key: str) -> list[str]:
+def _valid_keys(group: str, overrides: list[str]) -> list[str]:
+    """Parameter names of the plugin chosen for ``group`` (with the user's group choices)."""
     from dataclasses import fields
 
     from hydra import compose
 
-    cfg = compose("config")
+    choices = [o for o in overrides if "=" in o and "." not in o.split("=")[0]]
+    cfg = compose("config", overrides=choices)
     from . import plugins
 
     info = plugins.get(GROUP_KINDS[group], cfg[group]["name"])
@@ -145,7 +147,7 @@ def compose_config(overrides: list[str]):
         except Exception as exc:
             if isinstance(exc, LaughlabError):
                 raise
-            raise LaughlabError(_composition_error(exc)) from None
+            raise LaughlabError(_composition_error(exc, overrides)) from None
 
 
 def preflight(argv: list[str]) -> None:

@@ -87,11 +87,12 @@ def load_plugin_dir(path: str | Path) -> list[str]:
             continue
         spec = importlib.util.spec_from_file_location(mod_name, file)
         module = importlib.util.module_from_spec(spec)
+        sys.modules[mod_name] = module  # before executing: dataclasses look their module up there
         try:
             spec.loader.exec_module(module)
         except Exception as exc:  # a broken user plugin is a user error
+            del sys.modules[mod_name]
             raise LaughlabError(f"plugin {file} failed to import: {type(exc).__name__}: {exc}") from exc
-        sys.modules[mod_name] = module
         pm.register(module, name=mod_name)
         loaded.append(mod_name)
     return loaded

@@ -1,0 +1,84 @@
+"""Sink ``arkit``: ``face_arkit.csv``, the ARKit blendshape weights of the face, streamed chunk by chunk."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from laughlab import hookimpl
+from laughlab.bases import Sink
+from laughlab.facs import ARKIT_BLENDSHAPES
+from laughlab.outfiles import Staging
+
+#: prefix of the channels holding ARKit weights (``arkit.jawOpen``)
+PREFIX = "arkit."
+
+
+@dataclass
+class ArkitParams:
+    """Parameters of the ``arkit`` sink.
+
+    Attributes
+    ----------
+    precision : int
+        Decimals written for the weights.
+    """
+
+    precision: int = 6
+
+    def __post_init__(self) -> None:
+        if not 1 <= self.precision <= 17:
+            raise ValueError(f"precision must be in 1..17 (got {self.precision})")
+
+
+class ArkitSink(Sink):
+    """Writes ``face_arkit.csv``: ``time`` (s), then one column per ARKit blendshape the run has.
+
+    The columns are the channels named ``arkit.NAME`` (written by faces such as
+    ``facs`` and ``cgm``), named ``NAME`` without the prefix, in Apple's order
+    (:data:`laughlab.facs.ARKIT_BLENDSHAPES`); values are clipped to [0, 1].
+    A run without such channels writes nothing, so the sink can stay in the
+    default outputs.  Streamed: each chunk is appended to a staged file that is
+    moved into place when the run succeeds and removed when it fails.
+    """
+
+    name = "arkit"
+    Params = ArkitParams
+
+    def open(self, run) -> None:
+        super().open(run)
+        self.staging = Staging()
+        self._f = None
+        self._columns: list[str] | None = None
+
+    def write(self, chunk) -> None:
+        if self._columns is None:
+            present = {k[len(PREFIX):] for k in chunk.channels if k.startswith(PREFIX)}
+            self._columns = [n for n in ARKIT_BLENDSHAPES if n in present]
+            if not self._columns:
+                return
+            self._f = open(self.staging.path(self.run.out_dir / "face_arkit.csv"), "w", newline="")
+            self._f.write(",".join(["time", *self._columns]) + "\n")
+        if not self._columns:
+            return
+        data = np.column_stack([chunk.times] + [np.clip(chunk.channels[PREFIX + c], 0.0, 1.0)
+                                                for c in self._columns])
+        n, c = data.shape
+        row = ",".join([f"%.{self.params.precision}f"] * c) + "\n"
+        self._f.write((row * n) % tuple((data + 0.0).ravel().tolist()))
+
+    def close(self):
+        if self._f is None:
+            return []
+        self._f.close()
+        return self.staging.commit()
+
+    def abort(self) -> None:
+        if self._f is not None and not self._f.closed:
+            self._f.close()
+        self.staging.abort()
+
+
+@hookimpl
+def register_sinks(register):
+    register(ArkitSink)

@@ -1,0 +1,311 @@
+"""Face ``facs`` (FACS action units -> ARKit) and sink ``arkit``: equations by hand, ARKit validity for
+any input, small asymmetry and desynchronisation, face_arkit.csv end to end."""
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from hypothesis import given, settings, strategies as st
+from omegaconf import OmegaConf
+
+from laughlab import pipeline, plugins
+from laughlab.bases import Chunk, Context, RunInfo
+from laughlab.cli import compose_config
+from laughlab.facs import (ACTION_UNITS, ARKIT_BLENDSHAPES, AU_TO_ARKIT, SIDES, ArkitMap, Blinker, DelayLine,
+                           Envelope, Unit, UnitParams, draw_sides, ramp)
+from laughlab.frame import Frame
+from laughlab.head_motion import HeadMotionParams
+from laughlab.segments import PSEUDO_PHONEMES
+from laughlab_plugins import face_facs, sink_arkit
+from laughlab_plugins.face_facs import FacsFace, FacsParams
+from laughlab_plugins.face_smile import SmileFace, SmileParams
+from laughlab_plugins.sink_arkit import ArkitSink
+
+ROOT = Path(__file__).resolve().parents[1]
+FPS = 60.0
+DT = 1.0 / FPS
+
+
+@pytest.fixture(scope="module")
+def registered():
+    """Register the modules unless their entry points already did."""
+    reg = plugins.registry()
+    added = [m for kind, name, m in (("face", "facs", face_facs), ("sink", "arkit", sink_arkit))
+             if name not in reg[kind]]
+    for m in added:
+        plugins.pm.register(m)
+    yield
+    for m in added:
+        plugins.pm.unregister(m)
+
+
+def face(seed=0, fps=FPS, **kw):
+    return FacsFace(FacsParams(**kw), Context(fps=fps, rng=np.random.default_rng(seed), seed=seed))
+
+
+def drive(f, mcs, labels=None, clip_eyes=None, fps=FPS):
+    frames = []
+    for k, m in enumerate(mcs):
+        fr = Frame(k, k / fps, 1.0 / fps, {"mcs": float(m)}, None if labels is None else labels[k])
+        fr.clip_eyes = 0.0 if clip_eyes is None else float(clip_eyes[k])
+        f.step(fr)
+        frames.append(fr)
+    return frames
+
+
+# --- ARKit names and the AU table ------------------------------------------------------------
+
+def test_the_52_arkit_names():
+    assert len(ARKIT_BLENDSHAPES) == 52 and len(set(ARKIT_BLENDSHAPES)) == 52
+    for n in ("eyeBlinkLeft", "jawOpen", "mouthClose", "mouthSmileRight", "browInnerUp", "cheekSquintLeft",
+              "mouthStretchLeft", "noseSneerRight", "tongueOut", "cheekPuff", "mouthShrugUpper"):
+        assert n in ARKIT_BLENDSHAPES
+    sided = [n for n in ARKIT_BLENDSHAPES if n.endswith(SIDES)]
+    assert len(sided) == 40  # 20 left/right pairs (jawLeft/jawRight and mouthLeft/mouthRight among them)
+    for n in sided:
+        if n.endswith("Left"):
+            assert n[:-4] + "Right" in ARKIT_BLENDSHAPES
+
+
+def test_au_table_names_are_arkit_names():
+    for au, targets in AU_TO_ARKIT.items():
+        for t, w in targets.items():
+            names = [t.format(side=s) for s in SIDES] if "{side}" in t else [t]
+            assert all(n in ARKIT_BLENDSHAPES for n in names), (au, t)
+            assert 0 < w <= 1
+    # the mouth units open the jaw fully together
+    assert sum(AU_TO_ARKIT[u]["jawOpen"] for u in ("au25", "au26", "au27")) == pytest.approx(1.0)
+
+
+def test_arkit_map_by_hand():
+    m = ArkitMap(["au12", "au26", "au43", "au45"])
+    w = m([(0.8, 0.6), (0.5, 0.3), (0.2, 0.9), (0.7, 0.7)])
+    assert w["mouthSmileLeft"] == pytest.approx(0.8) and w["mouthSmileRight"] == pytest.approx(0.6)
+    assert w["jawOpen"] == pytest.approx(0.6 * 0.5 * (0.5 + 0.3))  # midline: mean of the sides
+    assert w["eyeBlinkLeft"] == pytest.approx(0.7) and w["eyeBlinkRight"] == pytest.approx(0.9)  # max
+    assert list(w) == [n for n in ARKIT_BLENDSHAPES if n in w]
+    m2 = ArkitMap(["au25", "au26", "au27"])
+    assert m2([(1, 1), (1, 1), (1, 1)])["jawOpen"] == pytest.approx(1.0)
+    with pytest.raises(ValueError, match="not an ARKit"):
+        ArkitMap(["x"], {"x": {"mouthGrin": 1.0}})
+
+
+# --- Eqs. F0-F3 by hand -----------------------------------------------------------------------
+
+def test_eq_f1_ramp_by_hand():
+    assert ramp(0.1, 0.2, 0.6) == 0.0
+    assert ramp(0.3, 0.2, 0.6) == pytest.approx(0.25)
+    assert ramp(0.6, 0.2, 0.6) == 1.0 and ramp(0.9, 0.2, 0.6) == 1.0
+
+
+def test_eq_f2_onset_and_offset_rates_by_hand():
+    u = Unit(UnitParams(0.0, 0.5, rise=3.0, fall=0.6), DT)
+    assert u.target(0.25) == pytest.approx(0.5)
+    assert u.follow(1.0) == pytest.approx(3.0 / 60)          # rises by 3 /s * dt
+    assert u.follow(1.0) == pytest.approx(6.0 / 60)
+    assert u.follow(0.09) == pytest.approx(0.09)              # reaches a lower target at once
+    assert u.follow(0.0) == pytest.approx(0.09 - 0.6 / 60)    # falls by 0.6 /s * dt
+    for _ in range(100):
+        u.follow(0.0)
+    assert u.a == 0.0
+
+
+def test_eq_f0_envelope_by_hand():
+    e = Envelope(0.5, 0.1)
+    assert e.step(0.8) == 0.8
+    assert e.step(0.0) == pytest.approx(0.8 * math.exp(-0.2))
+    assert e.step(0.9) == 0.9
+    assert Envelope(0.0, 0.1).step(0.3) == 0.3 and Envelope(0.0, 0.1).step(0.0) == 0.0
+
+
+def test_eq_f3_delay_line_by_hand():
+    d = DelayLine(0.05, 0.01)
+    for v in (1.0, 2.0, 3.0, 4.0):
+        d.push(v)
+    assert d.get(0.0) == 4.0
+    assert d.get(0.01) == pytest.approx(3.0)
+    assert d.get(0.025) == pytest.approx(1.5)  # halfway between 2 and 1
+    assert d.get(0.04) == 0.0                  # before the first frame: rest
+
+
+def test_draw_sides_bounds_and_seed():
+    a = draw_sides(np.random.default_rng(1), ACTION_UNITS, 0.1, 0.05)
+    b = draw_sides(np.random.default_rng(1), ACTION_UNITS, 0.1, 0.05)
+    assert a == b
+    for v in a.values():
+        assert all(0.9 <= g <= 1.0 for g in v.gain) and all(0.0 <= d <= 0.05 for d in v.delay_s)
+    assert len({v.gain for v in a.values()}) == len(ACTION_UNITS)
+
+
+def test_blinker_is_the_smile_face_blink_rule():
+    sm = SmileFace(SmileParams(), Context(rng=np.random.default_rng(5)))
+    bl = Blinker(np.random.default_rng(5))
+    eyes = (np.arange(3000) // 200) % 3 == 0  # clip closes the eyes now and then
+    for k in range(3000):
+        fr = Frame(k, k * DT, DT, {"mcs": 0.0})
+        fr.clip_eyes = float(eyes[k])
+        sm.step(fr)
+        assert bl.step(k * DT, bool(eyes[k])) == fr.channels["blink"]
+
+
+# --- the face ---------------------------------------------------------------------------------
+
+def test_units_join_in_order_of_intensity():
+    f = face(head=HeadMotionParams(enabled=False))
+    fr = drive(f, [0.2] * 120)[-1].channels  # 2 s of mild laughter
+    assert fr["au12"] == pytest.approx(0.2 / 0.3) and fr["au6"] == pytest.approx(0.15 / 0.35)
+    assert fr["au25"] == 1.0 and fr["au26"] == pytest.approx(0.2)
+    assert fr["au27"] == 0.0 and fr["au43"] == 0.0 and fr["au4"] == 0.0
+    fr = drive(f, [1.0] * 120)[-1].channels  # then intense
+    assert all(fr[u] == 1.0 for u in ACTION_UNITS)
+    assert fr["smile"] == fr["au12"] and fr["jaw"] == pytest.approx(1.0) and fr["eyes_closed"] == 1.0
+
+
+def test_clip_eye_keys_close_the_eyes_and_skip_blinks():
+    f = face(head=HeadMotionParams(enabled=False), blink_mean_s=0.5, blink_sd_s=0.0)
+    frames = drive(f, [0.0] * 600, clip_eyes=[1.0] * 600)
+    assert max(fr.channels["blink"] for fr in frames) == 0.0
+    assert frames[-1].channels["au43"] == 1.0 and frames[-1].channels["eyes_closed"] == 1.0
+    frames = drive(face(head=HeadMotionParams(enabled=False), blink_mean_s=0.5, blink_sd_s=0.0),
+                   [0.0] * 600)
+    assert max(fr.channels["blink"] for fr in frames) > 0.9  # blinks when the eyes are open
+
+
+control = st.lists(st.tuples(st.floats(0, 1), st.floats(0, 1), st.sampled_from([None, *PSEUDO_PHONEMES])),
+                   min_size=1, max_size=150)
+
+
+@settings(max_examples=30, deadline=None)
+@given(seq=control, seed=st.integers(0, 10_000), fps=st.sampled_from([24.0, 60.0, 100.0]))
+def test_arkit_names_valid_and_every_value_in_unit_interval(seq, seed, fps):
+    f = face(seed, fps)
+    keys = None
+    for k, (m, eyes, label) in enumerate(seq):
+        fr = Frame(k, k / fps, 1.0 / fps, {"mcs": m}, label)
+        fr.clip_eyes = eyes
+        f.step(fr)
+        ch = fr.channels
+        keys = keys or list(ch)
+        assert list(ch) == keys  # the same channels every frame
+        for name, v in ch.items():
+            assert math.isfinite(v), name
+            if name.startswith("arkit."):
+                assert name[6:] in ARKIT_BLENDSHAPES
+            if not name.startswith("head_"):
+                assert 0.0 <= v <= 1.0, (name, v)
+        z, x, y = fr.offsets["head"]
+        assert (x, y, z) == (ch["head_pitch"], ch["head_yaw"], ch["head_roll"])
+
+
+def _laughter(n=600):
+    t = np.arange(n) * DT
+    return np.where((t % 3.0) < 1.8, 0.5 + 0.5 * np.sin(2 * np.pi * 4.6 * t) ** 2, 0.0)
+
+
+def test_asymmetry_and_desync_present_but_small():
+    p = FacsParams()
+    f = face(seed=3)
+    ch = pd.DataFrame([fr.channels for fr in drive(f, _laughter())])
+    for au, pair in (("au12", "mouthSmile"), ("au6", "cheekSquint"), ("au4", "browDown")):
+        diff = (ch[f"arkit.{pair}Left"] - ch[f"arkit.{pair}Right"]).abs()
+        up = getattr(p, au)
+        bound = p.asymmetry + max(up.rise, up.fall) * p.desync_s
+        assert diff.max() > 1e-3, au                 # present
+        assert diff.max() <= bound * 1.01 + 1e-9, au   # small: |gL a(t-dL) - gR a(t-dR)| <= asym + rate desync
+    # units are not synchronised: the sides reach half their peak at different frames
+    left = ch["arkit.mouthSmileLeft"].to_numpy()
+    right = ch["arkit.mouthSmileRight"].to_numpy()
+    assert not np.array_equal(left, right)
+    v = f.sides["au12"]
+    assert v.delay_s[0] != v.delay_s[1] and v.gain[0] != v.gain[1]
+
+
+def test_no_asymmetry_no_desync_gives_symmetric_sides():
+    f = face(seed=3, asymmetry=0.0, desync_s=0.0)
+    for fr in drive(f, _laughter(300)):
+        ch = fr.channels
+        for n in ("mouthSmile", "cheekSquint", "eyeSquint", "mouthStretch", "browDown", "browOuterUp"):
+            assert ch[f"arkit.{n}Left"] == ch[f"arkit.{n}Right"]
+        assert ch["arkit.mouthSmileLeft"] == ch["au12"]
+
+
+def test_reset_and_seed_reproduce():
+    a = [fr.channels for fr in drive(face(seed=9), _laughter(300))]
+    assert a == [fr.channels for fr in drive(face(seed=9), _laughter(300))]
+    assert a != [fr.channels for fr in drive(face(seed=10), _laughter(300))]
+    f = face(seed=9)
+    drive(f, _laughter(100))
+    f.reset()  # back to rest; only the blinks (drawn from the run's generator) go on differently
+    b = [fr.channels for fr in drive(f, _laughter(300))]
+    eyes = ("blink", "eyes_closed", "arkit.eyeBlinkLeft", "arkit.eyeBlinkRight")
+    assert [{k: v for k, v in c.items() if k not in eyes} for c in a] == \
+        [{k: v for k, v in c.items() if k not in eyes} for c in b]
+
+
+def test_params_validated():
+    with pytest.raises(ValueError, match="hi must be > lo"):
+        UnitParams(0.5, 0.5, 1.0, 1.0)
+    with pytest.raises(ValueError, match="input"):
+        UnitParams(0.0, 0.5, 1.0, 1.0, "rms")
+    with pytest.raises(ValueError, match="asymmetry"):
+        FacsParams(asymmetry=1.5)
+    with pytest.raises(ValueError, match="rise"):
+        UnitParams(0.0, 0.5, 0.0, 1.0)
+
+
+def test_yaml_equals_the_dataclass_defaults():
+    values = yaml.safe_load((ROOT / "conf/face/facs.yaml").read_text())
+    assert values.pop("name") == "facs"
+    assert values == OmegaConf.to_container(OmegaConf.structured(FacsParams))
+
+
+# --- the sink and an end-to-end run -----------------------------------------------------------
+
+def run(tmp, *overrides):
+    cfg = compose_config(["input.duration_s=4", "input.save_audio=false", "output=trial", *overrides])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    OmegaConf.set_struct(cfg, False)
+    cfg.output.arkit = {}
+    pipeline.execute(pipeline.build(cfg), tmp)
+    return tmp
+
+
+def test_face_arkit_csv_end_to_end(registered, tmp_path):
+    out = run(tmp_path / "facs", "face=facs")
+    arkit = pd.read_csv(out / "face_arkit.csv")
+    ch = pd.read_csv(out / "channels.csv")
+    names = [c[6:] for c in ch.columns if c.startswith("arkit.")]
+    assert list(arkit.columns) == ["time", *[n for n in ARKIT_BLENDSHAPES if n in names]]
+    assert len(arkit) == len(ch) == 240
+    assert {"jawOpen", "mouthSmileLeft", "cheekSquintRight", "eyeBlinkLeft", "browDownLeft",
+            "browInnerUp"} <= set(arkit.columns)
+    values = arkit.drop(columns="time").to_numpy()
+    assert values.min() >= 0.0 and values.max() <= 1.0 and values.max() > 0.5
+    np.testing.assert_allclose(arkit["jawOpen"], ch["arkit.jawOpen"], atol=1e-6)
+    for c in ("au6", "au12", "au25", "au26", "au27", "au43", "au4", "smile", "jaw", "eyes_closed", "head_pitch",
+              "brow_raise"):
+        assert c in ch.columns
+    assert not list(out.rglob("*.part"))
+
+
+def test_no_arkit_channels_no_file(registered, tmp_path):
+    out = run(tmp_path / "smile", "face=smile")
+    assert (out / "channels.csv").exists() and not (out / "face_arkit.csv").exists()
+
+
+def test_sink_abort_leaves_nothing(tmp_path):
+    s = ArkitSink()
+    s.open(RunInfo(tmp_path, FPS, None, None))
+    s.write(Chunk(np.array([0.0, DT]), {"arkit.jawOpen": np.array([0.2, 1.5]), "mcs": np.zeros(2)},
+                  np.zeros((2, 3)), [], [None, None]))
+    s.abort()
+    assert list(tmp_path.iterdir()) == []
+    s = ArkitSink()
+    s.open(RunInfo(tmp_path, FPS, None, None))
+    s.write(Chunk(np.array([0.0, DT]), {"arkit.jawOpen": np.array([0.2, 1.5]), "arkit.eyeBlinkLeft": np.ones(2)},
+                  np.zeros((2, 3)), [], [None, None]))
+    assert [p.name for p in s.close()] == ["face_arkit.csv"]
+    assert (tmp_path / "face_arkit.csv").read_text().splitlines() == [
+        "time,eyeBlinkLeft,jawOpen", "0.000000,1.000000,0.200000", "0.016667,1.000000,1.000000"]
