@@ -99,6 +99,27 @@ def _profile_table(doc: dict, metric: str) -> list[str]:
     return lines
 
 
+def _extra_lines(key: str, value) -> list[str]:
+    """An experiment's extra numbers: scalars as a list, lists of records as a table."""
+    if not isinstance(value, dict):
+        return [f"- {key}: {_fmt(value) if isinstance(value, float) else value}", ""]
+    lines = [f"### {key}", ""]
+    tables = []
+    for k, v in value.items():
+        if isinstance(v, list) and v and isinstance(v[0], dict):
+            tables.append((k, v))
+        else:
+            lines.append(f"- {k}: {_fmt(v) if isinstance(v, float) else v}")
+    lines.append("")
+    for k, rows in tables:
+        cols = list(rows[0])
+        lines += [f"{k}:", "", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+        for r in rows:
+            lines.append("| " + " | ".join(_fmt(r[c]) if isinstance(r[c], float) else str(r[c]) for c in cols) + " |")
+        lines.append("")
+    return lines
+
+
 def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
     doc = json.loads((run_dir / "results.json").read_text())
     figs = out / "figures"
@@ -135,10 +156,9 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
         if m in doc["metrics"]:
             lines += [f"`{m}`", ""] + _profile_table(doc, m) + [""]
     if doc.get("extra"):
-        lines += ["## Experiment-specific figures", ""]
+        lines += ["## Experiment-specific results", ""]
         for k, v in doc["extra"].items():
-            lines.append(f"- {k}: {json.dumps(v) if not isinstance(v, (int, float, str)) else _fmt(v) if isinstance(v, float) else v}")
-        lines.append("")
+            lines += _extra_lines(k, v)
     lines += ["## Metrics", "", "| metric | units | definition |", "|---|---|---|"]
     for m, info in doc["metrics"].items():
         lines.append(f"| {m} | {info['units']} | {info['description']} |")
