@@ -323,6 +323,7 @@ def run(cfg, out_dir) -> dict:
                           f"{target:g}: the gain was limited to keep the peak at {max_peak:g} dBFS", file=sys.stderr)
                 wav = audio_dir / f"{audio_id}.wav"
                 _write_wav(wav, norm, rate)
+                done.append(wav)
                 silent = work / "silence" / f"{audio_id}.wav"
                 if muted:
                     _write_wav(silent, np.zeros_like(norm), rate)
@@ -360,9 +361,12 @@ def run(cfg, out_dir) -> dict:
                 vfps = float(metrics["video_fps"])
                 manifest.append([sid, f"stimuli/{sid}.mp4", _sha256(final), cond, audio_id,
                                  f"{metrics['video_frames'] / vfps:.6f}", s, f"{vfps:g}"])
-    except BaseException:
+    except BaseException:  # a failed run leaves none of its files
         for f in done:
             f.unlink(missing_ok=True)
+        for d in (stim_dir, audio_dir):
+            if d.is_dir() and not any(d.iterdir()):
+                d.rmdir()
         raise
     finally:
         shutil.rmtree(work, ignore_errors=True)

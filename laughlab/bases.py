@@ -199,6 +199,9 @@ class Chunk:
         Clip events within these frames.
     labels : list[str | None]
         Per-frame pseudo-phoneme labels.
+    capture_ns : ndarray (N,) of int64 or None
+        ``time.perf_counter_ns()`` when each frame's audio block reached the
+        pipeline (for latency measurements; None when unknown).
     """
 
     times: np.ndarray
@@ -206,6 +209,7 @@ class Chunk:
     poses: np.ndarray
     events: list
     labels: list
+    capture_ns: np.ndarray | None = None
 
 
 class Sink(Plugin):

@@ -30,7 +30,7 @@ CONFIG_MODULE = "laughlab_conf"
 GROUP_KINDS = {"input": "source", "extractor": "extractor", "face": "face", "body": "body",
                "scheduler": "scheduler", "output": "sink"}
 #: outputs that mark a folder as holding an earlier run
-RUN_MARKERS = ("channels.csv", "events.csv", "motion.bvh", "metrics.json")
+RUN_MARKERS = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.json", "manifest.csv")
 _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--version",
                 "--shell-completion", "-sc", "--resolve", "--package", "-p", "--config-path", "-cp",
                 "--config-name", "-cn", "--config-dir", "-cd", "--experimental-rerun"}

@@ -127,13 +127,15 @@ class _Recorder:
         self.n = n
         self.times = np.empty(n)
         self.poses = np.empty((n, n_channels))
+        self.capture = np.zeros(n, dtype=np.int64)
         self.values: dict[str, np.ndarray] | None = None
         self.labels: list = []
         self.events: list = []
         self.i = 0
 
-    def add(self, frame: Frame, pose: np.ndarray) -> None:
+    def add(self, frame: Frame, pose: np.ndarray, capture_ns: int = 0) -> None:
         i = self.i
+        self.capture[i] = capture_ns
         if self.values is None:
             self.values = {k: np.empty(self.n) for k in (*frame.control, *frame.channels)}
         vals = self.values
@@ -151,9 +153,22 @@ class _Recorder:
     def take(self) -> Chunk:
         i = self.i
         vals = {k: v[:i].copy() for k, v in (self.values or {}).items()}
-        chunk = Chunk(self.times[:i].copy(), vals, self.poses[:i].copy(), self.events, self.labels)
+        chunk = Chunk(self.times[:i].copy(), vals, self.poses[:i].copy(), self.events, self.labels,
+                      self.capture[:i].copy())
         self.i, self.labels, self.events = 0, [], []
         return chunk
+
+
+def chunk_frames(pipe: Pipeline) -> int:
+    """Frames per chunk handed to the sinks: 1 for a live source or a streaming sink, else ``CHUNK_FRAMES``.
+
+    A live source (``source.live``) or a sink that declares ``streaming = True``
+    (e.g. ``vmc``) gets every frame as soon as it is computed; otherwise sinks
+    get chunks of ``CHUNK_FRAMES`` frames (fewer calls, vectorised writing).
+    """
+    if getattr(pipe.source, "live", False) or any(getattr(s, "streaming", False) for s in pipe.sinks):
+        return 1
+    return CHUNK_FRAMES
 
 
 def _progress_bar(pipe: Pipeline):
@@ -176,7 +191,8 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
     ctx, src = pipe.ctx, pipe.source
     info = RunInfo(out_dir, ctx.fps, ctx.skeleton, src.n_frames, src, config or {})
     opened = []
-    rec = _Recorder(CHUNK_FRAMES, ctx.skeleton.n_channels)
+    n_chunk = chunk_frames(pipe)
+    rec = _Recorder(n_chunk, ctx.skeleton.n_channels)
     times_ns = array("q")  # per-frame compute time (ns), 8 bytes a frame
     bar = _progress_bar(pipe)
     artifacts: list[Path] = []
@@ -202,15 +218,15 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             body.step(frame)
             face.step(frame)
             pose = mixer.pose(frame)
-            rec.add(frame, pose)
+            rec.add(frame, pose, t0)
             times_ns.append(clock() - t0)
             k += 1
-            if rec.i == CHUNK_FRAMES:
+            if rec.i == n_chunk:
                 chunk = rec.take()
                 for sink in opened:
                     sink.write(chunk)
                 if bar is not None:
-                    bar.update(CHUNK_FRAMES)
+                    bar.update(n_chunk)
         if k == 0:
             raise LaughlabError("the input holds no audio frames")
         if rec.i:
@@ -224,6 +240,10 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
         if hasattr(src, "save_artifacts"):
             artifacts = src.save_artifacts(out_dir)
         metrics = _metrics(pipe, np.frombuffer(times_ns, dtype=np.int64), k, wall)
+        for sink in opened:  # a sink's own numbers (e.g. vmc latency), keys prefixed with its name
+            more = getattr(sink, "metrics", None)
+            if callable(more):
+                metrics.update(more() or {})
         tmp = out_dir / ".metrics.json.part"
         tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
         os.replace(tmp, out_dir / "metrics.json")

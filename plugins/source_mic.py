@@ -1,6 +1,7 @@
 """Source ``mic``: live input through sounddevice (PortAudio), block by block."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,7 +70,8 @@ class MicSource(Source):
         self.duration_s = d
 
     def _chunks(self):
-        n = int(round(self.sample_rate / self.ctx.fps)) * self.params.block_frames
+        # round up: a block a sample short of a frame would make every frame wait one more block
+        n = math.ceil(self.sample_rate / self.ctx.fps) * self.params.block_frames
         total = None if self.params.duration_s is None else int(self.params.duration_s * self.sample_rate)
         got = 0
         with self._sd.InputStream(device=self._device, channels=1, samplerate=self.sample_rate,

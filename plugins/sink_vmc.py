@@ -1,0 +1,189 @@
+"""Sink ``vmc``: the face as ARKit blendshapes and the skeleton as Unity humanoid bones, live over OSC.
+
+``python -m laughlab input=mic output=vmc`` animates a VSeeFace, Warudo or Unity
+(EVMC4U) avatar from the microphone; ``output=vmc`` on a file or synthetic
+input plays it at real time.  Protocol, blendshape mapping and coordinate
+conversion: :mod:`laughlab.vmc`.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from laughlab import hookimpl
+from laughlab.bases import Sink
+from laughlab.errors import LaughlabError
+from laughlab.plugins import check_range
+from laughlab.vmc import (DEFAULT_PORT, VRM_PRESETS, BlockClock, BoneMap, VmcEncoder, VmcSender, arkit_weights,
+                          latency_summary)
+
+
+@dataclass
+class VmcParams:
+    """Parameters of the ``vmc`` sink.
+
+    Attributes
+    ----------
+    host : str
+        Receiver's host name or address.
+    port : int
+        Receiver's UDP port (39539: the VMC protocol's usual port).
+    realtime : str
+        ``auto``: a live source (``input=mic``) is sent as it comes; any other
+        input is paced at the frame clock (frame k sent (k + 1)/fps after the
+        start, when its audio would have been captured live).  ``on`` / ``off``
+        force pacing on or off (off: as fast as the pipeline runs).
+    max_packet_bytes : int
+        Largest UDP datagram; a frame's messages are split into several OSC
+        bundles below it (1400 fits an Ethernet frame).  0: one bundle per frame.
+    upper_chest : bool
+        Send the UpperChest bone; False folds its rotation into Chest (avatars without one).
+    blend_case : str
+        ``arkit``: ARKit's spelling (``jawOpen``); ``capitalized``: first letter
+        upper case (``JawOpen``), as some VRM perfect-sync avatars name their clips.
+    vrm_presets : bool
+        Also send the VRM 0.x preset clips ``A`` (jawOpen), ``Joy`` (smile),
+        ``Blink_L``, ``Blink_R`` for avatars without perfect-sync clips.
+    report : bool
+        Print the frame count and the measured latency when the run ends.
+    """
+
+    host: str = "127.0.0.1"
+    port: int = DEFAULT_PORT
+    realtime: str = "auto"
+    max_packet_bytes: int = 1400
+    upper_chest: bool = True
+    blend_case: str = "arkit"
+    vrm_presets: bool = False
+    report: bool = True
+
+    def __post_init__(self) -> None:
+        if not self.host:
+            raise ValueError("host must not be empty")
+        check_range("port", self.port, 1, 65535)
+        if self.realtime not in ("auto", "on", "off"):
+            raise ValueError(f"realtime must be auto, on or off (got {self.realtime!r})")
+        if self.max_packet_bytes != 0:
+            check_range("max_packet_bytes", self.max_packet_bytes, 512, 65000)
+        if self.blend_case not in ("arkit", "capitalized"):
+            raise ValueError(f"blend_case must be arkit or capitalized (got {self.blend_case!r})")
+
+
+class VmcSink(Sink):
+    """Sends every frame as VMC messages as soon as the pipeline hands it over.
+
+    ``streaming = True`` asks the pipeline for one-frame chunks (proposed
+    pipeline change), so a live frame goes out as soon as it is computed.
+
+    Latency: for each frame, the time from its audio block's capture to the
+    frame's last datagram leaving the socket.  The capture time is
+    ``Chunk.capture_ns`` when the pipeline provides it, else the time the
+    source handed the block to the pipeline (the sink wraps ``source.blocks``),
+    and for a paced non-live input the moment its audio would have been
+    captured live.  ``metrics()`` gives ``vmc_frames``,
+    ``vmc_latency_ms_p50``/``p90``/``p99``/``max`` for ``metrics.json``.
+    """
+
+    name = "vmc"
+    Params = VmcParams
+    streaming = True
+
+    def open(self, run) -> None:
+        super().open(run)
+        p = self.params
+        try:
+            self.sender = VmcSender(p.host, p.port)
+        except OSError as exc:
+            raise LaughlabError(f"output.vmc: cannot reach host {p.host!r}: {exc}") from None
+        self.bones = BoneMap(run.skeleton, upper_chest=p.upper_chest)
+        self.encoder = VmcEncoder(self.bones.bones, p.max_packet_bytes)
+        live = bool(getattr(run.source, "live", False))
+        self.paced = p.realtime == "on" or (p.realtime == "auto" and not live)
+        self.clock = BlockClock(run.source) if run.source is not None else None
+        self.dt_ns = int(round(1e9 / run.fps))
+        self.origin_ns: int | None = None  # paced: frame k is due at origin + (k + 1) dt
+        self.n = 0
+        self.lat_ms: list[float] = []
+        self._names: dict[str, str] = {}
+        self._summary: dict | None = None
+
+    def _blend_name(self, name: str) -> str:
+        out = self._names.get(name)
+        if out is None:
+            out = self._names[name] = name[:1].upper() + name[1:] if self.params.blend_case == "capitalized" \
+                else name
+        return out
+
+    def write(self, chunk) -> None:
+        n = len(chunk.times)
+        if not n:
+            return
+        pos, rot = self.bones.local(np.nan_to_num(np.asarray(chunk.poses, dtype=np.float64)))
+        weights = arkit_weights(chunk.channels)
+        if self.params.vrm_presets:
+            for preset, names in VRM_PRESETS.items():
+                have = [weights[k] for k in names if k in weights]
+                if have:
+                    weights[preset] = np.mean(have, axis=0)
+        names = [self._blend_name(k) if k not in VRM_PRESETS else k for k in weights]
+        values = np.array([weights[k] for k in weights]).reshape(len(weights), n).T.tolist() if weights else [[]] * n
+        capture = getattr(chunk, "capture_ns", None)
+        clock = time.perf_counter_ns
+        for i in range(n):
+            k = self.n
+            if self.paced:
+                if self.origin_ns is None:
+                    self.origin_ns = clock() - self.dt_ns
+                due = self.origin_ns + (k + 1) * self.dt_ns
+                wait = due - clock()
+                if wait > 0:
+                    time.sleep(wait / 1e9)
+                captured = due
+                if self.clock is not None:
+                    self.clock.pop()
+            else:
+                captured = self.clock.pop() if self.clock is not None else None
+                if capture is not None:
+                    captured = int(capture[i])
+            msgs = self.encoder.messages(float(chunk.times[i]), pos[i], rot[i], zip(names, values[i]))
+            self.sender.send(self.encoder.packets(msgs))
+            if captured is not None:
+                self.lat_ms.append((clock() - captured) / 1e6)
+            self.n += 1
+
+    def _finish(self) -> None:
+        if self.clock is not None:
+            self.clock.restore()
+            self.clock = None
+        self.sender.close()
+
+    def metrics(self) -> dict:
+        """Frames sent and the capture-to-send latency (ms) for ``metrics.json``."""
+        s = self._summary or latency_summary(np.array(self.lat_ms))
+        out = {"vmc_frames": int(self.n)}
+        for key in ("p50", "p90", "p99", "max"):  # None (JSON null) when nothing was measured
+            out[f"vmc_latency_ms_{key}"] = s[key] if s["n"] else None
+        return out
+
+    def close(self):
+        self._finish()
+        self._summary = latency_summary(np.array(self.lat_ms))
+        if self.params.report:
+            s = self._summary
+            how = "paced at the frame clock" if self.paced else "live"
+            print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}); latency audio block -> "
+                  f"OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max {s['max']:.2f} ms",
+                  file=sys.stdout, flush=True)
+        return []
+
+    def abort(self) -> None:
+        if getattr(self, "sender", None) is not None:
+            self._finish()
+
+
+@hookimpl
+def register_sinks(register):
+    register(VmcSink)

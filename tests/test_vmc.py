@@ -1,0 +1,350 @@
+"""The ``vmc`` sink: the VMC protocol over OSC, received by a real python-osc server on loopback."""
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from omegaconf import OmegaConf
+
+from laughlab import pipeline, plugins
+from laughlab.bases import Context
+from laughlab.cli import compose_config
+from laughlab.errors import LaughlabError
+from laughlab.render import source_audio
+from laughlab.skeleton import HUMANOID, euler_to_matrix, global_transforms
+from laughlab.vmc import (SMILE_TO_ARKIT, UNITY_BONES, BoneMap, VmcEncoder, arkit_weights, euler_zxy_to_quat,
+                          osc_message, paced_chunks, quat_to_matrix, to_unity_position, to_unity_quat)
+from laughlab_plugins import sink_vmc
+from laughlab_plugins.source_mic import MicParams, MicSource
+
+pythonosc = pytest.importorskip("pythonosc")
+from pythonosc.dispatcher import Dispatcher  # noqa: E402
+from pythonosc.osc_bundle import OscBundle  # noqa: E402
+from pythonosc.osc_message import OscMessage  # noqa: E402
+from pythonosc.osc_server import BlockingOSCUDPServer  # noqa: E402
+
+S = np.diag([-1.0, 1.0, 1.0])
+N_BONES = len(HUMANOID.names)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def registered():
+    """Register the sink unless its entry point already did."""
+    mine = not plugins.pm.is_registered(sink_vmc) and "vmc" not in plugins.registry()["sink"]
+    if mine:
+        plugins.pm.register(sink_vmc, name="test-sink-vmc")
+    yield
+    if mine:
+        plugins.pm.unregister(sink_vmc)
+
+
+class Receiver:
+    """A python-osc UDP server on 127.0.0.1 (ephemeral port) recording every message with its arrival time."""
+
+    def __init__(self):
+        self.msgs: list[tuple[int, str, tuple]] = []
+        d = Dispatcher()
+        d.set_default_handler(self._on)
+        self.server = BlockingOSCUDPServer(("127.0.0.1", 0), d)
+        self.port = self.server.server_address[1]
+        self.thread = threading.Thread(target=self.server.serve_forever, kwargs={"poll_interval": 0.01}, daemon=True)
+
+    def _on(self, address, *args):
+        self.msgs.append((time.perf_counter_ns(), address, args))
+
+    def __enter__(self):
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.server.shutdown()
+        self.server.server_close()
+
+    def drain(self, timeout=2.0):
+        """Wait until no message arrived for 100 ms."""
+        end = time.monotonic() + timeout
+        n = -1
+        while time.monotonic() < end and n != len(self.msgs):
+            n = len(self.msgs)
+            time.sleep(0.1)
+
+    def frames(self) -> list[list[tuple[int, str, tuple]]]:
+        """Messages grouped into frames: each frame ends with /VMC/Ext/Blend/Apply."""
+        out, cur = [], []
+        for m in self.msgs:
+            cur.append(m)
+            if m[1] == "/VMC/Ext/Blend/Apply":
+                out.append(cur)
+                cur = []
+        assert not cur, "messages after the last Blend/Apply"
+        return out
+
+
+def config(port: int, *overrides: str, **vmc):
+    cfg = compose_config(["input.duration_s=1.0", "fps=30", *overrides])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    OmegaConf.set_struct(cfg, False)
+    cfg.output = OmegaConf.create({"csv": {}, "vmc": {"port": port, "report": True, **vmc}})
+    return cfg
+
+
+# --- conversions ---------------------------------------------------------------------------------------------
+
+@given(st.lists(st.floats(-360, 360), min_size=3, max_size=3))
+@settings(max_examples=100, deadline=None)
+def test_quaternion_is_the_zxy_euler_rotation_and_unity_mirrors_it(angles):
+    q = euler_zxy_to_quat(np.array(angles))
+    assert np.linalg.norm(q) == pytest.approx(1.0)
+    r = euler_to_matrix(np.array(angles))
+    assert np.allclose(quat_to_matrix(q), r, atol=1e-9)
+    assert np.allclose(quat_to_matrix(to_unity_quat(q)), S @ r @ S, atol=1e-9)
+
+
+def test_unity_frame_mirrors_the_sides():
+    # our character's left is +X; Unity's humanoid has its right on +X, so its left is -X
+    assert np.allclose(to_unity_position([100.0, 50.0, 20.0]), [-1.0, 0.5, 0.2])
+    bones = BoneMap(HUMANOID)
+    pos, _ = bones.local(np.r_[0, 0, 0, np.zeros(3 * N_BONES)][None])
+    left_arm = pos[0, bones.bones.index("LeftUpperArm")]
+    assert left_arm[0] < 0
+    assert set(bones.bones) == set(UNITY_BONES.values())
+    assert bones.bones[0] == "Hips"
+
+
+def test_bone_rotations_rebuild_the_world_pose():
+    """Composing the sent local rotations along the Unity hierarchy gives S R_world S for every joint."""
+    rng = np.random.default_rng(1)
+    pose = np.r_[[3.0, 95.0, -2.0], rng.uniform(-40, 40, 3 * N_BONES)]
+    bones = BoneMap(HUMANOID)
+    _, rot = bones.local(pose[None])
+    local = quat_to_matrix(rot[0])
+    _, world = global_transforms(HUMANOID, pose)
+    glob = {}
+    for k, j in enumerate(bones.joints):
+        p = HUMANOID.parents[j]
+        glob[j] = local[k] if p < 0 else glob[p] @ local[k]
+        assert np.allclose(glob[j], S @ world[j] @ S, atol=1e-9)
+
+
+def test_upper_chest_folded_into_chest():
+    pose = np.zeros(3 + 3 * N_BONES)
+    pose[HUMANOID.angle_slice("spine1")] = (0, 10, 0)
+    pose[HUMANOID.angle_slice("spine2")] = (0, 15, 0)
+    bones = BoneMap(HUMANOID, upper_chest=False)
+    assert "UpperChest" not in bones.bones
+    _, rot = bones.local(pose[None])
+    chest = quat_to_matrix(rot[0, bones.bones.index("Chest")])
+    assert np.allclose(chest, S @ euler_to_matrix(np.array([0.0, 25.0, 0.0])) @ S)
+
+
+def test_arkit_channels_pass_through_clipped():
+    ch = {"smile": np.array([0.5]), "arkit.jawOpen": np.array([1.7]), "arkit.eyeBlinkLeft": np.array([np.nan]),
+          "au6": np.array([0.3])}
+    w = arkit_weights(ch)
+    assert set(w) == {"jawOpen", "eyeBlinkLeft"}
+    assert w["jawOpen"][0] == 1.0 and w["eyeBlinkLeft"][0] == 0.0
+
+
+def test_smile_face_mapped_to_arkit():
+    ch = {"smile": np.array([0.0, 0.5]), "jaw": np.array([0.2, 1.0]), "blink": np.array([1.0, 0.0]),
+          "eyes_closed": np.array([1.0, 0.25])}
+    w = arkit_weights(ch)
+    assert set(w) == set(SMILE_TO_ARKIT)
+    assert list(w["jawOpen"]) == [0.2, 1.0]
+    assert list(w["mouthSmileLeft"]) == [0.0, 0.5]
+    assert w["cheekSquintRight"][1] == pytest.approx(0.35)
+    assert list(w["eyeBlinkLeft"]) == [1.0, 0.25]
+    assert set(arkit_weights({"jaw": np.zeros(2)})) == {"jawOpen", "mouthLowerDownLeft", "mouthLowerDownRight"}
+    assert list(arkit_weights({"blink": np.array([0.5])})["eyeBlinkRight"]) == [0.5]
+
+
+def test_osc_encoding_parses_with_python_osc():
+    msg = OscMessage(osc_message("/VMC/Ext/Bone/Pos", "Hips", 0.5, -1.25, 2.0, 0.0, 0.0, 0.0, 1.0))
+    assert msg.address == "/VMC/Ext/Bone/Pos"
+    assert msg.params == ["Hips", 0.5, -1.25, 2.0, 0.0, 0.0, 0.0, 1.0]
+    enc = VmcEncoder(BoneMap(HUMANOID).bones, max_packet_bytes=600)
+    pos, rot = BoneMap(HUMANOID).local(np.r_[0, 0, 0, np.zeros(3 * N_BONES)][None])
+    msgs = enc.messages(1.5, pos[0], rot[0], [("jawOpen", 0.25), ("mouthSmileLeft", 1.0)])
+    packets = enc.packets(msgs)
+    assert all(len(p) <= 600 for p in packets) and len(packets) > 1
+    got = [m for p in packets for m in OscBundle(p)]
+    assert [m.address for m in got][:3] == ["/VMC/Ext/OK", "/VMC/Ext/T", "/VMC/Ext/Root/Pos"]
+    assert got[0].params == [1, 3, 0, 1]
+    assert got[1].params == [1.5]
+    assert got[-1].address == "/VMC/Ext/Blend/Apply"
+    assert got[-3].params == ["jawOpen", 0.25]
+    assert len(OscBundle(VmcEncoder(BoneMap(HUMANOID).bones, 0).packets(msgs)[0]).content(0).params) == 4
+
+
+# --- the sink, received on loopback -------------------------------------------------------------------------
+
+def check_frames(frames, n_blends):
+    names = set(UNITY_BONES.values())
+    times = []
+    for f in frames:
+        addresses = [m[1] for m in f]
+        assert addresses[:3] == ["/VMC/Ext/OK", "/VMC/Ext/T", "/VMC/Ext/Root/Pos"]
+        assert addresses.count("/VMC/Ext/Bone/Pos") == N_BONES
+        assert addresses.count("/VMC/Ext/Blend/Val") == n_blends
+        assert addresses[-1] == "/VMC/Ext/Blend/Apply" and len(f) == 3 + N_BONES + n_blends + 1
+        bones = [m[2] for m in f if m[1] == "/VMC/Ext/Bone/Pos"]
+        assert {b[0] for b in bones} == names
+        for b in bones:
+            assert len(b) == 8
+            q = np.array(b[4:8])
+            assert np.linalg.norm(q) == pytest.approx(1.0, abs=1e-5)  # float32 on the wire
+            assert all(np.isfinite(b[1:]))
+        for m in f:
+            if m[1] == "/VMC/Ext/Blend/Val":
+                assert isinstance(m[2][0], str) and 0.0 <= m[2][1] <= 1.0
+        times.append(f[1][2][0])
+    assert np.all(np.diff(times) > 0)
+
+
+def test_offline_stream_every_frame_and_message(tmp_path, capsys):
+    with Receiver() as rx:
+        cfg = config(rx.port, realtime="off")
+        pipe = pipeline.build(cfg)
+        metrics = pipeline.execute(pipe, tmp_path, {})
+        rx.drain()
+    frames = rx.frames()
+    assert len(frames) == metrics["n_frames"] == 30
+    check_frames(frames, len(SMILE_TO_ARKIT))
+    # the blendshapes are the face's channels (float32 on the wire)
+    import pandas as pd
+
+    ch = pd.read_csv(tmp_path / "channels.csv")
+    jaw = [dict((m[2][0], m[2][1]) for m in f if m[1] == "/VMC/Ext/Blend/Val")["jawOpen"] for f in frames]
+    assert np.allclose(jaw, ch["jaw"].clip(0, 1), atol=1e-6)
+    assert max(jaw) > 0.05
+    out = capsys.readouterr().out
+    assert f"vmc: 30 frames to 127.0.0.1:{rx.port}" in out and "latency" in out
+    sink = next(s for s in pipe.sinks if s.name == "vmc")
+    m = sink.metrics()
+    assert m["vmc_frames"] == 30 and np.isfinite(m["vmc_latency_ms_p50"])
+
+
+def test_file_input_is_paced_at_the_frame_clock(tmp_path):
+    with Receiver() as rx:
+        cfg = config(rx.port, "input.duration_s=0.5", vrm_presets=True, blend_case="capitalized",
+                     max_packet_bytes=0)
+        pipe = pipeline.build(cfg)
+        t0 = time.perf_counter_ns()
+        pipeline.execute(pipe, tmp_path, {})
+        rx.drain()
+    frames = rx.frames()
+    assert len(frames) == 15
+    arrival = np.array([f[-1][0] - t0 for f in frames]) / 1e9
+    # frame k goes out (k + 1) / fps after the first: 15 frames span 14/30 s
+    assert arrival[-1] - arrival[0] == pytest.approx(14 / 30, abs=0.05)
+    names = {m[2][0] for m in frames[0] if m[1] == "/VMC/Ext/Blend/Val"}
+    assert {"JawOpen", "MouthSmileLeft", "A", "Joy", "Blink_L", "Blink_R"} <= names
+    check_frames(frames, len(SMILE_TO_ARKIT) + 4)
+
+
+class ReplayMic(MicSource):
+    """The ``mic`` source with a file in place of the device: blocks arrive at real time, as captured."""
+
+    def __init__(self, audio, params, ctx):
+        super().__init__(params, ctx)
+        self.audio = audio
+        self.t0 = None
+
+    def open(self):
+        self.sample_rate = self.params.sample_rate
+        self.n_frames = None
+
+    def _chunks(self):
+        n = int(round(self.sample_rate / self.ctx.fps)) * self.params.block_frames
+        yield from paced_chunks(self.audio, self.sample_rate, n, on_start=lambda t: setattr(self, "t0", t))
+
+
+def test_microphone_path_streams_frame_by_frame(tmp_path, capsys):
+    with Receiver() as rx:
+        # 25 fps: 640 samples a frame at 16 kHz.  (At 30 fps the mic's blocks of round(16000/30) = 533 samples
+        # fall short of the 533.33-sample frames, so each frame waits for one more block: +1 frame of latency.)
+        cfg = config(rx.port, "input.duration_s=1.8", "fps=25")
+        pipe = pipeline.build(cfg)
+        audio = np.concatenate(list(__import__("laughlab.audio", fromlist=["read_blocks"]).read_blocks(
+            source_audio(pipe.source, tmp_path / "audio"))))
+        pipe.source.close()
+        pipe.source = ReplayMic(audio, MicParams(sample_rate=16000), pipe.ctx)
+        pipe.source.open()
+        pipeline.execute(pipe, tmp_path / "run", {})
+        rx.drain()
+    frames = rx.frames()
+    assert len(frames) == 45
+    check_frames(frames, len(SMILE_TO_ARKIT))
+    t0 = pipe.source.t0 * 1e9
+    # each frame arrives just after its audio block was captured, i.e. at (k + 1) / fps
+    due = (np.arange(45) + 1) / 25 * 1e9 + t0
+    late_ms = (np.array([f[-1][0] for f in frames]) - due) / 1e6
+    assert np.median(late_ms) < 15 and late_ms.min() > -1
+    sink = next(s for s in pipe.sinks if s.name == "vmc")
+    assert not sink.paced
+    m = sink.metrics()
+    assert 0 <= m["vmc_latency_ms_p50"] < 15
+    assert "(live)" in capsys.readouterr().out
+
+
+def test_pipeline_gives_streaming_sinks_single_frames_and_merges_sink_metrics(tmp_path):
+    with Receiver() as rx:
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.3", realtime="off"))
+        sizes = []
+        vmc = next(s for s in pipe.sinks if s.name == "vmc")
+        write = vmc.write
+        vmc.write = lambda chunk: (sizes.append(len(chunk.times)), write(chunk))
+        metrics = pipeline.execute(pipe, tmp_path, {})
+    assert set(sizes) == {1}
+    assert metrics["vmc_frames"] == 9
+    assert "vmc_latency_ms_p50" in __import__("json").loads((tmp_path / "metrics.json").read_text())
+
+
+def test_nobody_listening_is_not_an_error(tmp_path):
+    with Receiver() as rx:
+        port = rx.port
+    pipe = pipeline.build(config(port, "input.duration_s=0.2", realtime="off", report=False))
+    pipeline.execute(pipe, tmp_path, {})
+
+
+@pytest.mark.parametrize("bad", [{"port": 0}, {"port": 70000}, {"realtime": "soon"}, {"host": ""},
+                                 {"max_packet_bytes": 100}, {"blend_case": "upper"}])
+def test_bad_parameters(bad):
+    with pytest.raises(LaughlabError):
+        plugins.create("sink", "vmc", bad, Context())
+
+
+def test_unresolvable_host(tmp_path):
+    pipe = pipeline.build(config(39539, "input.duration_s=0.2", host="no-such-host.invalid"))
+    with pytest.raises(LaughlabError, match="cannot reach host"):
+        pipeline.execute(pipe, tmp_path, {})
+
+
+def test_yaml_defaults_equal_the_dataclass_defaults():
+    import yaml
+    from dataclasses import asdict
+
+    from laughlab.cli import _conf_dir
+
+    conf = yaml.safe_load(_conf_dir().joinpath("output", "vmc.yaml").read_text())
+    assert conf == {"vmc": asdict(sink_vmc.VmcParams())}
+
+
+def test_facs_face_sends_its_arkit_channels(tmp_path):
+    if "facs" not in plugins.registry()["face"]:
+        pytest.skip("no facs face")
+    with Receiver() as rx:
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.5", "face=facs", realtime="off", report=False))
+        pipeline.execute(pipe, tmp_path, {})
+        rx.drain()
+    import pandas as pd
+
+    arkit = [c[len("arkit."):] for c in pd.read_csv(tmp_path / "channels.csv").columns if c.startswith("arkit.")]
+    frames = rx.frames()
+    assert len(frames) == 15 and arkit
+    check_frames(frames, len(arkit))
+    assert [m[2][0] for m in frames[0] if m[1] == "/VMC/Ext/Blend/Val"] == arkit
