@@ -24,9 +24,11 @@ test: $(STAMP)
 test-all: $(STAMP)
 	$(PY) -m pytest -q -m ''
 
-## bench: the pipeline benchmark (per-frame time, throughput, memory)
+## bench: every benchmark (pipeline speed and memory, call detection, latency, Hill fit); figures in benchmarks/results/
 bench: $(STAMP)
 	$(PY) benchmarks/bench_pipeline.py
+	$(PY) benchmarks/bench_calls.py
+	$(PY) benchmarks/bench_latency.py
 
 ## clips: regenerate the clip library's BVH files from their keyframes
 clips: $(STAMP)
@@ -41,4 +43,7 @@ docs: $(STAMP)
 	$(PY) -m laughlab hydra.run.dir=runs/docs seed=0
 	mkdir -p docs/img
 	cp runs/docs/plots/fig3_2_mcs.png runs/docs/plots/fig4_2_energy.png runs/docs/plots/filmstrip.png docs/img/
+	rm -rf runs/docs-video
+	$(PY) -m laughlab hydra.run.dir=runs/docs-video seed=0 input.duration_s=10 output=video face=facs
+	$(PY) -c "import imageio_ffmpeg, subprocess; subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), '-loglevel', 'error', '-y', '-ss', '2.5', '-i', 'runs/docs-video/video.mp4', '-frames:v', '1', 'docs/img/video_frame.png'], check=True)"
 	$(PY) -c "from laughlab.clips import ClipLibrary; from laughlab.figure import contact_sheet; contact_sheet('docs/img/clips.png', ClipLibrary.load())"
