@@ -86,6 +86,8 @@ from typing import Sequence
 
 import numpy as np
 
+from .blink import Blinker  # noqa: F401  (re-exported: the thesis blink rule)
+
 from .plugins import check_range
 
 __all__ = [
@@ -386,50 +388,3 @@ def draw_sides(rng: np.random.Generator, units: Sequence[str], asymmetry: float,
         out[u] = SideVariation((1.0 - asymmetry * float(g[0]), 1.0 - asymmetry * float(g[1])),
                                (desync_s * float(d[0]), desync_s * float(d[1])))
     return out
-
-
-class Blinker:
-    """Blinks every N(mean, sd) seconds, skipped while the eyes are closed or closing (thesis 3.3.3).
-
-    The rule of the ``smile`` face: the first interval is drawn at the first
-    frame; when a blink is due and ``busy`` (the eyes are closed or closing for
-    another reason) it is skipped and the next interval drawn; otherwise the
-    lids close linearly over ``close_s`` and open over ``open_s``, and the next
-    interval is drawn when the blink ends.  Intervals below ``min_interval_s``
-    (the normal can go negative) are raised to it.
-    """
-
-    def __init__(self, rng: np.random.Generator, mean_s: float = 4.0, sd_s: float = 2.0,
-                 min_interval_s: float = 0.5, close_s: float = 0.08, open_s: float = 0.12):
-        self.rng = rng
-        self.mean_s, self.sd_s, self.min_interval_s = mean_s, sd_s, min_interval_s
-        self.close_s, self.open_s = close_s, open_s
-        self.reset()
-
-    def reset(self) -> None:
-        self.next_blink = None
-        self.blink_start = None
-
-    def _interval(self) -> float:
-        return max(self.min_interval_s, float(self.rng.normal(self.mean_s, self.sd_s)))
-
-    def step(self, t: float, busy: bool) -> float:
-        """The blink's lid closure at time ``t`` (s), in [0, 1]."""
-        if self.next_blink is None:
-            self.next_blink = t + self._interval()
-        if self.blink_start is None and t >= self.next_blink:
-            if busy:
-                self.next_blink = t + self._interval()
-            else:
-                self.blink_start = t
-        if self.blink_start is None:
-            return 0.0
-        u = t - self.blink_start
-        if u < self.close_s:
-            return u / self.close_s
-        u -= self.close_s
-        if u < self.open_s:
-            return 1.0 - u / self.open_s
-        self.blink_start = None
-        self.next_blink = t + self._interval()
-        return 0.0

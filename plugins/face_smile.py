@@ -5,6 +5,7 @@ from dataclasses import dataclass, field
 
 from laughlab import hookimpl
 from laughlab.bases import Face
+from laughlab.blink import Blinker
 from laughlab.plugins import check_range
 from laughlab.smoothing import JAW, SMILE, Smoother, SmootherParams
 
@@ -57,47 +58,24 @@ class SmileFace(Face):
 
     def __init__(self, params=None, ctx=None):
         super().__init__(params, ctx)
-        self.smile = Smoother(self.params.smile, self.ctx.dt)
-        self.jaw = Smoother(self.params.jaw, self.ctx.dt)
-        self.reset()
-
-    def _interval(self) -> float:
         p = self.params
-        return max(p.blink_min_interval_s, float(self.ctx.rng.normal(p.blink_mean_s, p.blink_sd_s)))
+        self.smile = Smoother(p.smile, self.ctx.dt)
+        self.jaw = Smoother(p.jaw, self.ctx.dt)
+        self.blinker = Blinker(self.ctx.rng, p.blink_mean_s, p.blink_sd_s, p.blink_min_interval_s,
+                               p.blink_close_s, p.blink_open_s)
+        self.reset()
 
     def reset(self) -> None:
         self.smile.reset()
         self.jaw.reset()
-        self.next_blink = None
-        self.blink_start = None
-
-    def _blink(self, t: float, clip_eyes: float) -> float:
-        if self.next_blink is None:
-            self.next_blink = t + self._interval()
-        p = self.params
-        if self.blink_start is None and t >= self.next_blink:
-            if clip_eyes > 0.0:  # eyes closed or closing in the clip: skip this blink
-                self.next_blink = t + self._interval()
-            else:
-                self.blink_start = t
-        if self.blink_start is None:
-            return 0.0
-        u = t - self.blink_start
-        if u < p.blink_close_s:
-            return u / p.blink_close_s
-        u -= p.blink_close_s
-        if u < p.blink_open_s:
-            return 1.0 - u / p.blink_open_s
-        self.blink_start = None
-        self.next_blink = t + self._interval()
-        return 0.0
+        self.blinker.reset()
 
     def step(self, frame) -> None:
         mcs = frame.control["mcs"]
         ch = frame.channels
         ch["smile"] = self.smile.smooth(mcs)
         ch["jaw"] = self.jaw.smooth(mcs)
-        blink = self._blink(frame.time_s, frame.clip_eyes)
+        blink = self.blinker.step(frame.time_s, frame.clip_eyes > 0.0)  # skipped while the clip closes the eyes
         ch["blink"] = blink
         ch["eyes_closed"] = max(frame.clip_eyes, blink)
 
