@@ -220,5 +220,5 @@ def test_yaml_defaults_equal_the_dataclass_defaults():
     from laughlab.cli import _conf_dir
 
     conf = yaml.safe_load(_conf_dir().joinpath("output", "video.yaml").read_text())
-    assert set(conf) == {"csv", "bvh", "plots", "video"}
+    assert set(conf) == {"csv", "bvh", "plots", "arkit", "video"}
     assert conf["video"] == asdict(VideoParams())
