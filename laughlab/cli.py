@@ -171,10 +171,13 @@ def preflight(argv: list[str]) -> None:
             raise LaughlabError(f"{run_dir} already holds a run; choose another hydra.run.dir or add overwrite=true")
     if cfg.get("harness"):
         from .harness.corpus import build_corpus
+        from .harness.experiment import experiment_module
         from .harness.runner import check_conditions
 
-        check_conditions(cfg.harness.get("conditions"))
-        build_corpus(OmegaConf.to_container(cfg.harness.get("corpus") or {}, resolve=True))
+        module = experiment_module(cfg.harness.get("module"))
+        if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
+            check_conditions(cfg.harness.get("conditions"))
+            build_corpus(OmegaConf.to_container(cfg.harness.get("corpus") or {}, resolve=True))
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
     pipe = pipeline.build(cfg)
     pipe.source.close()

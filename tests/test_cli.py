@@ -103,7 +103,7 @@ def bad_files(tmp_path_factory):
     (["input=file", "input.path=text.wav"], "cannot read audio"),
     (["input=file", "input.path=zero.wav"], "no audio samples"),
     (["input=file"], "input.path is required"),
-    (["extractor=nope"], "unknown extractor 'nope'; choose one of: phoneme, rms"),
+    (["extractor=nope"], "unknown extractor 'nope'; choose one of: phoneme, pressure, rms"),
     (["extractor.bogus=1"], "unknown parameter extractor.bogus; valid: scale"),
     (["extractor.rise_per_s=-1"], "rise_per_s must be > 0"),
     (["fps=0"], "fps must be a positive number"),

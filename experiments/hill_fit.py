@@ -1,0 +1,286 @@
+"""Experiment ``hill_fit``: audio-driven optimisation of the Hill-muscle torso (DiLorenzo et al. 2008, 6.2).
+
+``python -m laughlab experiment=hill_fit`` (``conf/experiment/hill_fit.yaml``).
+:func:`run` replaces the trial harness (the CLI calls it when the module of
+``harness.module`` defines it):
+
+1. The run's input (``input=...``, synthetic by default, or ``input=file
+   input.path=...``) goes through the ``pressure`` extractor: the target lung
+   pressure, one value per frame.
+2. :func:`laughlab.hill_fit.fit` cuts it into calls and fits each call's seven
+   parameters in turn (``harness.fit``).
+3. The fitted activations drive the ``hill`` body (:meth:`HillBody.play`) in an
+   ordinary run of the pipeline: ``channels.csv``, ``events.csv``,
+   ``motion.bvh``, ``metrics.json`` and ``plots/`` as any run writes.
+4. ``plots/fig10_pressure.png``: target and simulated pressure over the bout
+   with the most calls (the paper's Fig. 10).
+5. ``plots/fig7_optimisers.png``: running best error against evaluations of the
+   optimisers of ``harness.compare`` on the same calls (the paper's Fig. 7).
+6. With synthetic input, the inputs of ``harness.corpus`` are fitted too.
+   ``calls.csv`` (one row per call: input, times, error, evaluations, seconds,
+   parameters) and ``hill_fit.json`` (summaries per input and overall, the
+   comparison, the configuration, versions, git hash) hold the numbers.
+"""
+from __future__ import annotations
+
+import csv
+import time
+from pathlib import Path
+
+import numpy as np
+from omegaconf import OmegaConf
+
+PAPER = {"simplex": {"error": 0.18, "evals": 400}, "annealing": {"error": 0.16, "evals": 1800},
+         "seconds_per_call": 3600.0, "call_s": 0.2}
+
+
+def extract_target(cfg) -> tuple[np.ndarray, float, object]:
+    """Run the configured source and extractor; return the ``pressure`` per frame, the fps, the source's truth."""
+    from laughlab import pipeline
+    from laughlab.errors import LaughlabError
+    from laughlab.frame import Frame
+
+    pipe = pipeline.build(cfg)
+    dt = pipe.ctx.dt
+    out = []
+    try:
+        pipe.extractor.reset()
+        for k, block in enumerate(pipe.source.blocks()):
+            frame = Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)
+            pipe.extractor.step(block, frame)
+            if "pressure" not in frame.control:
+                raise LaughlabError(f"experiment hill_fit needs extractor=pressure (got {pipe.extractor.name})")
+            out.append(frame.control["pressure"])
+    finally:
+        pipe.source.close()
+    return np.array(out), float(pipe.ctx.fps), pipe.source.truth
+
+
+def fit_params(cfg):
+    """FitParams from ``harness.fit`` with the secondary motion of ``body.track``."""
+    from laughlab.hill_fit import FitParams
+
+    values = dict(OmegaConf.to_container(cfg.harness.get("fit") or {}, resolve=True))
+    track = cfg.body.get("track") or {}
+    values.setdefault("clavicle_ratio", float(track.get("clavicle_ratio", 1.0)))
+    values.setdefault("spine_deg", float(track.get("spine_deg", 30.0)))
+    values.setdefault("substep_hz", float(cfg.body.get("substep_hz", 240.0)))
+    return FitParams(**values)
+
+
+def torso_params(cfg):
+    """The body's TorsoParams (validated by the plugin's Params)."""
+    from laughlab import plugins
+
+    info = plugins.get("body", cfg.body.name)
+    return plugins.make_params(info.obj, cfg.body, "body.hill").torso
+
+
+def _rows(name: str, res) -> list[dict]:
+    from laughlab.hill_fit import PARAMS
+
+    rows = []
+    for i, cf in enumerate(res.calls):
+        row = {"input": name, "call": i, "start_s": cf.call.start / res.fps, "end_s": cf.call.end / res.fps,
+               "duration_s": (cf.call.end - cf.call.start) / res.fps, "error": cf.error, "evals": cf.evals,
+               "seconds": cf.seconds}
+        row.update({p: float(v) for p, v in zip(PARAMS, cf.x)})
+        rows.append(row)
+    return rows
+
+
+def _bouts(res, gap_frames: int) -> list[list[int]]:
+    """Runs of consecutive calls (a call starting where the previous ended, or within ``gap_frames``)."""
+    runs: list[list[int]] = []
+    for i, cf in enumerate(res.calls):
+        if runs and cf.call.start - res.calls[runs[-1][-1]].call.end <= gap_frames:
+            runs[-1].append(i)
+        else:
+            runs.append([i])
+    return runs
+
+
+def figure_10(path: Path, res, truth=None) -> dict:
+    """Target (blue) and simulated (red) pressure over the bout with the most calls, as the paper's Fig. 10."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = _bouts(res, int(0.05 * res.fps))
+    bout = max(runs, key=len) if runs else []
+    fig, ax = plt.subplots(figsize=(10, 4))
+    if bout:
+        f0 = max(0, res.calls[bout[0]].call.start - int(0.2 * res.fps))
+        f1 = min(len(res.target), res.calls[bout[-1]].call.end + int(0.3 * res.fps))
+        t = (np.arange(f0, f1) + 1) / res.fps
+        ax.plot(t, res.target[f0:f1], color="tab:blue", lw=1.8, label="target (from audio)")
+        ax.plot(t, res.simulated[f0:f1], color="tab:red", lw=1.8, label="simulated (fitted activations)")
+        top = max(float(res.target[f0:f1].max()), float(res.simulated[f0:f1].max()), 1e-6)
+        for i in bout:
+            cf = res.calls[i]
+            ax.axvline(cf.call.start / res.fps, color="0.75", lw=0.8, zorder=0)
+            ax.text((cf.call.start + cf.call.end) / 2 / res.fps, 1.04 * top, f"{cf.error:.2f}", ha="center",
+                    fontsize=7, color="0.3")
+        ax.axvline(res.calls[bout[-1]].call.end / res.fps, color="0.75", lw=0.8, zorder=0)
+        errs = [res.calls[i].error for i in bout]
+        ax.set_title(f"Fig. 10 style: a {len(bout)}-call bout; per-call normalised RMS error above "
+                     f"(mean {np.nanmean(errs):.2f})", fontsize=10)
+        ax.set_ylim(min(float(res.simulated[f0:f1].min()), 0.0) * 1.1, 1.15 * top)
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("lung pressure (cm H$_2$O, gauge)")
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return {"calls": bout, "start_s": res.calls[bout[0]].call.start / res.fps if bout else None}
+
+
+def figure_7(path: Path, comparison: dict) -> None:
+    """Running best error against evaluations, one panel per call (the paper's Fig. 7)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = len(comparison)
+    fig, axes = plt.subplots(1, max(n, 1), figsize=(5.2 * max(n, 1), 4), squeeze=False)
+    colors = {"nelder-mead": "tab:green", "annealing": "tab:orange", "pds": "tab:blue", "cma": "tab:purple"}
+    names = {"nelder-mead": "simplex (Nelder-Mead)", "annealing": "simulated annealing (dual_annealing)",
+             "pds": "parallel direct search (batched)", "cma": "CMA-ES (batched)"}
+    for ax, (label, runs) in zip(axes[0], comparison.items()):
+        for method, r in runs["methods"].items():
+            h = np.asarray(r["history"], dtype=float)
+            ax.plot(np.arange(1, len(h) + 1), h, color=colors.get(method), lw=1.6,
+                    label=f"{names.get(method, method)}: {r['error']:.2f} in {r['seconds']:.2f} s")
+        ax.plot([PAPER["simplex"]["evals"]], [PAPER["simplex"]["error"]], "s", color="tab:green", ms=7, mfc="none",
+                label="paper: simplex 0.18 @ ~400")
+        ax.plot([PAPER["annealing"]["evals"]], [PAPER["annealing"]["error"]], "o", color="tab:orange", ms=7,
+                mfc="none", label="paper: annealing 0.16 @ ~1800")
+        ax.set_xscale("log")
+        ax.set_xlabel("evaluations")
+        ax.set_ylabel("best normalised RMS error")
+        ax.set_title(label, fontsize=10)
+        ax.set_ylim(0, 1.2)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="upper right")
+    fig.suptitle("Fig. 7 style: running best error of one call's optimisation", fontsize=11)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def compare(target, fps: float, res, fp, tp, spec: dict) -> dict:
+    """Fig. 7's comparison on ``spec['calls']`` calls spread over the first bout (same start state per call)."""
+    from laughlab.hill_fit import compare_methods
+
+    n = int(spec.get("calls", 2))
+    runs = _bouts(res, int(0.05 * fps))
+    bout = max(runs, key=len) if runs else []
+    picks = [bout[int(round(j * (len(bout) - 1) / max(n - 1, 1)))] for j in range(n)] if len(bout) >= n else bout
+    out = {}
+    for i in dict.fromkeys(picks):
+        cf = res.calls[i]
+        methods = compare_methods(target, fps, i, methods=tuple(spec.get("methods") or ("nelder-mead", "annealing")),
+                                  max_evals=int(spec.get("max_evals", 2000)), fit_params=fp, torso_params=tp,
+                                  prior=res)
+        out[f"call {i} ({cf.call.start / fps:.2f}-{cf.call.end / fps:.2f} s)"] = {
+            "call": i, "start_s": cf.call.start / fps, "end_s": cf.call.end / fps, "methods": methods}
+    return out
+
+
+def _corpus_inputs(cfg) -> list:
+    """Corpus items fitted for the statistics: with synthetic input, the profiles x seeds of
+    ``harness.corpus`` plus its folder; with a recording, only the recording."""
+    from laughlab.harness.corpus import build_corpus
+
+    if cfg.input.name != "synthetic":
+        return []
+    spec = OmegaConf.to_container(cfg.harness.get("corpus") or {}, resolve=True)
+    if not spec.get("profiles") and not spec.get("folder"):
+        return []
+    return build_corpus(spec)
+
+
+def run(cfg, out_dir) -> dict:
+    """Fit the run's input (and the corpus), animate it, write the figures and the numbers."""
+    from laughlab import pipeline
+    from laughlab.harness import results as res_mod
+    from laughlab.harness.runner import _compose
+    from laughlab.hill_fit import fit
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    fp, tp = fit_params(cfg), torso_params(cfg)
+    t0 = time.perf_counter()
+    target, fps, truth = extract_target(cfg)
+    result = fit(target, fps, fp, tp)
+    name = "input" if cfg.input.name != "file" else Path(str(cfg.input.path)).name
+    summaries = {name: result.summary()}
+    rows = _rows(name, result)
+    # the animation: an ordinary run whose hill body plays the fitted activations
+    pipe = pipeline.build(cfg)
+    if pipe.body.name != "hill":
+        from laughlab.errors import LaughlabError
+
+        raise LaughlabError("experiment hill_fit needs body=hill")
+    pipe.body.play(result.schedule)
+    metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
+    fig10 = figure_10(out_dir / "plots" / "fig10_pressure.png", result, truth)
+    comparison = compare(target, fps, result, fp, tp, OmegaConf.to_container(cfg.harness.get("compare") or {},
+                                                                             resolve=True))
+    if comparison:
+        figure_7(out_dir / "plots" / "fig7_optimisers.png", comparison)
+    # the corpus
+    base = [f"extractor.{k}={v}" for k, v in OmegaConf.to_container(cfg.extractor, resolve=True).items()
+            if k != "name" and not isinstance(v, (dict, list))]
+    for item in _corpus_inputs(cfg):
+        sub = _compose(["extractor=pressure", "body=hill", *base, *item.overrides])
+        tgt, f, _ = extract_target(sub)
+        r = fit(tgt, f, fp, tp)
+        summaries[item.id] = r.summary()
+        rows += _rows(item.id, r)
+    err = np.array([r["error"] for r in rows], dtype=float)
+    secs = np.array([r["seconds"] for r in rows], dtype=float)
+    lens = np.array([r["duration_s"] for r in rows], dtype=float)
+    ok = np.isfinite(err)
+    overall = {
+        "calls": len(rows),
+        "error_mean": float(err[ok].mean()) if ok.any() else None,
+        "error_median": float(np.median(err[ok])) if ok.any() else None,
+        "share_error_at_most_0.18": float((err[ok] <= 0.18).mean()) if ok.any() else None,
+        "seconds_per_call_mean": float(secs.mean()) if len(secs) else None,
+        "seconds_per_call_p90": float(np.percentile(secs, 90)) if len(secs) else None,
+        "call_length_s_mean": float(lens.mean()) if len(lens) else None,
+        "seconds_per_second_of_call": float(secs.sum() / lens.sum()) if lens.sum() > 0 else None,
+    }
+    with open(out_dir / "calls.csv", "w", newline="") as fh:
+        if rows:
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+    doc = {
+        "schema": "laughlab.hill_fit/1",
+        "experiment": "hill_fit",
+        "date": res_mod.now_iso(),
+        "git_hash": res_mod.git_hash(),
+        "versions": res_mod.versions(),
+        "config": OmegaConf.to_container(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True),
+        "fit_params": dict(fp.__dict__),
+        "paper": PAPER,
+        "overall": overall,
+        "inputs": summaries,
+        "fig10": fig10,
+        "comparison": {k: {**{kk: vv for kk, vv in v.items() if kk != "methods"},
+                           "methods": {m: {kk: vv for kk, vv in r.items()} for m, r in v["methods"].items()}}
+                       for k, v in comparison.items()},
+        "animation_metrics": metrics,
+        "wall_s": time.perf_counter() - t0,
+    }
+    res_mod.write_json(out_dir / "hill_fit.json", doc)
+    print(f"hill_fit: {overall['calls']} calls, mean error {overall['error_mean']:.3f}, "
+          f"{overall['seconds_per_call_mean']:.3f} s per call -> {out_dir / 'hill_fit.json'}")
+    return doc

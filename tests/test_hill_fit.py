@@ -1,0 +1,197 @@
+"""Audio-driven optimisation (DiLorenzo 2008, 6.2): primitives, segmentation, cost, fit, playback, experiment."""
+import json
+import math
+
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+
+from laughlab import hill_fit as hf
+from laughlab import plugins
+from laughlab.bases import Context
+from laughlab.frame import Frame
+from laughlab.hill import GROUPS, Torso, TorsoParams
+from laughlab_plugins import body_hill, extractor_pressure
+from laughlab_plugins.body_hill import HillBody, HillParams
+
+FPS = 60.0
+
+
+@pytest.fixture(scope="module")
+def hill_plugins():
+    """Register the plugins until the entry points body_hill / extractor_pressure exist."""
+    plugins.load_entry_points()
+    added = [m for m in (body_hill, extractor_pressure) if not plugins.pm.is_registered(m)]
+    for m in added:
+        plugins.pm.register(m)
+    yield
+    for m in added:
+        plugins.pm.unregister(m)
+
+
+def test_primitive_is_one_period_of_a_raised_cosine():
+    # A (1 - cos(2 pi f (t - t0))) / 2 on [t0, t0 + 1/f)
+    assert hf.bump(0.1 + 0.05, 0.1, 5.0) == pytest.approx(0.5)      # quarter period
+    assert hf.bump(0.1 + 0.1, 0.1, 5.0) == pytest.approx(1.0)       # half period: the peak
+    assert hf.bump(0.09, 0.1, 5.0) == 0.0 and hf.bump(0.3, 0.1, 5.0) == 0.0
+    x = np.array([0.8, 0.4, 0.1, 0.02, 5.0, 0.05, 4.0])             # the seven PARAMS
+    t = np.array([1.12, 1.15])
+    a = hf.call_activation(t, x, 1.0)
+    ab, ii, di = GROUPS.index("abdomen"), GROUPS.index("inner_intercostals"), GROUPS.index("diaphragm")
+    assert a[0, ab] == pytest.approx(0.8 * hf.bump(1.12, 1.02, 5.0))
+    np.testing.assert_allclose(a[:, ii], 0.5 * a[:, ab])              # ribcage shares the abdomen's timing
+    assert a[1, di] == pytest.approx(0.1 * hf.bump(1.15, 1.05, 4.0))
+    assert a[:, [GROUPS.index("outer_intercostals")]].sum() == 0     # laughing is expiratory
+    assert len(hf.PARAMS) == 7
+
+
+def pulses(times, width=0.06, fps=FPS, n=None):
+    t = (np.arange(n if n is not None else int(2.5 * fps)) + 1) / fps
+    return np.sum([np.exp(-0.5 * ((t - c) / width) ** 2) for c in times], axis=0)
+
+
+def test_segmentation_cuts_at_the_valley_centres():
+    p = pulses([0.5, 0.7, 0.9, 1.8, 2.0])                           # a bout of 3 calls, a pause, 2 calls
+    calls = hf.segment_calls(p, FPS)
+    assert len(calls) == 5
+    peaks = [c.peak for c in calls]
+    assert [round((k + 1) / FPS, 2) for k in peaks] == [0.5, 0.7, 0.9, 1.8, 2.0]
+    # inside a bout a call ends where the next starts, half-way between the peaks (the valley centre)
+    assert calls[0].end == calls[1].start and calls[1].end == calls[2].start
+    assert abs((calls[0].end + 0.5) / FPS - 0.6) <= 1 / FPS
+    # across the pause the calls end and start where the pressure is below 10 % of the peak
+    assert calls[2].end < calls[3].start
+    assert p[calls[2].end] < 0.1 * p[calls[2].peak] and p[calls[3].start - 1] < 0.1 * p[calls[3].peak]
+    assert hf.segment_calls(np.zeros(50), FPS) == []
+
+
+def problem(target, state=None, fit=None, t0=0.0):
+    state = Torso().get_state(0) if state is None else state
+    return hf.CallProblem(target, t0, FPS, lambda t: np.zeros((len(t), 6)), state, TorsoParams(),
+                          fit or hf.FitParams())
+
+
+def test_scaling_of_the_parameters_by_hand():
+    pr = problem(np.ones(12))
+    assert pr.length == pytest.approx(0.2) and pr.horizon == pytest.approx(0.3)
+    u = np.array([0.5, 1.0, 0.5, 0.0, 0.5, 0.5, 1.0])
+    x = pr.to_physical(u)
+    assert x[0] == pytest.approx(1.0 * 0.25) and x[1] == 1.0 and x[2] == pytest.approx(0.3 * 0.25)  # A = A_max u^2
+    assert x[5] == pytest.approx(0.5 * 0.7 * 0.2)                                     # start, linear
+    assert x[4] == pytest.approx(1.5 * (12.0 / 1.5) ** 0.5)                            # frequency, logarithmic
+    assert x[6] == pytest.approx(12.0)
+    np.testing.assert_allclose(pr.to_unit(x), u, atol=1e-12)
+    # a primitive must end within the look-ahead: f >= 1 / (0.3 s - start)
+    late = pr.to_physical(np.array([0.5, 0.5, 0.5, 1.0, 0.0, 1.0, 0.0]))
+    assert late[4] == pytest.approx(1.0 / (0.3 - 0.14)) and late[6] == pytest.approx(1.0 / (0.3 - 0.14))
+
+
+def test_error_is_normalised_by_a_constant_zero_pressure():
+    target = pulses([0.1], n=12)
+    pr = problem(target, fit=hf.FitParams(settle_weight=0.0))
+    cost, err = pr.costs(pr.to_unit(np.zeros((1, 7))))
+    assert err[0] == pytest.approx(1.0)                      # the torso at rest: zero pressure -> error 1
+    p, _ = pr.simulate(np.array([[0.3, 0.1, 0.0, 0.0, 6.0, 0.0, 6.0]]), look=False)
+    rms = np.sqrt(np.mean((p[:, 0] - target) ** 2)) / np.sqrt(np.mean(target ** 2))
+    assert pr.costs(pr.to_unit(np.array([[0.3, 0.1, 0.0, 0.0, 6.0, 0.0, 6.0]])))[1][0] == pytest.approx(rms)
+
+
+def oracle(xs, n_frames=12, gap=0):
+    """A target made by the model itself: calls of n_frames with known parameters."""
+    calls, f0 = [], 6
+    for _ in xs:
+        calls.append(hf.Call(f0, f0 + n_frames, f0 + n_frames // 2))
+        f0 += n_frames + gap
+    n = f0 + 12
+    fp = hf.FitParams()
+    res = hf.FitResult(FPS, [hf.CallFit(c, np.array(x), 0.0, 0, 0.0) for c, x in zip(calls, xs)], np.zeros(n),
+                       np.zeros(n), fp, TorsoParams())
+    hf._advance(res, Torso().get_state(0), 0, n, FPS, TorsoParams(), fp)
+    return res.simulated.copy(), calls
+
+
+def test_true_parameters_score_zero_and_batches_agree():
+    x = np.array([0.15, 0.1, 0.02, 0.01, 6.0, 0.0, 5.0])
+    target, calls = oracle([x])
+    c = calls[0]
+    state = hf._advance(hf.FitResult(FPS, [], target, np.zeros_like(target), hf.FitParams(), TorsoParams()),
+                        Torso().get_state(0), 0, c.start, FPS, TorsoParams(), hf.FitParams())
+    pr = hf.CallProblem(target[c.start:c.end], c.start / FPS, FPS, lambda t: np.zeros((len(t), 6)), state,
+                        TorsoParams(), hf.FitParams(settle_weight=0.0))
+    u = pr.to_unit(x)
+    others = np.random.default_rng(0).uniform(size=(5, 7))
+    cost, err = pr.costs(np.vstack([u, others]))
+    assert err[0] < 1e-9                                      # the generating parameters reproduce the target
+    single = [pr.costs(o[None, :])[1][0] for o in others]
+    np.testing.assert_allclose(err[1:], single, rtol=1e-9)    # a batch of torsos == one at a time
+    assert pr.evals == 11 and len(pr.history) == 11
+    assert all(a >= b for a, b in zip(pr.history, pr.history[1:]))
+
+
+@pytest.fixture(scope="module")
+def oracle_fit():
+    xs = [np.array([0.12, 0.1, 0.02, 0.0, 6.0, 0.0, 5.0]), np.array([0.2, 0.05, 0.0, 0.02, 5.0, 0.05, 6.0])]
+    target, calls = oracle(xs)
+    res = hf.fit(target, FPS, hf.FitParams(max_evals=250, polish_evals=60, settle_weight=0.0), calls=calls)
+    return target, res
+
+
+def test_fit_recovers_a_model_made_target(oracle_fit):
+    target, res = oracle_fit
+    s = res.summary()
+    assert s["calls"] == 2 and s["error_mean"] < 0.35
+    assert all(cf.evals <= 250 + 60 + 32 for cf in res.calls)
+
+
+def test_playback_on_the_body_reproduces_the_fit(oracle_fit):
+    """The hill body playing the fitted schedule gives the simulated pressure of the fit, frame by frame."""
+    target, res = oracle_fit
+    body = HillBody(HillParams(), Context(fps=FPS))
+    body.play(res.schedule)
+    p = []
+    for k in range(len(target)):
+        f = Frame(k, k / FPS, 1 / FPS, {"pressure": 0.0, "mcs": 0.0})
+        body.step(f)
+        p.append(f.channels["lung_pressure"])
+    np.testing.assert_allclose(p, res.simulated, atol=1e-9)
+
+
+def test_compare_methods_records_running_best():
+    target, calls = oracle([np.array([0.12, 0.1, 0.02, 0.0, 6.0, 0.0, 5.0])])
+    out = hf.compare_methods(target, FPS, 0, methods=("nelder-mead", "annealing", "pds", "cma"), max_evals=60,
+                             fit_params=hf.FitParams(polish_evals=0, init_points=15, popsize=12))
+    assert set(out) == {"nelder-mead", "annealing", "pds", "cma"}
+    for r in out.values():
+        h = r["history"]
+        assert len(h) >= 30 and all(a >= b for a, b in zip(h, h[1:]))
+        assert r["error"] == pytest.approx(h[-1]) and 0 <= r["error"] <= 1.0 + 1e-9
+
+
+def test_fit_params_validate():
+    with pytest.raises(ValueError):
+        hf.FitParams(method="genetic")
+    with pytest.raises(ValueError):
+        hf.FitParams(freq_min_hz=5.0, freq_max_hz=2.0)
+
+
+def test_experiment_writes_the_figures_and_numbers(hill_plugins, tmp_path):
+    from laughlab.cli import compose_config
+    from laughlab_experiments import hill_fit as exp
+
+    cfg = compose_config(["experiment=hill_fit", "input.duration_s=2.5", "input.profile=intense",
+                          "harness.fit.max_evals=60", "harness.fit.polish_evals=0", "harness.fit.popsize=12",
+                          "harness.fit.init_points=11", "harness.compare.calls=1", "harness.compare.max_evals=30",
+                          "harness.compare.methods=[nelder-mead,cma]", "harness.corpus.profiles=[giggle]",
+                          "harness.corpus.duration_s=2.0"])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    assert cfg.body.name == "hill" and cfg.extractor.name == "pressure"
+    doc = exp.run(cfg, tmp_path)
+    for name in ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "calls.csv", "hill_fit.json",
+                 "plots/fig10_pressure.png", "plots/fig7_optimisers.png"):
+        assert (tmp_path / name).exists(), name
+    data = json.loads((tmp_path / "hill_fit.json").read_text())
+    assert data["overall"]["calls"] == len((tmp_path / "calls.csv").read_text().splitlines()) - 1
+    assert set(data["inputs"]) == {"input", "giggle-s00"}
+    assert math.isfinite(doc["overall"]["error_mean"])
+    head = (tmp_path / "channels.csv").read_text().splitlines()[0].split(",")
+    assert {"lung_pressure", "chest", "belly", "act_abdomen"} <= set(head)
