@@ -29,6 +29,7 @@ bench: $(STAMP)
 	$(PY) benchmarks/bench_pipeline.py
 	$(PY) benchmarks/bench_calls.py
 	$(PY) benchmarks/bench_latency.py
+	$(PY) benchmarks/bench_hill.py
 
 ## clips: regenerate the clip library's BVH files from their keyframes
 clips: $(STAMP)
