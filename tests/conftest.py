@@ -1,3 +1,20 @@
 import os
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+import pytest
+
+
+@pytest.fixture(scope="session")
+def registered():
+    """Every plugin, registered through the ``laughlab`` entry points as users get them."""
+    from laughlab import plugins
+
+    return plugins.registry()
+
+
+@pytest.fixture(scope="session")
+def hill_plugins(registered):
+    """The Hill-torso plugins (``body=hill``, ``extractor=pressure``) from their entry points."""
+    assert "hill" in registered["body"] and "pressure" in registered["extractor"]
+    return registered

@@ -25,17 +25,6 @@ ROOT = Path(__file__).resolve().parents[1]
 DT = 1.0 / 60.0
 
 
-@pytest.fixture(scope="module")
-def registered():
-    reg = plugins.registry()
-    added = [m for kind, name, m in (("face", "cgm", face_cgm), ("sink", "arkit", sink_arkit))
-             if name not in reg[kind]]
-    for m in added:
-        plugins.pm.register(m)
-    yield
-    for m in added:
-        plugins.pm.unregister(m)
-
 
 # --- Eqs. 1-3 by hand -------------------------------------------------------------------------
 

@@ -28,18 +28,6 @@ FPS = 60.0
 DT = 1.0 / FPS
 
 
-@pytest.fixture(scope="module")
-def registered():
-    """Register the modules unless their entry points already did."""
-    reg = plugins.registry()
-    added = [m for kind, name, m in (("face", "facs", face_facs), ("sink", "arkit", sink_arkit))
-             if name not in reg[kind]]
-    for m in added:
-        plugins.pm.register(m)
-    yield
-    for m in added:
-        plugins.pm.unregister(m)
-
 
 def face(seed=0, fps=FPS, **kw):
     return FacsFace(FacsParams(**kw), Context(fps=fps, rng=np.random.default_rng(seed), seed=seed))

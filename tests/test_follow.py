@@ -228,17 +228,6 @@ def test_yaml_equals_the_dataclass_defaults():
     assert values == OmegaConf.to_container(OmegaConf.structured(FollowParams))
 
 
-@pytest.fixture(scope="module")
-def registered():
-    reg = plugins.registry()
-    added = [m for kind, name, m in (("body", "follow", body_follow), ("face", "facs", face_facs))
-             if name not in reg[kind]]
-    for m in added:
-        plugins.pm.register(m)
-    yield
-    for m in added:
-        plugins.pm.unregister(m)
-
 
 def run(tmp, *overrides):
     cfg = compose_config(["input.duration_s=4", "input.save_audio=false", "output=trial", *overrides])

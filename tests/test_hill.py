@@ -338,17 +338,6 @@ from laughlab_plugins import body_hill, extractor_pressure  # noqa: E402
 from laughlab_plugins.body_hill import HillBody, HillParams, TrackParams, substeps  # noqa: E402
 
 
-@pytest.fixture(scope="module")
-def hill_plugins():
-    """Register the plugins until the entry points body_hill / extractor_pressure exist."""
-    plugins.load_entry_points()
-    added = [m for m in (body_hill, extractor_pressure) if not plugins.pm.is_registered(m)]
-    for m in added:
-        plugins.pm.register(m)
-    yield
-    for m in added:
-        plugins.pm.unregister(m)
-
 
 def test_substeps_per_frame():
     assert substeps(60, 240) == 4 and substeps(30, 240) == 8 and substeps(50, 240) == 5 and substeps(1000, 240) == 1

@@ -17,17 +17,6 @@ from laughlab_plugins.body_hill import HillBody, HillParams
 FPS = 60.0
 
 
-@pytest.fixture(scope="module")
-def hill_plugins():
-    """Register the plugins until the entry points body_hill / extractor_pressure exist."""
-    plugins.load_entry_points()
-    added = [m for m in (body_hill, extractor_pressure) if not plugins.pm.is_registered(m)]
-    for m in added:
-        plugins.pm.register(m)
-    yield
-    for m in added:
-        plugins.pm.unregister(m)
-
 
 def test_primitive_is_one_period_of_a_raised_cosine():
     # A (1 - cos(2 pi f (t - t0))) / 2 on [t0, t0 + 1/f)

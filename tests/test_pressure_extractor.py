@@ -16,17 +16,6 @@ from laughlab_plugins import body_hill, extractor_pressure
 from laughlab_plugins.extractor_pressure import PressureExtractor, PressureParams, fit_line
 
 
-@pytest.fixture(scope="module")
-def hill_plugins():
-    """Register the plugins until the entry points body_hill / extractor_pressure exist."""
-    plugins.load_entry_points()
-    added = [m for m in (body_hill, extractor_pressure) if not plugins.pm.is_registered(m)]
-    for m in added:
-        plugins.pm.register(m)
-    yield
-    for m in added:
-        plugins.pm.unregister(m)
-
 
 def frames_of(ext, audio, sr, fps, sizes=None):
     """Run the extractor over ``audio`` cut into frames (optionally delivered in chunks of ``sizes``)."""
