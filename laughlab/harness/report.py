@@ -139,7 +139,10 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              "- conditions: " + "; ".join(f"**{c}** `{' '.join(o)}`" for c, o in doc["conditions"].items()),
              "", "## Results", "",
              "Mean over trials with its 95% confidence interval (t distribution). ↑ higher is better, "
-             "↓ lower is better; the better condition is in bold.", ""]
+             "↓ lower is better; the better condition is in bold. "
+             f"The compute rows (frame_ms_*, realtime_factor) were measured with "
+             f"{(doc.get('config', {}).get('harness') or {}).get('jobs', 1)} trial process(es) sharing the "
+             "machine; `make bench` measures them alone.", ""]
     lines += _results_table(doc)
     lines += ["", "![metrics](figures/metrics.png)", ""]
     shows = sorted(p.name for p in figs.glob("*_fig4_2_energy.png"))
