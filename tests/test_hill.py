@@ -334,6 +334,7 @@ from laughlab.cli import compose_config  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 from laughlab.frame import Frame  # noqa: E402
 from laughlab.skeleton import HUMANOID, forward_kinematics, rest_pose  # noqa: E402
+from laughlab.testing import ChunkedSource
 from laughlab_plugins import body_hill, extractor_pressure  # noqa: E402
 from laughlab_plugins.body_hill import HillBody, HillParams, TrackParams, substeps  # noqa: E402
 
@@ -417,27 +418,6 @@ def test_hill_params_validate():
         HillParams(preset="chuckle")
     with pytest.raises(ValueError):
         HillParams(spine_share=0.5)
-
-
-class ChunkedSource(Source):
-    """A microphone stand-in: the same audio delivered in irregular device blocks."""
-
-    name = "chunked"
-    live = True
-
-    def __init__(self, audio, sr, ctx, sizes):
-        super().__init__(None, ctx)
-        self.audio, self.sample_rate, self.sizes = audio, sr, sizes
-        self.n_frames = None
-
-    def blocks(self):
-        def chunks():
-            i, k = 0, 0
-            while i < len(self.audio):
-                s = self.sizes[k % len(self.sizes)]
-                yield self.audio[i:i + s]
-                i, k = i + s, k + 1
-        return cut_frames(chunks(), self.sample_rate, self.ctx.fps)
 
 
 def test_streaming_run_equals_offline_run(hill_plugins, tmp_path):

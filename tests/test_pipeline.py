@@ -14,6 +14,7 @@ from laughlab.bases import Context, Source
 from laughlab.cli import CONFIG_MODULE, _conf_dir, compose_config
 from laughlab.frame import ClipEvent, Frame
 from laughlab.mixer import Mixer
+from laughlab.testing import ChunkedSource
 from laughlab_plugins.body_shapes import ShapesBody, ShapesParams
 from laughlab_plugins.face_smile import SmileFace, SmileParams
 
@@ -152,27 +153,6 @@ def test_cut_frames_is_independent_of_chunking(sr, fps, n, sizes):
     assert np.array_equal(np.concatenate(got), x)
     for k, b in enumerate(got[:-1]):
         assert b[0] == edges[k] and len(b) == edges[k + 1] - edges[k]
-
-
-class ChunkedSource(Source):
-    """A stand-in for the microphone: the same audio delivered in irregular device blocks."""
-
-    name = "chunked"
-    live = True
-
-    def __init__(self, audio, sr, ctx, sizes):
-        super().__init__(None, ctx)
-        self.audio, self.sample_rate, self.sizes = audio, sr, sizes
-        self.n_frames = None
-
-    def blocks(self):
-        def chunks():
-            i, k = 0, 0
-            while i < len(self.audio):
-                s = self.sizes[k % len(self.sizes)]
-                yield self.audio[i:i + s]
-                i, k = i + s, k + 1
-        return cut_frames(chunks(), self.sample_rate, self.ctx.fps)
 
 
 def run_channels(pipe, tmp_path):
