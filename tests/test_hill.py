@@ -334,7 +334,7 @@ from laughlab.cli import compose_config  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
 from laughlab.frame import Frame  # noqa: E402
 from laughlab.skeleton import HUMANOID, forward_kinematics, rest_pose  # noqa: E402
-from laughlab.testing import ChunkedSource
+from laughlab.testing import ChunkedSource  # noqa: E402
 from laughlab_plugins import body_hill, extractor_pressure  # noqa: E402
 from laughlab_plugins.body_hill import HillBody, HillParams, TrackParams, substeps  # noqa: E402
 
