@@ -388,9 +388,13 @@ class CallProblem:
             cost = np.sqrt(np.mean((p[:end] - self.lead_target[:, None]) ** 2, axis=0)) / norm
         if self.n_look and self.fit.settle_weight > 0:
             cost = err + self.fit.settle_weight * np.sqrt(np.mean(np.minimum(p[end:], 0.0) ** 2, axis=0)) / norm
+        return self._record(cost, err)
+
+    def _record(self, cost: np.ndarray, err: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Count a batch of evaluations: non-finite costs become 1e3, and the running best
+        cost (with its error) is appended to the histories once per evaluation (Fig. 7)."""
         bad = ~np.isfinite(cost)
-        cost = np.where(bad, 1e3, cost)
-        err = np.where(bad, 1e3, err)
+        cost, err = np.where(bad, 1e3, cost), np.where(bad, 1e3, err)
         best = self.history[-1] if self.history else np.inf
         best_err = self.history_error[-1] if self.history_error else np.inf
         for c, e in zip(cost, err):
@@ -420,18 +424,8 @@ class CallProblem:
         err = np.sqrt(np.mean((p[self.lead:end] - self.target[:, None]) ** 2, axis=0)) / norm
         if len(parts) > 1:
             cost = cost + np.sqrt(np.sum(parts[1] ** 2, axis=1))
-        bad = ~np.isfinite(cost)
-        cost, err = np.where(bad, 1e3, cost), np.where(bad, 1e3, err)
-        res = np.where(np.isfinite(res), res, 1e3)
-        best = self.history[-1] if self.history else np.inf
-        best_err = self.history_error[-1] if self.history_error else np.inf
-        for c, e in zip(cost, err):
-            if c < best:
-                best, best_err = float(c), float(e)
-            self.history.append(best)
-            self.history_error.append(best_err)
-        self.evals += len(cost)
-        return res, cost
+        cost, _ = self._record(cost, err)
+        return np.where(np.isfinite(res), res, 1e3), cost
 
     def error(self, u) -> float:
         """One evaluation (for scipy's optimisers)."""
