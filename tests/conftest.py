@@ -18,3 +18,11 @@ def hill_plugins(registered):
     """The Hill-torso plugins (``body=hill``, ``extractor=pressure``) from their entry points."""
     assert "hill" in registered["body"] and "pressure" in registered["extractor"]
     return registered
+
+
+@pytest.fixture(scope="module")
+def lib():
+    """The bundled clip library."""
+    from laughlab.clips import ClipLibrary
+
+    return ClipLibrary.load()

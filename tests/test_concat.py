@@ -9,7 +9,6 @@ from hypothesis import given, settings, strategies as st
 
 from laughlab import concat as C
 from laughlab.bases import Context
-from laughlab.clips import ClipLibrary
 from laughlab.errors import LaughlabError
 from laughlab.frame import Frame
 from laughlab.mixer import Mixer
@@ -19,11 +18,6 @@ from laughlab_plugins.scheduler_concat import ConcatParams, ConcatScheduler
 
 FPS = 60.0
 DT = 1.0 / FPS
-
-
-@pytest.fixture(scope="module")
-def lib():
-    return ClipLibrary.load()
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,6 @@ import pytest
 
 from laughlab import concat as C
 from laughlab.bases import Context
-from laughlab.clips import ClipLibrary
 from laughlab.errors import LaughlabError
 from laughlab.frame import Frame
 from laughlab.head_motion import HEAD_CHANNELS, HeadMotion, HeadMotionParams, build_head_db, head_curves
@@ -16,11 +15,6 @@ from laughlab_plugins.face_facs import FacsFace, FacsParams
 
 FPS = 60.0
 DT = 1.0 / FPS
-
-
-@pytest.fixture(scope="module")
-def lib():
-    return ClipLibrary.load()
 
 
 @pytest.fixture(scope="module")
