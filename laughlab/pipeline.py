@@ -260,6 +260,10 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
     finally:
         if bar is not None:
             bar.close()
+        for stage in (pipe.body, pipe.face):   # stages with a worker thread (e.g. body=hill control=fit live)
+            stop = getattr(stage, "close", None)
+            if callable(stop):
+                stop()
         src.close()
 
 

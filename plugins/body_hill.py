@@ -22,7 +22,7 @@ its state into
 
 Control (``control``)
 ---------------------
-``track`` (default, real time).  The target lung pressure is the extractor's
+``track`` (real time, no fitting).  The target lung pressure is the extractor's
 ``control['pressure']`` (cm H2O; the ``pressure`` extractor), or, with an
 extractor that has none, ``control['mcs'] * track.mcs_pressure_cmh2o``.  Per
 frame, with ``e`` the target minus the torso's lung pressure at the end of the
@@ -44,6 +44,14 @@ look-behind is the extractor's (a 16 ms low-pass at 10 Hz for ``pressure``)
 plus the integral term, far less than one call.  Between bouts the muscles
 relax and the chest wall's recoil breathes in by itself.
 
+``fit`` (default, the paper's audio-driven control, real time): per-call
+fitted activations with one call of look-behind (:mod:`laughlab.hill_live`):
+each call plays the seven parameters fitted to the call before it, scaled to
+its own peak, and is fitted itself (:mod:`laughlab.hill_fit`, section 6.2) when
+it ends, in the frame (files: deterministic) or in a background thread (live
+input).  The target is the ``pressure`` control (or ``mcs`` times
+``track.mcs_pressure_cmh2o``).
+
 ``preset``: plays the preset ``preset`` (:mod:`laughlab.hill_presets`) in a
 loop, whatever the audio.  Programmatic: :meth:`HillBody.play` sets a
 schedule of activations (e.g. fitted to the audio by :mod:`laughlab.hill_fit`)
@@ -63,10 +71,11 @@ import numpy as np
 from laughlab import hookimpl
 from laughlab.bases import Body
 from laughlab.hill import GROUPS, IAB, ICL, IRC, ISP, Torso, TorsoParams
+from laughlab.hill_live import LiveFitter, LiveParams
 from laughlab.hill_presets import PRESETS
 from laughlab.plugins import check_range
 
-CONTROLS = ("track", "preset")
+CONTROLS = ("fit", "track", "preset")
 SPINE_JOINTS = ("spine", "spine1", "spine2")
 
 
@@ -103,9 +112,9 @@ class TrackParams:
         Without a ``pressure`` control: target = MCS times this (cm H2O).
     """
 
-    full_cmh2o: float = 20.0
-    kp: float = 0.02
-    ki: float = 1.0
+    full_cmh2o: float = 4.0
+    kp: float = 0.1
+    ki: float = 5.0
     leak_s: float = 0.3
     ribcage_ratio: float = 0.5
     diaphragm_tone: float = 0.05
@@ -113,7 +122,7 @@ class TrackParams:
     tone_s: float = 0.3
     clavicle_ratio: float = 1.0
     spine_deg: float = 30.0
-    mcs_pressure_cmh2o: float = 1.0
+    mcs_pressure_cmh2o: float = 0.2
 
     def __post_init__(self) -> None:
         check_range("full_cmh2o", self.full_cmh2o, 0, lo_open=True)
@@ -132,7 +141,7 @@ class HillParams:
     Attributes
     ----------
     control : str
-        ``track`` (from the extractor, real time) or ``preset``.
+        ``fit`` (per-call fitted activations, real time), ``track`` (a pressure controller) or ``preset``.
     preset : str
         Preset played by ``control=preset``: giggle, normal_laugh, deep_laugh, breath, cough, sneeze.
     substep_hz : float
@@ -146,12 +155,14 @@ class HillParams:
     spine_share, spine1_share, spine2_share : float
         Share of the spine flexion given to each joint (lumbar to thoracic; sum 1).
     track : TrackParams
-        The real-time controller.
+        The pressure controller (``control=track``).
+    live : LiveParams
+        Live per-call fitting (``control=fit``, :class:`laughlab.hill_live.LiveParams`).
     torso : TorsoParams
         The torso, its muscles (the paper's table) and its lungs.
     """
 
-    control: str = "track"
+    control: str = "fit"
     preset: str = "normal_laugh"
     substep_hz: float = 240.0
     chest_expanded_cm: float = 1.0
@@ -164,6 +175,7 @@ class HillParams:
     spine1_share: float = 0.3
     spine2_share: float = 0.3
     track: TrackParams = field(default_factory=TrackParams)
+    live: LiveParams = field(default_factory=LiveParams)
     torso: TorsoParams = field(default_factory=TorsoParams)
 
     def __post_init__(self) -> None:
@@ -211,6 +223,8 @@ class HillBody(Body):
         self._schedule = None
         self._act = np.zeros((1, len(GROUPS)))
         self._leak = math.exp(-self.ctx.dt / self.params.track.leak_s)
+        self.live = LiveFitter(p.live, self.ctx.fps, p.torso, live=bool(getattr(self.ctx, "live", False))) \
+            if p.control == "fit" else None
         self.reset()
 
     def play(self, schedule) -> None:
@@ -220,6 +234,8 @@ class HillBody(Body):
 
     def reset(self) -> None:
         self.torso.reset()
+        if getattr(self, "live", None) is not None:
+            self.live.reset()
         self.integral = 0.0
         self.tone = 0.0
         self.t = 0.0
@@ -227,8 +243,7 @@ class HillBody(Body):
     # -- control
     def _track(self, frame, dt: float):
         tp = self.params.track
-        c = frame.control
-        target = c["pressure"] if "pressure" in c else tp.mcs_pressure_cmh2o * c.get("mcs", 0.0)
+        target = self._target(frame)
         err = target - max(0.0, float(self.torso.lung.gauge_cmh2o[0]))
         ff = target / tp.full_cmh2o + tp.kp * err
         integral = self.integral * self._leak + err * dt
@@ -243,6 +258,14 @@ class HillBody(Body):
         act = np.array([[ab, tp.diaphragm_tone * self.tone, float(ii), 0.0, float(cl), 0.0]])
         return act, float(spine)
 
+    def _target(self, frame) -> float:
+        c = frame.control
+        return float(c["pressure"]) if "pressure" in c else self.params.track.mcs_pressure_cmh2o * float(c.get("mcs", 0.0))
+
+    def close(self) -> None:
+        if self.live is not None:
+            self.live.close()
+
     def _preset(self, t_end: np.ndarray):
         pre = PRESETS[self.params.preset]
         local = np.mod(t_end, pre.duration_s)
@@ -252,9 +275,16 @@ class HillBody(Body):
         dt, n, h = self.ctx.dt, self.n_sub, self.dt_sub
         torso = self.torso
         t0 = frame.time_s
-        if self._schedule is not None or self.params.control == "preset":
+        if self._schedule is None and self.live is not None:
+            self.live.update(frame.index, self._target(frame), torso.get_state(0))
+        if self._schedule is not None or self.params.control != "track":
             ends = t0 + h * np.arange(1, n + 1)
-            acts, spine = self._schedule(ends) if self._schedule is not None else self._preset(ends)
+            if self._schedule is not None:
+                acts, spine = self._schedule(ends)
+            elif self.live is not None:
+                acts, spine = self.live.schedule(ends)
+            else:
+                acts, spine = self._preset(ends)
             for i in range(n):
                 torso.step(acts[i][None, :], spine[i], h)
             act = acts[-1][None, :]

@@ -389,7 +389,7 @@ def test_chest_and_belly_weights_by_hand():
 
 
 def test_track_follows_the_pressure_and_relaxes():
-    body = HillBody(HillParams(track=TrackParams()), Context(fps=60))
+    body = HillBody(HillParams(control="track", track=TrackParams(full_cmh2o=20.0, kp=0.02, ki=1.0)), Context(fps=60))
     p, act = [], []
     for k in range(240):
         target = 0.6 if (k % 12) < 6 and k < 120 else 0.0       # 5 Hz pulses for 2 s, then silence
@@ -404,7 +404,7 @@ def test_track_follows_the_pressure_and_relaxes():
 
 
 def test_track_without_a_pressure_channel_uses_the_mcs():
-    body = HillBody(HillParams(), Context(fps=60))
+    body = HillBody(HillParams(control="track"), Context(fps=60))
     for k in range(30):
         f = Frame(k, k / 60, 1 / 60, {"mcs": 1.0})
         body.step(f)

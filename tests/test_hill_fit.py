@@ -27,11 +27,40 @@ def test_primitive_is_one_period_of_a_raised_cosine():
     t = np.array([1.12, 1.15])
     a = hf.call_activation(t, x, 1.0)
     ab, ii, di = GROUPS.index("abdomen"), GROUPS.index("inner_intercostals"), GROUPS.index("diaphragm")
-    assert a[0, ab] == pytest.approx(0.8 * hf.bump(1.12, 1.02, 5.0))
-    np.testing.assert_allclose(a[:, ii], 0.5 * a[:, ab])              # ribcage shares the abdomen's timing
+    # the abdomen rises and holds: at half its period u = 0.5, u - sin(pi) / (2 pi) = 0.5
+    assert a[0, ab] == pytest.approx(0.8 * 0.5)
+    assert a[0, ii] == pytest.approx(0.4 * hf.bump(1.12, 1.02, 5.0)) == pytest.approx(0.4)  # ribcage: abdomen's timing
     assert a[1, di] == pytest.approx(0.1 * hf.bump(1.15, 1.05, 4.0))
     assert a[:, [GROUPS.index("outer_intercostals")]].sum() == 0     # laughing is expiratory
     assert len(hf.PARAMS) == 7
+
+
+def test_hold_is_the_integral_of_the_period_and_release_lets_go():
+    t = np.linspace(-0.1, 0.6, 701)
+    h = hf.hold(t, 0.0, 5.0)
+    assert h[t < 0].max() == 0.0 and np.all(h[t >= 0.2] == 1.0)
+    # its rate is 2 f times the raised cosine (a trapezoid integral of the bump matches the closed form)
+    integral = np.concatenate([[0.0], np.cumsum(0.5 * (hf.bump(t[1:], 0.0, 5.0) + hf.bump(t[:-1], 0.0, 5.0))
+                                                * np.diff(t))]) * 2 * 5.0
+    np.testing.assert_allclose(h, integral, atol=2e-4)
+    assert hf.hold(0.05, 0.0, 5.0) == pytest.approx(0.25 - 1.0 / (2.0 * np.pi))   # u = 1/4 by hand
+    r = hf.release(np.array([0.9, 1.0, 1.75, 2.5, 3.0]), 1.0, 1.5)
+    np.testing.assert_allclose(r, [1.0, 1.0, 0.5, 0.0, 0.0], atol=1e-12)
+    assert np.all(hf.release(t, None, 1.5) == 1.0)
+    x = np.array([0.2, 0.0, 0.0, 0.0, 5.0, 0.0, 5.0])
+    a = hf.call_activation(np.array([0.5, 1.75, 3.0]), x, 0.0, 1.0, 1.5)[:, GROUPS.index("abdomen")]
+    np.testing.assert_allclose(a, [0.2, 0.1, 0.0], atol=1e-12)
+
+
+def test_bouts_release_after_the_last_call():
+    c = hf.Call
+    calls = [c(0, 12, 6), c(12, 24, 18), c(30, 40, 35), c(100, 110, 105)]     # gaps 0, 0.1 s, 1 s at 60 fps
+    rel = hf.bout_releases(calls, FPS, 0.3)
+    assert rel[:3] == [pytest.approx(40 / FPS + 0.3)] * 3        # one bout: let go 0.3 s after its last call
+    assert rel[3] == pytest.approx(110 / FPS + 0.3)
+    assert hf.bout_releases(calls, FPS, 0.05)[1] == pytest.approx(24 / FPS + 0.05)   # 0.1 s gap > 0.05: a new bout
+    with pytest.raises(ValueError):
+        hf.FitParams(release_after_s=0.05, settle_s=0.1)
 
 
 def pulses(times, width=0.06, fps=FPS, n=None):

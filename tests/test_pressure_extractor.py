@@ -68,7 +68,7 @@ def test_streaming_equals_offline_bit_for_bit():
 
 def test_linear_fit_and_normalisation_by_hand():
     p = PressureParams(slope_cmh2o=2.0, intercept_cmh2o=0.0, reference_cmh2o=0.5, floor_fraction=0.3,
-                       peak_prior=0.1, prior_weight=1.0, intensity=1.0)
+                       peak_prior=0.1, prior_weight=1.0, intensity=1.0, mcs_full_cmh2o=1.0)
     ext = PressureExtractor(p, Context(fps=60, sample_rate=8000))
     # feed pressure_raw values directly through the peak picker: peaks of 0.4 (env 0.2)
     raws = [0.0, 0.4, 0.0, 0.0, 0.4, 0.0]
@@ -116,15 +116,15 @@ def test_average_call_maps_to_the_reference():
     raw = np.array([f["pressure_raw"] for f in frames])
     p = np.array([f["pressure"] for f in frames])
     h = raw[-60:].max()
-    assert h == pytest.approx(0.2, rel=0.01)
+    assert h == pytest.approx(0.2 * (1 - np.exp(-2 * np.pi * 5.0 * 0.1)), rel=0.002)   # a 0.1 s pulse through 5 Hz
     assert ext.peak_count == 1 + 16
     mean = (0.05 + ext.peak_sum - 0.05) / 17
     assert ext.mean_peak == pytest.approx(mean)
     assert mean == pytest.approx((0.05 + 16 * h) / 17, rel=1e-3)
     # the last call's peak is scaled by the mean of the 15 peaks before it (a peak counts one frame later)
     before = (ext.peak_sum - ext.last_peak) / (ext.peak_count - 1)
-    assert p[-15:].max() == pytest.approx(0.5 * (ext.last_peak / before - 0.3) / 0.7, rel=1e-9)
-    assert 0.5 < p[-15:].max() < 0.56                  # -> 0.5 as the prior fades
+    assert p[-15:].max() == pytest.approx(0.1 * (ext.last_peak / before - 0.3) / 0.7, rel=1e-9)
+    assert 0.1 < p[-15:].max() < 0.112                 # -> the reference, 0.1 cm H2O, as the prior fades
     assert p[-60:].min() == 0.0                         # the floor clears the gaps
 
 
