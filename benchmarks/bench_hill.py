@@ -12,7 +12,12 @@ Measures, on this machine:
    simplex result on one exemplary call; the paper needed about an hour per call);
 3. the cost of one evaluation, alone (as Nelder-Mead and dual annealing use it)
    and in a batch (as CMA-ES and the parallel direct search use it);
-4. the paper's Fig. 7 setting: single calls optimised with the paper's cost
+4. live control (``body=hill control=fit``): each call played from the fit of
+   the call before it; the normalised error of the live lung pressure against
+   the target per call (the offline segmentation's calls), the time of each
+   call's fit and of the frames (the fit runs in the frame where a call ends
+   here, ``threaded: no``; live input moves it to a thread);
+5. the paper's Fig. 7 setting: single calls optimised with the paper's cost
    alone, from the state the earlier calls leave (CMA-ES at the production
    budget, Nelder-Mead at the paper's ~400 evaluations).
 
@@ -162,6 +167,42 @@ def single_calls(n: int = 6) -> dict:
     return out
 
 
+def live_control(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), duration_s=10.0) -> dict:
+    from laughlab.bases import Context
+    from laughlab.frame import Frame
+    from laughlab.hill_fit import segment_calls
+    from laughlab.hill_live import LiveParams
+    from laughlab_plugins.body_hill import HillBody, HillParams
+
+    errs, fit_s, fit_len, frame_ms, per_input = [], [], [], [], {}
+    for name, target in corpus_targets(profiles, seeds, duration_s):
+        body = HillBody(HillParams(control="fit", live=LiveParams(threaded="no")), Context(fps=60))
+        p = np.empty(len(target))
+        for k, v in enumerate(target):
+            f = Frame(k, k / 60, 1 / 60, {"pressure": float(v)})
+            t0 = time.perf_counter_ns()
+            body.step(f)
+            frame_ms.append((time.perf_counter_ns() - t0) / 1e6)
+            p[k] = f.channels["lung_pressure"]
+        body.close()
+        e = []
+        for c in segment_calls(target, 60.0):
+            seg = target[c.start:c.end]
+            e.append(float(np.sqrt(np.mean((p[c.start:c.end] - seg) ** 2)) / np.sqrt(np.mean(seg ** 2))))
+        errs += e
+        per_input[name] = float(np.mean(e))
+        for r in body.live.fits:
+            fit_s.append(r["seconds"])
+            fit_len.append((r["end"] - r["start"]) / 60.0)
+    errs, fit_s, fit_len, ms = map(np.array, (errs, fit_s, fit_len, frame_ms))
+    return {"calls": int(len(errs)), "error_mean": float(errs.mean()), "error_median": float(np.median(errs)),
+            "error_p90": float(np.percentile(errs, 90)), "fits": int(len(fit_s)),
+            "fit_seconds_mean": float(fit_s.mean()), "fit_seconds_max": float(fit_s.max()),
+            "fit_seconds_per_second_of_call": float(fit_s.sum() / fit_len.sum()),
+            "frame_ms_p50": float(np.percentile(ms, 50)), "frame_ms_p99": float(np.percentile(ms, 99)),
+            "frame_ms_max": float(ms.max()), "per_input_error_mean": per_input}
+
+
 def evaluation_cost() -> dict:
     from laughlab.hill import Torso, TorsoParams
     from laughlab.hill_fit import CallProblem, FitParams
@@ -197,6 +238,11 @@ def main() -> dict:
           f"(p90 {opt['seconds_per_call_p90']:.3f}) for calls of {opt['call_length_s_mean']:.3f} s "
           f"= {opt['seconds_per_second_of_call']:.2f} s per second of call; error mean {opt['error_mean']:.3f}, "
           f"median {opt['error_median']:.3f}, {100 * opt['share_error_at_most_0.18']:.0f} % of calls <= 0.18")
+    live = live_control()
+    print(f"live control (fit of the previous call): error mean {live['error_mean']:.3f} (median "
+          f"{live['error_median']:.3f}) over {live['calls']} calls; fit {live['fit_seconds_mean']:.3f} s per call "
+          f"({live['fit_seconds_per_second_of_call']:.2f} s per second of call); frames p50 {live['frame_ms_p50']:.2f} ms, "
+          f"p99 {live['frame_ms_p99']:.1f} ms, max {live['frame_ms_max']:.0f} ms (fits in the frame)")
     out = {
         "machine": {"cpus": os.cpu_count(), "python": sys.version.split()[0], "platform": platform.platform(),
                     "load_average_1min": os.getloadavg()[0]},
@@ -204,6 +250,7 @@ def main() -> dict:
         "evaluation": ev,
         "optimisation": opt,
         "single_calls": single,
+        "live": live,
         "paper": {"seconds_per_call": 3600.0, "call_s": 0.2, "simplex_error": 0.18, "simplex_evals": 400,
                   "annealing_error": 0.16, "annealing_evals": 1800},
         "targets_met": {

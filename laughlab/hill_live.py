@@ -168,7 +168,7 @@ class LiveFitter:
         self.current = None          # (entry, start frame, torso state at start, peak)
         self.buffer: list[float] = []
         self.last_end_s = None
-        self.pending = None
+        self.pending: list = []     # fits submitted to the thread, oldest first
         self.fits: list[dict] = []   # one record per fitted call: frames, x, error, evals, seconds
 
     # -- fitting
@@ -210,9 +210,8 @@ class LiveFitter:
             self.template = (rec["x"], rec["peak"])
 
     def _collect(self, block: bool = False) -> None:
-        if self.pending is not None and (block or self.pending.done()):
-            self._adopt(self.pending.result())
-            self.pending = None
+        while self.pending and (block or self.pending[0].done()):
+            self._adopt(self.pending.pop(0).result())
 
     def close(self) -> None:
         """Wait for a fit in progress and stop the thread."""
@@ -237,7 +236,7 @@ class LiveFitter:
                         self.template[0])
                 self._collect(block=not self.threaded)
                 if self.threaded:
-                    self.pending = self._pool.submit(self._fit, *args)
+                    self.pending.append(self._pool.submit(self._fit, *args))
                 else:
                     self._adopt(self._fit(*args))
                 self.current, self.buffer = None, []

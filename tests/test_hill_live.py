@@ -1,0 +1,114 @@
+"""Live per-call fitting of the Hill torso (``body=hill control=fit``, laughlab.hill_live)."""
+import numpy as np
+import pytest
+
+from laughlab import hill_fit as hf
+from laughlab.bases import Context
+from laughlab.frame import Frame
+from laughlab.hill_live import FIRST_TEMPLATE, CallTracker, LiveFitter, LiveParams
+from laughlab_plugins.body_hill import HillBody, HillParams
+
+FPS = 60.0
+
+
+def track(values, **kw):
+    tr = CallTracker(LiveParams(**kw), FPS)
+    return [(k, ev) for k, v in enumerate(values) for ev in tr.update(k, v)]
+
+
+def test_tracker_cuts_calls_at_the_floor_and_at_valleys():
+    # a call 2..5 that falls to 0 at frame 6, then a double call with a valley at frame 11
+    v = [0, 0, 0.05, 0.1, 0.08, 0.04, 0.0, 0, 0.06, 0.1, 0.09, 0.05, 0.08, 0.1, 0.02, 0]
+    ev = track(v)
+    assert ev == [(2, ("start", 2)), (6, ("end", 2, 7, 0.1)),                 # frame 6 (<= 15 % of 0.1) is its end
+                  (8, ("start", 8)), (12, ("end", 8, 12, 0.1)), (12, ("start", 12)),   # valley at 11 (< 60 %)
+                  (15, ("end", 12, 16, 0.1))]                             # 0.02 > 15 %: ends at 15
+    # a call that never falls is cut after max_call_s
+    ev = track([0.1] * 40, max_call_s=0.25)
+    assert ev[1] == (14, ("end", 0, 15, 0.1)) and ev[2] == (15, ("start", 15))
+    assert track([0.004] * 10) == []                                          # below the onset: silence
+
+
+def pulses(n, period=15, width=6, height=0.1, start=6, n_frames=None):
+    p = np.zeros(n_frames or start + n * period + 60)
+    for i in range(n):
+        k = start + i * period
+        p[k:k + width] = height * np.sin(np.pi * (np.arange(width) + 0.5) / width)
+    return p
+
+
+def run_body(target, **live):
+    body = HillBody(HillParams(control="fit", live=LiveParams(**live)), Context(fps=FPS))
+    out = []
+    for k, v in enumerate(target):
+        f = Frame(k, k / FPS, 1 / FPS, {"pressure": float(v)})
+        body.step(f)
+        out.append((f.channels["lung_pressure"], f.channels["act_abdomen"], f.channels["belly"]))
+    body.close()
+    return body, np.array(out)
+
+
+@pytest.fixture(scope="module")
+def bout():
+    target = pulses(6)
+    body, out = run_body(target, threaded="no")          # the default budget, 400 + 100 evaluations a call
+    return target, body, out
+
+
+def test_each_call_is_fitted_and_becomes_the_next_template(bout):
+    target, body, out = bout
+    live = body.live
+    assert len(live.fits) == 6
+    assert [r["start"] for r in live.fits] == [6 + 15 * i for i in range(6)]
+    assert all(0 <= r["error"] < 0.4 for r in live.fits)            # each call's own fit (1: no motion at all)
+    assert live.template[0] is live.fits[-1]["x"]                   # the last fit is the next call's template
+    # the held abdomen builds up over the bout, then is let go after it
+    ab = out[:, 1]
+    assert ab[6 + 15 * 5 + 6] > ab[6 + 15 + 6] > 0
+    assert ab[-1] < ab[6 + 15 * 5 + 6]
+    # played live from the previous call's fit, the pressure follows the pulses: from the second call on,
+    # the normalised error of every call is below 0.6 and the pressure peaks within 2 frames of the target's
+    p = out[:, 0]
+    for i in range(1, 6):
+        k = 6 + 15 * i
+        seg, sim = target[k:k + 15], p[k:k + 15]
+        assert np.sqrt(np.mean((sim - seg) ** 2)) / np.sqrt(np.mean(seg ** 2)) < 0.6
+        assert abs(int(np.argmax(sim)) - int(np.argmax(seg))) <= 2
+
+
+def test_template_before_any_fit_and_amplitude_scale():
+    live = LiveFitter(LiveParams(threaded="no"), FPS, None)
+    x0, peak0 = FIRST_TEMPLATE
+    np.testing.assert_allclose(live._scaled(peak0), x0)
+    x = live._scaled(4 * peak0)                                      # pressure ~ flow^2: amplitude ~ sqrt(peak)
+    np.testing.assert_allclose(x[:3], 2 * x0[:3])
+    np.testing.assert_allclose(x[3:], x0[3:])
+    assert live._scaled(1e-9)[0] == pytest.approx(0.25 * x0[0])     # min_scale
+
+
+def test_no_look_ahead():
+    """What the body does up to frame K depends only on the target up to frame K."""
+    a = pulses(4)
+    b = a.copy()
+    cut = 6 + 15 * 2 + 3                        # in the middle of the third call
+    b[cut + 1:] = pulses(4, period=11, height=0.2, n_frames=len(a))[cut + 1:]
+    fit = hf.FitParams(max_evals=60, polish_evals=0, popsize=12, init_points=11)
+    _, oa = run_body(a, fit=fit, threaded="no")
+    _, ob = run_body(b, fit=fit, threaded="no")
+    np.testing.assert_array_equal(oa[:cut + 1], ob[:cut + 1])
+    assert not np.array_equal(oa[cut + 1:], ob[cut + 1:])
+
+
+def test_threaded_fitting_finishes_every_call():
+    target = pulses(3)
+    fit = hf.FitParams(max_evals=60, polish_evals=0, popsize=12, init_points=11)
+    body, out = run_body(target, fit=fit, threaded="yes")
+    assert body.live.threaded and len(body.live.fits) == 3            # close() waits for the last fit
+    assert np.all(np.isfinite(out))
+
+
+def test_live_params_validate():
+    for bad in (dict(onset_cmh2o=0), dict(threaded="maybe"), dict(min_scale=2.0, max_scale=1.0)):
+        with pytest.raises(ValueError):
+            LiveParams(**bad)
+    assert isinstance(LiveParams(fit={"max_evals": 10}).fit, hf.FitParams)
