@@ -21,9 +21,14 @@ from the fit of the call before it:
 3. When a call ends, its frames are fitted (:class:`laughlab.hill_fit.CallProblem`,
    the offline fit's cost, optimiser and primitives) from the torso's state at
    the call's onset, on top of what the earlier calls play; the result is the
-   template of the next call.  The held abdominal activations are let go as in
+   template of the next call, unless its error is 1 or more (no better than
+   holding still).  The held abdominal activations are let go as in
    the offline fit (:func:`laughlab.hill_fit.release`): from the first frame
    that starts ``release_after_s`` after the last call's end with no call begun.
+   The first call of a bout plays :data:`FIRST_TEMPLATE` again (the torso is
+   relaxed; a fit from deep in the last bout, where the muscles fought the
+   chest wall's recoil, asked for far too much: the abdomen saturated and
+   ruined the next bout).
 
 Look-behind: the activations of call ``n`` come from call ``n - 1``'s fit and
 call ``n``'s own onset and peak so far; nothing later is used.  Fitting runs
@@ -73,6 +78,9 @@ class LiveParams:
         ... or after this long (s).
     min_scale, max_scale : float
         Bounds of the template's amplitude scale.
+    max_step : float
+        Largest abdominal hold a call may add when played from a template (activation; the
+        offline fits of the synthetic corpus add 0.01-0.06 a call): one poor fit cannot lock the abdomen.
     threaded : str
         ``auto`` (a background thread for live input, in the frame otherwise), ``yes`` or ``no``.
     fit : FitParams
@@ -84,7 +92,8 @@ class LiveParams:
     valley_fraction: float = 0.6
     max_call_s: float = 0.6
     min_scale: float = 0.25
-    max_scale: float = 4.0
+    max_scale: float = 2.0
+    max_step: float = 0.1
     threaded: str = "auto"
     fit: FitParams = field(default_factory=_fit_defaults)
 
@@ -168,6 +177,7 @@ class LiveFitter:
         self.current = None          # (entry, start frame, torso state at start, peak)
         self.buffer: list[float] = []
         self.last_end_s = None
+        self.bout_start_s = 0.0      # fits of calls before the current bout's let-go are not templates
         self.pending: list = []     # fits submitted to the thread, oldest first
         self.fits: list[dict] = []   # one record per fitted call: frames, x, error, evals, seconds
 
@@ -178,6 +188,7 @@ class LiveFitter:
         s = min(self.p.max_scale, max(self.p.min_scale, s))
         out = x.copy()
         out[:3] *= s
+        out[0] = min(out[0], self.p.max_step)
         return out
 
     def _fit(self, target, start: int, state, entries: list, u_start) -> dict:
@@ -206,7 +217,8 @@ class LiveFitter:
 
     def _adopt(self, rec: dict) -> None:
         self.fits.append(rec)
-        if rec["peak"] > 0 and rec["x"][:3].sum() > 0:
+        if (rec["peak"] > 0 and rec["x"][:3].sum() > 0 and rec["end"] / self.fps >= self.bout_start_s
+                and rec["error"] < 1.0):       # a fit no better than holding still teaches nothing
             self.template = (rec["x"], rec["peak"])
 
     def _collect(self, block: bool = False) -> None:
@@ -256,6 +268,9 @@ class LiveFitter:
                     if e.t_release is None:
                         e.t_release = k / self.fps
                 self.last_end_s = None
+                self.bout_start_s = k / self.fps
+                self._collect(block=not self.threaded)
+                self.template = (FIRST_TEMPLATE[0].copy(), FIRST_TEMPLATE[1])   # a new bout starts relaxed
         # forget calls that play no more
         rel = self.p.fit.release_s
         now = k / self.fps

@@ -61,7 +61,8 @@ def test_each_call_is_fitted_and_becomes_the_next_template(bout):
     assert len(live.fits) == 6
     assert [r["start"] for r in live.fits] == [6 + 15 * i for i in range(6)]
     assert all(0 <= r["error"] < 0.4 for r in live.fits)            # each call's own fit (1: no motion at all)
-    assert live.template[0] is live.fits[-1]["x"]                   # the last fit is the next call's template
+    # after the bout has been let go, the next bout starts from the first template again
+    np.testing.assert_array_equal(live.template[0], FIRST_TEMPLATE[0])
     # the held abdomen builds up over the bout, then is let go after it
     ab = out[:, 1]
     assert ab[6 + 15 * 5 + 6] > ab[6 + 15 + 6] > 0
@@ -76,6 +77,15 @@ def test_each_call_is_fitted_and_becomes_the_next_template(bout):
         assert abs(int(np.argmax(sim)) - int(np.argmax(seg))) <= 2
 
 
+def test_within_a_bout_the_last_fit_is_the_next_template():
+    target = pulses(3)[:6 + 15 * 3]                    # the stream stops inside the bout: no let-go yet
+    body, _ = run_body(target, threaded="no")
+    live = body.live
+    assert len(live.fits) == 3 and live.fits[-1]["error"] < 1.0
+    assert live.template[0] is live.fits[-1]["x"]
+    assert all(e.t_release is None for e in live.entries)
+
+
 def test_template_before_any_fit_and_amplitude_scale():
     live = LiveFitter(LiveParams(threaded="no"), FPS, None)
     x0, peak0 = FIRST_TEMPLATE
@@ -84,6 +94,9 @@ def test_template_before_any_fit_and_amplitude_scale():
     np.testing.assert_allclose(x[:3], 2 * x0[:3])
     np.testing.assert_allclose(x[3:], x0[3:])
     assert live._scaled(1e-9)[0] == pytest.approx(0.25 * x0[0])     # min_scale
+    assert live._scaled(1e3)[1] == pytest.approx(2 * x0[1])         # max_scale
+    big = LiveFitter(LiveParams(threaded="no", max_step=0.01), FPS, None)
+    assert big._scaled(peak0)[0] == 0.01                            # max_step caps the abdominal hold
 
 
 def test_no_look_ahead():
