@@ -327,6 +327,39 @@ def call_activation(t, x, t_call: float, t_release=None, release_s: float = 1.5)
     return out
 
 
+def call_span(x, t_call: float, t_release, release_s: float) -> tuple[float, float]:
+    """First and last time (s) at which a call's primitives play; the abdomen's hold lasts until its
+    release ends (forever while ``t_release`` is None)."""
+    first = t_call + min(x[3], x[5])
+    last = t_call + max(x[3] + 1.0 / max(x[4], 1e-9), x[5] + 1.0 / max(x[6], 1e-9))
+    if x[0] != 0.0:
+        last = math.inf if t_release is None else max(last, t_release + release_s)
+    return first, last
+
+
+def play(t, calls, release_s: float) -> np.ndarray:
+    """The sum of the primitives ``(len(t), 6)`` of ``calls``, ``(x, t_call, t_release)`` each, at times
+    ``t`` (s), not clipped; only the calls whose primitives overlap ``t`` are evaluated."""
+    t = np.asarray(t, dtype=float)
+    out = np.zeros((t.size, NG))
+    if not t.size:
+        return out
+    lo, hi = float(t.min()), float(t.max())
+    for x, t_call, t_release in calls:
+        first, last = call_span(x, t_call, t_release, release_s)
+        if first <= hi and last >= lo:
+            out += call_activation(t, x, t_call, t_release, release_s)
+    return out
+
+
+def with_secondary(primitives, fit: "FitParams"):
+    """``(activations in [0, 1] with the clavicle elevators, spine target rad)`` from summed primitives
+    ``(..., 6)``: the secondary motion follows the abdomen (as the ``hill`` body's recipe)."""
+    acts = np.clip(primitives, 0.0, 1.0)
+    acts[..., _CU] = np.minimum(acts[..., _CU] + fit.clavicle_ratio * acts[..., _AB], 1.0)
+    return acts, np.radians(fit.spine_deg) * acts[..., _AB]
+
+
 # --- one call as an optimisation problem -------------------------------------------------------
 
 class CallProblem:
@@ -403,12 +436,10 @@ class CallProblem:
             u[..., i] = np.log(np.clip(x[..., i], self.lo[i], self.hi[i]) / self.lo[i]) / np.log(self.hi[i] / self.lo[i])
         return np.clip(u, 0.0, 1.0)
 
-    def activations(self, x) -> np.ndarray:
-        """Group activations ``(S, batch, 6)`` over the call's substeps for physical parameters ``x (batch, 7)``."""
-        acts = self.base[:, None, :] + call_activation(self.times, x, self.t0)
-        np.clip(acts, 0.0, 1.0, out=acts)
-        acts[..., _CU] = np.minimum(acts[..., _CU] + self.fit.clavicle_ratio * acts[..., _AB], 1.0)
-        return acts
+    def activations(self, x):
+        """``(group activations (S, batch, 6), spine targets (S, batch))`` over the call's substeps for
+        physical parameters ``x (batch, 7)``."""
+        return with_secondary(self.base[:, None, :] + call_activation(self.times, x, self.t0), self.fit)
 
     def _torso(self, batch: int) -> Torso:
         t = self._torsos.get(batch)
@@ -427,8 +458,8 @@ class CallProblem:
         """
         x = np.atleast_2d(x)
         n_frames = self.lead + self.n_frames + (self.n_look if look else 0)
-        acts = self.activations(x)[:n_frames * self.n_sub]
-        spine = np.radians(self.fit.spine_deg) * acts[..., _AB]
+        acts, spine = self.activations(x)
+        acts, spine = acts[:n_frames * self.n_sub], spine[:n_frames * self.n_sub]
         torso = self._torso(x.shape[0])
         out = np.empty((n_frames, x.shape[0]))
         end = self.lead + self.n_frames
@@ -711,34 +742,16 @@ class FitResult:
 
     def primitives(self, t) -> np.ndarray:
         """The sum of the fitted calls' primitives ``(len(t), 6)`` at times ``t`` (s), not clipped."""
-        t = np.asarray(t, dtype=float)
-        out = np.zeros((t.size, NG))
-        if not t.size:
-            return out
-        lo, hi = float(t.min()), float(t.max())
-        rel = self.fit.release_s
-        for cf in self.calls:
-            t_call = cf.call.start / self.fps
-            x = cf.x
-            first = t_call + min(x[3], x[5])
-            last = t_call + max(x[3] + 1.0 / max(x[4], 1e-9), x[5] + 1.0 / max(x[6], 1e-9))
-            if x[0] != 0.0:     # the abdomen's hold lasts until its release ends
-                last = np.inf if cf.t_release is None else max(last, cf.t_release + rel)
-            if first <= hi and last >= lo:      # only the calls whose primitives overlap t
-                out += call_activation(t, x, t_call, cf.t_release, rel)
-        return out
+        return play(t, ((cf.x, cf.call.start / self.fps, cf.t_release) for cf in self.calls), self.fit.release_s)
 
     def activations(self, t) -> np.ndarray:
         """Group activations ``(len(t), 6)`` of all fitted calls at times ``t`` (s), kept in [0, 1],
         secondary motion (clavicle elevators) included."""
-        out = np.clip(self.primitives(t), 0.0, 1.0)
-        out[:, _CU] = np.minimum(out[:, _CU] + self.fit.clavicle_ratio * out[:, _AB], 1.0)
-        return out
+        return self.schedule(t)[0]
 
     def schedule(self, t):
         """``(activations, spine target rad)`` for the ``hill`` body's :meth:`play`."""
-        acts = self.activations(t)
-        return acts, np.radians(self.fit.spine_deg) * acts[:, _AB]
+        return with_secondary(self.primitives(t), self.fit)
 
     def summary(self) -> dict:
         err = np.array([c.error for c in self.calls], dtype=float)

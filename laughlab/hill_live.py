@@ -42,16 +42,14 @@ takes about 0.2 s of one core per 0.2 s call (``benchmarks/bench_hill.py``).
 from __future__ import annotations
 
 import math
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .hill import GROUPS
-from .hill_fit import CallProblem, FitParams, call_activation, optimise
+from .hill_fit import CallProblem, FitParams, call_span, optimise, play, with_secondary
 from .plugins import check_range
-
-_AB, _CU = GROUPS.index("abdomen"), GROUPS.index("clavicle_up")
 
 #: the template before any call has been fitted (physical, ``PARAMS``) and the call peak it was made for (cm H2O):
 #: a typical fit of a call of average height (0.1 cm H2O) at the start of a bout of the synthetic corpus
@@ -165,7 +163,6 @@ class LiveFitter:
         self.p = params
         self.fps = float(fps)
         self.torso_params = torso_params
-        self.tracker = CallTracker(params, fps)
         self.threaded = params.threaded == "yes" or (params.threaded == "auto" and live)
         self._pool = ThreadPoolExecutor(max_workers=1) if self.threaded else None
         self.reset()
@@ -174,7 +171,7 @@ class LiveFitter:
         self.tracker = CallTracker(self.p, self.fps)
         self.entries: list[_Entry] = []
         self.template = (FIRST_TEMPLATE[0].copy(), FIRST_TEMPLATE[1])
-        self.current = None          # (entry, start frame, torso state at start, peak)
+        self.current = None          # (entry, torso state at the call's start)
         self.buffer: list[float] = []
         self.last_end_s = None
         self.bout_start_s = 0.0      # fits of calls before the current bout's let-go are not templates
@@ -192,16 +189,10 @@ class LiveFitter:
         return out
 
     def _fit(self, target, start: int, state, entries: list, u_start) -> dict:
-        import time
-
         fp = self.p.fit
-        rel = fp.release_s
 
         def base(times):
-            out = np.zeros((len(times), len(GROUPS)))
-            for e in entries:
-                out += call_activation(times, e.x, e.t_call, e.t_release, rel)
-            return out
+            return play(times, ((e.x, e.t_call, e.t_release) for e in entries), fp.release_s)
 
         t0 = time.perf_counter()
         problem = CallProblem(np.asarray(target, dtype=float), start / self.fps, self.fps, base, state,
@@ -232,21 +223,21 @@ class LiveFitter:
             self._pool.shutdown(wait=True)
 
     # -- per frame
-    def update(self, k: int, pressure: float, torso_state) -> None:
-        """Take frame ``k``'s target pressure (cm H2O) and the torso's state at the frame's start."""
+    def update(self, k: int, pressure: float, torso) -> None:
+        """Take frame ``k``'s target pressure (cm H2O); ``torso`` (:class:`laughlab.hill.Torso`) is at the
+        frame's start, and its state is kept when a call begins."""
         v = float(pressure) if np.isfinite(pressure) else 0.0
         if self.current is not None:
             self.buffer.append(v)
         for ev in self.tracker.update(k, v):
             if ev[0] == "end":
-                entry, start, state, _ = self.current
+                entry, state = self.current
                 _, s, e, peak = ev
                 entry.x = self._scaled(peak)
                 target = self.buffer[:e - s]
                 earlier = [x for x in self.entries if x is not entry]
                 args = (target, s, state, [_Entry(x.x.copy(), x.t_call, x.t_release) for x in earlier],
                         self.template[0])
-                self._collect(block=not self.threaded)
                 if self.threaded:
                     self.pending.append(self._pool.submit(self._fit, *args))
                 else:
@@ -257,7 +248,7 @@ class LiveFitter:
                 self._collect()
                 entry = _Entry(self._scaled(v), k / self.fps)
                 self.entries.append(entry)
-                self.current = (entry, k, torso_state, v)
+                self.current = (entry, torso.get_state(0))
                 self.buffer = [v]
         if self.current is not None:
             self.current[0].x = self._scaled(self.tracker.peak)
@@ -268,33 +259,13 @@ class LiveFitter:
                     if e.t_release is None:
                         e.t_release = k / self.fps
                 self.last_end_s = None
-                self.bout_start_s = k / self.fps
-                self._collect(block=not self.threaded)
+                self.bout_start_s = k / self.fps       # later fits of this bout's calls are not adopted
                 self.template = (FIRST_TEMPLATE[0].copy(), FIRST_TEMPLATE[1])   # a new bout starts relaxed
         # forget calls that play no more
-        rel = self.p.fit.release_s
-        now = k / self.fps
-        self.entries = [e for e in self.entries if not self._finished(e, now, rel)]
-
-    @staticmethod
-    def _finished(e: _Entry, now: float, rel: float) -> bool:
-        x = e.x
-        end = e.t_call + max(x[3] + 1.0 / max(x[4], 1e-9), x[5] + 1.0 / max(x[6], 1e-9))
-        if x[0] != 0.0:
-            end = math.inf if e.t_release is None else max(end, e.t_release + rel)
-        return end < now
-
-    def activations(self, times) -> np.ndarray:
-        """Group activations ``(len(times), 6)`` at absolute times (s), unclipped."""
-        out = np.zeros((len(times), len(GROUPS)))
-        rel = self.p.fit.release_s
-        for e in self.entries:
-            out += call_activation(times, e.x, e.t_call, e.t_release, rel)
-        return out
+        rel, now = self.p.fit.release_s, k / self.fps
+        self.entries = [e for e in self.entries if call_span(e.x, e.t_call, e.t_release, rel)[1] >= now]
 
     def schedule(self, times):
         """``(activations (n, 6) in [0, 1] with the clavicle elevators, spine target rad (n,))``, as the offline fit's."""
         fp = self.p.fit
-        acts = np.clip(self.activations(times), 0.0, 1.0)
-        acts[:, _CU] = np.minimum(acts[:, _CU] + fp.clavicle_ratio * acts[:, _AB], 1.0)
-        return acts, np.radians(fp.spine_deg) * acts[:, _AB]
+        return with_secondary(play(times, ((e.x, e.t_call, e.t_release) for e in self.entries), fp.release_s), fp)

@@ -276,7 +276,7 @@ class HillBody(Body):
         torso = self.torso
         t0 = frame.time_s
         if self._schedule is None and self.live is not None:
-            self.live.update(frame.index, self._target(frame), torso.get_state(0))
+            self.live.update(frame.index, self._target(frame), torso)
         if self._schedule is not None or self.params.control != "track":
             ends = t0 + h * np.arange(1, n + 1)
             if self._schedule is not None:
