@@ -1,0 +1,152 @@
+"""Hand-made labels of the real recordings: Audacity label tracks (and Praat TextGrids).
+
+An annotation file holds one label per line, ``start<TAB>end<TAB>label`` in
+seconds (Audacity's "Export Labels" format; Audacity's optional frequency lines,
+starting with ``\\``, are skipped).  Labels:
+
+- ``laugh``: a laughter bout, from its first call's onset to its last call's end;
+- ``call``: one call, inside a bout;
+- ``inhale``, ``speech``, ``other``: non-laughter sounds in the file.
+
+A Praat TextGrid with tiers ``bouts`` and ``calls`` (interval texts ``laugh``
+and ``call``) is read the same way.  The bundled annotations live in
+``laughlab/data/annotations/<id with / as __>.txt``.
+
+A label outside [0, duration], with end <= start, with an unknown text, a bout
+that overlaps another bout or a call that overlaps another call or lies outside
+every bout, is refused with one line naming the file and the line.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from ..errors import LaughlabError
+
+LABELS = ("laugh", "call", "inhale", "speech", "other")
+#: tolerance of the checks (s): labels are placed by hand to about 20 ms
+TOL_S = 1e-3
+
+
+@dataclass(frozen=True)
+class Label:
+    start: float
+    end: float
+    text: str
+    line: int
+
+
+@dataclass
+class Annotation:
+    """The labels of one recording."""
+
+    path: str
+    labels: list
+
+    @property
+    def bouts(self) -> list[tuple[float, float]]:
+        return [(lab.start, lab.end) for lab in self.labels if lab.text == "laugh"]
+
+    @property
+    def calls(self) -> list[tuple[float, float]]:
+        return [(lab.start, lab.end) for lab in self.labels if lab.text == "call"]
+
+    def truth_rows(self, offset_s: float = 0.0, intensity: float = 1.0) -> list[dict]:
+        """Rows of a ``truth.csv`` (kind, bout, onset_s, offset_s, intensity), shifted by ``offset_s``."""
+        rows = []
+        for b, (on, off) in enumerate(self.bouts):
+            rows.append({"kind": "bout", "bout": b, "onset_s": on + offset_s, "offset_s": off + offset_s,
+                         "intensity": intensity})
+            for con, coff in self.calls:
+                if on - TOL_S <= con and coff <= off + TOL_S:
+                    rows.append({"kind": "call", "bout": b, "onset_s": con + offset_s, "offset_s": coff + offset_s,
+                                 "intensity": intensity})
+        return rows
+
+
+def read_audacity(path: str | Path, duration_s: float | None = None) -> Annotation:
+    """Read and check an Audacity label track (see the module docstring)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise LaughlabError(f"cannot read annotation {p}: {exc}") from None
+    labels = []
+    for n, line in enumerate(text.splitlines(), 1):
+        if not line.strip() or line.startswith("\\"):
+            continue
+        parts = line.split("\t")
+        if len(parts) < 2:
+            raise LaughlabError(f"{p}:{n}: expected 'start<TAB>end<TAB>label'")
+        try:
+            start, end = float(parts[0]), float(parts[1])
+        except ValueError:
+            raise LaughlabError(f"{p}:{n}: start and end must be numbers (seconds)") from None
+        lab = parts[2].strip().lower() if len(parts) > 2 else ""
+        labels.append(Label(start, end, lab, n))
+    return check(Annotation(str(p), labels), duration_s)
+
+
+def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) -> Annotation:
+    """Read tiers ``bouts`` and ``calls`` of a Praat TextGrid (other tiers are ignored)."""
+    from ..textgrid import read_textgrid
+
+    labels = []
+    for tier, want in (("bouts", "laugh"), ("calls", "call")):
+        try:
+            ivs = read_textgrid(path, tier)
+        except LaughlabError:
+            if tier == "calls":
+                continue
+            raise
+        for i, (a, b, t) in enumerate(ivs):
+            if t.strip():
+                labels.append(Label(float(a), float(b), want if t.strip().lower() in (want, "") else t.strip(), i + 1))
+    return check(Annotation(str(path), labels), duration_s)
+
+
+def read(path: str | Path, duration_s: float | None = None) -> Annotation:
+    """An Audacity label track (``.txt``) or a Praat TextGrid (``.TextGrid``)."""
+    if str(path).lower().endswith(".textgrid"):
+        return read_textgrid_annotation(path, duration_s)
+    return read_audacity(path, duration_s)
+
+
+def check(ann: Annotation, duration_s: float | None = None) -> Annotation:
+    """Refuse bad labels with one line naming the file and the line."""
+    where = ann.path
+    for lab in ann.labels:
+        if lab.text not in LABELS:
+            raise LaughlabError(f"{where}:{lab.line}: unknown label {lab.text!r}; use one of: {', '.join(LABELS)}")
+        if not (math.isfinite(lab.start) and math.isfinite(lab.end)):
+            raise LaughlabError(f"{where}:{lab.line}: start and end must be finite")
+        if lab.end <= lab.start:
+            raise LaughlabError(f"{where}:{lab.line}: end {lab.end:.3f} s is not after start {lab.start:.3f} s")
+        if lab.start < -TOL_S or (duration_s is not None and lab.end > duration_s + TOL_S):
+            rng = f"[0, {duration_s:.3f}] s" if duration_s is not None else "[0, ...)"
+            raise LaughlabError(f"{where}:{lab.line}: interval {lab.start:.3f}-{lab.end:.3f} s is outside the "
+                                f"recording {rng}")
+    for kind in ("laugh", "call"):
+        same = sorted((lab for lab in ann.labels if lab.text == kind), key=lambda lab: lab.start)
+        for a, b in zip(same, same[1:]):
+            if b.start < a.end - TOL_S:
+                raise LaughlabError(f"{where}:{b.line}: {kind} {b.start:.3f}-{b.end:.3f} s overlaps the {kind} "
+                                    f"on line {a.line} ({a.start:.3f}-{a.end:.3f} s)")
+    bouts = [lab for lab in ann.labels if lab.text == "laugh"]
+    for c in (lab for lab in ann.labels if lab.text == "call"):
+        if not any(b.start - TOL_S <= c.start and c.end <= b.end + TOL_S for b in bouts):
+            raise LaughlabError(f"{where}:{c.line}: call {c.start:.3f}-{c.end:.3f} s lies outside every laugh bout")
+    return ann
+
+
+def bundled_path(item_id: str) -> Path | None:
+    """The bundled annotation of a corpus item, if there is one."""
+    p = resources.files("laughlab").joinpath("data", "annotations", item_id.replace("/", "__") + ".txt")
+    return Path(str(p)) if p.is_file() else None
+
+
+def bundled(item_id: str, duration_s: float | None = None) -> Annotation | None:
+    p = bundled_path(item_id)
+    return read_audacity(p, duration_s) if p is not None else None
