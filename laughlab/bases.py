@@ -125,6 +125,23 @@ class Extractor(Plugin):
         ...
 
 
+class Detector(Plugin):
+    """Tells laughter from other sound and gates what drives the body and face.
+
+    Runs right after the extractor on the same block: writes
+    ``control['laughter']`` (probability in [0, 1]) and ``control['laugh_gate']``
+    (the gain in [0, 1]), and applies the gain to the extractor's driving
+    signals (see ``laughlab.detector.GATED``).  Look-ahead: none beyond the frame's
+    own audio block.
+    """
+
+    kind = "detector"
+
+    @abstractmethod
+    def step(self, block: np.ndarray, frame: Frame) -> None:
+        ...
+
+
 class Scheduler(Plugin):
     """Starts and stops full-body clips: appends :class:`ClipEvent` to ``frame.events``."""
 

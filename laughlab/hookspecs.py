@@ -37,6 +37,11 @@ def register_extractors(register: Register) -> None:
 
 
 @hookspec
+def register_detectors(register: Register) -> None:
+    """Register laughter detectors (audio + controls -> ``laughter`` probability, gated controls)."""
+
+
+@hookspec
 def register_faces(register: Register) -> None:
     """Register face models (controls -> face channels)."""
 

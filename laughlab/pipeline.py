@@ -25,7 +25,8 @@ from .frame import Frame
 from .mixer import Mixer
 
 #: config group -> plugin kind
-GROUPS = {"input": "source", "extractor": "extractor", "scheduler": "scheduler", "body": "body", "face": "face"}
+GROUPS = {"input": "source", "extractor": "extractor", "detector": "detector", "scheduler": "scheduler",
+          "body": "body", "face": "face"}
 CHUNK_FRAMES = 256
 
 
@@ -63,6 +64,7 @@ class Pipeline:
     ctx: Context
     source: Any
     extractor: Any
+    detector: Any
     scheduler: Any
     body: Any
     face: Any
@@ -116,7 +118,8 @@ def build(cfg: DictConfig) -> Pipeline:
     outputs = _section(cfg, "output") or {}
     sinks = [plugins.create("sink", name, params or {}, ctx, where=f"output.{name}")
              for name, params in outputs.items()]
-    return Pipeline(ctx, built["input"], built["extractor"], built["scheduler"], built["body"], built["face"],
+    return Pipeline(ctx, built["input"], built["extractor"], built["detector"], built["scheduler"], built["body"],
+                    built["face"],
                     Mixer(ctx.clips), sinks, run)
 
 
@@ -200,9 +203,10 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
         for sink in pipe.sinks:
             sink.open(info)
             opened.append(sink)
-        for plugin in (pipe.extractor, pipe.scheduler, pipe.body, pipe.face, pipe.mixer):
+        for plugin in (pipe.extractor, pipe.detector, pipe.scheduler, pipe.body, pipe.face, pipe.mixer):
             plugin.reset()
-        ext, sch, body, face, mixer = pipe.extractor, pipe.scheduler, pipe.body, pipe.face, pipe.mixer
+        ext, det, sch, body, face, mixer = (pipe.extractor, pipe.detector, pipe.scheduler, pipe.body, pipe.face,
+                                            pipe.mixer)
         dt = ctx.dt
         if getattr(sch, "offline_plan", False):
             _plan_offline(pipe)
@@ -213,6 +217,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             t0 = clock()
             frame = Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)
             ext.step(block, frame)
+            det.step(block, frame)
             sch.step(frame)
             mixer.advance(frame)
             body.step(frame)
@@ -272,7 +277,7 @@ def _plan_offline(pipe: Pipeline) -> None:
 
     The look-ahead is the whole input, so a live source is refused.
     """
-    src, ext, sch = pipe.source, pipe.extractor, pipe.scheduler
+    src, ext, det, sch = pipe.source, pipe.extractor, pipe.detector, pipe.scheduler
     if src.live:
         raise LaughlabError(f"scheduler {sch.name} plans over the whole input and cannot run on a live source; "
                             "use its real-time mode")
@@ -280,9 +285,11 @@ def _plan_offline(pipe: Pipeline) -> None:
     for k, block in enumerate(src.blocks()):
         frame = Frame(k, k * pipe.ctx.dt, pipe.ctx.dt, {}, None, {}, {}, [], 0.0)
         ext.step(block, frame)
+        det.step(block, frame)
         labels.append(sch.label_of(frame))
     sch.plan(labels)
     ext.reset()
+    det.reset()
 
 
 def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, wall_s: float) -> dict:

@@ -28,6 +28,7 @@ hookimpl = pluggy.HookimplMarker("laughlab")
 KINDS: dict[str, str] = {
     "source": "register_sources",
     "extractor": "register_extractors",
+    "detector": "register_detectors",
     "face": "register_faces",
     "body": "register_bodies",
     "scheduler": "register_schedulers",

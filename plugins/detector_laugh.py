@@ -1,0 +1,66 @@
+"""Detector ``laugh``: a per-frame laughter probability, and a gate on what drives the character.
+
+Thesis future work (van Duijn 2014, ch. 6: "a laughter detection component"
+before the motion control signal).  Per frame: causal acoustic features of the
+frame and the second before it (``laughlab.detector.FeatureStream``), a small
+MLP fitted on the corpus' train split (``laughlab/data/detector.json``,
+``python -m laughlab.detector_fit``), a hysteresis gate
+(``laughlab.detector.Gate``), and the gate applied to ``mcs``, ``pressure``,
+``call_onset`` and the pseudo-phoneme label (``laughlab.detector.apply_gate``).
+Writes ``control['laughter']`` (probability) and ``control['laugh_gate']`` (gain).
+Look-ahead: the frame's own audio block, nothing more.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from laughlab import hookimpl
+from laughlab.bases import Detector
+from laughlab.detector import SILENCE_DBFS, FeatureStream, Gate, GateParams, Model, apply_gate
+
+
+@dataclass
+class LaughParams(GateParams):
+    """The gate's rule (``GateParams``) and the model.
+
+    Attributes
+    ----------
+    model : str or None
+        A model JSON written by ``python -m laughlab.detector_fit --out FILE``;
+        None: the bundled model.
+    """
+
+    model: str | None = None
+
+
+class LaughDetector(Detector):
+    name = "laugh"
+    Params = LaughParams
+
+    def __init__(self, params=None, ctx=None):
+        super().__init__(params, ctx)
+        try:
+            self.model = Model.load(self.params.model)
+        except FileNotFoundError:
+            raise ValueError(f"model file not found: {self.params.model}") from None
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"model {self.params.model or '(bundled)'} is not a detector model: {exc}") from None
+        self.features = FeatureStream(self.ctx.sample_rate, self.ctx.fps)
+        self.gate = Gate(self.params, self.ctx.dt)
+
+    def reset(self) -> None:
+        self.features.reset()
+        self.gate.reset()
+
+    def step(self, block, frame) -> None:
+        x = self.features.step(block)
+        p = 0.0 if self.features.level_dbfs < SILENCE_DBFS else float(self.model.prob(x))
+        gain = self.gate.step(p)
+        frame.control["laughter"] = p
+        frame.control["laugh_gate"] = gain
+        apply_gate(frame, gain)
+
+
+@hookimpl
+def register_detectors(register):
+    register(LaughDetector)

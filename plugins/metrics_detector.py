@@ -1,0 +1,130 @@
+"""Metrics of the laughter detector: does the character laugh at laughter, and only at laughter?
+
+Frame metrics compare the gate (``laugh_gate`` >= 0.5 in ``channels.csv``) with
+the ground truth's bouts (a frame is laughter when its time lies inside a
+bout).  Runs without a truth file give NaN; runs without a detector
+(``detector=none``) have ``laugh_gate`` = 1 everywhere.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from laughlab import hookimpl
+from laughlab.harness.metrics import metric
+
+#: a clip start up to this long after a bout's end still answers the bout (s)
+ANSWER_TAIL_S = 1.0
+
+
+def _frames(trial):
+    if trial.truth is None or "laugh_gate" not in trial.channels:
+        return None
+    t = trial.times
+    truth = np.zeros(len(t), dtype=bool)
+    for on, off in trial.truth.bouts[["onset_s", "offset_s"]].itertuples(index=False):
+        truth |= (t >= on) & (t < off)
+    return trial.channels["laugh_gate"].to_numpy() >= 0.5, truth
+
+
+def _counts(trial):
+    f = _frames(trial)
+    if f is None:
+        return None
+    gate, truth = f
+    return int((gate & truth).sum()), int((gate & ~truth).sum()), int((~gate & truth).sum())
+
+
+@metric("detector_f1", True, "F1")
+def detector_f1(trial):
+    """Frame F1 of the gate: 2 TP / (2 TP + FP + FN), frames of bouts as positives (1 when both are empty)."""
+    c = _counts(trial)
+    if c is None:
+        return float("nan")
+    tp, fp, fn = c
+    return 1.0 if tp + fp + fn == 0 else 2 * tp / (2 * tp + fp + fn)
+
+
+@metric("detector_precision", True, "fraction")
+def detector_precision(trial):
+    """Frame precision of the gate: TP / (TP + FP); NaN when the gate never opens."""
+    c = _counts(trial)
+    if c is None or c[0] + c[1] == 0:
+        return float("nan")
+    return c[0] / (c[0] + c[1])
+
+
+@metric("detector_recall", True, "fraction")
+def detector_recall(trial):
+    """Frame recall of the gate: TP / (TP + FN); NaN without laughter."""
+    c = _counts(trial)
+    if c is None or c[0] + c[2] == 0:
+        return float("nan")
+    return c[0] / (c[0] + c[2])
+
+
+def _latencies(trial):
+    f = _frames(trial)
+    if f is None or trial.truth.bouts.empty:
+        return None
+    gate = f[0]
+    t = trial.times
+    lat = []
+    for on, off in trial.truth.bouts[["onset_s", "offset_s"]].itertuples(index=False):
+        k = np.flatnonzero(gate & (t >= on) & (t <= off))
+        lat.append(t[k[0]] + 1.0 / trial.fps - on if len(k) else np.nan)
+    return np.array(lat)
+
+
+@metric("detection_latency_median_s", False, "s")
+def detection_latency_median_s(trial):
+    """Median over detected bouts of (end of the first gated-open frame in the bout - bout onset)."""
+    lat = _latencies(trial)
+    return float(np.nanmedian(lat)) if lat is not None and np.isfinite(lat).any() else float("nan")
+
+
+@metric("detection_latency_p90_s", False, "s")
+def detection_latency_p90_s(trial):
+    """90th percentile over detected bouts of the detection latency (s)."""
+    lat = _latencies(trial)
+    return float(np.nanpercentile(lat, 90)) if lat is not None and np.isfinite(lat).any() else float("nan")
+
+
+def _non_laughter(trial):
+    """Mask of clip starts outside every bout (+ ``ANSWER_TAIL_S``), and the non-laughter minutes."""
+    starts = trial.starts().time.to_numpy()
+    heard = np.zeros(len(starts), dtype=bool)
+    laugh_s = 0.0
+    for on, off in trial.truth.bouts[["onset_s", "offset_s"]].itertuples(index=False):
+        heard |= (starts >= on) & (starts <= off + ANSWER_TAIL_S)
+        laugh_s += min(off + ANSWER_TAIL_S, trial.duration_s) - on
+    return ~heard, max(trial.duration_s - laugh_s, 0.0) / 60.0
+
+
+@metric("false_starts_per_min", False, "starts/min")
+def false_starts_per_min(trial):
+    """Clip starts outside every bout (and its 1 s tail) per minute of non-laughter."""
+    if trial.truth is None:
+        return float("nan")
+    false, minutes = _non_laughter(trial)
+    return float(false.sum()) / minutes if minutes > 0 else float("nan")
+
+
+@metric("bouts_answered", True, "fraction")
+def bouts_answered(trial):
+    """Fraction of bouts with a clip start inside the bout or up to 1 s after it."""
+    if trial.truth is None or trial.truth.bouts.empty:
+        return float("nan")
+    starts = trial.starts().time.to_numpy()
+    ok = [bool(((starts >= on) & (starts <= off + ANSWER_TAIL_S)).any())
+          for on, off in trial.truth.bouts[["onset_s", "offset_s"]].itertuples(index=False)]
+    return float(np.mean(ok))
+
+
+ALL = [detector_f1, detector_precision, detector_recall, detection_latency_median_s, detection_latency_p90_s,
+       false_starts_per_min, bouts_answered]
+
+
+@hookimpl
+def register_metrics(register):
+    for m in ALL:
+        register(m)
