@@ -35,7 +35,7 @@ class Label:
     start: float
     end: float
     text: str
-    line: int
+    line: int | str
 
 
 @dataclass
@@ -90,20 +90,28 @@ def read_audacity(path: str | Path, duration_s: float | None = None) -> Annotati
 
 
 def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) -> Annotation:
-    """Read tiers ``bouts`` and ``calls`` of a Praat TextGrid (other tiers are ignored)."""
-    from ..textgrid import read_textgrid
+    """Read tiers ``bouts`` and ``calls`` of a Praat TextGrid (praatio); other tiers are ignored.
 
+    A bad interval is named by its tier and number (``bouts #2``) in place of a line.
+    """
+    from praatio import textgrid
+
+    try:
+        tg = textgrid.openTextgrid(str(path), includeEmptyIntervals=False)
+    except FileNotFoundError:
+        raise LaughlabError(f"annotation not found: {path}") from None
+    except Exception as exc:  # praatio raises many kinds on a malformed file
+        raise LaughlabError(f"bad TextGrid {path}: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") \
+            from None
+    if "bouts" not in tg.tierNames:
+        raise LaughlabError(f"bad TextGrid {path}: it has no tier 'bouts' (tiers: {', '.join(tg.tierNames)})")
     labels = []
     for tier, want in (("bouts", "laugh"), ("calls", "call")):
-        try:
-            ivs = read_textgrid(path, tier)
-        except LaughlabError:
-            if tier == "calls":
-                continue
-            raise
-        for i, (a, b, t) in enumerate(ivs):
-            if t.strip():
-                labels.append(Label(float(a), float(b), want if t.strip().lower() in (want, "") else t.strip(), i + 1))
+        if tier not in tg.tierNames:
+            continue
+        for i, (a, b, t) in enumerate(tg.getTier(tier).entries, 1):
+            text = t.strip().lower()
+            labels.append(Label(float(a), float(b), want if text in (want, "x", "") else text, f"{tier} #{i}"))
     return check(Annotation(str(path), labels), duration_s)
 
 

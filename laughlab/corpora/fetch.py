@@ -30,6 +30,8 @@ from ..errors import LaughlabError
 from .sources import BY_NAME, PACKAGES, Package, classify, item_id, split_of
 
 LOCK_NAME = "corpus_lock.json"
+#: files below this rate lack the detector's 5 kHz band; they are left out of the corpus (Hz)
+MIN_RATE = 11025
 MANIFEST_COLUMNS = ("id", "kind", "split", "package", "registry", "version", "member", "license",
                     "duration_s", "sample_rate", "channels", "sha256")
 
@@ -130,6 +132,8 @@ def write_lock(path: Path, work: Path | None = None) -> dict:
                     continue
                 iid = item_id(pkg.name, member)
                 dur, sr, ch = _audio_info(data)
+                if sr < MIN_RATE:
+                    continue
                 files[iid] = {"package": pkg.name, "member": member, "sha256": sha256(data), "kind": kind,
                               "split": split_of(pkg.name, iid, kind),
                               "duration_s": round(dur, 4), "sample_rate": sr, "channels": ch}

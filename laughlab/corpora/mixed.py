@@ -156,9 +156,11 @@ def build_scene(rng: np.random.Generator, pool: Pool, duration_s: float, snr_db:
             x = load(path)[: int(rng.uniform(1.0, 6.0) * SAMPLE_RATE)]
             x = x * (level / (_rms_active(x) + 1e-12))
             _place(fg, x, t)
-        else:
+        elif pool.voices:
             x = speech_turn(rng, pool, (n - t) / SAMPLE_RATE) * level
             _place(fg, x, t)
+        else:
+            x = np.zeros(SAMPLE_RATE)
         t += len(x) + int(rng.uniform(0.3, 2.0) * SAMPLE_RATE)
     if snr_db is not None:
         bed = pink_noise(rng, n)

