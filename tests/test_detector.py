@@ -148,3 +148,47 @@ def test_bundled_model_says_how_it_was_fitted():
     assert m.meta["fit"]["command"] == "python -m laughlab.detector_fit"
     assert m.meta["fit"]["split"] == "train"
     assert len(m.weights) == len(m.biases) == 2
+
+
+# ------------------------------------------------------------------ in the pipeline
+def _laughlab(*args):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "laughlab", *args], capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def gated_and_plain(tmp_path_factory):
+    import pandas as pd
+
+    d = tmp_path_factory.mktemp("det")
+    out = {}
+    for det in ("laugh", "none"):
+        r = _laughlab(f"hydra.run.dir={d / det}", "input.duration_s=10", "input.profile=intense",
+                      f"detector={det}", "output=trial")
+        assert r.returncode == 0, r.stderr
+        out[det] = pd.read_csv(d / det / "channels.csv")
+    return out
+
+
+def test_the_gate_scales_the_drive_and_none_passes_it(gated_and_plain):
+    g, n = gated_and_plain["laugh"], gated_and_plain["none"]
+    assert np.allclose(g.mcs, g.mcs_ungated * g.laugh_gate, atol=2e-6)      # csv keeps 6 decimals
+    assert np.array_equal(g.mcs_ungated, n.mcs)                              # the same extractor, ungated
+    assert (n.laugh_gate == 1.0).all() and (n.laughter == 1.0).all()
+    assert g.laughter.between(0, 1).all() and g.laugh_gate.between(0, 1).all()
+    assert g.laugh_gate.max() == 1.0                                         # synthetic laughter opens it
+
+
+@pytest.mark.parametrize("args,msg", [
+    (["detector.open_at=2"], "bad parameter in detector.laugh: need 0 <= close_below <= open_at <= 1"),
+    (["detector.model=/no/such.json"], "bad parameter in detector.laugh: model file not found: /no/such.json"),
+    (["detector=nope"], "unknown detector 'nope'"),
+])
+def test_detector_errors_are_one_line(tmp_path, args, msg):
+    r = _laughlab(f"hydra.run.dir={tmp_path / 'x'}", "input.duration_s=1", *args)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and msg in lines[0], r.stderr
+    assert not (tmp_path / "x" / "channels.csv").exists()

@@ -71,13 +71,57 @@ def folder_items(folder: str | Path) -> list[Item]:
     return items
 
 
+#: the named sets of real recordings (``laughlab.corpora``): their profile names in the results
+REAL_SETS = ("real", "mixed", "speech")
+
+
+def real_items(spec) -> list[Item]:
+    """Items of the real corpus: ``harness.corpus.real`` = {sets, split, scenes, duration_s, snr_db, seed}.
+
+    - ``real``: every annotated laugh of the split, padded with 0.5 s of silence (profile ``real``);
+    - ``mixed``: ``scenes`` scenes of ``duration_s`` with the split's laughs between speech and other
+      sounds over room noise, SNR cycling through ``snr_db`` (profiles ``mixed-20dB``, ...);
+    - ``speech``: ``scenes`` streams of ``duration_s`` of speech only (profile ``speech``).
+
+    The WAVs and their ``truth.csv`` are written once under the data folder
+    (``$LAUGHLAB_DATA/corpus/sets``) and reused; the corpus must be fetched
+    (``python -m laughlab corpus fetch``).
+    """
+    sets = list(spec.get("sets") or [])
+    if not sets:
+        return []
+    bad = [s for s in sets if s not in REAL_SETS]
+    if bad:
+        raise LaughlabError(f"unknown real corpus set {bad[0]!r}; choose from: {', '.join(REAL_SETS)}")
+    from ..corpora.fetch import corpus_dir
+    from ..corpora.mixed import write_set
+
+    split = str(spec.get("split", "test"))
+    if split not in ("train", "test", "all"):
+        raise LaughlabError(f"harness.corpus.real.split must be train, test or all (got {split!r})")
+    n, dur = int(spec.get("scenes", 6)), float(spec.get("duration_s", 60.0))
+    snr = [float(x) for x in (spec.get("snr_db") or [])]
+    seed = int(spec.get("seed", 0))
+    items = []
+    for s in sets:
+        folder = corpus_dir() / "sets" / f"{s}-{split}"
+        for wav in write_set(folder, s, split, n, dur, snr, seed):
+            profile = s if s != "mixed" else "mixed-" + wav.stem.split("-")[1]
+            items.append(Item(f"{s}-{wav.stem}" if s == "real" else wav.stem,
+                              ("input=file", f"input.path={wav.resolve()}"), profile, None,
+                              str(wav.with_name(wav.stem + ".truth.csv"))))
+    return items
+
+
 def build_corpus(spec) -> list[Item]:
-    """Items from a ``harness.corpus`` config: ``profiles``, ``seeds`` (count or list), ``duration_s``, ``folder``."""
+    """Items from a ``harness.corpus`` config: ``profiles``, ``seeds`` (count or list), ``duration_s``,
+    ``folder``, and ``real`` (see :func:`real_items`)."""
     seeds = spec.get("seeds", 20)
     seeds = list(range(int(seeds))) if isinstance(seeds, int) else [int(s) for s in seeds]
     items = synthetic_items(list(spec.get("profiles") or []), seeds, float(spec.get("duration_s", 30.0)))
     if spec.get("folder"):
         items += folder_items(spec["folder"])
+    items += real_items(spec.get("real") or {})
     if not items:
         raise LaughlabError("the corpus is empty: give harness.corpus.profiles or harness.corpus.folder")
     return items
