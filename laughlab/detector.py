@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from importlib import resources
 
 import numpy as np
+import scipy.fft as _fft
 
 #: highest frequency used (Hz)
 BAND_HZ = 5000.0
@@ -49,13 +50,6 @@ FEATURES = (
     "e_std_l", "mod_3_8", "env_periodicity", "voi_mean_l", "voiced_frac_l", "active_frac_l",
     "f0_mean_l", "f0_std_l", "cep_std_l", "dcep_l", "hf_mean_l", "hf_std_l", "flat_mean_l",
 )
-
-
-def _sd(v: np.ndarray) -> float:
-    """Standard deviation (population) without ``np.std``'s per-call overhead."""
-    n = len(v)
-    m = float(v.sum()) / n
-    return math.sqrt(max(float(np.dot(v, v)) / n - m * m, 0.0))
 
 
 def _mel_bank(freqs: np.ndarray, n: int, lo: float, hi: float) -> np.ndarray:
@@ -109,26 +103,43 @@ class FeatureStream:
         self.mel = _mel_bank(f, N_MEL, 80.0, min(BAND_HZ, self.sr / 2.0))[:, self.k100:]
         n = np.arange(N_MEL)
         self.dct = np.cos(np.pi / N_MEL * (n + 0.5)[None, :] * np.arange(1, N_CEP + 1)[:, None])
-        wac = np.fft.irfft(np.abs(np.fft.rfft(self.window, self.nfft)) ** 2, self.nfft)
-        self.wac_inv = wac[0] / wac[self.lmin:self.lmax]
+        # The autocorrelation of the band below 5 kHz, from the same spectrum: the inverse
+        # transform of its first kmax bins is the autocorrelation sampled at 2 (kmax - 1) / nfft
+        # of the sample rate (about 10 kHz whatever the input rate): a short inverse FFT.
+        self.nac = 2 * (self.kmax - 1)
+        self.sr_ac = self.sr * self.nac / self.nfft
+        self.jmin = max(2, int(math.floor(self.lmin * self.nac / self.nfft)))
+        self.jmax = min(self.nac // 2, int(math.ceil(self.lmax * self.nac / self.nfft)) + 1)
+        wp = np.abs(np.fft.rfft(self.window, self.nfft))[: self.kmax] ** 2
+        wac = np.fft.irfft(wp, self.nac)
+        self.wac_inv = wac[0] / wac[self.jmin:self.jmax]
         # Boersma (1993) octave cost: a longer lag must be clearly better to win (no halved pitch)
-        self.octave_cost = OCTAVE_COST * np.log2(np.arange(self.lmin, self.lmax) / self.lmin)
+        self.octave_cost = OCTAVE_COST * np.log2(np.arange(self.jmin, self.jmax) / self.jmin)
         self.fps = float(fps)
         self.nl = max(8, int(round(LONG_S * fps)))
         self.ns = max(3, int(round(SHORT_S * fps)))
         self.lag_lo, self.lag_hi = max(1, int(round(0.12 * fps))), min(self.nl - 2, int(round(0.33 * fps)))
-        # the level trajectory, zero-padded to twice its length: its spectrum gives the
-        # modulation band energies and (inverse) its non-circular autocorrelation
-        self.nfft_mod = 2 * self.nl
-        mod_f = np.fft.rfftfreq(self.nfft_mod, 1.0 / fps)
-        self.mod_band = (mod_f >= 3.0) & (mod_f <= 8.0)
-        self.mod_all = (mod_f >= 0.5) & (mod_f <= 15.0)
+        # the level trajectory's spectrum (zero-padded to twice its length) at 0.5-15 Hz, as a
+        # cos/sin matrix: the modulation energy at 3-8 Hz over that at 0.5-15 Hz
+        mod_f = np.fft.rfftfreq(2 * self.nl, 1.0 / fps)
+        mod_f = mod_f[(mod_f >= 0.5) & (mod_f <= 15.0)]
+        t = np.arange(self.nl) / fps
+        self.n_mod = len(mod_f)
+        self.mod_dft = np.vstack([np.cos(2 * np.pi * mod_f[:, None] * t), np.sin(2 * np.pi * mod_f[:, None] * t)])
+        self.mod_band = ((mod_f >= 3.0) & (mod_f <= 8.0)).astype(np.float64)
+        # frame weights of the history sums: all, short window, active, voiced, active in the short window
+        self.short_mask = np.zeros(self.nl)
+        self.short_mask[-self.ns:] = 1.0
+        self.weights = np.zeros((5, self.nl))
+        self.weights[0] = 1.0
+        self.weights[1] = self.short_mask
         self.reset()
 
     def reset(self) -> None:
         self.buf = np.zeros(self.win)
-        # one row per frame of the last second: e, voi, f0 (log2 Hz), hf, flat, dcep, then the cepstra
-        self.hist = np.zeros((self.nl, 6 + N_CEP))
+        # one row per frame of the last second: e, voi, f0 (log2 Hz), hf, flat, dcep, the cepstra, 1
+        self.hist = np.zeros((self.nl, 7 + N_CEP))
+        self.hist[:, -1] = 1.0
         self.hist[:, 0] = -120.0
         self.hist[:, 2] = 7.0
         self.level_dbfs = -120.0
@@ -148,7 +159,7 @@ class FeatureStream:
             self.buf = x = np.where(np.isfinite(x), x, 0.0)
             pw = float(np.dot(x, x))
         self.level_dbfs = 10.0 * math.log10(pw / self.win + 1e-14)
-        spec = np.fft.rfft(x * self.window, self.nfft)
+        spec = _fft.rfft(x * self.window, self.nfft)
         p = spec.real ** 2 + spec.imag ** 2
         pb = p[self.k100: self.kmax] + 1e-12
         tot = float(pb.sum())
@@ -156,50 +167,63 @@ class FeatureStream:
         hf = float(pb[self.k2k - self.k100:].sum()) / tot
         flat = math.exp(float(np.log(pb).sum()) / len(pb)) * len(pb) / tot
         cep = self.dct @ np.log(self.mel @ pb + 1e-10)
-        p[self.kmax:] = 0.0
-        ac = np.fft.irfft(p, self.nfft)
-        r = ac[self.lmin:self.lmax] * (self.wac_inv / (ac[0] + 1e-12))
+        ac = _fft.irfft(p[: self.kmax], self.nac)
+        r = ac[self.jmin:self.jmax] * (self.wac_inv / (ac[0] + 1e-12))
         i = int(np.argmax(r - self.octave_cost))
         voi = min(1.0, max(0.0, float(r[i])))
+        lag = float(self.jmin + i)
+        if 0 < i < len(r) - 1:  # parabolic interpolation of the peak's lag
+            a, b, c = float(r[i - 1]), float(r[i]), float(r[i + 1])
+            den = a - 2.0 * b + c
+            if den < 0.0:
+                lag += 0.5 * (a - c) / den
         H = self.hist
         H[:-1] = H[1:]
         row = H[-1]
-        row[0], row[1], row[2], row[3], row[4] = e, voi, math.log2(self.sr / (self.lmin + i)), hf, flat
-        row[5] = float(np.abs(cep - H[-2, 6:]).sum()) / N_CEP
-        row[6:] = cep
+        row[0], row[1], row[2], row[3], row[4] = e, voi, math.log2(self.sr_ac / lag), hf, flat
+        row[5] = float(np.abs(cep - H[-2, 6:-1]).sum()) / N_CEP
+        row[6:-1] = cep
         return self._features(e, voi, hf, flat, cep)
 
     def _features(self, e, voi, hf, flat, cep) -> np.ndarray:
-        H, ns, nl = self.hist, self.ns, self.nl
+        H, ns, nl, W = self.hist, self.ns, self.nl, self.weights
         E = H[:, 0]
         top = float(E.max())
-        active = (E > top - ACTIVE_DB).astype(np.float64)
-        voiced = active * (H[:, 1] > 0.5)
-        na, nv = float(active.sum()), float(voiced.sum())
-        # masked first and second moments of every column at once
-        s1 = active @ H / max(na, 1.0)
-        s2 = active @ (H * H) / max(na, 1.0)
-        sd = np.sqrt(np.maximum(s2 - s1 * s1, 0.0))
-        a_s = active[-ns:]
-        ns_a = float(a_s.sum())
-        t1 = a_s @ H[-ns:, :6] / max(ns_a, 1.0)
-        if nv >= 2:
-            v1 = voiced @ H[:, 2] / nv
-            f0_std = 12.0 * math.sqrt(max(float(voiced @ (H[:, 2] ** 2)) / nv - v1 * v1, 0.0))
-        else:
-            v1, f0_std = 7.0, 0.0
+        act = E > top - ACTIVE_DB
+        W[2] = act
+        W[3] = act & (H[:, 1] > 0.5)
+        W[4] = W[2] * self.short_mask
+        # sums of every column (and of its square) over: all frames, the short window, the
+        # active frames, the voiced active frames, the active frames of the short window
+        S1 = (W @ H).tolist()
+        S2 = (W @ (H * H)).tolist()
+        na, nv = S1[2][-1], S1[3][-1]
+
+        def mean(w, c):
+            return S1[w][c] / S1[w][-1] if S1[w][-1] > 0 else 0.0
+
+        def sd(w, c):
+            n = S1[w][-1]
+            if n < 2:
+                return 0.0
+            m = S1[w][c] / n
+            return math.sqrt(max(S2[w][c] / n - m * m, 0.0))
+
+        cep_std = sum(sd(2, c) for c in range(6, 6 + N_CEP)) / N_CEP
         traj = np.maximum(E, top - 40.0)
-        traj = traj - float(traj.sum()) / nl
-        ms = np.fft.rfft(traj, self.nfft_mod)
-        ms = ms.real ** 2 + ms.imag ** 2
-        ac = np.fft.irfft(ms, self.nfft_mod)
-        mod = float(ms[self.mod_band].sum() / (ms[self.mod_all].sum() + 1e-12))
-        per = float(ac[self.lag_lo:self.lag_hi + 1].max() / (ac[0] + 1e-12))
+        traj -= float(traj.sum()) / nl
+        v = self.mod_dft @ traj
+        v *= v
+        ms = v[: self.n_mod] + v[self.n_mod:]
+        mod = float(ms @ self.mod_band) / (float(ms.sum()) + 1e-12)
+        ac = np.correlate(traj, traj, "full")
+        per = float(ac[nl - 1 + self.lag_lo: nl + self.lag_hi].max()) / (float(ac[nl - 1]) + 1e-12)
         return np.array([
-            e - top, voi, hf, flat, cep[0], cep[1], cep[2],
-            _sd(E[-ns:]), t1[1], t1[3], t1[5],
-            _sd(E), mod, per, s1[1], nv / max(na, 1.0), na / nl,
-            v1, f0_std, float(sd[6:6 + N_CEP].sum()) / N_CEP if na >= 2 else 0.0, s1[5], s1[3], sd[3], s1[4],
+            e - top, voi, hf, flat, float(cep[0]), float(cep[1]), float(cep[2]),
+            sd(1, 0), mean(4, 1), mean(4, 3), mean(4, 5),
+            sd(0, 0), mod, per, mean(2, 1), nv / max(na, 1.0), na / nl,
+            mean(3, 2) if nv >= 2 else 7.0, 12.0 * sd(3, 2), cep_std, mean(2, 5), mean(2, 3), sd(2, 3),
+            mean(2, 4),
         ])
 
 
