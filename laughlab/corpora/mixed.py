@@ -7,6 +7,10 @@ A scene is a timeline of events on a bed of background noise:
 - ``other``: a cough, sneeze, scream, breath, clap, singing, music or noise clip;
 - pauses of 0.3-2 s between events.
 
+The truth rows are the laughs' ``bout`` and ``call`` rows and one row per other
+event (kind ``speech``, ``cough``, ``music``, ...; bout -1), so a reader of the
+truth can tell what a false alarm answered.
+
 Every event is scaled to a foreground level drawn around -26 dBFS (+/- 6 dB);
 the bed is pink noise (a room's hum and hiss) mixed with a looped ``noise`` or
 ``music`` clip, set ``snr_db`` below the foreground's speech level.  All audio is
@@ -125,6 +129,12 @@ def speech_turn(rng: np.random.Generator, pool: Pool, max_s: float) -> np.ndarra
     return np.concatenate(parts)
 
 
+def _event(kind: str, at: int, x: np.ndarray, n: int) -> dict:
+    """A truth row for a non-laughter event (kind ``speech``, ``cough``, ``music``, ...)."""
+    return {"kind": kind, "bout": -1, "onset_s": at / SAMPLE_RATE, "offset_s": min(at + len(x), n) / SAMPLE_RATE,
+            "intensity": 0.0}
+
+
 def build_scene(rng: np.random.Generator, pool: Pool, duration_s: float, snr_db: float | None,
                 laugh_share: float = 0.3, other_share: float = 0.2) -> tuple[np.ndarray, list[dict]]:
     """One scene (see the module docstring): (audio at 44.1 kHz, truth rows)."""
@@ -156,9 +166,11 @@ def build_scene(rng: np.random.Generator, pool: Pool, duration_s: float, snr_db:
             x = load(path)[: int(rng.uniform(1.0, 6.0) * SAMPLE_RATE)]
             x = x * (level / (_rms_active(x) + 1e-12))
             _place(fg, x, t)
+            rows.append(_event(kind, t, x, n))
         elif pool.voices:
             x = speech_turn(rng, pool, (n - t) / SAMPLE_RATE) * level
             _place(fg, x, t)
+            rows.append(_event("speech", t, x, n))
         else:
             x = np.zeros(SAMPLE_RATE)
         t += len(x) + int(rng.uniform(0.3, 2.0) * SAMPLE_RATE)
@@ -211,7 +223,7 @@ def write_set(out_dir: Path, kind: str, split: str, n: int, duration_s: float, s
     import soundfile as sf
 
     spec = {"kind": kind, "split": split, "n": n, "duration_s": duration_s, "snr_db": list(snr_db), "seed": seed,
-            "version": 1, "lock": hashlib.sha256(json.dumps(load_lock()["files"], sort_keys=True).encode())
+            "version": 2, "lock": hashlib.sha256(json.dumps(load_lock()["files"], sort_keys=True).encode())
             .hexdigest()[:16]}
     stamp = out_dir / "set.json"
     if stamp.exists() and json.loads(stamp.read_text()) == spec:
