@@ -85,7 +85,7 @@ def run_pipeline(wav: Path, out: Path, detector: str, extra=()) -> dict:
     m = compute(trial)
     starts = trial.starts()
     m["clip_starts"] = int(len(starts))
-    m["rofl_starts"] = int((starts.clip == "rofl").sum()) if len(starts) else 0
+    m["rofl_starts"] = int((starts["clip"] == "rofl").sum()) if len(starts) else 0
     m["duration_s"] = trial.duration_s
     m["frame_ms_p99_run"] = json.loads((out / "metrics.json").read_text())["frame_ms_p99"]
     m["frame_ms_p50_run"] = json.loads((out / "metrics.json").read_text())["frame_ms_p50"]

@@ -241,3 +241,27 @@ def test_the_bed_sits_at_the_given_snr(pool):
 def test_speech_only_holds_no_laughter(pool):
     x = M.speech_only(pool, 20.0, seed=1)
     assert len(x) == 20 * M.SAMPLE_RATE and np.abs(x).max() > 0
+
+
+# ------------------------------------------------------------------ annotations in the harness
+def test_a_folder_recording_takes_its_audacity_labels_as_truth(tmp_path):
+    from laughlab.harness.corpus import folder_items
+    from laughlab.harness.trialdata import Truth
+
+    sf.write(tmp_path / "l.wav", np.zeros(16000), 16000)
+    (tmp_path / "l.txt").write_text("0.100\t0.800\tlaugh\n0.100\t0.300\tcall\n")
+    (item,) = folder_items(tmp_path)
+    t = Truth.load(item.truth)
+    assert list(t.bouts.onset_s) == [0.1] and list(t.calls.offset_s) == [0.3]
+
+
+def test_a_bad_label_stops_the_experiment_with_one_line(tmp_path):
+    from laughlab.harness.corpus import folder_items
+
+    sf.write(tmp_path / "l.wav", np.zeros(16000), 16000)
+    (tmp_path / "l.txt").write_text("0.100\t0.600\tlaugh\n0.500\t0.900\tlaugh\n")
+    with pytest.raises(LaughlabError, match=r"l\.txt:2: laugh 0\.500-0\.900 s overlaps the laugh on line 1"):
+        folder_items(tmp_path)
+    (tmp_path / "l.txt").write_text("0.100\t2.800\tlaugh\n")
+    with pytest.raises(LaughlabError, match=r"l\.txt:1: interval 0\.100-2\.800 s is outside the recording \[0, 1\.000\] s"):
+        folder_items(tmp_path)

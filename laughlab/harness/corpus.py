@@ -55,8 +55,31 @@ def synthetic_items(profiles, seeds, duration_s: float) -> list[Item]:
     return items
 
 
+def _truth_beside(f: Path) -> str | None:
+    """``NAME.truth.csv``, else an annotation ``NAME.txt`` (Audacity labels) or ``NAME.TextGrid``
+    (checked now, so a bad label stops the experiment before any trial with one line naming it)."""
+    truth = f.with_name(f.stem + ".truth.csv")
+    if truth.exists():
+        return str(truth)
+    for ext in (".txt", ".TextGrid"):
+        ann = f.with_name(f.stem + ext)
+        if ann.exists():
+            import soundfile as sf
+
+            from ..corpora.annotations import read
+
+            try:
+                duration = sf.info(str(f)).duration
+            except RuntimeError:
+                duration = None
+            read(ann, duration)
+            return str(ann)
+    return None
+
+
 def folder_items(folder: str | Path) -> list[Item]:
-    """Every audio file in ``folder`` (sorted), with ``NAME.truth.csv`` as its truth when present."""
+    """Every audio file in ``folder`` (sorted), with ``NAME.truth.csv`` (or an annotation ``NAME.txt``,
+    ``NAME.TextGrid``: see ``laughlab.corpora.annotations``) as its truth when present."""
     d = Path(folder).expanduser()
     if not d.is_dir():
         raise LaughlabError(f"corpus folder not found: {folder}")
@@ -65,9 +88,8 @@ def folder_items(folder: str | Path) -> list[Item]:
         raise LaughlabError(f"corpus folder {folder} holds no audio files ({', '.join(AUDIO_SUFFIXES)})")
     items = []
     for f in files:
-        truth = f.with_name(f.stem + ".truth.csv")
         items.append(Item(f"rec-{f.stem}", ("input=file", f"input.path={f.resolve()}"), "recording", None,
-                          str(truth) if truth.exists() else None))
+                          _truth_beside(f)))
     return items
 
 

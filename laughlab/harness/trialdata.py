@@ -44,7 +44,14 @@ class Truth:
 
     @classmethod
     def load(cls, path: str | Path) -> "Truth":
-        t = pd.read_csv(path)
+        """A ``truth.csv``, or an annotation (Audacity labels ``.txt``, Praat ``.TextGrid``)."""
+        if str(path).lower().endswith((".txt", ".textgrid")):
+            from ..corpora.annotations import read
+
+            rows = read(path).truth_rows()
+            t = pd.DataFrame(rows, columns=["kind", "bout", "onset_s", "offset_s", "intensity"])
+        else:
+            t = pd.read_csv(path)
         return cls(t[t.kind == "bout"].reset_index(drop=True), t[t.kind == "call"].reset_index(drop=True))
 
     def intensity(self, times: np.ndarray) -> np.ndarray:
