@@ -47,9 +47,9 @@ N_MEL, N_CEP = 20, 8
 OCTAVE_COST = 0.03
 
 FEATURES = (
-    "rel_db", "voicing", "hf_ratio", "flatness", "c1", "c2", "c3",
+    "rel_db", "voicing", "hf_ratio", "flatness",
     "e_std_s", "voi_mean_s", "hf_mean_s", "dcep_s",
-    "e_std_l", "mod_3_8", "env_periodicity", "voi_mean_l", "voiced_frac_l", "active_frac_l",
+    "e_std_l", "mod_3_8", "env_periodicity", "voi_mean_l", "voiced_frac_l",
     "f0_mean_l", "f0_std_l", "cep_std_l", "dcep_l", "hf_mean_l", "hf_std_l", "flat_mean_l", "cep_periodicity",
     "rel_peak_db", "act_rel_peak_db",
 )
@@ -79,14 +79,17 @@ class FeatureStream:
       of lag), and the pitch at that peak;
     - ``hf_ratio``: energy 2-5 kHz over 0.1-5 kHz (breathiness);
     - ``flatness``: geometric over arithmetic mean of the power spectrum;
-    - ``c1..c3``: mel cepstra (20 bands, 80 Hz-5 kHz, DCT-II) of the spectral shape.
+    - mel cepstra c1..c8 (20 bands, 80 Hz-5 kHz, DCT-II, floor 30 dB under the mean band)
+      of the spectral shape, used only for how they change and repeat: the
+      cepstra themselves depend on the microphone and the room, and would let a
+      model learn the recording rather than the laugh.
 
     Over the short (0.3 s) and long (1 s) history: the level's spread
-    (``e_std``), mean voicing, mean breathiness, mean cepstral change between
+    (``e_std``, at most 40 dB under the top, so digital silence does not dominate), mean voicing, mean breathiness, mean cepstral change between
     frames (``dcep``, speech changes formants, laughter repeats a vowel), the
     share of the level trajectory's modulation energy at 3-8 Hz (``mod_3_8``),
     its autocorrelation peak at lags 0.12-0.33 s (``env_periodicity``, regular
-    calls), voiced and active shares, pitch mean (log2 Hz) and spread
+    calls), the voiced share of active frames, pitch mean (log2 Hz) and spread
     (semitones), cepstral spread and the spread of breathiness, and the
     periodicity of the spectral shape (``cep_periodicity``: the cepstra's
     autocorrelation at 0.12-0.33 s over active frames; laughter's h-a-h-a
@@ -181,7 +184,9 @@ class FeatureStream:
         self.peak_db = max(e, self.peak_db - PEAK_FALL_DB_S * self.dt)
         hf = float(pb[self.k2k - self.k100:].sum()) / tot
         flat = math.exp(float(np.log(pb).sum()) / len(pb)) * len(pb) / tot
-        cep = self.dct @ np.log(self.mel @ pb + 1e-10)
+        mel = self.mel @ pb
+        # floor 30 dB under the mean band energy: silence and faint bands do not swing the cepstra
+        cep = self.dct @ np.log(mel + 1e-3 * float(mel.sum()) / N_MEL + 1e-10)
         ac = _fft.irfft(p[: self.kmax], self.nac)
         r = ac[self.jmin:self.jmax] * (self.wac_inv / (ac[0] + 1e-12))
         i = int(np.argmax(r - self.octave_cost))
@@ -227,6 +232,10 @@ class FeatureStream:
         cep_std = sum(sd(2, c) for c in range(6, 6 + N_CEP)) / N_CEP
         traj = np.maximum(E, top - 40.0)
         traj -= float(traj.sum()) / nl
+        # the level's spread over the last second and the short window (dB), at most 40 dB under its top
+        e_std_l = math.sqrt(float(np.dot(traj, traj)) / nl)
+        ts = traj[-ns:]
+        e_std_s = math.sqrt(max(float(np.dot(ts, ts)) / ns - (float(ts.sum()) / ns) ** 2, 0.0))
         v = self.mod_dft @ traj
         v *= v
         ms = v[: self.n_mod] + v[self.n_mod:]
@@ -240,9 +249,9 @@ class FeatureStream:
         R = _fft.irfft(np.abs(_fft.rfft(C, 2 * nl, axis=0)) ** 2, 2 * nl, axis=0).sum(axis=1)
         cper = float(R[self.lag_lo:self.lag_hi + 1].max()) / (float(R[0]) + 1e-12)
         return np.array([
-            e - top, voi, hf, flat, float(cep[0]), float(cep[1]), float(cep[2]),
-            sd(1, 0), mean(4, 1), mean(4, 3), mean(4, 5),
-            sd(0, 0), mod, per, mean(2, 1), nv / max(na, 1.0), na / nl,
+            e - top, voi, hf, flat,
+            e_std_s, mean(4, 1), mean(4, 3), mean(4, 5),
+            e_std_l, mod, per, mean(2, 1), nv / max(na, 1.0),
             mean(3, 2) if nv >= 2 else 7.0, 12.0 * sd(3, 2), cep_std, mean(2, 5), mean(2, 3), sd(2, 3),
             mean(2, 4), cper, e - self.peak_db, mean(2, 0) - self.peak_db,
         ])

@@ -158,3 +158,16 @@ def bundled_path(item_id: str) -> Path | None:
 def bundled(item_id: str, duration_s: float | None = None) -> Annotation | None:
     p = bundled_path(item_id)
     return read_audacity(p, duration_s) if p is not None else None
+
+
+def digest() -> str:
+    """A short hash of every bundled annotation (sets built from them are rebuilt when one changes)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    folder = resources.files("laughlab").joinpath("data", "annotations")
+    if folder.is_dir():
+        for p in sorted(folder.iterdir(), key=lambda q: q.name):
+            if p.name.endswith(".txt"):
+                h.update(p.name.encode() + b"\0" + p.read_bytes())
+    return h.hexdigest()[:16]

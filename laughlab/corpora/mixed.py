@@ -224,7 +224,7 @@ def write_set(out_dir: Path, kind: str, split: str, n: int, duration_s: float, s
 
     spec = {"kind": kind, "split": split, "n": n, "duration_s": duration_s, "snr_db": list(snr_db), "seed": seed,
             "version": 2, "lock": hashlib.sha256(json.dumps(load_lock()["files"], sort_keys=True).encode())
-            .hexdigest()[:16]}
+            .hexdigest()[:16], "annotations": ann_mod.digest()}
     stamp = out_dir / "set.json"
     if stamp.exists() and json.loads(stamp.read_text()) == spec:
         return sorted(out_dir.glob("*.wav"))
