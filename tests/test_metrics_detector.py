@@ -1,0 +1,51 @@
+"""The detector metrics on hand-built gates, clip starts and bouts with known answers."""
+import numpy as np
+import pytest
+
+from laughlab.harness.metrics import compute, registered
+from test_metrics import FPS, events, trial, truth
+
+
+def gate_between(*spans):
+    def f(t):
+        g = np.zeros(len(t))
+        for a, b in spans:
+            g[(t >= a) & (t < b)] = 1.0
+        return g
+    return f
+
+
+def test_detector_metrics_are_registered_with_units():
+    names = set(registered())
+    assert {"detector_f1", "detector_precision", "detector_recall", "detection_latency_median_s",
+            "detection_latency_p90_s", "false_starts_per_min", "bouts_answered"} <= names
+
+
+def test_frame_scores_by_hand():
+    # 20 s at 10 fps; bouts 2-6 s and 10-12 s (60 frames); gate open 3-7 s and 14-15 s (50 frames)
+    tr = truth([(2.0, 6.0, 1.0), (10.0, 12.0, 1.0)])
+    m = compute(trial(tr=tr, laugh_gate=gate_between((3.0, 7.0), (14.0, 15.0))))
+    tp, fp, fn = 30, 20, 30          # 3-6 s; 6-7 s and 14-15 s; 2-3 s and 10-12 s
+    assert m["detector_precision"] == pytest.approx(tp / (tp + fp))
+    assert m["detector_recall"] == pytest.approx(tp / (tp + fn))
+    assert m["detector_f1"] == pytest.approx(2 * tp / (2 * tp + fp + fn))
+    # latency: bout 1 opens at frame 3.0 s -> 3.0 + 0.1 - 2.0; bout 2 never
+    assert m["detection_latency_median_s"] == pytest.approx(1.1)
+    assert m["detection_latency_p90_s"] == pytest.approx(1.1)
+
+
+def test_false_starts_and_answered_bouts_by_hand():
+    tr = truth([(2.0, 6.0, 1.0), (10.0, 12.0, 1.0)])
+    ev = [(2.5, "start", "giggle", 20, 1.0, ""), (6.8, "start", "sway", 10, 1.0, ""),    # in bout 1, its tail
+          (8.0, "start", "rofl", 90, 1.0, ""), (16.0, "start", "idle", 0, 1.0, "")]     # false; idle ignored
+    m = compute(trial(tr=tr, ev=ev, laugh_gate=np.ones(200)))
+    # non-laughter: 20 s - (4 + 1) - (2 + 1) = 12 s = 0.2 min; one false start
+    assert m["false_starts_per_min"] == pytest.approx(1 / 0.2)
+    assert m["bouts_answered"] == pytest.approx(0.5)
+
+
+def test_without_truth_or_gate_the_metrics_are_nan():
+    m = compute(trial(laugh_gate=np.ones(200)))
+    assert np.isnan(m["detector_f1"]) and np.isnan(m["false_starts_per_min"])
+    m = compute(trial(tr=truth([(2.0, 6.0, 1.0)])))
+    assert np.isnan(m["detector_f1"])
