@@ -44,6 +44,7 @@ from laughlab.bases import Context  # noqa: E402
 from laughlab.corpora.fetch import corpus_dir  # noqa: E402
 from laughlab.corpora.mixed import SAMPLE_RATE, Pool, build_scene, write_set  # noqa: E402
 from laughlab.frame import Frame  # noqa: E402
+from laughlab.harness.corpus import set_folder  # noqa: E402
 from laughlab.harness.metrics import compute  # noqa: E402
 from laughlab.harness.trialdata import TrialData  # noqa: E402
 from laughlab_plugins.detector_laugh import LaughDetector  # noqa: E402
@@ -114,7 +115,8 @@ def main() -> None:
     res["cost"] = [step_cost(44100), step_cost(16000)]
     sets = {}
     for name in ("mixed", "speech", "real"):
-        sets[name] = write_set(corpus_dir() / "sets" / f"{name}-test", name, "test", ns.scenes, ns.duration,
+        sets[name] = write_set(corpus_dir() / "sets" / set_folder(name, "test", ns.scenes, ns.duration), name, "test",
+                               ns.scenes, ns.duration,
                                [20.0, 10.0, 5.0], 0)
     work = Path(tempfile.mkdtemp(prefix="bench_detector_"))
     out = {}

@@ -50,3 +50,11 @@ def test_held_out_laughs_open_the_gate(model):
     assert len(found) >= 30
     print(f"held-out bouts found by the gate: {np.mean(found):.3f} of {len(found)}")
     assert np.mean(found) >= 0.4                            # measured 0.47 (34 bouts)
+
+
+@pytest.mark.slow
+def test_the_bundled_model_is_regenerated_byte_for_byte():
+    """``python -m laughlab.detector_fit --check`` refits on the train split and compares the bytes (~3 min)."""
+    from laughlab.detector_fit import main
+
+    assert main(["--check"]) == 0

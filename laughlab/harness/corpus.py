@@ -97,6 +97,11 @@ def folder_items(folder: str | Path) -> list[Item]:
 REAL_SETS = ("real", "mixed", "speech")
 
 
+def set_folder(name: str, split: str, n: int, duration_s: float) -> str:
+    """The folder name of a written set: sets of other sizes live side by side."""
+    return f"{name}-{split}" if name == "real" else f"{name}-{split}-{n}x{duration_s:g}s"
+
+
 def real_items(spec) -> list[Item]:
     """Items of the real corpus: ``harness.corpus.real`` = {sets, split, scenes, duration_s, snr_db, seed}.
 
@@ -126,7 +131,7 @@ def real_items(spec) -> list[Item]:
     seed = int(spec.get("seed", 0))
     items = []
     for s in sets:
-        folder = corpus_dir() / "sets" / f"{s}-{split}"
+        folder = corpus_dir() / "sets" / set_folder(s, split, n, dur)
         for wav in write_set(folder, s, split, n, dur, snr, seed):
             profile = s if s != "mixed" else "mixed-" + wav.stem.split("-")[1]
             items.append(Item(f"{s}-{wav.stem}" if s == "real" else wav.stem,
