@@ -114,7 +114,8 @@ def _composition_error(exc: Exception, overrides: list[str] = ()) -> str:
         valid = ""
         if group in GROUP_KINDS and group != "output" and "." in key:
             try:
-                valid = "; valid: " + ", ".join(_valid_keys(group, overrides))
+                keys = _valid_keys(group, overrides)
+                valid = "; valid: " + ", ".join(keys) if keys else f"; this {group} takes no parameters"
             except Exception:  # listing the keys is a courtesy
                 valid = ""
         return f"unknown parameter {key}{valid}"
