@@ -45,6 +45,8 @@ SILENCE_DBFS = -65.0
 N_MEL, N_CEP = 20, 8
 #: pitch candidates lose this much normalised autocorrelation per octave of lag (Boersma 1993)
 OCTAVE_COST = 0.03
+#: a shorter lag within this much of the best correlation is taken as the period
+NEAR_MAX = 0.1
 
 FEATURES = (
     "rel_db", "voicing", "hf_ratio", "flatness",
@@ -76,7 +78,7 @@ class FeatureStream:
     - ``voicing``: peak of the normalised autocorrelation r(tau)/r_w(tau) for
       pitch 75-1000 Hz (Boersma 1993, Eq. 9: divided by the window's own
       autocorrelation; the peak chosen with an octave cost of 0.03 per octave
-      of lag), and the pitch at that peak;
+      of lag, then the shortest lag within 0.1 of it), and the pitch at that peak;
     - ``hf_ratio``: energy 2-5 kHz over 0.1-5 kHz (breathiness);
     - ``flatness``: geometric over arithmetic mean of the power spectrum;
     - mel cepstra c1..c8 (20 bands, 80 Hz-5 kHz, DCT-II, floor 30 dB under the mean band)
@@ -189,7 +191,13 @@ class FeatureStream:
         cep = self.dct @ np.log(mel + 1e-3 * float(mel.sum()) / N_MEL + 1e-10)
         ac = _fft.irfft(p[: self.kmax], self.nac)
         r = ac[self.jmin:self.jmax] * (self.wac_inv / (ac[0] + 1e-12))
+        # the shortest lag whose correlation comes within NEAR_MAX of the best (a periodic sound
+        # correlates as well at 2T, 3T, ... as at T; the grid of ~0.1 ms can favour a multiple),
+        # then up to its local peak
         i = int(np.argmax(r - self.octave_cost))
+        i = int(np.argmax(r >= r[i] - NEAR_MAX))
+        while i + 1 < len(r) and r[i + 1] > r[i]:
+            i += 1
         voi = min(1.0, max(0.0, float(r[i])))
         lag = float(self.jmin + i)
         if 0 < i < len(r) - 1:  # parabolic interpolation of the peak's lag

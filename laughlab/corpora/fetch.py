@@ -95,7 +95,11 @@ def members(archive: Path) -> Iterator[tuple[str, bytes]]:
                 if not info.is_dir():
                     yield info.filename, z.read(info)
         return
-    proc = subprocess.Popen(["dpkg-deb", "--fsys-tarfile", str(archive)], stdout=subprocess.PIPE)
+    try:
+        proc = subprocess.Popen(["dpkg-deb", "--fsys-tarfile", str(archive)], stdout=subprocess.PIPE)
+    except FileNotFoundError:
+        raise LaughlabError(f"unpacking {archive.name} needs dpkg-deb (Debian's dpkg); install it, "
+                            "or fetch on a Debian machine and copy the data folder") from None
     try:
         with tarfile.open(fileobj=proc.stdout, mode="r|") as tar:
             for m in tar:
