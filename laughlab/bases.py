@@ -131,7 +131,7 @@ class Detector(Plugin):
     Runs right after the extractor on the same block: writes
     ``control['laughter']`` (probability in [0, 1]) and ``control['laugh_gate']``
     (the gain in [0, 1]), and applies the gain to the extractor's driving
-    signals (see ``laughlab.detector.GATED``).  Look-ahead: none beyond the frame's
+    signals (see ``laughlab.detector.apply_gate``).  Look-ahead: none beyond the frame's
     own audio block.
     """
 
