@@ -145,12 +145,10 @@ class FeatureStream:
         self.n_mod = len(mod_f)
         self.mod_dft = np.vstack([np.cos(2 * np.pi * mod_f[:, None] * t), np.sin(2 * np.pi * mod_f[:, None] * t)])
         self.mod_band = ((mod_f >= 3.0) & (mod_f <= 8.0)).astype(np.float64)
-        # frame weights of the history sums: all, short window, active, voiced, active in the short window
+        # frame weights of the history sums: active, voiced active, active in the short window
         self.short_mask = np.zeros(self.nl)
         self.short_mask[-self.ns:] = 1.0
-        self.weights = np.zeros((5, self.nl))
-        self.weights[0] = 1.0
-        self.weights[1] = self.short_mask
+        self.weights = np.zeros((3, self.nl))
         self.reset()
 
     def reset(self) -> None:
@@ -211,21 +209,21 @@ class FeatureStream:
         row[0], row[1], row[2], row[3], row[4] = e, voi, math.log2(self.sr_ac / lag), hf, flat
         row[5] = float(np.abs(cep - H[-2, 6:-1]).sum()) / N_CEP
         row[6:-1] = cep
-        return self._features(e, voi, hf, flat, cep)
+        return self._features(e, voi, hf, flat)
 
-    def _features(self, e, voi, hf, flat, cep) -> np.ndarray:
+    def _features(self, e, voi, hf, flat) -> np.ndarray:
         H, ns, nl, W = self.hist, self.ns, self.nl, self.weights
         E = H[:, 0]
         top = float(E.max())
         act = E > top - ACTIVE_DB
-        W[2] = act
-        W[3] = act & (H[:, 1] > 0.5)
-        W[4] = W[2] * self.short_mask
-        # sums of every column (and of its square) over: all frames, the short window, the
-        # active frames, the voiced active frames, the active frames of the short window
+        W[0] = act
+        W[1] = act & (H[:, 1] > 0.5)
+        W[2] = W[0] * self.short_mask
+        # sums of every column (and of its square) over: the active frames, the voiced active
+        # frames, the active frames of the short window (the last column of H is 1: the counts)
         S1 = (W @ H).tolist()
         S2 = (W @ (H * H)).tolist()
-        na, nv = S1[2][-1], S1[3][-1]
+        na, nv = S1[0][-1], S1[1][-1]
 
         def mean(w, c):
             return S1[w][c] / S1[w][-1] if S1[w][-1] > 0 else 0.0
@@ -237,7 +235,7 @@ class FeatureStream:
             m = S1[w][c] / n
             return math.sqrt(max(S2[w][c] / n - m * m, 0.0))
 
-        cep_std = sum(sd(2, c) for c in range(6, 6 + N_CEP)) / N_CEP
+        cep_std = sum(sd(0, c) for c in range(6, 6 + N_CEP)) / N_CEP
         traj = np.maximum(E, top - 40.0)
         traj -= float(traj.sum()) / nl
         # the level's spread over the last second and the short window (dB), at most 40 dB under its top
@@ -258,10 +256,10 @@ class FeatureStream:
         cper = float(R[self.lag_lo:self.lag_hi + 1].max()) / (float(R[0]) + 1e-12)
         return np.array([
             e - top, voi, hf, flat,
-            e_std_s, mean(4, 1), mean(4, 3), mean(4, 5),
-            e_std_l, mod, per, mean(2, 1), nv / max(na, 1.0),
-            mean(3, 2) if nv >= 2 else 7.0, 12.0 * sd(3, 2), cep_std, mean(2, 5), mean(2, 3), sd(2, 3),
-            mean(2, 4), cper, e - self.peak_db, mean(2, 0) - self.peak_db,
+            e_std_s, mean(2, 1), mean(2, 3), mean(2, 5),
+            e_std_l, mod, per, mean(0, 1), nv / max(na, 1.0),
+            mean(1, 2) if nv >= 2 else 7.0, 12.0 * sd(1, 2), cep_std, mean(0, 5), mean(0, 3), sd(0, 3),
+            mean(0, 4), cper, e - self.peak_db, mean(0, 0) - self.peak_db,
         ])
 
 
@@ -306,6 +304,10 @@ class Model:
     def prob(self, x: np.ndarray) -> np.ndarray:
         z = np.clip(self.logit(x), -30.0, 30.0)
         return 1.0 / (1.0 + np.exp(-z))
+
+    def prob_at(self, x: np.ndarray, level_dbfs) -> np.ndarray:
+        """The laughter probability, 0 where the window's level is below ``SILENCE_DBFS`` (silence)."""
+        return np.where(np.asarray(level_dbfs) < SILENCE_DBFS, 0.0, self.prob(x))
 
 
 @dataclass
@@ -402,10 +404,7 @@ def probabilities(audio: np.ndarray, sample_rate: int, fps: float, model: Model 
         a, b = int(round(k * sample_rate / fps)), int(round((k + 1) * sample_rate / fps))
         feats[k] = fs.step(audio[a:b])
         level[k] = fs.level_dbfs
-    prob = model.prob(feats) if model is not None else None
-    if prob is not None:
-        prob = np.where(level < SILENCE_DBFS, 0.0, prob)
-    return feats, prob, level
+    return feats, model.prob_at(feats, level) if model is not None else None, level
 
 
 #: control signals multiplied by the gate's gain (what drives bodies, faces and schedulers)

@@ -154,8 +154,7 @@ def main(argv: list[str] | None = None) -> int:
                   [np.array(b) for b in model["biases"]], model)
         probs = []
         for f, yy, level in streams:
-            p = np.where(level < SILENCE_DBFS, 0.0, m.prob(f))
-            probs.append((p, yy))
+            probs.append((m.prob_at(f, level), yy))
         frame_f1 = gate_f1(probs, GateParams())
         model["fit"] = {"command": "python -m laughlab.detector_fit", "split": "train", "scenes": N_SCENES,
                         "scene_s": SCENE_S, "snr_db": [s if s is not None else "inf" for s in SNRS],

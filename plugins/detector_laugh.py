@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from laughlab import hookimpl
 from laughlab.bases import Detector
-from laughlab.detector import SILENCE_DBFS, FeatureStream, Gate, GateParams, Model, apply_gate
+from laughlab.detector import FeatureStream, Gate, GateParams, Model, apply_gate
 
 
 @dataclass
@@ -54,7 +54,7 @@ class LaughDetector(Detector):
 
     def step(self, block, frame) -> None:
         x = self.features.step(block)
-        p = 0.0 if self.features.level_dbfs < SILENCE_DBFS else float(self.model.prob(x))
+        p = float(self.model.prob_at(x, self.features.level_dbfs))
         gain = self.gate.step(p)
         frame.control["laughter"] = p
         frame.control["laugh_gate"] = gain

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.harness.metrics import metric
+from laughlab.harness.metrics import finite_percentile, metric
 
 #: a clip start up to this long after a bout's end still answers the bout (s)
 ANSWER_TAIL_S = 1.0
@@ -79,14 +79,14 @@ def _latencies(trial):
 def detection_latency_median_s(trial):
     """Median over detected bouts of (end of the first gated-open frame in the bout - bout onset)."""
     lat = _latencies(trial)
-    return float(np.nanmedian(lat)) if lat is not None and np.isfinite(lat).any() else float("nan")
+    return finite_percentile(lat, 50)
 
 
 @metric("detection_latency_p90_s", False, "s")
 def detection_latency_p90_s(trial):
     """90th percentile over detected bouts of the detection latency (s)."""
     lat = _latencies(trial)
-    return float(np.nanpercentile(lat, 90)) if lat is not None and np.isfinite(lat).any() else float("nan")
+    return finite_percentile(lat, 90)
 
 
 def _non_laughter(trial):

@@ -10,7 +10,7 @@ import numpy as np
 from scipy import stats
 
 from laughlab import hookimpl
-from laughlab.harness.metrics import best_lag_correlation, metric
+from laughlab.harness.metrics import best_lag_correlation, finite_percentile, metric
 from laughlab.harness.trialdata import SMOOTH_S, TrialData, moving_average
 
 MAX_LAG_S = 2.0
@@ -98,14 +98,14 @@ def _bout_latencies(trial):
 def onset_latency_median_s(trial):
     """Median over bouts of (first clip start in the bout - bout onset); bouts without a clip excluded."""
     lat = _bout_latencies(trial)
-    return float(np.nanmedian(lat)) if lat is not None and np.isfinite(lat).any() else float("nan")
+    return finite_percentile(lat, 50)
 
 
 @metric("onset_latency_p90_s", False, "s")
 def onset_latency_p90_s(trial):
     """90th percentile over bouts of (first clip start in the bout - bout onset)."""
     lat = _bout_latencies(trial)
-    return float(np.nanpercentile(lat, 90)) if lat is not None and np.isfinite(lat).any() else float("nan")
+    return finite_percentile(lat, 90)
 
 
 @metric("miss_rate", False, "fraction")

@@ -94,6 +94,11 @@ _LMMS_KIND = {"misc/breath": "breath", "misc/applause": "clap", "misc/raving_cro
               "beats/": "music", "bassloops/": "music", "stringsnpads/": "music", "latin/": "music"}
 
 
+def _by_prefix(rest: str, table: dict) -> str | None:
+    """The kind of the first prefix of ``table`` that ``rest`` starts with."""
+    return next((kind for prefix, kind in table.items() if rest.startswith(prefix)), None)
+
+
 def classify(package: str, path: str) -> str | None:
     """The kind of one member of ``package`` (its path inside the package), or None to leave it out."""
     low = path.lower()
@@ -111,17 +116,9 @@ def classify(package: str, path: str) -> str | None:
     if package == "scratch":
         if not path.startswith(_SCRATCH):
             return None
-        rest = path[len(_SCRATCH):]
-        for prefix, kind in _SCRATCH_KIND.items():
-            if rest.startswith(prefix):
-                return kind
-        return None
+        return _by_prefix(path[len(_SCRATCH):], _SCRATCH_KIND)
     if package == "lmms-common":
-        rest = path[len(_LMMS):] if path.startswith(_LMMS) else ""
-        for prefix, kind in _LMMS_KIND.items():
-            if rest.startswith(prefix):
-                return kind
-        return None
+        return _by_prefix(path[len(_LMMS):], _LMMS_KIND) if path.startswith(_LMMS) else None
     if package == "ktuberling-data":
         if not path.startswith("usr/share/ktuberling/sounds/"):
             return None

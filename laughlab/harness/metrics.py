@@ -101,3 +101,11 @@ def best_lag_correlation(x: np.ndarray, y: np.ndarray, fps: float, max_lag_s: fl
         if not r <= best[0]:  # also replaces the NaN start
             best = (r, k / fps, k)
     return best
+
+
+def finite_percentile(values, q: float) -> float:
+    """The ``q``-th percentile of the finite ``values`` (NaN marks e.g. a missed bout); NaN when none is finite."""
+    if values is None:
+        return float("nan")
+    v = np.asarray(values, dtype=float)
+    return float(np.nanpercentile(v, q)) if np.isfinite(v).any() else float("nan")
