@@ -239,6 +239,33 @@ def jaw_call_r(trial):
     return best_lag_correlation(c, trial.channels["jaw"].to_numpy(), trial.fps, 0.5)[0]
 
 
+#: best lag of the jaw behind the sound's envelope (s): the mouth must answer each call within 0.1 s (issue 11)
+JAW_ENVELOPE_LAG_S = 0.1
+
+
+def jaw_opening(trial) -> np.ndarray | None:
+    """The face's jaw opening per frame: ``arkit.jawOpen`` when the face writes ARKit weights, else ``jaw``."""
+    for name in ("arkit.jawOpen", "jaw"):
+        if name in trial.channels:
+            return trial.channels[name].to_numpy()
+    return None
+
+
+@metric("jaw_envelope_r", True, "Pearson r")
+def jaw_envelope_r(trial):
+    """Pearson r between the sound's RMS envelope a(t) and the jaw opening j(t + lag), best lag in [0, 0.1] s.
+
+    a: the ``rms`` channel (full-scale RMS of each frame's audio block, written by
+    every extractor, before any detector gate); j: :func:`jaw_opening`.  Unlike
+    ``jaw_call_r`` it needs no ground truth and allows only 0.1 s of lag, so it
+    asks that the mouth open and close with each call of a real recording.
+    """
+    j = jaw_opening(trial)
+    if j is None or "rms" not in trial.channels:
+        return float("nan")
+    return best_lag_correlation(trial.channels["rms"].to_numpy(), j, trial.fps, JAW_ENVELOPE_LAG_S)[0]
+
+
 @metric("frame_ms_p50", False, "ms")
 def frame_ms_p50(trial):
     """Median per-frame compute time of the plugins and mixer (ms), from ``metrics.json``."""
@@ -260,7 +287,7 @@ def realtime_factor(trial):
 ALL = [intensity_r_clip, intensity_rho_clip, intensity_lag_clip_s, intensity_r_kinetic, intensity_rho_kinetic,
        intensity_lag_kinetic_s, onset_latency_median_s, onset_latency_p90_s, miss_rate, offset_tail_s,
        silent_start_rate, cutoff_rate, repetition_rate, clip_entropy, jaw_onset_latency_s,
-       smile_onset_latency_s, jaw_call_r, frame_ms_p50, frame_ms_p99, realtime_factor]
+       smile_onset_latency_s, jaw_call_r, jaw_envelope_r, frame_ms_p50, frame_ms_p99, realtime_factor]
 
 
 @hookimpl

@@ -151,6 +151,23 @@ def test_units_join_in_order_of_intensity():
     assert fr["smile"] == fr["au12"] and fr["jaw"] == pytest.approx(1.0) and fr["eyes_closed"] == 1.0
 
 
+@pytest.mark.parametrize("calls_per_s", [3.0, 5.0, 7.0])
+def test_the_mouth_opens_and_closes_with_every_call(calls_per_s):
+    """Issue 11: calls at up to 7 per second; jawOpen closes between calls and follows the drive within 0.1 s."""
+    from laughlab.harness.metrics import best_lag_correlation
+
+    t = np.arange(240) / FPS
+    mcs = 0.45 + 0.4 * np.sin(2 * np.pi * calls_per_s * t)  # calls between MCS 0.05 and 0.85
+    frames = drive(face(head=HeadMotionParams(enabled=False)), mcs)
+    jaw = np.array([fr.channels["arkit.jawOpen"] for fr in frames])[60:]  # after the first second
+    assert jaw.max() > 0.6 and jaw.min() < 0.25  # open in every call, (nearly) closed between them: lips stay parted
+    r, lag_s, _ = best_lag_correlation(mcs[60:], jaw, FPS, 0.1)
+    assert r > 0.9 and lag_s <= 0.05
+    # the smile follows the bout, not the calls: it barely moves within a call period
+    smile = np.array([fr.channels["au12"] for fr in frames])[120:]
+    assert smile.min() > 0.9
+
+
 def test_clip_eye_keys_close_the_eyes_and_skip_blinks():
     f = face(head=HeadMotionParams(enabled=False), blink_mean_s=0.5, blink_sd_s=0.0)
     frames = drive(f, [0.0] * 600, clip_eyes=[1.0] * 600)
