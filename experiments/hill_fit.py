@@ -34,15 +34,16 @@ PAPER = {"simplex": {"error": 0.18, "evals": 400}, "annealing": {"error": 0.16, 
          "seconds_per_call": 3600.0, "call_s": 0.2}
 
 
-def extract_target(cfg) -> tuple[np.ndarray, float, object]:
-    """Run the configured source and extractor; return the ``pressure`` per frame, the fps, the source's truth."""
+def extract_target(cfg) -> tuple[np.ndarray, float, object, np.ndarray]:
+    """Run the configured source and extractor; return the ``pressure`` per frame, the fps, the source's truth
+    and the frame RMS (``rms``, full scale: where the calls are cut)."""
     from laughlab import pipeline
     from laughlab.errors import LaughlabError
     from laughlab.frame import Frame
 
     pipe = pipeline.build(cfg)
     dt = pipe.ctx.dt
-    out = []
+    out, level = [], []
     try:
         pipe.extractor.reset()
         for k, block in enumerate(pipe.source.blocks()):
@@ -51,9 +52,33 @@ def extract_target(cfg) -> tuple[np.ndarray, float, object]:
             if "pressure" not in frame.control:
                 raise LaughlabError(f"experiment hill_fit needs extractor=pressure (got {pipe.extractor.name})")
             out.append(frame.control["pressure"])
+            level.append(frame.control.get("rms", 0.0))
     finally:
         pipe.source.close()
-    return np.array(out), float(pipe.ctx.fps), pipe.source.truth
+    return np.array(out), float(pipe.ctx.fps), pipe.source.truth, np.array(level)
+
+
+def annotated_calls(cfg, truth) -> int | None:
+    """How many calls the input holds by its annotation: the synthetic truth's calls; for a file, the
+    labels beside it (``NAME.txt`` or ``NAME.TextGrid``) or, for a file of the real corpus, its bundled
+    annotation; None when there is none."""
+    calls = getattr(truth, "calls", None)
+    if calls is not None:
+        return int(len(calls))
+    if cfg.input.name != "file":
+        return None
+    from laughlab.corpora import annotations, fetch
+
+    path = Path(str(cfg.input.path)).resolve()
+    for side in (path.with_suffix(".txt"), path.with_suffix(".TextGrid")):
+        if side.exists():
+            return len(annotations.read(side).calls)
+    try:
+        iid = path.relative_to((fetch.corpus_dir() / "files").resolve()).with_suffix("").as_posix()
+    except ValueError:
+        return None
+    ann = annotations.bundled(iid)
+    return None if ann is None else len(ann.calls)
 
 
 def fit_params(cfg):
@@ -216,8 +241,8 @@ def run(cfg, out_dir) -> dict:
     out_dir.mkdir(parents=True, exist_ok=True)
     fp, tp = fit_params(cfg), torso_params(cfg)
     t0 = time.perf_counter()
-    target, fps, truth = extract_target(cfg)
-    result = fit(target, fps, fp, tp)
+    target, fps, truth, level = extract_target(cfg)
+    result = fit(target, fps, fp, tp, level=level)
     name = "input" if cfg.input.name != "file" else Path(str(cfg.input.path)).name
     summaries = {name: result.summary()}
     rows = _rows(name, result)
@@ -239,8 +264,8 @@ def run(cfg, out_dir) -> dict:
             if k != "name" and not isinstance(v, (dict, list))]
     for item in _corpus_inputs(cfg):
         sub = _compose(["extractor=pressure", "body=hill", *base, *item.overrides])
-        tgt, f, _ = extract_target(sub)
-        r = fit(tgt, f, fp, tp)
+        tgt, f, _, lev = extract_target(sub)
+        r = fit(tgt, f, fp, tp, level=lev)
         summaries[item.id] = r.summary()
         rows += _rows(item.id, r)
     err = np.array([r["error"] for r in rows], dtype=float)
@@ -256,7 +281,13 @@ def run(cfg, out_dir) -> dict:
         "seconds_per_call_p90": float(np.percentile(secs, 90)) if len(secs) else None,
         "call_length_s_mean": float(lens.mean()) if len(lens) else None,
         "seconds_per_second_of_call": float(secs.sum() / lens.sum()) if lens.sum() > 0 else None,
+        "seconds_per_call_median": float(np.median(secs)) if len(secs) else None,
+        "evals_per_call_mean": float(np.mean([r["evals"] for r in rows])) if rows else None,
     }
+    annotated = annotated_calls(cfg, truth)
+    if annotated is not None:
+        overall["input_calls_found"] = len(result.calls)
+        overall["input_calls_annotated"] = annotated
     with open(out_dir / "calls.csv", "w", newline="") as fh:
         if rows:
             writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
@@ -281,6 +312,9 @@ def run(cfg, out_dir) -> dict:
         "wall_s": time.perf_counter() - t0,
     }
     res_mod.write_json(out_dir / "hill_fit.json", doc)
-    print(f"hill_fit: {overall['calls']} calls, mean error {overall['error_mean']:.3f}, "
-          f"{overall['seconds_per_call_mean']:.3f} s per call -> {out_dir / 'hill_fit.json'}")
+    found = (f" ({overall['input_calls_found']} found in the input, {overall['input_calls_annotated']} annotated)"
+             if "input_calls_found" in overall else "")
+    print(f"hill_fit: {overall['calls']} calls{found}, median error {overall['error_median']:.3f} "
+          f"(mean {overall['error_mean']:.3f}), median {overall['seconds_per_call_median']:.3f} s and "
+          f"{overall['evals_per_call_mean']:.0f} evaluations per call -> {out_dir / 'hill_fit.json'}")
     return doc

@@ -89,6 +89,7 @@ from .hill import GROUPS, NG, Torso, TorsoParams
 PARAMS = ("abdomen_amp", "ribcage_amp", "diaphragm_amp", "abdomen_start_s", "abdomen_freq_hz",
           "diaphragm_start_s", "diaphragm_freq_hz")
 METHODS = ("pds", "cma", "nelder-mead", "annealing")
+SEGMENTATIONS = ("level", "pressure")
 _AB, _DI, _II, _CU = GROUPS.index("abdomen"), GROUPS.index("diaphragm"), GROUPS.index("inner_intercostals"), \
     GROUPS.index("clavicle_up")
 
@@ -140,6 +141,12 @@ class FitParams:
         within this long after the last call's end (s); must exceed ``settle_s``.
     release_s : float
         Duration of the let-go, a half cosine (s): the inhalation after a bout.
+    segment : str
+        Where the calls are cut: ``level`` (default), at the valleys of the
+        recording's frame RMS (:func:`segment_calls_level`), when :func:`fit` is
+        given it; ``pressure``, at the valleys of the target pressure (the
+        paper's way, :func:`segment_calls`; also what ``level`` falls back to
+        when no RMS is given).
     lead_s : float
         A call's primitives may start up to this long before the call (s), inside
         the previous call, which the fit then re-simulates, the lead frames
@@ -174,8 +181,11 @@ class FitParams:
     release_after_s: float = 0.3
     release_s: float = 1.5
     lead_s: float = 0.0
+    segment: str = "level"
 
     def __post_init__(self) -> None:
+        if self.segment not in SEGMENTATIONS:
+            raise ValueError(f"segment must be one of {', '.join(SEGMENTATIONS)} (got {self.segment!r})")
         if self.method not in METHODS:
             raise ValueError(f"method must be one of {', '.join(METHODS)} (got {self.method!r})")
         if not 0 < self.freq_min_hz < self.freq_max_hz:
@@ -254,6 +264,79 @@ def segment_calls(pressure, fps: float, min_height_frac: float = 0.15, min_promi
             end = k + 1 + int(round(0.5 * (low[0] + low[-1]))) if len(low) else nxt
         else:
             end = fall_end(k, len(p) if n + 1 == len(peaks) else peaks[n + 1])
+        calls.append(Call(int(start), int(max(end, k + 1)), int(k)))
+    return calls
+
+
+def segment_calls_level(rms, fps: float, prominence_db: float = 5.0, min_distance_s: float = 0.08,
+                        depth_db: float = 25.0, floor_db: float = 20.0, max_half_s: float = 0.25,
+                        smooth_frames: int = 2, pressure=None, lag_s: float = 0.032) -> list[Call]:
+    """Cut a recording into calls found in its level (frame RMS, full scale), not in the pressure.
+
+    Why (departure from the paper's valleys of the pressure, issue 11): the
+    target pressure is the audio envelope low-passed at 5 Hz, which merges calls
+    that come faster than about five a second; real laughter has 3-8 (and up to
+    11) calls a second, so on the held-out real laughs the pressure's valleys
+    found the annotated call count within +/-1 in 23 % of files.  The frame RMS
+    keeps every call; the pressure, fitted call by call, keeps its 5 Hz shape.
+
+    The level ``L = 20 log10(max(rms, 1e-5))`` (dBFS) is averaged over
+    ``smooth_frames`` frames.  Peaks: local maxima at least ``min_distance_s``
+    apart (0.08 s: up to 12 calls a second), no lower than ``depth_db`` below
+    the 99th percentile of ``L`` and more prominent than ``prominence_db``
+    (chosen on the training split of the real corpus, README).  Boundaries as
+    :func:`segment_calls`: the centre of the valley between two peaks less than
+    two ``max_half_s`` apart; otherwise the call ends where ``L`` falls
+    ``floor_db`` below its peak (or ``max_half_s`` after it) and the next starts
+    where it rises above that (or ``max_half_s`` before its peak).
+
+    With ``pressure`` (the target the calls will be fitted to), a boundary
+    between two peaks moves to the pressure's lowest frame between them, both
+    shifted by ``lag_s`` (the 5 Hz low-pass's time constant, 32 ms): the fit
+    needs each call's pressure pulse whole; cut at the level's valley, a pulse
+    runs on into the next call and the torso handed over is still pushing
+    (on a real laugh the median error rose from 0.11 to 0.99).
+    """
+    from scipy.signal import find_peaks
+
+    r = np.asarray(rms, dtype=float)
+    if r.size < 3:
+        return []
+    lev = 20.0 * np.log10(np.maximum(np.nan_to_num(r, nan=0.0), 1e-5))
+    if smooth_frames > 1:
+        lev = np.convolve(lev, np.ones(smooth_frames) / smooth_frames, mode="same")
+    ref = float(np.percentile(lev, 99))
+    if not ref > -100.0 + 1e-9:
+        return []
+    peaks, _ = find_peaks(lev, height=ref - depth_db, prominence=prominence_db,
+                          distance=max(1, int(round(min_distance_s * fps))))
+    half = max(1, int(round(max_half_s * fps)))
+    pr = None if pressure is None else np.asarray(pressure, dtype=float)
+    calls: list[Call] = []
+    for n, k in enumerate(peaks):
+        floor = lev[k] - floor_db
+        if n > 0 and k - peaks[n - 1] <= 2 * half:
+            start = calls[-1].end
+        else:
+            lo = calls[-1].end if calls else 0
+            start = k
+            while start > lo and start > k - half and lev[start - 1] > floor:
+                start -= 1
+        if n + 1 < len(peaks) and peaks[n + 1] - k <= 2 * half:
+            nxt = peaks[n + 1]
+            if pr is not None:
+                lag = int(round(lag_s * fps))
+                a, b = min(k + 1 + lag, len(pr) - 1), min(nxt + lag, len(pr))
+                end = a + int(np.argmin(pr[a:b])) if b > a else nxt
+            else:
+                seg = lev[k + 1:nxt]
+                low = np.flatnonzero(seg <= seg.min() + 0.05 * (min(lev[k], lev[nxt]) - seg.min()))
+                end = k + 1 + int(round(0.5 * (low[0] + low[-1]))) if len(low) else nxt
+        else:
+            hi = len(lev) if n + 1 == len(peaks) else int(peaks[n + 1])
+            end = k + 1
+            while end < hi and end < k + 1 + half and lev[end] > floor:
+                end += 1
         calls.append(Call(int(start), int(max(end, k + 1)), int(k)))
     return calls
 
@@ -778,8 +861,17 @@ def _default_u0(problem: CallProblem) -> np.ndarray:
     return problem.to_unit(x)
 
 
+def find_calls(target, fps: float, fit_params: FitParams | None = None, level=None) -> list[Call]:
+    """The calls of a target: :func:`segment_calls_level` on ``level`` (frame RMS) when given and
+    ``fit_params.segment`` is ``level``, else :func:`segment_calls` on the pressure ``target``."""
+    fp = fit_params or FitParams()
+    if level is not None and fp.segment == "level":
+        return segment_calls_level(level, fps, pressure=target)
+    return segment_calls(target, fps)
+
+
 def fit(target, fps: float, fit_params: FitParams | None = None, torso_params: TorsoParams | None = None,
-        calls: list | None = None, progress=None) -> FitResult:
+        calls: list | None = None, progress=None, level=None) -> FitResult:
     """Fit every call of a target pressure curve in turn (paper 6.2).
 
     Parameters
@@ -789,9 +881,11 @@ def fit(target, fps: float, fit_params: FitParams | None = None, torso_params: T
     fps : float
     fit_params, torso_params : optional
     calls : list of Call, optional
-        The segmentation (default :func:`segment_calls`).
+        The segmentation (default :func:`find_calls` of ``target`` and ``level``).
     progress : callable, optional
         Called with ``(i, n, CallFit)`` after each call.
+    level : ndarray (n,), optional
+        The recording's frame RMS (full scale), to cut the calls at its valleys.
 
     Returns
     -------
@@ -801,7 +895,7 @@ def fit(target, fps: float, fit_params: FitParams | None = None, torso_params: T
     fp = fit_params or FitParams()
     tp = torso_params or TorsoParams()
     target = np.asarray(target, dtype=float)
-    calls = segment_calls(target, fps) if calls is None else calls
+    calls = find_calls(target, fps, fp, level) if calls is None else calls
     releases = bout_releases(calls, fps, fp.release_after_s)
     result = FitResult(fps, [], target, np.zeros_like(target), fp, tp)
     rest = Torso(tp, batch=1).get_state(0)
@@ -848,10 +942,10 @@ def _advance(result: FitResult, state, f0: int, f1: int, fps: float, tp: TorsoPa
 
 def compare_methods(target, fps: float, call_index: int, methods=("pds", "nelder-mead", "annealing"),
                     max_evals: int = 2000, fit_params: FitParams | None = None, torso_params: TorsoParams | None = None,
-                    prior: FitResult | None = None) -> dict:
+                    prior: FitResult | None = None, calls: list | None = None) -> dict:
     """Fig. 7: running best error against evaluations of several optimisers on the same call.
 
-    The call ``call_index`` of :func:`segment_calls` starts from the state the
+    The call ``call_index`` (of ``calls``, default: those of ``prior``, else :func:`segment_calls`) starts from the state the
     calls before it leave (``prior``, a fit of the same target, or a fresh fit
     of the earlier calls), and every method starts from the same point, the
     default start, and minimises the paper's cost alone (no settling penalty:
@@ -860,7 +954,8 @@ def compare_methods(target, fps: float, call_index: int, methods=("pds", "nelder
     fp = fit_params or FitParams()
     tp = torso_params or TorsoParams()
     target = np.asarray(target, dtype=float)
-    calls = segment_calls(target, fps)
+    if calls is None:
+        calls = [cf.call for cf in prior.calls] if prior is not None else segment_calls(target, fps)
     call = calls[call_index]
     if prior is None:
         prior = fit(target[:call.start], fps, fp, tp, calls=calls[:call_index])

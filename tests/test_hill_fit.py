@@ -4,6 +4,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
 from laughlab import hill_fit as hf
@@ -81,6 +83,61 @@ def test_segmentation_cuts_at_the_valley_centres():
     assert calls[2].end < calls[3].start
     assert p[calls[2].end] < 0.1 * p[calls[2].peak] and p[calls[3].start - 1] < 0.1 * p[calls[3].peak]
     assert hf.segment_calls(np.zeros(50), FPS) == []
+
+
+def calls_audio(rate_hz: float, n_calls: int, sr: int = 44100, seed: int = 0, duty: float = 0.55,
+                breath: float = 0.0, levels=None):
+    """A bout of ``n_calls`` voiced calls (a 180 Hz buzz under a Hann window, ``duty`` of each period),
+    ``rate_hz`` calls a second after 0.2 s of quiet, with 10 % jitter in the call levels; ``breath``:
+    the amplitude of the breathy noise that fills the bout between the calls; ``levels``: call
+    amplitudes taken in turn instead (e.g. a loud call, then a quiet one, as real laughs have)."""
+    rng = np.random.default_rng(seed)
+    period = 1.0 / rate_hz
+    x = 1e-4 * rng.standard_normal(int(sr * (0.4 + n_calls * period)))
+    for c in range(n_calls):
+        on = int(sr * (0.2 + c * period))
+        n = int(sr * 0.55 * period)
+        t = np.arange(n) / sr
+        amp = 0.3 * (0.9 + 0.2 * rng.random()) if levels is None else levels[c % len(levels)]
+        x[on:on + n] += amp * np.hanning(n) * np.sign(np.sin(2 * np.pi * 180 * t))
+    bout = slice(int(sr * 0.2), int(sr * (0.2 + n_calls * period)))
+    x[bout] += breath * rng.standard_normal(bout.stop - bout.start)
+    return x, sr
+
+
+def level_and_pressure(x, sr):
+    """Frame RMS and the ``pressure`` extractor's target, 60 frames a second (as ``experiment=hill_fit``)."""
+    ext = extractor_pressure.PressureExtractor(None, Context(fps=FPS, sample_rate=sr))
+    hop = int(sr / FPS)
+    rms, p = [], []
+    for k in range(len(x) // hop):
+        f = Frame(k, k / FPS, 1 / FPS)
+        ext.step(x[k * hop:(k + 1) * hop], f)
+        rms.append(f.control["rms"])
+        p.append(f.control["pressure"])
+    return np.array(rms), np.array(p)
+
+
+@settings(max_examples=15, deadline=None)
+@given(rate=st.floats(3.0, 10.0), n=st.integers(3, 14), seed=st.integers(0, 1000))
+def test_level_segmentation_follows_3_to_10_calls_a_second(rate, n, seed):
+    """Issue 11: every call is found at real call rates, and inner boundaries sit at the pressure's valleys."""
+    rms, p = level_and_pressure(*calls_audio(rate, n, seed=seed))
+    calls = hf.find_calls(p, FPS, hf.FitParams(), level=rms)
+    assert len(calls) == n
+    for a, b in zip(calls, calls[1:]):
+        assert a.end == b.start and a.peak < a.end <= b.peak + 2
+        lo, hi = a.peak + 3, b.peak + 2           # the peaks shifted by the low-pass lag (32 ms = 2 frames)
+        assert p[a.end] == pytest.approx(p[lo:hi].min())
+
+
+def test_pressure_valleys_merge_fast_calls_the_level_does_not():
+    rms, p = level_and_pressure(*calls_audio(8.0, 10, duty=0.8, breath=0.02, levels=(0.3, 0.1)))
+    assert len(hf.segment_calls(p, FPS)) < 8                           # the paper's way: 5 Hz merges calls
+    assert len(hf.find_calls(p, FPS, hf.FitParams(), level=rms)) == 10
+    assert len(hf.find_calls(p, FPS, hf.FitParams(segment="pressure"), level=rms)) < 8
+    assert hf.find_calls(p, FPS, hf.FitParams()) == hf.segment_calls(p, FPS)   # no level: the pressure's
+    assert hf.segment_calls_level(np.zeros(50), FPS) == []
 
 
 def problem(target, state=None, fit=None, t0=0.0):
@@ -190,6 +247,8 @@ def test_fit_params_validate():
         hf.FitParams(method="genetic")
     with pytest.raises(ValueError):
         hf.FitParams(freq_min_hz=5.0, freq_max_hz=2.0)
+    with pytest.raises(ValueError, match="segment must be one of level, pressure"):
+        hf.FitParams(segment="onsets")
 
 
 def test_experiment_writes_the_figures_and_numbers(hill_plugins, tmp_path):

@@ -144,3 +144,16 @@ def test_kinetic_energy_of_a_skeleton_gliding_at_1_m_per_s(tmp_path):
     m = compute(t2)
     assert m["intensity_lag_kinetic_s"] == pytest.approx(0.3, abs=0.11)
     assert m["intensity_r_kinetic"] > 0.9             # K is smoothed once more over 1 s by the metric
+
+
+def test_jaw_envelope_r_allows_at_most_0_1_s_of_lag_and_prefers_arkit():
+    rng = np.random.default_rng(3)
+    n = int(10.0 * FPS)
+    rms = np.abs(rng.standard_normal(n))                                           # a call-by-call envelope
+    late = lambda k: np.r_[np.zeros(k), rms[:-k]]
+    assert compute(trial(10.0, rms=rms, jaw=late(1)))["jaw_envelope_r"] == pytest.approx(1.0)   # 0.1 s behind
+    assert compute(trial(10.0, rms=rms, jaw=late(3)))["jaw_envelope_r"] < 0.5                  # 0.3 s: too late
+    t = trial(10.0, rms=rms, jaw=np.zeros(n))
+    t.channels["arkit.jawOpen"] = rms                                              # the ARKit weight wins
+    assert compute(t)["jaw_envelope_r"] == pytest.approx(1.0)
+    assert math.isnan(compute(trial(10.0, jaw=rms))["jaw_envelope_r"])            # no rms channel
