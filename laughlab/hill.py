@@ -123,7 +123,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .lung import Lung, LungParams
+from . import hill_kernel
+from .lung import CMH2O_PER_ATM, P_ATM, Lung, LungParams
 from .plugins import check_range
 
 try:  # the gufunc behind np.linalg.solve, without its per-call checks (a third of a small solve's cost)
@@ -553,6 +554,9 @@ class Torso:
         self._v0, self._a_di = p.chest_volume_l, a_di
         self._w_dt, self._w_cache = None, None
         self._kp = p.spine_kp_nm_per_rad
+        # batches step in one compiled loop when numba is there (laughlab.hill_kernel); one torso keeps
+        # the numpy step with its plain-float lungs, and the explicit flow scheme has no compiled step
+        self._kernel = hill_kernel.AVAILABLE and self.batch > 1 and p.lung.scheme == "implicit"
         self.reset()
         # preload: the rest pose is an equilibrium at the rest activations
         z = np.zeros((1, NQ))
@@ -645,6 +649,8 @@ class Torso:
         self._step(np.clip(muscle_act, 0.0, 1.0), spine_target, dt)
 
     def _step(self, a, spine_target, dt: float) -> None:
+        if self._kernel:
+            return self._step_compiled(a, spine_target, dt)
         self.muscle_act = a
         q, qd, b = self.q, self.qd, self.batch
         force, k_imp, d_imp, s = self._forces(q, qd, a)
@@ -671,6 +677,29 @@ class Torso:
         self.q = q + dt * qd
         self.v_cw = self.chest_volume(self.q)
         self.lung.step(self.v_cw, dt)
+        self.t += dt
+
+    def _step_compiled(self, a, spine_target, dt: float) -> None:
+        """:meth:`_step` by :func:`laughlab.hill_kernel.step_batch` (same arithmetic, one compiled loop)."""
+        self.muscle_act = a = np.ascontiguousarray(a, dtype=float)
+        b = self.batch
+        spine = np.broadcast_to(np.asarray(spine_target, dtype=float), (b,)).copy()
+        lung, lp = self.lung, self.lung.params
+        if self.q.base is not None or not self.q.flags.c_contiguous:
+            self.q, self.qd = self.q.copy(), self.qd.copy()
+        for name in Lung.STATE:
+            arr = getattr(lung, name)
+            if arr.base is not None or not arr.flags.c_contiguous:
+                setattr(lung, name, arr.copy())
+        v_cw = np.empty(b)
+        hill_kernel.step_batch(
+            self.q, self.qd, a, spine, float(dt), self._jt_over_l, self._gj, self.k_lin, self.d_lin, self.f_pre,
+            float(self._kp), ISP, self.J, self.gain, self._g_over_l, self._w_lin(dt), self._k_pe, self._b_pe,
+            self._inv_v_max, self._f_max, W_FL, A_FV, B_FV, _PE_EXP_CAP, self._inv_r, self._v0, self._a_di, IRC,
+            IDI, self._v_lo, self._inv_sw, self._stop_c, float(self.params.stop_pressure_cmh2o), C_P,
+            lung.v_lung, lung.v_pl, lung.p_pl, lung.ptm, lung.p_lung, lung.q, lung.v_pl_min, lung.p_pl0,
+            lung._ptm_a, float(lung._ptm_b), float(lung._c_atm), float(lp.k), P_ATM, CMH2O_PER_ATM, v_cw)
+        self.v_cw = v_cw
         self.t += dt
 
     def _w_lin(self, dt: float) -> np.ndarray:
