@@ -104,12 +104,13 @@ def corpus_targets(profiles, seeds, duration_s):
         for seed in seeds:
             s = SyntheticLaughter(seed=seed, duration_s=duration_s, profile=prof)
             ext = PressureExtractor(None, Context(fps=60, sample_rate=s.sample_rate))
-            p = []
+            p, level = [], []
             for k, block in enumerate(cut_frames([s.audio()], s.sample_rate, 60)):
                 f = Frame(k, k / 60, 1 / 60)
                 ext.step(block, f)
                 p.append(f.control["pressure"])
-            yield f"{prof}-s{seed:02d}", np.array(p)
+                level.append(f.control["rms"])
+            yield f"{prof}-s{seed:02d}", np.array(p), np.array(level), len(s.calls)
 
 
 def optimisation(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), duration_s=10.0) -> dict:
@@ -117,8 +118,10 @@ def optimisation(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), 
 
     fp = FitParams()
     rows, per_input = [], {}
-    for name, target in corpus_targets(profiles, seeds, duration_s):
-        res = fit(target, 60.0, fp)
+    found = []
+    for name, target, level, n_true in corpus_targets(profiles, seeds, duration_s):
+        res = fit(target, 60.0, fp, level=level)     # calls cut at the level's valleys, as experiment=hill_fit
+        found.append((len(res.calls), n_true))
         per_input[name] = res.summary()
         for cf in res.calls:
             rows.append((cf.error, cf.seconds, (cf.call.end - cf.call.start) / 60.0, cf.evals))
@@ -127,6 +130,10 @@ def optimisation(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), 
     return {
         "method": fp.method, "max_evals": fp.max_evals, "polish_evals": fp.polish_evals, "popsize": fp.popsize,
         "calls": int(len(a)),
+        "segment": fp.segment,
+        "calls_true": int(sum(t for _, t in found)),
+        "share_inputs_calls_within_1": float(np.mean([abs(f - t) <= 1 for f, t in found])),
+        "seconds_per_call_median": float(np.median(secs)),
         "seconds_per_call_mean": float(secs.mean()),
         "seconds_per_call_p90": float(np.percentile(secs, 90)),
         "seconds_per_call_max": float(secs.max()),
@@ -145,12 +152,12 @@ def optimisation(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), 
 def single_calls(n: int = 6) -> dict:
     """The paper's Fig. 7 setting: one call at a time, from the state the calls before it leave, with the
     paper's cost alone; CMA-ES at the production budget against Nelder-Mead at the paper's ~400 evaluations."""
-    from laughlab.hill_fit import FitParams, compare_methods, fit, segment_calls
+    from laughlab.hill_fit import FitParams, compare_methods, fit
 
-    name, target = next(corpus_targets(["intense"], [0], 10.0))
+    name, target, level, _ = next(corpus_targets(["intense"], [0], 10.0))
     fp = FitParams()
-    prior = fit(target, 60.0, fp)
-    calls = segment_calls(target, 60.0)
+    prior = fit(target, 60.0, fp, level=level)
+    calls = [cf.call for cf in prior.calls]
     picks = np.linspace(0, len(calls) - 1, n).round().astype(int)
     rows = {"cma": [], "nelder-mead": []}
     for i in picks:
@@ -175,7 +182,7 @@ def live_control(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), 
     from laughlab_plugins.body_hill import HillBody, HillParams
 
     errs, fit_s, fit_len, frame_ms, per_input = [], [], [], [], {}
-    for name, target in corpus_targets(profiles, seeds, duration_s):
+    for name, target, _, _ in corpus_targets(profiles, seeds, duration_s):
         body = HillBody(HillParams(control="fit", live=LiveParams(threaded="no")), Context(fps=60))
         p = np.empty(len(target))
         for k, v in enumerate(target):

@@ -164,14 +164,14 @@ class FitParams:
     freq_max_hz: float = 12.0
     start_max: float = 0.7
     method: str = "cma"
-    max_evals: int = 600
+    max_evals: int = 1000
     time_budget_s: float | None = None
     tol: float = 2e-3
     init_points: int = 47
     starts: int = 3
     popsize: int = 48
     polish_evals: int = 200
-    sigma0: float = 0.2
+    sigma0: float = 0.3
     substep_hz: float = 240.0
     clavicle_ratio: float = 1.0
     spine_deg: float = 30.0
@@ -686,7 +686,7 @@ def cmaes(problem: CallProblem, u0, fit: FitParams) -> tuple[np.ndarray, float]:
     """CMA-ES (Hansen's (mu/mu_w, lambda) evolution strategy), one generation per batch.
 
     Starts at the best of the warm start and ``init_points`` Latin-hypercube
-    points (one batch), step size 0.2; samples outside [0, 1] are clipped and
+    points (one batch), step size ``sigma0`` (0.3); samples outside [0, 1] are clipped and
     the clipped step is used in the update.  Returns ``(u, cost)``.
     """
     rng = np.random.default_rng(fit.seed)

@@ -57,7 +57,7 @@ FIRST_TEMPLATE = (np.array([0.03, 0.03, 0.0, 0.0, 7.0, 0.0, 7.0]), 0.1)
 
 
 def _fit_defaults() -> FitParams:
-    return FitParams(max_evals=400, polish_evals=100)
+    return FitParams(max_evals=400, polish_evals=100, sigma0=0.2)
 
 
 @dataclass
