@@ -441,3 +441,27 @@ def test_streaming_run_equals_offline_run(hill_plugins, tmp_path):
     assert a == b
     head = a[0].decode().splitlines()[0].split(",")
     assert {"pressure", "mcs", "chest", "belly", "lung_pressure", "chest_volume"} <= set(head)
+
+
+@settings(max_examples=10, deadline=None)
+@given(batch=st.integers(2, 9), seed=st.integers(0, 10_000), level=st.floats(0.0, 1.0))
+def test_compiled_batch_step_is_the_numpy_step(batch, seed, level):
+    """laughlab.hill_kernel: the same arithmetic as Torso._step in numpy, to rounding, for any activations."""
+    from laughlab import hill_kernel
+
+    if not hill_kernel.AVAILABLE:
+        pytest.skip("numba is not installed")
+    rng = np.random.default_rng(seed)
+    fast, slow = Torso(TorsoParams(), batch=batch), Torso(TorsoParams(), batch=batch)
+    assert fast._kernel
+    slow._kernel = False
+    for _ in range(240):                                     # 1 s at 240 Hz, activations changing every step
+        act = level * rng.random((batch, len(GROUPS)))
+        spine = 0.3 * rng.random(batch)
+        fast.step(act, spine, 1 / 240)
+        slow.step(act, spine, 1 / 240)
+    np.testing.assert_allclose(fast.q, slow.q, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(fast.qd, slow.qd, rtol=1e-9, atol=1e-10)
+    np.testing.assert_allclose(fast.lung_pressure, slow.lung_pressure, rtol=1e-9, atol=1e-10)
+    np.testing.assert_allclose(fast.v_cw, slow.v_cw, rtol=1e-12)
+    np.testing.assert_allclose(fast.lung.q, slow.lung.q, rtol=1e-9, atol=1e-10)
