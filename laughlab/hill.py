@@ -554,9 +554,9 @@ class Torso:
         self._v0, self._a_di = p.chest_volume_l, a_di
         self._w_dt, self._w_cache = None, None
         self._kp = p.spine_kp_nm_per_rad
-        # batches step in one compiled loop when numba is there (laughlab.hill_kernel); one torso keeps
-        # the numpy step with its plain-float lungs, and the explicit flow scheme has no compiled step
-        self._kernel = hill_kernel.AVAILABLE and self.batch > 1 and p.lung.scheme == "implicit"
+        # the step runs in one compiled loop when numba is there (laughlab.hill_kernel); the explicit
+        # flow scheme has no compiled step
+        self._kernel = hill_kernel.AVAILABLE and p.lung.scheme == "implicit"
         self.reset()
         # preload: the rest pose is an equilibrium at the rest activations
         z = np.zeros((1, NQ))
@@ -692,13 +692,16 @@ class Torso:
             if arr.base is not None or not arr.flags.c_contiguous:
                 setattr(lung, name, arr.copy())
         v_cw = np.empty(b)
+        ptm_a = lung._ptm_a if isinstance(lung._ptm_a, np.ndarray) else np.full(b, lung._ptm_a)
         hill_kernel.step_batch(
             self.q, self.qd, a, spine, float(dt), self._jt_over_l, self._gj, self.k_lin, self.d_lin, self.f_pre,
             float(self._kp), ISP, self.J, self.gain, self._g_over_l, self._w_lin(dt), self._k_pe, self._b_pe,
             self._inv_v_max, self._f_max, W_FL, A_FV, B_FV, _PE_EXP_CAP, self._inv_r, self._v0, self._a_di, IRC,
             IDI, self._v_lo, self._inv_sw, self._stop_c, float(self.params.stop_pressure_cmh2o), C_P,
             lung.v_lung, lung.v_pl, lung.p_pl, lung.ptm, lung.p_lung, lung.q, lung.v_pl_min, lung.p_pl0,
-            lung._ptm_a, float(lung._ptm_b), float(lung._c_atm), float(lp.k), P_ATM, CMH2O_PER_ATM, v_cw)
+            ptm_a, float(lung._ptm_b), float(lung._c_atm), float(lp.k), P_ATM, CMH2O_PER_ATM, v_cw)
+        if lung._scalar:   # the plain-float copy of the state a single torso's lungs keep (laughlab.lung)
+            lung._f = {k: float(getattr(lung, k).flat[0]) for k in Lung.STATE}
         self.v_cw = v_cw
         self.t += dt
 

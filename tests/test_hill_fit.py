@@ -272,3 +272,21 @@ def test_experiment_writes_the_figures_and_numbers(hill_plugins, tmp_path):
     assert math.isfinite(doc["overall"]["error_mean"])
     head = (tmp_path / "channels.csv").read_text().splitlines()[0].split(",")
     assert {"lung_pressure", "chest", "belly", "act_abdomen"} <= set(head)
+    # issue 11: every call of the input found (intense synthetic laughter: calls at ~5 per second)
+    ov = data["overall"]
+    assert ov["input_calls_annotated"] == len(exp.extract_target(cfg)[2].calls)
+    assert abs(ov["input_calls_found"] - ov["input_calls_annotated"]) <= 1
+    assert ov["evals_per_call_mean"] <= 60 + 3 and ov["seconds_per_call_median"] > 0
+
+
+def test_experiment_reads_the_annotation_beside_a_recording(tmp_path):
+    from laughlab.cli import compose_config
+    from laughlab_experiments import hill_fit as exp
+
+    wav = tmp_path / "laugh.wav"
+    wav.write_bytes(b"")
+    (tmp_path / "laugh.txt").write_text("0.1\t0.9\tlaugh\n0.1\t0.3\tcall\n0.4\t0.6\tcall\n")
+    cfg = compose_config(["experiment=hill_fit", "input=file", f"input.path={wav}"])
+    assert exp.annotated_calls(cfg, None) == 2
+    (tmp_path / "laugh.txt").unlink()
+    assert exp.annotated_calls(cfg, None) is None
