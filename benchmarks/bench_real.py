@@ -19,7 +19,9 @@ Per combination it prints the median over inputs of:
   call onsets (``-`` when the combination finds no calls);
 * for ``body=hill``: the offline per-call fit (``experiment=hill_fit``'s
   :func:`laughlab.hill_fit.fit`): median normalised error, median seconds and
-  mean evaluations per call (one core; fits run one after the other).
+  mean evaluations per call (one core; fits run one after the other), over the
+  calls it fits (quiet calls, whose pressure the extractor's floor cleared, are
+  counted but not driven: ``FitParams.quiet_frac``).
 
 Run: ``python benchmarks/bench_real.py [--split test|train] [--limit N]``;
 prints a table and writes ``benchmarks/results/real.json``.  Needs the real
@@ -115,8 +117,9 @@ def hill_fit_of(overrides: list[str]) -> dict:
     cfg = _compose([*overrides, "extractor=pressure", "body=hill"])
     target, fps, _, level = extract_target(cfg)
     res = fit(target, fps, FitParams(), level=level)
-    return {"calls": len(res.calls), "errors": [c.error for c in res.calls],
-            "seconds": [c.seconds for c in res.calls], "evals": [c.evals for c in res.calls]}
+    fitted = [c for c in res.calls if c.driven]      # quiet calls are not fitted (FitParams.quiet_frac)
+    return {"calls": len(res.calls), "quiet": len(res.calls) - len(fitted), "errors": [c.error for c in fitted],
+            "seconds": [c.seconds for c in fitted], "evals": [c.evals for c in fitted]}
 
 
 def summarise(rows: list[dict], face: str, body: str) -> dict:
@@ -136,7 +139,8 @@ def summarise(rows: list[dict], face: str, body: str) -> dict:
         evals = np.concatenate([x["hill"]["evals"] for x in rows])
         out.update({"hill_error_median": float(np.nanmedian(errs)), "hill_error_mean": float(np.nanmean(errs)),
                     "hill_seconds_per_call_median": float(np.median(secs)),
-                    "hill_evals_per_call_mean": float(np.mean(evals)), "hill_calls": int(len(errs))})
+                    "hill_evals_per_call_mean": float(np.mean(evals)), "hill_calls_fitted": int(len(errs)),
+                    "hill_quiet_calls": int(sum(x["hill"]["quiet"] for x in rows))})
     return out
 
 

@@ -107,7 +107,8 @@ def _rows(name: str, res) -> list[dict]:
     rows = []
     for i, cf in enumerate(res.calls):
         row = {"input": name, "call": i, "start_s": cf.call.start / res.fps, "end_s": cf.call.end / res.fps,
-               "duration_s": (cf.call.end - cf.call.start) / res.fps, "error": cf.error, "evals": cf.evals,
+               "duration_s": (cf.call.end - cf.call.start) / res.fps, "driven": int(cf.driven),
+               "error": cf.error, "evals": cf.evals,
                "seconds": cf.seconds}
         row.update({p: float(v) for p, v in zip(PARAMS, cf.x)})
         rows.append(row)
@@ -269,8 +270,9 @@ def run(cfg, out_dir) -> dict:
         summaries[item.id] = r.summary()
         rows += _rows(item.id, r)
     err = np.array([r["error"] for r in rows], dtype=float)
-    secs = np.array([r["seconds"] for r in rows], dtype=float)
-    lens = np.array([r["duration_s"] for r in rows], dtype=float)
+    fitted = [r for r in rows if r["driven"]]         # time and evaluations of the calls that were fitted
+    secs = np.array([r["seconds"] for r in fitted], dtype=float)
+    lens = np.array([r["duration_s"] for r in fitted], dtype=float)
     ok = np.isfinite(err)
     overall = {
         "calls": len(rows),
@@ -282,7 +284,8 @@ def run(cfg, out_dir) -> dict:
         "call_length_s_mean": float(lens.mean()) if len(lens) else None,
         "seconds_per_second_of_call": float(secs.sum() / lens.sum()) if lens.sum() > 0 else None,
         "seconds_per_call_median": float(np.median(secs)) if len(secs) else None,
-        "evals_per_call_mean": float(np.mean([r["evals"] for r in rows])) if rows else None,
+        "evals_per_call_mean": float(np.mean([r["evals"] for r in fitted])) if fitted else None,
+        "quiet_calls": len(rows) - len(fitted),
     }
     annotated = annotated_calls(cfg, truth)
     if annotated is not None:

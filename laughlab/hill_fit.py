@@ -141,6 +141,12 @@ class FitParams:
         within this long after the last call's end (s); must exceed ``settle_s``.
     release_s : float
         Duration of the let-go, a half cosine (s): the inhalation after a bout.
+    quiet_frac : float
+        A call whose target pressure stays below this fraction of the target's
+        99th percentile (the paper's segmentation drops such peaks at 0.15) is
+        not driven: its activations are 0, and its error, normalised by a
+        near-zero target, is not reported (NaN; on the held-out real laughs such
+        calls had errors up to 75 and made the mean meaningless).
     segment : str
         Where the calls are cut: ``level`` (default), at the valleys of the
         recording's frame RMS (:func:`segment_calls_level`), when :func:`fit` is
@@ -182,6 +188,7 @@ class FitParams:
     release_s: float = 1.5
     lead_s: float = 0.0
     segment: str = "level"
+    quiet_frac: float = 0.15
 
     def __post_init__(self) -> None:
         if self.segment not in SEGMENTATIONS:
@@ -295,7 +302,9 @@ def segment_calls_level(rms, fps: float, prominence_db: float = 5.0, min_distanc
     shifted by ``lag_s`` (the 5 Hz low-pass's time constant, 32 ms): the fit
     needs each call's pressure pulse whole; cut at the level's valley, a pulse
     runs on into the next call and the torso handed over is still pushing
-    (on a real laugh the median error rose from 0.11 to 0.99).
+    (on a real laugh the median error rose from 0.11 to 0.99).  Quiet calls
+    (whose pressure the extractor's floor has cleared) are kept: they are calls;
+    :func:`fit` does not drive them (``FitParams.quiet_frac``).
     """
     from scipy.signal import find_peaks
 
@@ -810,6 +819,7 @@ class CallFit:
     seconds: float
     history: list = field(default_factory=list)
     t_release: float | None = None   # when its held abdominal activation is let go (s; None: held)
+    driven: bool = True              # False: a quiet call, not fitted, no error (FitParams.quiet_frac)
 
 
 @dataclass
@@ -838,11 +848,13 @@ class FitResult:
 
     def summary(self) -> dict:
         err = np.array([c.error for c in self.calls], dtype=float)
-        secs = np.array([c.seconds for c in self.calls], dtype=float)
-        lens = np.array([(c.call.end - c.call.start) / self.fps for c in self.calls], dtype=float)
+        fitted = [c for c in self.calls if c.driven]     # time and evaluations of the calls that were fitted
+        secs = np.array([c.seconds for c in fitted], dtype=float)
+        lens = np.array([(c.call.end - c.call.start) / self.fps for c in fitted], dtype=float)
         ok = np.isfinite(err)
         return {
             "calls": len(self.calls),
+            "quiet_calls": sum(not c.driven for c in self.calls),
             "error_mean": float(err[ok].mean()) if ok.any() else float("nan"),
             "error_median": float(np.median(err[ok])) if ok.any() else float("nan"),
             "error_p90": float(np.percentile(err[ok], 90)) if ok.any() else float("nan"),
@@ -850,7 +862,7 @@ class FitResult:
             "seconds_per_call_max": float(secs.max()) if len(secs) else float("nan"),
             "call_length_s_mean": float(lens.mean()) if len(lens) else float("nan"),
             "seconds_per_call_second": float(secs.sum() / lens.sum()) if lens.sum() > 0 else float("nan"),
-            "evals_mean": float(np.mean([c.evals for c in self.calls])) if self.calls else float("nan"),
+            "evals_mean": float(np.mean([c.evals for c in fitted])) if fitted else float("nan"),
             "whole_error": float(np.sqrt(np.mean((self.simulated - self.target) ** 2))
                                  / max(np.sqrt(np.mean(self.target ** 2)), 1e-12)),
         }
@@ -902,6 +914,7 @@ def fit(target, fps: float, fit_params: FitParams | None = None, torso_params: T
     frame_p, state_p = 0, rest          # a frame before the next call and the torso state there
     lead_max = int(round(fp.lead_s * fps))
     u_prev = None
+    quiet = fp.quiet_frac * float(np.percentile(target, 99)) if len(target) else 0.0
     for i, call in enumerate(calls):
         lead = max(0, min(lead_max, call.start - frame_p))
         s0 = call.start - lead
@@ -909,7 +922,8 @@ def fit(target, fps: float, fit_params: FitParams | None = None, torso_params: T
         seg = target[call.start:call.end]
         problem = CallProblem(seg, call.start / fps, fps, result.primitives, state, tp, fp, lead, target[s0:call.start])
         t0 = time.perf_counter()
-        if problem.norm > 0:
+        driven = problem.norm > 0 and seg.max() >= quiet
+        if driven:
             u0 = _default_u0(problem) if u_prev is None else u_prev
             u, _ = optimise(problem, u0, fp)
         else:
@@ -917,9 +931,9 @@ def fit(target, fps: float, fit_params: FitParams | None = None, torso_params: T
         seconds = time.perf_counter() - t0
         x = problem.to_physical(u)
         result.calls.append(CallFit(call, x, float("nan"), problem.evals, seconds, problem.history_error,
-                                    releases[i]))
+                                    releases[i], driven))
         frame_p, state_p = s0, state
-        u_prev = u
+        u_prev = u if driven else u_prev
         if progress is not None:
             progress(i, len(calls), result.calls[-1])
     # the whole target once more with every call playing: the simulated pressure and each call's error
@@ -927,7 +941,7 @@ def fit(target, fps: float, fit_params: FitParams | None = None, torso_params: T
     for cf in result.calls:
         seg = target[cf.call.start:cf.call.end]
         norm = float(np.sqrt(np.mean(seg ** 2))) if len(seg) else 0.0
-        if norm > 0:
+        if norm > 0 and cf.driven:
             cf.error = float(np.sqrt(np.mean((result.simulated[cf.call.start:cf.call.end] - seg) ** 2)) / norm)
     return result
 

@@ -290,3 +290,18 @@ def test_experiment_reads_the_annotation_beside_a_recording(tmp_path):
     assert exp.annotated_calls(cfg, None) == 2
     (tmp_path / "laugh.txt").unlink()
     assert exp.annotated_calls(cfg, None) is None
+
+
+def test_quiet_calls_are_counted_but_not_driven():
+    """A call whose pressure the extractor's floor cleared (< quiet_frac of the 99th percentile) gets no
+    activation and no error; the others are fitted and reported as usual."""
+    p = 0.1 * pulses([0.4, 0.9, 1.4], n=120)
+    p[72:] *= 0.05                                                         # the third call, nearly silent
+    calls = [hf.Call(12, 36, 23), hf.Call(36, 70, 53), hf.Call(70, 110, 83)]
+    fp = hf.FitParams(max_evals=60, polish_evals=0, popsize=12, init_points=11)
+    res = hf.fit(p, FPS, fp, calls=calls)
+    assert [c.driven for c in res.calls] == [True, True, False]
+    assert np.all(res.calls[2].x == 0.0) and res.calls[2].evals == 0 and math.isnan(res.calls[2].error)
+    assert all(math.isfinite(c.error) for c in res.calls[:2])
+    s = res.summary()
+    assert s["quiet_calls"] == 1 and s["calls"] == 3 and s["evals_mean"] == np.mean([c.evals for c in res.calls[:2]])
