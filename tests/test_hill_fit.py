@@ -296,7 +296,7 @@ def test_quiet_calls_are_counted_but_not_driven():
     """A call whose pressure the extractor's floor cleared (< quiet_frac of the 99th percentile) gets no
     activation and no error; the others are fitted and reported as usual."""
     p = 0.1 * pulses([0.4, 0.9, 1.4], n=120)
-    p[72:] *= 0.05                                                         # the third call, nearly silent
+    p[72:] *= 0.02                                                         # the third call, nearly silent
     calls = [hf.Call(12, 36, 23), hf.Call(36, 70, 53), hf.Call(70, 110, 83)]
     fp = hf.FitParams(max_evals=60, polish_evals=0, popsize=12, init_points=11)
     res = hf.fit(p, FPS, fp, calls=calls)
