@@ -33,13 +33,14 @@ test: $(STAMP) corpus
 test-all: $(STAMP) corpus
 	$(PY) -m pytest -q -m ''
 
-## bench: every benchmark (pipeline speed and memory, call detection, latency, Hill fit); figures in benchmarks/results/
+## bench: every benchmark (pipeline speed and memory, call detection, latency, Hill fit, detector, faces and Hill on real laughs); figures in benchmarks/results/
 bench: $(STAMP) corpus
 	$(PY) benchmarks/bench_pipeline.py
 	$(PY) benchmarks/bench_calls.py
 	$(PY) benchmarks/bench_latency.py
 	$(PY) benchmarks/bench_hill.py
 	$(PY) benchmarks/bench_detector.py
+	$(PY) benchmarks/bench_real.py
 
 ## clips: regenerate the clip library's BVH files from their keyframes
 clips: $(STAMP)
