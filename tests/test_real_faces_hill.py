@@ -1,0 +1,94 @@
+"""Issue 11 on the real corpus' held-out laughs: the faces' jaws follow the calls, the Hill fit finds them.
+
+Runs on the fetched corpus (``make test`` fetches it first): the test split's
+laughs with annotated calls, at their own rates (44.1/48 kHz).  The bounds sit
+below the figures ``benchmarks/bench_real.py`` measures (README, "Faces and the
+Hill torso on real laughter"), so a change that makes a face or the Hill fit
+worse on real people fails here.  Timings are left to the benchmark.
+"""
+import csv
+
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+
+from laughlab.corpora import annotations, fetch
+
+EXAMPLE = "hedgewars/Default_ru-Laugh"   # the laugh of issue 11: 1.3 s, 8 calls at 6.5 a second, 44.1 kHz
+
+
+def held_out_laughs() -> list[tuple[str, str, int]]:
+    """``(id, path, annotated calls)`` of the test split's laughs with annotated calls."""
+    manifest = {r["id"]: r for r in csv.DictReader(open(fetch.corpus_dir() / "manifest.csv"))}
+    out = []
+    for iid, path in sorted(fetch.require(["laugh"], "test").items()):
+        ann = annotations.bundled(iid)
+        if ann is not None and ann.calls and manifest[iid]["split"] == "test":
+            out.append((iid, str(path), len(ann.calls)))
+    return out
+
+
+@pytest.fixture(scope="module")
+def laughs():
+    items = held_out_laughs()
+    assert len(items) >= 20 and EXAMPLE in {i for i, _, _ in items}
+    return items
+
+
+def jaw_r(path: str, face: str, extractor: str, tmp_path) -> float:
+    from laughlab import pipeline
+    from laughlab.harness.metrics import compute
+    from laughlab.harness.runner import _compose
+    from laughlab.harness.trialdata import TrialData
+
+    cfg = _compose(["input=file", f"input.path={path}", f"face={face}", f"extractor={extractor}", "body=shapes",
+                    "scheduler=none", "output=trial"])
+    out = tmp_path / "run"
+    out.mkdir(exist_ok=True)
+    pipeline.execute(pipeline.build(cfg), out, OmegaConf.to_container(cfg, resolve=True))
+    return compute(TrialData.load(out))["jaw_envelope_r"]
+
+
+@pytest.mark.parametrize("face, extractor, bound, example_bound", [
+    ("facs", "rms", 0.65, 0.7),        # measured: median 0.77, the example 0.82 (0.14 before issue 11)
+    ("cgm", "phoneme", 0.7, 0.65),     # measured: median 0.77, the example 0.73
+])
+def test_the_jaw_follows_the_calls_of_held_out_laughs(laughs, face, extractor, bound, example_bound, tmp_path):
+    rs = {iid: jaw_r(path, face, extractor, tmp_path) for iid, path, _ in laughs}
+    print(f"{face}: jaw_envelope_r median {np.median(list(rs.values())):.3f} over {len(rs)} held-out laughs")
+    assert np.median(list(rs.values())) >= bound
+    assert rs[EXAMPLE] >= example_bound
+
+
+def hill_input(path: str):
+    from laughlab.harness.runner import _compose
+    from laughlab_experiments.hill_fit import extract_target
+
+    target, fps, _, level = extract_target(_compose(["input=file", f"input.path={path}", "extractor=pressure",
+                                                     "body=hill"]))
+    return target, fps, level
+
+
+def test_hill_finds_the_calls_of_held_out_laughs(laughs):
+    from laughlab.hill_fit import FitParams, find_calls, segment_calls
+
+    level_ok, pressure_ok = [], []
+    for iid, path, n in laughs:
+        target, fps, level = hill_input(path)
+        level_ok.append(abs(len(find_calls(target, fps, FitParams(), level)) - n) <= 1)
+        pressure_ok.append(abs(len(segment_calls(target, fps)) - n) <= 1)
+    print(f"calls within +/-1: level {np.mean(level_ok):.2f}, pressure {np.mean(pressure_ok):.2f}")
+    assert np.mean(level_ok) >= 0.6                      # measured 0.69
+    assert np.mean(level_ok) > np.mean(pressure_ok) + 0.3  # the paper's way: 0.23
+
+
+def test_hill_fits_the_example_laugh(laughs):
+    from laughlab.hill_fit import FitParams, fit
+
+    path, n = next((p, n) for i, p, n in laughs if i == EXAMPLE)
+    target, fps, level = hill_input(path)
+    res = fit(target, fps, FitParams(), level=level)
+    assert abs(len(res.calls) - n) <= 1                 # measured 7 of 8
+    s = res.summary()
+    assert s["error_median"] <= 0.18                     # measured 0.134
+    assert s["evals_mean"] <= 1000 + 200 + 49            # the budget: max_evals + polish (+ one batch)
