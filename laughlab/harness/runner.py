@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 import shutil
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -87,11 +88,42 @@ def make_trials(items: list[Item], conditions: dict, seeds_for, base_overrides: 
     return trials
 
 
-def run_trials(trials: list[Trial], jobs: int = 1, progress: bool = True, desc: str = "trials") -> list[dict]:
-    """Run trials (in ``jobs`` processes); return their records sorted by condition, input and seed."""
+class LogProgress:
+    """Progress for a log file (stderr not a terminal): a plain line every ``every_s`` seconds and one at
+    the end, instead of a bar's thousands of carriage-return updates."""
+
+    def __init__(self, total: int, desc: str, every_s: float = 10.0, stream=None):
+        self.total, self.desc, self.every_s = total, desc, every_s
+        self.stream = stream or sys.stderr
+        self.n = 0
+        self.t0 = self.last = time.monotonic()
+
+    def update(self, k: int = 1) -> None:
+        self.n += k
+        now = time.monotonic()
+        if now - self.last >= self.every_s:
+            self.last = now
+            self._line(now)
+
+    def _line(self, now: float) -> None:
+        print(f"{self.desc}: {self.n}/{self.total} trials, {now - self.t0:.0f} s", file=self.stream, flush=True)
+
+    def close(self) -> None:
+        self._line(time.monotonic())
+
+
+def progress_bar(total: int, desc: str, progress: bool):
+    """A tqdm bar on a terminal; :class:`LogProgress` lines when stderr is not one; silence without ``progress``."""
     from tqdm import tqdm
 
-    bar = tqdm(total=len(trials), desc=desc, unit="trial", file=sys.stderr, disable=not progress)
+    if progress and not sys.stderr.isatty():
+        return LogProgress(total, desc)
+    return tqdm(total=total, desc=desc, unit="trial", file=sys.stderr, disable=not progress)
+
+
+def run_trials(trials: list[Trial], jobs: int = 1, progress: bool = True, desc: str = "trials") -> list[dict]:
+    """Run trials (in ``jobs`` processes); return their records sorted by condition, input and seed."""
+    bar = progress_bar(len(trials), desc, progress)
     records = []
     try:
         if jobs <= 1:
