@@ -3,9 +3,13 @@
 The target is a lung-pressure curve (cm H2O, one value per animation frame),
 e.g. the ``pressure`` extractor's output.  It is cut into calls at the valleys
 between its peaks (:func:`segment_calls`; the paper found the fit better when
-"we segmented the calls in the center of the valley between the peaks"), and the
-calls are fitted one after the other, each starting from the torso state the
-previous ones left (:func:`fit`).
+"we segmented the calls in the center of the valley between the peaks"), or,
+given the recording's frame RMS (the default in ``experiment=hill_fit``), calls
+found in the RMS and cut at the pressure's lowest point between them
+(:func:`segment_calls_level`: the 5 Hz pressure merges calls faster than about
+five a second, real laughs have up to 11), and the calls are fitted one after
+the other, each starting from the torso state the previous ones left
+(:func:`fit`).  Quiet calls (``FitParams.quiet_frac``) are counted, not driven.
 
 Per call, seven parameters (:data:`PARAMS`): the activation primitive is "a
 single period of a sine function with three parameters, amplitude, start time,
