@@ -37,7 +37,8 @@ files: same input, same bytes, and a streaming run equals an offline one)
 or in a background thread (``threaded: yes``, the default for live input:
 frames keep coming at their rate; the next onset takes the newest finished
 fit, so which template a call gets depends on the machine's speed).  A fit
-takes about 0.2 s of one core per 0.2 s call (``benchmarks/bench_hill.py``).
+takes about 0.05 s of one core per 0.2 s call with the compiled torso step
+(``benchmarks/bench_hill.py``).
 """
 from __future__ import annotations
 
