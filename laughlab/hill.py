@@ -681,8 +681,9 @@ class Torso:
 
     def _step_compiled(self, a, spine_target, dt: float) -> None:
         """:meth:`_step` by :func:`laughlab.hill_kernel.step_batch` (same arithmetic, one compiled loop)."""
-        self.muscle_act = a = np.ascontiguousarray(a, dtype=float)
         b = self.batch
+        # activations of one torso may come as (10,) (the numpy step broadcasts them): one row per torso
+        self.muscle_act = a = np.ascontiguousarray(np.broadcast_to(np.asarray(a, dtype=float), (b, NM)))
         spine = np.broadcast_to(np.asarray(spine_target, dtype=float), (b,)).copy()
         lung, lp = self.lung, self.lung.params
         if self.q.base is not None or not self.q.flags.c_contiguous:

@@ -465,3 +465,13 @@ def test_compiled_batch_step_is_the_numpy_step(batch, seed, level):
     np.testing.assert_allclose(fast.lung_pressure, slow.lung_pressure, rtol=1e-9, atol=1e-10)
     np.testing.assert_allclose(fast.v_cw, slow.v_cw, rtol=1e-12)
     np.testing.assert_allclose(fast.lung.q, slow.lung.q, rtol=1e-9, atol=1e-10)
+
+
+def test_compiled_step_takes_one_torso_s_activations_as_a_row_like_the_numpy_step():
+    fast, slow = Torso(TorsoParams()), Torso(TorsoParams())
+    slow._kernel = False
+    for _ in range(60):
+        fast.step(np.full(len(GROUPS), 0.2), 0.1, 1 / 240)            # (6,), not (1, 6)
+        slow.step(np.full(len(GROUPS), 0.2), 0.1, 1 / 240)
+    np.testing.assert_allclose(fast.lung_pressure, slow.lung_pressure, rtol=1e-9, atol=1e-12)
+    assert fast.muscle_act.shape == (1, len(MUSCLES))
