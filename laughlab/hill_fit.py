@@ -352,7 +352,8 @@ def segment_calls_level(rms, fps: float, prominence_db: float = 5.0, min_distanc
             end = k + 1
             while end < hi and end < k + 1 + half and lev[end] > floor:
                 end += 1
-        calls.append(Call(int(start), int(max(end, k + 1, start + 1)), int(k)))   # never empty: a cut may pass the peak by the lag
+        # never empty: a cut at the pressure's valley may pass the next peak by the lag
+        calls.append(Call(int(start), int(max(end, k + 1, start + 1)), int(k)))
     return calls
 
 
