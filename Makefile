@@ -23,7 +23,7 @@ corpus: $(STAMP)
 
 ## detector: refit the laughter detector's model (laughlab/data/detector.json) on the corpus' train split
 detector: corpus
-	$(PY) -m laughlab.detector_fit
+	$(PY) -m laughlab.detector.fit
 
 ## test: the default test suite (slow end-to-end checks excluded); the real corpus is fetched first
 test: $(STAMP) corpus
@@ -58,4 +58,4 @@ docs: $(STAMP)
 	rm -rf runs/docs-video
 	$(PY) -m laughlab hydra.run.dir=runs/docs-video seed=0 input.duration_s=10 output=video face=facs
 	$(PY) -c "import imageio_ffmpeg, subprocess; subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), '-loglevel', 'error', '-y', '-ss', '2.5', '-i', 'runs/docs-video/video.mp4', '-frames:v', '1', 'docs/img/video_frame.png'], check=True)"
-	$(PY) -c "from laughlab.clips import ClipLibrary; from laughlab.figure import contact_sheet; contact_sheet('docs/img/clips.png', ClipLibrary.load())"
+	$(PY) -c "from laughlab.motion.clips import ClipLibrary; from laughlab.render.figure import contact_sheet; contact_sheet('docs/img/clips.png', ClipLibrary.load())"

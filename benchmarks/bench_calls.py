@@ -1,12 +1,12 @@
 """Benchmark of the ``phoneme`` extractor's call detection, labels, prosody and cost.
 
-On the synthetic corpus (``laughlab.synth.SyntheticLaughter``, every profile of
+On the synthetic corpus (``laughlab.synth.laughter.SyntheticLaughter``, every profile of
 ``PROFILES``, seeds 0..N-1), the extractor runs frame by frame exactly as in a
 run (60 fps, 16 kHz) and is scored against the ground truth:
 
 1. **call onsets**: detections (frames with ``call_onset`` = 1, at the frame's
    start time) matched one to one to the true ``Call.onset_s`` within +/-50 ms
-   (:func:`laughlab.events.match_onsets`); precision, recall and F1 per profile,
+   (:func:`laughlab.harness.events.match_onsets`); precision, recall and F1 per profile,
    pooled over all runs and averaged over runs; the onset error distribution
    (detected - true: median, and median / p90 / max of its magnitude, ms);
 2. **labels**: per frame, the truth at the analysis window's centre is
@@ -37,12 +37,12 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from laughlab.audio import cut_frames  # noqa: E402
-from laughlab.bases import Context  # noqa: E402
-from laughlab.events import match_onsets, prf  # noqa: E402
-from laughlab.frame import Frame  # noqa: E402
-from laughlab.prosody import frame_centers, praat_prosody  # noqa: E402
-from laughlab.synth import PROFILES, SyntheticLaughter  # noqa: E402
+from laughlab.io.audio import cut_frames  # noqa: E402
+from laughlab.core.bases import Context  # noqa: E402
+from laughlab.harness.events import match_onsets, prf  # noqa: E402
+from laughlab.core.frame import Frame  # noqa: E402
+from laughlab.signals.prosody import frame_centers, praat_prosody  # noqa: E402
+from laughlab.synth.laughter import PROFILES, SyntheticLaughter  # noqa: E402
 from laughlab_plugins.extractor_phoneme import PhonemeExtractor, PhonemeParams  # noqa: E402
 
 SR, FPS, TOL_S = 16000, 60.0, 0.05

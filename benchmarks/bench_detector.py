@@ -40,10 +40,10 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from laughlab.bases import Context  # noqa: E402
+from laughlab.core.bases import Context  # noqa: E402
 from laughlab.corpora.fetch import corpus_dir  # noqa: E402
 from laughlab.corpora.mixed import SAMPLE_RATE, Pool, build_scene, write_set  # noqa: E402
-from laughlab.frame import Frame  # noqa: E402
+from laughlab.core.frame import Frame  # noqa: E402
 from laughlab.harness.corpus import set_folder  # noqa: E402
 from laughlab.harness.metrics import compute  # noqa: E402
 from laughlab.harness.trialdata import TrialData  # noqa: E402

@@ -48,10 +48,10 @@ def best_of(fn, repeats: int = 5) -> float:
 
 
 def simulation_speed() -> dict:
-    from laughlab.bases import Context
-    from laughlab.frame import Frame
-    from laughlab.hill import Torso, simulate
-    from laughlab.hill_presets import preset
+    from laughlab.core.bases import Context
+    from laughlab.core.frame import Frame
+    from laughlab.hill.torso import Torso, simulate
+    from laughlab.hill.presets import preset
     from laughlab_plugins.body_hill import HillBody, HillParams
 
     hz, seconds = 240.0, 5.0
@@ -94,10 +94,10 @@ def simulation_speed() -> dict:
 
 
 def corpus_targets(profiles, seeds, duration_s):
-    from laughlab.audio import cut_frames
-    from laughlab.bases import Context
-    from laughlab.frame import Frame
-    from laughlab.synth import SyntheticLaughter
+    from laughlab.io.audio import cut_frames
+    from laughlab.core.bases import Context
+    from laughlab.core.frame import Frame
+    from laughlab.synth.laughter import SyntheticLaughter
     from laughlab_plugins.extractor_pressure import PressureExtractor
 
     for prof in profiles:
@@ -114,7 +114,7 @@ def corpus_targets(profiles, seeds, duration_s):
 
 
 def optimisation(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), duration_s=10.0) -> dict:
-    from laughlab.hill_fit import FitParams, fit
+    from laughlab.hill.fit import FitParams, fit
 
     fp = FitParams()
     rows, per_input = [], {}
@@ -152,7 +152,7 @@ def optimisation(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), 
 def single_calls(n: int = 6) -> dict:
     """The paper's Fig. 7 setting: one call at a time, from the state the calls before it leave, with the
     paper's cost alone; CMA-ES at the production budget against Nelder-Mead at the paper's ~400 evaluations."""
-    from laughlab.hill_fit import FitParams, compare_methods, fit
+    from laughlab.hill.fit import FitParams, compare_methods, fit
 
     name, target, level, _ = next(corpus_targets(["intense"], [0], 10.0))
     fp = FitParams()
@@ -175,10 +175,10 @@ def single_calls(n: int = 6) -> dict:
 
 
 def live_control(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), duration_s=10.0) -> dict:
-    from laughlab.bases import Context
-    from laughlab.frame import Frame
-    from laughlab.hill_fit import segment_calls
-    from laughlab.hill_live import LiveParams
+    from laughlab.core.bases import Context
+    from laughlab.core.frame import Frame
+    from laughlab.hill.fit import segment_calls
+    from laughlab.hill.live import LiveParams
     from laughlab_plugins.body_hill import HillBody, HillParams
 
     errs, fit_s, fit_len, frame_ms, per_input = [], [], [], [], {}
@@ -211,8 +211,8 @@ def live_control(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), 
 
 
 def evaluation_cost() -> dict:
-    from laughlab.hill import Torso, TorsoParams
-    from laughlab.hill_fit import CallProblem, FitParams
+    from laughlab.hill.torso import Torso, TorsoParams
+    from laughlab.hill.fit import CallProblem, FitParams
 
     target = np.sin(np.linspace(0, np.pi, 12)) * 0.5
     pr = CallProblem(target, 0.0, 60.0, lambda t: np.zeros((len(t), 6)), Torso().get_state(0), TorsoParams(),

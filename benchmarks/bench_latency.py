@@ -74,7 +74,7 @@ class Receiver:
 
 
 def make_replay_mic():
-    from laughlab.vmc import paced_chunks
+    from laughlab.io.vmc import paced_chunks
     from laughlab_plugins.source_mic import MicSource
 
     class ReplayMic(MicSource):
@@ -113,10 +113,11 @@ def main(argv=None) -> dict:
     ap.add_argument("--out", default=str(HERE / "results" / "latency.json"))
     ns = ap.parse_args(argv)
 
-    from laughlab import pipeline, plugins
-    from laughlab.audio import read_blocks
-    from laughlab.cli import compose_config
-    from laughlab.render import source_audio
+    from laughlab.core import pipeline
+    from laughlab.core import plugins
+    from laughlab.io.audio import read_blocks
+    from laughlab.core.config import compose_config
+    from laughlab.render.scene import source_audio
     from laughlab_plugins import sink_vmc
     from laughlab_plugins.source_mic import MicParams
 

@@ -62,8 +62,8 @@ def child_peak_rss(minutes: float) -> float:
 
 
 def main() -> None:
-    from laughlab.audio import FloatWavWriter
-    from laughlab.synth import SyntheticLaughter
+    from laughlab.io.audio import FloatWavWriter
+    from laughlab.synth.laughter import SyntheticLaughter
 
     results: dict = {}
     # 1. per-frame compute time

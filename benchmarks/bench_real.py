@@ -15,10 +15,10 @@ Per combination it prints the median over inputs of:
   where it reaches the issue's target (facs >= 0.6, cgm >= 0.7);
 * ``calls``: calls found / annotated, and the share of inputs within +/-1:
   for ``body=hill`` the calls ``experiment=hill_fit`` cuts
-  (:func:`laughlab.hill_fit.find_calls`), otherwise the phoneme extractor's
+  (:func:`laughlab.hill.fit.find_calls`), otherwise the phoneme extractor's
   call onsets (``-`` when the combination finds no calls);
 * for ``body=hill``: the offline per-call fit (``experiment=hill_fit``'s
-  :func:`laughlab.hill_fit.fit`): median normalised error, median seconds and
+  :func:`laughlab.hill.fit.fit`): median normalised error, median seconds and
   mean evaluations per call (one core; fits run one after the other), over the
   calls it fits (quiet calls, whose pressure the extractor's floor cleared, are
   counted but not driven: ``FitParams.quiet_frac``).
@@ -73,7 +73,7 @@ def real_items(split: str) -> list[tuple[str, list[str], int]]:
 
 def synthetic_items() -> list[tuple[str, list[str], int]]:
     from laughlab.harness.runner import _compose
-    from laughlab.synth import SyntheticLaughter
+    from laughlab.synth.laughter import SyntheticLaughter
 
     out = []
     for iid, ov in SYNTHETIC:
@@ -88,7 +88,7 @@ def run_combo(face: str, body: str, overrides: list[str], out: Path) -> dict:
     """One run; its jaw-envelope r and the phoneme extractor's call count (None without one)."""
     from omegaconf import OmegaConf
 
-    from laughlab import pipeline
+    from laughlab.core import pipeline
     from laughlab.harness.metrics import compute
     from laughlab.harness.runner import _compose
     from laughlab.harness.trialdata import TrialData
@@ -111,7 +111,7 @@ def run_combo(face: str, body: str, overrides: list[str], out: Path) -> dict:
 def hill_fit_of(overrides: list[str]) -> dict:
     """``experiment=hill_fit``'s offline fit of an input: calls found, per-call error, seconds, evaluations."""
     from laughlab.harness.runner import _compose
-    from laughlab.hill_fit import FitParams, fit
+    from laughlab.hill.fit import FitParams, fit
     from laughlab_experiments.hill_fit import extract_target
 
     cfg = _compose([*overrides, "extractor=pressure", "body=hill"])

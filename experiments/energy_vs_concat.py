@@ -15,9 +15,9 @@ from omegaconf import OmegaConf
 
 def label_sequence(overrides: list[str]) -> tuple[list, float, object]:
     """Run only the extractor over an input; return its pseudo-phoneme sequence, dt and the scheduler."""
-    from laughlab import pipeline
-    from laughlab.concat import to_sequence
-    from laughlab.frame import Frame
+    from laughlab.core import pipeline
+    from laughlab.concat.costs import to_sequence
+    from laughlab.core.frame import Frame
     from laughlab.harness.runner import _compose
 
     cfg = _compose(overrides)
@@ -52,7 +52,7 @@ def split_long_units(sequence: list, db) -> list:
 
 def extra(run) -> dict:
     """Greedy vs optimal cost of Eq. 4 on up to ``harness.gap_inputs`` inputs of the corpus."""
-    from laughlab.concat import cost_gap
+    from laughlab.concat.costs import cost_gap
 
     cond = next((c for c, ov in run.conditions.items() if "scheduler=concat" in ov), None)
     if cond is None:

@@ -33,8 +33,8 @@ _AXIS_WORDS = {"X": "pitch (X)", "Y": "turn (Y)", "Z": "roll (Z)"}
 
 def _driver(body_cfg, fps: float):
     """The ``fourier`` body driver built from a config section (its defaults when None)."""
-    from laughlab import plugins
-    from laughlab.bases import Context
+    from laughlab.core import plugins
+    from laughlab.core.bases import Context
 
     values = {} if body_cfg is None else body_cfg
     info = plugins.get("body", "fourier")
@@ -57,9 +57,9 @@ def figure_3(path: Path, body, s_values, panels) -> Path:
     s_values : list of float
     panels : list of ``"layer:channel"`` (e.g. ``sway:spine2_Xrotation``)
     """
-    from laughlab.clips import ClipLibrary
-    from laughlab.figure import draw_skeleton
-    from laughlab.skeleton import forward_kinematics
+    from laughlab.motion.clips import ClipLibrary
+    from laughlab.render.figure import draw_skeleton
+    from laughlab.motion.skeleton import forward_kinematics
     from laughlab_plugins.body_fourier import JOINTS
 
     theta = np.linspace(0.0, 2.0 * np.pi, 241)
@@ -178,7 +178,7 @@ def transition_figure(path: Path, body, times, values, fps: float, channels) -> 
 
 def render_runs(cfg, out_dir: Path, base_overrides: list[str]) -> dict:
     """An ordinary run per condition on the corpus' first input; returns ``{condition: metrics}``."""
-    from laughlab import pipeline
+    from laughlab.core import pipeline
     from laughlab.harness.corpus import build_corpus
     from laughlab.harness.runner import _compose, check_conditions
 

@@ -7,7 +7,7 @@
 1. The run's input (``input=...``, synthetic by default, or ``input=file
    input.path=...``) goes through the ``pressure`` extractor: the target lung
    pressure, one value per frame.
-2. :func:`laughlab.hill_fit.fit` cuts it into calls (found in the frame RMS,
+2. :func:`laughlab.hill.fit.fit` cuts it into calls (found in the frame RMS,
    ``harness.fit.segment``) and fits each call's seven parameters in turn
    (``harness.fit``); the printed line and ``hill_fit.json`` give the calls
    found against the annotated ones (the synthetic truth, ``NAME.txt`` or
@@ -41,9 +41,9 @@ PAPER = {"simplex": {"error": 0.18, "evals": 400}, "annealing": {"error": 0.16, 
 def extract_target(cfg) -> tuple[np.ndarray, float, object, np.ndarray]:
     """Run the configured source and extractor; return the ``pressure`` per frame, the fps, the source's truth
     and the frame RMS (``rms``, full scale: where the calls are cut)."""
-    from laughlab import pipeline
-    from laughlab.errors import LaughlabError
-    from laughlab.frame import Frame
+    from laughlab.core import pipeline
+    from laughlab.core.errors import LaughlabError
+    from laughlab.core.frame import Frame
 
     pipe = pipeline.build(cfg)
     dt = pipe.ctx.dt
@@ -87,7 +87,7 @@ def annotated_calls(cfg, truth) -> int | None:
 
 def fit_params(cfg):
     """FitParams from ``harness.fit`` with the secondary motion of ``body.track``."""
-    from laughlab.hill_fit import FitParams
+    from laughlab.hill.fit import FitParams
 
     values = dict(OmegaConf.to_container(cfg.harness.get("fit") or {}, resolve=True))
     track = cfg.body.get("track") or {}
@@ -99,14 +99,14 @@ def fit_params(cfg):
 
 def torso_params(cfg):
     """The body's TorsoParams (validated by the plugin's Params)."""
-    from laughlab import plugins
+    from laughlab.core import plugins
 
     info = plugins.get("body", cfg.body.name)
     return plugins.make_params(info.obj, cfg.body, "body.hill").torso
 
 
 def _rows(name: str, res) -> list[dict]:
-    from laughlab.hill_fit import PARAMS
+    from laughlab.hill.fit import PARAMS
 
     rows = []
     for i, cf in enumerate(res.calls):
@@ -205,7 +205,7 @@ def figure_7(path: Path, comparison: dict) -> None:
 
 def compare(target, fps: float, res, fp, tp, spec: dict) -> dict:
     """Fig. 7's comparison on ``spec['calls']`` calls spread over the first bout (same start state per call)."""
-    from laughlab.hill_fit import compare_methods
+    from laughlab.hill.fit import compare_methods
 
     n = int(spec.get("calls", 2))
     runs = _bouts(res, int(0.05 * fps))
@@ -237,10 +237,10 @@ def _corpus_inputs(cfg) -> list:
 
 def run(cfg, out_dir) -> dict:
     """Fit the run's input (and the corpus), animate it, write the figures and the numbers."""
-    from laughlab import pipeline
+    from laughlab.core import pipeline
     from laughlab.harness import results as res_mod
     from laughlab.harness.runner import _compose
-    from laughlab.hill_fit import fit
+    from laughlab.hill.fit import fit
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -254,7 +254,7 @@ def run(cfg, out_dir) -> dict:
     # the animation: an ordinary run whose hill body plays the fitted activations
     pipe = pipeline.build(cfg)
     if pipe.body.name != "hill":
-        from laughlab.errors import LaughlabError
+        from laughlab.core.errors import LaughlabError
 
         raise LaughlabError("experiment hill_fit needs body=hill")
     pipe.body.play(result.schedule)
@@ -301,7 +301,7 @@ def run(cfg, out_dir) -> dict:
             writer.writeheader()
             writer.writerows(rows)
     doc = {
-        "schema": "laughlab.hill_fit/1",
+        "schema": "laughlab.hill.fit/1",
         "experiment": "hill_fit",
         "date": res_mod.now_iso(),
         "git_hash": res_mod.git_hash(),

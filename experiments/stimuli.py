@@ -170,7 +170,7 @@ def normalise_loudness(samples: np.ndarray, sample_rate: int, target_lufs: float
     """
     import pyloudnorm
 
-    from laughlab.errors import LaughlabError
+    from laughlab.core.errors import LaughlabError
 
     x = np.asarray(samples, dtype=np.float64)
     if len(x) < int(0.4 * sample_rate) + 1:
@@ -218,7 +218,7 @@ def _csv_text(columns, rows) -> str:
 
 def _register_sink() -> None:
     """Make sure the ``video`` sink is registered (before its entry point exists)."""
-    from laughlab import plugins
+    from laughlab.core import plugins
 
     if "video" not in plugins.registry()["sink"]:
         from laughlab_plugins import sink_video
@@ -228,11 +228,11 @@ def _register_sink() -> None:
 
 def _item_audio(item, base: list[str], seed: int, tmp: Path) -> tuple[np.ndarray, int]:
     """The item's audio as the pipeline reads it: mono float32 samples and the rate."""
-    from laughlab import pipeline
-    from laughlab.audio import read_blocks
-    from laughlab.errors import LaughlabError
+    from laughlab.core import pipeline
+    from laughlab.io.audio import read_blocks
+    from laughlab.core.errors import LaughlabError
     from laughlab.harness.runner import _compose
-    from laughlab.render import source_audio
+    from laughlab.render.scene import source_audio
 
     cfg = _compose([*base, *item.overrides, f"seed={seed}"])
     pipe = pipeline.build(cfg)
@@ -247,7 +247,7 @@ def _item_audio(item, base: list[str], seed: int, tmp: Path) -> tuple[np.ndarray
 
 
 def _write_wav(path: Path, samples: np.ndarray, rate: int) -> None:
-    from laughlab.audio import FloatWavWriter
+    from laughlab.io.audio import FloatWavWriter
 
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.part")
@@ -258,7 +258,7 @@ def _write_wav(path: Path, samples: np.ndarray, rate: int) -> None:
 
 def _render(overrides: list[str], video: dict, run_dir: Path, csv_too: bool = False) -> dict:
     """Run the pipeline with the ``video`` sink (and ``csv``) into ``run_dir``; return the video sink's metrics."""
-    from laughlab import pipeline
+    from laughlab.core import pipeline
     from laughlab.harness.runner import _compose
 
     cfg = _compose(overrides)
@@ -273,7 +273,7 @@ def _render(overrides: list[str], video: dict, run_dir: Path, csv_too: bool = Fa
 
 def run(cfg, out_dir) -> dict:
     """Render every stimulus, write the manifest, the audio and the participants' orders into ``out_dir``."""
-    from laughlab.errors import LaughlabError
+    from laughlab.core.errors import LaughlabError
     from laughlab.harness.corpus import build_corpus
     from laughlab.harness.experiment import _task_overrides
     from laughlab.harness.runner import check_conditions

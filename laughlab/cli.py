@@ -14,23 +14,11 @@ import sys
 import time
 from pathlib import Path
 
-from .errors import LaughlabError
+from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, compose_config, conf_dir,  # noqa: F401
+                                  group_options, register_plugin_configs)
+from laughlab.core.errors import LaughlabError
 
 
-def _register_resolvers() -> None:
-    """``${div:a,b}`` for configs that tie one parameter to another (e.g. fall = rise / 2)."""
-    from omegaconf import OmegaConf
-
-    if not OmegaConf.has_resolver("div"):
-        OmegaConf.register_new_resolver("div", lambda a, b: float(a) / float(b))
-
-
-_register_resolvers()
-
-CONFIG_MODULE = "laughlab_conf"
-GROUP_KINDS = {"input": "source", "extractor": "extractor", "face": "face", "body": "body",
-               "scheduler": "scheduler", "output": "sink",
-               "detector": "detector"}
 #: outputs that mark a folder as holding an earlier run
 RUN_MARKERS = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.json", "manifest.csv")
 _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--version",
@@ -41,51 +29,6 @@ _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "
 def fail(message: str, code: int = 2) -> "None":
     print(f"laughlab: error: {message}", file=sys.stderr)
     sys.exit(code)
-
-
-def _conf_dir():
-    from importlib.resources import files
-
-    return files(CONFIG_MODULE)
-
-
-def group_options(group: str) -> list[str]:
-    """Names selectable in a config group: YAML files plus registered plugins."""
-    names = {p.name[:-5] for p in _conf_dir().joinpath(group).iterdir() if p.name.endswith(".yaml")} \
-        if _conf_dir().joinpath(group).is_dir() else set()
-    if group in GROUP_KINDS and group != "output":
-        from . import plugins
-
-        names |= set(plugins.registry()[GROUP_KINDS[group]])
-    return sorted(names)
-
-
-def register_plugin_configs() -> None:
-    """Give every registered plugin without a YAML file a config group option.
-
-    Third-party plugins then work as ``extractor=NAME`` with their dataclass defaults.
-    """
-    from dataclasses import asdict, is_dataclass
-
-    from hydra.core.config_store import ConfigStore
-
-    from . import plugins
-
-    cs = ConfigStore.instance()
-    reg = plugins.registry()
-    for group, kind in GROUP_KINDS.items():
-        if group == "output":
-            continue
-        folder = _conf_dir().joinpath(group)
-        have = {p.name[:-5] for p in folder.iterdir()} if folder.is_dir() else set()
-        for name, info in reg[kind].items():
-            if name in have:
-                continue
-            params_cls = getattr(info.obj, "Params", None)
-            node = {"name": name}
-            if params_cls is not None and is_dataclass(params_cls):
-                node.update(asdict(params_cls()))
-            cs.store(group=group, name=name, node=node)
 
 
 def _overrides(argv: list[str]) -> list[str]:
@@ -106,58 +49,12 @@ def _check_overrides(overrides: list[str]) -> None:
                 fail(f"unknown {group} {choice!r}; choose one of: {', '.join(options) or '(none)'}")
 
 
-def _composition_error(exc: Exception, overrides: list[str] = ()) -> str:
-    text = str(exc)
-    m = re.search(r"Could not override '([^']+)'", text)
-    if m:
-        key = m.group(1)
-        group = key.split(".")[0]
-        valid = ""
-        if group in GROUP_KINDS and group != "output" and "." in key:
-            try:
-                keys = _valid_keys(group, overrides)
-                valid = "; valid: " + ", ".join(keys) if keys else f"; this {group} takes no parameters"
-            except Exception:  # listing the keys is a courtesy
-                valid = ""
-        return f"unknown parameter {key}{valid}"
-    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
-    return lines[0] if lines else type(exc).__name__
-
-
-def _valid_keys(group: str, overrides: list[str]) -> list[str]:
-    """Parameter names of the plugin chosen for ``group`` (with the user's group choices)."""
-    from dataclasses import fields
-
-    from hydra import compose
-
-    choices = [o for o in overrides if "=" in o and "." not in o.split("=")[0]]
-    cfg = compose("config", overrides=choices)
-    from . import plugins
-
-    info = plugins.get(GROUP_KINDS[group], cfg[group]["name"])
-    return [f.name for f in fields(info.obj.Params)]
-
-
-def compose_config(overrides: list[str]):
-    """Compose the configuration as Hydra would, turning errors into LaughlabError."""
-    from hydra import compose, initialize_config_module
-    from hydra.core.global_hydra import GlobalHydra
-
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
-        try:
-            return compose("config", overrides=overrides, return_hydra_config=True)
-        except Exception as exc:
-            if isinstance(exc, LaughlabError):
-                raise
-            raise LaughlabError(_composition_error(exc, overrides)) from None
-
-
 def preflight(argv: list[str]) -> None:
     """Check everything a run needs before Hydra writes anything."""
     from omegaconf import OmegaConf
 
-    from . import pipeline, plugins
+    from laughlab.core import pipeline
+    from laughlab.core import plugins
 
     overrides = _overrides(argv)
     for ov in overrides:
@@ -173,9 +70,9 @@ def preflight(argv: list[str]) -> None:
         if any((run_dir / m).exists() for m in RUN_MARKERS):
             raise LaughlabError(f"{run_dir} already holds a run; choose another hydra.run.dir or add overwrite=true")
     if cfg.get("harness"):
-        from .harness.corpus import build_corpus
-        from .harness.experiment import experiment_module
-        from .harness.runner import check_conditions
+        from laughlab.harness.corpus import build_corpus
+        from laughlab.harness.experiment import experiment_module
+        from laughlab.harness.runner import check_conditions
 
         module = experiment_module(cfg.harness.get("module"))
         if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
@@ -188,7 +85,7 @@ def preflight(argv: list[str]) -> None:
 
 def list_plugins() -> None:
     """Print every plugin: kind, name and where it comes from."""
-    from . import plugins
+    from laughlab.core import plugins
 
     rows = [(kind, name, info.origin) for kind, named in plugins.registry().items() for name, info in named.items()]
     width = [max(len(r[i]) for r in rows + [("kind", "name", "origin")]) for i in range(2)]
@@ -206,13 +103,13 @@ def task(cfg) -> dict:
     from hydra.core.hydra_config import HydraConfig
     from omegaconf import OmegaConf
 
-    from . import pipeline
+    from laughlab.core import pipeline
 
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     t0 = time.perf_counter()
     try:
         if cfg.get("harness"):
-            from .harness.experiment import experiment_module, run_experiment
+            from laughlab.harness.experiment import experiment_module, run_experiment
 
             module = experiment_module(cfg.harness.get("module"))
             if module is not None and hasattr(module, "run"):  # an experiment with its own procedure
@@ -264,7 +161,7 @@ def report_command(args: list[str]) -> None:
     """``python -m laughlab report RUN_DIR [--out DIR]``: Markdown report with figures."""
     import argparse
 
-    from .harness.report import write_report
+    from laughlab.harness.report import write_report
 
     parser = argparse.ArgumentParser(prog="python -m laughlab report",
                                      description="Write reports/<experiment>/README.md from a run or sweep folder.")
@@ -280,7 +177,7 @@ def corpus_command(args: list[str]) -> None:
     """``python -m laughlab corpus fetch|list|lock``: the real development corpus (see ``laughlab.corpora``)."""
     import argparse
 
-    from .corpora import fetch as F
+    from laughlab.corpora import fetch as F
 
     parser = argparse.ArgumentParser(prog="python -m laughlab corpus",
                                      description="The real development corpus: openly licensed recordings "
@@ -331,12 +228,12 @@ def help_text() -> str:
              "Audio-driven laughter animation: pick one plugin per group, set any parameter by its path.", "",
              "groups (default first; third-party plugins add options: python -m laughlab plugins):"]
     defaults = {}
-    for line in _conf_dir().joinpath("config.yaml").read_text().splitlines():
+    for line in conf_dir().joinpath("config.yaml").read_text().splitlines():
         m = re.match(r"\s+- (\w+): (\w+)", line)
         if m:
             defaults[m.group(1)] = m.group(2)
     for g in HELP_GROUPS:
-        d = _conf_dir().joinpath(g)
+        d = conf_dir().joinpath(g)
         names = sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".yaml")) if d.is_dir() else []
         first = defaults.get(g)
         names = ([first] if first in names else []) + [n for n in names if n != first]
@@ -362,7 +259,7 @@ def main(argv: list[str] | None = None) -> None:
             return
     if "plugins" in argv:
         try:
-            from . import plugins
+            from laughlab.core import plugins
 
             for a in argv:
                 if a.startswith("plugins_dir="):

@@ -5,8 +5,8 @@ from typing import Sequence
 
 import numpy as np
 
-from .audio import cut_frames
-from .bases import Context, Source
+from laughlab.io.audio import cut_frames
+from laughlab.core.bases import Context, Source
 
 
 class ChunkedSource(Source):

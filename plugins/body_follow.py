@@ -29,7 +29,7 @@ Joints (offsets added to the clip pose, degrees, BVH order z, x, y):
   ``y = -shoulder_forward alpha_S`` (brings it forward); the right side
   mirrors (``-z``, ``-y``): a forward nod hunches the shoulders up and
   forward, a head thrown back lowers them and pulls them back;
-* Perlin noise (:class:`laughlab.noise.NoiseSignal`, seeded from ``ctx.seed``)
+* Perlin noise (:class:`laughlab.motion.noise.NoiseSignal`, seeded from ``ctx.seed``)
   on the three axes of the three torso joints (``noise_deg``) and on the
   clavicles' z and y (``noise_shoulder_deg``).
 
@@ -61,10 +61,10 @@ import numpy as np
 from scipy.linalg import expm
 
 from laughlab import hookimpl
-from laughlab.bases import Body
-from laughlab.noise import NoiseSignal
-from laughlab.plugins import check_range
-from laughlab.skeleton import global_transforms, matrix_to_euler
+from laughlab.core.bases import Body
+from laughlab.motion.noise import NoiseSignal
+from laughlab.core.plugins import check_range
+from laughlab.motion.skeleton import global_transforms, matrix_to_euler
 from laughlab_plugins.body_shapes import ShapesBody, ShapesParams
 
 SOURCES = ("auto", "face", "clip", "none")
@@ -207,7 +207,7 @@ def clip_head_pitch(library) -> dict[str, np.ndarray]:
 
 
 def _sample(curve: np.ndarray, fps: float, loop: bool, t: float) -> float:
-    """Linear interpolation of a per-frame curve at clip time ``t`` (s), as :class:`~laughlab.clips.Clip` samples."""
+    """Linear interpolation of a per-frame curve at clip time ``t`` (s), as :class:`~laughlab.motion.clips.Clip` samples."""
     n = len(curve)
     f = t * fps
     if loop:

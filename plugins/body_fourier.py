@@ -1,7 +1,7 @@
 """Body driver ``fourier``: laughter as a blend of calm and intense Fourier motions (Unuma et al. 1995).
 
 Two periodic motions of the upper body are fitted as rescaled Fourier
-functional models (Eqs. 1 and 2, :mod:`laughlab.fourier`): a *calm* one
+functional models (Eqs. 1 and 2, :mod:`laughlab.fourier.model`): a *calm* one
 (default: the looping ``idle`` clip, calm breathing and weight shift) and an
 *intense* one (default: the rhythmic part of the ``hands_on_belly`` laughing
 clip, 4.5 Hz shoulder and torso shaking on a ~1.2 s forward-back rocking).
@@ -20,10 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab import fourier as fr
-from laughlab.bases import Body
-from laughlab.plugins import check_range
-from laughlab.smoothing import Smoother, SmootherParams
+from laughlab.fourier import model as fr
+from laughlab.core.bases import Body
+from laughlab.core.plugins import check_range
+from laughlab.signals.smoothing import Smoother, SmootherParams
 
 #: the joints the driver moves (their Z, X, Y Euler offsets, degrees)
 JOINTS = ("spine", "spine1", "spine2", "neck", "head", "left_clavicle", "right_clavicle",
@@ -166,7 +166,7 @@ class LaughMotion:
 def _source_series(clip: str, bvh: str | None, bvh_loop: bool, library) -> tuple[np.ndarray, float, bool, str]:
     """The driven joints' angle series ``(F, 27)`` of a clip or BVH file, its frame time and loop flag."""
     if bvh is not None:
-        from laughlab.bvh import read_bvh
+        from laughlab.io.bvh import read_bvh
 
         sk, motion, frame_time = read_bvh(Path(bvh).expanduser())
         missing = [j for j in JOINTS if j not in sk.names]
@@ -201,7 +201,7 @@ def fit_motion(y: np.ndarray, dt: float, loop: bool, p: FourierParams, source: s
     other data on the rhythmic part (the whole data without a shake) with the
     period estimated between ``1 / sway_max_hz`` and the part's duration / 1.5.
     Harmonics are capped by the data's Nyquist rate.  Each layer is then
-    synchronised (:func:`laughlab.fourier.align`) so its rescaled time 0 is
+    synchronised (:func:`laughlab.fourier.model.align`) so its rescaled time 0 is
     where the reference channel (:data:`ALIGN`) rises through its mean.
     """
     labels = CHANNELS
@@ -289,7 +289,7 @@ class FourierBody(Body):
     * Rescaled times advance with real time, ``d t_L / d tau = 2 pi speed /
       T_L(s)`` with ``T_L(s) = T_A^(1-s) T_B^s`` (the blended period),
       integrated over each frame by the trapezoid rule
-      (:meth:`laughlab.fourier.Transition.move`), so the motion does not
+      (:meth:`laughlab.fourier.model.Transition.move`), so the motion does not
       depend on the frame rate.
     * ``chest`` and ``belly`` (the shape weights of the ``shapes`` driver, so
       drivers are interchangeable): each shake cycle is one laughter call, an

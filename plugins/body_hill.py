@@ -1,7 +1,7 @@
 """Body driver ``hill``: a Hill-muscle torso with lungs (DiLorenzo, Zordan & Sanders 2008).
 
 Per frame the driver chooses muscle-group activations (control), runs the
-reduced-order torso of :mod:`laughlab.hill` for the frame's substeps and turns
+reduced-order torso of :mod:`laughlab.hill.torso` for the frame's substeps and turns
 its state into
 
 * ``frame.offsets``: spine flexion spread over ``spine``, ``spine1``,
@@ -45,16 +45,16 @@ plus the integral term, far less than one call.  Between bouts the muscles
 relax and the chest wall's recoil breathes in by itself.
 
 ``fit`` (default, the paper's audio-driven control, real time): per-call
-fitted activations with one call of look-behind (:mod:`laughlab.hill_live`):
+fitted activations with one call of look-behind (:mod:`laughlab.hill.live`):
 each call plays the seven parameters fitted to the call before it, scaled to
-its own peak, and is fitted itself (:mod:`laughlab.hill_fit`, section 6.2) when
+its own peak, and is fitted itself (:mod:`laughlab.hill.fit`, section 6.2) when
 it ends, in the frame (files: deterministic) or in a background thread (live
 input).  The target is the ``pressure`` control (or ``mcs`` times
 ``track.mcs_pressure_cmh2o``).
 
-``preset``: plays the preset ``preset`` (:mod:`laughlab.hill_presets`) in a
+``preset``: plays the preset ``preset`` (:mod:`laughlab.hill.presets`) in a
 loop, whatever the audio.  Programmatic: :meth:`HillBody.play` sets a
-schedule of activations (e.g. fitted to the audio by :mod:`laughlab.hill_fit`)
+schedule of activations (e.g. fitted to the audio by :mod:`laughlab.hill.fit`)
 that overrides ``control``.
 
 The torso is advanced ``ceil(substep_hz / fps)`` equal substeps per frame
@@ -69,11 +69,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.bases import Body
-from laughlab.hill import GROUPS, IAB, ICL, IRC, ISP, Torso, TorsoParams
-from laughlab.hill_live import LiveFitter, LiveParams
-from laughlab.hill_presets import PRESETS
-from laughlab.plugins import check_range
+from laughlab.core.bases import Body
+from laughlab.hill.torso import GROUPS, IAB, ICL, IRC, ISP, Torso, TorsoParams
+from laughlab.hill.live import LiveFitter, LiveParams
+from laughlab.hill.presets import PRESETS
+from laughlab.core.plugins import check_range
 
 CONTROLS = ("fit", "track", "preset")
 SPINE_JOINTS = ("spine", "spine1", "spine2")
@@ -157,7 +157,7 @@ class HillParams:
     track : TrackParams
         The pressure controller (``control=track``).
     live : LiveParams
-        Live per-call fitting (``control=fit``, :class:`laughlab.hill_live.LiveParams`).
+        Live per-call fitting (``control=fit``, :class:`laughlab.hill.live.LiveParams`).
     torso : TorsoParams
         The torso, its muscles (the paper's table) and its lungs.
     """

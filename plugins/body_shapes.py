@@ -4,8 +4,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from laughlab import hookimpl
-from laughlab.bases import Body
-from laughlab.smoothing import BELLY, CHEST, Smoother, SmootherParams
+from laughlab.core.bases import Body
+from laughlab.signals.smoothing import BELLY, CHEST, Smoother, SmootherParams
 
 
 @dataclass

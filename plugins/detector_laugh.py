@@ -2,11 +2,11 @@
 
 Thesis future work (van Duijn 2014, ch. 6: "a laughter detection component"
 before the motion control signal).  Per frame: causal acoustic features of the
-frame and the second before it (``laughlab.detector.FeatureStream``), a small
+frame and the second before it (``laughlab.detector.model.FeatureStream``), a small
 MLP fitted on the corpus' train split (``laughlab/data/detector.json``,
-``python -m laughlab.detector_fit``), a hysteresis gate
-(``laughlab.detector.Gate``), and the gate applied to ``mcs``, ``pressure``,
-``call_onset`` and the pseudo-phoneme label (``laughlab.detector.apply_gate``).
+``python -m laughlab.detector.fit``), a hysteresis gate
+(``laughlab.detector.model.Gate``), and the gate applied to ``mcs``, ``pressure``,
+``call_onset`` and the pseudo-phoneme label (``laughlab.detector.model.apply_gate``).
 Writes ``control['laughter']`` (probability) and ``control['laugh_gate']`` (gain).
 Look-ahead: the frame's own audio block, nothing more.
 """
@@ -15,8 +15,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from laughlab import hookimpl
-from laughlab.bases import Detector
-from laughlab.detector import FeatureStream, Gate, GateParams, Model, apply_gate
+from laughlab.core.bases import Detector
+from laughlab.detector.model import FeatureStream, Gate, GateParams, Model, apply_gate
 
 
 @dataclass
@@ -26,7 +26,7 @@ class LaughParams(GateParams):
     Attributes
     ----------
     model : str or None
-        A model JSON written by ``python -m laughlab.detector_fit --out FILE``;
+        A model JSON written by ``python -m laughlab.detector.fit --out FILE``;
         None: the bundled model.
     """
 

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from laughlab import hookimpl
-from laughlab.bases import Detector
+from laughlab.core.bases import Detector
 
 
 class NoDetector(Detector):

@@ -80,7 +80,7 @@ ne          unvoiced, C < ``ne_max_centroid_hz`` (nareal friction: low,       no
 fricative   unvoiced otherwise (h-like breath noise, high Z)                 yes
 ==========  ===============================================================  ==========
 
-The synthetic corpus (``laughlab.synth``) holds only silence (its -60 dBFS
+The synthetic corpus (``laughlab.synth.laughter``) holds only silence (its -60 dBFS
 floor), breath noise (the 'h' aspirations, the gaps, the in-breaths) and one
 /a/-like vowel, so it exercises ``silence``, ``fricative`` and ``a`` only; the
 other eleven rules are checked on hand-made signals in the tests, and their
@@ -114,10 +114,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.bases import Extractor
-from laughlab.plugins import check_range
-from laughlab.prosody import PRAAT_REF_POWER
-from laughlab.textgrid import PHONEMES, read_textgrid
+from laughlab.core.bases import Extractor
+from laughlab.core.plugins import check_range
+from laughlab.signals.prosody import PRAAT_REF_POWER
+from laughlab.io.textgrid import PHONEMES, read_textgrid
 from laughlab_plugins.extractor_rms import RmsExtractor, RmsParams
 
 #: vowel-like pseudo-phonemes: a call starts where one follows silence or a fricative

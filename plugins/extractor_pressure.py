@@ -63,8 +63,8 @@ import numpy as np
 from scipy.signal import butter, lfilter
 
 from laughlab import hookimpl
-from laughlab.bases import Extractor
-from laughlab.plugins import check_range
+from laughlab.core.bases import Extractor
+from laughlab.core.plugins import check_range
 
 
 @dataclass

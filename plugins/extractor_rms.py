@@ -12,9 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.bases import Extractor
-from laughlab.plugins import check_range
-from laughlab.smoothing import THESIS_TICK_HZ
+from laughlab.core.bases import Extractor
+from laughlab.core.plugins import check_range
+from laughlab.signals.smoothing import THESIS_TICK_HZ
 
 
 #: the floor of SoundAnalyse's loudness: RMS below 1e-7 counts as 1e-7

@@ -1,6 +1,6 @@
 """Face ``cgm``: lips and jaw from prosody by contextual Gaussian models (Ding et al. 2014, 4.1, Eqs. 1-3).
 
-One CGM per pseudo-phoneme (:mod:`laughlab.cgm`); each frame the mean
+One CGM per pseudo-phoneme (:mod:`laughlab.face.cgm`); each frame the mean
 ``mu(theta_t) = Z Omega_t`` of the current pseudo-phoneme's model, with the
 prosody ``theta_t = (intensity dB, F0 Hz)``, gives jaw, lip aperture and
 lip-corner pull (Ding's real-time synthesis).  Eyes: the ``smile`` face's clip
@@ -12,12 +12,12 @@ import math
 from dataclasses import dataclass
 
 from laughlab import hookimpl
-from laughlab.bases import Face
-from laughlab.cgm import CGMSet, load_default
-from laughlab.errors import LaughlabError
-from laughlab.facs import Blinker
-from laughlab.plugins import check_range
-from laughlab.segments import PSEUDO_PHONEMES
+from laughlab.core.bases import Face
+from laughlab.face.cgm import CGMSet, load_default
+from laughlab.core.errors import LaughlabError
+from laughlab.face.facs import Blinker
+from laughlab.core.plugins import check_range
+from laughlab.concat.segments import PSEUDO_PHONEMES
 
 #: Praat's reference power (2e-5 Pa)^2: intensity dB = 10 log10(mean square / this)
 _REF_POWER = 4.0e-10
@@ -37,8 +37,8 @@ class CgmParams:
     Attributes
     ----------
     model : str or None
-        A fitted model file (``.json`` or ``.npz``, :meth:`laughlab.cgm.CGMSet.save`);
-        None: the bundled default (fitted on the synthetic laughter, see :mod:`laughlab.cgm`).
+        A fitted model file (``.json`` or ``.npz``, :meth:`laughlab.face.cgm.CGMSet.save`);
+        None: the bundled default (fitted on the synthetic laughter, see :mod:`laughlab.face.cgm`).
     join_s : float
         Ding et al. smooth the synthesised signal "at articulation between successive
         pseudo-phonemes": at a label change the jump from the value shown to the

@@ -3,22 +3,22 @@
 The thesis' future work (van Duijn 2014, 6.1): drive each muscle of the smile
 separately with FACS, neither synchronised nor symmetric; plus the head and
 eyebrow motion of Ding et al. (2014, 4.2) by segment concatenation.  The
-equations (F1-F3) and sources are in :mod:`laughlab.facs`; the head and brows
-in :mod:`laughlab.head_motion`.
+equations (F1-F3) and sources are in :mod:`laughlab.face.facs`; the head and brows
+in :mod:`laughlab.concat.head_motion`.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
 from laughlab import hookimpl
-from laughlab.bases import Face
-from laughlab.facs import ACTION_UNITS, ArkitMap, Blinker, DelayLine, Envelope, Unit, UnitParams, draw_sides
-from laughlab.head_motion import HeadMotion, HeadMotionParams
-from laughlab.plugins import check_range
+from laughlab.core.bases import Face
+from laughlab.face.facs import ACTION_UNITS, ArkitMap, Blinker, DelayLine, Envelope, Unit, UnitParams, draw_sides
+from laughlab.concat.head_motion import HeadMotion, HeadMotionParams
+from laughlab.core.plugins import check_range
 
 #: units with per-side variation: the seven driven ones plus the brows of the head motion (AU1, AU2)
 _SIDED = (*ACTION_UNITS, "au1", "au2")
-#: jaw opening of the mouth units: their ``jawOpen`` weights in laughlab.facs.AU_TO_ARKIT
+#: jaw opening of the mouth units: their ``jawOpen`` weights in laughlab.face.facs.AU_TO_ARKIT
 _JAW_WEIGHTS = {"au25": 0.1, "au26": 0.6, "au27": 0.3}
 
 
@@ -111,11 +111,11 @@ class FacsFace(Face):
     * ``smile`` = ``au12``, ``jaw`` = ``0.1 au25 + 0.6 au26 + 0.3 au27`` (the
       mouth units' jawOpen weights), ``eyes_closed`` = ``max(au43, blink)``:
       the channels of the ``smile`` face, so its consumers keep working;
-    * head and eyebrows (:class:`~laughlab.head_motion.HeadMotion`):
+    * head and eyebrows (:class:`~laughlab.concat.head_motion.HeadMotion`):
       ``head_pitch``, ``head_yaw``, ``head_roll`` (degrees), ``brow_raise``
       (0..1), and ``frame.offsets['head'] = (roll, pitch, yaw)`` (BVH order z, x, y);
     * per side (Eq. F3: gains and delays drawn once from the run's generator at
-      construction) the ARKit weights of :data:`laughlab.facs.AU_TO_ARKIT`, as
+      construction) the ARKit weights of :data:`laughlab.face.facs.AU_TO_ARKIT`, as
       channels ``arkit.NAME`` in [0, 1]; brow_raise acts as AU1 and AU2.
 
     The same channels are written every frame.

@@ -4,10 +4,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from laughlab import hookimpl
-from laughlab.bases import Face
-from laughlab.blink import Blinker
-from laughlab.plugins import check_range
-from laughlab.smoothing import JAW, SMILE, Smoother, SmootherParams
+from laughlab.core.bases import Face
+from laughlab.face.blink import Blinker
+from laughlab.core.plugins import check_range
+from laughlab.signals.smoothing import JAW, SMILE, Smoother, SmootherParams
 
 
 @dataclass

@@ -5,8 +5,8 @@ segments, one per pseudo-phoneme, chosen to minimise a duration cost plus a
 continuity cost (Eqs. 4-8), stretched linearly to the phoneme's duration and
 smoothed linearly at the joins.  Here the same method drives the whole body:
 the segments are pieces of the clip library, cut and labelled by pseudo-phoneme
-class in :mod:`laughlab.segments`; the costs and the two selection algorithms
-are in :mod:`laughlab.concat`.
+class in :mod:`laughlab.concat.segments`; the costs and the two selection algorithms
+are in :mod:`laughlab.concat.costs`.
 
 Labels.  Each frame reads ``frame.label`` (a pseudo-phoneme from the
 extractor).  When it is None the scheduler derives a coarse label from the
@@ -67,12 +67,12 @@ from dataclasses import dataclass
 from typing import Sequence
 
 from laughlab import hookimpl
-from laughlab.bases import Scheduler
-from laughlab.concat import Concatenation, c_cont, c_dur, choose, label_runs, optimal, stretch
-from laughlab.errors import LaughlabError
-from laughlab.frame import ClipEvent
-from laughlab.plugins import check_range
-from laughlab.segments import PSEUDO_PHONEMES, segment_db
+from laughlab.core.bases import Scheduler
+from laughlab.concat.costs import Concatenation, c_cont, c_dur, choose, label_runs, optimal, stretch
+from laughlab.core.errors import LaughlabError
+from laughlab.core.frame import ClipEvent
+from laughlab.core.plugins import check_range
+from laughlab.concat.segments import PSEUDO_PHONEMES, segment_db
 
 ENERGY_SCALE = 40.0
 """Scale of the ``energy`` channel: MCS 1 reads as the energy of rofl, the largest clip energy."""
@@ -135,10 +135,10 @@ class ConcatScheduler(Scheduler):
     """Segment concatenation by pseudo-phoneme (Ding et al. 2014, 4.2), greedy or optimal.
 
     See the module docstring.  Attributes: ``db`` (the
-    :class:`~laughlab.segments.SegmentDB` of the context's clip library);
+    :class:`~laughlab.concat.segments.SegmentDB` of the context's clip library);
     after each ``step`` ``segment`` (index in ``db`` of the playing segment, or
     None), ``speed`` and ``label``; after :meth:`plan`, ``planned`` (the
-    :class:`~laughlab.concat.Concatenation` it computed).
+    :class:`~laughlab.concat.costs.Concatenation` it computed).
     """
 
     name = "concat"

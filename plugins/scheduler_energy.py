@@ -23,10 +23,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from laughlab import hookimpl
-from laughlab.bases import Scheduler
-from laughlab.frame import ClipEvent
-from laughlab.plugins import check_range
-from laughlab.smoothing import THESIS_TICK_HZ
+from laughlab.core.bases import Scheduler
+from laughlab.core.frame import ClipEvent
+from laughlab.core.plugins import check_range
+from laughlab.signals.smoothing import THESIS_TICK_HZ
 
 
 @dataclass

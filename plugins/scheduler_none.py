@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from laughlab import hookimpl
-from laughlab.bases import Scheduler
+from laughlab.core.bases import Scheduler
 
 
 class NoScheduler(Scheduler):

@@ -6,9 +6,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.bases import Sink
-from laughlab.facs import ARKIT_BLENDSHAPES
-from laughlab.outfiles import Staging
+from laughlab.core.bases import Sink
+from laughlab.face.facs import ARKIT_BLENDSHAPES
+from laughlab.core.outfiles import Staging
 
 #: prefix of the channels holding ARKit weights (``arkit.jawOpen``)
 PREFIX = "arkit."
@@ -36,7 +36,7 @@ class ArkitSink(Sink):
 
     The columns are the channels named ``arkit.NAME`` (written by faces such as
     ``facs`` and ``cgm``), named ``NAME`` without the prefix, in Apple's order
-    (:data:`laughlab.facs.ARKIT_BLENDSHAPES`); values are clipped to [0, 1].
+    (:data:`laughlab.face.facs.ARKIT_BLENDSHAPES`); values are clipped to [0, 1].
     A run without such channels writes nothing, so the sink can stay in the
     default outputs.  Streamed: each chunk is appended to a staged file that is
     moved into place when the run succeeds and removed when it fails.

@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.bases import Sink
-from laughlab.bvh import format_frames, hierarchy_lines
-from laughlab.outfiles import Staging
+from laughlab.core.bases import Sink
+from laughlab.io.bvh import format_frames, hierarchy_lines
+from laughlab.core.outfiles import Staging
 
 _COUNT_WIDTH = 12  # room for the frame count, patched in when the run ends
 

@@ -7,8 +7,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.bases import Sink
-from laughlab.outfiles import Staging
+from laughlab.core.bases import Sink
+from laughlab.core.outfiles import Staging
 
 
 @dataclass

@@ -6,9 +6,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.bases import Sink
-from laughlab.outfiles import Staging
-from laughlab.plugins import check_range
+from laughlab.core.bases import Sink
+from laughlab.core.outfiles import Staging
+from laughlab.core.plugins import check_range
 
 
 @dataclass
@@ -75,7 +75,7 @@ class PlotsSink(Sink):
         self.n += len(chunk.times)
 
     def close(self):
-        from laughlab import plots
+        from laughlab.render import plots
 
         if not self.cols["time"]:
             return []
@@ -95,7 +95,7 @@ class PlotsSink(Sink):
         return self.staging.commit()
 
     def _filmstrip(self, path, data) -> None:
-        from laughlab import plots
+        from laughlab.render import plots
 
         idx = np.concatenate(self.pose_idx)
         poses = np.concatenate(self.poses)

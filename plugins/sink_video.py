@@ -1,7 +1,7 @@
 """Sink ``video``: the run as an MP4 (H.264 + AAC) showing the character and its face.
 
 ``python -m laughlab output=video`` writes ``video.mp4`` beside the usual files.
-Drawing and encoding: :mod:`laughlab.render`.
+Drawing and encoding: :mod:`laughlab.render.scene`.
 """
 from __future__ import annotations
 
@@ -15,20 +15,20 @@ from pathlib import Path
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.bases import Sink
-from laughlab.errors import LaughlabError
-from laughlab.outfiles import Staging
-from laughlab.plugins import check_range
-from laughlab.render import Camera, Renderer, VideoEncoder, source_audio
-from laughlab.skeleton import global_transforms
-from laughlab.vmc import arkit_weights
+from laughlab.core.bases import Sink
+from laughlab.core.errors import LaughlabError
+from laughlab.core.outfiles import Staging
+from laughlab.core.plugins import check_range
+from laughlab.render.scene import Camera, Renderer, VideoEncoder, source_audio
+from laughlab.motion.skeleton import global_transforms
+from laughlab.io.vmc import arkit_weights
 
 PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow", "slower", "veryslow")
 
 
 @dataclass
 class CameraParams:
-    """The perspective camera (:class:`laughlab.render.Camera`).
+    """The perspective camera (:class:`laughlab.render.scene.Camera`).
 
     Attributes
     ----------

@@ -3,7 +3,7 @@
 ``python -m laughlab input=mic output=vmc`` animates a VSeeFace, Warudo or Unity
 (EVMC4U) avatar from the microphone; ``output=vmc`` on a file or synthetic
 input plays it at real time.  Protocol, blendshape mapping and coordinate
-conversion: :mod:`laughlab.vmc`.
+conversion: :mod:`laughlab.io.vmc`.
 """
 from __future__ import annotations
 
@@ -14,10 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.bases import Sink
-from laughlab.errors import LaughlabError
-from laughlab.plugins import check_range
-from laughlab.vmc import (DEFAULT_PORT, VRM_PRESETS, BlockClock, BoneMap, VmcEncoder, VmcSender, arkit_weights,
+from laughlab.core.bases import Sink
+from laughlab.core.errors import LaughlabError
+from laughlab.core.plugins import check_range
+from laughlab.io.vmc import (DEFAULT_PORT, VRM_PRESETS, BlockClock, BoneMap, VmcEncoder, VmcSender, arkit_weights,
                           latency_summary)
 
 

@@ -5,9 +5,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from laughlab import hookimpl
-from laughlab.audio import cut_frames, n_frames_for, probe_file, read_blocks
-from laughlab.bases import Source
-from laughlab.errors import LaughlabError
+from laughlab.io.audio import cut_frames, n_frames_for, probe_file, read_blocks
+from laughlab.core.bases import Source
+from laughlab.core.errors import LaughlabError
 
 
 @dataclass

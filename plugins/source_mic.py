@@ -7,10 +7,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.audio import cut_frames
-from laughlab.bases import Source
-from laughlab.errors import LaughlabError
-from laughlab.plugins import check_range
+from laughlab.io.audio import cut_frames
+from laughlab.core.bases import Source
+from laughlab.core.errors import LaughlabError
+from laughlab.core.plugins import check_range
 
 
 @dataclass

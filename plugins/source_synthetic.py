@@ -5,10 +5,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from laughlab import hookimpl
-from laughlab.audio import FloatWavWriter, cut_frames, n_frames_for
-from laughlab.bases import Source
-from laughlab.plugins import check_range
-from laughlab.synth import PROFILES, SyntheticLaughter
+from laughlab.io.audio import FloatWavWriter, cut_frames, n_frames_for
+from laughlab.core.bases import Source
+from laughlab.core.plugins import check_range
+from laughlab.synth.laughter import PROFILES, SyntheticLaughter
 
 
 @dataclass
@@ -18,7 +18,7 @@ class SyntheticParams:
     Attributes
     ----------
     profile : str
-        One of ``laughlab.synth.PROFILES`` (mixed, mild, intense, ...).
+        One of ``laughlab.synth.laughter.PROFILES`` (mixed, mild, intense, ...).
     duration_s : float
         Length of the laughter (s).
     sample_rate : int
@@ -43,7 +43,7 @@ class SyntheticParams:
 
 
 class SyntheticSource(Source):
-    """Renders :class:`laughlab.synth.SyntheticLaughter` block by block (constant memory)."""
+    """Renders :class:`laughlab.synth.laughter.SyntheticLaughter` block by block (constant memory)."""
 
     name = "synthetic"
     Params = SyntheticParams

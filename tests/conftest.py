@@ -8,7 +8,7 @@ import pytest
 @pytest.fixture(scope="session")
 def registered():
     """Every plugin, registered through the ``laughlab`` entry points as users get them."""
-    from laughlab import plugins
+    from laughlab.core import plugins
 
     return plugins.registry()
 
@@ -23,6 +23,6 @@ def hill_plugins(registered):
 @pytest.fixture(scope="module")
 def lib():
     """The bundled clip library."""
-    from laughlab.clips import ClipLibrary
+    from laughlab.motion.clips import ClipLibrary
 
     return ClipLibrary.load()

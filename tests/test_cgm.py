@@ -10,14 +10,16 @@ import yaml
 from hypothesis import given, settings, strategies as st
 from omegaconf import OmegaConf
 
-from laughlab import cgm, pipeline, plugins
-from laughlab.bases import Context
-from laughlab.cgm import CGM, CGMSet, fit_cgm, omega
-from laughlab.cli import compose_config
-from laughlab.errors import LaughlabError
-from laughlab.facs import ARKIT_BLENDSHAPES
-from laughlab.frame import Frame
-from laughlab.segments import PSEUDO_PHONEMES
+from laughlab.face import cgm
+from laughlab.core import pipeline
+from laughlab.core import plugins
+from laughlab.core.bases import Context
+from laughlab.face.cgm import CGM, CGMSet, fit_cgm, omega
+from laughlab.core.config import compose_config
+from laughlab.core.errors import LaughlabError
+from laughlab.face.facs import ARKIT_BLENDSHAPES
+from laughlab.core.frame import Frame
+from laughlab.concat.segments import PSEUDO_PHONEMES
 from laughlab_plugins import face_cgm, sink_arkit
 from laughlab_plugins.face_cgm import CgmFace, CgmParams, intensity_db
 

@@ -122,7 +122,7 @@ def test_failure_during_the_run_leaves_nothing(tmp_path):
     plugdir.mkdir()
     (plugdir / "fragile.py").write_text(
         "import laughlab\n"
-        "from laughlab.errors import LaughlabError\n"
+        "from laughlab.core.errors import LaughlabError\n"
         "from laughlab_plugins.extractor_rms import RmsExtractor\n"
         "class Fragile(RmsExtractor):\n"
         "    name = 'fragile'\n"

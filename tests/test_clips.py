@@ -5,9 +5,9 @@ import shutil
 import numpy as np
 import pytest
 
-from laughlab.bvh import write_bvh
-from laughlab.clips import Clip, ClipLibrary
-from laughlab.skeleton import HUMANOID, Skeleton, forward_kinematics, global_transforms
+from laughlab.io.bvh import write_bvh
+from laughlab.motion.clips import Clip, ClipLibrary
+from laughlab.motion.skeleton import HUMANOID, Skeleton, forward_kinematics, global_transforms
 from laughlab_plugins.clips import author
 
 SK = HUMANOID
@@ -203,7 +203,7 @@ def test_author_is_byte_identical(tmp_path):
 
 
 def test_contact_sheet(tmp_path, lib):
-    from laughlab.figure import contact_sheet
+    from laughlab.render.figure import contact_sheet
 
     small = ClipLibrary([lib["clap_hands"], lib["rofl"]], lib.skeleton, lib.fps)
     out = contact_sheet(tmp_path / "sheet.png", small, n_frames=3)
@@ -211,7 +211,7 @@ def test_contact_sheet(tmp_path, lib):
 
 
 def test_scalar_sample_equals_vectorised():
-    from laughlab.clips import ClipLibrary
+    from laughlab.motion.clips import ClipLibrary
 
     lib = ClipLibrary.load()
     rng = np.random.default_rng(0)

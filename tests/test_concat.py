@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from laughlab import concat as C
-from laughlab.bases import Context
-from laughlab.errors import LaughlabError
-from laughlab.frame import Frame
-from laughlab.mixer import Mixer
-from laughlab.segments import (GROUP_OF, GROUPS, PSEUDO_PHONEMES, Segment, SegmentDB, build, segment_db)
+from laughlab.concat import costs as C
+from laughlab.core.bases import Context
+from laughlab.core.errors import LaughlabError
+from laughlab.core.frame import Frame
+from laughlab.core.mixer import Mixer
+from laughlab.concat.segments import (GROUP_OF, GROUPS, PSEUDO_PHONEMES, Segment, SegmentDB, build, segment_db)
 from laughlab_plugins import scheduler_concat
 from laughlab_plugins.scheduler_concat import ConcatParams, ConcatScheduler
 
@@ -405,7 +405,7 @@ def test_unknown_label_is_a_user_error(lib):
 
 
 def test_registered_through_the_scheduler_hook():
-    from laughlab import plugins
+    from laughlab.core import plugins
 
     added = False
     if "concat" not in plugins.registry()["scheduler"]:  # until the entry point is installed

@@ -14,7 +14,7 @@ from laughlab.corpora import annotations as A
 from laughlab.corpora import fetch as F
 from laughlab.corpora import mixed as M
 from laughlab.corpora.sources import BY_NAME, KINDS, classify, item_id, split_of
-from laughlab.errors import LaughlabError
+from laughlab.core.errors import LaughlabError
 
 
 # ------------------------------------------------------------------ the lock and the split
@@ -95,7 +95,7 @@ def test_bad_annotations_name_the_file_and_the_line(tmp_path, text, line, what):
 
 
 def test_textgrid_annotations(tmp_path):
-    from laughlab.textgrid import write_textgrid
+    from laughlab.io.textgrid import write_textgrid
 
     p = tmp_path / "a.TextGrid"
     write_textgrid(p, [(0.0, 0.2, ""), (0.2, 1.0, "laugh"), (1.0, 2.0, "")], tier="bouts")

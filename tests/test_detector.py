@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from laughlab.detector import (FEATURES, SILENCE_DBFS, FeatureStream, Gate, GateParams, Model, apply_gate,
+from laughlab.detector.model import (FEATURES, SILENCE_DBFS, FeatureStream, Gate, GateParams, Model, apply_gate,
                                probabilities)
-from laughlab.frame import Frame
+from laughlab.core.frame import Frame
 
 FPS = 60.0
 IX = {n: i for i, n in enumerate(FEATURES)}
@@ -152,7 +152,7 @@ def test_a_model_of_other_features_is_refused(tmp_path):
 
 def test_bundled_model_says_how_it_was_fitted():
     m = Model.load()
-    assert m.meta["fit"]["command"] == "python -m laughlab.detector_fit"
+    assert m.meta["fit"]["command"] == "python -m laughlab.detector.fit"
     assert m.meta["fit"]["split"] == "train"
     assert len(m.weights) == len(m.biases) == 2
 

@@ -10,15 +10,15 @@ from omegaconf import OmegaConf
 from scipy.signal import lfilter
 
 import laughlab_plugins.extractor_phoneme as phoneme_module
-from laughlab import plugins
-from laughlab.audio import cut_frames
-from laughlab.bases import Context
-from laughlab.errors import LaughlabError
-from laughlab.events import match_onsets, prf
-from laughlab.frame import Frame
-from laughlab.prosody import frame_centers, praat_prosody
-from laughlab.synth import SyntheticLaughter, _resonators, _rosenberg_derivative
-from laughlab.textgrid import PHONEMES, labels_to_intervals, normalize_label, read_textgrid, write_textgrid
+from laughlab.core import plugins
+from laughlab.io.audio import cut_frames
+from laughlab.core.bases import Context
+from laughlab.core.errors import LaughlabError
+from laughlab.harness.events import match_onsets, prf
+from laughlab.core.frame import Frame
+from laughlab.signals.prosody import frame_centers, praat_prosody
+from laughlab.synth.laughter import SyntheticLaughter, _resonators, _rosenberg_derivative
+from laughlab.io.textgrid import PHONEMES, labels_to_intervals, normalize_label, read_textgrid, write_textgrid
 from laughlab_plugins.extractor_phoneme import PhonemeExtractor, PhonemeParams
 
 SR, FPS = 16000, 60.0
@@ -40,7 +40,7 @@ def run(x, sr=SR, fps=FPS, **kw):
 
 
 def voiced(f0, formants, dur=0.5, amp=0.1, sr=SR):
-    """Rosenberg pulses at ``f0`` through a cascade of formant resonators (laughlab.synth's)."""
+    """Rosenberg pulses at ``f0`` through a cascade of formant resonators (laughlab.synth.laughter's)."""
     t = np.arange(int(dur * sr)) / sr
     b, a = _resonators(formants, sr)
     y = lfilter(b, a, _rosenberg_derivative((f0 * t) % 1.0, 0.4, 0.2))

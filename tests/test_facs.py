@@ -10,14 +10,15 @@ import yaml
 from hypothesis import given, settings, strategies as st
 from omegaconf import OmegaConf
 
-from laughlab import pipeline, plugins
-from laughlab.bases import Chunk, Context, RunInfo
-from laughlab.cli import compose_config
-from laughlab.facs import (ACTION_UNITS, ARKIT_BLENDSHAPES, AU_TO_ARKIT, SIDES, ArkitMap, Blinker, DelayLine,
+from laughlab.core import pipeline
+from laughlab.core import plugins
+from laughlab.core.bases import Chunk, Context, RunInfo
+from laughlab.core.config import compose_config
+from laughlab.face.facs import (ACTION_UNITS, ARKIT_BLENDSHAPES, AU_TO_ARKIT, SIDES, ArkitMap, Blinker, DelayLine,
                            Envelope, Unit, UnitParams, draw_sides, ramp)
-from laughlab.frame import Frame
-from laughlab.head_motion import HeadMotionParams
-from laughlab.segments import PSEUDO_PHONEMES
+from laughlab.core.frame import Frame
+from laughlab.concat.head_motion import HeadMotionParams
+from laughlab.concat.segments import PSEUDO_PHONEMES
 from laughlab_plugins import face_facs, sink_arkit
 from laughlab_plugins.face_facs import FacsFace, FacsParams
 from laughlab_plugins.face_smile import SmileFace, SmileParams

@@ -10,12 +10,13 @@ import yaml
 from hypothesis import given, settings, strategies as st
 from omegaconf import OmegaConf
 
-from laughlab import pipeline, plugins
-from laughlab.bases import Context
-from laughlab.cli import compose_config
-from laughlab.clips import ClipLibrary
-from laughlab.frame import ClipEvent, Frame
-from laughlab.noise import NoiseSignal, Perlin1D, fade, splitmix64
+from laughlab.core import pipeline
+from laughlab.core import plugins
+from laughlab.core.bases import Context
+from laughlab.core.config import compose_config
+from laughlab.motion.clips import ClipLibrary
+from laughlab.core.frame import ClipEvent, Frame
+from laughlab.motion.noise import NoiseSignal, Perlin1D, fade, splitmix64
 from laughlab_plugins import body_follow, face_facs
 from laughlab_plugins.body_follow import FollowBody, FollowParams, PDController, clip_head_pitch, pd_torque
 from laughlab_plugins.body_shapes import ShapesBody, ShapesParams

@@ -12,11 +12,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
-from laughlab import fourier as fr
-from laughlab import plugins
-from laughlab.bases import Context
-from laughlab.frame import Frame
-from laughlab.smoothing import Smoother
+from laughlab.fourier import model as fr
+from laughlab.core import plugins
+from laughlab.core.bases import Context
+from laughlab.core.frame import Frame
+from laughlab.signals.smoothing import Smoother
 from laughlab_plugins import body_fourier as bf
 
 TWO_PI = 2 * np.pi
@@ -273,8 +273,8 @@ def test_driver_params_are_checked():
 
 
 def test_driver_fits_given_bvh_files(tmp_path):
-    from laughlab.bvh import write_bvh
-    from laughlab.clips import ClipLibrary
+    from laughlab.io.bvh import write_bvh
+    from laughlab.motion.clips import ClipLibrary
 
     lib = ClipLibrary.load()
     for name in ("idle", "hands_on_belly"):
@@ -320,7 +320,7 @@ def test_conf_yaml_equals_the_params_defaults():
 
 
 def test_pipeline_with_body_fourier(registered, tmp_path):
-    from laughlab import pipeline
+    from laughlab.core import pipeline
     from laughlab.harness.runner import _compose
 
     cfg = _compose(["body=fourier", "input.duration_s=3", "input.save_audio=false"])
@@ -333,7 +333,7 @@ def test_pipeline_with_body_fourier(registered, tmp_path):
 
 
 def test_experiment_fourier_blend(registered, tmp_path):
-    from laughlab.cli import compose_config
+    from laughlab.core.config import compose_config
     from laughlab_experiments import fourier_blend
 
     cfg = compose_config(["experiment=fourier_blend", "harness.corpus.duration_s=3"])

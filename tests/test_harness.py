@@ -10,7 +10,7 @@ import pytest
 import soundfile as sf
 from omegaconf import OmegaConf
 
-from laughlab.errors import LaughlabError
+from laughlab.core.errors import LaughlabError
 from laughlab.harness.corpus import build_corpus, folder_items
 from laughlab.harness.experiment import run_experiment
 from laughlab.harness.report import write_report
@@ -52,7 +52,7 @@ def _empty(tmp_path):
 
 
 def tiny_cfg(**harness):
-    from laughlab.cli import compose_config
+    from laughlab.core.config import compose_config
 
     cfg = compose_config(["experiment=smoke"])
     h = {"name": "tiny", "conditions": {"energy": ["scheduler=energy"], "none": ["scheduler=none"]},

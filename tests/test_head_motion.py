@@ -4,13 +4,13 @@ library, the brow rule, the costs, the greedy real-time choice, the joins, and t
 import numpy as np
 import pytest
 
-from laughlab import concat as C
-from laughlab.bases import Context
-from laughlab.errors import LaughlabError
-from laughlab.frame import Frame
-from laughlab.head_motion import HEAD_CHANNELS, HeadMotion, HeadMotionParams, build_head_db, head_curves
-from laughlab.segments import PSEUDO_PHONEMES, segment_db
-from laughlab.skeleton import euler_to_matrix, matrix_to_euler
+from laughlab.concat import costs as C
+from laughlab.core.bases import Context
+from laughlab.core.errors import LaughlabError
+from laughlab.core.frame import Frame
+from laughlab.concat.head_motion import HEAD_CHANNELS, HeadMotion, HeadMotionParams, build_head_db, head_curves
+from laughlab.concat.segments import PSEUDO_PHONEMES, segment_db
+from laughlab.motion.skeleton import euler_to_matrix, matrix_to_euler
 from laughlab_plugins.face_facs import FacsFace, FacsParams
 
 FPS = 60.0

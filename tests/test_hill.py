@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from laughlab.hill import (A_FV, B_FV, GROUPS, MUSCLES, NQ, W_FL, AbdomenParams, MuscleParams, MuscleTable, Torso,
+from laughlab.hill.torso import (A_FV, B_FV, GROUPS, MUSCLES, NQ, W_FL, AbdomenParams, MuscleParams, MuscleTable, Torso,
                            TorsoParams, _hill, contractile_force, force_length, force_velocity, group_matrix,
                            muscle_force, passive_force, simulate)
-from laughlab.hill_presets import PRESETS, Signal, preset, run_preset
+from laughlab.hill.presets import PRESETS, Signal, preset, run_preset
 
 
 # --- the muscle: Fig. 3 curves at sample points ------------------------------------------------
@@ -327,13 +327,13 @@ def test_sneeze_pattern(preset_runs):
 
 # --- the body driver ``hill`` ----------------------------------------------------------------------
 
-from laughlab import pipeline, plugins  # noqa: E402
-from laughlab.audio import cut_frames  # noqa: E402
-from laughlab.bases import Context, Source  # noqa: E402
-from laughlab.cli import compose_config  # noqa: E402
+from laughlab.core import pipeline, plugins  # noqa: E402
+from laughlab.io.audio import cut_frames  # noqa: E402
+from laughlab.core.bases import Context, Source  # noqa: E402
+from laughlab.core.config import compose_config  # noqa: E402
 from omegaconf import OmegaConf  # noqa: E402
-from laughlab.frame import Frame  # noqa: E402
-from laughlab.skeleton import HUMANOID, forward_kinematics, rest_pose  # noqa: E402
+from laughlab.core.frame import Frame  # noqa: E402
+from laughlab.motion.skeleton import HUMANOID, forward_kinematics, rest_pose  # noqa: E402
 from laughlab.testing import ChunkedSource  # noqa: E402
 from laughlab_plugins import body_hill, extractor_pressure  # noqa: E402
 from laughlab_plugins.body_hill import HillBody, HillParams, TrackParams, substeps  # noqa: E402
@@ -446,8 +446,8 @@ def test_streaming_run_equals_offline_run(hill_plugins, tmp_path):
 @settings(max_examples=10, deadline=None)
 @given(batch=st.integers(1, 9), seed=st.integers(0, 10_000), level=st.floats(0.0, 1.0))
 def test_compiled_batch_step_is_the_numpy_step(batch, seed, level):
-    """laughlab.hill_kernel: the same arithmetic as Torso._step in numpy, to rounding, for any activations."""
-    from laughlab import hill_kernel
+    """laughlab.hill.kernel: the same arithmetic as Torso._step in numpy, to rounding, for any activations."""
+    from laughlab.hill import kernel as hill_kernel
 
     if not hill_kernel.AVAILABLE:
         pytest.skip("numba is not installed")

@@ -8,11 +8,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
-from laughlab import hill_fit as hf
-from laughlab import plugins
-from laughlab.bases import Context
-from laughlab.frame import Frame
-from laughlab.hill import GROUPS, Torso, TorsoParams
+from laughlab.hill import fit as hf
+from laughlab.core import plugins
+from laughlab.core.bases import Context
+from laughlab.core.frame import Frame
+from laughlab.hill.torso import GROUPS, Torso, TorsoParams
 from laughlab_plugins import body_hill, extractor_pressure
 from laughlab_plugins.body_hill import HillBody, HillParams
 
@@ -252,7 +252,7 @@ def test_fit_params_validate():
 
 
 def test_experiment_writes_the_figures_and_numbers(hill_plugins, tmp_path):
-    from laughlab.cli import compose_config
+    from laughlab.core.config import compose_config
     from laughlab_experiments import hill_fit as exp
 
     cfg = compose_config(["experiment=hill_fit", "input.duration_s=2.5", "input.profile=intense",
@@ -280,7 +280,7 @@ def test_experiment_writes_the_figures_and_numbers(hill_plugins, tmp_path):
 
 
 def test_experiment_reads_the_annotation_beside_a_recording(tmp_path):
-    from laughlab.cli import compose_config
+    from laughlab.core.config import compose_config
     from laughlab_experiments import hill_fit as exp
 
     wav = tmp_path / "laugh.wav"

@@ -1,11 +1,11 @@
-"""Live per-call fitting of the Hill torso (``body=hill control=fit``, laughlab.hill_live)."""
+"""Live per-call fitting of the Hill torso (``body=hill control=fit``, laughlab.hill.live)."""
 import numpy as np
 import pytest
 
-from laughlab import hill_fit as hf
-from laughlab.bases import Context
-from laughlab.frame import Frame
-from laughlab.hill_live import FIRST_TEMPLATE, CallTracker, LiveFitter, LiveParams
+from laughlab.hill import fit as hf
+from laughlab.core.bases import Context
+from laughlab.core.frame import Frame
+from laughlab.hill.live import FIRST_TEMPLATE, CallTracker, LiveFitter, LiveParams
 from laughlab_plugins.body_hill import HillBody, HillParams
 
 FPS = 60.0

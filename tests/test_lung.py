@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from laughlab.lung import (CMH2O_PER_ATM, Lung, LungParams, boyle, flow, implicit_volume,
+from laughlab.hill.lung import (CMH2O_PER_ATM, Lung, LungParams, boyle, flow, implicit_volume,
                            transmural)
 
 ATM = CMH2O_PER_ATM  # 1033.2275 cm H2O

@@ -127,8 +127,8 @@ def test_compute_metrics_pass_through_and_missing_truth_gives_nan():
 
 def test_kinetic_energy_of_a_skeleton_gliding_at_1_m_per_s(tmp_path):
     """Every joint moves at 1 m/s: K = 0.5 * J * 1^2 = 11 (m/s)^2 for the 22 joints."""
-    from laughlab.bvh import write_bvh
-    from laughlab.skeleton import HUMANOID, rest_pose
+    from laughlab.io.bvh import write_bvh
+    from laughlab.motion.skeleton import HUMANOID, rest_pose
 
     poses = np.tile(rest_pose(HUMANOID), (40, 1))
     poses[:, 0] = np.arange(40) * 100.0 / FPS        # root x in cm: 1 m/s

@@ -8,12 +8,13 @@ import yaml
 from hypothesis import given, settings, strategies as st
 from omegaconf import OmegaConf
 
-from laughlab import pipeline, plugins
-from laughlab.audio import cut_frames, frame_edges
-from laughlab.bases import Context, Source
-from laughlab.cli import CONFIG_MODULE, _conf_dir, compose_config
-from laughlab.frame import ClipEvent, Frame
-from laughlab.mixer import Mixer
+from laughlab.core import pipeline
+from laughlab.core import plugins
+from laughlab.io.audio import cut_frames, frame_edges
+from laughlab.core.bases import Context, Source
+from laughlab.core.config import CONFIG_MODULE, compose_config, conf_dir as _conf_dir
+from laughlab.core.frame import ClipEvent, Frame
+from laughlab.core.mixer import Mixer
 from laughlab.testing import ChunkedSource
 from laughlab_plugins.body_shapes import ShapesBody, ShapesParams
 from laughlab_plugins.face_smile import SmileFace, SmileParams

@@ -3,9 +3,10 @@ from dataclasses import dataclass
 
 import pytest
 
-from laughlab import hookimpl, plugins
-from laughlab.bases import Extractor
-from laughlab.errors import LaughlabError
+from laughlab import hookimpl
+from laughlab.core import plugins
+from laughlab.core.bases import Extractor
+from laughlab.core.errors import LaughlabError
 
 BUILTIN = {
     "source": {"synthetic", "file", "mic"},
@@ -97,7 +98,7 @@ def test_duplicate_names_are_refused(fake):
 def test_plugins_dir(tmp_path):
     (tmp_path / "quiet_face.py").write_text(
         "import laughlab\n"
-        "from laughlab.bases import Face\n"
+        "from laughlab.core.bases import Face\n"
         "class Quiet(Face):\n"
         "    name = 'quiet'\n"
         "    def step(self, frame):\n"

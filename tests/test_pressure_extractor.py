@@ -7,11 +7,12 @@ from hypothesis import given, settings, strategies as st
 from omegaconf import OmegaConf
 from scipy.signal import lfilter
 
-from laughlab import pipeline, plugins
-from laughlab.audio import cut_frames
-from laughlab.bases import Context
-from laughlab.cli import compose_config
-from laughlab.frame import Frame
+from laughlab.core import pipeline
+from laughlab.core import plugins
+from laughlab.io.audio import cut_frames
+from laughlab.core.bases import Context
+from laughlab.core.config import compose_config
+from laughlab.core.frame import Frame
 from laughlab_plugins import body_hill, extractor_pressure
 from laughlab_plugins.extractor_pressure import PressureExtractor, PressureParams, fit_line
 

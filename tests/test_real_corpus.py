@@ -10,7 +10,7 @@ import pytest
 
 from laughlab.corpora.fetch import corpus_dir
 from laughlab.corpora.mixed import SAMPLE_RATE, Pool, speech_only, write_set
-from laughlab.detector import Gate, GateParams, Model, probabilities
+from laughlab.detector.model import Gate, GateParams, Model, probabilities
 
 FPS = 60.0
 
@@ -54,7 +54,7 @@ def test_held_out_laughs_open_the_gate(model):
 
 @pytest.mark.slow
 def test_the_bundled_model_is_regenerated_byte_for_byte():
-    """``python -m laughlab.detector_fit --check`` refits on the train split and compares the bytes (~3 min)."""
-    from laughlab.detector_fit import main
+    """``python -m laughlab.detector.fit --check`` refits on the train split and compares the bytes (~3 min)."""
+    from laughlab.detector.fit import main
 
     assert main(["--check"]) == 0

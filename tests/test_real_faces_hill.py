@@ -36,7 +36,7 @@ def laughs():
 
 
 def jaw_r(path: str, face: str, extractor: str, tmp_path) -> float:
-    from laughlab import pipeline
+    from laughlab.core import pipeline
     from laughlab.harness.metrics import compute
     from laughlab.harness.runner import _compose
     from laughlab.harness.trialdata import TrialData
@@ -70,7 +70,7 @@ def hill_input(path: str):
 
 
 def test_hill_finds_the_calls_of_held_out_laughs(laughs):
-    from laughlab.hill_fit import FitParams, find_calls, segment_calls
+    from laughlab.hill.fit import FitParams, find_calls, segment_calls
 
     level_ok, pressure_ok = [], []
     for iid, path, n in laughs:
@@ -83,7 +83,7 @@ def test_hill_finds_the_calls_of_held_out_laughs(laughs):
 
 
 def test_hill_fits_the_example_laugh(laughs):
-    from laughlab.hill_fit import FitParams, fit
+    from laughlab.hill.fit import FitParams, fit
 
     path, n = next((p, n) for i, p, n in laughs if i == EXAMPLE)
     target, fps, level = hill_input(path)

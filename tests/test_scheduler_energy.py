@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from laughlab.bases import Context
-from laughlab.frame import Frame
+from laughlab.core.bases import Context
+from laughlab.core.frame import Frame
 from laughlab_plugins.scheduler_energy import EnergyParams, EnergyScheduler
 
 

@@ -6,8 +6,8 @@ import pytest
 from bvh import Bvh
 from scipy.spatial.transform import Rotation
 
-from laughlab.bvh import read_bvh, write_bvh
-from laughlab.skeleton import (HUMANOID, Skeleton, euler_to_matrix, forward_kinematics, matrix_to_euler,
+from laughlab.io.bvh import read_bvh, write_bvh
+from laughlab.motion.skeleton import (HUMANOID, Skeleton, euler_to_matrix, forward_kinematics, matrix_to_euler,
                                rest_pose)
 
 SK = HUMANOID

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
-from laughlab.smoothing import BELLY, CHEST, JAW, SMILE, Smoother, SmootherParams, rate_limit, rate_limit_series
+from laughlab.signals.smoothing import BELLY, CHEST, JAW, SMILE, Smoother, SmootherParams, rate_limit, rate_limit_series
 
 
 def test_thesis_smoother_constants_are_per_tick_times_60():

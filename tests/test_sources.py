@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import soundfile as sf
 
-from laughlab.audio import n_frames_for, probe_file, read_blocks
-from laughlab.bases import Context
-from laughlab.errors import LaughlabError
+from laughlab.io.audio import n_frames_for, probe_file, read_blocks
+from laughlab.core.bases import Context
+from laughlab.core.errors import LaughlabError
 from laughlab_plugins.source_file import FileParams, FileSource
 
 

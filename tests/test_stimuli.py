@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from laughlab.cli import compose_config
-from laughlab.errors import LaughlabError
-from laughlab.render import decode_audio, probe
+from laughlab.core.config import compose_config
+from laughlab.core.errors import LaughlabError
+from laughlab.render.scene import decode_audio, probe
 from laughlab_experiments.stimuli import MANIFEST_COLUMNS, normalise_loudness, run, williams
 
 pyloudnorm = pytest.importorskip("pyloudnorm")

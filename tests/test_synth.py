@@ -1,4 +1,4 @@
-"""Tests for laughlab.synth (synthetic laughter ground truth)."""
+"""Tests for laughlab.synth.laughter (synthetic laughter ground truth)."""
 
 import numpy as np
 import pandas as pd
@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 from scipy.signal import butter, sosfiltfilt
 
-from laughlab.synth import PROFILES, Bout, Call, SyntheticLaughter
+from laughlab.synth.laughter import PROFILES, Bout, Call, SyntheticLaughter
 
 FS = 16000
 

@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
-from laughlab import pipeline, plugins
-from laughlab.bases import Chunk, Context, RunInfo
-from laughlab.cli import compose_config
-from laughlab.errors import LaughlabError
-from laughlab.render import Camera, Renderer, decode_audio, decode_frames, probe
-from laughlab.skeleton import HUMANOID, rest_pose
+from laughlab.core import pipeline
+from laughlab.core import plugins
+from laughlab.core.bases import Chunk, Context, RunInfo
+from laughlab.core.config import compose_config
+from laughlab.core.errors import LaughlabError
+from laughlab.render.scene import Camera, Renderer, decode_audio, decode_frames, probe
+from laughlab.motion.skeleton import HUMANOID, rest_pose
 from laughlab_plugins import sink_video
 from laughlab_plugins.sink_video import VideoParams, VideoSink
 
@@ -203,7 +204,7 @@ def test_true_perspective():
 
 
 def test_renderer_draws_every_joint_of_an_unknown_skeleton():
-    from laughlab.skeleton import Skeleton
+    from laughlab.motion.skeleton import Skeleton
 
     sk = Skeleton(("root", "a", "b"), (-1, 0, 1), np.array([[0, 0, 0], [0, 50, 0], [30, 0, 0]], float))
     r = Renderer(sk, 64, 48, supersample=1, inset=False)
@@ -217,7 +218,7 @@ def test_yaml_defaults_equal_the_dataclass_defaults():
     import yaml
     from dataclasses import asdict
 
-    from laughlab.cli import _conf_dir
+    from laughlab.core.config import conf_dir as _conf_dir
 
     conf = yaml.safe_load(_conf_dir().joinpath("output", "video.yaml").read_text())
     assert set(conf) == {"csv", "bvh", "plots", "arkit", "video"}

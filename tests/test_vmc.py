@@ -10,13 +10,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
-from laughlab import pipeline, plugins
-from laughlab.bases import Context
-from laughlab.cli import compose_config
-from laughlab.errors import LaughlabError
-from laughlab.render import source_audio
-from laughlab.skeleton import HUMANOID, euler_to_matrix, global_transforms
-from laughlab.vmc import (SMILE_TO_ARKIT, UNITY_BONES, BoneMap, VmcEncoder, arkit_weights, euler_zxy_to_quat,
+from laughlab.core import pipeline
+from laughlab.core import plugins
+from laughlab.core.bases import Context
+from laughlab.core.config import compose_config
+from laughlab.core.errors import LaughlabError
+from laughlab.render.scene import source_audio
+from laughlab.motion.skeleton import HUMANOID, euler_to_matrix, global_transforms
+from laughlab.io.vmc import (SMILE_TO_ARKIT, UNITY_BONES, BoneMap, VmcEncoder, arkit_weights, euler_zxy_to_quat,
                           osc_message, paced_chunks, quat_to_matrix, to_unity_position, to_unity_quat)
 from laughlab_plugins import sink_vmc
 from laughlab_plugins.source_mic import MicParams, MicSource
@@ -269,7 +270,7 @@ def test_microphone_path_streams_frame_by_frame(tmp_path, capsys):
         # fall short of the 533.33-sample frames, so each frame waits for one more block: +1 frame of latency.)
         cfg = config(rx.port, "input.duration_s=1.8", "fps=25")
         pipe = pipeline.build(cfg)
-        audio = np.concatenate(list(__import__("laughlab.audio", fromlist=["read_blocks"]).read_blocks(
+        audio = np.concatenate(list(__import__("laughlab.io.audio", fromlist=["read_blocks"]).read_blocks(
             source_audio(pipe.source, tmp_path / "audio"))))
         pipe.source.close()
         pipe.source = ReplayMic(audio, MicParams(sample_rate=16000), pipe.ctx)
@@ -328,7 +329,7 @@ def test_yaml_defaults_equal_the_dataclass_defaults():
     import yaml
     from dataclasses import asdict
 
-    from laughlab.cli import _conf_dir
+    from laughlab.core.config import conf_dir as _conf_dir
 
     conf = yaml.safe_load(_conf_dir().joinpath("output", "vmc.yaml").read_text())
     assert conf == {"vmc": asdict(sink_vmc.VmcParams())}

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from ..errors import LaughlabError
+from laughlab.core.errors import LaughlabError
 
 LABELS = ("laugh", "call", "inhale", "speech", "other")
 #: tolerance of the checks (s): labels are placed by hand to about 20 ms

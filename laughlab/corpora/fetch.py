@@ -26,8 +26,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Iterator
 
-from ..errors import LaughlabError
-from .sources import BY_NAME, PACKAGES, Package, classify, item_id, split_of
+from laughlab.core.errors import LaughlabError
+from laughlab.corpora.sources import BY_NAME, PACKAGES, Package, classify, item_id, split_of
 
 LOCK_NAME = "corpus_lock.json"
 #: files below this rate lack the detector's 5 kHz band; they are left out of the corpus (Hz)

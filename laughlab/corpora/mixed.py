@@ -29,9 +29,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import LaughlabError
-from . import annotations as ann_mod
-from .fetch import load_lock, require
+from laughlab.core.errors import LaughlabError
+from laughlab.corpora import annotations as ann_mod
+from laughlab.corpora.fetch import load_lock, require
 
 SAMPLE_RATE = 44100
 OTHER_KINDS = ("cough", "sneeze", "scream", "breath", "clap", "singing", "music", "noise", "vocal")

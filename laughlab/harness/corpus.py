@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import LaughlabError
+from laughlab.core.errors import LaughlabError
 
 AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif")
 
@@ -42,7 +42,7 @@ class Item:
 
 def synthetic_items(profiles, seeds, duration_s: float) -> list[Item]:
     """Synthetic laughter: one item per profile and seed (giggle ignores the duration)."""
-    from ..synth import PROFILES
+    from laughlab.synth.laughter import PROFILES
 
     items = []
     for p in profiles:
@@ -66,7 +66,7 @@ def _truth_beside(f: Path) -> str | None:
         if ann.exists():
             import soundfile as sf
 
-            from ..corpora.annotations import read
+            from laughlab.corpora.annotations import read
 
             try:
                 duration = sf.info(str(f)).duration
@@ -120,8 +120,8 @@ def real_items(spec) -> list[Item]:
     bad = [s for s in sets if s not in REAL_SETS]
     if bad:
         raise LaughlabError(f"unknown real corpus set {bad[0]!r}; choose from: {', '.join(REAL_SETS)}")
-    from ..corpora.fetch import corpus_dir
-    from ..corpora.mixed import write_set
+    from laughlab.corpora.fetch import corpus_dir
+    from laughlab.corpora.mixed import write_set
 
     split = str(spec.get("split", "test"))
     if split not in ("train", "test", "all"):

@@ -23,11 +23,11 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from ..errors import LaughlabError
-from . import results as res
-from .corpus import Item, build_corpus, synthetic_items
-from .metrics import registered
-from .runner import Trial, check_conditions, make_trials, run_trials, write_records
+from laughlab.core.errors import LaughlabError
+from laughlab.harness import results as res
+from laughlab.harness.corpus import Item, build_corpus, synthetic_items
+from laughlab.harness.metrics import registered
+from laughlab.harness.runner import Trial, check_conditions, make_trials, run_trials, write_records
 
 
 @dataclass
@@ -131,7 +131,7 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
         "extra": extra,
     }
     res.write_json(out_dir / "results.json", doc)
-    from .report import comparison_figure
+    from laughlab.harness.report import comparison_figure
 
     comparison_figure(doc, out_dir / "plots" / "metrics.png")
     return doc

@@ -15,7 +15,7 @@ from typing import Callable
 
 import numpy as np
 
-from .trialdata import TrialData
+from laughlab.harness.trialdata import TrialData
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,7 @@ def metric(name: str, higher_is_better: bool | None, units: str):
 
 def registered() -> dict[str, Metric]:
     """All metrics, by name."""
-    from .. import plugins
+    from laughlab.core import plugins
 
     return {name: info.obj for name, info in plugins.registry()["metric"].items()}
 

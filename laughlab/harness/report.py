@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ..errors import LaughlabError  # noqa: E402
+from laughlab.core.errors import LaughlabError  # noqa: E402
 
 #: metrics shown first in tables and heatmaps
 KEY_METRICS = ("intensity_r_clip", "intensity_r_kinetic", "onset_latency_median_s", "miss_rate",

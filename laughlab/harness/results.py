@@ -90,7 +90,7 @@ def versions() -> dict:
 
 
 def plugin_origins() -> dict:
-    from .. import plugins
+    from laughlab.core import plugins
 
     return {f"{kind}/{name}": info.origin for kind, named in plugins.registry().items() for name, info in named.items()}
 

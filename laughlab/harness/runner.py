@@ -18,9 +18,9 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from .. import pipeline
-from ..errors import LaughlabError
-from .corpus import Item
+from laughlab.core import pipeline
+from laughlab.core.errors import LaughlabError
+from laughlab.harness.corpus import Item
 
 
 @dataclass(frozen=True)
@@ -41,7 +41,7 @@ class Trial:
 
 
 def _compose(overrides: list[str]):
-    from ..cli import compose_config, register_plugin_configs
+    from laughlab.core.config import compose_config, register_plugin_configs
 
     register_plugin_configs()
     cfg = compose_config(overrides)
@@ -50,8 +50,8 @@ def _compose(overrides: list[str]):
 
 def run_trial(trial: Trial) -> dict:
     """Run one trial and return its record (metrics computed from its outputs)."""
-    from .metrics import compute
-    from .trialdata import TrialData
+    from laughlab.harness.metrics import compute
+    from laughlab.harness.trialdata import TrialData
 
     out = Path(trial.out_dir)
     cfg = _compose([*trial.overrides, "output=files" if trial.plots else "output=trial"])
@@ -143,7 +143,7 @@ def run_trials(trials: list[Trial], jobs: int = 1, progress: bool = True, desc: 
 
 def write_records(path: Path, records: list[dict]) -> None:
     """``metrics.jsonl``: one JSON record per trial (NaN written as null)."""
-    from .results import json_clean
+    from laughlab.harness.results import json_clean
 
     tmp = path.with_name(f".{path.name}.part")
     with open(tmp, "w") as f:

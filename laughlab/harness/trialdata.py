@@ -46,7 +46,7 @@ class Truth:
     def load(cls, path: str | Path) -> "Truth":
         """A ``truth.csv``, or an annotation (Audacity labels ``.txt``, Praat ``.TextGrid``)."""
         if str(path).lower().endswith((".txt", ".textgrid")):
-            from ..corpora.annotations import read
+            from laughlab.corpora.annotations import read
 
             rows = read(path).truth_rows()
             t = pd.DataFrame(rows, columns=["kind", "bout", "onset_s", "offset_s", "intensity"])
@@ -110,7 +110,7 @@ class TrialData:
     def poses(self) -> np.ndarray | None:
         if self.motion_path is None:
             return None
-        from ..bvh import read_bvh
+        from laughlab.io.bvh import read_bvh
 
         self._skeleton, motion, _ = read_bvh(self.motion_path)
         return motion
@@ -125,7 +125,7 @@ class TrialData:
         poses = self.poses
         if poses is None or len(poses) < 2:
             return None
-        from ..skeleton import forward_kinematics
+        from laughlab.motion.skeleton import forward_kinematics
 
         pos = forward_kinematics(self._skeleton, poses) / 100.0
         v = np.diff(pos, axis=0) * self.fps
@@ -178,7 +178,7 @@ class TrialData:
 @lru_cache(maxsize=1)
 def clip_durations() -> dict[str, float]:
     """Duration (s) of every clip of the bundled library."""
-    from ..clips import ClipLibrary
+    from laughlab.motion.clips import ClipLibrary
 
     return {c.name: c.duration_s for c in ClipLibrary.load()}
 

@@ -1,5 +1,5 @@
 """Bundled full-body laughter clip library (BVH files + ``library.json``).
 
 Regenerate with ``python -m laughlab_plugins.clips.author``; load with
-:meth:`laughlab.clips.ClipLibrary.load`.
+:meth:`laughlab.motion.clips.ClipLibrary.load`.
 """

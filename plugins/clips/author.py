@@ -7,7 +7,7 @@ output is byte-identical from run to run.
 Authoring model
 ---------------
 * Keyframes are absolute ZXY Euler angles in degrees, ``dict joint ->
-  [(frame, (z, x, y)), ...]`` (see :mod:`laughlab.skeleton` for the signs),
+  [(frame, (z, x, y)), ...]`` (see :mod:`laughlab.motion.skeleton` for the signs),
   plus ``"root"`` -> ``(dx, dy, dz)`` cm from the rest root position.  A key
   name ``both_<part>`` keys the left joint and mirrors it to the right one.
 * Tracks not keyed at the first / last frame are anchored to the neutral pose
@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from laughlab.bvh import write_bvh
-from laughlab.skeleton import (HUMANOID, euler_to_matrix, forward_kinematics, global_transforms, matrix_to_euler,
+from laughlab.io.bvh import write_bvh
+from laughlab.motion.skeleton import (HUMANOID, euler_to_matrix, forward_kinematics, global_transforms, matrix_to_euler,
                                rest_pose)
 
 FPS = 24

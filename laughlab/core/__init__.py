@@ -1,0 +1,1 @@
+"""The framework: frames, plugin interfaces, hookspecs, the registry, the pipeline, the mixer, errors, safe output files."""

@@ -1,0 +1,252 @@
+"""Interfaces of the plugin kinds.
+
+Every plugin is a small stateful class with a ``name``, a ``Params`` dataclass
+(its configurable parameters, validated before any work starts) and a
+constructor ``__init__(params, ctx)``.  Per-frame plugins implement
+``reset()`` and ``step(frame)``; the same objects serve live input and files:
+an offline run is a streaming run fed from a file as fast as it can go.
+Rates are per second, so results do not depend on the frame rate.
+"""
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, ClassVar, Iterator
+
+import numpy as np
+
+from laughlab.core.frame import Frame
+
+if TYPE_CHECKING:  # pragma: no cover
+    from laughlab.motion.clips import ClipLibrary
+    from laughlab.motion.skeleton import Skeleton
+
+
+@dataclass
+class NoParams:
+    """A plugin without parameters."""
+
+
+@dataclass
+class Context:
+    """What every plugin may use: frame rate, audio rate, the run's seeded generator.
+
+    Attributes
+    ----------
+    fps : float
+        Animation frames per second.
+    sample_rate : int
+        Audio sample rate of the source (Hz).
+    rng : numpy.random.Generator
+        The run's one seeded generator: all randomness comes from it.
+    seed : int
+        The run's seed.
+    """
+
+    fps: float = 60.0
+    sample_rate: int = 16000
+    rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
+    seed: int = 0
+    _clips: Any = None
+
+    @property
+    def dt(self) -> float:
+        return 1.0 / self.fps
+
+    @property
+    def clips(self) -> "ClipLibrary":
+        """The clip library (loaded on first use)."""
+        if self._clips is None:
+            from laughlab.motion.clips import ClipLibrary
+
+            self._clips = ClipLibrary.load()
+        return self._clips
+
+    @property
+    def skeleton(self) -> "Skeleton":
+        return self.clips.skeleton
+
+
+class Plugin(ABC):
+    """Common base: a name, a parameter dataclass, and the context."""
+
+    kind: ClassVar[str] = ""
+    name: ClassVar[str] = ""
+    Params: ClassVar[type] = NoParams
+
+    def __init__(self, params: Any = None, ctx: Context | None = None):
+        self.params = params if params is not None else self.Params()
+        self.ctx = ctx if ctx is not None else Context()
+
+    def reset(self) -> None:
+        """Return to the state before the first frame."""
+
+
+class Source(Plugin):
+    """Audio, cut into one block per animation frame.
+
+    Frame ``k`` holds the samples ``[round(k*sr/fps), round((k+1)*sr/fps))``, so
+    any sample rate works with any frame rate.
+
+    Attributes set by ``open``: ``sample_rate`` (Hz), ``n_frames`` (None if live),
+    ``truth`` (ground truth object or None).
+    """
+
+    kind = "source"
+    sample_rate: int = 16000
+    n_frames: int | None = None
+    truth: Any = None
+    live: bool = False
+
+    def open(self) -> None:
+        """Check the input and read its format; raise LaughlabError on bad input."""
+
+    @abstractmethod
+    def blocks(self) -> Iterator[np.ndarray]:
+        """Yield one float32 mono block of samples per frame."""
+        ...
+
+    def audio_path(self) -> Path | None:
+        """A file holding the input audio, if there is one (for muxing, reports)."""
+        return None
+
+    def close(self) -> None:
+        """Release devices and files."""
+
+
+class Extractor(Plugin):
+    """Turns the audio of one frame into named control signals in ``frame.control``."""
+
+    kind = "extractor"
+
+    @abstractmethod
+    def step(self, block: np.ndarray, frame: Frame) -> None:
+        ...
+
+
+class Detector(Plugin):
+    """Tells laughter from other sound and gates what drives the body and face.
+
+    Runs right after the extractor on the same block: writes
+    ``control['laughter']`` (probability in [0, 1]) and ``control['laugh_gate']``
+    (the gain in [0, 1]), and applies the gain to the extractor's driving
+    signals (see ``laughlab.detector.model.apply_gate``).  Look-ahead: none beyond the frame's
+    own audio block.
+    """
+
+    kind = "detector"
+
+    @abstractmethod
+    def step(self, block: np.ndarray, frame: Frame) -> None:
+        ...
+
+
+class Scheduler(Plugin):
+    """Starts and stops full-body clips: appends :class:`ClipEvent` to ``frame.events``."""
+
+    kind = "scheduler"
+
+    @abstractmethod
+    def step(self, frame: Frame) -> None:
+        ...
+
+
+class Body(Plugin):
+    """Body driver: writes body channels and joint offsets into the frame."""
+
+    kind = "body"
+
+    @abstractmethod
+    def step(self, frame: Frame) -> None:
+        ...
+
+
+class Face(Plugin):
+    """Face model: writes face channels into the frame."""
+
+    kind = "face"
+
+    @abstractmethod
+    def step(self, frame: Frame) -> None:
+        ...
+
+
+@dataclass
+class RunInfo:
+    """What a sink learns when a run opens.
+
+    Attributes
+    ----------
+    out_dir : Path
+        The run directory.
+    fps : float
+        Frames per second.
+    skeleton : Skeleton
+        The skeleton of the poses.
+    n_frames : int or None
+        Number of frames, if known in advance.
+    source : Source
+        The audio source (for its audio and ground truth).
+    config : dict
+        The composed configuration.
+    """
+
+    out_dir: Path
+    fps: float
+    skeleton: Any
+    n_frames: int | None
+    source: Any = None
+    config: dict = field(default_factory=dict)
+
+
+@dataclass
+class Chunk:
+    """A run of consecutive frames handed to the sinks.
+
+    Attributes
+    ----------
+    times : ndarray (N,)
+        Frame times (s).
+    channels : dict[str, ndarray (N,)]
+        Every named channel (controls and outputs).
+    poses : ndarray (N, C)
+        Skeleton poses (BVH channel vectors).
+    events : list[ClipEvent]
+        Clip events within these frames.
+    labels : list[str | None]
+        Per-frame pseudo-phoneme labels.
+    capture_ns : ndarray (N,) of int64 or None
+        ``time.perf_counter_ns()`` when each frame's audio block reached the
+        pipeline (for latency measurements; None when unknown).
+    """
+
+    times: np.ndarray
+    channels: dict
+    poses: np.ndarray
+    events: list
+    labels: list
+    capture_ns: np.ndarray | None = None
+
+
+class Sink(Plugin):
+    """Writes a run's frames somewhere.
+
+    File sinks write to temporary names and move them into place in ``close``;
+    ``abort`` removes whatever they wrote, so a failed run leaves nothing half-written.
+    """
+
+    kind = "sink"
+
+    def open(self, run: RunInfo) -> None:
+        self.run = run
+
+    def write(self, chunk: Chunk) -> None:
+        """Take the next chunk of frames."""
+
+    def close(self) -> list[Path]:
+        """Finish; return the files written."""
+        return []
+
+    def abort(self) -> None:
+        """Remove partial output after a failure."""

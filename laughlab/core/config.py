@@ -1,0 +1,118 @@
+"""Composing the configuration: Hydra's config module, the plugin groups, plugins without YAML files.
+
+The CLI, the experiment runner and the tests compose configurations through here, so the
+harness never imports the command line.
+"""
+from __future__ import annotations
+
+import re
+
+from laughlab.core.errors import LaughlabError
+
+
+def _register_resolvers() -> None:
+    """``${div:a,b}`` for configs that tie one parameter to another (e.g. fall = rise / 2)."""
+    from omegaconf import OmegaConf
+
+    if not OmegaConf.has_resolver("div"):
+        OmegaConf.register_new_resolver("div", lambda a, b: float(a) / float(b))
+
+
+_register_resolvers()
+
+CONFIG_MODULE = "laughlab_conf"
+GROUP_KINDS = {"input": "source", "extractor": "extractor", "face": "face", "body": "body",
+               "scheduler": "scheduler", "output": "sink",
+               "detector": "detector"}
+
+
+def conf_dir():
+    from importlib.resources import files
+
+    return files(CONFIG_MODULE)
+
+
+def group_options(group: str) -> list[str]:
+    """Names selectable in a config group: YAML files plus registered plugins."""
+    names = {p.name[:-5] for p in conf_dir().joinpath(group).iterdir() if p.name.endswith(".yaml")} \
+        if conf_dir().joinpath(group).is_dir() else set()
+    if group in GROUP_KINDS and group != "output":
+        from laughlab.core import plugins
+
+        names |= set(plugins.registry()[GROUP_KINDS[group]])
+    return sorted(names)
+
+
+def register_plugin_configs() -> None:
+    """Give every registered plugin without a YAML file a config group option.
+
+    Third-party plugins then work as ``extractor=NAME`` with their dataclass defaults.
+    """
+    from dataclasses import asdict, is_dataclass
+
+    from hydra.core.config_store import ConfigStore
+
+    from laughlab.core import plugins
+
+    cs = ConfigStore.instance()
+    reg = plugins.registry()
+    for group, kind in GROUP_KINDS.items():
+        if group == "output":
+            continue
+        folder = conf_dir().joinpath(group)
+        have = {p.name[:-5] for p in folder.iterdir()} if folder.is_dir() else set()
+        for name, info in reg[kind].items():
+            if name in have:
+                continue
+            params_cls = getattr(info.obj, "Params", None)
+            node = {"name": name}
+            if params_cls is not None and is_dataclass(params_cls):
+                node.update(asdict(params_cls()))
+            cs.store(group=group, name=name, node=node)
+
+
+def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
+    text = str(exc)
+    m = re.search(r"Could not override '([^']+)'", text)
+    if m:
+        key = m.group(1)
+        group = key.split(".")[0]
+        valid = ""
+        if group in GROUP_KINDS and group != "output" and "." in key:
+            try:
+                keys = valid_keys(group, overrides)
+                valid = "; valid: " + ", ".join(keys) if keys else f"; this {group} takes no parameters"
+            except Exception:  # listing the keys is a courtesy
+                valid = ""
+        return f"unknown parameter {key}{valid}"
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    return lines[0] if lines else type(exc).__name__
+
+
+def valid_keys(group: str, overrides: list[str]) -> list[str]:
+    """Parameter names of the plugin chosen for ``group`` (with the user's group choices)."""
+    from dataclasses import fields
+
+    from hydra import compose
+
+    choices = [o for o in overrides if "=" in o and "." not in o.split("=")[0]]
+    cfg = compose("config", overrides=choices)
+    from laughlab.core import plugins
+
+    info = plugins.get(GROUP_KINDS[group], cfg[group]["name"])
+    return [f.name for f in fields(info.obj.Params)]
+
+
+def compose_config(overrides: list[str]):
+    """Compose the configuration as Hydra would, turning errors into LaughlabError."""
+    from hydra import compose, initialize_config_module
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3"):
+        try:
+            return compose("config", overrides=overrides, return_hydra_config=True)
+        except Exception as exc:
+            if isinstance(exc, LaughlabError):
+                raise
+            raise LaughlabError(composition_error(exc, overrides)) from None

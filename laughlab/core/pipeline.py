@@ -1,0 +1,316 @@
+"""Building the plugins from a configuration and running them frame by frame.
+
+An offline run is a streaming run fed from a file as fast as it can go: the
+same ``step`` calls, so live and offline results agree.
+"""
+from __future__ import annotations
+
+import json
+from array import array
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from laughlab.core import plugins
+from laughlab.core.bases import Chunk, Context, RunInfo
+from laughlab.core.errors import LaughlabError
+from laughlab.core.frame import Frame
+from laughlab.core.mixer import Mixer
+
+#: config group -> plugin kind
+GROUPS = {"input": "source", "extractor": "extractor", "detector": "detector", "scheduler": "scheduler",
+          "body": "body", "face": "face"}
+CHUNK_FRAMES = 256
+
+
+@dataclass
+class RunParams:
+    """Top-level run parameters.
+
+    Attributes
+    ----------
+    seed : int
+        Seed of the run's one random generator (same seed, same bytes).
+    fps : float
+        Animation frames per second (the thesis' game engine: 60).
+    progress : str
+        ``auto`` (a bar on long inputs when stderr is a terminal), ``on`` or ``off``.
+    """
+
+    seed: int = 0
+    fps: float = 60.0
+    progress: str = "auto"
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.fps, (int, float)) and math.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"fps must be a positive number (got {self.fps})")
+        if self.fps > 1000:
+            raise ValueError(f"fps must be at most 1000 (got {self.fps})")
+        if self.progress not in ("auto", "on", "off"):
+            raise ValueError(f"progress must be auto, on or off (got {self.progress!r})")
+
+
+@dataclass
+class Pipeline:
+    """The plugins of one run, built and validated."""
+
+    ctx: Context
+    source: Any
+    extractor: Any
+    detector: Any
+    scheduler: Any
+    body: Any
+    face: Any
+    mixer: Mixer
+    sinks: list = field(default_factory=list)
+    run: RunParams = field(default_factory=RunParams)
+
+
+def _section(cfg: DictConfig, key: str) -> dict:
+    node = cfg.get(key)
+    if node is None:
+        raise LaughlabError(f"the configuration has no '{key}' group")
+    missing = sorted(OmegaConf.missing_keys(node))
+    if missing:
+        raise LaughlabError(f"{missing[0]} is required: set {missing[0]}=VALUE")
+    return OmegaConf.to_container(node, resolve=True)
+
+
+def build(cfg: DictConfig) -> Pipeline:
+    """Validate every parameter, build the plugins and open the source.
+
+    Raises LaughlabError (one line) on any bad parameter, unknown plugin or bad input.
+    """
+    if cfg.get("plugins_dir"):
+        plugins.load_plugin_dir(cfg.plugins_dir)
+    run_values = {k: cfg.get(k) for k in ("seed", "fps", "progress") if cfg.get(k) is not None}
+    try:
+        run = RunParams(**run_values)
+    except (ValueError, TypeError) as exc:
+        raise LaughlabError(f"bad parameter: {exc}") from None
+    ctx = Context(fps=float(run.fps), rng=np.random.default_rng(run.seed), seed=int(run.seed))
+    built = {}
+    for group, kind in GROUPS.items():
+        values = _section(cfg, group)
+        name = values.get("name")
+        if not name:
+            raise LaughlabError(f"'{group}' has no plugin name; set {group}=NAME")
+        built[group] = plugins.create(kind, name, values, ctx, where=f"{group}.{name}") if group == "input" \
+            else None
+        if group == "input":
+            built[group].open()
+            ctx.sample_rate = built[group].sample_rate
+    for group, kind in GROUPS.items():
+        if group == "input":
+            continue
+        values = _section(cfg, group)
+        try:
+            built[group] = plugins.create(kind, values["name"], values, ctx, where=f"{group}.{values['name']}")
+        except ValueError as exc:
+            raise LaughlabError(f"bad parameter in {group}.{values['name']}: {exc}") from None
+    outputs = _section(cfg, "output") or {}
+    sinks = [plugins.create("sink", name, params or {}, ctx, where=f"output.{name}")
+             for name, params in outputs.items()]
+    return Pipeline(ctx, built["input"], built["extractor"], built["detector"], built["scheduler"], built["body"],
+                    built["face"],
+                    Mixer(ctx.clips), sinks, run)
+
+
+class _Recorder:
+    """Collects frames into chunks of arrays for the sinks."""
+
+    def __init__(self, n: int, n_channels: int):
+        self.n = n
+        self.times = np.empty(n)
+        self.poses = np.empty((n, n_channels))
+        self.capture = np.zeros(n, dtype=np.int64)
+        self.values: dict[str, np.ndarray] | None = None
+        self.labels: list = []
+        self.events: list = []
+        self.i = 0
+
+    def add(self, frame: Frame, pose: np.ndarray, capture_ns: int = 0) -> None:
+        i = self.i
+        self.capture[i] = capture_ns
+        if self.values is None:
+            self.values = {k: np.empty(self.n) for k in (*frame.control, *frame.channels)}
+        vals = self.values
+        for k, v in frame.control.items():
+            vals[k][i] = v
+        for k, v in frame.channels.items():
+            vals[k][i] = v
+        self.times[i] = frame.time_s
+        self.poses[i] = pose
+        self.labels.append(frame.label)
+        if frame.events:
+            self.events.extend(frame.events)
+        self.i = i + 1
+
+    def take(self) -> Chunk:
+        i = self.i
+        vals = {k: v[:i].copy() for k, v in (self.values or {}).items()}
+        chunk = Chunk(self.times[:i].copy(), vals, self.poses[:i].copy(), self.events, self.labels,
+                      self.capture[:i].copy())
+        self.i, self.labels, self.events = 0, [], []
+        return chunk
+
+
+def chunk_frames(pipe: Pipeline) -> int:
+    """Frames per chunk handed to the sinks: 1 for a live source or a streaming sink, else ``CHUNK_FRAMES``.
+
+    A live source (``source.live``) or a sink that declares ``streaming = True``
+    (e.g. ``vmc``) gets every frame as soon as it is computed; otherwise sinks
+    get chunks of ``CHUNK_FRAMES`` frames (fewer calls, vectorised writing).
+    """
+    if getattr(pipe.source, "live", False) or any(getattr(s, "streaming", False) for s in pipe.sinks):
+        return 1
+    return CHUNK_FRAMES
+
+
+def _progress_bar(pipe: Pipeline):
+    n = pipe.source.n_frames
+    show = pipe.run.progress == "on" or (
+        pipe.run.progress == "auto" and sys.stderr.isatty() and (n is None or n > 60 * pipe.ctx.fps))
+    if not show:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=n, unit="frame", desc="laughlab", file=sys.stderr, leave=False)
+
+
+def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
+    """Run the pipeline to the end of the input, write every output, return the metrics.
+
+    On any failure the sinks remove what they wrote and the exception propagates.
+    """
+    out_dir = Path(out_dir)
+    ctx, src = pipe.ctx, pipe.source
+    info = RunInfo(out_dir, ctx.fps, ctx.skeleton, src.n_frames, src, config or {})
+    opened = []
+    n_chunk = chunk_frames(pipe)
+    rec = _Recorder(n_chunk, ctx.skeleton.n_channels)
+    times_ns = array("q")  # per-frame compute time (ns), 8 bytes a frame
+    bar = _progress_bar(pipe)
+    artifacts: list[Path] = []
+    try:
+        for sink in pipe.sinks:
+            sink.open(info)
+            opened.append(sink)
+        for plugin in (pipe.extractor, pipe.detector, pipe.scheduler, pipe.body, pipe.face, pipe.mixer):
+            plugin.reset()
+        ext, det, sch, body, face, mixer = (pipe.extractor, pipe.detector, pipe.scheduler, pipe.body, pipe.face,
+                                            pipe.mixer)
+        dt = ctx.dt
+        if getattr(sch, "offline_plan", False):
+            _plan_offline(pipe)
+        clock = time.perf_counter_ns
+        wall0 = time.perf_counter()
+        k = 0
+        for block in src.blocks():
+            t0 = clock()
+            frame = Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)
+            ext.step(block, frame)
+            det.step(block, frame)
+            sch.step(frame)
+            mixer.advance(frame)
+            body.step(frame)
+            face.step(frame)
+            pose = mixer.pose(frame)
+            rec.add(frame, pose, t0)
+            times_ns.append(clock() - t0)
+            k += 1
+            if rec.i == n_chunk:
+                chunk = rec.take()
+                for sink in opened:
+                    sink.write(chunk)
+                if bar is not None:
+                    bar.update(n_chunk)
+        if k == 0:
+            raise LaughlabError("the input holds no audio frames")
+        if rec.i:
+            chunk = rec.take()
+            for sink in opened:
+                sink.write(chunk)
+        wall = time.perf_counter() - wall0
+        written = []
+        for sink in opened:
+            written += sink.close() or []
+        if hasattr(src, "save_artifacts"):
+            artifacts = src.save_artifacts(out_dir)
+        metrics = _metrics(pipe, np.frombuffer(times_ns, dtype=np.int64), k, wall)
+        for sink in opened:  # a sink's own numbers (e.g. vmc latency), keys prefixed with its name
+            more = getattr(sink, "metrics", None)
+            if callable(more):
+                metrics.update(more() or {})
+        tmp = out_dir / ".metrics.json.part"
+        tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+        os.replace(tmp, out_dir / "metrics.json")
+        return metrics
+    except BaseException:
+        for sink in opened:
+            try:
+                sink.abort()
+            except Exception:  # cleanup must not hide the original error
+                pass
+        for path in artifacts:
+            Path(path).unlink(missing_ok=True)
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+        for stage in (pipe.body, pipe.face):   # stages with a worker thread (e.g. body=hill control=fit live)
+            stop = getattr(stage, "close", None)
+            if callable(stop):
+                stop()
+        src.close()
+
+
+def _plan_offline(pipe: Pipeline) -> None:
+    """First pass for offline schedulers: the extractor's label of every frame, then ``plan``.
+
+    The look-ahead is the whole input, so a live source is refused.
+    """
+    src, ext, det, sch = pipe.source, pipe.extractor, pipe.detector, pipe.scheduler
+    if src.live:
+        raise LaughlabError(f"scheduler {sch.name} plans over the whole input and cannot run on a live source; "
+                            "use its real-time mode")
+    labels = []
+    for k, block in enumerate(src.blocks()):
+        frame = Frame(k, k * pipe.ctx.dt, pipe.ctx.dt, {}, None, {}, {}, [], 0.0)
+        ext.step(block, frame)
+        det.step(block, frame)
+        labels.append(sch.label_of(frame))
+    sch.plan(labels)
+    ext.reset()
+    det.reset()
+
+
+def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, wall_s: float) -> dict:
+    """Compute metrics: per-frame compute time (ms) and real-time factor.
+
+    ``frame_ms_p50``/``frame_ms_p99``: percentiles of the time spent in the
+    plugins and the mixer per frame (ms), excluding reading audio and writing
+    files.  ``realtime_factor``: audio duration / wall-clock time of the whole
+    frame loop including reading and writing (higher is faster).
+    """
+    ms = times_ns / 1e6
+    duration = n_frames / pipe.ctx.fps
+    return {
+        "n_frames": int(n_frames),
+        "fps": pipe.ctx.fps,
+        "duration_s": duration,
+        "seed": pipe.run.seed,
+        "frame_ms_p50": float(np.percentile(ms, 50)),
+        "frame_ms_p99": float(np.percentile(ms, 99)),
+        "frame_ms_max": float(ms.max()),
+        "wall_s": wall_s,
+        "realtime_factor": duration / wall_s if wall_s > 0 else float("inf"),
+        "nonfinite_samples": int(getattr(pipe.extractor, "nonfinite_samples", 0)),
+    }

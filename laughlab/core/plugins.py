@@ -1,0 +1,189 @@
+"""Plugin manager and registry (the pattern of simonw/llm and tox).
+
+Plugins come from three places, all through the same hooks:
+
+* the ``laughlab`` entry-point group (built-ins and installed third-party packages);
+* a folder of plugin modules given by path (``plugins_dir=...`` or
+  :func:`load_plugin_dir`), like datasette's plugins directory;
+* objects registered in code with ``pm.register(obj)`` (tests do this).
+"""
+from __future__ import annotations
+
+import importlib.util
+import sys
+from dataclasses import dataclass, fields, is_dataclass
+from pathlib import Path
+from typing import Any
+
+import pluggy
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from laughlab.core import hookspecs
+from laughlab.core.errors import LaughlabError
+
+hookimpl = pluggy.HookimplMarker("laughlab")
+
+#: plugin kind -> the hook that registers it
+KINDS: dict[str, str] = {
+    "source": "register_sources",
+    "extractor": "register_extractors",
+    "detector": "register_detectors",
+    "face": "register_faces",
+    "body": "register_bodies",
+    "scheduler": "register_schedulers",
+    "sink": "register_sinks",
+    "metric": "register_metrics",
+}
+
+pm = pluggy.PluginManager("laughlab")
+pm.add_hookspecs(hookspecs)
+_loaded_entry_points = False
+_EP_ORIGINS: dict[str, str] = {}  # entry-point plugin name -> "distribution version (entry point)"
+
+
+@dataclass(frozen=True)
+class PluginInfo:
+    """One registered plugin: its kind, name, class and where it comes from."""
+
+    kind: str
+    name: str
+    obj: Any
+    origin: str
+
+
+def load_entry_points() -> None:
+    """Load every plugin of the ``laughlab`` entry-point group (once)."""
+    global _loaded_entry_points
+    if not _loaded_entry_points:
+        _loaded_entry_points = True
+        from importlib.metadata import entry_points
+
+        for ep in entry_points(group="laughlab"):
+            if pm.get_plugin(ep.name) is not None or pm.is_blocked(ep.name):
+                continue
+            try:
+                plugin = ep.load()
+            except Exception as exc:  # one broken plugin: say which, do not crash with a traceback
+                raise LaughlabError(f"plugin {ep.name} ({ep.value}) failed to load: {type(exc).__name__}: {exc}") \
+                    from exc
+            pm.register(plugin, name=ep.name)
+            dist = ep.dist
+            _EP_ORIGINS[ep.name] = f"{dist.metadata['name']} {dist.version} (entry point)" if dist else "entry point"
+
+
+def load_plugin_dir(path: str | Path) -> list[str]:
+    """Import every ``*.py`` module in ``path`` and register it as a plugin.
+
+    Returns the names of the modules loaded.  Raises LaughlabError if the folder
+    does not exist or a module fails to import.
+    """
+    folder = Path(path).expanduser()
+    if not folder.is_dir():
+        raise LaughlabError(f"plugins_dir {str(path)!r} is not a folder")
+    loaded = []
+    for file in sorted(folder.glob("*.py")):
+        mod_name = f"laughlab_local_plugins.{file.stem}"
+        if pm.get_plugin(mod_name) is not None:
+            continue
+        spec = importlib.util.spec_from_file_location(mod_name, file)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[mod_name] = module  # before executing: dataclasses look their module up there
+        try:
+            spec.loader.exec_module(module)
+        except Exception as exc:  # a broken user plugin is a user error
+            del sys.modules[mod_name]
+            raise LaughlabError(f"plugin {file} failed to import: {type(exc).__name__}: {exc}") from exc
+        pm.register(module, name=mod_name)
+        loaded.append(mod_name)
+    return loaded
+
+
+def _origin(plugin: Any) -> str:
+    name = pm.get_name(plugin) or repr(plugin)
+    if name in _EP_ORIGINS:
+        return _EP_ORIGINS[name]
+    if name.startswith("laughlab_local_plugins."):
+        return f"plugins dir: {getattr(plugin, '__file__', name)}"
+    return f"registered: {name}"
+
+
+def registry() -> dict[str, dict[str, PluginInfo]]:
+    """All plugins, ``{kind: {name: PluginInfo}}``, names sorted."""
+    load_entry_points()
+    out: dict[str, dict[str, PluginInfo]] = {k: {} for k in KINDS}
+    for kind, hook_name in KINDS.items():
+        hook = getattr(pm.hook, hook_name)
+        for impl in hook.get_hookimpls():
+            found: list = []
+            impl.function(found.append)
+            for obj in found:
+                name = getattr(obj, "name", None) or getattr(obj, "__name__", None)
+                if not name:
+                    raise LaughlabError(f"a {kind} plugin from {_origin(impl.plugin)} has no name")
+                if name in out[kind]:
+                    prev = out[kind][name]
+                    raise LaughlabError(
+                        f"{kind} plugin {name!r} is registered twice: {prev.origin} and {_origin(impl.plugin)}"
+                    )
+                out[kind][name] = PluginInfo(kind, name, obj, _origin(impl.plugin))
+        out[kind] = dict(sorted(out[kind].items()))
+    return out
+
+
+def get(kind: str, name: str) -> PluginInfo:
+    """Look up one plugin; unknown names fail with the list of known ones."""
+    known = registry()[kind]
+    if name not in known:
+        raise LaughlabError(f"unknown {kind} {name!r}; choose one of: {', '.join(known) or '(none)'}")
+    return known[name]
+
+
+def make_params(cls: type, values: Any, where: str) -> Any:
+    """Validate ``values`` against the plugin's ``Params`` dataclass.
+
+    Unknown keys, wrong types and out-of-range values (checked by the dataclass'
+    ``__post_init__``) raise LaughlabError with one line naming the valid keys.
+    """
+    params_cls = getattr(cls, "Params", None)
+    if values is None:
+        values = {}
+    if isinstance(values, DictConfig):
+        values = OmegaConf.to_container(values, resolve=True)
+    values = {k: v for k, v in dict(values).items() if k != "name"}
+    if params_cls is None or not is_dataclass(params_cls):
+        if values:
+            raise LaughlabError(f"{where} takes no parameters (got {', '.join(values)})")
+        return None
+    valid = [f.name for f in fields(params_cls)]
+    for key in values:
+        if key not in valid:
+            raise LaughlabError(f"unknown parameter {where}.{key}; valid: {', '.join(valid) or '(none)'}")
+    try:
+        merged = OmegaConf.merge(OmegaConf.structured(params_cls), values)
+        return OmegaConf.to_object(merged)
+    except OmegaConfBaseException as exc:
+        msg = str(exc).splitlines()[0]
+        key = getattr(exc, "full_key", None)
+        raise LaughlabError(f"bad parameter {where}.{key}: {msg}" if key else f"bad parameter in {where}: {msg}") \
+            from None
+    except (ValueError, TypeError) as exc:
+        raise LaughlabError(f"bad parameter in {where}: {exc}") from None
+
+
+def create(kind: str, name: str, values: Any, ctx: Any, where: str | None = None) -> Any:
+    """Build a plugin instance from its name and parameter values."""
+    info = get(kind, name)
+    params = make_params(info.obj, values, where or f"{kind}.{name}")
+    return info.obj(params, ctx)
+
+
+def check_range(name: str, value: float, lo: float | None = None, hi: float | None = None,
+                lo_open: bool = False) -> None:
+    """Raise ValueError naming ``name`` if ``value`` is outside [lo, hi] (or (lo, hi])."""
+    if value != value:  # NaN
+        raise ValueError(f"{name} must be a number (got nan)")
+    if lo is not None and (value <= lo if lo_open else value < lo):
+        raise ValueError(f"{name} must be {'>' if lo_open else '>='} {lo} (got {value})")
+    if hi is not None and value > hi:
+        raise ValueError(f"{name} must be <= {hi} (got {value})")

@@ -1,0 +1,1 @@
+"""Real-time laughter detection: features, the model, the gate, and its fitting on the corpus."""

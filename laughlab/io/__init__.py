@@ -1,0 +1,1 @@
+"""File and stream formats: audio blocks, BVH, Praat TextGrids, VMC over OSC."""

@@ -1,0 +1,139 @@
+"""Cutting audio into one block per animation frame, reading files in blocks."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable, Iterator
+
+import numpy as np
+
+from laughlab.core.errors import LaughlabError
+
+#: sample rates the ``file`` source accepts (Hz)
+MIN_RATE, MAX_RATE = 8000, 192000
+
+
+def frame_edges(n_frames: int, sample_rate: int, fps: float) -> np.ndarray:
+    """Sample index where each frame starts, plus the end: ``round(k * sr / fps)``, k = 0..n."""
+    return np.round(np.arange(n_frames + 1) * (sample_rate / fps)).astype(np.int64)
+
+
+def n_frames_for(n_samples: int, sample_rate: int, fps: float) -> int:
+    """Number of whole-or-partial frames covering ``n_samples`` samples."""
+    return int(np.ceil(n_samples * fps / sample_rate - 1e-9)) if n_samples > 0 else 0
+
+
+def cut_frames(chunks: Iterable[np.ndarray], sample_rate: int, fps: float) -> Iterator[np.ndarray]:
+    """Re-cut a stream of sample chunks into per-frame blocks.
+
+    Frame k holds samples ``[round(k*sr/fps), round((k+1)*sr/fps))``; the last
+    frame may be shorter.  Blocks are float32 views, valid until the next one.
+    """
+    step = sample_rate / fps
+    buf = np.zeros(0, dtype=np.float32)
+    k, consumed = 0, 0  # frame index, samples dropped from the front of buf
+    for chunk in chunks:
+        buf = np.concatenate([buf, np.asarray(chunk, dtype=np.float32)]) if len(buf) else \
+            np.asarray(chunk, dtype=np.float32)
+        pos = 0
+        while True:
+            start = int(round(k * step)) - consumed
+            end = int(round((k + 1) * step)) - consumed
+            if end > len(buf):
+                break
+            yield buf[start:end]
+            k += 1
+            pos = end
+        buf = buf[pos:]
+        consumed += pos
+    if len(buf):
+        yield buf
+
+
+def to_mono(data: np.ndarray) -> np.ndarray:
+    """Mix channels to mono by their mean (float32)."""
+    if data.ndim == 2:
+        return data.mean(axis=1, dtype=np.float32) if data.shape[1] > 1 else data[:, 0]
+    return data.astype(np.float32, copy=False)
+
+
+def probe_file(path: str | Path):
+    """Open an audio file with soundfile and check it; return its ``soundfile.info``.
+
+    Raises LaughlabError with one line for a missing, empty, unreadable or
+    zero-length file or an unsupported sample rate.
+    """
+    import soundfile as sf
+
+    p = Path(path).expanduser()
+    if not p.exists():
+        raise LaughlabError(f"input file not found: {path}")
+    if p.is_dir():
+        raise LaughlabError(f"input path is a folder, not an audio file: {path}")
+    if p.stat().st_size == 0:
+        raise LaughlabError(f"input file is empty: {path}")
+    try:
+        info = sf.info(str(p))
+    except Exception as exc:
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise LaughlabError(f"cannot read audio from {path}: {reason}") from None
+    if info.frames <= 0:
+        raise LaughlabError(f"input file has no audio samples: {path}")
+    if not MIN_RATE <= info.samplerate <= MAX_RATE:
+        raise LaughlabError(f"sample rate {info.samplerate} Hz of {path} is outside {MIN_RATE}-{MAX_RATE} Hz")
+    return info
+
+
+def read_blocks(path: str | Path, block_s: float = 1.0) -> Iterator[np.ndarray]:
+    """Yield the file's audio as mono float32 chunks of about ``block_s`` seconds.
+
+    Memory stays constant whatever the file's length.
+    """
+    import soundfile as sf
+
+    with sf.SoundFile(str(Path(path).expanduser())) as f:
+        n = max(1, int(f.samplerate * block_s))
+        while True:
+            data = f.read(n, dtype="float32", always_2d=True)
+            if len(data) == 0:
+                break
+            yield to_mono(data)
+
+
+class FloatWavWriter:
+    """Streams mono 32-bit float WAV (IEEE float, format 3) with a deterministic header.
+
+    libsndfile adds a PEAK chunk with a time stamp to float WAV files, so the
+    same audio would give different bytes on every run; this writer does not.
+    """
+
+    def __init__(self, path: str | Path, sample_rate: int):
+        self.f = open(path, "wb")
+        self.sample_rate = int(sample_rate)
+        self.n = 0
+        self._header()
+
+    def _header(self) -> None:
+        import struct
+
+        data_bytes = 4 * self.n
+        self.f.write(b"RIFF" + struct.pack("<I", 4 + 26 + 12 + 8 + data_bytes) + b"WAVE")
+        # fmt chunk: IEEE float, mono, rate, byte rate, block align 4, 32 bits, cbSize 0
+        self.f.write(b"fmt " + struct.pack("<IHHIIHHH", 18, 3, 1, self.sample_rate, 4 * self.sample_rate, 4, 32, 0))
+        self.f.write(b"fact" + struct.pack("<II", 4, self.n))
+        self.f.write(b"data" + struct.pack("<I", data_bytes))
+
+    def write(self, samples: np.ndarray) -> None:
+        x = np.asarray(samples, dtype="<f4")
+        self.f.write(x.tobytes())
+        self.n += len(x)
+
+    def close(self) -> None:
+        self.f.seek(0)
+        self._header()
+        self.f.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

@@ -1,0 +1,1 @@
+"""Body motion primitives: the humanoid skeleton and forward kinematics, the clip library, seeded noise."""

@@ -1,0 +1,150 @@
+"""Figures in the style of the thesis (van Duijn 2014): Fig. 3.2 and Fig. 4.2."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from laughlab.signals.smoothing import THESIS_TICK_HZ, rate_limit_series  # noqa: E402
+
+#: the two rise/fall settings of the thesis' Fig. 3.2 (per tick): green 0.5/0.3, blue 0.2/0.1
+FIG32_SETTINGS = ((0.5, 0.3, "tab:green"), (0.2, 0.1, "tab:blue"))
+
+
+def _shade_bouts(ax, bouts) -> None:
+    for i, b in enumerate(bouts or ()):
+        ax.axvspan(b[0], b[1], color="0.9", zorder=0, label="laughter bout (truth)" if i == 0 else None)
+
+
+def _setup_axis(ax) -> None:
+    ax.spines[["top", "right"]].set_visible(False)
+    ax.grid(alpha=0.3, linewidth=0.5)
+
+
+def busiest_window(times: np.ndarray, signal: np.ndarray, window_s: float) -> tuple[float, float]:
+    """The ``window_s``-long stretch of ``times`` where ``signal`` has the most mass."""
+    if len(times) < 2 or times[-1] - times[0] <= window_s:
+        return (float(times[0]) if len(times) else 0.0, float(times[-1]) if len(times) else window_s)
+    dt = times[1] - times[0]
+    n = max(1, int(round(window_s / dt)))
+    mass = np.convolve(np.asarray(signal, float), np.ones(n), mode="valid")
+    i = int(np.argmax(mass))
+    return float(times[i]), float(times[i] + window_s)
+
+
+def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, power: float = 2.0,
+               bouts: Sequence | None = None, title: str = "", window_s: float = 4.0) -> Path:
+    """Fig. 3.2: the MCS unfiltered and with two rise/fall settings (Eq. 3.2).
+
+    Rates are the thesis' per-tick values converted at 60 ticks/s; all three
+    curves are raised to ``power`` like the final MCS (listing 5.2).  Left: the
+    whole run; right: the ``window_s`` seconds with the most laughter, where the
+    individual calls and the effect of rise and fall can be seen.
+    """
+    raw = np.asarray(mcs_raw, float)
+    curves = [(raw ** power, "tab:red", 0.8, "MCS, no rise/fall")]
+    for rise, fall, color in FIG32_SETTINGS:
+        y = rate_limit_series(raw, rise * THESIS_TICK_HZ, fall * THESIS_TICK_HZ, dt) ** power
+        curves.append((y, color, 1.1, f"rise {rise}, fall {fall} per tick"))
+    fig, (ax_all, ax_zoom) = plt.subplots(1, 2, figsize=(8.0, 2.9), dpi=150, layout="constrained",
+                                          width_ratios=(1, 1.6), sharey=True)
+    t0, t1 = busiest_window(times, raw, window_s)
+    for ax, lo, hi in ((ax_all, times[0] if len(times) else 0, times[-1] if len(times) else 1), (ax_zoom, t0, t1)):
+        _shade_bouts(ax, bouts)
+        for y, color, lw, label in (curves if ax is ax_zoom else curves[:1]):
+            ax.plot(times, y, color=color, lw=lw, label=label)
+        ax.set_xlim(lo, hi)
+        ax.set_xlabel("time (s)")
+        _setup_axis(ax)
+    ax_all.axvspan(t0, t1, color="tab:orange", alpha=0.15, lw=0)
+    ax_all.set_ylabel("motion control signal")
+    ax_all.set_ylim(-0.02, 1.05)
+    ax_all.set_title("whole run (zoom shaded)", fontsize=8)
+    ax_zoom.set_title(f"zoom: {t0:.1f}-{t1:.1f} s", fontsize=8)
+    fig.suptitle(title or "Motion control signal and rise/fall (cf. van Duijn 2014, Fig. 3.2)", fontsize=9)
+    fig.legend(*ax_zoom.get_legend_handles_labels(), fontsize=7, loc="outside lower center", ncols=4,
+               frameon=False)
+    fig.savefig(path, format="png")
+    plt.close(fig)
+    return path
+
+
+def clip_blocks(events: Sequence, end_time: float) -> list[tuple[str, float, float, float]]:
+    """Pair clip start and stop events into ``(clip, start_s, stop_s, energy)`` blocks."""
+    blocks, open_ = [], {}
+    for ev in events:
+        if ev.kind == "start":
+            open_[ev.clip] = ev
+        elif ev.kind == "stop" and ev.clip in open_:
+            s = open_.pop(ev.clip)
+            blocks.append((ev.clip, s.time_s, ev.time_s, s.energy))
+    for name, s in open_.items():
+        blocks.append((name, s.time_s, end_time, s.energy))
+    return sorted(blocks, key=lambda b: b[1])
+
+
+def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
+               bouts: Sequence | None = None, title: str = "") -> Path:
+    """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom)."""
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.0, 4.2), dpi=150, sharex=True, layout="constrained",
+                                   height_ratios=(1, 2))
+    _shade_bouts(ax1, bouts)
+    _shade_bouts(ax2, bouts)
+    ax1.plot(times, mcs, color="tab:red", lw=0.8, label="MCS")
+    ax1.set_ylabel("MCS")
+    ax1.set_ylim(-0.02, 1.05)
+    end = float(times[-1]) if len(times) else 0.0
+    blocks = clip_blocks(events, end)
+    names = sorted({b[0] for b in blocks})
+    cmap = plt.get_cmap("tab20")
+    colors = {n: cmap(i % 20) for i, n in enumerate(names)}
+    for name, t0, t1, e in blocks:
+        ax2.add_patch(plt.Rectangle((t0, 0), t1 - t0, e, facecolor=colors[name], alpha=0.55,
+                                    edgecolor="0.3", lw=0.4))
+        if t1 - t0 > 0.04 * max(end, 1e-9):
+            ax2.text(t0 + 0.01 * end, e, name, fontsize=5.5, va="bottom", ha="left", rotation=0)
+    ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L")
+    ax2.set_ylabel("laughing energy / clip energy")
+    ax2.set_xlabel("time (s)")
+    top = max([b[3] for b in blocks] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
+    ax2.set_ylim(0, top * 1.15)
+    ax2.set_xlim(times[0] if len(times) else 0, end or 1)
+    ax1.set_title(title or "Laughing energy and clip selection (cf. van Duijn 2014, Fig. 4.2)", fontsize=9)
+    handles, labels = ax2.get_legend_handles_labels()
+    ax2.legend(handles, labels, fontsize=7, loc="upper right", frameon=False)
+    for ax in (ax1, ax2):
+        _setup_axis(ax)
+    fig.savefig(path, format="png")
+    plt.close(fig)
+    return path
+
+
+def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captions: Sequence[str],
+              title: str = "") -> Path:
+    """A row of stick figures (the run's skeleton at chosen frames) with a caption under each."""
+    from laughlab.render.figure import draw_skeleton
+    from laughlab.motion.skeleton import forward_kinematics
+
+    n = len(times)
+    fig, axes = plt.subplots(1, max(n, 1), figsize=(1.25 * max(n, 1), 2.0), dpi=150, squeeze=False)
+    if n:
+        pos = forward_kinematics(skeleton, np.asarray(poses), end_sites=True)
+    for k, ax in enumerate(axes[0]):
+        ax.set_axis_off()
+        if k >= n:
+            continue
+        draw_skeleton(ax, skeleton, pos[k, :skeleton.n_joints], pos[k, skeleton.n_joints:], 60.0, 10.0, lw=1.4)
+        ax.set_xlim(-110, 110)
+        ax.set_ylim(-8, 195)
+        ax.set_title(f"{times[k]:.1f} s", fontsize=7, pad=1)
+        ax.text(0.5, -0.02, captions[k], transform=ax.transAxes, ha="center", va="top", fontsize=5.5)
+    fig.suptitle(title or "The character at each clip (skeleton from motion.bvh)", fontsize=8)
+    fig.subplots_adjust(left=0.01, right=0.99, top=0.84, bottom=0.2, wspace=0.05)
+    fig.savefig(path, format="png")
+    plt.close(fig)
+    return path

@@ -1,0 +1,1 @@
+"""Seeded synthetic laughter with ground truth: the built-in default input."""
