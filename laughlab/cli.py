@@ -49,8 +49,8 @@ def _check_overrides(overrides: list[str]) -> None:
                 fail(f"unknown {group} {choice!r}; choose one of: {', '.join(options) or '(none)'}")
 
 
-def preflight(argv: list[str]) -> None:
-    """Check everything a run needs before Hydra writes anything."""
+def preflight(argv: list[str]):
+    """Check everything a run needs before Hydra writes anything; the composed configuration."""
     from omegaconf import OmegaConf
 
     from laughlab.core import pipeline
@@ -62,7 +62,7 @@ def preflight(argv: list[str]) -> None:
             plugins.load_plugin_dir(ov.split("=", 1)[1])
     register_plugin_configs()
     _check_overrides(overrides)
-    cfg = compose_config(overrides)
+    cfg = compose_config(overrides, job_name="cli")
     run_dir = Path(cfg.hydra.run.dir)
     if run_dir.exists() and not cfg.get("overwrite", False):
         if not run_dir.is_dir():
@@ -78,9 +78,33 @@ def preflight(argv: list[str]) -> None:
         if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
             check_conditions(cfg.harness.get("conditions"))
             build_corpus(OmegaConf.to_container(cfg.harness.get("corpus") or {}, resolve=True))
+    full = cfg
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
     pipe = pipeline.build(cfg)
     pipe.source.close()
+    return full
+
+
+def run_composed(cfg) -> None:
+    """Run one job on the configuration :func:`preflight` composed, as ``hydra.main`` would.
+
+    The same steps as Hydra's own single run (``hydra.core.utils.run_job``: the run directory,
+    ``.hydra/`` with config, hydra and overrides, the job's logging), without composing the
+    configuration twice more (about 0.3 s of every run's start-up).
+    """
+    from hydra._internal.callbacks import Callbacks
+    from hydra.core.utils import run_job
+    from hydra.types import HydraContext, RunMode
+    from omegaconf import open_dict
+
+    with open_dict(cfg):
+        cfg.hydra.mode = RunMode.RUN
+    callbacks = Callbacks(cfg)
+    callbacks.on_run_start(config=cfg, config_name="config")
+    ret = run_job(hydra_context=HydraContext(config_loader=None, callbacks=callbacks), task_function=task,
+                  config=cfg, job_dir_key="hydra.run.dir", job_subdir_key=None, configure_logging=True)
+    callbacks.on_run_end(config=cfg, config_name="config", job_return=ret)
+    _ = ret.return_value  # re-raises what the job raised
 
 
 def list_plugins() -> None:
@@ -276,12 +300,15 @@ def main(argv: list[str] | None = None) -> None:
     hydra_only = any(a.split("=")[0] in _HYDRA_FLAGS for a in argv)
     try:
         if not multirun and not hydra_only:
-            preflight(argv)
+            cfg = preflight(argv)
         else:
             register_plugin_configs()
             _check_overrides(_overrides(argv))
     except LaughlabError as exc:
         fail(str(exc))
+    if not multirun and not hydra_only:
+        run_composed(cfg)
+        return
     import hydra
 
     sys.argv = [sys.argv[0], *argv]

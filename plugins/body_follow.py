@@ -58,7 +58,6 @@ import weakref
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.linalg import expm
 
 from laughlab import hookimpl
 from laughlab.core.bases import Body
@@ -106,6 +105,8 @@ class PDController:
         """``expm(A dt)`` with ``A = [[0, 1], [-kp, -kd]]`` (cached for the last dt)."""
         if dt != self._dt:
             self._dt = dt
+            from scipy.linalg import expm  # imported when used (scipy.linalg ~0.14 s)
+
             self._m = expm(np.array([[0.0, 1.0], [-self.kp, -self.kd]]) * dt)
             self._mf = tuple(float(v) for v in self._m.ravel())
         return self._m

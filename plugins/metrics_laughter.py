@@ -7,7 +7,6 @@ metrics that need the truth are NaN without it.
 from __future__ import annotations
 
 import numpy as np
-from scipy import stats
 
 from laughlab import hookimpl
 from laughlab.harness.metrics import best_lag_correlation, finite_percentile, metric
@@ -28,6 +27,8 @@ def _tracking(trial: TrialData, animation: np.ndarray | None):
     if np.isnan(r):
         return r, float("nan"), lag_s
     n = min(len(x), len(animation))
+    from scipy import stats
+
     rho = float(stats.spearmanr(x[: n - k], animation[k:n]).statistic)
     return r, rho, lag_s
 

@@ -82,7 +82,6 @@ from dataclasses import dataclass
 from typing import Iterator, Sequence
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 from laughlab.motion.skeleton import forward_kinematics
 
@@ -381,6 +380,8 @@ def build(library, rules: SegmentRules = SegmentRules()) -> SegmentDB:
         pitch = clip.poses[:, pitch_cols].sum(axis=1)
         lo, hi = SHAKE_BAND_HZ
         if n > 12 and hi < 0.5 * fps:
+            from scipy.signal import butter, sosfiltfilt  # imported when used (~0.6 s)
+
             sos = butter(2, [lo, hi], btype="band", fs=fps, output="sos")
             band = sosfiltfilt(sos, pitch, padlen=min(n - 1, 3 * (2 * len(sos) + 1)))
         else:  # too short or too coarse to see a 4-5 Hz shake

@@ -25,7 +25,6 @@ from dataclasses import dataclass
 from importlib import resources
 
 import numpy as np
-import scipy.fft as _fft
 
 #: highest frequency used (Hz)
 BAND_HZ = 5000.0
@@ -176,6 +175,8 @@ class FeatureStream:
             self.buf = x = np.where(np.isfinite(x), x, 0.0)
             pw = float(np.dot(x, x))
         self.level_dbfs = 10.0 * math.log10(pw / self.win + 1e-14)
+        from scipy import fft as _fft  # imported on first use (scipy.fft ~0.15 s at start-up)
+
         spec = _fft.rfft(x * self.window, self.nfft)
         p = spec.real ** 2 + spec.imag ** 2
         pb = p[self.k100: self.kmax] + 1e-12
@@ -252,6 +253,8 @@ class FeatureStream:
         # active frames, summed over coefficients, at the call-period lags (0.12-0.33 s)
         C = H[:, 6:-1] * act[:, None]
         C = C - (C.sum(axis=0) / max(na, 1.0)) * act[:, None]
+        from scipy import fft as _fft  # imported on first use (scipy.fft ~0.15 s at start-up)
+
         R = _fft.irfft(np.abs(_fft.rfft(C, 2 * nl, axis=0)) ** 2, 2 * nl, axis=0).sum(axis=1)
         cper = float(R[self.lag_lo:self.lag_hi + 1].max()) / (float(R[0]) + 1e-12)
         return np.array([

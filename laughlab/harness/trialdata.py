@@ -10,9 +10,12 @@ import json
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:  # pandas is imported where a table is read (it costs ~0.15 s at start-up)
+    import pandas as pd
 
 #: the library's idle clip: its plays are not laughter clips
 IDLE = "idle"
@@ -45,6 +48,8 @@ class Truth:
     @classmethod
     def load(cls, path: str | Path) -> "Truth":
         """A ``truth.csv``, or an annotation (Audacity labels ``.txt``, Praat ``.TextGrid``)."""
+        import pandas as pd
+
         if str(path).lower().endswith((".txt", ".textgrid")):
             from laughlab.corpora.annotations import read
 
@@ -89,6 +94,8 @@ class TrialData:
 
     @classmethod
     def load(cls, run_dir: str | Path, truth: str | Path | None = None) -> "TrialData":
+        import pandas as pd
+
         d = Path(run_dir)
         ch = pd.read_csv(d / "channels.csv")
         ev = pd.read_csv(d / "events.csv", keep_default_na=False, na_values={"end": [""]})
@@ -160,6 +167,8 @@ class TrialData:
 
     def plays(self) -> pd.DataFrame:
         """One row per played clip: clip, energy, start, stop (s), speed, length (clip s), played fraction, reason."""
+        import pandas as pd
+
         rows, open_ = [], {}
         end_of_run = self.duration_s
         for ev in self.events.itertuples(index=False):

@@ -123,7 +123,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from laughlab.hill import kernel as hill_kernel
 from laughlab.hill.lung import CMH2O_PER_ATM, P_ATM, Lung, LungParams
 from laughlab.core.plugins import check_range
 
@@ -556,7 +555,12 @@ class Torso:
         self._kp = p.spine_kp_nm_per_rad
         # the step runs in one compiled loop when numba is there (laughlab.hill.kernel); the explicit
         # flow scheme has no compiled step
-        self._kernel = hill_kernel.AVAILABLE and p.lung.scheme == "implicit"
+        if p.lung.scheme == "implicit":
+            from laughlab.hill import kernel as hill_kernel  # numba: imported only when a torso is built
+
+            self._kernel = hill_kernel.AVAILABLE
+        else:
+            self._kernel = False
         self.reset()
         # preload: the rest pose is an equilibrium at the rest activations
         z = np.zeros((1, NQ))
@@ -694,6 +698,8 @@ class Torso:
                 setattr(lung, name, arr.copy())
         v_cw = np.empty(b)
         ptm_a = lung._ptm_a if isinstance(lung._ptm_a, np.ndarray) else np.full(b, lung._ptm_a)
+        from laughlab.hill import kernel as hill_kernel
+
         hill_kernel.step_batch(
             self.q, self.qd, a, spine, float(dt), self._jt_over_l, self._gj, self.k_lin, self.d_lin, self.f_pre,
             float(self._kp), ISP, self.J, self.gain, self._g_over_l, self._w_lin(dt), self._k_pe, self._b_pe,

@@ -40,10 +40,12 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from numbers import Integral, Real
 from os import PathLike
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
-from scipy.signal import lfilter
+
+if TYPE_CHECKING:  # pandas and scipy.signal are imported where used (~0.7 s at start-up otherwise)
+    import pandas as pd
 
 __all__ = ["PROFILES", "Bout", "Call", "SyntheticLaughter"]
 
@@ -493,6 +495,8 @@ class SyntheticLaughter:
         # Weak breath noise in the gap up to the next call of the bout.
         g = n - n_call
         src[n_call:] = _GAP_NOISE_GAIN * np.sin(np.pi * np.arange(g) / g) * noise[n_call:]
+        from scipy.signal import lfilter
+
         y = lfilter(self._vowel[0], self._vowel[1], src)
         peak = np.max(np.abs(y[:max(n_call, 1)]))
         gain = 10.0 ** (self.level_dbfs / 20.0) * c.intensity ** _LOUDNESS_EXP
@@ -506,6 +510,8 @@ class SyntheticLaughter:
         b = self._inhales[k][2]
         u = np.arange(n) / max(n - 1, 1)
         env = np.sin(np.pi * u ** 0.7) ** 1.5  # quick rise, slow release
+        from scipy.signal import lfilter
+
         y = lfilter(self._breath[0], self._breath[1], rng.standard_normal(n) * env)
         level = self.bouts[b].intensity
         peak = np.max(np.abs(y)) if n else 1.0
@@ -562,6 +568,8 @@ class SyntheticLaughter:
                 rows.append(("call", b, c.onset_s, c.offset_s, c.intensity, c.f0_hz))
                 i += 1
         columns = ["kind", "bout", "onset_s", "offset_s", "intensity", "f0_hz"]
+        import pandas as pd
+
         return pd.DataFrame(rows, columns=columns)
 
     def write_truth(self, path: str | PathLike) -> None:
