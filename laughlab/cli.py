@@ -298,6 +298,10 @@ def main(argv: list[str] | None = None) -> None:
         return
     multirun = any(a in ("-m", "--multirun") for a in argv)
     hydra_only = any(a.split("=")[0] in _HYDRA_FLAGS for a in argv)
+    if not multirun and not hydra_only and "input=mic" not in argv:
+        from laughlab.core import background
+
+        background.start()  # forked now, it imports the plotting modules while we compose
     try:
         if not multirun and not hydra_only:
             cfg = preflight(argv)

@@ -43,6 +43,7 @@ class ArkitSink(Sink):
     """
 
     name = "arkit"
+    background = True  # only writes files: may run in the helper process
     Params = ArkitParams
 
     def open(self, run) -> None:

@@ -19,6 +19,7 @@ class BvhSink(Sink):
     """
 
     name = "bvh"
+    background = True  # only writes files: may run in the helper process
 
     def open(self, run) -> None:
         super().open(run)

@@ -43,6 +43,7 @@ class CsvSink(Sink):
     """
 
     name = "csv"
+    background = True  # only writes files: may run in the helper process
     Params = CsvParams
 
     def open(self, run) -> None:

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from laughlab import hookimpl
+from laughlab.core.background import parallel
 from laughlab.core.bases import Sink
 from laughlab.core.outfiles import Staging
 from laughlab.core.plugins import check_range
@@ -45,6 +46,7 @@ class PlotsSink(Sink):
     """
 
     name = "plots"
+    background = True  # only writes files: may run in the helper process
     Params = PlotsParams
     _keys = ("mcs_raw", "mcs", "energy", "smile", "jaw", "eyes_closed")
     _pose_hz = 5.0
@@ -84,14 +86,18 @@ class PlotsSink(Sink):
         bouts = [(b.onset_s, b.offset_s) for b in truth.bouts] if truth is not None else None
         out = self.run.out_dir / "plots"
         t = data["time"]
+        jobs = []
         if "mcs_raw" in data:
-            plots.figure_3_2(self.staging.path(out / "fig3_2_mcs.png"), t, data["mcs_raw"], 1.0 / self.run.fps,
-                             self.params.power, bouts)
+            path = self.staging.path(out / "fig3_2_mcs.png")
+            jobs.append(lambda: plots.figure_3_2(path, t, data["mcs_raw"], 1.0 / self.run.fps, self.params.power,
+                                                 bouts))
         if "mcs" in data and "energy" in data:
-            plots.figure_4_2(self.staging.path(out / "fig4_2_energy.png"), t, data["mcs"], data["energy"],
-                             self.events, bouts)
+            path42 = self.staging.path(out / "fig4_2_energy.png")
+            jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts))
         if self.params.filmstrip_frames and self.poses:
-            self._filmstrip(out / "filmstrip.png", data)
+            strip = self.staging.path(out / "filmstrip.png")
+            jobs.append(lambda: self._filmstrip(strip, data))
+        parallel(jobs)  # side by side in the helper process, one by one otherwise
         return self.staging.commit()
 
     def _filmstrip(self, path, data) -> None:
@@ -110,7 +116,7 @@ class PlotsSink(Sink):
         for (t, name), f in zip(wanted, frames):
             face = ", ".join(f"{k} {data[k][f]:.2f}" for k in ("smile", "jaw") if k in data)
             caps.append(f"{name}\n{face}")
-        plots.filmstrip(self.staging.path(path), self.run.skeleton, frames / self.run.fps, poses[pick], caps)
+        plots.filmstrip(path, self.run.skeleton, frames / self.run.fps, poses[pick], caps)
 
     def abort(self) -> None:
         self.staging.abort()

@@ -237,6 +237,10 @@ class Sink(Plugin):
     """
 
     kind = "sink"
+    #: may run in the helper process of an offline run (:mod:`laughlab.core.background`): the sink
+    #: only writes files, pickles, and uses nothing of ``run.source`` but ``name``, ``live``,
+    #: ``sample_rate``, ``n_frames`` and ``truth``
+    background: ClassVar[bool] = False
 
     def open(self, run: RunInfo) -> None:
         self.run = run

@@ -199,8 +199,15 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
     times_ns = array("q")  # per-frame compute time (ns), 8 bytes a frame
     bar = _progress_bar(pipe)
     artifacts: list[Path] = []
+    helper, behind = _helper_for(pipe, n_chunk)
     try:
+        if helper is not None:
+            helper.open(behind, RunInfo(out_dir, ctx.fps, ctx.skeleton, src.n_frames, _source_view(src),
+                                        config or {}))
+            opened.append(helper)
         for sink in pipe.sinks:
+            if sink in behind:
+                continue
             sink.open(info)
             opened.append(sink)
         for plugin in (pipe.extractor, pipe.detector, pipe.scheduler, pipe.body, pipe.face, pipe.mixer):
@@ -263,6 +270,8 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             Path(path).unlink(missing_ok=True)
         raise
     finally:
+        if helper is not None:
+            helper.stop()
         if bar is not None:
             bar.close()
         for stage in (pipe.body, pipe.face):   # stages with a worker thread (e.g. body=hill control=fit live)
@@ -270,6 +279,23 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             if callable(stop):
                 stop()
         src.close()
+
+
+def _helper_for(pipe: Pipeline, n_chunk: int):
+    """The helper process and the sinks it runs (``background`` sinks of an offline, chunked run)."""
+    from laughlab.core import background
+
+    if n_chunk == 1 or background.helper() is None:
+        return None, []
+    behind = [s for s in pipe.sinks if getattr(s, "background", False)]
+    return (background.take(), behind) if behind else (None, [])
+
+
+def _source_view(src):
+    from laughlab.core.background import SourceView
+
+    return SourceView(getattr(src, "name", ""), bool(getattr(src, "live", False)), int(src.sample_rate),
+                      src.n_frames, getattr(src, "truth", None))
 
 
 def _plan_offline(pipe: Pipeline) -> None:

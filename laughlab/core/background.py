@@ -1,0 +1,244 @@
+"""File sinks in a helper process: the frame loop hands chunks over a pipe and goes on.
+
+Formatting ``channels.csv`` and ``motion.bvh`` and drawing the plots cost about as much as
+computing the frames.  On a machine with two or more cores an offline run forks one helper
+process at start-up; it imports the plotting modules while the main process composes the
+configuration, runs the file sinks (those whose class sets ``background = True``) on the
+chunks the frame loop sends, and draws the figures in parallel at the end.  The bytes
+written are the same as in-process (a test holds the two equal).
+
+Failures keep the sinks' contract: a sink error in the helper comes back to the main process
+as the same exception (a ``LaughlabError`` stays one line); on any failure of the run the
+helper aborts its sinks, which remove what they wrote; if the main process dies, the helper
+sees its pipe close and aborts too.  ``LAUGHLAB_WORKERS=0`` runs every sink in-process.
+Live sources and streaming sinks always run in-process (their frames go out one by one).
+"""
+from __future__ import annotations
+
+import os
+import pickle
+import signal
+import sys
+import traceback
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+#: modules the helper imports while the main process starts up
+WARM = ("numpy", "laughlab.render.plots")
+
+_HELPER: "Helper | None" = None
+#: True inside the helper process
+IN_HELPER = False
+
+
+def enabled() -> bool:
+    """Fork-based helpers: Linux, at least two usable cores, ``LAUGHLAB_WORKERS`` not 0."""
+    if os.environ.get("LAUGHLAB_WORKERS", "1").strip() == "0" or not sys.platform.startswith("linux"):
+        return False
+    try:
+        return len(os.sched_getaffinity(0)) >= 2
+    except (AttributeError, OSError):
+        return (os.cpu_count() or 1) >= 2
+
+
+def start() -> "Helper | None":
+    """Fork the helper now (early: before heavy imports and threads) if :func:`enabled`."""
+    global _HELPER
+    if _HELPER is None and enabled():
+        _HELPER = Helper()
+    return _HELPER
+
+
+def helper() -> "Helper | None":
+    """The helper started by :func:`start` and not yet used, or None."""
+    return _HELPER
+
+
+def take() -> "Helper | None":
+    """Hand the helper to one run (a helper serves one run)."""
+    global _HELPER
+    h, _HELPER = _HELPER, None
+    return h
+
+
+@dataclass
+class SourceView:
+    """What a sink in the helper may ask of the source (the source itself stays in the main process)."""
+
+    name: str
+    live: bool
+    sample_rate: int
+    n_frames: int | None
+    truth: Any = None
+
+
+class Helper:
+    """One forked process that runs a run's background sinks."""
+
+    def __init__(self):
+        import multiprocessing as mp
+
+        ctx = mp.get_context("fork")
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_serve, args=(child, self.conn), daemon=True, name="laughlab-sinks")
+        self.proc.start()
+        child.close()
+        self.failed: BaseException | None = None
+
+    # the main process' side -------------------------------------------------------------
+    def open(self, sinks: Sequence, info) -> None:
+        self._send(("open", list(sinks), info))
+
+    def write(self, chunk) -> None:
+        if self.conn.poll():  # an early failure in the helper ends the run now
+            self._raise(self.conn.recv())
+        self._send(("write", chunk))
+
+    def close(self) -> list:
+        self._send(("close",))
+        reply = self._recv()
+        if reply[0] != "ok":
+            self._raise(reply)
+        return reply[1]
+
+    def abort(self) -> None:
+        try:
+            self.conn.send(("abort",))
+            while True:  # skip an error report sent before the abort
+                if self.conn.recv()[0] == "aborted":
+                    break
+        except (OSError, EOFError):
+            pass
+
+    def stop(self) -> None:
+        try:
+            self.conn.send(("quit",))
+        except OSError:
+            pass
+        self.proc.join(timeout=5)
+        if self.proc.is_alive():
+            self.proc.kill()
+        self.conn.close()
+
+    def _send(self, msg) -> None:
+        try:
+            self.conn.send(msg)
+        except (BrokenPipeError, ConnectionResetError):
+            self._raise(self._recv())
+
+    def _recv(self):
+        try:
+            return self.conn.recv()
+        except EOFError:
+            raise RuntimeError(f"the sink helper process ended unexpectedly (exit {self.proc.exitcode})") from None
+
+    @staticmethod
+    def _raise(reply):
+        if reply[0] == "error":
+            raise reply[1]
+        raise RuntimeError(f"sink helper: {reply[1]}")
+
+
+def _error(exc: BaseException):
+    """The exception itself if it survives pickling, else a RuntimeError with its traceback."""
+    try:
+        pickle.loads(pickle.dumps(exc))
+        return ("error", exc)
+    except Exception:
+        return ("error", RuntimeError("".join(traceback.format_exception(exc)).rstrip()))
+
+
+def _serve(conn, parent_end) -> None:
+    """The helper's loop: open, write, close or abort its sinks as the main process asks."""
+    global IN_HELPER
+    IN_HELPER = True
+    parent_end.close()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the main process, which aborts us
+    for name in WARM:
+        try:
+            __import__(name)
+        except Exception:  # a missing optional module shows up where it is used
+            pass
+    sinks: list = []
+    failed = False
+    code = 0
+    try:
+        while True:
+            try:
+                msg = conn.recv()
+            except EOFError:  # the main process is gone: remove what we wrote
+                _abort(sinks)
+                break
+            op = msg[0]
+            try:
+                if op == "write":
+                    if not failed:
+                        for s in sinks:
+                            s.write(msg[1])
+                elif op == "open":
+                    sinks = msg[1]
+                    for s in sinks:
+                        s.open(msg[2])
+                elif op == "close":
+                    if not failed:
+                        written = []
+                        for s in sinks:
+                            written += s.close() or []
+                        conn.send(("ok", written))
+                elif op == "abort":
+                    _abort(sinks)
+                    conn.send(("aborted",))
+                elif op == "quit":
+                    break
+            except BaseException as exc:  # noqa: BLE001 - every failure goes back to the main process
+                failed = True
+                _abort(sinks)
+                conn.send(_error(exc))
+    finally:
+        conn.close()
+        os._exit(code)  # no atexit handlers of the main process' state
+
+
+def _abort(sinks) -> None:
+    for s in sinks:
+        try:
+            s.abort()
+        except Exception:  # cleanup must not hide the original error
+            pass
+
+
+def parallel(jobs: Sequence[Callable[[], Any]]) -> None:
+    """Run independent jobs (e.g. drawing figures); in the helper, each in a forked child.
+
+    The helper has the cores to itself while the main process waits for it, so the jobs run
+    side by side; elsewhere they run one after another.  A job that fails in a child raises
+    here with its traceback.
+    """
+    if not IN_HELPER or len(jobs) < 2:
+        for job in jobs:
+            job()
+        return
+    children = []
+    for job in jobs:
+        r, w = os.pipe()
+        pid = os.fork()
+        if pid == 0:  # the child: draw, report, leave without running the parent's exit handlers
+            os.close(r)
+            try:
+                job()
+                msg, code = b"", 0
+            except BaseException:  # noqa: BLE001
+                msg, code = traceback.format_exc().encode(), 1
+            os.write(w, msg)
+            os._exit(code)
+        os.close(w)
+        children.append((pid, r))
+    errors = []
+    for pid, r in children:
+        with os.fdopen(r, "rb") as f:
+            msg = f.read()
+        _, status = os.waitpid(pid, 0)
+        if status:
+            errors.append(msg.decode(errors="replace") or f"a drawing process ended with status {status}")
+    if errors:
+        raise RuntimeError(errors[0])
