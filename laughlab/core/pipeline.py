@@ -124,41 +124,54 @@ def build(cfg: DictConfig) -> Pipeline:
 
 
 class _Recorder:
-    """Collects frames into chunks of arrays for the sinks."""
+    """Collects frames into chunks of arrays for the sinks.
+
+    Values go into Python lists (an append costs a third of a numpy item assignment) and
+    become arrays once per chunk; the floats are the same.
+    """
 
     def __init__(self, n: int, n_channels: int):
         self.n = n
-        self.times = np.empty(n)
-        self.poses = np.empty((n, n_channels))
-        self.capture = np.zeros(n, dtype=np.int64)
-        self.values: dict[str, np.ndarray] | None = None
+        self.n_channels = n_channels
+        self.values: dict[str, list] | None = None
+        self._reset()
+
+    def _reset(self) -> None:
+        self.times: list = []
+        self.poses: list = []
+        self.capture: list = []
         self.labels: list = []
         self.events: list = []
+        if self.values is not None:
+            self.values = {k: [] for k in self.values}
         self.i = 0
 
     def add(self, frame: Frame, pose: np.ndarray, capture_ns: int = 0) -> None:
-        i = self.i
-        self.capture[i] = capture_ns
-        if self.values is None:
-            self.values = {k: np.empty(self.n) for k in (*frame.control, *frame.channels)}
+        self.capture.append(capture_ns)
         vals = self.values
+        if vals is None:
+            vals = self.values = {k: [] for k in (*frame.control, *frame.channels)}
         for k, v in frame.control.items():
-            vals[k][i] = v
+            vals[k].append(v)
         for k, v in frame.channels.items():
-            vals[k][i] = v
-        self.times[i] = frame.time_s
-        self.poses[i] = pose
+            vals[k].append(v)
+        self.times.append(frame.time_s)
+        self.poses.append(pose)
         self.labels.append(frame.label)
         if frame.events:
             self.events.extend(frame.events)
-        self.i = i + 1
+        self.i += 1
 
     def take(self) -> Chunk:
         i = self.i
-        vals = {k: v[:i].copy() for k, v in (self.values or {}).items()}
-        chunk = Chunk(self.times[:i].copy(), vals, self.poses[:i].copy(), self.events, self.labels,
-                      self.capture[:i].copy())
-        self.i, self.labels, self.events = 0, [], []
+        for k, v in (self.values or {}).items():
+            if len(v) != i:
+                raise LaughlabError(f"channel {k!r} is not written every frame ({len(v)} of {i} frames)")
+        vals = {k: np.array(v, dtype=np.float64) for k, v in (self.values or {}).items()}
+        poses = np.array(self.poses, dtype=np.float64).reshape(i, self.n_channels)
+        chunk = Chunk(np.array(self.times, dtype=np.float64), vals, poses, self.events, self.labels,
+                      np.array(self.capture, dtype=np.int64))
+        self._reset()
         return chunk
 
 

@@ -27,6 +27,8 @@ def cut_frames(chunks: Iterable[np.ndarray], sample_rate: int, fps: float) -> It
 
     Frame k holds samples ``[round(k*sr/fps), round((k+1)*sr/fps))``; the last
     frame may be shorter.  Blocks are float32 views, valid until the next one.
+    The frame edges of each chunk are computed at once (numpy), the same integers
+    as ``int(round(k * sr / fps))`` frame by frame.
     """
     step = sample_rate / fps
     buf = np.zeros(0, dtype=np.float32)
@@ -34,13 +36,15 @@ def cut_frames(chunks: Iterable[np.ndarray], sample_rate: int, fps: float) -> It
     for chunk in chunks:
         buf = np.concatenate([buf, np.asarray(chunk, dtype=np.float32)]) if len(buf) else \
             np.asarray(chunk, dtype=np.float32)
+        # frames that end inside buf: round((k+1)*step) - consumed <= len(buf)
+        n = max(0, int((consumed + len(buf)) / step) + 2 - k)
+        edges = (np.round(np.arange(k, k + n + 1) * step).astype(np.int64) - consumed).tolist()
         pos = 0
-        while True:
-            start = int(round(k * step)) - consumed
-            end = int(round((k + 1) * step)) - consumed
+        for i in range(n):
+            end = edges[i + 1]
             if end > len(buf):
                 break
-            yield buf[start:end]
+            yield buf[edges[i]:end]
             k += 1
             pos = end
         buf = buf[pos:]
