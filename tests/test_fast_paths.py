@@ -55,3 +55,61 @@ def test_vectorised_frame_cutting_gives_the_same_blocks(sr, fps, sizes):
     want = list(cut_reference(iter(chunks), sr, fps))
     assert len(got) == len(want)
     assert all(np.array_equal(a, b) for a, b in zip(got, want))
+
+
+@given(st.data())
+@settings(max_examples=100, deadline=None)
+def test_clip_rows_are_the_per_frame_samples(data):
+    from laughlab.motion.clips import ClipLibrary
+
+    lib = _library()
+    name = data.draw(st.sampled_from(sorted(lib.names) + ["idle"]))
+    clip = lib.idle if name == "idle" else lib[name]
+    # clip times are >= 0 in the mixer (a time before the start is clamped for clips that do not loop)
+    times = data.draw(st.lists(st.floats(0.0, 3 * clip.duration_s, allow_nan=False), min_size=1, max_size=40))
+    rows = clip.sample_rows(times)
+    for t, row in zip(times, rows):
+        assert np.array_equal(row, clip.sample(t)), (name, t)
+
+
+_LIB = []
+
+
+def _library():
+    from laughlab.motion.clips import ClipLibrary
+
+    if not _LIB:
+        _LIB.append(ClipLibrary.load())
+    return _LIB[0]
+
+
+def test_the_mixer_renders_a_chunk_as_it_renders_frame_by_frame():
+    """Chunked rendering (note + take) equals one pose per frame, through starts, blends, stops and offsets."""
+    from laughlab.core.frame import ClipEvent, Frame
+    from laughlab.core.mixer import Mixer
+
+    lib = _library()
+    names = sorted(lib.names)
+    rng = np.random.default_rng(3)
+    script = {}
+    for k in sorted(rng.choice(600, 25, replace=False)):
+        kind = "start" if rng.random() < 0.7 else "stop"
+        script[int(k)] = ClipEvent(k / 60, kind, names[int(rng.integers(len(names)))], 1.0,
+                                   speed=float(rng.uniform(0.8, 1.2)), blend_s=float(rng.choice([0.0, 0.2])))
+
+    def run(chunk):
+        mix, poses = Mixer(lib), []
+        for k in range(600):
+            f = Frame(k, k / 60, 1 / 60, events=[script[k]] if k in script else [])
+            if k % 7 == 0:
+                f.offsets = {"spine1": (0.5, -1.0, 0.25), "head": (-2.0, 0.0, 1.5)}
+            mix.advance(f)
+            mix.note(f)
+            if (k + 1) % chunk == 0:
+                poses.append(mix.take())
+        poses.append(mix.take())
+        return np.concatenate(poses)
+
+    one, many = run(1), run(256)
+    assert one.shape == (600, lib.skeleton.n_channels)
+    assert np.array_equal(one, many)

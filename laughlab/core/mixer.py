@@ -46,8 +46,13 @@ class Mixer:
         self.blend_start = 0.0
         self.blend_s = 0.0
         self.last_pose = None
+        self._pending: list = []  # what each noted frame shows, not yet rendered
+        self._rendered: list = []  # poses rendered early (a blend needed the last one)
 
     def _switch(self, t: float, blend_s: float) -> None:
+        if self._pending:  # the blend starts from the pose shown last: render it now
+            self._rendered.append(self._render(self._pending))
+            self._pending = []
         if self.last_pose is not None and blend_s > 0.0:
             self.blend_from = self.last_pose.copy()
             self.blend_start, self.blend_s = t, blend_s
@@ -77,26 +82,62 @@ class Mixer:
         else:
             frame.clip_eyes = 0.0
 
-    def pose(self, frame: Frame) -> np.ndarray:
-        """The skeleton pose of this frame (BVH channel vector)."""
+    def note(self, frame: Frame) -> None:
+        """Record what this frame shows (clip and clip time, blend, joint offsets); :meth:`take` renders it.
+
+        Rendering a chunk of frames at once (:meth:`Clip.sample_rows`) gives the poses
+        :meth:`pose` gives frame by frame, at a fraction of the cost.
+        """
         t = frame.time_s
         if self.clip is not None:
-            pose = self.clip.sample(self.offset + (t - self.clip_start) * self.speed)
+            src, local = self.clip, self.offset + (t - self.clip_start) * self.speed
         else:
-            pose = self.idle.sample(t - self.idle_start)
+            src, local = self.idle, t - self.idle_start
+        bf, w = None, 0.0
         if self.blend_from is not None:
             w = (t - self.blend_start) / self.blend_s
             if w >= 1.0:
                 self.blend_from = None
             else:
-                pose = self.blend_from + w * (pose - self.blend_from)
-        if frame.offsets:
-            pose = pose.copy()
-            col = self._col
-            for joint, (z, x, y) in frame.offsets.items():
-                c = col[joint]
-                pose[c] += z
-                pose[c + 1] += x
-                pose[c + 2] += y
-        self.last_pose = pose
-        return pose
+                bf = self.blend_from
+        self._pending.append((src, local, bf, w, frame.offsets or None))
+
+    def take(self) -> np.ndarray:
+        """The poses of the frames noted since the last call, one row per frame (BVH channel vectors)."""
+        parts = self._rendered
+        if self._pending:
+            parts.append(self._render(self._pending))
+        self._pending, self._rendered = [], []
+        if not parts:
+            return np.empty((0, self.skeleton.n_channels))
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+    def pose(self, frame: Frame) -> np.ndarray:
+        """The skeleton pose of this frame (BVH channel vector): :meth:`note` and :meth:`take` for one frame."""
+        self.note(frame)
+        return self.take()[0]
+
+    def _render(self, recipes: list) -> np.ndarray:
+        """Poses of noted frames: clip samples, then blends, then joint offsets (the order of 0.1's mixer)."""
+        out = np.empty((len(recipes), self.skeleton.n_channels))
+        groups: dict = {}
+        for i, r in enumerate(recipes):
+            groups.setdefault(id(r[0]), (r[0], []))[1].append(i)
+        for src, rows in groups.values():
+            out[rows] = src.sample_rows([recipes[i][1] for i in rows])
+        blend = [i for i, r in enumerate(recipes) if r[2] is not None]
+        if blend:
+            bf = np.array([recipes[i][2] for i in blend])
+            w = np.array([recipes[i][3] for i in blend])[:, None]
+            out[blend] = bf + w * (out[blend] - bf)
+        col = self._col
+        for i, r in enumerate(recipes):
+            if r[4]:
+                row = out[i]
+                for joint, (z, x, y) in r[4].items():
+                    c = col[joint]
+                    row[c] += z
+                    row[c + 1] += x
+                    row[c + 2] += y
+        self.last_pose = out[-1]
+        return out

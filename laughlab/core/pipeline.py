@@ -138,7 +138,6 @@ class _Recorder:
 
     def _reset(self) -> None:
         self.times: list = []
-        self.poses: list = []
         self.capture: list = []
         self.labels: list = []
         self.events: list = []
@@ -146,7 +145,7 @@ class _Recorder:
             self.values = {k: [] for k in self.values}
         self.i = 0
 
-    def add(self, frame: Frame, pose: np.ndarray, capture_ns: int = 0) -> None:
+    def add(self, frame: Frame, capture_ns: int = 0) -> None:
         self.capture.append(capture_ns)
         vals = self.values
         if vals is None:
@@ -156,19 +155,20 @@ class _Recorder:
         for k, v in frame.channels.items():
             vals[k].append(v)
         self.times.append(frame.time_s)
-        self.poses.append(pose)
         self.labels.append(frame.label)
         if frame.events:
             self.events.extend(frame.events)
         self.i += 1
 
-    def take(self) -> Chunk:
+    def take(self, poses: np.ndarray) -> Chunk:
+        """The recorded frames with their ``poses`` (the mixer renders them per chunk)."""
         i = self.i
         for k, v in (self.values or {}).items():
             if len(v) != i:
                 raise LaughlabError(f"channel {k!r} is not written every frame ({len(v)} of {i} frames)")
         vals = {k: np.array(v, dtype=np.float64) for k, v in (self.values or {}).items()}
-        poses = np.array(self.poses, dtype=np.float64).reshape(i, self.n_channels)
+        if len(poses) != i:
+            raise LaughlabError(f"{len(poses)} poses for {i} frames")
         chunk = Chunk(np.array(self.times, dtype=np.float64), vals, poses, self.events, self.labels,
                       np.array(self.capture, dtype=np.int64))
         self._reset()
@@ -242,12 +242,12 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             mixer.advance(frame)
             body.step(frame)
             face.step(frame)
-            pose = mixer.pose(frame)
-            rec.add(frame, pose, t0)
+            mixer.note(frame)
+            rec.add(frame, t0)
             times_ns.append(clock() - t0)
             k += 1
             if rec.i == n_chunk:
-                chunk = rec.take()
+                chunk = rec.take(mixer.take())
                 for sink in opened:
                     sink.write(chunk)
                 if bar is not None:
@@ -255,7 +255,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
         if k == 0:
             raise LaughlabError("the input holds no audio frames")
         if rec.i:
-            chunk = rec.take()
+            chunk = rec.take(mixer.take())
             for sink in opened:
                 sink.write(chunk)
         wall = time.perf_counter() - wall0

@@ -113,6 +113,31 @@ class Clip:
         i1 = i0 + 1 if i0 + 1 < n else 0
         return (1.0 - w) * self.poses[i0] + w * self.poses[i1]
 
+    def sample_rows(self, t_s: np.ndarray) -> np.ndarray:
+        """:meth:`sample` at each of the times ``t_s`` (s): the same arithmetic element by element.
+
+        Returns
+        -------
+        ndarray, shape (N, 3 + 3J)
+            Row k is ``sample(t_s[k])`` (bit for bit, up to the sign of a zero).
+        """
+        n = self.length_frames
+        f = np.asarray(t_s, dtype=np.float64) * self.fps
+        lo = hi = None
+        if self.loop:
+            f = np.mod(f, n)  # Python's float % and np.mod share fmod's arithmetic
+        else:
+            lo, hi = f <= 0.0, f >= n - 1
+            f = np.where(lo | hi, 0.0, f)
+        i0 = f.astype(np.int64)
+        w = (f - i0)[:, None]
+        i1 = np.where(i0 + 1 < n, i0 + 1, 0)
+        out = (1.0 - w) * self.poses[i0] + w * self.poses[i1]
+        if lo is not None:
+            out[lo] = self.poses[0]
+            out[hi] = self.poses[n - 1]
+        return out
+
     def eyes_closed_many(self, t_s: np.ndarray) -> np.ndarray:
         """Eye closure in ``[0, 1]`` at times ``t_s`` (seconds, array-like)."""
         f = np.asarray(t_s, dtype=np.float64) * self.fps
