@@ -122,6 +122,7 @@ class RmsExtractor(Extractor):
         self._falloff = p.falloff_per_s * dt
         self._floor = p.floor
         self._loudness = p.scale == "loudness"
+        self._power = p.power
         self.nonfinite_samples = 0
         self.reset()
 
@@ -149,17 +150,26 @@ class RmsExtractor(Extractor):
         rms, bad = frame_rms(block)
         if bad:
             self.nonfinite_samples += bad
-        amp = self.amplitude(rms)
+        if self._loudness:  # self.amplitude(rms), inlined: this runs every frame
+            amp = 10.0 * math.log10(rms if rms > LOUDNESS_FLOOR_RMS else LOUDNESS_FLOOR_RMS)
+        else:
+            amp = rms
         # min/max update and mapping (listing 5.2 lines 6-8); max == min is silence
-        if amp > self.max_amp:
-            self.max_amp = amp
-        if amp < self.min_amp:
-            self.min_amp = amp
-        span = self.max_amp - self.min_amp
-        mapped = (amp - self.min_amp) / span if span > 0.0 else 0.0
+        hi, lo = self.max_amp, self.min_amp
+        if amp > hi:
+            hi = amp
+        if amp < lo:
+            lo = amp
+        span = hi - lo
+        mapped = (amp - lo) / span if span > 0.0 else 0.0
         # falloff (lines 11-13), keeping maxAmp above the floor and minAmp below maxAmp
-        self.max_amp = max(self.max_amp - self._falloff, self._floor)
-        self.min_amp = min(self.min_amp + self._falloff, self.max_amp)
+        hi = hi - self._falloff
+        if hi < self._floor:
+            hi = self._floor
+        lo = lo + self._falloff
+        if lo > hi:
+            lo = hi
+        self.max_amp, self.min_amp = hi, lo
         # rise/fall limit (Eq. 3.2; lines 16-20), store previous, pow 2 (line 25)
         prev = self.prev
         if mapped > prev:
@@ -171,7 +181,7 @@ class RmsExtractor(Extractor):
         c["rms"] = rms
         c["amp"] = amp
         c["mcs_raw"] = mapped
-        c["mcs"] = mcs ** self.params.power
+        c["mcs"] = mcs ** self._power
 
 
 @hookimpl

@@ -113,3 +113,38 @@ def test_the_mixer_renders_a_chunk_as_it_renders_frame_by_frame():
     one, many = run(1), run(256)
     assert one.shape == (600, lib.skeleton.n_channels)
     assert np.array_equal(one, many)
+
+
+@given(st.integers(1, 3), st.integers(1, 30000), st.sampled_from([8000, 44100, 48000]), st.integers(0, 2**32 - 1))
+@settings(max_examples=25, deadline=None)
+def test_pcm16_wav_reading_is_libsndfiles_conversion(tmp_path_factory, channels, n, sr, seed):
+    """16-bit WAV through the standard library equals soundfile's float32 reading, mixed to mono."""
+    import soundfile as sf
+
+    from laughlab.io.audio import read_blocks, to_mono
+
+    path = tmp_path_factory.mktemp("wav") / "x.wav"
+    pcm = np.random.default_rng(seed).integers(-32768, 32768, size=(n, channels)).astype(np.int16)
+    sf.write(str(path), pcm, sr, subtype="PCM_16")
+    want = to_mono(sf.read(str(path), dtype="float32", always_2d=True)[0])
+    got = np.concatenate(list(read_blocks(path, block_s=0.1)))
+    assert got.dtype == np.float32 and np.array_equal(got, want)
+
+
+def test_a_channel_missing_in_some_frames_is_one_clear_error():
+    import pytest
+
+    from laughlab.core.errors import LaughlabError
+    from laughlab.core.frame import Frame
+    from laughlab.core.pipeline import _Recorder
+
+    rec = _Recorder(4, 3)
+    rec.add(Frame(0, 0.0, 1 / 60, {"mcs": 0.1}, None, {"smile": 0.2}))
+    rec.add(Frame(1, 1 / 60, 1 / 60, {"mcs": 0.3}, None, {}))
+    with pytest.raises(LaughlabError, match="do not all write the same channels"):
+        rec.take(np.zeros((2, 3)))
+    rec = _Recorder(4, 3)
+    rec.add(Frame(0, 0.0, 1 / 60, {"mcs": 0.1}, None, {"smile": 0.2}))
+    rec.add(Frame(1, 1 / 60, 1 / 60, {"mcs": 0.3}, None, {"smile": 0.4}))
+    chunk = rec.take(np.zeros((2, 3)))
+    assert chunk.channels["mcs"].tolist() == [0.1, 0.3] and chunk.channels["smile"].tolist() == [0.2, 0.4]
