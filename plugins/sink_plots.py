@@ -86,21 +86,25 @@ class PlotsSink(Sink):
         bouts = [(b.onset_s, b.offset_s) for b in truth.bouts] if truth is not None else None
         out = self.run.out_dir / "plots"
         t = data["time"]
+        # a long run is plotted over its first max_seconds (readable, and drawn in constant time): say so
+        note = (f"first {self.params.max_seconds:g} s of {self.n / self.run.fps:.0f} s (output.plots.max_seconds)"
+                if self.n > self.limit else "")
         jobs = []
         if "mcs_raw" in data:
             path = self.staging.path(out / "fig3_2_mcs.png")
             jobs.append(lambda: plots.figure_3_2(path, t, data["mcs_raw"], 1.0 / self.run.fps, self.params.power,
-                                                 bouts))
+                                                 bouts, note=note))
         if "mcs" in data and "energy" in data:
             path42 = self.staging.path(out / "fig4_2_energy.png")
-            jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts))
+            jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts,
+                                                 note=note))
         if self.params.filmstrip_frames and self.poses:
             strip = self.staging.path(out / "filmstrip.png")
-            jobs.append(lambda: self._filmstrip(strip, data))
+            jobs.append(lambda: self._filmstrip(strip, data, note))
         parallel(jobs)  # side by side in the helper process, one by one otherwise
         return self.staging.commit()
 
-    def _filmstrip(self, path, data) -> None:
+    def _filmstrip(self, path, data, note: str = "") -> None:
         from laughlab.render import plots
 
         idx = np.concatenate(self.pose_idx)
@@ -116,7 +120,7 @@ class PlotsSink(Sink):
         for (t, name), f in zip(wanted, frames):
             face = ", ".join(f"{k} {data[k][f]:.2f}" for k in ("smile", "jaw") if k in data)
             caps.append(f"{name}\n{face}")
-        plots.filmstrip(path, self.run.skeleton, frames / self.run.fps, poses[pick], caps)
+        plots.filmstrip(path, self.run.skeleton, frames / self.run.fps, poses[pick], caps, note=note)
 
     def abort(self) -> None:
         self.staging.abort()

@@ -260,3 +260,28 @@ def test_every_config_option_composes(group):
             extra = ["input.path=x.wav"] if (group, f.name) == ("input", "file.yaml") else []
             cfg = cfg_for(f"{group}={f.name[:-5]}", *extra)
             assert cfg[group] is not None
+
+
+def test_plots_of_a_long_run_show_a_window_and_say_so(tmp_path, monkeypatch):
+    """A run longer than output.plots.max_seconds is plotted over its start, and every figure says so."""
+    from laughlab.render import plots as plots_mod
+
+    notes = {}
+    for name in ("figure_3_2", "figure_4_2", "filmstrip"):
+        real = getattr(plots_mod, name)
+
+        def spy(*a, _real=real, _name=name, **k):
+            notes[_name] = (k.get("note", ""), len(a[1]) if _name != "filmstrip" else None)
+            return _real(*a, **k)
+
+        monkeypatch.setattr(plots_mod, name, spy)
+    pipe = pipeline.build(cfg_for("input.duration_s=5", "output.plots.max_seconds=2"))
+    pipeline.execute(pipe, tmp_path)
+    assert set(notes) == {"figure_3_2", "figure_4_2", "filmstrip"}
+    for name, (note, n) in notes.items():
+        assert note == "first 2 s of 5 s (output.plots.max_seconds)", name
+        assert n in (None, 120)  # 2 s at 60 fps
+    assert plots_mod._titled("T", "first 2 s of 5 s") == "T; first 2 s of 5 s"
+    notes.clear()
+    pipeline.execute(pipeline.build(cfg_for("input.duration_s=2")), tmp_path / "short")
+    assert all(note == "" for note, _ in notes.values())

@@ -37,8 +37,15 @@ def busiest_window(times: np.ndarray, signal: np.ndarray, window_s: float) -> tu
     return float(times[i]), float(times[i] + window_s)
 
 
+def _titled(title: str, note: str) -> str:
+    """A figure title with a note on what part of the run it shows (e.g. the first 60 s of a long one)."""
+    if not note:
+        return title
+    return f"{title}\n{note}" if len(title) + len(note) > 90 else f"{title}; {note}"
+
+
 def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, power: float = 2.0,
-               bouts: Sequence | None = None, title: str = "", window_s: float = 4.0) -> Path:
+               bouts: Sequence | None = None, title: str = "", window_s: float = 4.0, note: str = "") -> Path:
     """Fig. 3.2: the MCS unfiltered and with two rise/fall settings (Eq. 3.2).
 
     Rates are the thesis' per-tick values converted at 60 ticks/s; all three
@@ -64,9 +71,10 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     ax_all.axvspan(t0, t1, color="tab:orange", alpha=0.15, lw=0)
     ax_all.set_ylabel("motion control signal")
     ax_all.set_ylim(-0.02, 1.05)
-    ax_all.set_title("whole run (zoom shaded)", fontsize=8)
+    ax_all.set_title("plotted stretch (zoom shaded)" if note else "whole run (zoom shaded)", fontsize=8)
     ax_zoom.set_title(f"zoom: {t0:.1f}-{t1:.1f} s", fontsize=8)
-    fig.suptitle(title or "Motion control signal and rise/fall (cf. van Duijn 2014, Fig. 3.2)", fontsize=9)
+    fig.suptitle(_titled(title or "Motion control signal and rise/fall (cf. van Duijn 2014, Fig. 3.2)", note),
+                 fontsize=9)
     fig.legend(*ax_zoom.get_legend_handles_labels(), fontsize=7, loc="outside lower center", ncols=4,
                frameon=False)
     fig.savefig(path, format="png")
@@ -89,7 +97,7 @@ def clip_blocks(events: Sequence, end_time: float) -> list[tuple[str, float, flo
 
 
 def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
-               bouts: Sequence | None = None, title: str = "") -> Path:
+               bouts: Sequence | None = None, title: str = "", note: str = "") -> Path:
     """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom)."""
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.0, 4.2), dpi=150, sharex=True, layout="constrained",
                                    height_ratios=(1, 2))
@@ -114,7 +122,8 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     top = max([b[3] for b in blocks] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
     ax2.set_ylim(0, top * 1.15)
     ax2.set_xlim(times[0] if len(times) else 0, end or 1)
-    ax1.set_title(title or "Laughing energy and clip selection (cf. van Duijn 2014, Fig. 4.2)", fontsize=9)
+    ax1.set_title(_titled(title or "Laughing energy and clip selection (cf. van Duijn 2014, Fig. 4.2)", note),
+                  fontsize=9)
     handles, labels = ax2.get_legend_handles_labels()
     ax2.legend(handles, labels, fontsize=7, loc="upper right", frameon=False)
     for ax in (ax1, ax2):
@@ -125,7 +134,7 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
 
 
 def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captions: Sequence[str],
-              title: str = "") -> Path:
+              title: str = "", note: str = "") -> Path:
     """A row of stick figures (the run's skeleton at chosen frames) with a caption under each."""
     from laughlab.render.figure import draw_skeleton
     from laughlab.motion.skeleton import forward_kinematics
@@ -143,8 +152,8 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
         ax.set_ylim(-8, 195)
         ax.set_title(f"{times[k]:.1f} s", fontsize=7, pad=1)
         ax.text(0.5, -0.02, captions[k], transform=ax.transAxes, ha="center", va="top", fontsize=5.5)
-    fig.suptitle(title or "The character at each clip (skeleton from motion.bvh)", fontsize=8)
-    fig.subplots_adjust(left=0.01, right=0.99, top=0.84, bottom=0.2, wspace=0.05)
+    fig.suptitle(_titled(title or "The character at each clip (skeleton from motion.bvh)", note), fontsize=8)
+    fig.subplots_adjust(left=0.01, right=0.99, top=0.76 if note else 0.84, bottom=0.2, wspace=0.05)
     fig.savefig(path, format="png")
     plt.close(fig)
     return path
