@@ -92,6 +92,7 @@ class PDController:
     """
 
     def __init__(self, kp: float, kd: float):
+        import scipy.linalg  # noqa: F401 - loaded when built, not in the first frame
         self.kp, self.kd = float(kp), float(kd)
         self._dt = None
         self._m = None

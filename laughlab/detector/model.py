@@ -104,6 +104,7 @@ class FeatureStream:
     """
 
     def __init__(self, sample_rate: int, fps: float):
+        import scipy.fft  # noqa: F401 - loaded when the stream is built, not in its first (live) frame
         self.sr = int(sample_rate)
         self.win = max(64, int(round(WINDOW_S * self.sr)))
         self.lmin = max(2, int(self.sr / F0_MAX_HZ))

@@ -225,6 +225,7 @@ class SyntheticLaughter:
 
     def __init__(self, seed: int = 0, duration_s: float = 30.0, sample_rate: int = 16000,
                  profile: str = "mixed", level_dbfs: float = -12.0):
+        import scipy.signal  # noqa: F401 - loaded at construction, not while rendering the first frame
         if profile not in _PROFILE_SPECS:
             raise ValueError(f"unknown profile {profile!r}; valid choices: {', '.join(PROFILES)}")
         if not (isinstance(duration_s, Real) and math.isfinite(duration_s) and duration_s > 0):
