@@ -129,7 +129,7 @@ class EnergyScheduler(Scheduler):
         self.active: _Action | None = None
 
     def step(self, frame) -> None:
-        p, dt, rng = self.params, frame.dt, self.ctx.rng
+        p, dt = self.params, frame.dt
         L = self.energy - p.decrease_per_s * dt
         if p.floor_zero and L < 0.0:
             L = 0.0
@@ -137,6 +137,7 @@ class EnergyScheduler(Scheduler):
         L += frame.control["mcs"] * p.gain_per_s * dt
         active = self.active
         limit = active.energy * p.overrule_c if active is not None else 0.0
+        min_inactive = p.min_inactive_s
         best_e = -1.0
         best: list[_Action] = []
         for a in self.actions:
@@ -151,13 +152,14 @@ class EnergyScheduler(Scheduler):
                     L -= a.energy * a.speed / a.duration_s * dt
                 a.inactive_s = 0.0
                 continue
-            if L > a.energy and a.energy > limit and a.inactive_s > p.min_inactive_s:
+            if L > a.energy and a.energy > limit and a.inactive_s > min_inactive:
                 if a.energy > best_e:
                     best_e, best = a.energy, [a]
                 elif a.energy == best_e:
                     best.append(a)
             a.inactive_s += dt
         if best:
+            rng = self.ctx.rng
             chosen = best[0] if len(best) == 1 else best[int(rng.integers(len(best)))]
             if self.active is not None:
                 old = self.active

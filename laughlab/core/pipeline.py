@@ -252,7 +252,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             add(frame, t0)
             record_ns(clock() - t0)
             k += 1
-            if rec.i == n_chunk:
+            if k % n_chunk == 0:
                 chunk = rec.take(mixer.take())
                 for sink in opened:
                     sink.write(chunk)
