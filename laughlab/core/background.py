@@ -103,7 +103,7 @@ class Helper:
 
     def abort(self) -> None:
         try:
-            self.conn.send(("abort",))
+            _send_msg(self.conn, ("abort",))
             while True:  # skip an error report sent before the abort
                 if self.conn.recv()[0] == "aborted":
                     break
@@ -112,7 +112,7 @@ class Helper:
 
     def stop(self) -> None:
         try:
-            self.conn.send(("quit",))
+            _send_msg(self.conn, ("quit",))
         except OSError:
             pass
         self.proc.join(timeout=5)
@@ -122,7 +122,7 @@ class Helper:
 
     def _send(self, msg) -> None:
         try:
-            self.conn.send(msg)
+            _send_msg(self.conn, msg)
         except (BrokenPipeError, ConnectionResetError):
             self._raise(self._recv())
 
@@ -137,6 +137,22 @@ class Helper:
         if reply[0] == "error":
             raise reply[1]
         raise RuntimeError(f"sink helper: {reply[1]}")
+
+
+def _send_msg(conn, msg) -> None:
+    """Send to the helper with pickle protocol 5: arrays go to the pipe from their own memory
+    (out of band), not copied into the pickle first."""
+    buffers: list = []
+    head = pickle.dumps(msg, protocol=5, buffer_callback=buffers.append)
+    conn.send_bytes(len(buffers).to_bytes(4, "little") + head)
+    for b in buffers:
+        conn.send_bytes(b.raw())
+
+
+def _recv_msg(conn):
+    raw = conn.recv_bytes()
+    n = int.from_bytes(raw[:4], "little")
+    return pickle.loads(memoryview(raw)[4:], buffers=[conn.recv_bytes() for _ in range(n)])
 
 
 def _error(exc: BaseException):
@@ -165,7 +181,7 @@ def _serve(conn, parent_end) -> None:
     try:
         while True:
             try:
-                msg = conn.recv()
+                msg = _recv_msg(conn)
             except EOFError:  # the main process is gone: remove what we wrote
                 _abort(sinks)
                 break
