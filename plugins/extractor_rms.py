@@ -94,12 +94,12 @@ def frame_rms(block: np.ndarray) -> tuple[float, int]:
     n = block.shape[0]
     if n == 0:
         return 0.0, 0
-    x = block.astype(np.float64)  # float32 squares overflow above 1.8e19
+    x = np.asarray(block, dtype=np.float64)  # float32 squares overflow above 1.8e19; blocks come as float64
     ms = float(np.dot(x, x)) / n
     if math.isfinite(ms):
         return math.sqrt(ms), 0
     bad = ~np.isfinite(x)
-    x[bad] = 0.0
+    x = np.where(bad, 0.0, x)
     return math.sqrt(float(np.dot(x, x)) / n), int(bad.sum())
 
 

@@ -148,3 +148,18 @@ def test_a_channel_missing_in_some_frames_is_one_clear_error():
     rec.add(Frame(1, 1 / 60, 1 / 60, {"mcs": 0.3}, None, {"smile": 0.4}))
     chunk = rec.take(np.zeros((2, 3)))
     assert chunk.channels["mcs"].tolist() == [0.1, 0.3] and chunk.channels["smile"].tolist() == [0.2, 0.4]
+
+
+@given(st.lists(st.floats(-2.0, 2.0, allow_nan=False), min_size=1, max_size=200),
+       st.floats(0.01, 5.0), st.floats(0.01, 5.0), st.floats(0.0, 0.4), st.floats(0.6, 1.0))
+@settings(max_examples=200, deadline=None)
+def test_smoother_is_the_rate_limit_with_min_and_max(xs, rise, fall, lo, hi):
+    """The written-out comparisons of Smoother.smooth equal min()/max() (van Duijn 2014, Eq. 3.2)."""
+    from laughlab.signals.smoothing import Smoother, SmootherParams
+
+    s = Smoother(SmootherParams(rise=rise, fall=fall, min_e=lo, max_e=hi), 1 / 60)
+    e = 0.0
+    for x in xs:
+        e = min(x, e + rise * (1 / 60)) if x > e else max(x, e - fall * (1 / 60))
+        want = 0.0 if e < lo else 1.0 if e > hi else (e - lo) / (hi - lo)
+        assert s.smooth(x) == want

@@ -31,7 +31,8 @@ def test_formats_read_in_frames(tmp_path, ext, fmt, subtype):
     info = sf.info(str(path))
     assert len(blocks) == src.n_frames == n_frames_for(info.frames, 44100, 60)
     assert sum(len(b) for b in blocks) == info.frames
-    assert all(b.dtype == np.float32 for b in blocks)
+    assert all(b.dtype == np.float64 and not b.flags.writeable for b in blocks)
+    assert all(np.array_equal(b, b.astype(np.float32)) for b in blocks)  # the file's float32 samples, exactly
     loud = [float(np.sqrt(np.mean(np.square(b)))) for b in blocks]
     assert max(loud) > 0.1
 

@@ -104,7 +104,7 @@ class Source(Plugin):
 
     @abstractmethod
     def blocks(self) -> Iterator[np.ndarray]:
-        """Yield one float32 mono block of samples per frame."""
+        """Yield one mono block of samples per frame (read-only float64 views of the float32 samples)."""
         ...
 
     def audio_path(self) -> Path | None:

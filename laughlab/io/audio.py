@@ -26,16 +26,18 @@ def cut_frames(chunks: Iterable[np.ndarray], sample_rate: int, fps: float) -> It
     """Re-cut a stream of sample chunks into per-frame blocks.
 
     Frame k holds samples ``[round(k*sr/fps), round((k+1)*sr/fps))``; the last
-    frame may be shorter.  Blocks are float32 views, valid until the next one.
-    The frame edges of each chunk are computed at once (numpy), the same integers
-    as ``int(round(k * sr / fps))`` frame by frame.
+    frame may be shorter.  Blocks are read-only float64 views (the sources' float32
+    samples, exactly), valid until the next one; a chunk is converted once, not each
+    frame by its extractor.  The frame edges of each chunk are computed at once
+    (numpy), the same integers as ``int(round(k * sr / fps))`` frame by frame.
     """
     step = sample_rate / fps
-    buf = np.zeros(0, dtype=np.float32)
+    buf = np.zeros(0, dtype=np.float64)
     k, consumed = 0, 0  # frame index, samples dropped from the front of buf
     for chunk in chunks:
-        buf = np.concatenate([buf, np.asarray(chunk, dtype=np.float32)]) if len(buf) else \
-            np.asarray(chunk, dtype=np.float32)
+        x = np.asarray(chunk, dtype=np.float32).astype(np.float64)  # float32 first: the sources' precision
+        buf = np.concatenate([buf, x]) if len(buf) else x
+        buf.flags.writeable = False  # a plugin must not change the samples the next stage reads
         # frames that end inside buf: round((k+1)*step) - consumed <= len(buf)
         n = max(0, int((consumed + len(buf)) / step) + 2 - k)
         edges = (np.round(np.arange(k, k + n + 1) * step).astype(np.int64) - consumed).tolist()

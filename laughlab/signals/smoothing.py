@@ -110,10 +110,14 @@ class Smoother:
     def smooth(self, x: float) -> float:
         """One step: the smoothed and re-scaled value of input ``x`` (dimensionless)."""
         e = self.e
+        # min()/max() written out (the same comparisons: min(a, b) is b only if b < a); this runs
+        # four times a frame
         if x > e:
-            e = min(x, e + self.rise)
+            up = e + self.rise
+            e = up if up < x else x
         else:
-            e = max(x, e - self.fall)
+            down = e - self.fall
+            e = down if down > x else x
         self.e = e
         if e < self.min_e:
             return 0.0
