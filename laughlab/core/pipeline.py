@@ -165,11 +165,11 @@ class _Recorder:
             raise LaughlabError(f"{len(poses)} poses for {i} frames")
         vals = {}
         for keys, dicts in zip(self.keys or ((), ()), (self.controls, self.outputs)):
-            if any(len(d) != len(keys) for d in dicts):
+            if sum(map(len, dicts)) != len(keys) * i:  # (a frame missing a channel raises KeyError below)
                 raise LaughlabError(f"the frames do not all write the same channels (first frame: {', '.join(keys)})")
             for k in keys:
                 try:
-                    vals[k] = np.array([d[k] for d in dicts], dtype=np.float64)
+                    vals[k] = np.fromiter([d[k] for d in dicts], dtype=np.float64, count=i)
                 except KeyError:
                     raise LaughlabError(f"channel {k!r} is not written every frame") from None
         chunk = Chunk(np.array(self.times, dtype=np.float64), vals, poses, self.events, self.labels,

@@ -1,6 +1,7 @@
 """Cutting audio into one block per animation frame, reading files in blocks."""
 from __future__ import annotations
 
+from bisect import bisect_right
 from pathlib import Path
 from typing import Iterable, Iterator
 
@@ -41,14 +42,11 @@ def cut_frames(chunks: Iterable[np.ndarray], sample_rate: int, fps: float) -> It
         # frames that end inside buf: round((k+1)*step) - consumed <= len(buf)
         n = max(0, int((consumed + len(buf)) / step) + 2 - k)
         edges = (np.round(np.arange(k, k + n + 1) * step).astype(np.int64) - consumed).tolist()
-        pos = 0
-        for i in range(n):
-            end = edges[i + 1]
-            if end > len(buf):
-                break
-            yield buf[edges[i]:end]
-            k += 1
-            pos = end
+        m = bisect_right(edges, len(buf), 1) - 1  # frames that end inside buf
+        for a, b in zip(edges[:m], edges[1:m + 1]):
+            yield buf[a:b]
+        k += m
+        pos = edges[m] if m else 0
         buf = buf[pos:]
         consumed += pos
     if len(buf):
