@@ -117,7 +117,7 @@ def main(argv=None) -> dict:
     from laughlab.core import plugins
     from laughlab.io.audio import read_blocks
     from laughlab.core.config import compose_config
-    from laughlab.render.scene import source_audio
+    from laughlab.io.video import source_audio
     from laughlab_plugins import sink_vmc
     from laughlab_plugins.source_mic import MicParams
 

@@ -232,7 +232,7 @@ def _item_audio(item, base: list[str], seed: int, tmp: Path) -> tuple[np.ndarray
     from laughlab.io.audio import read_blocks
     from laughlab.core.errors import LaughlabError
     from laughlab.harness.runner import _compose
-    from laughlab.render.scene import source_audio
+    from laughlab.io.video import source_audio
 
     cfg = _compose([*base, *item.overrides, f"seed={seed}"])
     pipe = pipeline.build(cfg)

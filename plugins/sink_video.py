@@ -1,7 +1,7 @@
 """Sink ``video``: the run as an MP4 (H.264 + AAC) showing the character and its face.
 
 ``python -m laughlab output=video`` writes ``video.mp4`` beside the usual files.
-Drawing and encoding: :mod:`laughlab.render.scene`.
+Drawing: :mod:`laughlab.render.scene`; encoding: :mod:`laughlab.io.video`.
 """
 from __future__ import annotations
 
@@ -19,7 +19,8 @@ from laughlab.core.bases import Sink
 from laughlab.core.errors import LaughlabError
 from laughlab.core.outfiles import Staging
 from laughlab.core.plugins import check_range
-from laughlab.render.scene import Camera, Renderer, VideoEncoder, source_audio
+from laughlab.io.video import VideoEncoder, source_audio
+from laughlab.render.scene import Camera, Renderer
 from laughlab.motion.skeleton import global_transforms
 from laughlab.io.vmc import arkit_weights
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from laughlab.hill.torso import (A_FV, B_FV, GROUPS, MUSCLES, NQ, W_FL, AbdomenParams, MuscleParams, MuscleTable, Torso,
-                           TorsoParams, _hill, contractile_force, force_length, force_velocity, group_matrix,
-                           muscle_force, passive_force, simulate)
+from laughlab.hill.muscle import (A_FV, B_FV, W_FL, MuscleParams, MuscleTable, _hill, contractile_force, force_length,
+                                 force_velocity, muscle_force, passive_force)
+from laughlab.hill.torso import GROUPS, MUSCLES, NQ, AbdomenParams, Torso, TorsoParams, group_matrix, simulate
 from laughlab.hill.presets import PRESETS, Signal, preset, run_preset
 
 

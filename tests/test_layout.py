@@ -18,9 +18,13 @@ def modules() -> dict[str, Path]:
 
 
 def imports(path: Path, known: set[str]) -> set[str]:
-    """Every laughlab module ``path`` imports, at module level or inside a function."""
+    """Every laughlab module ``path`` imports, at module level or inside a function (not under TYPE_CHECKING)."""
     out = set()
-    for node in ast.walk(ast.parse(path.read_text())):
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):  # imports only a type checker runs are not imports
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            node.body = []
+    for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             names = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
@@ -85,11 +89,9 @@ def test_the_harness_never_imports_the_command_line():
 def test_modules_stay_readable(name):
     """Modules under about 500 lines (the few above are listed with why they are not split)."""
     allowed = {
-        "laughlab.hill.fit": 1050,   # one optimisation procedure: segment, fit, compare share its types
-        "laughlab.hill.torso": 800,  # the muscle and the torso step are read side by side with the paper
-        "laughlab.fourier.model": 720,
-        "laughlab.render.scene": 740,
-        "laughlab.synth.laughter": 600,
+        "laughlab.hill.torso": 680,  # the torso's mechanics and its step, read side by side with the paper's 4-5
+        "laughlab.fourier.model": 720,  # Unuma's model, its fitting and blending share one representation
+        "laughlab.synth.laughter": 600,  # one generator: bouts, calls, sources and their ground truth
     }
     n = len(modules()[name].read_text().splitlines())
     assert n <= allowed.get(name, 500), f"{name}: {n} lines"

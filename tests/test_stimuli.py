@@ -13,7 +13,7 @@ import pytest
 
 from laughlab.core.config import compose_config
 from laughlab.core.errors import LaughlabError
-from laughlab.render.scene import decode_audio, probe
+from laughlab.io.video import decode_audio, probe
 from laughlab_experiments.stimuli import MANIFEST_COLUMNS, normalise_loudness, run, williams
 
 pyloudnorm = pytest.importorskip("pyloudnorm")

@@ -13,7 +13,8 @@ from laughlab.core import plugins
 from laughlab.core.bases import Chunk, Context, RunInfo
 from laughlab.core.config import compose_config
 from laughlab.core.errors import LaughlabError
-from laughlab.render.scene import Camera, Renderer, decode_audio, decode_frames, probe
+from laughlab.io.video import decode_audio, decode_frames, probe
+from laughlab.render.scene import Camera, Renderer
 from laughlab.motion.skeleton import HUMANOID, rest_pose
 from laughlab_plugins import sink_video
 from laughlab_plugins.sink_video import VideoParams, VideoSink

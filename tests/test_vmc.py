@@ -15,7 +15,7 @@ from laughlab.core import plugins
 from laughlab.core.bases import Context
 from laughlab.core.config import compose_config
 from laughlab.core.errors import LaughlabError
-from laughlab.render.scene import source_audio
+from laughlab.io.video import source_audio
 from laughlab.motion.skeleton import HUMANOID, euler_to_matrix, global_transforms
 from laughlab.io.vmc import (SMILE_TO_ARKIT, UNITY_BONES, BoneMap, VmcEncoder, arkit_weights, euler_zxy_to_quat,
                           osc_message, paced_chunks, quat_to_matrix, to_unity_position, to_unity_quat)

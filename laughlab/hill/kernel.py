@@ -4,7 +4,7 @@
 batch with some sixty numpy operations on arrays of a few dozen numbers, so
 numpy's per-call overhead (about 0.17 ms a step) is most of its cost, whatever
 the batch.  :func:`step_batch` is the same arithmetic, torso by torso, in one
-compiled loop: the muscles (:func:`laughlab.hill.torso._hill`), the implicit matrix
+compiled loop: the muscles (:func:`laughlab.hill.muscle._hill`), the implicit matrix
 and right side, the chest wall's pleural and stop pressures at the predicted
 volume (:meth:`laughlab.hill.lung.Lung.predict`), the 9 x 9 solve (Gaussian
 elimination with partial pivoting instead of LAPACK: the same solution to

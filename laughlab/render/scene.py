@@ -1,4 +1,4 @@
-"""Rendering a run as video: the character in perspective, a schematic face, and MP4 encoding.
+"""Rendering a run as video frames: the character in perspective and a schematic face.
 
 Drawing
 -------
@@ -41,41 +41,23 @@ milliseconds; no matplotlib per frame.
   face"): the same face drawn large and frontal in a corner box, as a camera
   that follows the head would see it.
 
-Encoding
---------
-:class:`VideoEncoder` pipes raw RGB frames into ffmpeg (the binary shipped by
-imageio-ffmpeg): H.264 (libx264), yuv420p, constant frame rate, AAC audio
-from a WAV file, MP4 with ``+faststart``.  The flags ``-fflags +bitexact
--flags:v +bitexact -flags:a +bitexact -map_metadata -1`` and a fixed x264
-thread count make repeated renders byte-identical (given the same ffmpeg build).
+Encoding the frames into MP4: :mod:`laughlab.io.video`.
 """
 from __future__ import annotations
 
 import math
-import re
-import subprocess
-import tempfile
 from dataclasses import dataclass
-from functools import lru_cache
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from laughlab.core.errors import LaughlabError
+from laughlab.render.face import HEAD_RADIUS_CM, OUTLINE, SKIN, _circle, _w, draw_face
 
-__all__ = ["Camera", "Renderer", "draw_face", "VideoEncoder", "ffmpeg_exe", "probe", "decode_frames",
-           "decode_audio", "source_audio"]
+__all__ = ["Camera", "Renderer", "draw_face"]
 
-SKIN = (238, 200, 170)
-SKIN_DARK = (120, 80, 60)
 LEFT = (66, 110, 200)
 RIGHT = (205, 75, 65)
 TORSO = (92, 108, 138)
-OUTLINE = (38, 40, 48)
-LIP = (150, 60, 60)
-MOUTH = (70, 18, 28)
-CHEEK = (235, 120, 120)
 
 
 @dataclass
@@ -131,133 +113,6 @@ class Camera:
         project.focal = focal  # type: ignore[attr-defined]
         project.centre = centre  # type: ignore[attr-defined]
         return project
-
-
-# -- the face -----------------------------------------------------------------------------------------------------
-
-def _w(weights: dict, name: str) -> float:
-    v = weights.get(name, 0.0)
-    return float(v) if v == v else 0.0
-
-
-@lru_cache(maxsize=None)
-def _circle(n: int) -> np.ndarray:
-    t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
-    return np.stack([np.cos(t), np.sin(t)], axis=-1)
-
-
-@lru_cache(maxsize=None)
-def _bezier_basis(n: int) -> np.ndarray:
-    t = np.linspace(0.0, 1.0, n)[:, None]
-    return np.concatenate([(1 - t) ** 2, 2 * (1 - t) * t, t ** 2], axis=1)
-
-
-def _ellipse(cx: float, cy: float, rx: float, ry: float, n: int = 14) -> np.ndarray:
-    return _circle(n) * (rx, ry) + (cx, cy)
-
-
-def _quad(p0, p1, p2, n: int = 8) -> np.ndarray:
-    """Points of the quadratic Bezier curve through p0 and p2 whose middle passes through p1."""
-    p0, p1, p2 = (np.asarray(p, dtype=np.float64) for p in (p0, p1, p2))
-    c = 2 * p1 - 0.5 * (p0 + p2)  # control point so that B(1/2) = p1
-    return _bezier_basis(n) @ np.stack([p0, c, p2])
-
-
-HEAD_RADIUS_CM = 10.0
-
-
-def _on_head(xy: np.ndarray, lift: float = 0.0) -> np.ndarray:
-    """Head-local 3D points on the front of the head sphere (radius 10 cm) at face coordinates ``xy`` (cm)."""
-    xy = np.asarray(xy, dtype=np.float64)
-    r2 = (HEAD_RADIUS_CM + lift) ** 2 - (xy ** 2).sum(axis=-1)
-    z = np.sqrt(np.maximum(r2, 0.0))
-    return np.concatenate([xy, z[..., None]], axis=-1)
-
-
-def draw_face(draw, to_screen: Callable[[np.ndarray], np.ndarray], px_per_cm: float, weights: dict,
-              skin=SKIN) -> None:
-    """Draw eyes, brows, cheeks, nose and mouth driven by ARKit ``weights`` (floats in [0, 1]).
-
-    Parameters
-    ----------
-    draw : PIL.ImageDraw.ImageDraw
-    to_screen : callable
-        Head-local points ``(N, 3)`` (cm; x = the character's left, y up, z out
-        of the face) to pixels ``(N, 2)``.
-    px_per_cm : float
-        Scale for line widths.
-    weights : dict
-        ARKit name -> value; missing names are 0.
-    """
-    def poly(xy, fill=None, outline=None, width=0.0, lift=0.0):
-        pts = [tuple(p) for p in to_screen(_on_head(xy, lift)).tolist()]
-        if fill is not None:
-            draw.polygon(pts, fill=fill)
-        if outline is not None and width > 0:
-            draw.line(pts + [pts[0]], fill=outline, width=max(1, int(round(width * px_per_cm))), joint="curve")
-
-    def line(xy, fill, width, lift=0.0):
-        pts = [tuple(p) for p in to_screen(_on_head(xy, lift)).tolist()]
-        draw.line(pts, fill=fill, width=max(1, int(round(width * px_per_cm))), joint="curve")
-
-    def mix(a, b, t):
-        t = min(1.0, max(0.0, t))
-        return tuple(int(round(x + (y - x) * t)) for x, y in zip(a, b))
-
-    for side, s in (("Left", 1.0), ("Right", -1.0)):
-        cheek = _w(weights, f"cheekSquint{side}")
-        # cheeks: rise and redden with cheekSquint (AU6)
-        poly(_ellipse(s * 4.9, -2.0 + 0.9 * cheek, 2.0, 1.5, 12), fill=mix(skin, CHEEK, 0.18 + 0.55 * cheek))
-        blink = _w(weights, f"eyeBlink{side}")
-        squint = _w(weights, f"eyeSquint{side}")
-        openness = (1.0 - blink) * (1.0 - 0.45 * squint)
-        ex, ey, hw = s * 3.4, 1.9, 1.55
-        if openness > 0.12:
-            hh = 1.05 * openness
-            poly(_ellipse(ex, ey, hw, hh, 14), fill=(250, 250, 250), outline=OUTLINE, width=0.28)
-            pr = min(0.62, hh)
-            poly(_ellipse(ex, ey - 0.1, 0.62, pr, 10), fill=(40, 30, 30), lift=0.05)
-        else:  # closed lids: an arc bulging upwards (laughing eyes)
-            xs = np.linspace(-hw, hw, 7)
-            line(np.stack([ex + xs, ey + 0.55 * (1 - (xs / hw) ** 2) - 0.2], axis=-1), OUTLINE, 0.34)
-        if cheek > 0.25:  # the lower-lid crease of the raised cheek
-            xs = np.linspace(-1.2, 1.2, 5)
-            line(np.stack([ex + xs, ey - 1.45 + 0.5 * cheek - 0.25 * (1 - (xs / 1.2) ** 2)], axis=-1),
-                 mix(skin, SKIN_DARK, 0.6 * cheek), 0.2)
-        # brows: inner end up with browInnerUp, outer with browOuterUp, both down with browDown
-        inner = 1.25 * _w(weights, "browInnerUp") - 1.0 * _w(weights, f"browDown{side}")
-        outer = 1.0 * _w(weights, f"browOuterUp{side}") - 0.45 * _w(weights, f"browDown{side}")
-        by = 4.25
-        brow = _quad((s * 1.6, by + inner), (s * 3.4, by + 0.45 + 0.5 * (inner + outer)),
-                     (s * 5.2, by - 0.25 + outer), 6)
-        line(brow, (70, 50, 40), 0.5)
-    # nose
-    line(np.array([[0.15, 0.6], [0.55, -1.6], [-0.35, -1.85]]), mix(skin, SKIN_DARK, 0.5), 0.22, lift=0.6)
-    # mouth: corners rise with the smile, the lower lip drops with the jaw
-    smile = 0.5 * (_w(weights, "mouthSmileLeft") + _w(weights, "mouthSmileRight"))
-    frown = 0.5 * (_w(weights, "mouthFrownLeft") + _w(weights, "mouthFrownRight"))
-    stretch = 0.5 * (_w(weights, "mouthStretchLeft") + _w(weights, "mouthStretchRight"))
-    lower = 0.5 * (_w(weights, "mouthLowerDownLeft") + _w(weights, "mouthLowerDownRight"))
-    upper = 0.5 * (_w(weights, "mouthUpperUpLeft") + _w(weights, "mouthUpperUpRight"))
-    jaw = _w(weights, "jawOpen")
-    my = -4.9
-    corners = []
-    for side, s in (("Left", 1.0), ("Right", -1.0)):
-        sm = _w(weights, f"mouthSmile{side}")
-        fr = _w(weights, f"mouthFrown{side}")
-        corners.append((s * (2.5 + 1.0 * sm + 0.6 * stretch), my + 1.3 * sm - 0.8 * fr - 0.35 * jaw))
-    top_y = my + 0.15 + 0.35 * upper + 0.25 * smile
-    bot_y = my - 0.15 - 3.4 * jaw - 0.7 * lower + 0.25 * smile - 0.3 * frown
-    top = _quad(corners[1], (0.0, top_y), corners[0], 9)
-    bottom = _quad(corners[0], (0.0, bot_y), corners[1], 9)
-    opening = top_y - bot_y
-    poly(np.concatenate([top, bottom[1:-1]]), fill=MOUTH, outline=LIP, width=0.35)
-    if opening > 0.9:  # upper teeth under the upper lip
-        teeth_h = min(0.8, 0.35 * opening)
-        t_top = _quad((corners[1][0] * 0.8, corners[1][1] - 0.05), (0.0, top_y - 0.12),
-                      (corners[0][0] * 0.8, corners[0][1] - 0.05), 7)
-        t_bot = t_top[::-1] - np.array([0.0, teeth_h])
-        poly(np.concatenate([t_top, t_bot]), fill=(245, 245, 240), lift=0.02)
 
 
 # -- the figure ---------------------------------------------------------------------------------------------------
@@ -544,177 +399,3 @@ class Renderer:
             return np.stack([cx - scale * p[:, 0], cy - scale * p[:, 1]], axis=-1)
 
         draw_face(d, to_screen, scale, weights)
-
-
-# -- ffmpeg ---------------------------------------------------------------------------------------------------------
-
-def ffmpeg_exe() -> str:
-    """The ffmpeg binary shipped with imageio-ffmpeg (or ``IMAGEIO_FFMPEG_EXE``)."""
-    try:
-        import imageio_ffmpeg
-    except ImportError as exc:
-        raise LaughlabError(f"video output needs imageio-ffmpeg (pip install imageio-ffmpeg): {exc}") from None
-    return imageio_ffmpeg.get_ffmpeg_exe()
-
-
-BITEXACT = ["-fflags", "+bitexact", "-flags:v", "+bitexact", "-flags:a", "+bitexact", "-map_metadata", "-1"]
-
-
-class VideoEncoder:
-    """Pipes RGB frames into ffmpeg: H.264 yuv420p at a constant frame rate, AAC audio, MP4.
-
-    Parameters
-    ----------
-    path : Path
-        Output file (written as MP4 whatever its suffix).
-    width, height : int
-        Frame size (even numbers: yuv420p halves the chroma).
-    fps : float
-        Video frame rate (constant).
-    audio : Path or None
-        A WAV (or any ffmpeg-readable) file muxed as AAC from time 0; None: video only.
-    crf, preset, threads : x264 quality, speed preset and thread count (fixed for identical bytes).
-    audio_bitrate_k, audio_rate : AAC bit rate (kbit/s) and sample rate (Hz).
-    """
-
-    def __init__(self, path: Path, width: int, height: int, fps: float, audio: Path | None = None, crf: int = 20,
-                 preset: str = "veryfast", threads: int = 2, audio_bitrate_k: int = 128, audio_rate: int = 48000):
-        self.path = Path(path)
-        self.shape = (int(height), int(width), 3)
-        rate = _rate(fps)
-        cmd = [ffmpeg_exe(), "-nostdin", "-y", "-hide_banner", "-loglevel", "error",
-               "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-framerate", rate, "-i", "pipe:0"]
-        if audio is not None:
-            cmd += ["-i", str(audio)]
-        cmd += ["-map", "0:v:0"] + (["-map", "1:a:0"] if audio is not None else [])
-        cmd += ["-c:v", "libx264", "-preset", preset, "-crf", str(crf), "-pix_fmt", "yuv420p", "-threads", str(threads),
-                "-fps_mode", "cfr", "-r", rate, "-movflags", "+faststart"]
-        if audio is not None:
-            cmd += ["-c:a", "aac", "-b:a", f"{audio_bitrate_k}k", "-ar", str(audio_rate)]
-        cmd += BITEXACT + ["-f", "mp4", str(self.path)]
-        self.cmd = cmd
-        self._err = tempfile.TemporaryFile()
-        try:
-            self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.DEVNULL, stderr=self._err)
-        except OSError as exc:
-            self._err.close()
-            raise LaughlabError(f"cannot start ffmpeg: {exc}") from None
-        self.frames = 0
-
-    def write(self, frame: np.ndarray) -> None:
-        if frame.shape != self.shape or frame.dtype != np.uint8:
-            raise ValueError(f"frame must be uint8 {self.shape}, got {frame.dtype} {frame.shape}")
-        try:
-            self.proc.stdin.write(np.ascontiguousarray(frame).tobytes())
-        except BrokenPipeError:
-            raise LaughlabError(f"ffmpeg stopped: {self._error_text()}") from None
-        self.frames += 1
-
-    def _error_text(self) -> str:
-        self.proc.wait()
-        self._err.seek(0)
-        lines = [ln for ln in self._err.read().decode(errors="replace").splitlines() if ln.strip()]
-        return lines[-1] if lines else f"exit status {self.proc.returncode}"
-
-    def close(self) -> None:
-        """Finish the file; raise LaughlabError if ffmpeg failed."""
-        try:
-            self.proc.stdin.close()
-        except BrokenPipeError:
-            pass
-        code = self.proc.wait()
-        try:
-            if code != 0:
-                raise LaughlabError(f"ffmpeg failed: {self._error_text()}")
-        finally:
-            self._err.close()
-
-    def abort(self) -> None:
-        """Stop ffmpeg without finishing the file (the caller removes it)."""
-        if self.proc.poll() is None:
-            self.proc.kill()
-        try:
-            self.proc.stdin.close()
-        except (BrokenPipeError, OSError, ValueError):
-            pass
-        self.proc.wait()
-        if not self._err.closed:
-            self._err.close()
-
-
-def _rate(fps: float) -> str:
-    """ffmpeg's rate string: an integer, or a fraction for rates like 29.97."""
-    from fractions import Fraction
-
-    fr = Fraction(float(fps)).limit_denominator(1001)
-    return str(fr.numerator) if fr.denominator == 1 else f"{fr.numerator}/{fr.denominator}"
-
-
-def probe(path: str | Path) -> dict:
-    """Stream facts of a media file from ``ffmpeg -i`` (imageio-ffmpeg ships no ffprobe).
-
-    Returns ``duration_s``, ``video`` (``codec``, ``pix_fmt``, ``width``,
-    ``height``, ``fps``) and ``audio`` (``codec``, ``sample_rate``) or None.
-    """
-    r = subprocess.run([ffmpeg_exe(), "-hide_banner", "-nostdin", "-i", str(path)], capture_output=True, text=True)
-    err = r.stderr
-    out: dict = {"duration_s": None, "video": None, "audio": None}
-    m = re.search(r"Duration: (\d+):(\d+):(\d+(?:\.\d+)?)", err)
-    if m:
-        out["duration_s"] = int(m.group(1)) * 3600 + int(m.group(2)) * 60 + float(m.group(3))
-    m = re.search(r"Stream #\d+:\d+.*?: Video: (\w+)[^,]*, (\w+)[^,]*?(?:\([^)]*\))?, (\d+)x(\d+).*?, ([\d.]+) fps",
-                  err)
-    if m:
-        out["video"] = {"codec": m.group(1), "pix_fmt": m.group(2), "width": int(m.group(3)),
-                        "height": int(m.group(4)), "fps": float(m.group(5))}
-    m = re.search(r"Stream #\d+:\d+.*?: Audio: (\w+)[^,]*, (\d+) Hz", err)
-    if m:
-        out["audio"] = {"codec": m.group(1), "sample_rate": int(m.group(2))}
-    return out
-
-
-def decode_frames(path: str | Path, width: int, height: int) -> np.ndarray:
-    """Every video frame of a file as ``(N, height, width, 3)`` uint8 (decoded by ffmpeg)."""
-    r = subprocess.run([ffmpeg_exe(), "-nostdin", "-loglevel", "error", "-i", str(path), "-map", "0:v:0",
-                        "-f", "rawvideo", "-pix_fmt", "rgb24", "-"], capture_output=True)
-    if r.returncode != 0:
-        raise LaughlabError(f"cannot decode {path}: {r.stderr.decode(errors='replace').strip()}")
-    return np.frombuffer(r.stdout, np.uint8).reshape(-1, height, width, 3)
-
-
-def decode_audio(path: str | Path, sample_rate: int = 48000) -> np.ndarray:
-    """The first audio stream of a file as mono float32 samples at ``sample_rate`` (decoded by ffmpeg)."""
-    r = subprocess.run([ffmpeg_exe(), "-nostdin", "-loglevel", "error", "-i", str(path), "-map", "0:a:0",
-                        "-ac", "1", "-ar", str(sample_rate), "-f", "f32le", "-"], capture_output=True)
-    if r.returncode != 0:
-        raise LaughlabError(f"cannot decode audio of {path}: {r.stderr.decode(errors='replace').strip()}")
-    return np.frombuffer(r.stdout, "<f4").copy()
-
-
-def source_audio(source, tmp_dir: Path) -> Path | None:
-    """A file holding the source's audio, or None (live input: video only).
-
-    ``source.audio_path()`` when the source reads a file; else, for a source
-    that writes its audio as an artifact (the ``synthetic`` source's
-    ``input.wav``), the same audio rendered into ``tmp_dir`` (the source
-    writes ``input.wav`` only after the sinks close, and it is deterministic,
-    so the copy is identical).
-    """
-    if source is None:
-        return None
-    path = source.audio_path() if hasattr(source, "audio_path") else None
-    if path is not None and Path(path).exists():
-        return Path(path)
-    truth = getattr(source, "truth", None)
-    if truth is not None and hasattr(truth, "render") and hasattr(truth, "n_samples"):
-        from laughlab.io.audio import FloatWavWriter
-
-        tmp_dir = Path(tmp_dir)
-        tmp_dir.mkdir(parents=True, exist_ok=True)
-        wav = tmp_dir / "input.wav"
-        with FloatWavWriter(wav, source.sample_rate) as f:
-            block = 16384
-            for start in range(0, truth.n_samples, block):
-                f.write(truth.render(start, min(block, truth.n_samples - start)))
-        return wav
-    return None
