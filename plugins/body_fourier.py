@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from laughlab import hookimpl
+from laughlab.fourier import blend as fb
 from laughlab.fourier import model as fr
 from laughlab.core.bases import Body
 from laughlab.core.plugins import check_range
@@ -289,7 +290,7 @@ class FourierBody(Body):
     * Rescaled times advance with real time, ``d t_L / d tau = 2 pi speed /
       T_L(s)`` with ``T_L(s) = T_A^(1-s) T_B^s`` (the blended period),
       integrated over each frame by the trapezoid rule
-      (:meth:`laughlab.fourier.model.Transition.move`), so the motion does not
+      (:meth:`laughlab.fourier.blend.Transition.move`), so the motion does not
       depend on the frame rate.
     * ``chest`` and ``belly`` (the shape weights of the ``shapes`` driver, so
       drivers are interchangeable): each shake cycle is one laughter call, an
@@ -314,13 +315,13 @@ class FourierBody(Body):
         if p.shiver_deg > 0:
             layer = "sway" if intense.sway is not None else "shake"
             model = getattr(intense, layer) or getattr(calm, layer)
-            shivered = fr.shiver(model, self.ctx.rng, p.shiver_deg, first=fr.MAX_HARMONICS + 1)
+            shivered = fb.shiver(model, self.ctx.rng, p.shiver_deg, first=fr.MAX_HARMONICS + 1)
             intense = LaughMotion(**{**intense.__dict__, layer: shivered})
         self.calm, self.intense = calm, intense
         pairs = layer_pairs(calm, intense)
         if not pairs:
             raise ValueError(f"neither {calm.source} nor {intense.source} moves the driven joints")
-        self.layers = {k: fr.Transition(a, b, p.speed) for k, (a, b) in pairs.items()}
+        self.layers = {k: fb.Transition(a, b, p.speed) for k, (a, b) in pairs.items()}
         self._steps = [(self.layers[k], p.shake_step if k == "shake" else p.sway_step) for k in self.layers]
         self._pulse = self.layers.get("shake") or self.layers["sway"]
         self._posture = p.posture_gain * sum(t.mean_change for t in self.layers.values())

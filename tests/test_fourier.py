@@ -12,6 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
+from laughlab.fourier import blend as fb
 from laughlab.fourier import model as fr
 from laughlab.core import plugins
 from laughlab.core.bases import Context
@@ -86,9 +87,9 @@ def eq3_by_hand(s, t):
 @pytest.mark.parametrize("s", [0.0, 1.0, 0.5, 1.5, -0.5])
 def test_eq3_by_hand(s):
     t = np.linspace(0, TWO_PI, 50)
-    xi = fr.interpolate(A, B, s)
+    xi = fb.interpolate(A, B, s)
     np.testing.assert_allclose(xi(t), eq3_by_hand(s, t), atol=1e-12)
-    tr = fr.Transition(A, B)
+    tr = fb.Transition(A, B)
     np.testing.assert_allclose([tr.value(s, th) for th in t], eq3_by_hand(s, t), atol=1e-12)
     assert xi.period_s == pytest.approx(4.0 ** (1 - s) * 1.0 ** s)  # geometric, > 0 for every s
     assert tr.period(s) == pytest.approx(xi.period_s)
@@ -96,24 +97,24 @@ def test_eq3_by_hand(s):
 
 def test_eq3_endpoints_midpoint_and_extrapolation():
     t = np.linspace(0, TWO_PI, 40)
-    np.testing.assert_allclose(fr.interpolate(A, B, 0.0)(t), A(t), atol=1e-12)
-    np.testing.assert_allclose(fr.interpolate(A, B, 1.0)(t), B(t), atol=1e-12)
-    mid = fr.interpolate(A, B, 0.5)
+    np.testing.assert_allclose(fb.interpolate(A, B, 0.0)(t), A(t), atol=1e-12)
+    np.testing.assert_allclose(fb.interpolate(A, B, 1.0)(t), B(t), atol=1e-12)
+    mid = fb.interpolate(A, B, 0.5)
     assert mid.amp[0, 0] == pytest.approx(3.0) and mid.phase[0, 0] == pytest.approx(0.4)  # amplitude, phase
     assert mid.mean[1] == pytest.approx(-0.5)
-    ext = fr.interpolate(A, B, 1.5)
+    ext = fb.interpolate(A, B, 1.5)
     assert ext.amp[0, 1] == pytest.approx(1.5 * 3.0 - 0.5 * 1.0) and ext.phase[0, 1] == pytest.approx(1.0)
     # phases blend the short way round: 3.0 and -3.0 rad are 0.28 rad apart, not 6
     a = fr.FourierModel([0.0], [[1.0]], [[3.0]])
     b = fr.FourierModel([0.0], [[1.0]], [[-3.0]])
-    assert fr.interpolate(a, b, 0.5).phase[0, 0] == pytest.approx(np.pi)
+    assert fb.interpolate(a, b, 0.5).phase[0, 0] == pytest.approx(np.pi)
     # the time-domain alternative (text reconstructed: (1-s) Theta + s Pi)
-    np.testing.assert_allclose(fr.blend_time_domain(A, B, 0.25, t), 0.75 * A(t) + 0.25 * B(t))
+    np.testing.assert_allclose(fb.blend_time_domain(A, B, 0.25, t), 0.75 * A(t) + 0.25 * B(t))
 
 
 def test_transition_follows_time_varying_s_and_speed():
     dt = 1 / 60
-    tr = fr.Transition(A, B)
+    tr = fb.Transition(A, B)
     s = np.linspace(0.0, 1.0, 240)
     out = tr.run(s, dt)
     theta = 0.0
@@ -121,7 +122,7 @@ def test_transition_follows_time_varying_s_and_speed():
         if k:
             theta += dt * 0.5 * (TWO_PI / 4.0 ** (1 - s[k - 1]) + TWO_PI / 4.0 ** (1 - v))
         np.testing.assert_allclose(out[k], eq3_by_hand(v, theta), atol=1e-9)
-    fast = fr.Transition(A, B, speed=2.0)
+    fast = fb.Transition(A, B, speed=2.0)
     fast.run(np.ones(31), dt)  # 30 frames = 0.5 s at s = 1 (T = 1 s) and speed 2: one full period
     assert min(fast.theta, TWO_PI - fast.theta) == pytest.approx(0.0, abs=1e-9)
 
@@ -149,33 +150,33 @@ def test_characteristics_and_superposition_by_hand():
     walk = fr.FourierModel([0.0], [[10.0], [2.0]], [[0.0], [0.5]], period_s=1.0)        # Phi^2 (Eq. 6-2)
     brisk = fr.FourierModel([1.0], [[14.0], [3.0]], [[0.3], [0.2]], period_s=0.8)       # Phi^1 (Eq. 6-1)
     run = fr.FourierModel([5.0], [[20.0], [1.0]], [[-0.4], [1.0]], period_s=0.6)        # Pi (Eq. 2)
-    ch = fr.characteristic(brisk, walk)
+    ch = fb.characteristic(brisk, walk)
     np.testing.assert_allclose(ch.amp, [[4.0], [1.0]])            # Eq. 7-1
     np.testing.assert_allclose(ch.phase, [[0.3], [-0.3]])          # Eq. 7-2
     assert ch.mean[0] == pytest.approx(1.0) and ch.period_ratio == pytest.approx(0.8)
     t = np.linspace(0, TWO_PI, 30)
     np.testing.assert_allclose(ch(t)[:, 0], 1.0 + 4.0 * np.sin(t + 0.3) + 1.0 * np.sin(2 * t - 0.3))  # Eq. 8
-    brisk_run = fr.superpose(run, ch, 1.0)
+    brisk_run = fb.superpose(run, ch, 1.0)
     by_hand = 6.0 + 24.0 * np.sin(t - 0.1) + 2.0 * np.sin(2 * t + 0.7)
     np.testing.assert_allclose(brisk_run(t)[:, 0], by_hand, atol=1e-12)
     assert brisk_run.period_s == pytest.approx(0.48)
-    half = fr.superpose(run, ch, 0.5)
+    half = fb.superpose(run, ch, 0.5)
     np.testing.assert_allclose(half(t)[:, 0], 5.5 + 22.0 * np.sin(t - 0.25) + 1.5 * np.sin(2 * t + 0.85), atol=1e-12)
     # the difference of two motions superposed back onto the second gives the first
-    np.testing.assert_allclose(fr.superpose(walk, ch, 1.0)(t), brisk(t), atol=1e-12)
+    np.testing.assert_allclose(fb.superpose(walk, ch, 1.0)(t), brisk(t), atol=1e-12)
     # Eq. 3 is the special case: interpolate(a, b, s) == superpose(a, characteristic(b, a), s)
     for s in (-0.5, 0.3, 1.7):
-        np.testing.assert_allclose(fr.superpose(walk, fr.characteristic(run, walk), s)(t),
-                                   fr.interpolate(walk, run, s)(t), atol=1e-12)
+        np.testing.assert_allclose(fb.superpose(walk, fb.characteristic(run, walk), s)(t),
+                                   fb.interpolate(walk, run, s)(t), atol=1e-12)
 
 
 # --- shivering (3.3) ---------------------------------------------------------------------------------
 
 def test_shiver_is_seeded_and_high_frequency():
     m = fr.FourierModel(MEAN, AMP, PHASE, period_s=1.0)
-    a = fr.shiver(m, np.random.default_rng(7), 0.5)
-    b = fr.shiver(m, np.random.default_rng(7), 0.5)
-    c = fr.shiver(m, np.random.default_rng(8), 0.5)
+    a = fb.shiver(m, np.random.default_rng(7), 0.5)
+    b = fb.shiver(m, np.random.default_rng(7), 0.5)
+    c = fb.shiver(m, np.random.default_rng(8), 0.5)
     t = np.linspace(0, TWO_PI, 256, endpoint=False)
     np.testing.assert_array_equal(a(t), b(t))
     assert not np.allclose(a(t), c(t))
@@ -184,7 +185,7 @@ def test_shiver_is_seeded_and_high_frequency():
     assert spectrum[:8].sum() < 1e-20 * spectrum.sum()  # nothing at or below the 7th harmonic
     assert spectrum[8:16].sum() > 0.99 * spectrum.sum() and np.abs(noise).max() > 0.1
     with pytest.raises(ValueError):
-        fr.shiver(m, np.random.default_rng(0), 0.5, first=3)
+        fb.shiver(m, np.random.default_rng(0), 0.5, first=3)
 
 
 # --- the ``fourier`` body driver -----------------------------------------------------------------

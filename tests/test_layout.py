@@ -90,7 +90,6 @@ def test_modules_stay_readable(name):
     """Modules under about 500 lines (the few above are listed with why they are not split)."""
     allowed = {
         "laughlab.hill.torso": 680,  # the torso's mechanics and its step, read side by side with the paper's 4-5
-        "laughlab.fourier.model": 720,  # Unuma's model, its fitting and blending share one representation
         "laughlab.synth.laughter": 600,  # one generator: bouts, calls, sources and their ground truth
     }
     n = len(modules()[name].read_text().splitlines())
