@@ -342,7 +342,8 @@ def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, wall_s: float)
 
     ``frame_ms_p50``/``frame_ms_p99``: percentiles of the time spent in the
     plugins and the mixer per frame (ms), excluding reading audio and writing
-    files.  ``realtime_factor``: audio duration / wall-clock time of the whole
+    files; the mixer renders poses once per chunk of frames (``Mixer.take``),
+    which, like the hand-over to the writers, counts in ``realtime_factor`` only.  ``realtime_factor``: audio duration / wall-clock time of the whole
     frame loop including reading and writing (higher is faster).
     """
     ms = times_ns / 1e6
