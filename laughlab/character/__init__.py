@@ -1,0 +1,1 @@
+"""The skinned character: a procedural human mesh on the project's skeleton, with face and breathing morphs."""
