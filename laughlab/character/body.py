@@ -269,7 +269,7 @@ def build(skeleton: Skeleton = HUMANOID) -> Character:
     tags = np.array(B.tag)
     joints = np.zeros((len(v), 4), np.uint16)
     weights = np.zeros((len(v), 4), np.float32)
-    same = bones[:, 1] == bones[:, 0]
+    same = (bones[:, 1] == bones[:, 0]) | (w2 <= 0.0)  # one bone: unused slots are joint 0, weight 0 (glTF)
     joints[:, 0] = bones[:, 0]
     joints[:, 1] = np.where(same, 0, bones[:, 1])
     weights[:, 0] = np.where(same, 1.0, 1.0 - w2)
