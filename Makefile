@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-all bench clips docs clean corpus detector
+.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,13 +25,28 @@ corpus: $(STAMP)
 detector: corpus
 	$(PY) -m laughlab.detector.fit
 
-## test: the default test suite (slow end-to-end checks excluded); the real corpus is fetched first
-test: $(STAMP) corpus
+## test: the default test suite (slow end-to-end checks excluded); the real corpus and the browser come first
+test: $(STAMP) corpus browser
 	$(PY) -m pytest -q
 
 ## test-all: every test, the slow ones too
-test-all: $(STAMP) corpus
+test-all: $(STAMP) corpus browser
 	$(PY) -m pytest -q -m ''
+
+## browser: Debian's chromium for the viewer's test (headless; installed with apt when missing and we may)
+browser:
+	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
+	  { if [ "$$(id -u)" = 0 ]; then apt-get update -q && apt-get install -y -q chromium; \
+	    elif command -v sudo >/dev/null 2>&1; then sudo apt-get update -q && sudo apt-get install -y -q chromium; \
+	    else echo "laughlab: error: the viewer test needs chromium: apt-get install chromium" >&2; exit 2; fi; }
+
+## vendor-three: (maintainers) copy three.js 0.160.0 from the npm registry into laughlab/viewer/vendor/three
+vendor-three: $(STAMP)
+	rm -rf build/three && mkdir -p build/three
+	cd build/three && ../../$(VENV)/bin/npm pack three@0.160.0 --silent && tar xzf three-0.160.0.tgz
+	for f in LICENSE build/three.module.min.js examples/jsm/loaders/GLTFLoader.js \
+	         examples/jsm/controls/OrbitControls.js examples/jsm/utils/BufferGeometryUtils.js; do \
+	  mkdir -p laughlab/viewer/vendor/three/$$(dirname $$f) && cp build/three/package/$$f laughlab/viewer/vendor/three/$$f; done
 
 ## bench: every benchmark (pipeline speed and memory, call detection, latency, Hill fit, detector, faces and Hill on real laughs); figures in benchmarks/results/
 bench: $(STAMP) corpus

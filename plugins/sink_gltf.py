@@ -31,26 +31,17 @@ class GltfSink(Sink):
 
     def open(self, run) -> None:
         super().open(run)
-        from laughlab.character.body import MORPHS
-
         self.staging = Staging()
-        self.morphs = MORPHS
         self.times: list = []
         self.poses: list = []
         self.weights: list = []
 
     def write(self, chunk) -> None:
-        from laughlab.io.vmc import arkit_weights
+        from laughlab.character.body import morph_weights
 
-        n = len(chunk.times)
-        face = arkit_weights(chunk.channels)
-        cols = []
-        for name in self.morphs:
-            src = face.get(name) if name in face else chunk.channels.get(name)
-            cols.append(np.zeros(n) if src is None else np.clip(np.nan_to_num(src), 0.0, 1.0))
         self.times.append(np.asarray(chunk.times, dtype=np.float64))
         self.poses.append(np.asarray(chunk.poses, dtype=np.float64))
-        self.weights.append(np.stack(cols, axis=1).astype(np.float32))
+        self.weights.append(morph_weights(chunk.channels, len(chunk.times)))
 
     def close(self):
         if not self.times:

@@ -335,3 +335,20 @@ def _morphs(v: np.ndarray, tags: np.ndarray, hc: np.ndarray, pos: np.ndarray, sk
     wb = trunk * np.clip(1.0 - np.abs(v[:, 1] - y_belly) / 11.0, 0.0, 1.0) * np.clip(axis[:, 2] / 8.0, 0.0, 1.0)
     m["belly"] = wb[:, None] * (0.04 * axis + (0.0, 0.0, 3.0))
     return np.stack([m[name] for name in MORPHS])
+
+
+def morph_weights(channels, n: int) -> np.ndarray:
+    """Weights ``(n, len(MORPHS))`` of the morph targets from a run's channels (name -> array).
+
+    The face's ARKit weights (``arkit.*`` channels, or the ``smile`` face's smile/jaw/eyes mapped
+    as for VMC, :func:`laughlab.io.vmc.arkit_weights`) and the body's ``chest`` and ``belly``,
+    each clipped to [0, 1]; a shape the run does not drive stays 0.
+    """
+    from laughlab.io.vmc import arkit_weights
+
+    face = arkit_weights(channels)
+    cols = []
+    for name in MORPHS:
+        src = face[name] if name in face else channels.get(name)
+        cols.append(np.zeros(n) if src is None else np.clip(np.nan_to_num(np.asarray(src, float)), 0.0, 1.0))
+    return np.stack(cols, axis=1).astype(np.float32)

@@ -1,0 +1,1 @@
+"""The browser viewer of a run: ``python -m laughlab view RUN_DIR`` (page, script and three.js vendored here)."""

@@ -1,0 +1,194 @@
+"""Serving (or writing) the viewer of a run: the page, three.js, the character, the audio, the channels.
+
+``python -m laughlab view RUN_DIR`` serves on 127.0.0.1 (port 8765, or a free one if that is in
+use, printed); ``--out DIR`` writes the same files into a folder that any static host serves.
+Nothing comes from a CDN: three.js 0.160.0 (MIT, ``vendor/three/LICENSE``) ships with laughlab,
+copied from the npm package ``three`` (``make vendor-three``).
+
+What the page gets from the run directory:
+
+* ``character.glb``: the run's own (``output=gltf``), else built here from ``motion.bvh`` and
+  ``channels.csv`` exactly as the ``gltf`` sink builds it;
+* the audio: ``input.wav`` (synthetic input), else the recording named in ``.hydra/config.yaml``;
+  without either the page plays on a wall clock;
+* ``run.json``: frames per second, duration, the ``mcs`` and ``energy`` channels and the clips
+  (start, stop, energy) for the strip under the character.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from functools import partial
+from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from laughlab.core.errors import LaughlabError
+
+DEFAULT_PORT = 8765
+NEEDED = ("motion.bvh", "channels.csv", "events.csv")
+
+
+def _channels(run_dir: Path) -> dict[str, np.ndarray]:
+    with open(run_dir / "channels.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    head, body = rows[0], rows[1:]
+    out = {}
+    for k, name in enumerate(head):
+        if name == "label":
+            continue
+        out[name] = np.array([float(r[k]) if r[k] else np.nan for r in body])
+    return out
+
+
+def _clips(run_dir: Path, duration: float) -> list[dict]:
+    with open(run_dir / "events.csv", newline="") as f:
+        events = list(csv.DictReader(f))
+    names = sorted({e["clip"] for e in events})
+    out, open_ = [], {}
+    for e in events:
+        if e["event"] == "start":
+            open_[e["clip"]] = e
+        elif e["event"] == "stop" and e["clip"] in open_:
+            s = open_.pop(e["clip"])
+            out.append({"clip": s["clip"], "start": float(s["time"]), "stop": float(e["time"]),
+                        "energy": float(s["energy"]), "index": names.index(s["clip"])})
+    for s in open_.values():
+        out.append({"clip": s["clip"], "start": float(s["time"]), "stop": duration, "energy": float(s["energy"]),
+                    "index": names.index(s["clip"])})
+    return sorted(out, key=lambda c: c["start"])
+
+
+def _audio(run_dir: Path) -> Path | None:
+    if (run_dir / "input.wav").exists():
+        return run_dir / "input.wav"
+    cfg = run_dir / ".hydra" / "config.yaml"
+    if cfg.exists():
+        from omegaconf import OmegaConf
+
+        inp = OmegaConf.load(cfg).get("input") or {}
+        path = inp.get("path") if inp.get("name") == "file" else None
+        if path and Path(str(path)).expanduser().exists():
+            return Path(str(path)).expanduser()
+    return None
+
+
+def assets(run_dir: str | Path) -> dict[str, bytes | Path]:
+    """Every file the page needs, by its URL path: bytes, or a path to send as it is."""
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise LaughlabError(f"no run directory at {run_dir}")
+    missing = [n for n in NEEDED if not (run_dir / n).exists()]
+    if missing:
+        raise LaughlabError(f"{run_dir} is not a finished run: it has no {', '.join(missing)}")
+    from laughlab.io.bvh import read_bvh
+
+    skeleton, motion, frame_time = read_bvh(run_dir / "motion.bvh")
+    fps = 1.0 / frame_time  # the BVH's frame time is rounded: metrics.json has the run's own fps
+    if (run_dir / "metrics.json").exists():
+        fps = float(json.loads((run_dir / "metrics.json").read_text()).get("fps", fps))
+    ch = _channels(run_dir)
+    n = len(motion)
+    duration = n / fps
+    files: dict[str, bytes | Path] = {}
+    if (run_dir / "character.glb").exists():
+        files["character.glb"] = run_dir / "character.glb"
+    else:
+        from laughlab.character.body import build, morph_weights
+        from laughlab.io.gltf import character_glb
+
+        files["character.glb"] = character_glb(build(skeleton), np.arange(n) / fps, motion,
+                                               morph_weights(ch, n), audio_duration_s=duration, fps=fps)
+    audio = _audio(run_dir)
+    if audio is not None:
+        files["audio" + audio.suffix.lower()] = audio
+    pick = {k: [round(float(x), 4) if np.isfinite(x) else 0.0 for x in ch[k]] for k in ("mcs", "energy") if k in ch}
+    clips = _clips(run_dir, duration)
+    run = {"name": run_dir.resolve().name, "fps": fps, "duration": duration,
+           "audio": ("audio" + audio.suffix.lower()) if audio is not None else None, "channels": pick,
+           "clips": clips, "energy_max": max([c["energy"] for c in clips] + [max(pick.get("energy", [1.0]))])}
+    files["run.json"] = json.dumps(run, separators=(",", ":")).encode()
+    page = resources.files("laughlab.viewer")
+    files["index.html"] = page.joinpath("index.html").read_bytes().replace(
+        b"<title>laughlab viewer</title>", f"<title>laughlab: {run['name']}</title>".encode())
+    files["viewer.js"] = page.joinpath("viewer.js").read_bytes()
+    vendor = Path(str(page.joinpath("vendor")))
+    for f in sorted(vendor.rglob("*")):
+        if f.is_file():
+            files["vendor/" + f.relative_to(vendor).as_posix()] = f
+    return files
+
+
+def write(run_dir: str | Path, out: str | Path) -> Path:
+    """Write the viewer's files into ``out`` (a new or empty folder)."""
+    out = Path(out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise LaughlabError(f"{out} exists and is not an empty folder; choose another --out")
+    files = assets(run_dir)
+    tmp = out.with_name(f".{out.name}.part")
+    shutil.rmtree(tmp, ignore_errors=True)
+    for name, data in files.items():
+        dest = tmp / name
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(data, Path):
+            shutil.copyfile(data, dest)
+        else:
+            dest.write_bytes(data)
+    if out.exists():
+        out.rmdir()
+    tmp.rename(out)
+    return out
+
+
+class _Handler(SimpleHTTPRequestHandler):
+    files: dict = {}
+
+    def do_GET(self):  # noqa: N802 - http.server's name
+        name = self.path.split("?", 1)[0].lstrip("/") or "index.html"
+        data = self.files.get(name)
+        if data is None:
+            self.send_error(404, "not part of this run's viewer")
+            return
+        body = data.read_bytes() if isinstance(data, Path) else data
+        # byte ranges: a browser seeks in audio only when the server answers them (RFC 9110, 14)
+        start, end, status = 0, len(body) - 1, 200
+        rng = self.headers.get("Range", "")
+        if rng.startswith("bytes=") and "," not in rng:
+            a, _, b = rng[6:].partition("-")
+            try:
+                start, end = (int(a), int(b) if b else len(body) - 1) if a else (len(body) - int(b), len(body) - 1)
+            except ValueError:
+                start, end = 0, len(body) - 1
+            if not 0 <= start <= end < len(body):
+                self.send_response(416)
+                self.send_header("Content-Range", f"bytes */{len(body)}")
+                self.end_headers()
+                return
+            status = 206
+        self.send_response(status)
+        self.send_header("Content-Type", self.guess_type(name))
+        self.send_header("Accept-Ranges", "bytes")
+        self.send_header("Content-Length", str(end - start + 1))
+        if status == 206:
+            self.send_header("Content-Range", f"bytes {start}-{end}/{len(body)}")
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
+        self.wfile.write(body[start:end + 1])
+
+    def log_message(self, *args):  # quiet: the command prints its one line
+        pass
+
+
+def server(run_dir: str | Path, port: int = DEFAULT_PORT) -> ThreadingHTTPServer:
+    """A server of the run's viewer on 127.0.0.1 (``port``, or a free one if it is taken)."""
+    files = assets(run_dir)
+    handler = type("Handler", (_Handler,), {"files": files})
+    handler.extensions_map = {**SimpleHTTPRequestHandler.extensions_map, ".js": "text/javascript",
+                              ".glb": "model/gltf-binary", ".json": "application/json", ".wav": "audio/wav"}
+    try:
+        return ThreadingHTTPServer(("127.0.0.1", port), partial(handler))
+    except OSError:  # the port is in use: the system picks a free one
+        return ThreadingHTTPServer(("127.0.0.1", 0), partial(handler))
