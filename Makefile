@@ -56,6 +56,7 @@ bench: $(STAMP) corpus
 	$(PY) benchmarks/bench_hill.py
 	$(PY) benchmarks/bench_detector.py
 	$(PY) benchmarks/bench_real.py
+	$(PY) benchmarks/bench_render.py
 
 ## clips: regenerate the clip library's BVH files from their keyframes
 clips: $(STAMP)

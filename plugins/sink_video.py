@@ -80,8 +80,12 @@ class VideoParams:
         x264 threads; fixed (not "auto") so the same run gives the same bytes on any machine.
     supersample : int
         Anti-aliasing: draw at this multiple of the size and downsample (1 = off, faster).
+    style : str
+        ``character``: the skinned character (:mod:`laughlab.character.body`), rendered in
+        software (no GPU), framed on the upper body and face by ``character_camera``;
+        ``schematic``: the stick figure with a drawn face, framed by ``camera``, for quick looks.
     inset : bool
-        Show the zoomed face (top right; van Duijn 2014, 6.1).
+        Show the zoomed face (top right; van Duijn 2014, 6.1; ``schematic`` only).
     inset_size : float
         Inset side as a fraction of the height.
     audio : bool
@@ -96,9 +100,13 @@ class VideoParams:
     audio_rate : int
         AAC sample rate (Hz).
     camera : CameraParams
+        The ``schematic`` style's camera.
+    character_camera : CameraParams
+        The ``character`` style's camera (upper body and face).
     """
 
     file: str = "video.mp4"
+    style: str = "character"
     width: int = 640
     height: int = 480
     fps: float | None = 30.0
@@ -113,6 +121,8 @@ class VideoParams:
     audio_bitrate_k: int = 128
     audio_rate: int = 48000
     camera: CameraParams = field(default_factory=CameraParams)
+    character_camera: CameraParams = field(default_factory=lambda: CameraParams(
+        azimuth_deg=15.0, elevation_deg=3.0, distance_cm=170.0, target_height_cm=138.0, fov_deg=30.0))
 
     def __post_init__(self) -> None:
         if not self.file or "/" in self.file or "\\" in self.file:
@@ -122,6 +132,8 @@ class VideoParams:
             check_range(name, v, 16, 4096)
             if v % 2:
                 raise ValueError(f"{name} must be even for yuv420p (got {v})")
+        if self.style not in ("character", "schematic"):
+            raise ValueError(f"style must be character or schematic (got {self.style!r})")
         if self.fps is not None:
             check_range("fps", self.fps, 1, 240)
         check_range("crf", self.crf, 0, 51)
@@ -167,8 +179,14 @@ class VideoSink(Sink):
                 else:
                     audio = source_audio(run.source, self.tmp_dir)
             self.audio = audio
-            cam = Camera(**vars(p.camera))
-            self.renderer = Renderer(run.skeleton, p.width, p.height, cam, p.inset, p.inset_size, p.supersample)
+            if p.style == "character":
+                from laughlab.render.character_view import CharacterRenderer
+
+                self.renderer = CharacterRenderer(run.skeleton, p.width, p.height,
+                                                  Camera(**vars(p.character_camera)), p.supersample)
+            else:
+                self.renderer = Renderer(run.skeleton, p.width, p.height, Camera(**vars(p.camera)), p.inset,
+                                         p.inset_size, p.supersample)
             self.encoder = VideoEncoder(self.staging.path(run.out_dir / p.file), p.width, p.height, self.vfps, audio,
                                         p.crf, p.preset, p.threads, p.audio_bitrate_k, p.audio_rate)
         except BaseException:
@@ -194,6 +212,14 @@ class VideoSink(Sink):
         sk = self.run.skeleton
         idx = np.array(want)
         poses = np.nan_to_num(np.asarray(chunk.poses, dtype=np.float64)[idx])
+        if self.params.style == "character":
+            from laughlab.character.body import morph_weights
+
+            mw = morph_weights(chunk.channels, n)[idx]
+            for i in range(len(idx)):
+                self.encoder.write(self.renderer.render(poses[i], mw[i]))
+            self.render_s += time.perf_counter() - t0
+            return
         pos, rot = global_transforms(sk, poses)
         leaves = sk.leaves()
         ends = pos[:, leaves] + np.einsum("fjab,jb->fja", rot[:, leaves], sk.end_sites[leaves])

@@ -102,7 +102,9 @@ def test_failed_run_leaves_no_partial_mp4(tmp_path):
 
 
 def _sink(tmp_path, anim_fps=30.0, **params) -> VideoSink:
-    p = VideoParams(**{"width": 320, "height": 240, "fps": None, "supersample": 1, "audio": False, **params})
+    """A video sink drawing the schematic figure (its face inset is where these tests look)."""
+    p = VideoParams(**{"width": 320, "height": 240, "fps": None, "supersample": 1, "audio": False,
+                       "style": "schematic", **params})
     sink = VideoSink(p, Context(fps=anim_fps))
     sink.open(RunInfo(tmp_path, anim_fps, HUMANOID, None, None))
     return sink
@@ -224,3 +226,28 @@ def test_yaml_defaults_equal_the_dataclass_defaults():
     conf = yaml.safe_load(_conf_dir().joinpath("output", "video.yaml").read_text())
     assert set(conf) == {"csv", "bvh", "plots", "arkit", "video"}
     assert conf["video"] == asdict(VideoParams())
+
+
+def test_the_character_style_shows_the_skinned_character_and_its_face(tmp_path):
+    """style=character (the default): the software-rendered character; its mouth opens with the jaw,
+    its eyes close, and nothing far from the face changes with them."""
+    n = 4
+    jaw = np.r_[np.zeros(n), np.ones(n), np.zeros(n)]
+    eyes = np.r_[np.zeros(2 * n), np.ones(n)]
+    sink = _sink(tmp_path, style="character", supersample=2)
+    sink.write(_chunk({"arkit.jawOpen": jaw, "arkit.eyeBlinkLeft": eyes, "arkit.eyeBlinkRight": eyes}, 3 * n))
+    frames = decode_frames(sink.close()[0], 320, 240).astype(float)
+    first = frames[n // 2]
+    r, g, b = first[..., 0], first[..., 1], first[..., 2]
+    skin = (r > g + 15) & (g > b) & (r > 140)
+    shirt = (b > r + 25) & (b > 90)
+    assert skin.mean() > 0.01 and shirt.mean() > 0.05  # a face and a blue shirt fill the frame
+    ys, xs = np.nonzero(skin[: 120])  # the face: the skin in the upper half
+    face = (slice(max(0, ys.min() - 5), ys.max() + 5), slice(max(0, xs.min() - 5), xs.max() + 5))
+    jaw_diff = np.abs(frames[n + n // 2] - first).mean(axis=-1)
+    eye_diff = np.abs(frames[2 * n + n // 2] - first).mean(axis=-1)
+    for diff in (jaw_diff, eye_diff):
+        changed = diff > 12  # above the encoder's noise
+        assert changed[face].sum() > 20 and changed[face].sum() > 0.9 * changed.sum()  # the face, not the rest
+    # jaw and eyes move different parts of the face
+    assert np.argmax(jaw_diff[face].sum(axis=1)) > np.argmax(eye_diff[face].sum(axis=1))

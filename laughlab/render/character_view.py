@@ -1,0 +1,105 @@
+"""Video frames of the skinned character (:mod:`laughlab.character.body`), rendered in software.
+
+The camera follows the upper body: it looks at the point between the chest (``spine2``) and the
+head, smoothed over about a fifth of a second, from the azimuth, elevation and distance of
+``camera`` (its ``target_height_cm`` is not used), so the face stays in frame when the character
+bends over or rolls on the floor.
+
+Per frame: the morph targets are added in the rest pose (face and breathing weights), the mesh
+is skinned by the pose's joint transforms (linear blend, as glTF does), lit by a key light, a
+fill from the other side and an ambient term (Lambert, per vertex), projected by the scene's
+pinhole camera and drawn by :func:`laughlab.render.raster.rasterise` at ``supersample`` times
+the size, then averaged down (anti-aliasing).  No GPU, no display: the same pixels for the same
+pose on the same machine.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from laughlab.character.body import build
+from laughlab.motion.skeleton import global_transforms
+from laughlab.render.raster import rasterise
+from laughlab.render.scene import Camera
+
+#: key light (from the camera's upper left), fill light (right), ambient
+KEY = np.array([-0.45, 0.65, 0.6])
+FILL = np.array([0.7, 0.2, 0.5])
+
+
+class CharacterRenderer:
+    """Renders the character at ``width`` x ``height`` with ``camera`` (cm, as the schematic scene's)."""
+
+    def __init__(self, skeleton, width: int = 640, height: int = 480, camera: Camera | None = None,
+                 supersample: int = 2):
+        self.char = build(skeleton)
+        self.skeleton = skeleton
+        self.width, self.height, self.ss = width, height, supersample
+        self.camera = camera or Camera(azimuth_deg=15.0, elevation_deg=3.0, distance_cm=170.0,
+                                       target_height_cm=138.0, fov_deg=30.0)
+        self.focal = 0.5 * height * supersample / np.tan(np.radians(self.camera.fov_deg) / 2)
+        self.aim: np.ndarray | None = None  # set by the first frame
+        self.follow = 1.0 - np.exp(-1.0 / 6.0)  # per rendered frame: a time constant of 6 frames (0.2 s at 30 fps)
+        self.tris = self.char.indices.reshape(-1, 3).astype(np.int64)
+        self.base = self.char.positions.astype(np.float64) * 100.0     # cm
+        self.morphs = self.char.morphs.astype(np.float64) * 100.0
+        self.normals = self.char.normals.astype(np.float64)
+        self.albedo = self.char.colors.astype(np.float64) * 255.0
+        rest, _ = global_transforms(skeleton, _rest(skeleton))
+        self.rest = rest                                                # joints' rest positions, cm
+        key, fill = KEY / np.linalg.norm(KEY), FILL / np.linalg.norm(FILL)
+        self.key, self.fill = key, fill
+        h, w = height * supersample, width * supersample
+        top, bottom = np.array([58.0, 66.0, 84.0]), np.array([28.0, 31.0, 40.0])
+        ramp = np.linspace(0.0, 1.0, h)[:, None, None]
+        self.background = np.broadcast_to(top + (bottom - top) * ramp, (h, w, 3)).astype(np.float32)
+
+    def render(self, pose: np.ndarray, morph_weights: np.ndarray) -> np.ndarray:
+        """One frame ``(height, width, 3)`` uint8 of ``pose`` (BVH channel vector) with ``morph_weights``."""
+        pos, rot = global_transforms(self.skeleton, np.asarray(pose, dtype=np.float64))
+        v = self.base + np.tensordot(np.asarray(morph_weights, dtype=np.float64), self.morphs, axes=1)
+        j, wt = self.char.joints, self.char.weights.astype(np.float64)
+        out = np.zeros_like(v)
+        nrm = np.zeros_like(v)
+        for k in range(2):  # two bones a vertex (linear blend skinning)
+            r = rot[j[:, k]]
+            local = v - self.rest[j[:, k]]
+            out += wt[:, k:k + 1] * (np.einsum("vab,vb->va", r, local) + pos[j[:, k]])
+            nrm += wt[:, k:k + 1] * np.einsum("vab,vb->va", r, self.normals)
+        nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
+        light = 0.30 + 0.75 * np.clip(nrm @ self.key, 0.0, None) + 0.25 * np.clip(nrm @ self.fill, 0.0, None)
+        colour = np.clip(self.albedo * light[:, None], 0.0, 255.0)
+        chest, head = self.skeleton.index("spine2"), self.skeleton.index("head")
+        target = 0.5 * (pos[chest] + pos[head])
+        self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
+        xy, depth = self._project(out)
+        img = rasterise(xy, depth, colour, self.tris, self.background)
+        s = self.ss
+        if s > 1:  # the mean of each s x s block, summed slice by slice (a strided mean is 10x slower)
+            acc = np.zeros((self.height, self.width, 3), dtype=np.float32)
+            for dy in range(s):
+                for dx in range(s):
+                    acc += img[dy::s, dx::s]
+            img = acc * np.float32(1.0 / (s * s))
+        return np.clip(img + 0.5, 0, 255).astype(np.uint8)
+
+
+    def _project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pixels ``(V, 2)`` and depth ``(V,)`` of world points (cm) seen from the camera around ``self.aim``."""
+        c = self.camera
+        a, e = np.radians(c.azimuth_deg), np.radians(c.elevation_deg)
+        centre = self.aim + c.distance_cm * np.array([np.sin(a) * np.cos(e), np.sin(e), np.cos(a) * np.cos(e)])
+        fwd = (self.aim - centre) / np.linalg.norm(self.aim - centre)
+        right = np.cross(fwd, [0.0, 1.0, 0.0])
+        right /= np.linalg.norm(right)
+        up = np.cross(right, fwd)
+        q = (points - centre) @ np.stack([right, up, fwd]).T
+        z = np.maximum(q[:, 2], 1.0)
+        h, w = self.height * self.ss, self.width * self.ss
+        xy = np.stack([0.5 * w + self.focal * q[:, 0] / z, 0.5 * h - self.focal * q[:, 1] / z], axis=1)
+        return np.clip(xy, -1e5, 1e5), z
+
+
+def _rest(skeleton) -> np.ndarray:
+    from laughlab.motion.skeleton import rest_pose
+
+    return rest_pose(skeleton)
