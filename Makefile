@@ -66,11 +66,12 @@ clean:
 	rm -rf $(VENV) runs outputs multirun .pytest_cache .hypothesis
 
 ## docs: regenerate the README's pictures from a fixed run (seed 0, 30 s of synthetic laughter)
-docs: $(STAMP)
+docs: $(STAMP) browser
 	rm -rf runs/docs
 	$(PY) -m laughlab hydra.run.dir=runs/docs seed=0
 	mkdir -p docs/img
 	cp runs/docs/plots/fig3_2_mcs.png runs/docs/plots/fig4_2_energy.png runs/docs/plots/filmstrip.png docs/img/
+	$(PY) -m laughlab.viewer.browser runs/docs docs/img/viewer.png --at 9
 	rm -rf runs/docs-video
 	$(PY) -m laughlab hydra.run.dir=runs/docs-video seed=0 input.duration_s=10 output=video face=facs
 	$(PY) -c "import imageio_ffmpeg, subprocess; subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), '-loglevel', 'error', '-y', '-ss', '2.5', '-i', 'runs/docs-video/video.mp4', '-frames:v', '1', 'docs/img/video_frame.png'], check=True)"

@@ -1,14 +1,9 @@
 """``python -m laughlab view``: the character in a real headless Chromium, in sync with the audio (issue 13, item 3)."""
-import base64
 import io
 import json
-import shutil
 import subprocess
 import sys
-import tempfile
 import threading
-import time
-import urllib.request
 
 import numpy as np
 import pytest
@@ -17,13 +12,7 @@ from omegaconf import OmegaConf
 from laughlab.core import pipeline
 from laughlab.core.config import compose_config
 from laughlab.viewer import server as V
-
-
-def chromium() -> str:
-    exe = shutil.which("chromium") or shutil.which("chromium-browser")
-    if exe is None:
-        pytest.fail("the viewer test needs Debian's chromium: make browser (apt-get install chromium)")
-    return exe
+from laughlab.viewer.browser import Page
 
 
 @pytest.fixture(scope="module")
@@ -35,69 +24,12 @@ def run_dir(tmp_path_factory):
     return out
 
 
-class Page:
-    """A page in headless Chromium, driven over the DevTools protocol (what Puppeteer speaks)."""
-
-    def __init__(self, url: str):
-        import websocket
-
-        self.profile = tempfile.mkdtemp()
-        self.proc = subprocess.Popen(
-            [chromium(), "--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-             "--autoplay-policy=no-user-gesture-required", "--window-size=960,720", f"--user-data-dir={self.profile}",
-             "--remote-debugging-port=0", "about:blank"], stderr=subprocess.PIPE, text=True)
-        for line in self.proc.stderr:
-            if "DevTools listening on" in line:
-                port = line.strip().rsplit(":", 1)[1].split("/")[0]
-                break
-        targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json"))
-        page = next(t for t in targets if t["type"] == "page")
-        self.ws = websocket.create_connection(page["webSocketDebuggerUrl"], timeout=60)
-        self.n, self.events = 0, []
-        for domain in ("Runtime", "Log", "Page"):
-            self.call(f"{domain}.enable")
-        self.call("Page.navigate", url=url)
-
-    def call(self, method: str, **params):
-        self.n += 1
-        self.ws.send(json.dumps({"id": self.n, "method": method, "params": params}))
-        while True:
-            msg = json.loads(self.ws.recv())
-            if msg.get("id") == self.n:
-                return msg.get("result", {})
-            self.events.append(msg)
-
-    def eval(self, expr: str):
-        r = self.call("Runtime.evaluate", expression=expr, awaitPromise=True, returnByValue=True)
-        if "exceptionDetails" in r:
-            raise AssertionError(r["exceptionDetails"])
-        return r["result"].get("value")
-
-    def problems(self) -> list:
-        out = []
-        for e in self.events:
-            m, p = e.get("method"), e.get("params", {})
-            if m == "Runtime.exceptionThrown" or (m == "Runtime.consoleAPICalled" and p["type"] in ("error", "warning")) \
-                    or (m == "Log.entryAdded" and p["entry"]["level"] in ("error", "warning")):
-                out.append(json.dumps(p)[:300])
-        return out
-
-    def close(self):
-        self.ws.close()
-        self.proc.kill()
-        self.proc.wait()
-        shutil.rmtree(self.profile, ignore_errors=True)
-
-
 @pytest.fixture(scope="module")
 def page(run_dir):
     httpd = V.server(run_dir, 0)
     threading.Thread(target=httpd.serve_forever, daemon=True).start()
     p = Page(f"http://127.0.0.1:{httpd.server_address[1]}/")
-    t0 = time.time()
-    while not p.eval("!!(window.laughlab && window.laughlab.ready)"):
-        assert time.time() - t0 < 60, f"the page did not get ready: {p.problems()}"
-        time.sleep(0.2)
+    p.wait_ready()
     yield p
     p.close()
     httpd.shutdown()
@@ -119,7 +51,7 @@ def test_a_screenshot_shows_the_character(page):
     from PIL import Image
 
     page.eval("window.laughlab.check(3.0)")
-    png = base64.b64decode(page.call("Page.captureScreenshot", format="png")["data"])
+    png = page.screenshot()
     img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
     view = img[: int(0.6 * img.shape[0])]
     background = np.array([0x2a, 0x30, 0x40])

@@ -52,9 +52,9 @@ const floor = new THREE.Mesh(new THREE.CircleGeometry(2.5, 48), new THREE.MeshSt
 floor.rotation.x = -Math.PI / 2;
 scene.add(floor);
 const camera = new THREE.PerspectiveCamera(28, 1, 0.05, 50);
-camera.position.set(0.35, 1.35, 3.2);
+camera.position.set(0.5, 1.25, 3.9);
 const controls = new OrbitControls(camera, canvas);
-controls.target.set(0, 1.15, 0);
+controls.target.set(0, 0.95, 0);
 controls.update();
 
 const gltf = await new GLTFLoader().loadAsync('./character.glb');

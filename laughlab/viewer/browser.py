@@ -1,0 +1,121 @@
+"""Driving the viewer in headless Chromium over the DevTools protocol (what Puppeteer speaks).
+
+Used by the viewer's tests and by ``make docs`` for the README's picture of the viewer:
+``python -m laughlab.viewer.browser RUN_DIR OUT.png [--at SECONDS]``.  Needs Debian's
+``chromium`` (``make browser``) and the ``websocket-client`` package (the ``test`` extra).
+"""
+from __future__ import annotations
+
+import argparse
+import base64
+import json
+import shutil
+import subprocess
+import tempfile
+import threading
+import time
+import urllib.request
+
+from laughlab.core.errors import LaughlabError
+
+
+def chromium() -> str:
+    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    if exe is None:
+        raise LaughlabError("this needs Debian's chromium: make browser (apt-get install chromium)")
+    return exe
+
+
+class Page:
+    """One page of a headless Chromium (software WebGL), its console problems collected."""
+
+    def __init__(self, url: str, width: int = 960, height: int = 720):
+        import websocket
+
+        self.profile = tempfile.mkdtemp()
+        self.proc = subprocess.Popen(
+            [chromium(), "--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
+             "--autoplay-policy=no-user-gesture-required", f"--window-size={width},{height}",
+             f"--user-data-dir={self.profile}", "--remote-debugging-port=0", "about:blank"],
+            stderr=subprocess.PIPE, text=True)
+        port = None
+        for line in self.proc.stderr:
+            if "DevTools listening on" in line:
+                port = line.strip().rsplit(":", 1)[1].split("/")[0]
+                break
+        if port is None:
+            raise LaughlabError("chromium did not start its DevTools endpoint")
+        targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json"))
+        page = next(t for t in targets if t["type"] == "page")
+        self.ws = websocket.create_connection(page["webSocketDebuggerUrl"], timeout=60)
+        self.n, self.events = 0, []
+        for domain in ("Runtime", "Log", "Page"):
+            self.call(f"{domain}.enable")
+        self.call("Page.navigate", url=url)
+
+    def call(self, method: str, **params) -> dict:
+        self.n += 1
+        self.ws.send(json.dumps({"id": self.n, "method": method, "params": params}))
+        while True:
+            msg = json.loads(self.ws.recv())
+            if msg.get("id") == self.n:
+                return msg.get("result", {})
+            self.events.append(msg)
+
+    def eval(self, expr: str):
+        r = self.call("Runtime.evaluate", expression=expr, awaitPromise=True, returnByValue=True)
+        if "exceptionDetails" in r:
+            raise LaughlabError(f"page error: {r['exceptionDetails'].get('text')}")
+        return r["result"].get("value")
+
+    def wait_ready(self, timeout_s: float = 60.0) -> None:
+        t0 = time.time()
+        while not self.eval("!!(window.laughlab && window.laughlab.ready)"):
+            if time.time() - t0 > timeout_s:
+                raise LaughlabError(f"the viewer did not get ready: {self.problems()}")
+            time.sleep(0.2)
+
+    def screenshot(self) -> bytes:
+        return base64.b64decode(self.call("Page.captureScreenshot", format="png")["data"])
+
+    def problems(self) -> list[str]:
+        """Console errors and warnings, and uncaught exceptions, so far."""
+        out = []
+        for e in self.events:
+            m, p = e.get("method"), e.get("params", {})
+            if m == "Runtime.exceptionThrown" or (m == "Runtime.consoleAPICalled" and p["type"] in ("error", "warning")) \
+                    or (m == "Log.entryAdded" and p["entry"]["level"] in ("error", "warning")):
+                out.append(json.dumps(p)[:300])
+        return out
+
+    def close(self) -> None:
+        self.ws.close()
+        self.proc.kill()
+        self.proc.wait()
+        shutil.rmtree(self.profile, ignore_errors=True)
+
+
+def main(argv: list[str] | None = None) -> None:
+    from laughlab.viewer import server as V
+
+    parser = argparse.ArgumentParser(prog="python -m laughlab.viewer.browser",
+                                     description="A screenshot of a run's viewer (headless Chromium).")
+    parser.add_argument("run_dir")
+    parser.add_argument("out", help="PNG file to write")
+    parser.add_argument("--at", type=float, default=3.0, help="time to show (s)")
+    ns = parser.parse_args(argv)
+    httpd = V.server(ns.run_dir, 0)
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    page = Page(f"http://127.0.0.1:{httpd.server_address[1]}/")
+    try:
+        page.wait_ready()
+        page.eval(f"window.laughlab.check({ns.at})")
+        with open(ns.out, "wb") as f:
+            f.write(page.screenshot())
+    finally:
+        page.close()
+        httpd.shutdown()
+
+
+if __name__ == "__main__":
+    main()
