@@ -19,8 +19,8 @@ from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, compose_config, co
 from laughlab.core.errors import LaughlabError
 
 
-#: outputs that mark a folder as holding an earlier run
-RUN_MARKERS = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.json", "manifest.csv")
+#: the run directory this process holds (laughlab.core.rundir), from before Hydra writes into it to the end
+_CLAIM = None
 _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--version",
                 "--shell-completion", "-sc", "--resolve", "--package", "-p", "--config-path", "-cp",
                 "--config-name", "-cn", "--config-dir", "-cd", "--experimental-rerun"}
@@ -64,11 +64,8 @@ def preflight(argv: list[str]):
     _check_overrides(overrides)
     cfg = compose_config(overrides, job_name="cli")
     run_dir = Path(cfg.hydra.run.dir)
-    if run_dir.exists() and not cfg.get("overwrite", False):
-        if not run_dir.is_dir():
-            raise LaughlabError(f"hydra.run.dir {run_dir} exists and is not a folder")
-        if any((run_dir / m).exists() for m in RUN_MARKERS):
-            raise LaughlabError(f"{run_dir} already holds a run; choose another hydra.run.dir or add overwrite=true")
+    if run_dir.exists() and not run_dir.is_dir():
+        raise LaughlabError(f"hydra.run.dir {run_dir} exists and is not a folder")
     if cfg.get("harness"):
         from laughlab.harness.corpus import build_corpus
         from laughlab.harness.experiment import experiment_module
@@ -129,21 +126,30 @@ def task(cfg) -> dict:
 
     from laughlab.core import pipeline
 
+    global _CLAIM
+    from laughlab.core import rundir
+
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     t0 = time.perf_counter()
     try:
+        if _CLAIM is None:  # a sweep's job: Hydra made the folder and wrote .hydra/ into it
+            _CLAIM = rundir.claim(out_dir, bool(cfg.get("overwrite", False)), ours=frozenset({".hydra"}))
         if cfg.get("harness"):
             from laughlab.harness.experiment import experiment_module, run_experiment
 
             module = experiment_module(cfg.harness.get("module"))
             if module is not None and hasattr(module, "run"):  # an experiment with its own procedure
-                return module.run(cfg, out_dir)
+                doc = module.run(cfg, out_dir)
+                _CLAIM.finish()
+                return doc
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
+            _CLAIM.finish()
             print(f"{doc['experiment']}: {doc['n_trials']} trials -> {out_dir / 'results.json'}; "
                   f"report: python -m laughlab report {out_dir}")
             return doc
         pipe = pipeline.build(cfg)
         metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
+        _CLAIM.finish()
         print(summary_line(cfg, metrics, out_dir, time.perf_counter() - t0))
         return metrics
     except LaughlabError as exc:
@@ -152,6 +158,10 @@ def task(cfg) -> dict:
     except KeyboardInterrupt:
         _remove_new_run_dir(out_dir)
         fail("interrupted; the run's partial output was removed", code=130)
+    finally:
+        if _CLAIM is not None:
+            _CLAIM.release()
+            _CLAIM = None
 
 
 def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:
@@ -173,12 +183,15 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:
 
 
 def _remove_new_run_dir(out_dir: Path) -> None:
-    """Remove what Hydra created for a failed run (.hydra/), and the folder if then empty."""
+    """Remove what Hydra created for a failed run (.hydra/), our marker, and the folder if we made it."""
     shutil.rmtree(out_dir / ".hydra", ignore_errors=True)
-    try:
-        out_dir.rmdir()
-    except OSError:
-        pass
+    if _CLAIM is not None:
+        _CLAIM.abandon()
+    else:
+        try:
+            out_dir.rmdir()
+        except OSError:
+            pass
 
 
 def report_command(args: list[str]) -> None:
@@ -341,6 +354,13 @@ def main(argv: list[str] | None = None) -> None:
     except LaughlabError as exc:
         fail(str(exc))
     if not multirun and not hydra_only:
+        global _CLAIM
+        from laughlab.core import rundir
+
+        try:  # one writer per run directory, before anything is written into it
+            _CLAIM = rundir.claim(Path(cfg.hydra.run.dir), bool(cfg.get("overwrite", False)))
+        except LaughlabError as exc:
+            fail(str(exc))
         run_composed(cfg)
         return
     import hydra

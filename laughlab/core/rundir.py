@@ -1,0 +1,119 @@
+"""One writer per run directory: an OS lock held for the whole run, and a marker that says "a run".
+
+:func:`claim` is called before anything is written into the directory:
+
+* it takes an exclusive ``flock`` on ``DIR/.laughlab.lock`` (the process id inside) for the life
+  of the process; a second run into the same directory ends at once with one line naming the
+  directory and the first run's pid.  The OS releases the lock on any exit, a crash included,
+  so a stale lock cannot exist: the next run simply gets it;
+* a directory is "a run" when it holds the marker ``DIR/.laughlab-run.json`` (written by the
+  claim, completed with the list of the run's files at the end) or, for runs of laughlab 0.1,
+  one of its output files.  A run directory is refused unless ``overwrite=true``; a non-empty
+  folder that is not a run (the user's own files) is refused too unless ``overwrite=true``;
+* ``overwrite=true`` deletes only what the marker lists as the earlier run's files, so the
+  folder ends up holding one run's outputs and nothing of the user's is touched.
+"""
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+
+from laughlab.core.errors import LaughlabError
+
+LOCK = ".laughlab.lock"
+MARKER = ".laughlab-run.json"
+#: outputs that mark a folder as holding a run of laughlab 0.1 (no marker)
+LEGACY = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.json", "manifest.csv")
+
+
+class Claim:
+    """A run directory held by this process."""
+
+    def __init__(self, path: Path, fd: int, created: bool, user_files: set[str]):
+        self.path, self.fd, self.created, self.user_files = path, fd, created, user_files
+
+    def finish(self) -> None:
+        """Record the run's files in the marker (every entry but the user's and ours)."""
+        files = sorted(p.name for p in self.path.iterdir() if p.name not in self.user_files | {LOCK, MARKER})
+        _write_marker(self.path, {"pid": os.getpid(), "complete": True, "files": files})
+
+    def abandon(self) -> None:
+        """After a failure: remove the marker, and the folder if this run created it and it is empty."""
+        (self.path / MARKER).unlink(missing_ok=True)
+        if self.created and {p.name for p in self.path.iterdir()} <= {LOCK}:
+            (self.path / LOCK).unlink(missing_ok=True)
+            try:
+                self.path.rmdir()
+            except OSError:
+                pass
+
+    def release(self) -> None:
+        try:
+            os.close(self.fd)
+        except OSError:
+            pass
+
+
+def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset()) -> Claim:
+    """Lock ``path`` for this run (creating it) and check it may be written; see the module notes.
+
+    ``ours``: entries this run has already written (a Hydra sweep job's ``.hydra``).
+    """
+    import fcntl
+
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise LaughlabError(f"hydra.run.dir {path} exists and is not a folder")
+    created = not path.exists()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise LaughlabError(f"cannot create the run directory {path}: {exc.strerror or exc}") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        other = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+        os.close(fd)
+        raise LaughlabError(f"{path} is in use by another laughlab run (pid {other}); wait for it to finish or "
+                            "choose another hydra.run.dir") from None
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    try:
+        entries = {p.name for p in path.iterdir()} - {LOCK} - set(ours)
+        marker = _read_marker(path)
+        earlier = set(marker.get("files", [])) if marker is not None else set()
+        is_run = marker is not None or any(name in entries for name in LEGACY)
+        if entries and not overwrite:
+            if is_run:
+                raise LaughlabError(f"{path} already holds a run; choose another hydra.run.dir or add overwrite=true")
+            shown = ", ".join(sorted(entries)[:3]) + (", ..." if len(entries) > 3 else "")
+            raise LaughlabError(f"{path} is not empty and not a laughlab run ({shown}); choose an empty folder or "
+                                "add overwrite=true (files laughlab did not write are kept)")
+        for name in sorted(earlier & entries):  # overwrite: the earlier run's own files only
+            p = path / name
+            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink(missing_ok=True)
+        (path / MARKER).unlink(missing_ok=True)
+        user = entries - earlier - {MARKER}
+        if marker is None and is_run:  # a 0.1 run without a marker: its files are not known, keep them
+            user = entries - {MARKER}
+        _write_marker(path, {"pid": os.getpid(), "complete": False, "files": []})
+    except BaseException:
+        os.close(fd)
+        raise
+    return Claim(path, fd, created, user)
+
+
+def _read_marker(path: Path) -> dict | None:
+    try:
+        return json.loads((path / MARKER).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _write_marker(path: Path, doc: dict) -> None:
+    tmp = path / f".{MARKER}.part"
+    tmp.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    os.replace(tmp, path / MARKER)

@@ -1,0 +1,89 @@
+"""One writer per run directory (issue 14, item 1): the lock, the marker, overwrite that keeps the user's files."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from laughlab.core import rundir
+from laughlab.core.errors import LaughlabError
+
+
+def laughlab(*args, **kw):
+    return subprocess.Popen([sys.executable, "-m", "laughlab", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, **kw)
+
+
+def test_two_runs_into_one_directory_one_wins_and_the_other_says_why(tmp_path):
+    d = tmp_path / "D"
+    runs = {seed: laughlab("input.duration_s=20", f"hydra.run.dir={d}", f"seed={seed}") for seed in (0, 5)}
+    out = {seed: (p.wait(timeout=300), p.stdout.read(), p.stderr.read()) for seed, p in runs.items()}
+    codes = sorted(code for code, _, _ in out.values())
+    assert codes == [0, 2], out
+    winner = next(s for s, (code, _, _) in out.items() if code == 0)
+    loser_err = next(err for code, _, err in out.values() if code == 2)
+    assert loser_err.count("\n") == 1 and "in use by another laughlab run (pid " in loser_err and str(d) in loser_err
+    # every file is the winner's: its seed in metrics and overrides, its channels as a run of its own
+    assert json.loads((d / "metrics.json").read_text())["seed"] == winner
+    assert f"seed={winner}" in (d / ".hydra" / "overrides.yaml").read_text()
+    ref = tmp_path / "ref"
+    p = laughlab("input.duration_s=20", f"hydra.run.dir={ref}", f"seed={winner}")
+    assert p.wait(timeout=300) == 0
+    for name in ("channels.csv", "events.csv", "motion.bvh", "truth.csv", "input.wav"):
+        assert (d / name).read_bytes() == (ref / name).read_bytes(), name
+
+
+def test_a_folder_of_the_users_files_is_refused_and_overwrite_keeps_them(tmp_path):
+    d = tmp_path / "mine"
+    d.mkdir()
+    (d / "notes.txt").write_text("my notes")
+    p = laughlab("input.duration_s=2", f"hydra.run.dir={d}")
+    assert p.wait(timeout=120) == 2 and "not empty and not a laughlab run (notes.txt)" in p.stderr.read()
+    assert sorted(x.name for x in d.iterdir()) == [".laughlab.lock", "notes.txt"]
+    assert laughlab("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", "output=gltf").wait(120) == 0
+    assert (d / "character.glb").exists() and (d / "notes.txt").read_text() == "my notes"
+    marker = json.loads((d / rundir.MARKER).read_text())
+    assert marker["complete"] and "character.glb" in marker["files"] and "notes.txt" not in marker["files"]
+    # overwriting that run removes its files the new run does not write, never the user's
+    assert laughlab("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true").wait(120) == 0
+    assert not (d / "character.glb").exists() and (d / "notes.txt").read_text() == "my notes"
+    p = laughlab("input.duration_s=2", f"hydra.run.dir={d}")
+    assert p.wait(timeout=120) == 2 and "already holds a run" in p.stderr.read()
+
+
+def test_a_crashed_run_leaves_no_stale_lock(tmp_path):
+    d = tmp_path / "D"
+    code = ("import sys, time\nfrom laughlab.core import rundir\nrundir.claim(sys.argv[1])\n"
+            "print('held', flush=True)\ntime.sleep(60)\n")
+    p = subprocess.Popen([sys.executable, "-c", code, str(d)], stdout=subprocess.PIPE, text=True)
+    assert p.stdout.readline().strip() == "held"
+    with pytest.raises(LaughlabError, match=f"pid {p.pid}"):
+        rundir.claim(d, overwrite=True)
+    os.kill(p.pid, signal.SIGKILL)
+    p.wait()
+    c = rundir.claim(d, overwrite=True)  # the OS released the dead process' lock
+    c.release()
+
+
+def test_a_failed_run_leaves_no_folder_behind(tmp_path):
+    d = tmp_path / "new"
+    p = laughlab("input=file", f"input.path={tmp_path / 'missing.wav'}", f"hydra.run.dir={d}")
+    assert p.wait(timeout=120) == 2
+    assert not d.exists()
+
+
+def test_interrupting_a_run_leaves_no_visible_partial_file(tmp_path):
+    d = tmp_path / "D"
+    p = laughlab("input.duration_s=600", f"hydra.run.dir={d}", start_new_session=True)
+    deadline = time.time() + 60
+    while not (d / ".hydra").exists() and time.time() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    os.killpg(p.pid, signal.SIGINT)
+    assert p.wait(timeout=60) == 130
+    visible = [x.name for x in d.iterdir() if not x.name.startswith(".")] if d.exists() else []
+    assert visible == []  # the sinks removed what they had staged; the folder went with them
+    assert laughlab("input.duration_s=2", f"hydra.run.dir={d}").wait(120) == 0  # the next run works
