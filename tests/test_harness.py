@@ -131,3 +131,55 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     text = readme.read_text()
     assert "swept: scheduler.decrease_per_s, scheduler.overrule_c" in text
     assert len(list((tmp_path / "rep" / "figures").glob("heatmap_*.png"))) == 1
+
+
+def _bad_corpus(folder):
+    """Two good laughs, a truncated OGG, a text file named .wav, and an annotation with overlapping calls."""
+    import soundfile as sf
+
+    from laughlab.synth.laughter import SyntheticLaughter
+
+    folder.mkdir()
+    x = SyntheticLaughter(seed=1, duration_s=3.0).render(0, 48000)
+    for name in ("good1", "good2", "overlap"):
+        sf.write(str(folder / f"{name}.wav"), x, 16000)
+    sf.write(str(folder / "cut.ogg"), x, 16000)
+    data = (folder / "cut.ogg").read_bytes()
+    (folder / "cut.ogg").write_bytes(data[: len(data) // 3])
+    (folder / "notes.wav").write_text("not audio at all\n")
+    (folder / "overlap.txt").write_text("0.1\t0.9\tlaugh\n0.5\t1.2\tlaugh\n")
+
+
+def test_a_bad_corpus_is_reported_in_one_message_before_any_trial(tmp_path):
+    import subprocess
+    import sys
+
+    corpus = tmp_path / "corpus"
+    _bad_corpus(corpus)
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "laughlab", "experiment=smoke", f"hydra.run.dir={out}",
+                        f"harness.corpus.folder={corpus}", "harness.corpus.profiles=[]"], capture_output=True,
+                       text=True)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    for name in ("cut.ogg", "notes.wav", "overlap.wav"):
+        assert name in r.stderr
+    assert "good1" not in r.stderr and "3 of 5 files are bad" in r.stderr
+    assert not out.exists()  # nothing ran, nothing was written
+
+
+def test_on_bad_skip_runs_the_rest_and_records_what_it_skipped(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    corpus = tmp_path / "corpus"
+    _bad_corpus(corpus)
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "laughlab", "experiment=smoke", f"hydra.run.dir={out}",
+                        f"harness.corpus.folder={corpus}", "harness.corpus.profiles=[]", "harness.corpus.on_bad=skip",
+                        "harness.showcase=null", "progress=off"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((out / "results.json").read_text())
+    assert doc["corpus"]["inputs"] == ["rec-good1", "rec-good2"]
+    assert sorted(s["file"] for s in doc["corpus"]["skipped"]) == ["cut.ogg", "notes.wav", "overlap.wav"]
+    assert all(s["reason"] for s in doc["corpus"]["skipped"])

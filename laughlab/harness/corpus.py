@@ -55,41 +55,79 @@ def synthetic_items(profiles, seeds, duration_s: float) -> list[Item]:
     return items
 
 
-def _truth_beside(f: Path) -> str | None:
-    """``NAME.truth.csv``, else an annotation ``NAME.txt`` (Audacity labels) or ``NAME.TextGrid``
-    (checked now, so a bad label stops the experiment before any trial with one line naming it)."""
+ON_BAD = ("stop", "skip")
+
+
+def check_audio(f: Path) -> float:
+    """Open an audio file (header and a short read, as a trial would); its duration (s).
+
+    Raises LaughlabError with the reason (not audio, truncated, empty, ...)."""
+    import soundfile as sf
+
+    try:
+        info = sf.info(str(f))
+        with sf.SoundFile(str(f)) as fh:
+            fh.read(min(info.frames, 4096), dtype="float32")
+            if info.frames > 4096:  # the end too: a truncated file fails there
+                fh.seek(max(0, info.frames - 4096))
+                fh.read(4096, dtype="float32")
+    except Exception as exc:  # libsndfile's errors carry the reason
+        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        raise LaughlabError(f"cannot read audio: {reason}") from None
+    if info.frames <= 0:
+        raise LaughlabError("no audio samples")
+    return info.frames / info.samplerate
+
+
+def _truth_beside(f: Path, duration: float | None) -> str | None:
+    """``NAME.truth.csv``, else an annotation ``NAME.txt`` (Audacity labels) or ``NAME.TextGrid``,
+    parsed now (overlaps, labels, times past the end raise LaughlabError)."""
     truth = f.with_name(f.stem + ".truth.csv")
     if truth.exists():
         return str(truth)
     for ext in (".txt", ".TextGrid"):
         ann = f.with_name(f.stem + ext)
         if ann.exists():
-            import soundfile as sf
-
             from laughlab.corpora.annotations import read
 
-            try:
-                duration = sf.info(str(f)).duration
-            except RuntimeError:
-                duration = None
             read(ann, duration)
             return str(ann)
     return None
 
 
-def folder_items(folder: str | Path) -> list[Item]:
+def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None = None) -> list[Item]:
     """Every audio file in ``folder`` (sorted), with ``NAME.truth.csv`` (or an annotation ``NAME.txt``,
-    ``NAME.TextGrid``: see ``laughlab.corpora.annotations``) as its truth when present."""
+    ``NAME.TextGrid``: see ``laughlab.corpora.annotations``) as its truth when present.
+
+    Every file is checked before any trial runs (:func:`check_audio`, the annotation parsed), and all
+    problems are reported together: ``on_bad="stop"`` raises one LaughlabError listing each file and
+    its reason; ``"skip"`` leaves those files out and appends ``{"file", "reason"}`` to ``skipped``.
+    A file with an audio suffix that is not audio counts as bad; other files are not part of a corpus.
+    """
+    if on_bad not in ON_BAD:
+        raise LaughlabError(f"harness.corpus.on_bad must be stop or skip (got {on_bad!r})")
     d = Path(folder).expanduser()
     if not d.is_dir():
         raise LaughlabError(f"corpus folder not found: {folder}")
     files = sorted(p for p in d.iterdir() if p.suffix.lower() in AUDIO_SUFFIXES)
     if not files:
         raise LaughlabError(f"corpus folder {folder} holds no audio files ({', '.join(AUDIO_SUFFIXES)})")
-    items = []
+    items, bad = [], []
     for f in files:
-        items.append(Item(f"rec-{f.stem}", ("input=file", f"input.path={f.resolve()}"), "recording", None,
-                          _truth_beside(f)))
+        try:
+            truth = _truth_beside(f, check_audio(f))
+        except LaughlabError as exc:
+            bad.append({"file": f.name, "reason": str(exc)})
+            continue
+        items.append(Item(f"rec-{f.stem}", ("input=file", f"input.path={f.resolve()}"), "recording", None, truth))
+    if bad and on_bad == "stop":
+        listed = "; ".join(f"{b['file']}: {b['reason']}" for b in bad)
+        raise LaughlabError(f"corpus folder {folder}: {len(bad)} of {len(files)} files are bad ({listed}); fix or "
+                            "remove them, or set harness.corpus.on_bad=skip to run the rest")
+    if skipped is not None:
+        skipped.extend(bad)
+    if not items:
+        raise LaughlabError(f"corpus folder {folder}: every audio file is bad")
     return items
 
 
@@ -140,14 +178,14 @@ def real_items(spec) -> list[Item]:
     return items
 
 
-def build_corpus(spec) -> list[Item]:
+def build_corpus(spec, skipped: list | None = None) -> list[Item]:
     """Items from a ``harness.corpus`` config: ``profiles``, ``seeds`` (count or list), ``duration_s``,
-    ``folder``, and ``real`` (see :func:`real_items`)."""
+    ``folder`` (checked up front; ``on_bad``: see :func:`folder_items`), and ``real`` (see :func:`real_items`)."""
     seeds = spec.get("seeds", 20)
     seeds = list(range(int(seeds))) if isinstance(seeds, int) else [int(s) for s in seeds]
     items = synthetic_items(list(spec.get("profiles") or []), seeds, float(spec.get("duration_s", 30.0)))
     if spec.get("folder"):
-        items += folder_items(spec["folder"])
+        items += folder_items(spec["folder"], str(spec.get("on_bad") or "stop"), skipped)
     items += real_items(spec.get("real") or {})
     if not items:
         raise LaughlabError("the corpus is empty: give harness.corpus.profiles or harness.corpus.folder")

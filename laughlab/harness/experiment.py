@@ -74,7 +74,8 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     h = OmegaConf.to_container(cfg.harness, resolve=True)
     name = h.get("name") or "experiment"
     conditions = check_conditions(h.get("conditions"))
-    items = build_corpus(h.get("corpus") or {})
+    skipped: list = []  # corpus files left out (harness.corpus.on_bad=skip), with the reason
+    items = build_corpus(h.get("corpus") or {}, skipped)
     run_seeds = [int(s) for s in h.get("run_seeds") or [0]]
     base = _task_overrides() if base_overrides is None else list(base_overrides)
     out_dir = Path(out_dir)
@@ -122,7 +123,7 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
         "plugins": res.plugin_origins(),
         "config": OmegaConf.to_container(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True),
         "corpus": {"inputs": [i.id for i in items], "profiles": sorted({i.profile for i in items}),
-                   "seeds": sorted({r["seed"] for r in run.records})},
+                   "seeds": sorted({r["seed"] for r in run.records}), "skipped": skipped},
         "conditions": conditions,
         "n_trials": len(run.records),
         "metrics": metric_info,

@@ -137,6 +137,8 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              f"{len(doc['conditions'])} conditions; profiles {', '.join(doc['corpus']['profiles'])}; "
              f"seeds {doc['corpus']['seeds'][0]}..{doc['corpus']['seeds'][-1]})",
              "- conditions: " + "; ".join(f"**{c}** `{' '.join(o)}`" for c, o in doc["conditions"].items()),
+             *[f"- skipped corpus file (harness.corpus.on_bad=skip): `{s['file']}`: {s['reason']}"
+               for s in doc["corpus"].get("skipped", [])],
              "", "## Results", "",
              "Mean over trials with its 95% confidence interval (t distribution). ↑ higher is better, "
              "↓ lower is better; the better condition is in bold. "
