@@ -357,6 +357,12 @@ def main(argv: list[str] | None = None) -> None:
         global _CLAIM
         from laughlab.core import rundir
 
+        import signal
+
+        def _terminate(signum, frame):  # SIGTERM (a killed job, a cluster's pre-emption) cleans up as Ctrl-C does
+            raise KeyboardInterrupt
+
+        signal.signal(signal.SIGTERM, _terminate)
         try:  # one writer per run directory, before anything is written into it
             _CLAIM = rundir.claim(Path(cfg.hydra.run.dir), bool(cfg.get("overwrite", False)))
         except LaughlabError as exc:

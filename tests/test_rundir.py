@@ -87,3 +87,62 @@ def test_interrupting_a_run_leaves_no_visible_partial_file(tmp_path):
     visible = [x.name for x in d.iterdir() if not x.name.startswith(".")] if d.exists() else []
     assert visible == []  # the sinks removed what they had staged; the folder went with them
     assert laughlab("input.duration_s=2", f"hydra.run.dir={d}").wait(120) == 0  # the next run works
+
+
+def test_sigterm_to_a_run_leaves_no_visible_partial_file(tmp_path):
+    d = tmp_path / "D"
+    p = laughlab("input.duration_s=600", f"hydra.run.dir={d}")
+    deadline = time.time() + 60
+    while not (d / ".hydra").exists() and time.time() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    p.send_signal(signal.SIGTERM)
+    assert p.wait(timeout=60) == 130
+    visible = [x.name for x in d.iterdir() if not x.name.startswith(".")] if d.exists() else []
+    assert visible == []
+    assert laughlab("input.duration_s=2", f"hydra.run.dir={d}").wait(120) == 0
+
+
+SMOKE = ["experiment=smoke", "harness.jobs=1", "harness.showcase=null", "progress=off", "harness.corpus.seeds=2"]
+
+
+def _results_without_timings(path):
+    doc = json.loads(path.read_text())
+    return {c: {m: v for m, v in ms.items() if not m.startswith(("frame_ms", "realtime"))}
+            for c, ms in doc["results"].items()}, doc["n_trials"]
+
+
+def test_an_experiment_killed_after_some_trials_resumes_to_the_same_results(tmp_path):
+    d, ref = tmp_path / "killed", tmp_path / "whole"
+    p = laughlab(*SMOKE, f"hydra.run.dir={d}")
+    journal = d / "metrics.jsonl"
+    deadline = time.time() + 120
+    while not (journal.exists() and len(journal.read_text().splitlines()) >= 3):
+        assert time.time() < deadline and p.poll() is None, "the experiment did not journal its trials"
+        time.sleep(0.05)
+    p.kill()
+    p.wait()
+    done = len(journal.read_text().splitlines())
+    assert 3 <= done < 8
+    again = laughlab(*SMOKE, f"hydra.run.dir={d}")
+    assert again.wait(timeout=300) == 0
+    assert f"resuming: {done} of 8 trials were done, running {8 - done}" in again.stderr.read()
+    assert laughlab(*SMOKE, f"hydra.run.dir={ref}").wait(timeout=300) == 0
+    assert _results_without_timings(d / "results.json") == _results_without_timings(ref / "results.json")
+    leftovers = list((d / "trials").glob("**/*")) if (d / "trials").exists() else []
+    assert leftovers == []  # the killed trial's half-written folder went with the rerun
+
+
+def test_a_changed_config_does_not_mix_into_an_interrupted_experiment(tmp_path):
+    d = tmp_path / "D"
+    p = laughlab(*SMOKE, f"hydra.run.dir={d}")
+    journal = d / "metrics.jsonl"
+    deadline = time.time() + 120
+    while not (journal.exists() and journal.read_text().strip()):
+        assert time.time() < deadline and p.poll() is None
+        time.sleep(0.05)
+    p.kill()
+    p.wait()
+    other = laughlab(*SMOKE, "harness.corpus.duration_s=7", f"hydra.run.dir={d}")
+    assert other.wait(timeout=120) == 2
+    assert "interrupted experiment with another configuration" in other.stderr.read()

@@ -11,7 +11,11 @@
   one of its output files.  A run directory is refused unless ``overwrite=true``; a non-empty
   folder that is not a run (the user's own files) is refused too unless ``overwrite=true``;
 * ``overwrite=true`` deletes only what the marker lists as the earlier run's files, so the
-  folder ends up holding one run's outputs and nothing of the user's is touched.
+  folder ends up holding one run's outputs and nothing of the user's is touched;
+* a run that was interrupted (its marker says ``complete: false``: killed, or stopped by a
+  failure the process could not clean up) may be run again into its folder without
+  ``overwrite``: an experiment then resumes (:mod:`laughlab.harness.experiment`), a single run
+  starts over.  Such a claim has ``resumed`` set.
 """
 from __future__ import annotations
 
@@ -31,8 +35,9 @@ LEGACY = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.j
 class Claim:
     """A run directory held by this process."""
 
-    def __init__(self, path: Path, fd: int, created: bool, user_files: set[str]):
+    def __init__(self, path: Path, fd: int, created: bool, user_files: set[str], resumed: bool = False):
         self.path, self.fd, self.created, self.user_files = path, fd, created, user_files
+        self.resumed = resumed
 
     def finish(self) -> None:
         """Record the run's files in the marker (every entry but the user's and ours)."""
@@ -86,6 +91,11 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         marker = _read_marker(path)
         earlier = set(marker.get("files", [])) if marker is not None else set()
         is_run = marker is not None or any(name in entries for name in LEGACY)
+        if marker is not None and not marker.get("complete", False) and not overwrite:
+            # an interrupted run: the same command may take it up again (an experiment resumes)
+            user = set(marker.get("user_files", entries - {MARKER}))
+            _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user)})
+            return Claim(path, fd, created, user, resumed=True)
         if entries and not overwrite:
             if is_run:
                 raise LaughlabError(f"{path} already holds a run; choose another hydra.run.dir or add overwrite=true")
@@ -99,7 +109,7 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         user = entries - earlier - {MARKER}
         if marker is None and is_run:  # a 0.1 run without a marker: its files are not known, keep them
             user = entries - {MARKER}
-        _write_marker(path, {"pid": os.getpid(), "complete": False, "files": []})
+        _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user)})
     except BaseException:
         os.close(fd)
         raise

@@ -16,8 +16,11 @@ adds experiment-specific numbers and figures::
 """
 from __future__ import annotations
 
+import hashlib
 import importlib
+import json
 import shutil
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,7 +30,8 @@ from laughlab.core.errors import LaughlabError
 from laughlab.harness import results as res
 from laughlab.harness.corpus import Item, build_corpus, synthetic_items
 from laughlab.harness.metrics import registered
-from laughlab.harness.runner import Trial, check_conditions, make_trials, run_trials, write_records
+from laughlab.harness.runner import (Journal, Trial, check_conditions, input_hash, make_trials, run_trials,
+                                     trial_hash, write_records)
 
 
 @dataclass
@@ -86,7 +90,21 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
 
     run = ExperimentRun(cfg, out_dir, h, conditions, items, base_overrides=base)
     trials = make_trials(items, conditions, seeds_for, base, out_dir, bool(h.get("keep_trials", False)))
-    run.records = run_trials(trials, jobs, progress, desc=name)
+    # resume: trials already journaled in metrics.jsonl (same experiment, same trial, same input bytes) are kept
+    same = {k: v for k, v in h.items() if k not in ("jobs",)}
+    journal = Journal(out_dir / "metrics.jsonl", hashlib.sha256(
+        json.dumps({"harness": same, "base": base}, sort_keys=True, default=str).encode()).hexdigest()[:16])
+    out_dir.mkdir(parents=True, exist_ok=True)
+    done = journal.done()
+    kept = [done[t.key] for t in trials if t.key in done and done[t.key].get("trial_hash") == trial_hash(t)
+            and done[t.key].get("input_sha256") == input_hash(t.item)]
+    todo = [t for t in trials if not (t.key in done and done[t.key].get("trial_hash") == trial_hash(t)
+                                      and done[t.key].get("input_sha256") == input_hash(t.item))]
+    if kept:
+        print(f"{name}: resuming: {len(kept)} of {len(trials)} trials were done, running {len(todo)}", file=sys.stderr)
+    journal.path.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in kept))  # drop stale lines
+    new = run_trials(todo, jobs, progress, desc=name, on_record=journal.add)
+    run.records = sorted([*kept, *new], key=lambda r: (r["condition"], r["input"], r["seed"]))
     write_records(out_dir / "metrics.jsonl", run.records)
     _remove_empty_dirs(out_dir / "trials")
 

@@ -9,7 +9,9 @@ and seed, so the file does not depend on the order in which trials finish.
 """
 from __future__ import annotations
 
+import hashlib
 import json
+import os
 import shutil
 import sys
 import time
@@ -121,24 +123,97 @@ def progress_bar(total: int, desc: str, progress: bool):
     return tqdm(total=total, desc=desc, unit="trial", file=sys.stderr, disable=not progress)
 
 
-def run_trials(trials: list[Trial], jobs: int = 1, progress: bool = True, desc: str = "trials") -> list[dict]:
-    """Run trials (in ``jobs`` processes); return their records sorted by condition, input and seed."""
+def run_trials(trials: list[Trial], jobs: int = 1, progress: bool = True, desc: str = "trials",
+               on_record=None) -> list[dict]:
+    """Run trials (in ``jobs`` processes); return their records sorted by condition, input and seed.
+
+    ``on_record(trial, record)`` is called in this process as each trial completes (the experiment
+    journals it, so an interrupted experiment resumes from there).
+    """
     bar = progress_bar(len(trials), desc, progress)
     records = []
+    by_key = {t.key: t for t in trials}
     try:
         if jobs <= 1:
             for t in trials:
-                records.append(run_trial(t))
+                rec = run_trial(t)
+                records.append(rec)
+                if on_record is not None:
+                    on_record(t, rec)
                 bar.update()
         else:
             from joblib import Parallel, delayed
 
             for rec in Parallel(n_jobs=jobs, return_as="generator_unordered")(delayed(run_trial)(t) for t in trials):
                 records.append(rec)
+                if on_record is not None:
+                    on_record(by_key[(rec["condition"], rec["input"], rec["seed"])], rec)
                 bar.update()
     finally:
         bar.close()
     return sorted(records, key=lambda r: (r["condition"], r["input"], r["seed"]))
+
+
+class Journal:
+    """``metrics.jsonl`` written as trials complete, so a stopped experiment resumes.
+
+    Each line is a complete record with ``trial_hash`` (the trial's overrides) and ``input_sha256``
+    (the recording's bytes, or the synthetic input's overrides) and the experiment's
+    ``experiment_hash``; a line cut by a kill is ignored when the journal is read back.
+    """
+
+    def __init__(self, path: Path, experiment_hash: str):
+        self.path, self.experiment_hash = Path(path), experiment_hash
+
+    def done(self) -> dict:
+        """The complete records already journaled, by trial key; a different experiment refuses to mix."""
+        out = {}
+        if not self.path.exists():
+            return out
+        for line in self.path.read_text().splitlines():
+            try:
+                rec = json.loads(line)
+            except ValueError:  # the last line of a killed run
+                continue
+            if rec.get("experiment_hash") != self.experiment_hash:
+                raise LaughlabError(f"{self.path.parent} holds an interrupted experiment with another configuration; "
+                                    "run it with its own command, or choose another hydra.run.dir, or add "
+                                    "overwrite=true")
+            out[(rec["condition"], rec["input"], rec["seed"])] = rec
+        return out
+
+    def add(self, trial: Trial, record: dict) -> None:
+        from laughlab.harness.results import json_clean
+
+        record.update(trial_hash=trial_hash(trial), input_sha256=input_hash(trial.item),
+                      experiment_hash=self.experiment_hash)
+        with open(self.path, "a") as f:
+            f.write(json.dumps(json_clean(record), sort_keys=True) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+
+
+def trial_hash(trial: Trial) -> str:
+    return hashlib.sha256(json.dumps([trial.condition, trial.item.id, trial.seed, list(trial.overrides)])
+                          .encode()).hexdigest()[:16]
+
+
+_INPUT_HASHES: dict = {}
+
+
+def input_hash(item: Item) -> str:
+    """sha256 of a recording's bytes (once per file), or of a synthetic input's overrides."""
+    if item.id not in _INPUT_HASHES:
+        path = next((o.split("=", 1)[1] for o in item.overrides if o.startswith("input.path=")), None)
+        h = hashlib.sha256()
+        if path is not None and Path(path).exists():
+            with open(path, "rb") as f:
+                for block in iter(lambda: f.read(1 << 20), b""):
+                    h.update(block)
+        else:
+            h.update(json.dumps(list(item.overrides)).encode())
+        _INPUT_HASHES[item.id] = h.hexdigest()
+    return _INPUT_HASHES[item.id]
 
 
 def write_records(path: Path, records: list[dict]) -> None:
