@@ -131,25 +131,30 @@ def task(cfg) -> dict:
 
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     t0 = time.perf_counter()
+    cfg_hash = config_hash(cfg)
     try:
         if _CLAIM is None:  # a sweep's job: Hydra made the folder and wrote .hydra/ into it
-            _CLAIM = rundir.claim(out_dir, bool(cfg.get("overwrite", False)), ours=frozenset({".hydra"}))
+            _CLAIM = rundir.claim(out_dir, bool(cfg.get("overwrite", False)), ours=frozenset({".hydra"}),
+                                  done_if=cfg_hash)
+            if _CLAIM.done:  # the same sweep run again: this job finished before
+                print(f"laughlab: {out_dir} already holds this job's finished run; skipped")
+                return {}
         if cfg.get("harness"):
             from laughlab.harness.experiment import experiment_module, run_experiment
 
             module = experiment_module(cfg.harness.get("module"))
             if module is not None and hasattr(module, "run"):  # an experiment with its own procedure
                 doc = module.run(cfg, out_dir)
-                _CLAIM.finish()
+                _CLAIM.finish(cfg_hash)
                 return doc
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
-            _CLAIM.finish()
+            _CLAIM.finish(cfg_hash)
             print(f"{doc['experiment']}: {doc['n_trials']} trials -> {out_dir / 'results.json'}; "
                   f"report: python -m laughlab report {out_dir}")
             return doc
         pipe = pipeline.build(cfg)
         metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
-        _CLAIM.finish()
+        _CLAIM.finish(cfg_hash)
         print(summary_line(cfg, metrics, out_dir, time.perf_counter() - t0))
         return metrics
     except LaughlabError as exc:
@@ -162,6 +167,19 @@ def task(cfg) -> dict:
         if _CLAIM is not None:
             _CLAIM.release()
             _CLAIM = None
+
+
+def config_hash(cfg) -> str:
+    """A short hash of the run's resolved configuration (without overwrite and progress)."""
+    import hashlib
+    import json
+
+    from omegaconf import OmegaConf
+
+    doc = OmegaConf.to_container(cfg, resolve=True)
+    for k in ("overwrite", "progress", "hydra"):
+        doc.pop(k, None)
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
 def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:

@@ -146,3 +146,21 @@ def test_a_changed_config_does_not_mix_into_an_interrupted_experiment(tmp_path):
     other = laughlab(*SMOKE, "harness.corpus.duration_s=7", f"hydra.run.dir={d}")
     assert other.wait(timeout=120) == 2
     assert "interrupted experiment with another configuration" in other.stderr.read()
+
+
+def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):
+    d = tmp_path / "sweep"
+    args = ["-m", "seed=0,1", "input.duration_s=1", f"hydra.sweep.dir={d}"]
+    first = laughlab(*args)
+    assert first.wait(timeout=300) == 0
+    before = (d / "0" / "channels.csv").read_bytes()
+    import shutil
+
+    shutil.rmtree(d / "1")  # as if the sweep had been stopped before its second job
+    again = laughlab(*args)
+    assert again.wait(timeout=300) == 0
+    out = again.stdout.read()
+    assert out.count("already holds this job's finished run; skipped") == 1 and f"{d / '1'}/:" in out
+    assert (d / "0" / "channels.csv").read_bytes() == before and (d / "1" / "channels.csv").exists()
+    changed = laughlab("-m", "seed=0,1", "input.duration_s=2", f"hydra.sweep.dir={d}")
+    assert changed.wait(timeout=300) != 0 and "already holds a run" in changed.stderr.read()

@@ -35,14 +35,16 @@ LEGACY = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.j
 class Claim:
     """A run directory held by this process."""
 
-    def __init__(self, path: Path, fd: int, created: bool, user_files: set[str], resumed: bool = False):
+    def __init__(self, path: Path, fd: int, created: bool, user_files: set[str], resumed: bool = False,
+                 done: bool = False):
         self.path, self.fd, self.created, self.user_files = path, fd, created, user_files
-        self.resumed = resumed
+        self.resumed, self.done = resumed, done
 
-    def finish(self) -> None:
-        """Record the run's files in the marker (every entry but the user's and ours)."""
+    def finish(self, config_hash: str | None = None) -> None:
+        """Record the run's files (every entry but the user's and ours) and its configuration's hash."""
         files = sorted(p.name for p in self.path.iterdir() if p.name not in self.user_files | {LOCK, MARKER})
-        _write_marker(self.path, {"pid": os.getpid(), "complete": True, "files": files})
+        _write_marker(self.path, {"pid": os.getpid(), "complete": True, "files": files, "config_hash": config_hash,
+                                  "user_files": sorted(self.user_files)})
 
     def abandon(self) -> None:
         """After a failure: remove the marker, and the folder if this run created it and it is empty."""
@@ -61,10 +63,13 @@ class Claim:
             pass
 
 
-def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset()) -> Claim:
+def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset(),
+          done_if: str | None = None) -> Claim:
     """Lock ``path`` for this run (creating it) and check it may be written; see the module notes.
 
     ``ours``: entries this run has already written (a Hydra sweep job's ``.hydra``).
+    ``done_if``: a configuration hash; a finished run of that configuration in ``path`` is returned
+    as a claim with ``done`` set, untouched (a rerun sweep skips its finished jobs).
     """
     import fcntl
 
@@ -91,6 +96,9 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         marker = _read_marker(path)
         earlier = set(marker.get("files", [])) if marker is not None else set()
         is_run = marker is not None or any(name in entries for name in LEGACY)
+        if marker is not None and marker.get("complete") and done_if is not None and not overwrite \
+                and marker.get("config_hash") == done_if:
+            return Claim(path, fd, created, set(marker.get("user_files", [])), done=True)
         if marker is not None and not marker.get("complete", False) and not overwrite:
             # an interrupted run: the same command may take it up again (an experiment resumes)
             user = set(marker.get("user_files", entries - {MARKER}))
