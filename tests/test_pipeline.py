@@ -157,9 +157,9 @@ def test_cut_frames_is_independent_of_chunking(sr, fps, n, sizes):
 
 
 def run_channels(pipe, tmp_path):
-    pipe.sinks = [plugins.create("sink", "csv", {}, pipe.ctx)]
+    pipe.sinks = [plugins.create("sink", "csv", {}, pipe.ctx), plugins.create("sink", "bvh", {}, pipe.ctx)]
     pipeline.execute(pipe, tmp_path)
-    return (tmp_path / "channels.csv").read_bytes(), (tmp_path / "events.csv").read_bytes()
+    return tuple((tmp_path / f).read_bytes() for f in ("channels.csv", "events.csv", "motion.bvh"))
 
 
 def test_live_chunked_run_equals_offline_run(tmp_path):

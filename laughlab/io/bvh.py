@@ -95,8 +95,9 @@ def format_frames(skeleton: Skeleton, motion: np.ndarray) -> str:
 def _fixed4_lines(motion: np.ndarray) -> str:
     """Rows of numbers with 4 decimals, space-separated, one row per line (vectorised).
 
-    Each number is right-aligned in a fixed-width field (e.g. ``  -12.3456``),
-    which every BVH reader accepts since fields are whitespace-separated; this
+    Each number is right-aligned in a fixed-width field (e.g. ``    -12.3456``) of at least four
+    integer digits, so the layout does not depend on how the frames are chunked: a live run's
+    file equals an offline run's.  Every BVH reader accepts it (fields are whitespace-separated); this
     is several times faster than Python's per-number formatting.  Rounding is
     numpy's (half to even on the 4th decimal); ``-0.0000`` is written ``0.0000``.
     """
@@ -106,7 +107,7 @@ def _fixed4_lines(motion: np.ndarray) -> str:
     v = np.round(motion * 1e4).astype(np.int64)
     neg = v < 0
     ip, fr = np.divmod(np.abs(v), 10000)
-    width = max(1, len(str(int(ip.max()))))
+    width = max(4, len(str(int(ip.max()))))  # 4 integer digits at least: the same layout whatever the chunk
     nd = np.ones_like(ip)
     for k in range(1, width):
         nd += ip >= 10 ** k
