@@ -83,7 +83,6 @@ class Helper:
         self.proc = ctx.Process(target=_serve, args=(child, self.conn), daemon=True, name="laughlab-sinks")
         self.proc.start()
         child.close()
-        self.failed: BaseException | None = None
 
     # the main process' side -------------------------------------------------------------
     def open(self, sinks: Sequence, info) -> None:
@@ -177,7 +176,6 @@ def _serve(conn, parent_end) -> None:
             pass
     sinks: list = []
     failed = False
-    code = 0
     try:
         while True:
             try:
@@ -212,7 +210,7 @@ def _serve(conn, parent_end) -> None:
                 conn.send(_error(exc))
     finally:
         conn.close()
-        os._exit(code)  # no atexit handlers of the main process' state
+        os._exit(0)  # no atexit handlers of the main process' state
 
 
 def _abort(sinks) -> None:

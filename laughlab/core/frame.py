@@ -8,6 +8,7 @@ named values.  All values are plain floats so a frame costs microseconds.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Sequence
 
 
 @dataclass(slots=True)
@@ -85,3 +86,17 @@ class Frame:
     offsets: dict = field(default_factory=dict)
     events: list = field(default_factory=list)
     clip_eyes: float = 0.0
+
+
+def clip_blocks(events: Sequence[ClipEvent], end_time: float) -> list[tuple[str, float, float, float]]:
+    """Pair clip start and stop events into ``(clip, start_s, stop_s, energy)`` blocks."""
+    blocks, open_ = [], {}
+    for ev in events:
+        if ev.kind == "start":
+            open_[ev.clip] = ev
+        elif ev.kind == "stop" and ev.clip in open_:
+            s = open_.pop(ev.clip)
+            blocks.append((ev.clip, s.time_s, ev.time_s, s.energy))
+    for name, s in open_.items():
+        blocks.append((name, s.time_s, end_time, s.energy))
+    return sorted(blocks, key=lambda b: b[1])

@@ -96,10 +96,13 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
         json.dumps({"harness": same, "base": base}, sort_keys=True, default=str).encode()).hexdigest()[:16])
     out_dir.mkdir(parents=True, exist_ok=True)
     done = journal.done()
-    kept = [done[t.key] for t in trials if t.key in done and done[t.key].get("trial_hash") == trial_hash(t)
-            and done[t.key].get("input_sha256") == input_hash(t.item)]
-    todo = [t for t in trials if not (t.key in done and done[t.key].get("trial_hash") == trial_hash(t)
-                                      and done[t.key].get("input_sha256") == input_hash(t.item))]
+
+    def finished(t: Trial) -> bool:
+        rec = done.get(t.key)
+        return rec is not None and rec.get("trial_hash") == trial_hash(t) and rec.get("input_sha256") == input_hash(t.item)
+
+    kept = [done[t.key] for t in trials if finished(t)]
+    todo = [t for t in trials if not finished(t)]
     if kept:
         print(f"{name}: resuming: {len(kept)} of {len(trials)} trials were done, running {len(todo)}", file=sys.stderr)
     journal.path.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in kept))  # drop stale lines

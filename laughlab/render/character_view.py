@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from laughlab.character.body import build
-from laughlab.motion.skeleton import global_transforms
+from laughlab.motion.skeleton import global_transforms, rest_pose
 from laughlab.render.raster import rasterise
 from laughlab.render.scene import Camera
 
@@ -36,7 +36,6 @@ class CharacterRenderer:
         self.width, self.height, self.ss = width, height, supersample
         self.camera = camera or Camera(azimuth_deg=15.0, elevation_deg=3.0, distance_cm=170.0,
                                        target_height_cm=138.0, fov_deg=30.0)
-        self.focal = 0.5 * height * supersample / np.tan(np.radians(self.camera.fov_deg) / 2)
         self.aim: np.ndarray | None = None  # set by the first frame
         self.follow = 1.0 - np.exp(-1.0 / 6.0)  # per rendered frame: a time constant of 6 frames (0.2 s at 30 fps)
         self.tris = self.char.indices.reshape(-1, 3).astype(np.int64)
@@ -44,7 +43,7 @@ class CharacterRenderer:
         self.morphs = self.char.morphs.astype(np.float64) * 100.0
         self.normals = self.char.normals.astype(np.float64)
         self.albedo = self.char.colors.astype(np.float64) * 255.0
-        rest, _ = global_transforms(skeleton, _rest(skeleton))
+        rest, _ = global_transforms(skeleton, rest_pose(skeleton))
         self.rest = rest                                                # joints' rest positions, cm
         key, fill = KEY / np.linalg.norm(KEY), FILL / np.linalg.norm(FILL)
         self.key, self.fill = key, fill
@@ -71,7 +70,7 @@ class CharacterRenderer:
         chest, head = self.skeleton.index("spine2"), self.skeleton.index("head")
         target = 0.5 * (pos[chest] + pos[head])
         self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
-        xy, depth = self._project(out)
+        xy, depth = self.camera.projector(self.width * self.ss, self.height * self.ss, target=self.aim)(out)
         img = rasterise(xy, depth, colour, self.tris, self.background)
         s = self.ss
         if s > 1:  # the mean of each s x s block, summed slice by slice (a strided mean is 10x slower)
@@ -81,25 +80,3 @@ class CharacterRenderer:
                     acc += img[dy::s, dx::s]
             img = acc * np.float32(1.0 / (s * s))
         return np.clip(img + 0.5, 0, 255).astype(np.uint8)
-
-
-    def _project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Pixels ``(V, 2)`` and depth ``(V,)`` of world points (cm) seen from the camera around ``self.aim``."""
-        c = self.camera
-        a, e = np.radians(c.azimuth_deg), np.radians(c.elevation_deg)
-        centre = self.aim + c.distance_cm * np.array([np.sin(a) * np.cos(e), np.sin(e), np.cos(a) * np.cos(e)])
-        fwd = (self.aim - centre) / np.linalg.norm(self.aim - centre)
-        right = np.cross(fwd, [0.0, 1.0, 0.0])
-        right /= np.linalg.norm(right)
-        up = np.cross(right, fwd)
-        q = (points - centre) @ np.stack([right, up, fwd]).T
-        z = np.maximum(q[:, 2], 1.0)
-        h, w = self.height * self.ss, self.width * self.ss
-        xy = np.stack([0.5 * w + self.focal * q[:, 0] / z, 0.5 * h - self.focal * q[:, 1] / z], axis=1)
-        return np.clip(xy, -1e5, 1e5), z
-
-
-def _rest(skeleton) -> np.ndarray:
-    from laughlab.motion.skeleton import rest_pose
-
-    return rest_pose(skeleton)

@@ -10,6 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from laughlab.core.frame import clip_blocks  # noqa: E402,F401 (used here and by the plots sink)
 from laughlab.signals.smoothing import THESIS_TICK_HZ, rate_limit_series  # noqa: E402
 
 #: the two rise/fall settings of the thesis' Fig. 3.2 (per tick): green 0.5/0.3, blue 0.2/0.1
@@ -80,20 +81,6 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     fig.savefig(path, format="png")
     plt.close(fig)
     return path
-
-
-def clip_blocks(events: Sequence, end_time: float) -> list[tuple[str, float, float, float]]:
-    """Pair clip start and stop events into ``(clip, start_s, stop_s, energy)`` blocks."""
-    blocks, open_ = [], {}
-    for ev in events:
-        if ev.kind == "start":
-            open_[ev.clip] = ev
-        elif ev.kind == "stop" and ev.clip in open_:
-            s = open_.pop(ev.clip)
-            blocks.append((ev.clip, s.time_s, ev.time_s, s.energy))
-    for name, s in open_.items():
-        blocks.append((name, s.time_s, end_time, s.energy))
-    return sorted(blocks, key=lambda b: b[1])
 
 
 def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,

@@ -85,10 +85,13 @@ class Camera:
     target_height_cm: float = 96.0
     fov_deg: float = 36.0
 
-    def basis(self) -> tuple[np.ndarray, np.ndarray]:
-        """Camera centre (cm) and the rows (right, up, forward) of its rotation."""
+    def basis(self, target: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Camera centre (cm) and the rows (right, up, forward) of its rotation.
+
+        ``target``: the point looked at (cm); default on the vertical axis at ``target_height_cm``.
+        """
         a, e = math.radians(self.azimuth_deg), math.radians(self.elevation_deg)
-        target = np.array([0.0, self.target_height_cm, 0.0])
+        target = np.array([0.0, self.target_height_cm, 0.0]) if target is None else np.asarray(target, float)
         centre = target + self.distance_cm * np.array([math.sin(a) * math.cos(e), math.sin(e),
                                                        math.cos(a) * math.cos(e)])
         fwd = target - centre
@@ -98,9 +101,10 @@ class Camera:
         up = np.cross(right, fwd)
         return centre, np.stack([right, up, fwd])
 
-    def projector(self, width: int, height: int) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    def projector(self, width: int, height: int,
+                  target: np.ndarray | None = None) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
         """A function mapping world points ``(..., 3)`` (cm) to pixels ``(..., 2)`` and depth ``(...)`` (cm)."""
-        centre, rot = self.basis()
+        centre, rot = self.basis(target)
         focal = 0.5 * height / math.tan(math.radians(self.fov_deg) / 2)
         cx, cy = 0.5 * width, 0.5 * height
 

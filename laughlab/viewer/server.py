@@ -45,21 +45,15 @@ def _channels(run_dir: Path) -> dict[str, np.ndarray]:
 
 
 def _clips(run_dir: Path, duration: float) -> list[dict]:
+    """The played clips (start, stop, energy) from ``events.csv``, paired as the plots pair them."""
+    from laughlab.core.frame import ClipEvent, clip_blocks
+
     with open(run_dir / "events.csv", newline="") as f:
-        events = list(csv.DictReader(f))
-    names = sorted({e["clip"] for e in events})
-    out, open_ = [], {}
-    for e in events:
-        if e["event"] == "start":
-            open_[e["clip"]] = e
-        elif e["event"] == "stop" and e["clip"] in open_:
-            s = open_.pop(e["clip"])
-            out.append({"clip": s["clip"], "start": float(s["time"]), "stop": float(e["time"]),
-                        "energy": float(s["energy"]), "index": names.index(s["clip"])})
-    for s in open_.values():
-        out.append({"clip": s["clip"], "start": float(s["time"]), "stop": duration, "energy": float(s["energy"]),
-                    "index": names.index(s["clip"])})
-    return sorted(out, key=lambda c: c["start"])
+        events = [ClipEvent(float(e["time"]), e["event"], e["clip"], float(e["energy"]))
+                  for e in csv.DictReader(f)]
+    names = sorted({e.clip for e in events})
+    return [{"clip": c, "start": t0, "stop": t1, "energy": e, "index": names.index(c)}
+            for c, t0, t1, e in clip_blocks(events, duration)]
 
 
 def _audio(run_dir: Path) -> Path | None:
