@@ -1,13 +1,31 @@
 """Scheduler ``energy``: full-body clips chosen by laughing energy (van Duijn 2014, ch. 4, 5.4, 5.5).
 
-Units.  The thesis adds MCS to the laughing energy L once per 60 Hz tick
-(Eq. 4.1) and an active clip consumes e(a)/l(a) per tick, so a clip uses up its
-whole energy e over its length l.  Here both are rates per second: L gains
-``gain_per_s * MCS`` per second (60, i.e. once per thesis tick) and a clip
-consumes ``e * speed / duration_s`` per second, so a clip played to its end has
-consumed exactly e whatever its speed and the frame rate.  Clip lengths (22 to
-117 frames) are frames at 24 fps, Blender's scene rate at which the game engine
-played actions (0.9 s to 4.9 s); the blend-in of 10 frames is 10/24 s.
+Two readings of the energy update, chosen by ``consumption``:
+
+``equation`` (default): Eq. 4.1, ``L_t = L_{t-1} + MCS(t) - e(a)/l(a)`` per
+60 Hz tick, so a clip of length l and energy e uses up exactly e over its
+length.  Here both terms are rates per second: L gains ``gain_per_s * MCS`` per
+second (60, i.e. once per thesis tick) and a clip consumes
+``e * speed / duration_s`` per second, so a clip played to its end has consumed
+exactly e whatever its speed and the frame rate.  ``floor_zero`` keeps L >= 0
+(a departure: listing 5.4 has no floor, and without one the fixed decrease
+drives L ever lower in long silences, delaying the next bout).
+
+``listing``: listings 5.4 and 5.5 as printed.  Line 9 of 5.4 adds
+``motionSignal * dt`` and line 26 of 5.5 subtracts ``act.energy * dt``: with one
+unit of dt for both, a clip consumes its energy e per unit of time in which MCS
+= 1 adds 1, i.e. ``e * gain_per_s`` per second (with the default 60: e per
+60 Hz tick, l times Eq. 4.1's rate).  The actions are shuffled every tick
+(``random.shuffle``), the candidate test and the consumption of the active clip
+happen in one loop in that order, a clip consumes nothing on its start frame,
+and there is no floor (``floor_zero`` is ignored).  The listing compares with
+``activeAnimation.energy``; we take it as 0 when no clip plays (the idle
+animation), as the rest of the code the thesis leaves out must do for clips to
+start at all.
+
+Clip lengths (22 to 117 frames) are our reading: frames at 24 fps, Blender's
+default scene rate at which the game engine played actions (0.9 s to 4.9 s);
+the thesis states no rate.  The blend-in of 10 frames is 10/24 s.
 
 The thesis gives no values for the fixed decrease, the cap, c and I.  c = 2 is
 the thesis' own example.  The fixed decrease of 12 /s (0.2 per tick) was
@@ -50,8 +68,13 @@ class EnergyParams:
     blend_in_s : float
         Linear pose blend at each start (thesis: 10 frames at 24 fps).
     floor_zero : bool
-        Keep L >= 0.  Departure from listing 5.4: without it the fixed decrease
-        drives L ever more negative during long silences, delaying the next bout.
+        Keep L >= 0 (``equation`` only): after the fixed decrease and again after
+        the clips' consumption, so the recorded ``energy`` is never negative.
+        Departure from listing 5.4: without it the fixed decrease drives L ever
+        more negative during long silences, delaying the next bout.
+    consumption : str
+        ``equation`` (Eq. 4.1: a clip consumes e over its length) or ``listing``
+        (listings 5.4/5.5 as printed: e per unit of dt, no floor); see the module.
     clips : list[str]
         Clips to choose from; empty means every non-looping clip of the library.
     """
@@ -65,6 +88,7 @@ class EnergyParams:
     speed_max: float = 1.4
     blend_in_s: float = 10.0 / 24.0
     floor_zero: bool = True
+    consumption: str = "equation"
     clips: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
@@ -75,6 +99,8 @@ class EnergyParams:
         check_range("min_inactive_s", self.min_inactive_s, 0)
         check_range("speed_min", self.speed_min, 0, lo_open=True)
         check_range("blend_in_s", self.blend_in_s, 0)
+        if self.consumption not in ("equation", "listing"):
+            raise ValueError(f"consumption must be equation or listing (got {self.consumption!r})")
         if self.speed_max < self.speed_min:
             raise ValueError(f"speed_max must be >= speed_min (got {self.speed_max} < {self.speed_min})")
 
@@ -95,17 +121,23 @@ class _Action:
 class EnergyScheduler(Scheduler):
     """Laughing energy (Eq. 4.1) with constraints 1-3 and highest-energy choice (5.4, 5.5).
 
-    Per frame (dt seconds):
+    Per frame (dt seconds), ``consumption=equation``:
 
-    1. ``L -= decrease*dt``; ``L = min(L, L_max)``; ``L += gain * MCS * dt`` (listing 5.4);
+    1. ``L -= decrease*dt``; ``L = max(L, 0)`` (``floor_zero``); ``L = min(L, L_max)``;
+       ``L += gain * MCS * dt`` (listing 5.4 lines 3, 6, 9; the floor is ours);
     2. candidates: ``e(a) < L`` (1), ``e(a) > c * e(a_active)`` (2, e = 0 when no
        clip plays), ``i(a) > I`` (3), not active; the highest energy wins, ties
        broken uniformly at random (what the thesis' shuffle achieves);
     3. the active clip stops when played to its end, else consumes
-       ``e * speed / duration * dt`` (Eq. 4.1 term e(a)/l(a));
+       ``e * speed / duration * dt`` (Eq. 4.1 term e(a)/l(a) per tick);
     4. a chosen clip overrules the active one and starts with speed ~ U(0.9, 1.4);
        it consumes from its first frame, so a clip played to its end has used up
-       exactly e (in listing 5.5 the start frame consumes nothing, a 1/l error).
+       exactly e (in listing 5.5 the start frame consumes nothing);
+    5. ``L = max(L, 0)`` again (``floor_zero``), so the recorded energy is never negative.
+
+    ``consumption=listing`` runs listings 5.4/5.5 line by line instead (see the
+    module docstring): shuffle, one loop of candidate test then consumption of
+    ``e * gain * dt``, start without consumption, no floor.
 
     Writes channels ``energy`` (L) and ``clip_energy`` (e of the playing clip, 0 if none).
     """
@@ -121,6 +153,7 @@ class EnergyScheduler(Scheduler):
         if unknown:
             raise ValueError(f"unknown clip {unknown[0]!r}; choose from: {', '.join(lib.names)}")
         self._specs = [(lib[n].name, lib[n].energy, lib[n].duration_s) for n in names]
+        self._listing = self.params.consumption == "listing"
         self.reset()
 
     def reset(self) -> None:
@@ -128,13 +161,50 @@ class EnergyScheduler(Scheduler):
         self.energy = 0.0
         self.active: _Action | None = None
 
-    def step(self, frame) -> None:
-        p, dt = self.params, frame.dt
+    def _produce(self, mcs: float, dt: float, floor: bool) -> float:
+        """Listing 5.4: fixed decrease, (our floor), cap, then MCS times the elapsed time."""
+        p = self.params
         L = self.energy - p.decrease_per_s * dt
-        if p.floor_zero and L < 0.0:
+        if floor and L < 0.0:
             L = 0.0
         L = min(p.max_energy, L)
-        L += frame.control["mcs"] * p.gain_per_s * dt
+        return L + mcs * p.gain_per_s * dt
+
+    def _finish_if_done(self, a: _Action, frame) -> bool:
+        """Advance the active clip by one frame; stop it if played to its end (5.5: frame == length)."""
+        a.elapsed_s += frame.dt
+        if a.elapsed_s * a.speed < a.duration_s:
+            return False
+        a.active = False
+        self.active = None
+        frame.events.append(ClipEvent(frame.time_s, "stop", a.name, a.energy, a.speed, reason="finished"))
+        return True
+
+    def _start(self, chosen: _Action, frame) -> None:
+        """Overrule the playing clip (if any) and start ``chosen`` at a speed ~ U(speed_min, speed_max)."""
+        p = self.params
+        if self.active is not None:
+            old = self.active
+            old.active = False
+            frame.events.append(ClipEvent(frame.time_s, "stop", old.name, old.energy, old.speed,
+                                          reason="overruled"))
+        chosen.active = True
+        chosen.elapsed_s = 0.0
+        chosen.inactive_s = 0.0
+        chosen.speed = float(self.ctx.rng.uniform(p.speed_min, p.speed_max))
+        self.active = chosen
+        frame.events.append(ClipEvent(frame.time_s, "start", chosen.name, chosen.energy,
+                                      chosen.speed, blend_s=p.blend_in_s))
+
+    def step(self, frame) -> None:
+        L = self._step_listing(frame) if self._listing else self._step_equation(frame)
+        self.energy = L
+        frame.channels["energy"] = L
+        frame.channels["clip_energy"] = self.active.energy if self.active is not None else 0.0
+
+    def _step_equation(self, frame) -> float:
+        p, dt = self.params, frame.dt
+        L = self._produce(frame.control["mcs"], dt, p.floor_zero)
         active = self.active
         limit = active.energy * p.overrule_c if active is not None else 0.0
         min_inactive = p.min_inactive_s
@@ -142,13 +212,7 @@ class EnergyScheduler(Scheduler):
         best: list[_Action] = []
         for a in self.actions:
             if a.active:
-                a.elapsed_s += dt
-                if a.elapsed_s * a.speed >= a.duration_s:
-                    a.active = False
-                    self.active = None
-                    frame.events.append(ClipEvent(frame.time_s, "stop", a.name, a.energy, a.speed,
-                                                  reason="finished"))
-                else:
+                if not self._finish_if_done(a, frame):
                     L -= a.energy * a.speed / a.duration_s * dt
                 a.inactive_s = 0.0
                 continue
@@ -159,24 +223,33 @@ class EnergyScheduler(Scheduler):
                     best.append(a)
             a.inactive_s += dt
         if best:
-            rng = self.ctx.rng
-            chosen = best[0] if len(best) == 1 else best[int(rng.integers(len(best)))]
-            if self.active is not None:
-                old = self.active
-                old.active = False
-                frame.events.append(ClipEvent(frame.time_s, "stop", old.name, old.energy, old.speed,
-                                              reason="overruled"))
-            chosen.active = True
-            chosen.elapsed_s = 0.0
-            chosen.inactive_s = 0.0
-            chosen.speed = float(rng.uniform(p.speed_min, p.speed_max))
+            chosen = best[0] if len(best) == 1 else best[int(self.ctx.rng.integers(len(best)))]
+            self._start(chosen, frame)
             L -= chosen.energy * chosen.speed / chosen.duration_s * dt  # it plays from this frame
-            self.active = chosen
-            frame.events.append(ClipEvent(frame.time_s, "start", chosen.name, chosen.energy,
-                                          chosen.speed, blend_s=p.blend_in_s))
-        self.energy = L
-        frame.channels["energy"] = L
-        frame.channels["clip_energy"] = self.active.energy if self.active is not None else 0.0
+        if p.floor_zero and L < 0.0:
+            L = 0.0
+        return L
+
+    def _step_listing(self, frame) -> float:
+        """Listings 5.4 and 5.5 line by line (one thesis tick per frame at 60 fps)."""
+        p, dt = self.params, frame.dt
+        L = self._produce(frame.control["mcs"], dt, False)
+        self.ctx.rng.shuffle(self.actions)          # random.shuffle(animationActions)
+        limit = self.active.energy * p.overrule_c if self.active is not None else 0.0
+        best: _Action | None = None
+        for a in self.actions:
+            if L > a.energy and not a.active and a.energy > limit and a.inactive_s > p.min_inactive_s:
+                if best is None or a.energy > best.energy:
+                    best = a
+            if a.active:
+                if not self._finish_if_done(a, frame):
+                    L -= a.energy * p.gain_per_s * dt   # laughingEnergy -= act.energy * dt
+                a.inactive_s = 0.0
+            else:
+                a.inactive_s += dt
+        if best is not None:
+            self._start(best, frame)
+        return L
 
 
 @hookimpl

@@ -121,3 +121,74 @@ def test_bad_params_rejected():
         RmsParams(min_amp=0.5, max_amp=0.1)
     with pytest.raises(ValueError, match="scale"):
         RmsParams(scale="log")
+
+
+# --- calibration (thesis 3.1.1) ---------------------------------------------------------------
+
+def test_calibration_phase_sets_min_and_max_from_the_burst_by_hand():
+    # 3 calibration frames at 60 fps (0.05 s): levels 0.02, 0.5, 0.1 set min 0.02 and max 0.5; the MCS waits
+    p = RmsParams(scale="linear", max_floor=0.01, calibration_s=0.05)
+    blocks = [np.full(10, a) for a in (0.02, 0.5, 0.1, 0.25)]
+    ext, out = run(blocks, p)
+    assert [o["calibrating"] for o in out] == [1.0, 1.0, 1.0, 0.0]
+    assert all(o["mcs"] == 0.0 and o["mcs_raw"] == 0.0 for o in out[:3])
+    # frame 4 runs listing 5.2 from min 0.02, max 0.5: mapped (0.25 - 0.02) / 0.48; rise-limited to 0.4; ^2
+    assert out[3]["mcs_raw"] == pytest.approx(0.23 / 0.48)
+    assert out[3]["mcs"] == pytest.approx(0.16)
+    assert ext.max_amp == pytest.approx(0.5 - 0.001) and ext.min_amp == pytest.approx(0.02 + 0.001)
+    ext.reset()  # a reset starts a new calibration
+    assert ext._cal_left == 3
+
+
+def test_without_calibration_there_is_no_calibrating_channel():
+    _, out = run([np.full(10, 0.05)] * 3)
+    assert "calibrating" not in out[0]
+
+
+def test_calibration_length_comes_from_the_input_unless_the_extractor_sets_it():
+    ctx = Context(fps=60.0, sample_rate=600, calibration_s=3.0)   # what input=mic asks for
+    assert RmsExtractor(RmsParams(), ctx)._cal_frames == 180
+    ctx = Context(fps=60.0, sample_rate=600, calibration_s=3.0)
+    ext = RmsExtractor(RmsParams(calibration_s=0.0), ctx)          # extractor.calibration_s=0 switches it off
+    assert ext._cal_frames == 0 and ctx.calibration_s == 0.0
+    with pytest.raises(ValueError, match="calibration_s"):
+        RmsParams(calibration_s=-1.0)
+
+
+def test_a_loud_burst_with_fixed_min_max_maps_the_laughter_low_and_the_falloff_recovers_it():
+    # Fig. 3.1: a burst at full scale, then laughter 20 dB quieter.  Without the falloff the laughter's MCS
+    # stays low; with the thesis' falloff (0.06 dB/s on the loudness scale) maxAmp drifts down towards it
+    rng = np.random.default_rng(0)
+    burst = [rng.normal(0, 0.5, 10) for _ in range(30)]
+    laugh = [rng.normal(0, 0.05 * (1 + np.sin(2 * np.pi * 5 * k / 60)), 10) for k in range(60 * 120)]
+    fixed = RmsParams(calibration_s=0.5, falloff_per_s=0.0)
+    drift = RmsParams(calibration_s=0.5)
+    late = slice(-600, None)   # the last 10 s of two minutes of laughter
+    m_fixed = np.mean([o["mcs_raw"] for o in run(burst + laugh, fixed)[1][late]])
+    m_drift = np.mean([o["mcs_raw"] for o in run(burst + laugh, drift)[1][late]])
+    assert m_drift > m_fixed + 0.05
+
+
+def test_the_calibration_meter_says_what_to_do_and_passes_the_audio_through():
+    import io
+    from laughlab_plugins.source_mic import calibration_meter, meter_line
+
+    out = io.StringIO()
+    blocks = [np.full(10, 0.3), np.full(10, 0.6), np.full(10, 0.01)]
+    got = list(calibration_meter(iter(blocks), 2, 60.0, out))
+    assert all(a is b for a, b in zip(got, blocks))
+    lines = out.getvalue().splitlines()
+    assert len(lines) == 2 and "laugh or clap once" in lines[0] and "input.calibration_s=0" in lines[0]
+    assert lines[1] == f"laughlab: calibrated (peak {20 * math.log10(0.6):.1f} dBFS); go ahead and laugh"
+    out = io.StringIO()
+    list(calibration_meter(iter([np.full(10, 0.001)]), 1, 60.0, out))
+    assert "closer to the microphone" in out.getvalue()
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    tty = Tty()
+    list(calibration_meter(iter(blocks), 2, 60.0, tty))
+    assert "\r" + meter_line(20 * math.log10(0.3), 20 * math.log10(0.3), 1 / 60) in tty.getvalue()
+    assert meter_line(-30.0, -6.0, 1.0, width=10) == "  [#####     ]  -30.0 dBFS, peak   -6.0,  1.0 s left"

@@ -137,6 +137,30 @@ def test_mixer_returns_to_idle_when_a_clip_ends(lib):
     assert mix.clip is None and f.clip_eyes == 0.0
 
 
+def test_mixer_blends_the_eyes_like_the_body_when_a_clip_is_overruled_or_ends(lib):
+    # issue 18: eyes_closed jumped 1 -> 0 in one frame at each overrule; now they blend over blend_s
+    mix, dt, blend = Mixer(lib), 1 / 60, 10 / 24
+    eyes = []
+    for k in range(200):
+        f = Frame(k, k * dt, dt)
+        if k == 0:
+            f.events.append(ClipEvent(0.0, "start", "lean_front1", 5, 1.0, blend_s=0.0))
+        if k == 20:  # lean_front1 has its eyes shut here; point1 opens them
+            f.events += [ClipEvent(f.time_s, "stop", "lean_front1", 5, 1.0, reason="overruled"),
+                         ClipEvent(f.time_s, "start", "point1", 20, 1.0, blend_s=blend)]
+        mix.advance(f)
+        mix.pose(f)
+        eyes.append(f.clip_eyes)
+    e19 = lib["lean_front1"].eyes_closed(19 * dt)
+    assert e19 > 0.8 and eyes[20] == e19
+    # 5 frames into the 25-frame blend: 1/5 of the way from the shown value to point1's key
+    assert eyes[25] == pytest.approx(e19 + 0.2 * (lib["point1"].eyes_closed(5 * dt) - e19))
+    assert eyes[46] == lib["point1"].eyes_closed(26 * dt)   # blend over: the clip's own key
+    # point1 closes its eyes at about 2.05 s of its 2.88 s and ends at frame 20 + 173: hand-over to idle blends too
+    assert np.abs(np.diff(eyes)).max() <= dt / blend + 1e-9 + np.abs(np.diff(
+        lib["point1"].eyes_closed_many(np.arange(200) * dt))).max()
+
+
 # --- streaming == offline -----------------------------------------------------------------
 
 @settings(max_examples=50, deadline=None)
@@ -285,3 +309,50 @@ def test_plots_of_a_long_run_show_a_window_and_say_so(tmp_path, monkeypatch):
     notes.clear()
     pipeline.execute(pipeline.build(cfg_for("input.duration_s=2")), tmp_path / "short")
     assert all(note == "" for note, _ in notes.values())
+
+
+# --- issue 18: calibration, energy floor, eyes at clip events (end to end) ---------------------------
+
+def test_a_file_can_start_with_its_calibration_burst(tmp_path):
+    import pandas as pd
+    import soundfile as sf
+
+    rng = np.random.default_rng(1)
+    sr = 44100
+    burst = rng.normal(0, 0.5, sr // 2)                       # 0.5 s clap-like burst
+    laugh = rng.normal(0, 0.03, 3 * sr) * (1 + np.sin(2 * np.pi * 5 * np.arange(3 * sr) / sr))
+    sf.write(tmp_path / "cal.wav", np.concatenate([burst, laugh]).astype(np.float32), sr)
+    pipe = pipeline.build(cfg_for("input=file", f"input.path={tmp_path / 'cal.wav'}", "extractor.calibration_s=0.5",
+                                  "output=[files]"))
+    assert pipe.ctx.calibration_s == 0.5
+    pipeline.execute(pipe, tmp_path / "run", {})
+    ch = pd.read_csv(tmp_path / "run" / "channels.csv")
+    assert (ch.calibrating[:30] == 1).all() and (ch.calibrating[30:] == 0).all()
+    assert (ch.mcs[:30] == 0).all() and ch.mcs[30:].max() > 0.05
+    # the burst set maxAmp: the laughter (about -25 dB below it) maps well below 1 right after calibration
+    assert ch.mcs_raw[30:90].max() < 0.9
+
+
+def test_the_calibration_phase_is_the_inputs_unless_the_extractor_has_none(monkeypatch):
+    from laughlab_plugins.source_synthetic import SyntheticSource
+
+    monkeypatch.setattr(SyntheticSource, "calibration_s", 3.0)   # an input asking for one, as input=mic does
+    assert pipeline.build(cfg_for("input.duration_s=1")).ctx.calibration_s == 3.0
+    assert pipeline.build(cfg_for("extractor=pressure", "input.duration_s=1")).ctx.calibration_s == 0.0
+    pipe = pipeline.build(cfg_for("extractor=phoneme", "extractor.rms.calibration_s=1", "input.duration_s=1"))
+    assert pipe.ctx.calibration_s == 1.0 and pipe.extractor._rms._cal_frames == 60
+
+
+def test_the_default_run_writes_no_negative_energy_and_no_eye_jump_at_clip_events(tmp_path):
+    import pandas as pd
+
+    pipe = pipeline.build(cfg_for("input.duration_s=30", "output=[files]"))
+    pipeline.execute(pipe, tmp_path, {})
+    ch = pd.read_csv(tmp_path / "channels.csv")
+    ev = pd.read_csv(tmp_path / "events.csv")
+    assert ch.energy.min() >= 0.0
+    assert (ev.event == "stop").any() and (ev.reason == "overruled").any()
+    frames = np.rint(ev.time.to_numpy() * 60).astype(int)
+    jump = np.abs(np.diff(ch.eyes_closed.to_numpy()))
+    near = np.concatenate([jump[max(0, f - 1):f + 2] for f in frames])
+    assert near.max() <= 0.35

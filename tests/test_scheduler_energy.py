@@ -149,3 +149,48 @@ def test_energy_finite_capped_and_one_clip_at_a_time(mcs, seed):
             else:
                 assert playing is None
                 playing = e.clip
+
+
+def test_floor_holds_after_the_clips_consumption():
+    # L = 1, 1.9, 2.8, 3.7, 4.6, 5.5 (-0.1 then +1 per frame): a clip of e = 5 over 1 s starts at frame 5;
+    # then MCS = 0, and the decrease (0.1 per frame) plus the consumption (1/12 per frame) would take L
+    # below 0 after ~30 frames (the issue's -0.18)
+    s = make([FakeClip("a", 5.0, 1.0)], decrease_per_s=6.0, speed_min=1.0, speed_max=1.0)
+    frames = drive(s, [1.0] * 6 + [0.0] * 60)
+    e = np.array([f.channels["energy"] for f in frames])
+    assert e[6] == pytest.approx(5.5 - 5 / 60 - 0.1 - 5 / 60)
+    assert e.min() == 0.0 and (e[40:] == 0.0).all()
+    s = make([FakeClip("a", 5.0, 1.0)], decrease_per_s=6.0, speed_min=1.0, speed_max=1.0, floor_zero=False)
+    assert min(f.channels["energy"] for f in drive(s, [1.0] * 6 + [0.0] * 60)) < -2.0
+
+
+def test_listing_reading_by_hand():
+    # listings 5.4/5.5 at 60 Hz: L += MCS per tick; the active clip subtracts e per tick (act.energy * dt,
+    # dt one tick, as MCS * dt adds MCS); the start tick consumes nothing; no floor
+    s = make([FakeClip("a", 5.0, 0.099)], consumption="listing", speed_min=1.0, speed_max=1.0)
+    frames = drive(s, [1.0] * 12)
+    e = [f.channels["energy"] for f in frames]
+    assert events(frames)[0] == (5, "start", "a", "")
+    assert e[5] == pytest.approx(6.0)                # started: nothing consumed on its first tick
+    assert e[6] == pytest.approx(6.0 + 1 - 5)        # then 5 per tick while MCS adds 1
+    assert e[7] == pytest.approx(2.0 + 1 - 5)        # below zero: the listing has no floor
+    # the clip of 0.099 s stops at its 6th tick (elapsed 6/60 s) after the start, having consumed 5 x 5
+    assert [x for x in events(frames) if x[1] == "stop"] == [(11, "stop", "a", "finished")]
+    assert e[11] == pytest.approx(6.0 + 6 - 5 * 5)
+
+
+def test_listing_reading_is_reproducible_and_differs_from_the_equation():
+    clips = [FakeClip(n, e, d) for n, e, d in [("a", 5, .9), ("b", 10, 1.7), ("c", 20, 3.0), ("d", 40, 4.9)]]
+    rng = np.random.default_rng(5)
+    mcs = np.clip(rng.normal(0.4, 0.3, 1200), 0, 1)
+    runs = [events(drive(make(clips, seed=1, consumption="listing"), mcs)) for _ in range(2)]
+    assert runs[0] == runs[1]
+    eq = events(drive(make(clips, seed=1), mcs))
+    n_listing = sum(x[1] == "start" for x in runs[0])
+    n_equation = sum(x[1] == "start" for x in eq)
+    assert 0 < n_listing < n_equation   # each clip consumes l times more: fewer starts
+
+
+def test_consumption_must_be_a_known_reading():
+    with pytest.raises(ValueError, match="consumption"):
+        EnergyParams(consumption="eq41")

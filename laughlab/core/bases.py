@@ -42,12 +42,17 @@ class Context:
         The run's one seeded generator: all randomness comes from it.
     seed : int
         The run's seed.
+    calibration_s : float
+        Length of the calibration phase at the start of the input (van Duijn
+        2014, 3.1.1), in seconds: what the source asks for (``Source.calibration_s``),
+        or the extractor's ``calibration_s`` when it sets one.
     """
 
     fps: float = 60.0
     sample_rate: int = 16000
     rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
     seed: int = 0
+    calibration_s: float = 0.0
     _clips: Any = None
 
     @property
@@ -90,10 +95,12 @@ class Source(Plugin):
     any sample rate works with any frame rate.
 
     Attributes set by ``open``: ``sample_rate`` (Hz), ``n_frames`` (None if live),
-    ``truth`` (ground truth object or None).
+    ``truth`` (ground truth object or None), ``calibration_s`` (the calibration
+    phase this input asks for, thesis 3.1.1; 0 = none).
     """
 
     kind = "source"
+    calibration_s: float = 0.0
     sample_rate: int = 16000
     n_frames: int | None = None
     truth: Any = None

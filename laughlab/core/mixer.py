@@ -17,7 +17,10 @@ class Mixer:
     While no clip plays, the looping idle motion plays (thesis 5.5, last
     paragraph).  A start blends linearly over the event's ``blend_s`` from the
     pose shown at that moment to the new clip; a clip that finishes or is
-    stopped hands over to idle with the same blend.
+    stopped hands over to idle with the same blend.  The clip's eye key
+    (``frame.clip_eyes``, thesis 3.3.3) blends over the same time from the
+    value shown at the switch, so the eyes do not snap when a clip starts, is
+    overruled or ends (Blender's blend-in mixes shape keys of the action too).
 
     Parameters
     ----------
@@ -46,6 +49,10 @@ class Mixer:
         self.blend_start = 0.0
         self.blend_s = 0.0
         self.last_pose = None
+        self.last_eyes = 0.0      # the clip eye key shown last
+        self.eyes_from: float | None = None  # eye key at the last switch while its blend runs
+        self.eyes_start = 0.0
+        self.eyes_blend_s = 0.0
         self._pending: list = []  # what each noted frame shows, not yet rendered
         self._rendered: list = []  # poses rendered early (a blend needed the last one)
 
@@ -58,6 +65,8 @@ class Mixer:
             self.blend_start, self.blend_s = t, blend_s
         else:
             self.blend_from = None
+        self.eyes_from = self.last_eyes if blend_s > 0.0 else None
+        self.eyes_start, self.eyes_blend_s = t, blend_s
 
     def advance(self, frame: Frame) -> None:
         """Apply the frame's clip events; set ``frame.clip_eyes`` from the playing clip."""
@@ -76,11 +85,18 @@ class Mixer:
             if local >= self.end:  # the clip (or segment) played to its end
                 self._switch(t, self.idle_blend_s)
                 self.clip, self.idle_start = None, t
-                frame.clip_eyes = 0.0
+                eyes = 0.0
             else:
-                frame.clip_eyes = self.clip.eyes_closed(local)
+                eyes = self.clip.eyes_closed(local)
         else:
-            frame.clip_eyes = 0.0
+            eyes = 0.0
+        if self.eyes_from is not None:
+            w = (t - self.eyes_start) / self.eyes_blend_s
+            if w >= 1.0:
+                self.eyes_from = None
+            else:
+                eyes = self.eyes_from + w * (eyes - self.eyes_from)
+        frame.clip_eyes = self.last_eyes = eyes
 
     def note(self, frame: Frame) -> None:
         """Record what this frame shows (clip and clip time, blend, joint offsets); :meth:`take` renders it.

@@ -107,6 +107,7 @@ def build(cfg: DictConfig) -> Pipeline:
         if group == "input":
             built[group].open()
             ctx.sample_rate = built[group].sample_rate
+            ctx.calibration_s = float(built[group].calibration_s)
     for group, kind in GROUPS.items():
         if group == "input":
             continue
@@ -115,6 +116,8 @@ def build(cfg: DictConfig) -> Pipeline:
             built[group] = plugins.create(kind, values["name"], values, ctx, where=f"{group}.{values['name']}")
         except ValueError as exc:
             raise LaughlabError(f"bad parameter in {group}.{values['name']}: {exc}") from None
+        if group == "extractor" and not getattr(built[group], "calibrates", False):
+            ctx.calibration_s = 0.0  # no min/max to calibrate: input=mic skips its calibration phase
     outputs = _section(cfg, "output") or {}
     sinks = [plugins.create("sink", name, params or {}, ctx, where=f"output.{name}")
              for name, params in outputs.items()]

@@ -3,6 +3,15 @@
 Per frame, in the order of the thesis listing (reading notes in shared/papers):
 amplitude (RMS, Eq. 3.1), running min/max update, mapping to [0, 1], falloff of
 min/max, rise/fall limit (Eq. 3.2), store previous, raise to the power 2.
+
+Calibration (3.1.1): "this way of mapping the signal requires a calibration
+(short burst of sound in the microphone) at the start of the simulation to set
+an initial minimum and maximum amplitude".  The first ``calibration_s`` seconds
+of the input are that burst: they set minAmp and maxAmp (the lowest and highest
+amplitude heard, no falloff) while the MCS stays 0, then the listing runs from
+there and both drift by the falloff (Fig. 3.1).  ``input=mic`` asks for 3 s
+(with a level meter on the terminal); files start without one unless
+``extractor.calibration_s`` is set.
 """
 from __future__ import annotations
 
@@ -51,7 +60,12 @@ class RmsParams:
         maxAmp never falls below this (units of ``scale``; None: -25 for
         loudness, 0.003 for linear).  Departure from the thesis: without it a
         long silence lets the falloff shrink the range to the noise floor,
-        which then maps to full-scale MCS.
+        which then maps to full-scale MCS.  Likewise minAmp is kept at or below
+        maxAmp (ours: the listing lets them cross, and the mapping then inverts).
+    calibration_s : float or None
+        Length of the calibration phase at the start of the input (3.1.1), in
+        seconds; 0 = none; None = what the input asks for (``input=mic``: its
+        ``calibration_s``, 3 s; files and the generator: 0).
     """
 
     scale: str = "loudness"
@@ -62,6 +76,7 @@ class RmsParams:
     min_amp: float | None = None
     max_amp: float | None = None
     max_floor: float | None = None
+    calibration_s: float | None = None
 
     def __post_init__(self) -> None:
         if self.scale not in DEFAULT_MAX_FLOOR:
@@ -70,6 +85,8 @@ class RmsParams:
         check_range("fall_per_s", self.fall_per_s, 0, lo_open=True)
         check_range("falloff_per_s", self.falloff_per_s, 0)
         check_range("power", self.power, 0, lo_open=True)
+        if self.calibration_s is not None:
+            check_range("calibration_s", self.calibration_s, 0, 600)
         if self.min_amp is not None and self.max_amp is not None and not self.max_amp >= self.min_amp:
             raise ValueError(f"max_amp must be >= min_amp (got {self.max_amp} < {self.min_amp})")
 
@@ -107,11 +124,13 @@ class RmsExtractor(Extractor):
 
     Writes ``control['rms']`` (full-scale RMS), ``control['amp']`` (the
     amplitude in units of ``scale``), ``control['mcs_raw']`` (the min/max
-    mapping in [0, 1], before rise/fall) and ``control['mcs']`` (final MCS in [0, 1]).
+    mapping in [0, 1], before rise/fall) and ``control['mcs']`` (final MCS in [0, 1]);
+    with a calibration phase also ``control['calibrating']`` (1 during it, else 0).
     """
 
     name = "rms"
     Params = RmsParams
+    calibrates = True  # has a calibration phase (thesis 3.1.1): input=mic runs its meter
 
     def __init__(self, params=None, ctx=None):
         super().__init__(params, ctx)
@@ -122,6 +141,9 @@ class RmsExtractor(Extractor):
         self._floor = p.floor
         self._loudness = p.scale == "loudness"
         self._power = p.power
+        cal_s = self.ctx.calibration_s if p.calibration_s is None else p.calibration_s
+        self.ctx.calibration_s = cal_s  # the run's calibration phase: input=mic shows its meter this long
+        self._cal_frames = int(round(cal_s * self.ctx.fps))
         self.nonfinite_samples = 0
         self.reset()
 
@@ -131,6 +153,8 @@ class RmsExtractor(Extractor):
         self.max_amp = -math.inf if p.max_amp is None else float(max(p.max_amp, self._floor))
         self.prev = 0.0
         self.nonfinite_samples = 0
+        self._cal_left = self._cal_frames
+        self._cal_lo, self._cal_hi = math.inf, -math.inf
 
     def amplitude(self, rms: float) -> float:
         """The amplitude of ``scale``: ``10 log10(max(rms, 1e-7))`` (SoundAnalyse loudness) or ``rms``."""
@@ -139,11 +163,45 @@ class RmsExtractor(Extractor):
         return rms
 
     def calibrate(self, audio: np.ndarray) -> None:
-        """Set min/max amplitude from a calibration recording (thesis 3.1.1)."""
+        """Set min/max amplitude from a calibration recording (thesis 3.1.1), as the calibration phase does."""
         n = max(1, int(round(self.ctx.sample_rate / self.ctx.fps)))
         levels = [self.amplitude(frame_rms(audio[i:i + n])[0]) for i in range(0, max(1, len(audio) - n + 1), n)]
-        self.min_amp = min(levels)
-        self.max_amp = max(max(levels), self._floor)
+        self._cal_lo, self._cal_hi = min(levels), max(levels)
+        self._end_calibration()
+
+    def _end_calibration(self) -> None:
+        self.min_amp = self._cal_lo
+        self.max_amp = max(self._cal_hi, self._floor)
+        self._cal_left = 0
+
+    def map(self, amp: float) -> tuple[float, float]:
+        """One tick of listing 5.2 from the amplitude on: ``(mapped, mcs)``; updates min/max and the previous MCS.
+
+        Lines 6-8 (min/max update, mapping), 11-13 (falloff, ours: maxAmp >=
+        ``max_floor``, minAmp <= maxAmp), 16-20 (rise/fall, Eq. 3.2), 22 (store
+        previous), 25 (``pow(motionSignal, 2)``).
+        """
+        hi, lo = self.max_amp, self.min_amp
+        if amp > hi:
+            hi = amp
+        if amp < lo:
+            lo = amp
+        span = hi - lo
+        mapped = (amp - lo) / span if span > 0.0 else 0.0  # max == min is silence
+        hi = hi - self._falloff
+        if hi < self._floor:
+            hi = self._floor
+        lo = lo + self._falloff
+        if lo > hi:
+            lo = hi
+        self.max_amp, self.min_amp = hi, lo
+        prev = self.prev
+        if mapped > prev:
+            mcs = min(mapped, prev + self._rise)
+        else:
+            mcs = max(mapped, prev - self._fall)
+        self.prev = mcs
+        return mapped, mcs ** self._power
 
     def step(self, block, frame) -> None:
         rms, bad = frame_rms(block)
@@ -153,31 +211,18 @@ class RmsExtractor(Extractor):
             amp = 10.0 * math.log10(rms if rms > LOUDNESS_FLOOR_RMS else LOUDNESS_FLOOR_RMS)
         else:
             amp = rms
-        # min/max update and mapping (listing 5.2 lines 6-8); max == min is silence
-        hi, lo = self.max_amp, self.min_amp
-        if amp > hi:
-            hi = amp
-        if amp < lo:
-            lo = amp
-        span = hi - lo
-        mapped = (amp - lo) / span if span > 0.0 else 0.0
-        # falloff (lines 11-13), keeping maxAmp above the floor and minAmp below maxAmp
-        hi = hi - self._falloff
-        if hi < self._floor:
-            hi = self._floor
-        lo = lo + self._falloff
-        if lo > hi:
-            lo = hi
-        self.max_amp, self.min_amp = hi, lo
-        # rise/fall limit (Eq. 3.2; lines 16-20), store previous, pow 2 (line 25)
-        prev = self.prev
-        if mapped > prev:
-            mcs = min(mapped, prev + self._rise)
-        else:
-            mcs = max(mapped, prev - self._fall)
-        self.prev = mcs
         c = frame.control
         c["rms"] = rms
         c["amp"] = amp
-        c["mcs_raw"] = mapped
-        c["mcs"] = mcs ** self._power
+        if self._cal_frames:
+            c["calibrating"] = 1.0 if self._cal_left else 0.0
+            if self._cal_left:  # the calibration burst (3.1.1): min/max only, the character waits
+                self._cal_lo = min(self._cal_lo, amp)
+                self._cal_hi = max(self._cal_hi, amp)
+                self._cal_left -= 1
+                if not self._cal_left:
+                    self._end_calibration()
+                c["mcs_raw"] = 0.0
+                c["mcs"] = 0.0
+                return
+        c["mcs_raw"], c["mcs"] = self.map(amp)

@@ -310,6 +310,7 @@ class PhonemeExtractor(Extractor):
     """
 
     name = "phoneme"
+    calibrates = True  # its MCS is the rms extractor's, with the calibration phase (thesis 3.1.1)
     Params = PhonemeParams
 
     def __init__(self, params=None, ctx=None):
