@@ -70,7 +70,13 @@ docs: $(STAMP) browser
 	rm -rf runs/docs
 	$(PY) -m laughlab hydra.run.dir=runs/docs seed=0
 	mkdir -p docs/img
-	cp runs/docs/plots/fig3_2_mcs.png runs/docs/plots/fig4_2_energy.png runs/docs/plots/filmstrip.png docs/img/
+	cp runs/docs/plots/fig3_2_mcs.png runs/docs/plots/fig4_1_energy.png runs/docs/plots/fig4_2_energy.png \
+	   runs/docs/plots/filmstrip.png docs/img/
+	$(PY) -m laughlab.render.calibration_demo runs/docs/input.wav runs/docs-calibration.wav
+	rm -rf runs/docs-calibration
+	$(PY) -m laughlab hydra.run.dir=runs/docs-calibration input=file input.path=runs/docs-calibration.wav \
+	   extractor.calibration_s=1.0 output=files
+	cp runs/docs-calibration/plots/fig3_1_calibration.png docs/img/
 	$(PY) -m laughlab.viewer.browser runs/docs docs/img/viewer.png --at 9
 	rm -rf runs/docs-video
 	$(PY) -m laughlab hydra.run.dir=runs/docs-video seed=0 input.duration_s=10 output=video face=facs

@@ -1,4 +1,4 @@
-"""Sink ``plots``: the run's Figure 3.2- and 4.2-style plots in ``plots/``."""
+"""Sink ``plots``: the run's Figure 3.1-, 3.2-, 4.1- and 4.2-style plots in ``plots/``."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -39,8 +39,12 @@ class PlotsParams:
 class PlotsSink(Sink):
     """Keeps the signals the figures need (a few floats per frame) and draws them at the end.
 
+    ``plots/fig3_1_calibration.png`` needs the ``amp`` control (``rms`` and
+    ``phoneme`` extractors) or, for other extractors, ``rms``, from which it
+    shows what the thesis' mapping with default parameters would do;
     ``plots/fig3_2_mcs.png`` needs the ``mcs_raw`` control (``rms`` extractor);
     ``plots/fig4_2_energy.png`` needs ``mcs`` and the ``energy`` channel;
+    ``plots/fig4_1_energy.png`` also the ``energy`` scheduler (its gain);
     ``plots/filmstrip.png`` shows the skeleton at a few moments (poses are kept
     at 5 Hz over the plotted stretch).
     """
@@ -48,7 +52,7 @@ class PlotsSink(Sink):
     name = "plots"
     background = True  # only writes files: may run in the helper process
     Params = PlotsParams
-    _keys = ("mcs_raw", "mcs", "energy", "smile", "jaw", "eyes_closed")
+    _keys = ("rms", "amp", "calibrating", "mcs_raw", "mcs", "energy", "smile", "jaw", "eyes_closed")
     _pose_hz = 5.0
 
     def open(self, run) -> None:
@@ -98,11 +102,35 @@ class PlotsSink(Sink):
             path42 = self.staging.path(out / "fig4_2_energy.png")
             jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts,
                                                  note=note))
+            scheduler = (self.run.config or {}).get("scheduler") or {}
+            if scheduler.get("name") == "energy":
+                path41 = self.staging.path(out / "fig4_1_energy.png")
+                jobs.append(lambda: plots.figure_4_1(path41, t, data["mcs"], data["energy"], self.events,
+                                                     float(scheduler.get("gain_per_s", 60.0)), bouts, note=note))
+        fig31 = self._figure_3_1_args(data)
+        if fig31 is not None:
+            path31 = self.staging.path(out / "fig3_1_calibration.png")
+            jobs.append(lambda: plots.figure_3_1(path31, t, **fig31, bouts=bouts, note=note))
         if self.params.filmstrip_frames and self.poses:
             strip = self.staging.path(out / "filmstrip.png")
             jobs.append(lambda: self._filmstrip(strip, data, note))
         parallel(jobs)  # side by side in the helper process, one by one otherwise
         return self.staging.commit()
+
+    def _figure_3_1_args(self, data) -> dict | None:
+        """Fig. 3.1's amplitudes, rms parameters, fps, calibration length and title, or None without ``rms``."""
+        from laughlab.signals.mcs import LOUDNESS_FLOOR_RMS, RmsParams, params_of_run
+
+        params = params_of_run(self.run.config)
+        cal_s = float(np.count_nonzero(data["calibrating"])) / self.run.fps if "calibrating" in data else 0.0
+        if params is not None and "amp" in data:
+            return dict(amp=data["amp"], params=params, fps=self.run.fps, calibration_s=cal_s)
+        if "rms" not in data:
+            return None
+        amp = 10.0 * np.log10(np.maximum(data["rms"], LOUDNESS_FLOOR_RMS))
+        name = ((self.run.config or {}).get("extractor") or {}).get("name", "?")
+        return dict(amp=amp, params=RmsParams(), fps=self.run.fps,
+                    title=f"The thesis' min/max mapping of this run's sound (its MCS: extractor={name}; cf. Fig. 3.1)")
 
     def _filmstrip(self, path, data, note: str = "") -> None:
         from laughlab.render import plots

@@ -277,6 +277,37 @@ def same(a, b):
     return a == b
 
 
+def test_replaying_the_amplitudes_gives_the_runs_mcs_exactly(tmp_path):
+    """Fig. 3.1 runs the extractor again from the ``amp`` channel: with the run's parameters, the same numbers."""
+    import pandas as pd
+    from dataclasses import replace
+    from laughlab.signals.mcs import RmsParams, params_of_run, replay
+
+    cfg = cfg_for("input.duration_s=6", "extractor.calibration_s=0.5", "output=[files]")
+    pipeline.execute(pipeline.build(cfg), tmp_path)
+    ch = pd.read_csv(tmp_path / "channels.csv")
+    params = params_of_run(OmegaConf.to_container(cfg, resolve=True))
+    assert params == RmsParams(calibration_s=0.5)
+    got = replay(ch.amp.to_numpy(), params, 60.0)
+    assert np.allclose(got["mcs"], ch.mcs, rtol=0, atol=1e-6) and np.allclose(got["mcs_raw"], ch.mcs_raw, atol=1e-6)
+    assert (got["max_amp"] >= got["min_amp"]).all()
+    fixed = replay(ch.amp.to_numpy(), replace(params, falloff_per_s=0.0), 60.0)
+    # no falloff: maxAmp never falls and minAmp never rises after the calibration
+    assert (np.diff(fixed["max_amp"][30:]) >= 0).all() and (np.diff(fixed["min_amp"][30:]) <= 0).all()
+    assert params_of_run({"extractor": {"name": "pressure"}}) is None
+
+
+@pytest.mark.parametrize("overrides, wanted", [
+    ((), {"fig3_1_calibration.png", "fig3_2_mcs.png", "fig4_1_energy.png", "fig4_2_energy.png"}),
+    (("extractor=pressure",), {"fig3_1_calibration.png", "fig4_1_energy.png", "fig4_2_energy.png"}),
+    (("scheduler=none",), {"fig3_1_calibration.png", "fig3_2_mcs.png", "fig4_2_energy.png"}),
+])
+def test_the_thesis_figures_each_run_draws(tmp_path, overrides, wanted):
+    pipeline.execute(pipeline.build(cfg_for("input.duration_s=3", "~output.csv", "~output.bvh",
+                                            *overrides)), tmp_path)
+    assert {p.name for p in (tmp_path / "plots").iterdir()} == wanted | {"filmstrip.png"}
+
+
 @pytest.mark.parametrize("group", ["input", "extractor", "face", "body", "scheduler", "output"])
 def test_every_config_option_composes(group):
     for f in _conf_dir().joinpath(group).iterdir():
@@ -291,7 +322,7 @@ def test_plots_of_a_long_run_show_a_window_and_say_so(tmp_path, monkeypatch):
     from laughlab.render import plots as plots_mod
 
     notes = {}
-    for name in ("figure_3_2", "figure_4_2", "filmstrip"):
+    for name in ("figure_3_1", "figure_3_2", "figure_4_1", "figure_4_2", "filmstrip"):
         real = getattr(plots_mod, name)
 
         def spy(*a, _real=real, _name=name, **k):
@@ -301,7 +332,7 @@ def test_plots_of_a_long_run_show_a_window_and_say_so(tmp_path, monkeypatch):
         monkeypatch.setattr(plots_mod, name, spy)
     pipe = pipeline.build(cfg_for("input.duration_s=5", "output.plots.max_seconds=2"))
     pipeline.execute(pipe, tmp_path)
-    assert set(notes) == {"figure_3_2", "figure_4_2", "filmstrip"}
+    assert set(notes) == {"figure_3_1", "figure_3_2", "figure_4_1", "figure_4_2", "filmstrip"}
     for name, (note, n) in notes.items():
         assert note == "first 2 s of 5 s (output.plots.max_seconds)", name
         assert n in (None, 120)  # 2 s at 60 fps

@@ -204,6 +204,18 @@ def _progress_bar(pipe: Pipeline):
     return tqdm(total=n, unit="frame", desc="laughlab", file=sys.stderr, leave=False)
 
 
+def plugin_config(pipe: Pipeline) -> dict:
+    """The configuration of a pipeline built in code: ``{group: {"name": ..., **params}}`` per plugin group."""
+    from dataclasses import asdict, is_dataclass
+
+    out = {}
+    for group in GROUPS:
+        plugin = getattr(pipe, {"input": "source"}.get(group, group))
+        params = asdict(plugin.params) if is_dataclass(plugin.params) else {}
+        out[group] = {"name": plugin.name, **params}
+    return out
+
+
 def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
     """Run the pipeline to the end of the input, write every output, return the metrics.
 
@@ -211,7 +223,8 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
     """
     out_dir = Path(out_dir)
     ctx, src = pipe.ctx, pipe.source
-    info = RunInfo(out_dir, ctx.fps, ctx.skeleton, src.n_frames, src, config or {})
+    config = config or plugin_config(pipe)
+    info = RunInfo(out_dir, ctx.fps, ctx.skeleton, src.n_frames, src, config)
     opened = []
     n_chunk = chunk_frames(pipe)
     rec = _Recorder(n_chunk, ctx.skeleton.n_channels)
@@ -221,8 +234,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
     helper, behind = _helper_for(pipe, n_chunk)
     try:
         if helper is not None:
-            helper.open(behind, RunInfo(out_dir, ctx.fps, ctx.skeleton, src.n_frames, _source_view(src),
-                                        config or {}))
+            helper.open(behind, RunInfo(out_dir, ctx.fps, ctx.skeleton, src.n_frames, _source_view(src), config))
             opened.append(helper)
         for sink in pipe.sinks:
             if sink in behind:

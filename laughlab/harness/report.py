@@ -152,8 +152,15 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
         lines += ["## The same input under each condition", ""]
         for name in shows:
             lines += [f"**{name.split('_fig4_2')[0]}**", "", f"![{name}](figures/{name})", ""]
+    thesis = sorted(p.name for p in figs.glob("*.png") if "_fig4_1" in p.name or "_fig3_1" in p.name)
+    if thesis:
+        lines += ["## How the energy is made (thesis Figs. 4.1 and 3.1) on the same input", "",
+                  "Fig. 4.1: the MCS, its primitive (the energy if no clip consumed), the actual energy and the "
+                  "clips. Fig. 3.1: the MCS with min/max amplitude fixed against drifting.", ""]
+        for name in thesis:
+            lines += [f"**{name.split('_fig')[0]}**", "", f"![{name}](figures/{name})", ""]
     others = sorted(p.name for p in figs.glob("*.png") if p.name != "metrics.png" and p.name not in shows
-                    and "fig3_2" not in p.name and "filmstrip" not in p.name)
+                    and p.name not in thesis and "fig3_2" not in p.name and "filmstrip" not in p.name)
     for name in others:
         lines += [f"![{name}](figures/{name})", ""]
     lines += ["## By profile", ""]

@@ -1,4 +1,4 @@
-"""Figures in the style of the thesis (van Duijn 2014): Fig. 3.2 and Fig. 4.2."""
+"""Figures in the style of the thesis (van Duijn 2014): Figs. 3.1, 3.2, 4.1 and 4.2."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -83,6 +83,115 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     return path
 
 
+def _draw_clip_blocks(ax, events: Sequence, end: float) -> list:
+    """The clips played as blocks: width their time on screen, height their energy e(a) (Figs. 4.1, 4.2)."""
+    blocks = clip_blocks(events, end)
+    cmap = plt.get_cmap("tab20")
+    colors = {n: cmap(i % 20) for i, n in enumerate(sorted({b[0] for b in blocks}))}
+    for name, t0, t1, e in blocks:
+        ax.add_patch(plt.Rectangle((t0, 0), t1 - t0, e, facecolor=colors[name], alpha=0.55,
+                                   edgecolor="0.3", lw=0.4))
+        if t1 - t0 > 0.04 * max(end, 1e-9):
+            ax.text(t0 + 0.01 * end, e, name, fontsize=5.5, va="bottom", ha="left", rotation=0)
+    return blocks
+
+
+def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: float, calibration_s: float = 0.0,
+               bouts: Sequence | None = None, title: str = "", note: str = "") -> Path:
+    """Fig. 3.1: the MCS with min/max amplitude fixed after calibration (left) and drifting (right).
+
+    Both columns run the rms extractor (listing 5.2) again on the run's
+    amplitudes (:func:`laughlab.signals.mcs.replay`): left with no falloff, so
+    a loud calibration burst keeps later laughter mapped low; right with the
+    run's falloff (thesis: 0.001 per tick), maxAmp and minAmp drifting towards
+    each other.  Top: the amplitude (grey) and the band from minAmp to maxAmp
+    (blue, the thesis' "blue area"); bottom: the final MCS (red).
+    """
+    from dataclasses import replace
+
+    from laughlab.signals.mcs import replay
+
+    cal = {"calibration_s": calibration_s} if params.calibration_s is None else {}
+    fixed = replay(amp, replace(params, falloff_per_s=0.0, **cal), fps)
+    drift = replay(amp, replace(params, **cal), fps)
+    fig, axes = plt.subplots(2, 2, figsize=(8.0, 4.4), dpi=150, sharex=True, sharey="row", layout="constrained",
+                             height_ratios=(1.2, 1))
+    unit = "amplitude (dB, 10 log10 RMS)" if params.scale == "loudness" else "amplitude (RMS, full scale)"
+    for col, (run, label) in enumerate(((fixed, "min/max fixed after calibration (no falloff)"),
+                                        (drift, f"min/max drifting (falloff {params.falloff_per_s:g} /s)"))):
+        top, bottom = axes[0, col], axes[1, col]
+        for ax in (top, bottom):
+            _shade_bouts(ax, bouts)
+            if calibration_s > 0:
+                ax.axvspan(times[0], times[0] + calibration_s, color="tab:orange", alpha=0.15, lw=0,
+                           label="calibration")
+            _setup_axis(ax)
+        top.fill_between(times, run["min_amp"], run["max_amp"], color="tab:blue", alpha=0.2, lw=0,
+                         label="minAmp .. maxAmp")
+        top.plot(times, amp, color="0.45", lw=0.5, label="amplitude")
+        bottom.plot(times, run["mcs"], color="tab:red", lw=0.8, label="MCS")
+        bottom.set_ylim(-0.02, 1.05)
+        bottom.set_xlabel("time (s)")
+        top.set_title(label, fontsize=8)
+    lo = float(np.min(amp)) if len(amp) else 0.0
+    axes[0, 0].set_ylim(max(lo, float(np.percentile(amp, 1)) - 3) if len(amp) else 0, None)
+    axes[0, 0].set_ylabel(unit, fontsize=7)
+    axes[1, 0].set_ylabel("MCS")
+    fig.suptitle(_titled(title or "Calibration and min/max falloff (cf. van Duijn 2014, Fig. 3.1)", note),
+                 fontsize=9)
+    handles = {}
+    for ax in (axes[0, 0], axes[1, 0]):
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(lab, h)
+    fig.legend(list(handles.values()), list(handles), fontsize=7, loc="outside lower center", ncols=5, frameon=False)
+    fig.savefig(path, format="png")
+    plt.close(fig)
+    return path
+
+
+def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
+               gain_per_s: float, bouts: Sequence | None = None, title: str = "", note: str = "") -> Path:
+    """Fig. 4.1: MCS (top); the primitive of the MCS, the actual laughing energy and the clips (bottom).
+
+    The primitive ``sum(gain_per_s * MCS * dt)`` is the laughing energy with no
+    clip consuming and no fixed decrease (the thesis' blue line); it grows
+    without bound, so it has its own axis on the right.  The green line is the
+    run's energy L, the blocks the clips played (height e(a), width their time).
+    """
+    times = np.asarray(times, float)
+    dt = float(times[1] - times[0]) if len(times) > 1 else 0.0
+    primitive = np.cumsum(np.asarray(mcs, float) * gain_per_s * dt)
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.0, 4.2), dpi=150, sharex=True, layout="constrained",
+                                   height_ratios=(1, 2))
+    for ax in (ax1, ax2):
+        _shade_bouts(ax, bouts)
+        _setup_axis(ax)
+    ax1.plot(times, mcs, color="tab:red", lw=0.8)
+    ax1.set_ylabel("MCS")
+    ax1.set_ylim(-0.02, 1.05)
+    end = float(times[-1]) if len(times) else 0.0
+    blocks = _draw_clip_blocks(ax2, events, end)
+    ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L (clips consuming)")
+    top = max([b[3] for b in blocks] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
+    ax2.set_ylim(0, top * 1.15)
+    ax2.set_xlim(times[0] if len(times) else 0, end or 1)
+    ax2.set_ylabel("laughing energy / clip energy")
+    ax2.set_xlabel("time (s)")
+    axp = ax2.twinx()
+    axp.plot(times, primitive, color="tab:blue", lw=1.0, label="no consumption: primitive of the MCS (right axis)")
+    axp.set_ylim(0, max(1.0, float(primitive[-1]) if len(primitive) else 1.0) * 1.05)
+    axp.set_ylabel("primitive of MCS", color="tab:blue", fontsize=8)
+    axp.tick_params(axis="y", colors="tab:blue", labelsize=7)
+    axp.spines[["top"]].set_visible(False)
+    ax1.set_title(_titled(title or "The laughing energy process (cf. van Duijn 2014, Fig. 4.1)", note), fontsize=9)
+    h2, l2 = ax2.get_legend_handles_labels()
+    hp, lp = axp.get_legend_handles_labels()
+    fig.legend(h2 + hp, l2 + lp, fontsize=7, loc="outside lower center", ncols=3, frameon=False)
+    fig.savefig(path, format="png")
+    plt.close(fig)
+    return path
+
+
 def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
                bouts: Sequence | None = None, title: str = "", note: str = "") -> Path:
     """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom)."""
@@ -94,15 +203,7 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     ax1.set_ylabel("MCS")
     ax1.set_ylim(-0.02, 1.05)
     end = float(times[-1]) if len(times) else 0.0
-    blocks = clip_blocks(events, end)
-    names = sorted({b[0] for b in blocks})
-    cmap = plt.get_cmap("tab20")
-    colors = {n: cmap(i % 20) for i, n in enumerate(names)}
-    for name, t0, t1, e in blocks:
-        ax2.add_patch(plt.Rectangle((t0, 0), t1 - t0, e, facecolor=colors[name], alpha=0.55,
-                                    edgecolor="0.3", lw=0.4))
-        if t1 - t0 > 0.04 * max(end, 1e-9):
-            ax2.text(t0 + 0.01 * end, e, name, fontsize=5.5, va="bottom", ha="left", rotation=0)
+    blocks = _draw_clip_blocks(ax2, events, end)
     ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L")
     ax2.set_ylabel("laughing energy / clip energy")
     ax2.set_xlabel("time (s)")

@@ -214,6 +214,10 @@ class RmsExtractor(Extractor):
         c = frame.control
         c["rms"] = rms
         c["amp"] = amp
+        self.step_amplitude(amp, c)
+
+    def step_amplitude(self, amp: float, c: dict) -> None:
+        """The frame from its amplitude on: the calibration phase, else :meth:`map`; writes into ``c``."""
         if self._cal_frames:
             c["calibrating"] = 1.0 if self._cal_left else 0.0
             if self._cal_left:  # the calibration burst (3.1.1): min/max only, the character waits
@@ -226,3 +230,36 @@ class RmsExtractor(Extractor):
                 c["mcs"] = 0.0
                 return
         c["mcs_raw"], c["mcs"] = self.map(amp)
+
+
+def replay(amps: np.ndarray, params: RmsParams, fps: float) -> dict[str, np.ndarray]:
+    """Run the rms extractor from a run's amplitudes (``amp`` channel) again, recording minAmp and maxAmp.
+
+    Returns arrays ``min_amp``, ``max_amp`` (after each frame's update and
+    falloff; during a calibration phase the quietest and loudest level so far),
+    ``mcs_raw`` and ``mcs``: the same numbers the run computed when ``params``
+    are the run's (a test checks), or what other parameters would have given,
+    e.g. ``falloff_per_s=0`` for Fig. 3.1's left panel.
+    """
+    from laughlab.core.bases import Context
+
+    ext = RmsExtractor(params, Context(fps=fps))
+    n = len(amps)
+    out = {k: np.empty(n) for k in ("min_amp", "max_amp", "mcs_raw", "mcs")}
+    c: dict = {}
+    for i, a in enumerate(np.asarray(amps, dtype=np.float64).tolist()):
+        ext.step_amplitude(a, c)
+        calibrating = ext._cal_left > 0
+        out["min_amp"][i] = ext._cal_lo if calibrating else ext.min_amp
+        out["max_amp"][i] = ext._cal_hi if calibrating else ext.max_amp
+        out["mcs_raw"][i], out["mcs"][i] = c["mcs_raw"], c["mcs"]
+    return out
+
+
+def params_of_run(config: dict) -> RmsParams | None:
+    """The rms extractor's parameters in a run's composed configuration (``extractor`` or ``extractor.rms``)."""
+    ext = (config or {}).get("extractor") or {}
+    values = ext if ext.get("name") == "rms" else ext.get("rms")
+    if not isinstance(values, dict):
+        return None
+    return RmsParams(**{k: v for k, v in values.items() if k != "name"})
