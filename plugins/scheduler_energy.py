@@ -235,9 +235,10 @@ class EnergyScheduler(Scheduler):
         p, dt = self.params, frame.dt
         L = self._produce(frame.control["mcs"], dt, False)
         self.ctx.rng.shuffle(self.actions)          # random.shuffle(animationActions)
-        limit = self.active.energy * p.overrule_c if self.active is not None else 0.0
         best: _Action | None = None
         for a in self.actions:
+            # activeAnimation.energy is read per action: a clip that finished earlier in this loop counts 0
+            limit = self.active.energy * p.overrule_c if self.active is not None else 0.0
             if L > a.energy and not a.active and a.energy > limit and a.inactive_s > p.min_inactive_s:
                 if best is None or a.energy > best.energy:
                     best = a

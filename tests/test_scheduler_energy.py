@@ -194,3 +194,18 @@ def test_listing_reading_is_reproducible_and_differs_from_the_equation():
 def test_consumption_must_be_a_known_reading():
     with pytest.raises(ValueError, match="consumption"):
         EnergyParams(consumption="eq41")
+
+
+def test_listing_reads_the_active_energy_per_action():
+    # a (e 5) plays, so c * e = 10 keeps b (e 8) out although L > 8.  In listing 5.5 the loop reads
+    # activeAnimation.energy per action: when a finishes, b, if the shuffle puts it after a, starts in that
+    # same tick; if before, one tick later.  (Reading the limit once per tick would always give the latter.)
+    same_tick = set()
+    for seed in range(16):
+        s = make([FakeClip("a", 5.0, 0.1), FakeClip("b", 8.0, 1.0)], seed=seed, consumption="listing")
+        ev = events(drive(s, [6.0] + [20.0] * 12))
+        stop_a = next(x[0] for x in ev if x[1:3] == ("stop", "a"))
+        start_b = next(x[0] for x in ev if x[1:3] == ("start", "b"))
+        assert start_b in (stop_a, stop_a + 1)
+        same_tick.add(start_b == stop_a)
+    assert same_tick == {True, False}
