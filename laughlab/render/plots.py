@@ -83,6 +83,12 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     return path
 
 
+def _energy_floor(energy: np.ndarray, top: float) -> float:
+    """The energy axis' bottom: 0, or below the lowest energy if it went negative (listing 5.4 has no floor)."""
+    low = float(np.min(energy)) if len(energy) else 0.0
+    return 0.0 if low >= 0.0 else low - 0.05 * (top - low)
+
+
 def _draw_clip_blocks(ax, events: Sequence, end: float) -> list:
     """The clips played as blocks: width their time on screen, height their energy e(a) (Figs. 4.1, 4.2)."""
     blocks = clip_blocks(events, end)
@@ -173,7 +179,7 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     blocks = _draw_clip_blocks(ax2, events, end)
     ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L (clips consuming)")
     top = max([b[3] for b in blocks] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
-    ax2.set_ylim(0, top * 1.15)
+    ax2.set_ylim(_energy_floor(energy, top), top * 1.15)
     ax2.set_xlim(times[0] if len(times) else 0, end or 1)
     ax2.set_ylabel("laughing energy / clip energy")
     ax2.set_xlabel("time (s)")
@@ -208,7 +214,7 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     ax2.set_ylabel("laughing energy / clip energy")
     ax2.set_xlabel("time (s)")
     top = max([b[3] for b in blocks] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
-    ax2.set_ylim(0, top * 1.15)
+    ax2.set_ylim(_energy_floor(energy, top), top * 1.15)
     ax2.set_xlim(times[0] if len(times) else 0, end or 1)
     ax1.set_title(_titled(title or "Laughing energy and clip selection (cf. van Duijn 2014, Fig. 4.2)", note),
                   fontsize=9)
