@@ -140,3 +140,22 @@ def test_listings_5_4_and_5_5_on_random_traces(values, hold, seed):
     want_e, want_ev = reference(mcs, seed)
     assert got_ev == want_ev
     assert got_e == pytest.approx(want_e, abs=1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=50), st.integers(1, 20))
+def test_listing_5_3_smoothers_and_eqs_3_3_3_4(values, hold):
+    # face=smile (smile, jaw) and body=shapes (chest, belly) with their defaults, at 60 Hz, against 5.3
+    from laughlab_plugins.body_shapes import ShapesBody, ShapesParams
+    from laughlab_plugins.face_smile import SmileFace, SmileParams
+
+    mcs = np.repeat(values, hold)
+    ctx = Context(fps=FPS)
+    face, body = SmileFace(SmileParams(), ctx), ShapesBody(ShapesParams(), ctx)
+    want = T.smoothers_5_3([float(m) for m in mcs])
+    for k, m in enumerate(mcs):
+        f = Frame(k, k / FPS, 1 / FPS, {"mcs": float(m)})
+        body.step(f)
+        face.step(f)
+        for name in ("smile", "jaw", "chest", "belly"):
+            assert f.channels[name] == pytest.approx(want[k][name], abs=1e-9), (k, name)

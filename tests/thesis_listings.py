@@ -190,3 +190,59 @@ def listings_5_4_and_5_5(mcs, rng, fixedDecreasingFactor, maxLaughingEnergy, ove
         energies.append(laughingEnergy)
         blender.advance(animationActions)   # the engine plays the actions' next frame
     return energies, blender.events
+
+
+# ---- listing 5.3 (Smoother) and Eqs. 3.3-3.4 ----
+
+class Smoother:
+    """Listing 5.3: smooth and re-scale the motion control signal (as printed)."""
+
+    # constructor with default parameters
+    def __init__(self, rise=0.5, fall=0.2, minE=0.0, maxE=1.0):
+        self.rise = rise
+        self.fall = fall
+        # minE and maxE are used to re-scale the motion control signal
+        # as shown in the smooth() function below
+        self.minE = minE
+        self.maxE = maxE
+        self.range = maxE - minE
+        # the output signal
+        self.e = 0
+
+    # input: original motion control signal
+    # output: motion control signal subject to a rise and fall parameter & scaled to [min, max]
+    def smooth(self, motionSignal):
+        # allow the signal to rise and fall only by a set amount
+        if motionSignal > self.e:
+            self.e = min(motionSignal, self.e + self.rise)
+        else:
+            self.e = max(motionSignal, self.e - self.fall)
+        scaled = self.e
+        # re-scale the motion control signal so that:
+        # every original value smaller than minE will be mapped to 0
+        if self.e < self.minE:
+            scaled = 0.0
+        # every original value greater than maxE will be mapped to 1
+        elif self.e > self.maxE:
+            scaled = 1.0
+        # and every original value that lays in between minE and maxE
+        # gets scaled accordingly
+        else:
+            scaled = (self.e - self.minE) / self.range
+        return scaled
+
+
+def smoothers_5_3(mcs):
+    """The four smoothers of 5.3 over an MCS trace, with chest and belly influence (Eqs. 3.3, 3.4)."""
+    # the smoothers that return a smoother and re-scaled vesion of the sound curve
+    jawSmoother = Smoother(rise=0.03, fall=0.01, minE=0.0, maxE=0.8)
+    smileSmoother = Smoother(rise=0.03, fall=0.001, minE=0.0, maxE=0.3)
+    chestSmoother = Smoother(rise=0.2, fall=0.1, minE=0.0, maxE=1.0)
+    bellySmoother = Smoother(rise=0.1, fall=0.05, minE=0.0, maxE=1.0)
+    out = []
+    for MCS in mcs:
+        chestInfluence = 1 - chestSmoother.smooth(MCS)   # Eq. 3.3 on the smoothed MCS (3.2.2)
+        bellyInfluence = bellySmoother.smooth(MCS)       # Eq. 3.4
+        out.append({"jaw": jawSmoother.smooth(MCS), "smile": smileSmoother.smooth(MCS),
+                    "chest": chestInfluence, "belly": bellyInfluence})
+    return out
