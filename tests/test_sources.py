@@ -78,3 +78,69 @@ def test_microphone_without_a_device_is_one_clear_line(tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and ("microphone" in lines[0] or "sounddevice" in lines[0])
     assert not (tmp_path / "run").exists()
+
+
+class FakeSoundDevice:
+    """Stands in for the ``sounddevice`` module: an input stream that plays back an array."""
+
+    def __init__(self, audio):
+        self.audio, self.pos = np.asarray(audio, dtype=np.float32), 0
+
+    def check_input_settings(self, **kw):
+        pass
+
+    def InputStream(self, **kw):  # noqa: N802 - sounddevice's name
+        fake = self
+
+        class Stream:
+            def __enter__(self):
+                return self
+
+            def __exit__(self, *a):
+                return False
+
+            def read(self, n):
+                chunk = fake.audio[fake.pos:fake.pos + n]
+                fake.pos += n
+                return np.pad(chunk, (0, n - len(chunk)))[:, None], False
+
+        return Stream()
+
+
+def test_a_live_run_starts_with_the_calibration_burst(monkeypatch, tmp_path, capsys):
+    # thesis 3.1.1 through input=mic: the terminal says what to do, the burst sets min/max, the MCS waits
+    import pandas as pd
+    from omegaconf import OmegaConf
+    from laughlab.core import pipeline
+    from laughlab.core.config import compose_config
+
+    sr = 16000
+    rng = np.random.default_rng(0)
+    burst = rng.normal(0, 0.5, sr // 2)                      # 0.5 s clap near the microphone
+    quiet = rng.normal(0, 0.02, sr) * (1 + np.sin(2 * np.pi * 5 * np.arange(sr) / sr))
+    monkeypatch.setitem(sys.modules, "sounddevice", FakeSoundDevice(np.concatenate([burst, quiet])))
+    cfg = compose_config(["input=mic", "input.duration_s=1.5", "input.calibration_s=0.5", "output=[files]"])
+    pipe = pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
+    assert pipe.ctx.calibration_s == 0.5
+    pipeline.execute(pipe, tmp_path)
+    err = capsys.readouterr().err
+    assert "laugh or clap once, loudly, close to the microphone" in err
+    assert "laughlab: calibrated (peak" in err and "go ahead and laugh" in err
+    ch = pd.read_csv(tmp_path / "channels.csv")
+    assert (ch.calibrating[:30] == 1).all() and (ch.mcs[:30] == 0).all() and (ch.calibrating[30:] == 0).all()
+    # the burst set maxAmp about 20 dB above the laughter: the laughter maps to the lower part of [0, 1]
+    assert 0.05 < ch.mcs_raw[30:].max() < 0.9
+    ext = pipe.extractor
+    assert ext.max_amp > ch.amp[30:].max()
+
+
+def test_the_calibration_can_be_switched_off_for_the_microphone(monkeypatch):
+    from omegaconf import OmegaConf
+    from laughlab.core import pipeline
+    from laughlab.core.config import compose_config
+
+    monkeypatch.setitem(sys.modules, "sounddevice", FakeSoundDevice(np.zeros(16000)))
+    for off in (["input.calibration_s=0"], ["extractor.calibration_s=0"]):
+        cfg = compose_config(["input=mic", "input.duration_s=0.5", *off])
+        pipe = pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
+        assert pipe.ctx.calibration_s == 0.0 and pipe.extractor._cal_frames == 0
