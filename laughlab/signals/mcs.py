@@ -174,13 +174,37 @@ class RmsExtractor(Extractor):
         self.max_amp = max(self._cal_hi, self._floor)
         self._cal_left = 0
 
-    def map(self, amp: float) -> tuple[float, float]:
-        """One tick of listing 5.2 from the amplitude on: ``(mapped, mcs)``; updates min/max and the previous MCS.
+    def step(self, block, frame) -> None:
+        rms, bad = frame_rms(block)
+        if bad:
+            self.nonfinite_samples += bad
+        if self._loudness:  # self.amplitude(rms), inlined: this runs every frame
+            amp = 10.0 * math.log10(rms if rms > LOUDNESS_FLOOR_RMS else LOUDNESS_FLOOR_RMS)
+        else:
+            amp = rms
+        c = frame.control
+        c["rms"] = rms
+        c["amp"] = amp
+        self.step_amplitude(amp, c)
+
+    def step_amplitude(self, amp: float, c: dict) -> None:
+        """The frame from its amplitude on, into ``c``: the calibration phase, else one tick of listing 5.2.
 
         Lines 6-8 (min/max update, mapping), 11-13 (falloff, ours: maxAmp >=
         ``max_floor``, minAmp <= maxAmp), 16-20 (rise/fall, Eq. 3.2), 22 (store
         previous), 25 (``pow(motionSignal, 2)``).
         """
+        if self._cal_frames:
+            c["calibrating"] = 1.0 if self._cal_left else 0.0
+            if self._cal_left:  # the calibration burst (3.1.1): min/max only, the character waits
+                self._cal_lo = min(self._cal_lo, amp)
+                self._cal_hi = max(self._cal_hi, amp)
+                self._cal_left -= 1
+                if not self._cal_left:
+                    self._end_calibration()
+                c["mcs_raw"] = 0.0
+                c["mcs"] = 0.0
+                return
         hi, lo = self.max_amp, self.min_amp
         if amp > hi:
             hi = amp
@@ -201,36 +225,8 @@ class RmsExtractor(Extractor):
         else:
             mcs = max(mapped, prev - self._fall)
         self.prev = mcs
-        return mapped, mcs ** self._power
-
-    def step(self, block, frame) -> None:
-        rms, bad = frame_rms(block)
-        if bad:
-            self.nonfinite_samples += bad
-        if self._loudness:  # self.amplitude(rms), inlined: this runs every frame
-            amp = 10.0 * math.log10(rms if rms > LOUDNESS_FLOOR_RMS else LOUDNESS_FLOOR_RMS)
-        else:
-            amp = rms
-        c = frame.control
-        c["rms"] = rms
-        c["amp"] = amp
-        self.step_amplitude(amp, c)
-
-    def step_amplitude(self, amp: float, c: dict) -> None:
-        """The frame from its amplitude on: the calibration phase, else :meth:`map`; writes into ``c``."""
-        if self._cal_frames:
-            c["calibrating"] = 1.0 if self._cal_left else 0.0
-            if self._cal_left:  # the calibration burst (3.1.1): min/max only, the character waits
-                self._cal_lo = min(self._cal_lo, amp)
-                self._cal_hi = max(self._cal_hi, amp)
-                self._cal_left -= 1
-                if not self._cal_left:
-                    self._end_calibration()
-                c["mcs_raw"] = 0.0
-                c["mcs"] = 0.0
-                return
-        c["mcs_raw"], c["mcs"] = self.map(amp)
-
+        c["mcs_raw"] = mapped
+        c["mcs"] = mcs ** self._power
 
 def replay(amps: np.ndarray, params: RmsParams, fps: float) -> dict[str, np.ndarray]:
     """Run the rms extractor from a run's amplitudes (``amp`` channel) again, recording minAmp and maxAmp.
