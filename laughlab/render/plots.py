@@ -123,7 +123,8 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
     fig, axes = plt.subplots(2, 2, figsize=(8.0, 4.4), dpi=150, sharex=True, sharey="row", layout="constrained",
                              height_ratios=(1.2, 1))
     unit = "amplitude (dB, 10 log10 RMS)" if params.scale == "loudness" else "amplitude (RMS, full scale)"
-    for col, (run, label) in enumerate(((fixed, "min/max fixed after calibration (no falloff)"),
+    fixed_label = "min/max fixed after calibration (no falloff)" if calibration_s > 0 else "min/max fixed (no falloff)"
+    for col, (run, label) in enumerate(((fixed, fixed_label),
                                         (drift, f"min/max drifting (falloff {params.falloff_per_s:g} /s)"))):
         top, bottom = axes[0, col], axes[1, col]
         for ax in (top, bottom):
