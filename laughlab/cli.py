@@ -161,12 +161,24 @@ def task(cfg) -> dict:
         _remove_new_run_dir(out_dir)
         fail(str(exc))
     except KeyboardInterrupt:
-        _remove_new_run_dir(out_dir)
-        fail("interrupted; the run's partial output was removed", code=130)
+        fail(_stopped(cfg, out_dir, "interrupted"), code=130)
+    except OSError as exc:  # a full disk, a file size limit, a folder that went away: the file system's fault
+        fail(_stopped(cfg, out_dir, os_error_line(exc, out_dir)))
     finally:
         if _CLAIM is not None:
             _CLAIM.release()
             _CLAIM = None
+
+
+def os_error_line(exc: OSError, where: Path | str) -> str:
+    """One line for a file-system fault: the path (the file if known, else ``where``) and the cause."""
+    import errno
+
+    path = exc.filename or where
+    cause = exc.strerror or type(exc).__name__
+    hint = {errno.EFBIG: " (a file size limit: ulimit -f)", errno.ENOSPC: " (the disk is full)",
+            errno.EDQUOT: " (the disk quota is used up)", errno.EROFS: " (a read-only file system)"}.get(exc.errno, "")
+    return f"cannot write {path}: {cause}{hint}"
 
 
 def config_hash(cfg) -> str:
@@ -200,6 +212,20 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:
     return f"laughlab: {dur:.1f} s of {what}, {chain}, in {seconds:.1f} s{speed} -> {out_dir}/: {', '.join(files)}"
 
 
+def _stopped(cfg, out_dir: Path, what: str) -> str:
+    """Clean up after a run stopped by a signal or a file-system fault; the one line that says so.
+
+    A single run removes what it wrote.  An experiment keeps its journal of finished trials and
+    its unfinished marker (any ``results.json`` goes: it is written only when every trial is in),
+    so the same command resumes it.
+    """
+    if cfg.get("harness"):
+        (out_dir / "results.json").unlink(missing_ok=True)
+        return f"{what}; the finished trials are kept: run the same command again to resume"
+    _remove_new_run_dir(out_dir)
+    return f"{what}; the run's partial output was removed"
+
+
 def _remove_new_run_dir(out_dir: Path) -> None:
     """Remove what Hydra created for a failed run (.hydra/), our marker, and the folder if we made it."""
     shutil.rmtree(out_dir / ".hydra", ignore_errors=True)
@@ -224,7 +250,10 @@ def report_command(args: list[str]) -> None:
     parser.add_argument("--out", help="report folder (default: reports/<experiment>)")
     ns = parser.parse_args(args)
     command = "python -m laughlab report " + " ".join(args)
-    path = write_report(ns.run_dir, ns.out, command)
+    try:
+        path = write_report(ns.run_dir, ns.out, command)
+    except OSError as exc:
+        raise LaughlabError(os_error_line(exc, ns.out or "reports/") + "; no report was written") from None
     print(f"report written: {path}")
 
 
@@ -341,6 +370,8 @@ def main(argv: list[str] | None = None) -> None:
                 command(argv[1:])
             except LaughlabError as exc:
                 fail(str(exc))
+            except OSError as exc:
+                fail(os_error_line(exc, argv[1] if len(argv) > 1 else "."))
             return
     if "plugins" in argv:
         try:

@@ -42,17 +42,25 @@ class RunParams:
         Animation frames per second (the thesis' game engine: 60).
     progress : str
         ``auto`` (a bar on long inputs when stderr is a terminal), ``on`` or ``off``.
+    overwrite : bool
+        Allow writing into a run directory that holds an earlier run (:mod:`laughlab.core.rundir`).
     """
 
     seed: int = 0
     fps: float = 60.0
     progress: str = "auto"
+    overwrite: bool = False
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.fps, (int, float)) and math.isfinite(self.fps) and self.fps > 0):
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise ValueError(f"seed must be a whole number >= 0 (got {self.seed!r})")
+        if isinstance(self.fps, bool) or not (isinstance(self.fps, (int, float)) and math.isfinite(self.fps)
+                                              and self.fps > 0):
             raise ValueError(f"fps must be a positive number (got {self.fps})")
         if self.fps > 1000:
             raise ValueError(f"fps must be at most 1000 (got {self.fps})")
+        if not isinstance(self.overwrite, bool):
+            raise ValueError(f"overwrite must be true or false (got {self.overwrite!r})")
         if self.progress not in ("auto", "on", "off"):
             raise ValueError(f"progress must be auto, on or off (got {self.progress!r})")
 
@@ -90,7 +98,7 @@ def build(cfg: DictConfig) -> Pipeline:
     """
     if cfg.get("plugins_dir"):
         plugins.load_plugin_dir(cfg.plugins_dir)
-    run_values = {k: cfg.get(k) for k in ("seed", "fps", "progress") if cfg.get(k) is not None}
+    run_values = {k: cfg.get(k) for k in ("seed", "fps", "progress", "overwrite") if k in cfg}
     try:
         run = RunParams(**run_values)
     except (ValueError, TypeError) as exc:
@@ -138,6 +146,7 @@ class _Recorder:
         self.n = n
         self.n_channels = n_channels
         self.keys: tuple | None = None
+        self.done = 0  # frames handed out in earlier chunks
         self._reset()
 
     def _reset(self) -> None:
@@ -175,10 +184,29 @@ class _Recorder:
                     vals[k] = np.fromiter([d[k] for d in dicts], dtype=np.float64, count=i)
                 except KeyError:
                     raise LaughlabError(f"channel {k!r} is not written every frame") from None
+        _check_finite(vals, poses, self.done)
         chunk = Chunk(np.array(self.times, dtype=np.float64), vals, poses, self.events, self.labels,
                       np.array(self.capture, dtype=np.int64))
+        self.done += i
         self._reset()
         return chunk
+
+
+def _check_finite(vals: dict, poses: np.ndarray, first_frame: int) -> None:
+    """The guard before every writer: a NaN or infinite channel or pose value is a plugin's bug, never output.
+
+    Raises LaughlabError naming the channel (or pose column) and the first frame
+    where it happens; the run then removes what it wrote.
+    """
+    for k, arr in vals.items():
+        if not np.isfinite(arr).all():
+            j = int(np.argmin(np.isfinite(arr)))
+            raise LaughlabError(f"channel {k!r} is {arr[j]} at frame {first_frame + j}: a plugin computed a "
+                                f"non-finite value, so nothing was written (please report it)")
+    if len(poses) and not np.isfinite(poses).all():
+        j, c = (int(x[0]) for x in np.nonzero(~np.isfinite(poses)))
+        raise LaughlabError(f"pose column {c} is {poses[j, c]} at frame {first_frame + j}: a non-finite joint "
+                            f"value, so nothing was written (please report it)")
 
 
 def chunk_frames(pipe: Pipeline) -> int:

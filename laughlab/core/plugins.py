@@ -10,6 +10,7 @@ Plugins come from three places, all through the same hooks:
 from __future__ import annotations
 
 import importlib.util
+import math
 import sys
 from dataclasses import dataclass, fields, is_dataclass
 from pathlib import Path
@@ -161,6 +162,9 @@ def make_params(cls: type, values: Any, where: str) -> Any:
             raise LaughlabError(f"unknown parameter {where}.{key}; valid: {', '.join(valid) or '(none)'}")
     try:
         merged = OmegaConf.merge(OmegaConf.structured(params_cls), values)
+        bad = first_nonfinite(OmegaConf.to_container(merged, resolve=True), nonfinite_ok(params_cls))
+        if bad is not None:
+            raise LaughlabError(f"bad parameter in {where}: {bad[0]} must be a finite number (got {bad[1]})")
         return OmegaConf.to_object(merged)
     except OmegaConfBaseException as exc:
         msg = str(exc).splitlines()[0]
@@ -169,6 +173,32 @@ def make_params(cls: type, values: Any, where: str) -> Any:
             from None
     except (ValueError, TypeError) as exc:
         raise LaughlabError(f"bad parameter in {where}: {exc}") from None
+
+
+def nonfinite_ok(params_cls: type) -> frozenset:
+    """Fields of a ``Params`` dataclass that document taking NaN or infinities (``metadata={"nonfinite": True}``)."""
+    return frozenset(f.name for f in fields(params_cls) if f.metadata.get("nonfinite"))
+
+
+def first_nonfinite(values: Any, allowed: frozenset = frozenset(), path: str = "") -> tuple[str, float] | None:
+    """The first NaN or infinite number in nested parameter values: ``(dotted key, value)``, or None.
+
+    One place for every plugin: a numeric parameter that is NaN or infinite is a
+    user error unless its field is in ``allowed``.
+    """
+    if isinstance(values, float):
+        return None if math.isfinite(values) else (path, values)
+    if isinstance(values, dict):
+        items = ((k, v) for k, v in values.items() if k not in allowed or path)
+    elif isinstance(values, (list, tuple)):
+        items = ((str(i), v) for i, v in enumerate(values))
+    else:
+        return None
+    for k, v in items:
+        found = first_nonfinite(v, allowed, f"{path}.{k}" if path else str(k))
+        if found is not None:
+            return found
+    return None
 
 
 def create(kind: str, name: str, values: Any, ctx: Any, where: str | None = None) -> Any:

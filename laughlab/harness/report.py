@@ -7,6 +7,7 @@ multirun sweep) and writes ``reports/<experiment>/README.md`` with its figures.
 from __future__ import annotations
 
 import json
+import os
 import math
 import shutil
 from itertools import combinations
@@ -285,16 +286,34 @@ def _lines(points, a, metrics, val, path, info) -> None:
 
 
 def write_report(run_dir: str | Path, out: str | Path | None = None, command: str = "") -> Path:
-    """Write the report of an experiment run or a sweep; return the README path."""
+    """Write the report of an experiment run or a sweep; return the README path.
+
+    The report is written into a hidden sibling folder first and moved into place
+    only when it is whole: a failure (a full disk, a bad figure) leaves the
+    earlier report as it was, or no report.
+    """
     root = Path(run_dir)
     if (root / "results.json").exists():
-        name = json.loads((root / "results.json").read_text())["experiment"]
-        target = Path(out) if out else Path("reports") / name
+        results, write = root / "results.json", experiment_report
+    elif root.is_dir() and any(root.rglob("results.json")):
+        results, write = next(root.rglob("results.json")), sweep_report
+    else:
+        raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)")
+    name = json.loads(results.read_text())["experiment"]
+    target = Path(out) if out else Path("reports") / name
+    if target.exists() and not target.is_dir():
+        raise LaughlabError(f"report folder {target} exists and is not a folder")
+    staging = target.with_name(f".{target.name}.partial-{os.getpid()}")
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir(parents=True)
+    try:
+        write(root, staging, command or f"python -m laughlab report {run_dir}")
         target.mkdir(parents=True, exist_ok=True)
-        return experiment_report(root, target, command or f"python -m laughlab report {run_dir}")
-    if root.is_dir() and any(root.rglob("results.json")):
-        name = json.loads(next(root.rglob("results.json")).read_text())["experiment"]
-        target = Path(out) if out else Path("reports") / name
-        target.mkdir(parents=True, exist_ok=True)
-        return sweep_report(root, target, command or f"python -m laughlab report {run_dir}")
-    raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)")
+        for item in sorted(staging.iterdir()):
+            old = target / item.name
+            if old.is_dir():
+                shutil.rmtree(old)
+            os.replace(item, old)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return target / "README.md"
