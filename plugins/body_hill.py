@@ -40,7 +40,7 @@ activation throughout the laughter", load balancer) while laughing (gated by
 ``clavicle_ratio * a_abdomen`` and a spine flexion target ``spine_deg *
 a_abdomen`` (the paper's exaggerated secondary motion).  What it uses, exactly:
 the extractor's value of the current frame, and the torso's own state; the
-look-behind is the extractor's (a 16 ms low-pass at 10 Hz for ``pressure``)
+look-behind is the extractor's (a 5 Hz low-pass, time constant 32 ms, for ``pressure``)
 plus the integral term, far less than one call.  Between bouts the muscles
 relax and the chest wall's recoil breathes in by itself.
 

@@ -1,5 +1,5 @@
 """Equations, tables and printed values of DiLorenzo 2008, Unuma 1995 and Ding 2014 checked on cases
-worked by hand (docs/fidelity_others.md cites these tests; the equations already checked by hand
+worked by hand (docs/fidelity.md cites these tests; the equations already checked by hand
 elsewhere are cited there, not repeated here).
 
 Every expected number is computed from the paper's equation or copied from the paper, never from the
