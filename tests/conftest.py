@@ -26,3 +26,12 @@ def lib():
     from laughlab.motion.clips import ClipLibrary
 
     return ClipLibrary.load()
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The fuzz suite's case count (tests/test_fuzz.py), so CI's log says how many cases it tried."""
+    fuzz = __import__("sys").modules.get("fuzz")
+    counts = getattr(fuzz, "COUNTS", None)
+    if counts:
+        terminalreporter.write_line(f"fuzz: {sum(counts.values())} cases, every one one line or finite output: "
+                                    + "; ".join(f"{n} {k}" for k, n in sorted(counts.items())))

@@ -15,6 +15,7 @@ Live sources and streaming sinks always run in-process (their frames go out one 
 """
 from __future__ import annotations
 
+import atexit
 import os
 import pickle
 import signal
@@ -23,12 +24,16 @@ import traceback
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
+from laughlab.core.interrupts import STOP_SIGNALS
+
 #: modules the helper imports while the main process starts up
 WARM = ("numpy", "laughlab.render.plots")
 
 _HELPER: "Helper | None" = None
 #: True inside the helper process
 IN_HELPER = False
+#: signals that stop a run: the main process handles them (KeyboardInterrupt), the helper ignores them
+_STOP_SIGNALS = set(STOP_SIGNALS)
 
 
 def enabled() -> bool:
@@ -81,8 +86,17 @@ class Helper:
         ctx = mp.get_context("fork")
         self.conn, child = ctx.Pipe()
         self.proc = ctx.Process(target=_serve, args=(child, self.conn), daemon=True, name="laughlab-sinks")
-        self.proc.start()
+        # Ctrl-C and SIGTERM are for the main process, which aborts us: the helper ignores them, and they
+        # stay blocked across the fork so that one arriving before it can say so does not reach it either
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+        try:
+            self.proc.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, held)
         child.close()
+        # registered after multiprocessing's own exit handler, so it runs first: that one would join a helper
+        # no run took (the run failed or was interrupted before it began) after a SIGTERM the helper ignores
+        atexit.register(self.stop)
 
     # the main process' side -------------------------------------------------------------
     def open(self, sinks: Sequence, info) -> None:
@@ -110,6 +124,9 @@ class Helper:
             pass
 
     def stop(self) -> None:
+        """Ask the helper to quit, kill it if it has not within 5 s (idempotent)."""
+        if self.conn.closed:
+            return
         try:
             _send_msg(self.conn, ("quit",))
         except OSError:
@@ -168,7 +185,9 @@ def _serve(conn, parent_end) -> None:
     global IN_HELPER
     IN_HELPER = True
     parent_end.close()
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the main process, which aborts us
+    for sig in _STOP_SIGNALS:  # Ctrl-C and SIGTERM reach the main process, which aborts us
+        signal.signal(sig, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)
     for name in WARM:
         try:
             __import__(name)

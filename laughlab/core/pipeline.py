@@ -127,6 +127,10 @@ def build(cfg: DictConfig) -> Pipeline:
         if group == "extractor" and not getattr(built[group], "calibrates", False):
             ctx.calibration_s = 0.0  # no min/max to calibrate: input=mic skips its calibration phase
     outputs = _section(cfg, "output") or {}
+    for name, params in outputs.items():
+        if params is not None and not isinstance(params, dict):
+            raise LaughlabError(f"output.{name} must hold the sink's parameters, e.g. output.{name}.KEY=VALUE "
+                                f"(got {str(params)[:40]!r})")
     sinks = [plugins.create("sink", name, params or {}, ctx, where=f"output.{name}")
              for name, params in outputs.items()]
     return Pipeline(ctx, built["input"], built["extractor"], built["detector"], built["scheduler"], built["body"],

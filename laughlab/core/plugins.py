@@ -9,6 +9,7 @@ Plugins come from three places, all through the same hooks:
 """
 from __future__ import annotations
 
+import functools
 import importlib.util
 import math
 import sys
@@ -161,10 +162,11 @@ def make_params(cls: type, values: Any, where: str) -> Any:
         if key not in valid:
             raise LaughlabError(f"unknown parameter {where}.{key}; valid: {', '.join(valid) or '(none)'}")
     try:
-        merged = OmegaConf.merge(OmegaConf.structured(params_cls), values)
+        merged = OmegaConf.merge(_schema(params_cls), values)
         bad = first_nonfinite(OmegaConf.to_container(merged, resolve=True), nonfinite_ok(params_cls))
         if bad is not None:
-            raise LaughlabError(f"bad parameter in {where}: {bad[0]} must be a finite number (got {bad[1]})")
+            raise LaughlabError(f"bad parameter in {where}: {bad[0]} must be a finite number of magnitude at most "
+                                f"{MAX_MAGNITUDE:g} (got {bad[1]})")
         return OmegaConf.to_object(merged)
     except OmegaConfBaseException as exc:
         msg = str(exc).splitlines()[0]
@@ -173,6 +175,20 @@ def make_params(cls: type, values: Any, where: str) -> Any:
             from None
     except (ValueError, TypeError) as exc:
         raise LaughlabError(f"bad parameter in {where}: {exc}") from None
+    except OSError as exc:  # a path parameter the system refuses to look at (too long, no permission, ...)
+        name = str(exc.filename)
+        name = name if len(name) <= 80 else f"{name[:40]}...({len(name)} characters)"
+        raise LaughlabError(f"bad parameter in {where}: cannot use {name}: {exc.strerror}") from None
+
+
+@functools.lru_cache(maxsize=None)
+def _schema(params_cls: type) -> DictConfig:
+    """The dataclass as an OmegaConf schema, built once per class (merging copies it; building costs ~10 ms)."""
+    return OmegaConf.structured(params_cls)
+
+
+#: no parameter needs a larger number; beyond it gains and rates overflow the arithmetic (1e308 * x = inf)
+MAX_MAGNITUDE = 1e6
 
 
 def nonfinite_ok(params_cls: type) -> frozenset:
@@ -181,13 +197,15 @@ def nonfinite_ok(params_cls: type) -> frozenset:
 
 
 def first_nonfinite(values: Any, allowed: frozenset = frozenset(), path: str = "") -> tuple[str, float] | None:
-    """The first NaN or infinite number in nested parameter values: ``(dotted key, value)``, or None.
+    """The first NaN, infinite or huge float in nested parameter values: ``(dotted key, value)``, or None.
 
-    One place for every plugin: a numeric parameter that is NaN or infinite is a
-    user error unless its field is in ``allowed``.
+    One place for every plugin: a numeric parameter that is NaN, infinite or beyond
+    ``MAX_MAGNITUDE`` (whole numbers too, but seeds) is a user error unless its field is in ``allowed``.
     """
     if isinstance(values, float):
-        return None if math.isfinite(values) else (path, values)
+        return None if math.isfinite(values) and abs(values) <= MAX_MAGNITUDE else (path, values)
+    if isinstance(values, int) and not isinstance(values, bool):  # seeds are names, not amounts
+        return None if abs(values) <= MAX_MAGNITUDE or path.rsplit(".", 1)[-1] == "seed" else (path, values)
     if isinstance(values, dict):
         items = ((k, v) for k, v in values.items() if k not in allowed or path)
     elif isinstance(values, (list, tuple)):

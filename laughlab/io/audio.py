@@ -120,6 +120,7 @@ def _read_pcm16_wav(path: str, n: int) -> Iterator[np.ndarray]:
         ch = w.getnchannels()
         while True:
             raw = w.readframes(n)
+            raw = raw[:len(raw) - len(raw) % (2 * ch)]  # a file cut mid-frame: its whole frames, as libsndfile
             if not raw:
                 break
             x = np.frombuffer(raw, dtype="<i2").astype(np.float32) * scale

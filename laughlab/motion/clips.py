@@ -158,6 +158,24 @@ def _default_folder() -> Path:
     return Path(str(files("laughlab_plugins") / "clips"))
 
 
+_READ: dict = {}
+
+
+def _read_clip(path: Path):
+    """``read_bvh(path)``, parsed once per process while the file is unchanged (by size and mtime).
+
+    Every run builds its library; an experiment or a sweep in one process builds hundreds, and parsing
+    the twelve bundled BVH files costs ~40 ms each time.  The motion array is shared, so it is read-only.
+    """
+    st = path.stat()
+    key = (str(path.resolve()), st.st_size, st.st_mtime_ns)
+    if key not in _READ:
+        sk, motion, frame_time = read_bvh(path)
+        motion.flags.writeable = False
+        _READ[key] = (sk, motion, frame_time)
+    return _READ[key]
+
+
 class ClipLibrary:
     """A set of clips sharing one skeleton and frame rate.
 
@@ -202,7 +220,7 @@ class ClipLibrary:
             path = folder / c["file"]
             if not path.is_file():
                 raise ValueError(f"clip {c['name']!r}: file {path} not found")
-            sk, motion, frame_time = read_bvh(path)
+            sk, motion, frame_time = _read_clip(path)
             if motion.shape[1] != skeleton.n_channels or sk.names != skeleton.names:
                 raise ValueError(f"clip {c['name']!r}: {path.name} has {motion.shape[1]} channels / "
                                  f"{sk.n_joints} joints, skeleton {meta.get('skeleton')!r} needs "

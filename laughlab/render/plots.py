@@ -22,6 +22,15 @@ def _shade_bouts(ax, bouts) -> None:
         ax.axvspan(b[0], b[1], color="0.9", zorder=0, label="laughter bout (truth)" if i == 0 else None)
 
 
+def _set_xlim(ax, lo: float, hi: float) -> None:
+    """``ax.set_xlim`` for any run, however short: a run of one frame spans one frame's width, not zero
+    (matplotlib would widen it itself, with a UserWarning on the terminal)."""
+    lo, hi = float(lo), float(hi)
+    if not hi > lo:
+        hi = lo + 1.0 / 60
+    ax.set_xlim(lo, hi)
+
+
 def _setup_axis(ax) -> None:
     ax.spines[["top", "right"]].set_visible(False)
     ax.grid(alpha=0.3, linewidth=0.5)
@@ -66,7 +75,7 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
         _shade_bouts(ax, bouts)
         for y, color, lw, label in (curves if ax is ax_zoom else curves[:1]):
             ax.plot(times, y, color=color, lw=lw, label=label)
-        ax.set_xlim(lo, hi)
+        _set_xlim(ax, lo, hi)
         ax.set_xlabel("time (s)")
         _setup_axis(ax)
     ax_all.axvspan(t0, t1, color="tab:orange", alpha=0.15, lw=0)
@@ -181,7 +190,7 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L (clips consuming)")
     top = max([b[3] for b in blocks] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
     ax2.set_ylim(_energy_floor(energy, top), top * 1.15)
-    ax2.set_xlim(times[0] if len(times) else 0, end or 1)
+    _set_xlim(ax2, times[0] if len(times) else 0, end or 1)
     ax2.set_ylabel("laughing energy / clip energy")
     ax2.set_xlabel("time (s)")
     axp = ax2.twinx()
@@ -216,7 +225,7 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     ax2.set_xlabel("time (s)")
     top = max([b[3] for b in blocks] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
     ax2.set_ylim(_energy_floor(energy, top), top * 1.15)
-    ax2.set_xlim(times[0] if len(times) else 0, end or 1)
+    _set_xlim(ax2, times[0] if len(times) else 0, end or 1)
     ax1.set_title(_titled(title or "Laughing energy and clip selection (cf. van Duijn 2014, Fig. 4.2)", note),
                   fontsize=9)
     handles, labels = ax2.get_legend_handles_labels()

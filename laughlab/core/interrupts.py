@@ -1,0 +1,51 @@
+"""Ctrl-C and SIGTERM end a command in one line and exit status 130, whatever they interrupt.
+
+A signal raises ``KeyboardInterrupt`` wherever the program happens to be, and a few places turn it
+into another exception: an extension module interrupted while it is imported reports
+``ImportError: initialization failed``.  So the handler also records that a signal came, and the
+command line treats any exception after one as the interrupt (:func:`interrupted`).
+"""
+from __future__ import annotations
+
+import signal
+import sys
+
+#: the signals that stop a command: Ctrl-C, and SIGTERM (a killed job, a cluster's pre-emption)
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: the first stop signal received by this process, or None
+received: int | None = None
+
+
+def _handler(signum, frame):
+    global received
+    received = received or signum
+    raise KeyboardInterrupt
+
+
+def install() -> None:
+    """Handle both stop signals, unless someone (an embedding program, a test runner) set their own."""
+    for sig in STOP_SIGNALS:
+        if signal.getsignal(sig) in (signal.SIG_DFL, signal.default_int_handler):
+            signal.signal(sig, _handler)
+
+
+def interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` is an interrupt, or came after one (and so is its consequence)."""
+    return isinstance(exc, KeyboardInterrupt) or (received is not None and not isinstance(exc, SystemExit))
+
+
+def clear_exit_flag() -> None:
+    """Make ``sys.exit(130)`` exit with status 130 after an interrupt.
+
+    CPython 3.11 marks an interrupt raised inside ``exec()`` (dataclasses and other libraries build
+    their methods with it) as unhandled even when it was caught, and then ends the process by SIGINT
+    instead of the exit status asked for; any later ``exec`` of a string clears the mark.
+    """
+    exec("0")
+
+
+def exit_interrupted(message: str = "interrupted") -> None:
+    """The one line, then exit status 130."""
+    print(f"laughlab: error: {message}", file=sys.stderr)
+    clear_exit_flag()
+    sys.exit(130)
