@@ -40,6 +40,8 @@ class SyntheticParams:
             raise ValueError(f"profile must be one of {', '.join(PROFILES)} (got {self.profile!r})")
         check_range("duration_s", self.duration_s, 0, lo_open=True)
         check_range("sample_rate", self.sample_rate, 8000, 192000)
+        if self.seed is not None and self.seed < 0:
+            raise ValueError(f"seed must be a whole number >= 0 or null (the run's seed), got {self.seed}")
 
 
 class SyntheticSource(Source):

@@ -2,7 +2,7 @@
 
 The invariant and the two in-process runners are in tests/fuzz.py.  Cases come from the composed
 configuration (every key of every option of every group, and the top level), so a new plugin or
-parameter is covered the day it lands.  The default run tries 1112 cases in about 90 s;
+parameter is covered the day it lands.  The default run tries 1114 cases in about 90 s;
 ``pytest -m slow tests/test_fuzz.py`` tries 20 000 more.  The number run is printed at the end of
 the session (tests/conftest.py).
 """
@@ -192,6 +192,10 @@ def test_a_16bit_wav_cut_mid_frame_is_read_to_its_last_whole_frame(tmp_path):
     (["body.chest_gain=1e308"], "magnitude at most 1e+06"),
     (["seed=abc"], "seed"),
     (["scheduler.speed_max=nan"], "finite"),
+    # found by test_parameters_long: the generator refused a negative seed with a ValueError traceback
+    (["input.seed=-1"], "seed must be a whole number >= 0"),
+    # found by test_parameters_long: a 2000-character model path, opened by the detector as it starts
+    (["detector=laugh", "detector.model=" + "x" * 2000], "File name too long"),
 ])
 def test_cases_the_fuzz_found(tmp_path, overrides, says):
     """Regressions: each case exactly as the fuzz found it, through the whole command line."""

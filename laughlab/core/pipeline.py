@@ -110,12 +110,16 @@ def build(cfg: DictConfig) -> Pipeline:
         name = values.get("name")
         if not name:
             raise LaughlabError(f"'{group}' has no plugin name; set {group}=NAME")
-        built[group] = plugins.create(kind, name, values, ctx, where=f"{group}.{name}") if group == "input" \
-            else None
-        if group == "input":
+        if group != "input":
+            built[group] = None
+            continue
+        try:  # a check a source makes only when it opens (a file's header, a generator's arguments)
+            built[group] = plugins.create(kind, name, values, ctx, where=f"{group}.{name}")
             built[group].open()
-            ctx.sample_rate = built[group].sample_rate
-            ctx.calibration_s = float(built[group].calibration_s)
+        except ValueError as exc:
+            raise LaughlabError(f"bad parameter in {group}.{name}: {exc}") from None
+        ctx.sample_rate = built[group].sample_rate
+        ctx.calibration_s = float(built[group].calibration_s)
     for group, kind in GROUPS.items():
         if group == "input":
             continue

@@ -176,9 +176,14 @@ def make_params(cls: type, values: Any, where: str) -> Any:
     except (ValueError, TypeError) as exc:
         raise LaughlabError(f"bad parameter in {where}: {exc}") from None
     except OSError as exc:  # a path parameter the system refuses to look at (too long, no permission, ...)
-        name = str(exc.filename)
-        name = name if len(name) <= 80 else f"{name[:40]}...({len(name)} characters)"
-        raise LaughlabError(f"bad parameter in {where}: cannot use {name}: {exc.strerror}") from None
+        raise _path_error(exc, where) from None
+
+
+def _path_error(exc: OSError, where: str) -> LaughlabError:
+    """One line for a path parameter the system refuses: the path (cut to 80 characters) and the cause."""
+    name = str(exc.filename)
+    name = name if len(name) <= 80 else f"{name[:40]}...({len(name)} characters)"
+    return LaughlabError(f"bad parameter in {where}: cannot use {name}: {exc.strerror or exc}")
 
 
 @functools.lru_cache(maxsize=None)
@@ -223,7 +228,10 @@ def create(kind: str, name: str, values: Any, ctx: Any, where: str | None = None
     """Build a plugin instance from its name and parameter values."""
     info = get(kind, name)
     params = make_params(info.obj, values, where or f"{kind}.{name}")
-    return info.obj(params, ctx)
+    try:
+        return info.obj(params, ctx)
+    except OSError as exc:  # a file the plugin opens as it starts (a model, a BVH)
+        raise _path_error(exc, where or f"{kind}.{name}") from None
 
 
 def check_range(name: str, value: float, lo: float | None = None, hi: float | None = None,
