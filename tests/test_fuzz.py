@@ -2,7 +2,7 @@
 
 The invariant and the two in-process runners are in tests/fuzz.py.  Cases come from the composed
 configuration (every key of every option of every group, and the top level), so a new plugin or
-parameter is covered the day it lands.  The default run tries 1114 cases in about 90 s;
+parameter is covered the day it lands.  The default run tries 1115 cases in about 90 s;
 ``pytest -m slow tests/test_fuzz.py`` tries 20 000 more.  The number run is printed at the end of
 the session (tests/conftest.py).
 """
@@ -203,6 +203,14 @@ def test_cases_the_fuzz_found(tmp_path, overrides, says):
     count("regressions the fuzz found")
     assert out.code == 2 and not fuzz.check(out, tmp_path / "r", " ".join(overrides)[:80])
     assert says in out.stderr
+
+
+def test_a_silence_threshold_of_zero_runs(tmp_path):
+    """Found by test_parameters_long: extractor=phoneme extractor.silence_threshold=0 (Praat allows 0) divided by
+    zero.  With 0 no window counts as quiet, and the run succeeds with finite output."""
+    out = fuzz.run_fast(["extractor=phoneme", *fuzz.BASE, "extractor.silence_threshold=0"], tmp_path / "r")
+    count("regressions the fuzz found")
+    assert out.code == 0 and not fuzz.check(out, tmp_path / "r", "silence_threshold=0")
 
 
 def test_a_10_ms_input_prints_its_summary_and_nothing_else(tmp_path):

@@ -541,8 +541,10 @@ class PhonemeExtractor(Extractor):
                 # Praat's unvoiced candidate, strong when the window is quiet relative to the peak;
                 # starting to voice costs voiced_unvoiced_cost (Praat's path cost, taken greedily)
                 rel = amp / self._amp_peak if self._amp_peak > 0.0 else 0.0
-                unvoiced = p.voicing_threshold + max(0.0, 2.0 - rel / (p.silence_threshold /
-                                                                       (1.0 + p.voicing_threshold)))
+                # (silence_threshold 0, allowed by Praat: no window is quiet enough, the term is 0)
+                unvoiced = p.voicing_threshold + (max(0.0, 2.0 - rel / (p.silence_threshold /
+                                                                        (1.0 + p.voicing_threshold)))
+                                                  if p.silence_threshold > 0.0 else 0.0)
                 switch = -p.voiced_unvoiced_cost if self._prev_f0 > 0.0 else p.voiced_unvoiced_cost
                 if s_best - switch > unvoiced and not silent and lag > 0.0:
                     f0 = self._sr / lag
