@@ -290,12 +290,7 @@ def view_command(args: list[str]) -> None:
     httpd = V.server(ns.run_dir, ns.port)
     print(f"laughlab: viewing {ns.run_dir} at http://127.0.0.1:{httpd.server_address[1]}/ (Ctrl-C to stop)",
           flush=True)
-    try:
-        httpd.serve_forever()
-    except KeyboardInterrupt:
-        pass
-    finally:
-        httpd.server_close()
+    V.serve_until_interrupted(httpd)
 
 
 def study_command(args: list[str]) -> None:

@@ -178,11 +178,29 @@ class _Handler(SimpleHTTPRequestHandler):
 
 def server(run_dir: str | Path, port: int = DEFAULT_PORT) -> ThreadingHTTPServer:
     """A server of the run's viewer on 127.0.0.1 (``port``, or a free one if it is taken)."""
-    files = assets(run_dir)
-    handler = type("Handler", (_Handler,), {"files": files})
+    return http_server(assets(run_dir), port)
+
+
+def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: str = "127.0.0.1",
+                **attrs) -> ThreadingHTTPServer:
+    """A threaded server of ``files`` (URL path -> bytes or a path) with byte ranges, on ``host``:``port``
+    (a free port if that one is taken); ``base`` a subclass of the handler adding routes, ``attrs`` its
+    class attributes (also used by ``laughlab.study.server``)."""
+    handler = type("Handler", (base or _Handler,), {"files": files, **attrs})
     handler.extensions_map = {**SimpleHTTPRequestHandler.extensions_map, ".js": "text/javascript",
-                              ".glb": "model/gltf-binary", ".json": "application/json", ".wav": "audio/wav"}
+                              ".glb": "model/gltf-binary", ".json": "application/json", ".wav": "audio/wav",
+                              ".mp4": "video/mp4", ".css": "text/css"}
     try:
-        return ThreadingHTTPServer(("127.0.0.1", port), partial(handler))
+        return ThreadingHTTPServer((host, port), partial(handler))
     except OSError:  # the port is in use: the system picks a free one
-        return ThreadingHTTPServer(("127.0.0.1", 0), partial(handler))
+        return ThreadingHTTPServer((host, 0), partial(handler))
+
+
+def serve_until_interrupted(httpd: ThreadingHTTPServer) -> None:
+    """Serve until Ctrl-C (or SIGTERM), then close the socket (``view`` and ``study serve``)."""
+    try:
+        httpd.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        httpd.server_close()

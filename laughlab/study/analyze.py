@@ -1,0 +1,339 @@
+"""``python -m laughlab study analyze DB_OR_CSV``: exclusions, means, a mixed model, contrasts, figures.
+
+Input: the study's database (``responses.sqlite``: the design travels inside it), or CSV files in
+the same columns (the page's "download my answers" files, one file or a folder of them; then
+``--design STUDY_DIR`` supplies the exclusion rules and the condition order, else the defaults).
+
+Steps, each written to the report folder:
+
+1. ``tidy.csv``: one row per rating (``kind == rating``) of the included participants, the columns
+   of ``laughlab.study.db.COLUMNS``.
+2. ``exclusions.csv``: each excluded participant and why: the audio check (no attempt was the
+   word, or none stored), attention items (more failed than ``attention_max_fail``; a slider item
+   fails more than 5 % of the scale away from the value asked for), straight-lining (every rating
+   of every question the same value, over at least four ratings).
+3. ``means.csv``: per question and condition the mean of the participants' means, its SD, n and a
+   95 % t interval (participants are the unit, so the interval is over people, not trials).
+4. ``model.csv``, ``variance.csv``: per question a linear mixed model
+   ``value ~ condition + (1 | participant) + (1 | stimulus)`` fitted by REML with statsmodels'
+   ``MixedLM`` (crossed random intercepts as variance components of one all-ones group).
+   Why this model: it is the one the design calls for (Baayen, Davidson & Bates 2008; Judd,
+   Westfall & Kenny 2012): every participant rates every condition, and each stimulus is a
+   sample of possible stimuli, so both are random; statsmodels is maintained, on PyPI, and fits
+   it exactly.  A cumulative-link mixed model (ordinal) would respect the scale's steps, but no
+   maintained Python package fits one with crossed random effects (R's ``ordinal::clmm`` does);
+   with seven points and means away from the ends the linear model's estimates and tests are
+   close to the ordinal model's, and its estimates are in scale points, which is what a reader
+   wants to see.  Wald z tests, as statsmodels gives them (with few participants they are a
+   little liberal).
+5. ``contrasts.csv``: every pair of conditions per question, estimate (scale points), SE, 95 %
+   CI, z, p and p Holm-corrected over the question's pairs; effect size ``d`` = the difference
+   over the square root of the summed variance components (participant + stimulus + residual:
+   Westfall, Kenny & Judd 2014), with the CI scaled alike.
+6. ``fig_means.png`` (condition means with their 95 % CIs, participants' means as dots) and
+   ``fig_participants.png`` (one line per participant across the conditions); ``README.md``
+   with the tables; ``report.json`` with everything as numbers.
+"""
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from itertools import combinations
+from pathlib import Path
+
+import numpy as np
+
+from laughlab.core.errors import LaughlabError
+from laughlab.study import db as DB
+
+DEFAULT_RULES = {"audio_check": True, "attention_max_fail": 0, "straightline": True}
+
+
+# -- reading --------------------------------------------------------------------------------------------------------
+
+def load(source, design_dir=None):
+    """The answers (a DataFrame in :data:`DB.COLUMNS`) and the design (or None) of a database or CSV(s)."""
+    import pandas as pd
+
+    from laughlab.study.design import load_design
+
+    source = Path(source).expanduser()
+    design = None
+    if source.is_dir():
+        files = sorted(source.glob("*.csv"))
+        if not files:
+            raise LaughlabError(f"{source} holds no .csv files of answers")
+        frames = [_read_csv(f) for f in files]
+        df = pd.concat(frames, ignore_index=True)
+    elif source.suffix.lower() == ".csv":
+        df = _read_csv(source)
+    elif source.is_file():
+        df = pd.DataFrame(DB.rows(source), columns=list(DB.COLUMNS))
+        design = DB.stored_design(source)
+    else:
+        raise LaughlabError(f"no database or CSV at {source}")
+    if design_dir is not None:
+        design = load_design(Path(design_dir).expanduser())
+    if df.empty:
+        raise LaughlabError(f"{source} holds no answers yet")
+    for c in ("participant", "trial", "order_row"):
+        df[c] = pd.to_numeric(df[c], errors="coerce").astype("Int64")
+    for c in ("value", "expected", "rt_ms"):
+        df[c] = pd.to_numeric(df[c], errors="coerce")
+    for c in ("stimulus", "condition", "audio_id", "kind", "question", "text"):
+        df[c] = df[c].fillna("").astype(str)
+    dup = df[df["kind"] != ""].duplicated(["participant", "trial", "question"], keep="first")
+    if dup.any():  # the same participant's CSV twice (a download and a re-download): keep one copy
+        df = df[~dup].reset_index(drop=True)
+    return df, design
+
+
+def _read_csv(path: Path):
+    import pandas as pd
+
+    try:
+        df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except Exception as exc:  # noqa: BLE001 - a broken file: one line
+        raise LaughlabError(f"cannot read {path}: {exc}") from None
+    missing = [c for c in ("participant", "trial", "stimulus", "condition", "kind", "question", "value")
+               if c not in df.columns]
+    if missing:
+        raise LaughlabError(f"{path} lacks the column(s) {', '.join(missing)} of a study's answers")
+    for c in DB.COLUMNS:
+        if c not in df.columns:
+            df[c] = ""
+    return df[list(DB.COLUMNS)].replace("", np.nan).astype(object)
+
+
+# -- exclusions -----------------------------------------------------------------------------------------------------
+
+def exclusions(df, rules: dict, slider_range: float | None = None) -> dict[int, list[str]]:
+    """Participant -> the reasons they are excluded (see the module doc); only participants with a reason."""
+    out: dict[int, list[str]] = {}
+    tol = 0.05 * slider_range if slider_range else 1e-9
+    for p, g in df.groupby("participant"):
+        why = []
+        if rules.get("audio_check", True):
+            chk = g[g["kind"] == "audio_check"]
+            if chk.empty:
+                why.append("no audio check stored")
+            elif not (chk["value"] == 1).any():
+                why.append(f"audio check failed (typed {chk['text'].iloc[0].replace('|', ', ')!r})")
+        att = g[g["kind"] == "attention"]
+        failed = int((np.abs(att["value"] - att["expected"]) > tol).sum())
+        if failed > int(rules.get("attention_max_fail", 0)):
+            why.append(f"failed {failed} of {len(att)} attention items")
+        ratings = g[g["kind"] == "rating"]["value"]
+        if rules.get("straightline", True) and len(ratings) >= 4 and ratings.nunique() == 1:
+            why.append(f"straight-lining: all {len(ratings)} ratings were {ratings.iloc[0]:g}")
+        if why:
+            out[int(p)] = why
+    return out
+
+
+# -- statistics -----------------------------------------------------------------------------------------------------
+
+def condition_means(tidy, conditions: list[str]):
+    """Per question and condition: the participants' means' mean, SD, n and 95 % t interval."""
+    import pandas as pd
+    from scipy import stats
+
+    rows = []
+    pm = tidy.groupby(["question", "condition", "participant"], observed=True)["value"].mean().reset_index()
+    for (q, c), g in pm.groupby(["question", "condition"], observed=True):
+        x = g["value"].to_numpy(float)
+        n, m = len(x), float(x.mean())
+        sd = float(x.std(ddof=1)) if n > 1 else float("nan")
+        half = float(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n)) if n > 1 else float("nan")
+        rows.append({"question": q, "condition": c, "mean": m, "sd": sd, "n_participants": n,
+                     "n_ratings": int((tidy["question"].eq(q) & tidy["condition"].eq(c)).sum()),
+                     "ci_low": m - half, "ci_high": m + half})
+    out = pd.DataFrame(rows)
+    if not out.empty:
+        out["condition"] = pd.Categorical(out["condition"], [c for c in conditions if c in set(out["condition"])])
+        out = out.sort_values(["question", "condition"]).reset_index(drop=True)
+        out["condition"] = out["condition"].astype(str)
+    return out
+
+
+def fit_model(data, conditions: list[str]):
+    """The mixed model of one question's ratings (module doc, step 4): the statsmodels fit and its warnings."""
+    import statsmodels.formula.api as smf
+
+    d = data.assign(one=1, value=data["value"].astype(float), participant=data["participant"].astype(int).astype(str),
+                    condition=data["condition"].astype(str), stimulus=data["stimulus"].astype(str))
+    ref = next(c for c in conditions if c in set(d["condition"]))
+    vc = {"participant": "0 + C(participant)"}
+    if d["stimulus"].nunique() > d["condition"].nunique():  # a stimulus variance needs stimuli within conditions
+        vc["stimulus"] = "0 + C(stimulus)"
+    model = smf.mixedlm(f"value ~ C(condition, Treatment(reference={ref!r}))", d, groups="one", re_formula="0",
+                        vc_formula=vc)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fit = model.fit(reml=True, method=["lbfgs", "powell"])
+    notes = sorted({str(w.message).splitlines()[0] for w in caught})
+    return fit, ref, notes
+
+
+def _coef_index(fit, ref: str, cond: str) -> int | None:
+    if cond == ref:
+        return None
+    names = list(fit.fe_params.index)
+    return next(i for i, n in enumerate(names) if n.endswith(f"[T.{cond}]"))
+
+
+def variance_components(fit) -> dict[str, float]:
+    out = {name: float(v) for name, v in zip(fit.model.exog_vc.names, fit.vcomp)}
+    out.setdefault("stimulus", 0.0)
+    out["residual"] = float(fit.scale)
+    return out
+
+
+def contrasts(fit, ref: str, conditions: list[str]):
+    """Every pair (a, b) of the fitted conditions: a - b with SE, CI, z, p, Holm's p and d (module doc, step 5)."""
+    import pandas as pd
+    from scipy import stats
+    from statsmodels.stats.multitest import multipletests
+
+    k = len(fit.fe_params)
+    beta = fit.fe_params.to_numpy()
+    cov = np.asarray(fit.cov_params())[:k, :k]
+    var = variance_components(fit)
+    sd_total = math.sqrt(sum(var.values()))
+    present = [c for c in conditions if c == ref or any(n.endswith(f"[T.{c}]") for n in fit.fe_params.index)]
+    rows = []
+    for a, b in combinations(present, 2):
+        L = np.zeros(k)
+        for c, sign in ((a, 1.0), (b, -1.0)):
+            i = _coef_index(fit, ref, c)
+            if i is not None:
+                L[i] += sign
+        est, se = float(L @ beta), float(math.sqrt(L @ cov @ L))
+        z = est / se if se > 0 else float("nan")
+        rows.append({"a": a, "b": b, "estimate": est, "se": se, "ci_low": est - 1.959964 * se,
+                     "ci_high": est + 1.959964 * se, "z": z, "p": float(2 * stats.norm.sf(abs(z))),
+                     "d": est / sd_total, "d_low": (est - 1.959964 * se) / sd_total,
+                     "d_high": (est + 1.959964 * se) / sd_total})
+    out = pd.DataFrame(rows)
+    if not out.empty:
+        out["p_holm"] = multipletests(out["p"].fillna(1.0), method="holm")[1]
+    return out
+
+
+# -- the report -----------------------------------------------------------------------------------------------------
+
+def _fmt(x, nd=2) -> str:
+    return "" if x is None or (isinstance(x, float) and math.isnan(x)) else f"{x:.{nd}f}"
+
+
+def _p(x) -> str:
+    return "< .001" if x < 0.001 else f"{x:.3f}"
+
+
+def analyze(source, out=None, design_dir=None) -> Path:
+    """Write the report folder (module doc); its path."""
+    import pandas as pd
+
+    df, design = load(source, design_dir)
+    source = Path(source).expanduser()
+    out = Path(out).expanduser() if out else source.with_name(source.stem + "-report")
+    rules = {**DEFAULT_RULES, **((design or {}).get("exclusions") or {})}
+    slider = design["slider"]["max"] - design["slider"]["min"] if design and design.get("scale") == "slider" else None
+    seen = [c for c in dict.fromkeys(df.loc[df["kind"] == "rating", "condition"]) if c]
+    conditions = [c for c in (design or {}).get("conditions", []) if c in seen] + \
+        [c for c in sorted(seen) if c not in (design or {}).get("conditions", [])]
+    questions = [q["id"] for q in (design or {}).get("questions", [])] or \
+        sorted(set(df.loc[df["kind"] == "rating", "question"]))
+    excluded = exclusions(df, rules, slider)
+    ratings = df[(df["kind"] == "rating") & df["value"].notna()]
+    tidy = ratings[~ratings["participant"].astype(int).isin(excluded)].reset_index(drop=True)
+    if tidy.empty:
+        raise LaughlabError(f"no ratings are left after the exclusions ({len(excluded)} participants excluded: "
+                            f"{'; '.join(r[0] for r in excluded.values())[:200]})")
+    questions = [q for q in questions if q in set(tidy["question"])]
+    means = condition_means(tidy, conditions)
+    fixed, variances, cons, notes = [], [], [], {}
+    for q in questions:
+        data = tidy[tidy["question"] == q]
+        if data["condition"].nunique() < 2 or data["participant"].nunique() < 2:
+            notes[q] = ["fewer than two conditions or participants: no model"]
+            continue
+        fit, ref, notes[q] = fit_model(data, conditions)
+        ci = fit.conf_int()
+        for name in fit.fe_params.index:
+            fixed.append({"question": q, "term": name.replace(f"C(condition, Treatment(reference={ref!r}))", "condition"),
+                          "estimate": float(fit.fe_params[name]), "se": float(fit.bse_fe[name]),
+                          "ci_low": float(ci.loc[name, 0]), "ci_high": float(ci.loc[name, 1]),
+                          "z": float(fit.tvalues[name]), "p": float(fit.pvalues[name])})
+        var = variance_components(fit)
+        variances.append({"question": q, **{f"var_{k}": v for k, v in var.items()}, "converged": bool(fit.converged),
+                          "n_ratings": len(data), "n_participants": int(data["participant"].nunique()),
+                          "n_stimuli": int(data["stimulus"].nunique()), "reference": ref})
+        c = contrasts(fit, ref, conditions)
+        c.insert(0, "question", q)
+        cons.append(c)
+    contrast_df = pd.concat(cons, ignore_index=True) if cons else pd.DataFrame()
+    ex_df = pd.DataFrame([{"participant": p, "reason": r} for p, rs in sorted(excluded.items()) for r in rs],
+                         columns=["participant", "reason"])
+
+    tmp = out.with_name(f".{out.name}.part")
+    import shutil
+
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    tidy.to_csv(tmp / "tidy.csv", index=False, columns=list(DB.COLUMNS))
+    ex_df.to_csv(tmp / "exclusions.csv", index=False)
+    means.to_csv(tmp / "means.csv", index=False, float_format="%.4f")
+    pd.DataFrame(fixed).to_csv(tmp / "model.csv", index=False, float_format="%.6g")
+    pd.DataFrame(variances).to_csv(tmp / "variance.csv", index=False, float_format="%.6g")
+    contrast_df.to_csv(tmp / "contrasts.csv", index=False, float_format="%.6g")
+    from laughlab.study.plots import participant_lines, means_plot
+
+    means_plot(tmp / "fig_means.png", means, tidy, questions, conditions, design)
+    participant_lines(tmp / "fig_participants.png", tidy, means, questions, conditions, design)
+    n_all = int(df["participant"].nunique())
+    doc = {"source": str(source), "design_id": (design or {}).get("id"), "participants": n_all,
+           "excluded": {str(p): r for p, r in excluded.items()}, "included": n_all - len(excluded),
+           "conditions": conditions, "questions": questions, "model_notes": notes,
+           "means": means.to_dict("records"), "fixed": fixed, "variance": variances,
+           "contrasts": contrast_df.to_dict("records")}
+    (tmp / "report.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
+    (tmp / "README.md").write_text(_markdown(doc, source))
+    if out.exists():
+        shutil.rmtree(out)
+    tmp.rename(out)
+    return out
+
+
+def _markdown(doc: dict, source: Path) -> str:
+    lines = [f"# Study report: {source.name}", "",
+             f"`python -m laughlab study analyze {source}`", "",
+             f"{doc['participants']} participants, {doc['included']} included, "
+             f"{doc['participants'] - doc['included']} excluded (`exclusions.csv`).", ""]
+    for p, reasons in doc["excluded"].items():
+        lines.append(f"- participant {p}: {'; '.join(reasons)}")
+    lines += ["", "## Condition means (95 % CI over participants)", "",
+              "| question | condition | mean | 95 % CI | n |", "|---|---|---|---|---|"]
+    for m in doc["means"]:
+        lines.append(f"| {m['question']} | {m['condition']} | {_fmt(m['mean'])} | "
+                     f"[{_fmt(m['ci_low'])}, {_fmt(m['ci_high'])}] | {m['n_participants']} |")
+    lines += ["", "![condition means](fig_means.png)", "", "![participants](fig_participants.png)", "",
+              "## Mixed model per question", "",
+              "`value ~ condition + (1 | participant) + (1 | stimulus)`, REML, statsmodels MixedLM "
+              "(why: see `laughlab/study/analyze.py`).", "",
+              "| question | var participant | var stimulus | var residual | converged |", "|---|---|---|---|---|"]
+    for v in doc["variance"]:
+        lines.append(f"| {v['question']} | {_fmt(v['var_participant'], 3)} | {_fmt(v.get('var_stimulus'), 3)} | "
+                     f"{_fmt(v['var_residual'], 3)} | {v['converged']} |")
+    for q, ns in doc["model_notes"].items():
+        for n in ns:
+            lines.append(f"\n{q}: {n}")
+    lines += ["", "## Pairwise contrasts (Holm over each question's pairs)", "",
+              "| question | a - b | estimate | 95 % CI | z | p | p (Holm) | d [95 % CI] |",
+              "|---|---|---|---|---|---|---|---|"]
+    for c in doc["contrasts"]:
+        lines.append(f"| {c['question']} | {c['a']} - {c['b']} | {_fmt(c['estimate'])} | "
+                     f"[{_fmt(c['ci_low'])}, {_fmt(c['ci_high'])}] | {_fmt(c['z'])} | {_p(c['p'])} | "
+                     f"{_p(c['p_holm'])} | {_fmt(c['d'])} [{_fmt(c['d_low'])}, {_fmt(c['d_high'])}] |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,180 @@
+"""``python -m laughlab study build|serve|analyze|power``: the perception study from stimuli to report."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from laughlab.core.errors import LaughlabError
+
+EPILOG = """\
+from stimuli to a report:
+  python -m laughlab experiment=stimuli hydra.run.dir=runs/stimuli
+  python -m laughlab study build runs/stimuli                 -> runs/stimuli-study/
+  python -m laughlab study serve runs/stimuli-study           -> http://127.0.0.1:8765/?participant=1
+  python -m laughlab study analyze runs/stimuli-study/responses.sqlite   -> .../responses-report/
+  python -m laughlab study power runs/stimuli-study --contrast laugh_energy:smile_only --effect 0.5
+"""
+
+
+def _ints(text: str) -> list[int]:
+    try:
+        out = [int(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"a comma-separated list of whole numbers (got {text!r})") from None
+    if not out or min(out) < 2:
+        raise argparse.ArgumentTypeError("every number of participants must be >= 2")
+    return out
+
+
+def parser() -> argparse.ArgumentParser:
+    from laughlab.viewer.server import DEFAULT_PORT
+
+    p = argparse.ArgumentParser(prog="python -m laughlab study", epilog=EPILOG,
+                                formatter_class=argparse.RawDescriptionHelpFormatter,
+                                description="Run the perception study of experiment=stimuli: a jsPsych page, "
+                                            "responses in SQLite, a mixed-model report, power by simulation.")
+    sub = p.add_subparsers(dest="cmd", required=True)
+    b = sub.add_parser("build", help="write the study folder (page, jsPsych, videos, design)")
+    b.add_argument("stimuli_dir", help="a finished experiment=stimuli folder (stimuli.json, manifest.csv, orders/)")
+    b.add_argument("--out", help="the study folder (default: STIMULI_DIR-study beside it)")
+    b.add_argument("--questions", help="a preset name (laughlab, riddle) or a YAML file of questions and checks "
+                                       "(default: the stimuli's preset; see laughlab/study/presets/)")
+    b.add_argument("--overwrite", action="store_true", help="replace a study folder that holds no responses")
+    s = sub.add_parser("serve", help="serve the page and store every answer in SQLite as it arrives")
+    s.add_argument("study_dir")
+    s.add_argument("--db", help="the database (default: STUDY_DIR/responses.sqlite)")
+    s.add_argument("--port", type=int, default=DEFAULT_PORT, help="port (a free one if it is taken)")
+    s.add_argument("--host", default="127.0.0.1", help="address to listen on (0.0.0.0: the lab's other computers)")
+    m = sub.add_parser("simulate", help="simulated participants in headless Chromium do the whole study, "
+                                        "answers drawn from a planted effect (a demo, and the tests)")
+    m.add_argument("study_dir")
+    m.add_argument("--participants", type=int, default=8, help="how many, all at once (8)")
+    m.add_argument("--effects", default="", help="CONDITION=POINTS,... planted above the base rating "
+                                                 "(e.g. laugh_energy=1)")
+    m.add_argument("--db", help="the database (default: STUDY_DIR/responses.sqlite, as serve)")
+    m.add_argument("--seed", type=int, default=0, help="seed of the simulated answers (0)")
+    a = sub.add_parser("analyze", help="exclusions, means with CIs, mixed model, contrasts, figures")
+    a.add_argument("source", help="responses.sqlite, or a CSV of answers, or a folder of them")
+    a.add_argument("--out", help="the report folder (default: SOURCE's name + -report beside it)")
+    a.add_argument("--design", help="the study folder, for CSV input: exclusion rules and condition order")
+    w = sub.add_parser("power", help="participants needed to detect an effect (simulation, the same model)")
+    w.add_argument("study_dir", help="a study folder (its design: conditions, stimuli, orders, scale)")
+    w.add_argument("--contrast", required=True, help="A:B, e.g. laugh_energy:smile_only")
+    w.add_argument("--effect", type=float, required=True, help="A's rating above B's, in scale points")
+    w.add_argument("--participants", type=_ints, default=[8, 12, 16, 24, 32], help="numbers to try (8,12,16,24,32)")
+    w.add_argument("--sims", type=int, default=200, help="simulated studies per number (200)")
+    w.add_argument("--alpha", type=float, default=0.05)
+    w.add_argument("--target", type=float, default=0.8, help="the power wanted (0.8)")
+    w.add_argument("--pilot", help="a pilot's report folder: its variance components and intercept")
+    w.add_argument("--question", help="the pilot's question to take them from (default: the first)")
+    w.add_argument("--seed", type=int, default=0)
+    w.add_argument("--out", help="write power.csv and power.png here (default: STUDY_DIR/power)")
+    return p
+
+
+def main(args: list[str]) -> None:
+    ns = parser().parse_args(args)
+    try:
+        _run(ns)
+    except ModuleNotFoundError as exc:  # an optional dependency of the study
+        if exc.name and exc.name.split(".")[0] in ("statsmodels", "playwright", "patsy"):
+            raise LaughlabError(f"the study needs {exc.name.split('.')[0]}: pip install 'laughlab[study]'") from None
+        raise
+
+
+def _run(ns) -> None:
+    if ns.cmd == "build":
+        from laughlab.study.build import build
+
+        out = build(ns.stimuli_dir, ns.out, ns.questions, ns.overwrite)
+        print(f"laughlab: study written to {out}/; serve it with: python -m laughlab study serve {out}")
+    elif ns.cmd == "serve":
+        serve(ns)
+    elif ns.cmd == "simulate":
+        simulate(ns)
+    elif ns.cmd == "analyze":
+        from laughlab.study.analyze import analyze
+
+        out = analyze(ns.source, ns.out, ns.design)
+        print(f"laughlab: report written to {out}/ (README.md, fig_means.png, contrasts.csv)")
+    else:
+        run_power(ns)
+
+
+def _handler(httpd):
+    """The server's handler class (the server holds it wrapped in a functools.partial)."""
+    return getattr(httpd.RequestHandlerClass, "func", httpd.RequestHandlerClass)
+
+
+def serve(ns) -> None:
+    from laughlab.study.server import server
+
+    httpd = server(ns.study_dir, ns.db, ns.port, ns.host)
+    host, port = httpd.server_address[:2]
+    shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
+    handler = _handler(httpd)
+    n = len(handler.design["participants"])
+    print(f"laughlab: serving {ns.study_dir} at http://{shown}:{port}/?participant=1 (participants 1..{n}; "
+          f"answers into {handler.db}; Ctrl-C to stop)", flush=True)
+    from laughlab.viewer.server import serve_until_interrupted
+
+    serve_until_interrupted(httpd)
+
+
+def simulate(ns) -> None:
+    """Serve the study on a free local port and let ``--participants`` simulated people do it at once."""
+    import threading
+
+    from laughlab.study import simulate as S
+    from laughlab.study.design import load_design
+    from laughlab.study.server import server
+
+    study = Path(ns.study_dir).expanduser()
+    design = load_design(study)
+    if not 1 <= ns.participants <= len(design["participants"]):
+        raise LaughlabError(f"--participants must be 1..{len(design['participants'])} (the design's rows)")
+    effects = S.parse_effects(ns.effects, design)
+    httpd = server(study, ns.db, 0, quiet=True)
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    try:
+        url = f"http://127.0.0.1:{httpd.server_address[1]}"
+        given = S.run_sync(url, design, list(range(1, ns.participants + 1)), S.planted(design, effects, seed=ns.seed))
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+    n = sum(len(g.answers) for g in given.values())
+    print(f"laughlab: {len(given)} simulated participants finished ({n} answers, planted {ns.effects or 'no effect'})"
+          f" -> {_handler(httpd).db}; analyze it with: python -m laughlab study analyze {_handler(httpd).db}")
+
+
+def run_power(ns) -> None:
+    import csv
+
+    from laughlab.study import power as W
+    from laughlab.study.design import load_design
+
+    if ns.sims < 1 or not 0 < ns.alpha < 1 or not 0 < ns.target < 1:
+        raise LaughlabError("--sims must be >= 1, --alpha and --target between 0 and 1")
+    a, sep, b = ns.contrast.partition(":")
+    if not sep:
+        raise LaughlabError(f"--contrast must be A:B (got {ns.contrast!r})")
+    design = load_design(Path(ns.study_dir).expanduser())
+    var, icpt, source = None, (design["points"] + 1) / 2 if design["scale"] == "likert" else 4.0, "defaults"
+    if ns.pilot:
+        var, icpt, q = W.pilot_variance(ns.pilot, ns.question)
+        source = f"pilot {ns.pilot} ({q})"
+    rows = W.power(design, (a, b), ns.effect, ns.participants, ns.sims, ns.alpha, var, icpt, ns.seed,
+                   progress=lambda m: print(m, file=sys.stderr, flush=True))
+    out = Path(ns.out).expanduser() if ns.out else Path(ns.study_dir).expanduser() / "power"
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "power.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+    title = f"{a} - {b} = {ns.effect:g} points; variances: {source}"
+    W.plot(out / "power.png", rows, ns.target, title)
+    enough = next((r["n"] for r in rows if r["power"] >= ns.target), None)
+    verdict = f"{enough} participants reach {ns.target:.0%} power" if enough else \
+        f"none of {', '.join(map(str, ns.participants))} participants reaches {ns.target:.0%} power"
+    print(f"laughlab: {verdict} for {a} - {b} = {ns.effect:g} (alpha {ns.alpha:g}, Holm); {out}/power.csv, power.png")

@@ -1,0 +1,175 @@
+"""The responses of a study in SQLite: one row per answer, written in one transaction per trial.
+
+Tables (``responses.sqlite`` in the study folder unless ``--db`` says otherwise):
+
+``answers``
+    one row per question answered in a trial (``kind`` ``rating`` or ``attention``) and one per
+    participant for the audio check (``kind`` ``audio_check``, ``trial`` 0, ``value`` 1 if the last
+    attempt was the word, ``text`` the attempts joined by ``|``).  Columns: :data:`COLUMNS`; times are
+    ISO 8601 UTC (``shown_at``: the video started, ``answered_at``: the rating was given, both by
+    the browser's clock; ``received_at``: by the server's), ``rt_ms`` the rating screen's response
+    time.  ``(participant, trial, question)`` is unique: an answer is stored once, a second post of
+    it is refused.
+``sessions``
+    one row per page load: ``session``, ``participant``, ``started_at``, ``consent_at``,
+    ``finished_at``, ``user_agent``.
+``study``
+    ``design_id`` and the design itself (``design``, JSON), so the database alone can be analysed and
+    is never mixed with another study's.
+
+The database runs in WAL mode; every write is one ``BEGIN IMMEDIATE`` transaction, so two
+participants posting at once are serialised and a trial is stored whole or not at all.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import json
+import sqlite3
+from datetime import datetime, timezone
+from pathlib import Path
+
+from laughlab.core.errors import LaughlabError
+
+COLUMNS = ("participant", "order_row", "trial", "stimulus", "condition", "audio_id", "kind", "question", "value",
+           "text", "expected", "rt_ms", "shown_at", "answered_at", "received_at", "session", "user_agent")
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS answers (
+  id INTEGER PRIMARY KEY,
+  participant INTEGER NOT NULL, order_row INTEGER NOT NULL, trial INTEGER NOT NULL,
+  stimulus TEXT NOT NULL, condition TEXT NOT NULL, audio_id TEXT NOT NULL,
+  kind TEXT NOT NULL CHECK (kind IN ('rating', 'attention', 'audio_check')),
+  question TEXT NOT NULL, value REAL, text TEXT NOT NULL DEFAULT '', expected REAL, rt_ms REAL,
+  shown_at TEXT, answered_at TEXT, received_at TEXT NOT NULL, session TEXT NOT NULL, user_agent TEXT,
+  UNIQUE (participant, trial, question));
+CREATE TABLE IF NOT EXISTS sessions (
+  session TEXT PRIMARY KEY, participant INTEGER NOT NULL, started_at TEXT NOT NULL, consent_at TEXT,
+  finished_at TEXT, user_agent TEXT);
+CREATE TABLE IF NOT EXISTS study (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+"""
+
+
+class Duplicate(LaughlabError):
+    """An answer that is already stored."""
+
+
+def utc_now() -> str:
+    return datetime.now(timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def connect(path: Path) -> sqlite3.Connection:
+    conn = sqlite3.connect(str(path), timeout=30, isolation_level=None)
+    conn.execute("PRAGMA journal_mode=WAL")
+    conn.execute("PRAGMA synchronous=FULL")
+    return conn
+
+
+def open_db(path: Path, design: dict) -> Path:
+    """Create the database (or check that it belongs to ``design``); its path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    conn = connect(path)
+    try:
+        conn.executescript(SCHEMA)
+        row = conn.execute("SELECT value FROM study WHERE key = 'design_id'").fetchone()
+        if row is None:
+            with _transaction(conn):
+                conn.execute("INSERT INTO study VALUES ('design_id', ?), ('design', ?)",
+                             (design["id"], json.dumps(design, sort_keys=True)))
+        elif row[0] != design["id"]:
+            raise LaughlabError(f"{path} holds the responses of another study (design {row[0]}, this one is "
+                                f"{design['id']}); give another --db")
+    finally:
+        conn.close()
+    return path
+
+
+class _transaction:
+    def __init__(self, conn):
+        self.conn = conn
+
+    def __enter__(self):
+        self.conn.execute("BEGIN IMMEDIATE")
+        return self.conn
+
+    def __exit__(self, kind, exc, tb):
+        self.conn.execute("COMMIT" if kind is None else "ROLLBACK")
+
+
+def insert_answers(path: Path, rows: list[dict]) -> None:
+    """Store ``rows`` (dicts with :data:`COLUMNS`) in one transaction; :class:`Duplicate` if any is stored."""
+    conn = connect(path)
+    try:
+        with _transaction(conn):
+            for r in rows:
+                try:
+                    conn.execute(f"INSERT INTO answers ({', '.join(COLUMNS)}) VALUES ({', '.join('?' * len(COLUMNS))})",
+                                 [r.get(c) for c in COLUMNS])
+                except sqlite3.IntegrityError:
+                    raise Duplicate(f"participant {r['participant']} trial {r['trial']} {r['question']} "
+                                    "is already stored") from None
+    finally:
+        conn.close()
+
+
+def session_event(path: Path, session: str, participant: int, event: str, user_agent: str = "") -> None:
+    """``start`` inserts the session; ``consent``/``finish`` stamp it (the first time)."""
+    conn = connect(path)
+    try:
+        with _transaction(conn):
+            conn.execute("INSERT OR IGNORE INTO sessions (session, participant, started_at, user_agent) "
+                         "VALUES (?, ?, ?, ?)", (session, participant, utc_now(), user_agent))
+            column = {"consent": "consent_at", "finish": "finished_at"}.get(event)
+            if column:
+                conn.execute(f"UPDATE sessions SET {column} = COALESCE({column}, ?) WHERE session = ?",
+                             (utc_now(), session))
+    finally:
+        conn.close()
+
+
+def progress(path: Path, participant: int) -> tuple[list[int], bool]:
+    """The trials a participant has answered and whether their audio check is stored."""
+    conn = connect(path)
+    try:
+        trials = [r[0] for r in conn.execute("SELECT DISTINCT trial FROM answers WHERE participant = ? AND trial > 0 "
+                                             "ORDER BY trial", (participant,))]
+        checked = conn.execute("SELECT 1 FROM answers WHERE participant = ? AND kind = 'audio_check'",
+                               (participant,)).fetchone() is not None
+    finally:
+        conn.close()
+    return trials, checked
+
+
+def rows(path: Path) -> list[dict]:
+    """Every stored answer, by participant, trial and question (:data:`COLUMNS`)."""
+    path = Path(path)
+    if not path.is_file():
+        raise LaughlabError(f"no database at {path}")
+    conn = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    try:
+        cur = conn.execute(f"SELECT {', '.join(COLUMNS)} FROM answers ORDER BY participant, trial, question")
+        return [dict(zip(COLUMNS, r)) for r in cur]
+    except sqlite3.DatabaseError as exc:
+        raise LaughlabError(f"{path} is not a study database: {exc}") from None
+    finally:
+        conn.close()
+
+
+def stored_design(path: Path) -> dict | None:
+    conn = sqlite3.connect(f"file:{Path(path)}?mode=ro", uri=True)
+    try:
+        row = conn.execute("SELECT value FROM study WHERE key = 'design'").fetchone()
+    except sqlite3.DatabaseError:
+        row = None
+    finally:
+        conn.close()
+    return json.loads(row[0]) if row else None
+
+
+def to_csv(rows_: list[dict]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=COLUMNS, lineterminator="\n", extrasaction="ignore")
+    w.writeheader()
+    w.writerows(rows_)
+    return buf.getvalue()

@@ -1,0 +1,201 @@
+"""The design of a study: who sees which stimulus in which trial, and what is asked after it.
+
+A design is built from the folder ``experiment=stimuli`` wrote (``stimuli.json``, ``manifest.csv``,
+``orders/jspsych/participant_NNN.json``) and a preset of rating questions
+(``laughlab/study/presets/<stimuli preset>.yaml``, or ``--questions FILE``).  It is one JSON
+document (``design.json`` in the study folder, ``window.STUDY`` in ``design.js``) that the page
+runs, the server checks every post against and the analysis reads its exclusion rules from.
+
+Participant ``p`` (1 .. ``participants``) takes the order file of the stimuli run, i.e. row
+``(p - 1) mod R`` of its balanced Latin square (``order_row``).  Attention items sit in
+``attention.count`` trials spread evenly over each participant's trials (trial
+``floor((k + 0.5) * n / count) + 1`` for k = 0 ..); the audio-check word is the participant's in
+turn (``words[(p - 1) mod len(words)]``).
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+from importlib import resources
+from pathlib import Path
+
+from laughlab.core.errors import LaughlabError
+
+SCALES = ("likert", "slider")
+#: the kinds of rows a study stores (``kind`` column)
+KINDS = ("rating", "attention", "audio_check")
+
+
+def _yaml(path) -> dict:
+    from omegaconf import OmegaConf
+
+    try:
+        doc = OmegaConf.to_container(OmegaConf.load(path), resolve=True)
+    except Exception as exc:  # noqa: BLE001 - a YAML error in the user's file: one line
+        raise LaughlabError(f"cannot read {path}: {str(exc).splitlines()[0]}") from None
+    if not isinstance(doc, dict):
+        raise LaughlabError(f"{path} must hold a mapping of study settings")
+    return doc
+
+
+def preset_names() -> list[str]:
+    return sorted(p.name[:-5] for p in resources.files("laughlab.study").joinpath("presets").iterdir()
+                  if p.name.endswith(".yaml"))
+
+
+def load_preset(name_or_path: str) -> dict:
+    """A preset by name (``laughlab``, ``riddle``) or a YAML file, its ``base`` merged in, checked."""
+    path = Path(name_or_path).expanduser()
+    if name_or_path in preset_names():
+        doc = _yaml(resources.files("laughlab.study").joinpath("presets", f"{name_or_path}.yaml"))
+    elif path.suffix in (".yaml", ".yml") or path.is_file():
+        if not path.is_file():
+            raise LaughlabError(f"no questions file at {path}")
+        doc = _yaml(path)
+    else:
+        raise LaughlabError(f"unknown study preset {name_or_path!r}; choose one of: {', '.join(preset_names())} "
+                            "or give a YAML file")
+    base = doc.pop("base", None)
+    if base:
+        doc = {**load_preset(base), **doc}
+    return check_preset(doc)
+
+
+def check_preset(doc: dict) -> dict:
+    """The preset with its defaults filled in; a one-line error for anything a page cannot run."""
+    def need(cond, msg):
+        if not cond:
+            raise LaughlabError(f"study preset: {msg}")
+
+    known = {"title", "scale", "points", "slider", "questions", "consent", "instructions", "end", "audio_check",
+             "attention", "completion_url", "exclusions"}
+    unknown = sorted(set(doc) - known)
+    need(not unknown, f"unknown key(s) {', '.join(unknown)}; valid: {', '.join(sorted(known))}")
+    doc = dict(doc)
+    doc.setdefault("title", "A laughing character")
+    need(doc.get("scale", "likert") in SCALES, f"scale must be one of {', '.join(SCALES)}")
+    doc["scale"] = doc.get("scale", "likert")
+    points = doc.setdefault("points", 7)
+    need(isinstance(points, int) and 2 <= points <= 11, f"points must be a whole number 2..11 (got {points!r})")
+    slider = {"min": 0, "max": 100, "step": 1, **(doc.get("slider") or {})}
+    need(all(isinstance(slider[k], (int, float)) for k in ("min", "max", "step")) and slider["min"] < slider["max"]
+         and slider["step"] > 0, "slider needs numbers min < max and step > 0")
+    doc["slider"] = slider
+    qs = doc.get("questions") or []
+    need(isinstance(qs, list) and qs, "questions must be a non-empty list")
+    ids = set()
+    for q in qs:
+        need(isinstance(q, dict) and isinstance(q.get("id"), str) and q["id"].isidentifier(),
+             f"every question needs an id made of letters, digits and _ (got {q!r})")
+        need(q["id"] not in ids and q["id"] not in KINDS, f"question id {q['id']!r} is used twice or reserved")
+        ids.add(q["id"])
+        need(isinstance(q.get("prompt"), str) and q["prompt"], f"question {q['id']} needs a prompt")
+        labels = q.setdefault("labels", ["", ""])
+        need(isinstance(labels, list) and len(labels) == 2, f"question {q['id']}: labels are the two ends [low, high]")
+    ac = {"words": ["hat"], "attempts": 3, **(doc.get("audio_check") or {})}
+    need(isinstance(ac["words"], list) and ac["words"], "audio_check.words must be a non-empty list")
+    need(isinstance(ac["attempts"], int) and ac["attempts"] >= 1, "audio_check.attempts must be >= 1")
+    doc["audio_check"] = ac
+    att = {"count": 0, "value": 1, "prompt": "Please choose {value} here.", **(doc.get("attention") or {})}
+    need(isinstance(att["count"], int) and att["count"] >= 0, "attention.count must be a whole number >= 0")
+    lo, hi = (1, points) if doc["scale"] == "likert" else (slider["min"], slider["max"])
+    need(isinstance(att["value"], (int, float)) and lo <= att["value"] <= hi,
+         f"attention.value must lie on the scale, {lo}..{hi}")
+    doc["attention"] = att
+    doc["exclusions"] = {"audio_check": True, "attention_max_fail": 0, "straightline": True,
+                         **(doc.get("exclusions") or {})}
+    doc.setdefault("consent", "<p>Do you agree to take part?</p>")
+    ins = doc.setdefault("instructions", [])
+    doc["instructions"] = [ins] if isinstance(ins, str) else list(ins)
+    doc.setdefault("end", "<p>Thank you.</p>")
+    doc.setdefault("completion_url", None)
+    return doc
+
+
+def read_csv(path: Path) -> list[dict]:
+    with open(path, newline="", encoding="utf-8") as f:
+        return list(csv.DictReader(f))
+
+
+def read_stimuli(run_dir: Path) -> tuple[dict, list[dict], dict[int, list[dict]]]:
+    """``stimuli.json``, the manifest rows and each participant's trials from an ``experiment=stimuli`` folder."""
+    run_dir = Path(run_dir)
+    need = [n for n in ("stimuli.json", "manifest.csv", "orders/jspsych_all.json") if not (run_dir / n).is_file()]
+    if need:
+        raise LaughlabError(f"{run_dir} is not a finished experiment=stimuli folder: it has no {', '.join(need)}")
+    info = json.loads((run_dir / "stimuli.json").read_text())
+    manifest = read_csv(run_dir / "manifest.csv")
+    orders = {int(p): trials for p, trials in json.loads((run_dir / "orders" / "jspsych_all.json").read_text()).items()}
+    return info, manifest, orders
+
+
+def attention_trials(n_trials: int, count: int) -> list[int]:
+    """The (1-based) trials that carry an attention item: ``count`` of them spread evenly."""
+    count = min(count, n_trials)
+    return sorted({int((k + 0.5) * n_trials / count) + 1 for k in range(count)}) if count else []
+
+
+def make_design(run_dir: Path, preset: dict, preset_name: str, audio_files: list[dict]) -> dict:
+    """The study's design document (see the module doc); ``audio_files`` are the built audio-check words."""
+    info, manifest, orders = read_stimuli(run_dir)
+    rows = int(info.get("latin_square_rows") or len(info.get("conditions") or {}) or 1)
+    durations = {m["stimulus_id"]: float(m["duration_s"]) for m in manifest}
+    participants = {}
+    for p, trials in sorted(orders.items()):
+        att = attention_trials(len(trials), preset["attention"]["count"])
+        participants[str(p)] = {
+            "order_row": (p - 1) % rows,
+            "audio_check": (p - 1) % len(audio_files),
+            "trials": [{"trial": t["trial"], "stimulus": t["stimulus_id"], "condition": t["condition"],
+                        "audio_id": t["audio_id"], "file": t["file"], "attention": t["trial"] in att,
+                        **{k: v for k, v in t.items() if k not in ("participant", "trial", "stimulus_id", "condition",
+                                                                    "audio_id", "file", "stimulus")}}
+                       for t in trials]}
+    n = max(len(p["trials"]) for p in participants.values())
+    seconds = sum(durations.values()) / max(len(durations), 1)
+    minutes = max(1, round(n * (seconds + 8 * len(preset["questions"]) / 2 + 2) / 60 + 2))
+    fill = {"minutes": minutes, "n_questions": len(preset["questions"]), "points": preset["points"],
+            "value": preset["attention"]["value"]}
+    text = {k: preset[k].format(**fill) for k in ("consent", "end")}
+    doc = {
+        "format": 1,
+        "title": preset["title"], "preset": preset_name, "stimuli_preset": info.get("preset"),
+        "design": info.get("design"), "conditions": list(info.get("conditions") or {}),
+        "muted": info.get("muted") or [],
+        "scale": preset["scale"], "points": preset["points"], "slider": preset["slider"],
+        "questions": preset["questions"],
+        "attention": {**preset["attention"], "prompt": preset["attention"]["prompt"].format(**fill)},
+        "audio_check": {"attempts": preset["audio_check"]["attempts"], "files": audio_files},
+        "consent": text["consent"], "end": text["end"],
+        "instructions": [s.format(**fill) for s in preset["instructions"]],
+        "completion_url": preset["completion_url"], "exclusions": preset["exclusions"],
+        "latin_square_rows": rows, "minutes": minutes,
+        "stimuli": {m["stimulus_id"]: {"file": m["file"], "condition": m["condition"], "audio_id": m["audio_id"],
+                                       "duration_s": float(m["duration_s"]), "sha256": m["sha256"]}
+                    for m in manifest},
+        "participants": participants,
+    }
+    doc["id"] = design_id(doc)
+    return doc
+
+
+def design_id(doc: dict) -> str:
+    """A short hash of what a response is checked against (trials, questions, scale, checks)."""
+    keep = {k: doc[k] for k in ("participants", "questions", "scale", "points", "slider", "attention", "audio_check")}
+    return hashlib.sha256(json.dumps(keep, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def load_design(study_dir: Path) -> dict:
+    path = Path(study_dir) / "design.json"
+    if not path.is_file():
+        raise LaughlabError(f"{study_dir} is not a study folder (no design.json): build one with "
+                            "python -m laughlab study build STIMULI_RUN_DIR")
+    return json.loads(path.read_text())
+
+
+def scale_range(design: dict) -> tuple[float, float]:
+    """The lowest and highest answer of a rating."""
+    if design["scale"] == "likert":
+        return 1.0, float(design["points"])
+    return float(design["slider"]["min"]), float(design["slider"]["max"])

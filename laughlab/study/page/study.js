@@ -1,0 +1,359 @@
+/* laughlab's study page: a jsPsych 8 timeline built from design.js (window.STUDY).
+ *
+ * The participant comes from the URL (?participant=N) or a start form.  With `study serve`
+ * behind the page every rating is posted as soon as it is given (POST api/response) and the
+ * server answers which trials are already done, so a closed tab resumes where it stopped;
+ * on a static host the answers stay in this browser (localStorage) and the end page offers
+ * them as a CSV file, in the columns `study analyze` reads.  Keys: 1..9 choose a point of the
+ * current question, Enter goes on; arrows move a slider; Tab, Space and Enter work throughout.
+ */
+"use strict";
+(function () {
+  const S = window.STUDY;
+  const COLUMNS = ["participant", "order_row", "trial", "stimulus", "condition", "audio_id", "kind", "question",
+                   "value", "text", "expected", "rt_ms", "shown_at", "answered_at", "received_at", "session",
+                   "user_agent"];
+  const params = new URLSearchParams(window.location.search);
+  const session = (window.crypto && crypto.randomUUID) ? crypto.randomUUID()
+    : Date.now().toString(16) + Math.random().toString(16).slice(2);
+  const ua = navigator.userAgent;
+  const state = {server: false, rows: [], pending: [], flushing: null, keys: null};
+  const now = () => new Date().toISOString();
+  const esc = (s) => String(s).replace(/[&<>"']/g, (c) => ({"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;",
+                                                              "'": "&#39;"}[c]));
+
+  // -- storage: the server first, this browser always ------------------------------------------------------------
+  const storeKey = (p) => `laughlab-study-${S.id}-p${p}`;
+  function saveLocal(p) {
+    try { localStorage.setItem(storeKey(p), JSON.stringify(state.rows)); } catch (e) { /* private mode: CSV only */ }
+  }
+  function loadLocal(p) {
+    try { return JSON.parse(localStorage.getItem(storeKey(p)) || "[]"); } catch (e) { return []; }
+  }
+  async function api(path, body) {
+    try {
+      const r = await fetch(path, {method: "POST", headers: {"Content-Type": "application/json"},
+                                   body: JSON.stringify(body), keepalive: true, cache: "no-store"});
+      let data = null;
+      try { data = await r.json(); } catch (e) { data = null; }
+      return {ok: r.ok, status: r.status, data: data};
+    } catch (e) {
+      return {ok: false, status: 0, data: null};
+    }
+  }
+  function send(path, body) {  // queued in order; a network failure is retried with the next post
+    if (!state.server) return Promise.resolve(true);
+    state.pending.push([path, body]);
+    return flush();
+  }
+  function flush() {
+    if (state.flushing) return state.flushing.then(() => (state.pending.length ? flush() : true));
+    state.flushing = (async () => {
+      while (state.pending.length) {
+        const [path, body] = state.pending[0];
+        const r = await api(path, body);
+        if (r.status === 0 || r.status >= 500) return false;  // keep it for the next try
+        if (!r.ok) console.warn(`laughlab study: ${path} refused (${r.status}): ${r.data && r.data.error}`);
+        state.pending.shift();
+      }
+      return true;
+    })().finally(() => { state.flushing = null; });
+    return state.flushing;
+  }
+  function keep(p, P, t, kind, question, value, extra) {
+    const row = Object.assign({participant: Number(p), order_row: P.order_row, trial: t ? t.trial : 0,
+                               stimulus: t ? t.stimulus : "", condition: t ? t.condition : "",
+                               audio_id: t ? t.audio_id : "", kind: kind, question: question, value: value,
+                               text: "", expected: "", rt_ms: "", shown_at: "", answered_at: now(),
+                               received_at: "", session: session, user_agent: ua}, extra || {});
+    state.rows.push(row);
+    saveLocal(p);
+  }
+  function csv() {
+    const cell = (v) => {
+      const s = v === null || v === undefined ? "" : String(v);
+      return /[",\n\r]/.test(s) ? '"' + s.replace(/"/g, '""') + '"' : s;
+    };
+    return [COLUMNS.join(",")].concat(state.rows.map((r) => COLUMNS.map((c) => cell(r[c])).join(","))).join("\n") + "\n";
+  }
+  function download(p) {
+    const url = URL.createObjectURL(new Blob([csv()], {type: "text/csv"}));
+    const a = document.createElement("a");
+    a.href = url;
+    a.download = `participant_${String(p).padStart(3, "0")}_answers.csv`;
+    document.body.appendChild(a);
+    a.click();
+    a.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 1000);
+  }
+
+  // -- keyboard ---------------------------------------------------------------------------------------------------
+  function onKeys(handler) {
+    offKeys();
+    state.keys = handler;
+    document.addEventListener("keydown", handler, true);
+  }
+  function offKeys() {
+    if (state.keys) document.removeEventListener("keydown", state.keys, true);
+    state.keys = null;
+  }
+  function likertKeys() {  // 1..9 choose a point of the focused (else the first unanswered) question; Enter submits
+    const form = document.querySelector("#jspsych-survey-likert-form");
+    const groups = Array.from(form.querySelectorAll(".jspsych-survey-likert-opts"));
+    const open = () => groups.find((g) => !g.querySelector("input:checked"));
+    const first = open();
+    if (first) first.querySelector("input").focus();
+    onKeys((e) => {
+      if (e.key === "Enter") {
+        e.preventDefault();
+        e.stopPropagation();
+        form.requestSubmit();
+        return;
+      }
+      const k = e.key.length === 1 ? "123456789".indexOf(e.key) : -1;
+      if (k < 0) return;
+      const a = document.activeElement;
+      const g = (a && a.closest && a.closest(".jspsych-survey-likert-opts")) || open() || groups[groups.length - 1];
+      const radios = g.querySelectorAll("input[type=radio]");
+      if (k >= radios.length) return;
+      e.preventDefault();
+      radios[k].checked = true;
+      const next = open();
+      (next ? next.querySelector("input") : form.querySelector("#jspsych-survey-likert-next")).focus();
+    });
+  }
+  function sliderKeys() {  // the slider has the focus (arrows move it); Enter goes on once it was moved
+    const slider = document.querySelector("#jspsych-html-slider-response-response");
+    slider.focus();
+    onKeys((e) => {
+      if (e.key !== "Enter") return;
+      e.preventDefault();
+      const next = document.querySelector("#jspsych-html-slider-response-next");
+      if (next && !next.disabled) next.click();
+    });
+  }
+  function focusButton() {
+    const b = document.querySelector(".jspsych-btn");
+    if (b) b.focus();
+  }
+
+  // -- the timeline ---------------------------------------------------------------------------------------------
+  function labels(q) {
+    const n = S.points;
+    return Array.from({length: n}, (_, j) => {
+      const anchor = j === 0 ? q.labels[0] : (j === n - 1 ? q.labels[1] : "");
+      return `<span class="study-point">${j + 1}</span><span class="study-anchor">${esc(anchor)}</span>`;
+    });
+  }
+  function questionsOf(t) {
+    const qs = S.questions.map((q) => ({id: q.id, prompt: q.prompt, labels: q.labels}));
+    if (t.attention) {
+      qs.splice(Math.min(1, qs.length), 0, {id: "attention", prompt: S.attention.prompt,
+                                            labels: ["", ""]});
+    }
+    return qs;
+  }
+  function header(t, total, what) {
+    return `<p class="study-count" id="study-trial" data-trial="${t.trial}" data-stimulus="${esc(t.stimulus)}">` +
+           `Video ${t.trial} of ${total}${what ? ": " + what : ""}</p>`;
+  }
+
+  function ratings(jsPsych, p, P, t, total, shown) {
+    const qs = questionsOf(t);
+    const done = (values, rt) => {
+      const answered = now();
+      for (const q of qs) {
+        const attention = q.id === "attention";
+        keep(p, P, t, attention ? "attention" : "rating", q.id, values[q.id],
+             {expected: attention ? S.attention.value : "", rt_ms: rt, shown_at: shown.at, answered_at: answered});
+      }
+      send("api/response", {participant: Number(p), session: session, trial: t.trial, stimulus: t.stimulus,
+                            answers: values, rt_ms: rt, shown_at: shown.at, answered_at: answered, user_agent: ua});
+      jsPsych.progressBar.progress = Math.min(1, ++shown.count.n / total);
+    };
+    if (S.scale === "likert") {
+      return {
+        type: jsPsychSurveyLikert, preamble: header(t, total, "your ratings"), button_label: "Continue",
+        questions: qs.map((q) => ({prompt: esc(q.prompt), name: q.id, labels: labels(q), required: true})),
+        on_load: likertKeys,
+        on_finish: (data) => {
+          offKeys();
+          const values = {};
+          for (const [k, v] of Object.entries(data.response)) values[k] = v + 1;
+          done(values, data.rt);
+        },
+      };
+    }
+    const values = {};
+    let rt = 0;
+    return {timeline: qs.map((q, i) => ({
+      type: jsPsychHtmlSliderResponse, stimulus: header(t, total, `question ${i + 1} of ${qs.length}`) +
+        `<p class="study-question">${esc(q.prompt)}</p>`,
+      labels: q.labels.map(esc), min: S.slider.min, max: S.slider.max, step: S.slider.step,
+      slider_start: (S.slider.min + S.slider.max) / 2, require_movement: true, button_label: "Continue",
+      on_load: sliderKeys,
+      on_finish: (data) => {
+        offKeys();
+        values[q.id] = Number(data.response);
+        rt += data.rt;
+        if (i === qs.length - 1) done(values, rt);
+      },
+    }))};
+  }
+
+  function audioCheck(p, P) {
+    const word = S.audio_check.files[P.audio_check];
+    const attempts = [];
+    const norm = (s) => String(s).toLowerCase().replace(/[^a-z\u00c0-\u024f]/g, "");
+    const passed = () => attempts.length > 0 && norm(attempts[attempts.length - 1]) === norm(word.answer);
+    const started = performance.now();
+    const form = {
+      type: jsPsychSurveyHtmlForm, autofocus: "study-word", button_label: "Continue",
+      preamble: "<h2>Sound check</h2><p>Play the word, listen, and type the word you hear.</p>",
+      html: () => `<p><audio id="study-audio" preload="auto" src="${esc(word.file)}"></audio>` +
+        `<button type="button" id="study-play" class="jspsych-btn">&#9654; Play the word</button></p>` +
+        `<p><label for="study-word">The word:</label> <input id="study-word" name="word" type="text" ` +
+        `autocomplete="off" autocapitalize="none" spellcheck="false" required></p>` +
+        (attempts.length ? `<p class="study-warn">That was not the word: please check your sound and try again ` +
+          `(${S.audio_check.attempts - attempts.length} tries left).</p>` : ""),
+      on_load: () => {
+        document.getElementById("study-play").addEventListener("click", () => {
+          const a = document.getElementById("study-audio");
+          a.currentTime = 0;
+          a.play();
+          document.getElementById("study-word").focus();
+        });
+      },
+      on_finish: (data) => {
+        attempts.push(String(data.response.word || "").trim());
+        if (passed() || attempts.length >= S.audio_check.attempts) {
+          const rt = Math.round(performance.now() - started);
+          keep(p, P, null, "audio_check", "audio_check", passed() ? 1 : 0,
+               {text: attempts.join("|"), rt_ms: rt});
+          send("api/check", {participant: Number(p), session: session, attempts: attempts, rt_ms: rt,
+                             user_agent: ua});
+        }
+      },
+    };
+    return {timeline: [form], loop_function: () => !passed() && attempts.length < S.audio_check.attempts};
+  }
+
+  function endPage(p) {
+    const link = S.completion_url ? `<p><a class="jspsych-btn study-link" href="${esc(S.completion_url)}">` +
+      "Finish and return</a></p>" : "";
+    return {
+      type: jsPsychHtmlButtonResponse, choices: [],
+      stimulus: `<div class="study-end">${S.end}<p id="study-status">Saving your answers&hellip;</p>${link}` +
+        `<p><button type="button" id="study-download" class="jspsych-btn">Download my answers (CSV)</button></p>` +
+        "</div>",
+      on_load: () => {
+        document.getElementById("study-download").addEventListener("click", () => download(p));
+        send("api/event", {participant: Number(p), session: session, event: "finish"}).then((ok) => {
+          const status = document.getElementById("study-status");
+          if (!status) return;
+          status.textContent = !state.server
+            ? "This page has no server to save to: please download your answers and send the file as asked."
+            : ok && !state.pending.length ? "All your answers are saved."
+              : "Some answers could not be sent: please download them and send the file as asked.";
+          status.dataset.saved = String(state.server && ok && !state.pending.length);
+        });
+        focusButton();
+      },
+    };
+  }
+
+  function run(p, P, done, checked) {
+    const total = P.trials.length;
+    const jsPsych = initJsPsych({show_progress_bar: true, auto_update_progress_bar: false,
+                                 message_progress_bar: "Progress"});
+    const todo = P.trials.filter((t) => !done.has(t.trial));
+    const count = {n: total - todo.length};
+    const fresh = count.n === 0 && !checked;
+    const timeline = [{type: jsPsychPreload, video: todo.map((t) => t.file), continue_after_error: true,
+                       audio: checked ? [] : [S.audio_check.files[P.audio_check].file],
+                       message: "<p>Loading the videos&hellip;</p>"}];
+    if (fresh) {
+      timeline.push({
+        type: jsPsychHtmlButtonResponse, choices: ["I agree", "I do not agree"], on_load: focusButton,
+        stimulus: `<div class="study-text"><h1>${esc(S.title)}</h1>${S.consent}</div>`,
+        on_finish: (data) => {
+          const agree = data.response === 0;
+          send("api/event", {participant: Number(p), session: session, event: agree ? "consent" : "decline"});
+          if (!agree) jsPsych.abortExperiment("<p>You chose not to take part. Thank you; you may close this page.</p>");
+        },
+      });
+      timeline.push({type: jsPsychInstructions, show_clickable_nav: true, key_forward: "ArrowRight",
+                     key_backward: "ArrowLeft", button_label_next: "Next &rarr;", button_label_previous: "&larr; Back",
+                     pages: S.instructions.map((s) => `<div class="study-text">${s}</div>`), on_load: focusButton});
+    } else {
+      timeline.push({type: jsPsychHtmlButtonResponse, choices: ["Go on"], on_load: focusButton,
+                     stimulus: `<div class="study-text"><h1>Welcome back</h1><p>Your answers so far are saved; ` +
+                       `the study goes on with video ${todo.length ? todo[0].trial : total} of ${total}.</p></div>`});
+    }
+    if (!checked) timeline.push(audioCheck(p, P));
+    for (const t of todo) {
+      const shown = {at: "", count: count};
+      timeline.push({
+        type: jsPsychVideoKeyboardResponse, stimulus: [t.file], choices: "NO_KEYS", autoplay: true, controls: false,
+        trial_ends_after_video: true, response_allowed_while_playing: false, prompt: header(t, total, ""),
+        on_load: () => {
+          shown.at = now();
+          const v = document.querySelector("#jspsych-video-keyboard-response-stimulus");
+          v.setAttribute("playsinline", "");
+          const played = v.play();
+          if (played) played.catch(() => { v.controls = true; });  // autoplay refused: the participant presses play
+        },
+      });
+      timeline.push(ratings(jsPsych, p, P, t, total, shown));
+    }
+    timeline.push(endPage(p));
+    jsPsych.run(timeline).then(() => { jsPsych.progressBar.progress = count.n / total; });
+    jsPsych.progressBar.progress = count.n / total;
+  }
+
+  function startForm(message) {
+    const jsPsych = initJsPsych();
+    jsPsych.run([{
+      type: jsPsychSurveyHtmlForm, autofocus: "study-participant", button_label: "Start",
+      preamble: `<div class="study-text"><h1>${esc(S.title)}</h1>${message ? `<p class="study-warn">${esc(message)}</p>` : ""}</div>`,
+      html: '<p><label for="study-participant">Your participant number:</label> ' +
+        '<input id="study-participant" name="participant" type="number" min="1" step="1" inputmode="numeric" required></p>',
+      on_finish: (data) => {
+        params.set("participant", String(parseInt(data.response.participant, 10)));
+        window.location.search = params.toString();
+      },
+    }]);
+  }
+
+  function fatal(message) {
+    document.body.innerHTML = `<div class="study-text study-fatal"><h1>${esc(S.title)}</h1><p>${esc(message)}</p></div>`;
+  }
+
+  async function main() {
+    const raw = params.get("participant");
+    const p = raw && /^\d+$/.test(raw) ? String(parseInt(raw, 10)) : null;
+    if (!p || !S.participants[p]) {
+      startForm(raw ? `Participant ${raw} is not part of this study; please check the number.` : "");
+      return;
+    }
+    const P = S.participants[p];
+    state.rows = loadLocal(p);
+    const r = await api("api/start", {participant: Number(p), session: session, design: S.id, user_agent: ua});
+    const done = new Set();
+    let checked = false;
+    if (r.data && r.data.laughlab) {
+      if (!r.ok) { fatal(r.data.error || "The study server refused this page."); return; }
+      state.server = true;
+      r.data.answered.forEach((t) => done.add(t));
+      checked = Boolean(r.data.audio_check);
+    } else {  // a static host: this browser's own record says what is done
+      for (const row of state.rows) {
+        if (row.kind === "audio_check") checked = true; else done.add(row.trial);
+      }
+    }
+    run(p, P, done, checked);
+  }
+
+  window.laughlabStudy = {rows: () => state.rows, csv: csv, flush: flush, server: () => state.server};
+  main();
+})();

@@ -1,0 +1,265 @@
+"""``python -m laughlab study serve STUDY_DIR``: the study page, and every answer into SQLite as it arrives.
+
+The files are served by the viewer's server (``laughlab.viewer.server.http_server``: threads, byte
+ranges); this module adds four JSON endpoints the page posts to (``Content-Type: application/json``,
+at most :data:`MAX_BODY` bytes):
+
+=================  ===========================================================================
+``api/start``      ``{participant, session, design, user_agent}``: opens a session; answers the
+                   trials already stored and whether the audio check is (the page resumes there)
+``api/response``   ``{participant, session, trial, stimulus, answers: {question: value}, rt_ms,
+                   shown_at, answered_at, user_agent}``: one trial's answers, stored in one
+                   transaction (``laughlab.study.db``)
+``api/check``      ``{participant, session, attempts: [text], rt_ms, user_agent}``: the audio check;
+                   the server decides whether the last attempt is the participant's word
+``api/event``      ``{participant, session, event}``: ``consent``, ``decline``, ``finish``
+=================  ===========================================================================
+
+Everything is checked against the design before it is stored: the participant must be one of the
+design's, the trial that participant's, the stimulus the one shown in that trial, the questions
+exactly the trial's (the attention item only where the design puts one), every value a number on
+the scale (a whole number for Likert), times and texts short.  Anything else is refused with a 4xx
+and one JSON line in ``<db>.rejected.log`` (time, client, path, status, reason, the body's start),
+and is never stored: 400 malformed JSON, 404 unknown endpoint, 409 already stored or another
+study's page, 411 no length, 413 too large, 415 not JSON, 422 not in the design or out of range.
+"""
+from __future__ import annotations
+
+import json
+import math
+import re
+import sys
+import threading
+from datetime import datetime
+from pathlib import Path
+
+from laughlab.core.errors import LaughlabError
+from laughlab.study import db as DB
+from laughlab.study.design import load_design, scale_range
+from laughlab.viewer.server import DEFAULT_PORT, _Handler, http_server
+
+MAX_BODY = 16 * 1024
+_SESSION = re.compile(r"[A-Za-z0-9-]{1,64}")
+
+
+class Refused(LaughlabError):
+    def __init__(self, status: int, reason: str):
+        super().__init__(reason)
+        self.status = status
+
+
+def _int(body: dict, key: str) -> int:
+    v = body.get(key)
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise Refused(422, f"{key} must be a whole number (got {v!r})"[:200])
+    return v
+
+
+def _number(v, what: str, lo: float, hi: float, whole: bool = False) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise Refused(422, f"{what} must be a number (got {v!r})"[:200])
+    if whole and v != int(v):
+        raise Refused(422, f"{what} must be a whole number (got {v!r})")
+    if not lo <= v <= hi:
+        raise Refused(422, f"{what} {v!r} is out of range {lo:g}..{hi:g}")
+    return float(v)
+
+
+def _text(body: dict, key: str, limit: int, required: bool = False) -> str:
+    v = body.get(key, "")
+    if not isinstance(v, str) or len(v) > limit or (required and not v):
+        raise Refused(422, f"{key} must be a text of at most {limit} characters")
+    return v
+
+
+def _time(body: dict, key: str) -> str | None:
+    v = _text(body, key, 40)
+    if not v:
+        return None
+    try:
+        datetime.fromisoformat(v.replace("Z", "+00:00"))
+    except ValueError:
+        raise Refused(422, f"{key} must be an ISO 8601 time (got {v!r})") from None
+    return v
+
+
+def _keys(body: dict, allowed: set[str]) -> None:
+    extra = sorted(set(body) - allowed)
+    if extra:
+        raise Refused(422, f"unknown field(s) {', '.join(map(str, extra))[:120]}")
+
+
+class StudyHandler(_Handler):
+    design: dict = {}
+    db: Path = Path()
+    log: Path = Path()
+    quiet: bool = False
+    _lock = threading.Lock()
+
+    # -- plumbing ---------------------------------------------------------------------------------------------------
+    def do_GET(self):  # noqa: N802 - http.server's name
+        if self.path.startswith("/api/"):
+            self._reply(405, {"error": "the study's endpoints take POST"})
+            return
+        super().do_GET()
+
+    def do_POST(self):  # noqa: N802
+        route = self.path.split("?", 1)[0].lstrip("/")
+        raw = b""
+        try:
+            action = {"api/start": self.start, "api/response": self.response, "api/check": self.check,
+                      "api/event": self.event}.get(route)
+            if action is None:
+                raise Refused(404, f"no endpoint {route[:80]!r}")
+            length = self.headers.get("Content-Length")
+            if length is None or not length.isdigit():
+                raise Refused(411, "a Content-Length is needed")
+            if int(length) > MAX_BODY:
+                self.close_connection = True  # the body is not read
+                raise Refused(413, f"body of {int(length)} bytes, at most {MAX_BODY}")
+            raw = self.rfile.read(int(length))
+            if self.headers.get_content_type() != "application/json":
+                raise Refused(415, "the body must be application/json")
+            try:
+                body = json.loads(raw.decode("utf-8"))
+            except (UnicodeDecodeError, ValueError):
+                raise Refused(400, "the body is not JSON") from None
+            if not isinstance(body, dict):
+                raise Refused(400, "the body must be a JSON object")
+            status, payload = action(body)
+        except Refused as exc:
+            self._refuse(exc.status, str(exc), route, raw)
+            return
+        except DB.Duplicate as exc:
+            self._refuse(409, str(exc), route, raw)
+            return
+        self._reply(status, payload)
+
+    def _reply(self, status: int, payload: dict) -> None:
+        data = json.dumps({"laughlab": True, **payload}).encode()
+        self.send_response(status)
+        self.send_header("Content-Type", "application/json")
+        self.send_header("Content-Length", str(len(data)))
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
+        self.wfile.write(data)
+
+    def _refuse(self, status: int, reason: str, route: str, raw: bytes) -> None:
+        line = {"time": DB.utc_now(), "client": self.client_address[0], "path": route[:100], "status": status,
+                "reason": reason, "body": raw[:200].decode("utf-8", "replace")}
+        with self._lock:
+            with open(self.log, "a", encoding="utf-8") as f:
+                f.write(json.dumps(line) + "\n")
+        if not self.quiet:
+            print(f"study: refused {route[:60]} ({status}): {reason}", file=sys.stderr, flush=True)
+        self._reply(status, {"error": reason})
+
+    # -- checks -----------------------------------------------------------------------------------------------------
+    def _participant(self, body: dict) -> tuple[int, dict, str]:
+        p = _int(body, "participant")
+        entry = self.design["participants"].get(str(p))
+        if entry is None:
+            raise Refused(422, f"participant {p} is not in the design (1..{len(self.design['participants'])})")
+        session = body.get("session")
+        if not isinstance(session, str) or not _SESSION.fullmatch(session):
+            raise Refused(422, "session must be 1-64 letters, digits or -")
+        return p, entry, session
+
+    # -- endpoints --------------------------------------------------------------------------------------------------
+    def start(self, body: dict):
+        _keys(body, {"participant", "session", "design", "user_agent"})
+        p, _, session = self._participant(body)
+        if body.get("design") != self.design["id"]:
+            raise Refused(409, "this page belongs to another build of the study: reload it")
+        DB.session_event(self.db, session, p, "start", _text(body, "user_agent", 512))
+        answered, checked = DB.progress(self.db, p)
+        return 200, {"answered": answered, "audio_check": checked}
+
+    def response(self, body: dict):
+        _keys(body, {"participant", "session", "trial", "stimulus", "answers", "rt_ms", "shown_at", "answered_at",
+                     "user_agent"})
+        p, entry, session = self._participant(body)
+        t = _int(body, "trial")
+        if not 1 <= t <= len(entry["trials"]):
+            raise Refused(422, f"participant {p} has no trial {t} (1..{len(entry['trials'])})")
+        trial = entry["trials"][t - 1]
+        stimulus = body.get("stimulus")
+        if stimulus not in self.design["stimuli"]:
+            raise Refused(422, f"unknown stimulus {str(stimulus)[:80]!r}")
+        if stimulus != trial["stimulus"]:
+            raise Refused(422, f"trial {t} of participant {p} shows {trial['stimulus']}, not {stimulus}")
+        answers = body.get("answers")
+        want = [q["id"] for q in self.design["questions"]] + (["attention"] if trial["attention"] else [])
+        if not isinstance(answers, dict) or sorted(answers) != sorted(want):
+            raise Refused(422, f"answers must give exactly {', '.join(want)}")
+        lo, hi = scale_range(self.design)
+        whole = self.design["scale"] == "likert"
+        values = {q: _number(answers[q], q, lo, hi, whole) for q in want}
+        rt = _number(body.get("rt_ms", 0), "rt_ms", 0, 86_400_000)
+        common = {"participant": p, "order_row": entry["order_row"], "trial": t, "stimulus": stimulus,
+                  "condition": trial["condition"], "audio_id": trial["audio_id"], "rt_ms": rt,
+                  "shown_at": _time(body, "shown_at"), "answered_at": _time(body, "answered_at"),
+                  "received_at": DB.utc_now(), "session": session, "user_agent": _text(body, "user_agent", 512)}
+        rows = [{**common, "kind": "attention" if q == "attention" else "rating", "question": q, "value": v,
+                 "text": "", "expected": float(self.design["attention"]["value"]) if q == "attention" else None}
+                for q, v in values.items()]
+        DB.insert_answers(self.db, rows)
+        return 201, {"stored": len(rows)}
+
+    def check(self, body: dict):
+        _keys(body, {"participant", "session", "attempts", "rt_ms", "user_agent"})
+        p, entry, session = self._participant(body)
+        attempts = body.get("attempts")
+        n = int(self.design["audio_check"]["attempts"])
+        if not isinstance(attempts, list) or not 1 <= len(attempts) <= n or \
+                not all(isinstance(a, str) and len(a) <= 64 and "|" not in a for a in attempts):
+            raise Refused(422, f"attempts must be 1..{n} texts of at most 64 characters")
+        word = self.design["audio_check"]["files"][entry["audio_check"]]["answer"]
+        passed = normalise_word(attempts[-1]) == normalise_word(word)
+        row = {"participant": p, "order_row": entry["order_row"], "trial": 0, "stimulus": "", "condition": "",
+               "audio_id": "", "kind": "audio_check", "question": "audio_check", "value": 1.0 if passed else 0.0,
+               "text": "|".join(attempts), "expected": None,
+               "rt_ms": _number(body.get("rt_ms", 0), "rt_ms", 0, 86_400_000), "shown_at": None,
+               "answered_at": None, "received_at": DB.utc_now(), "session": session,
+               "user_agent": _text(body, "user_agent", 512)}
+        DB.insert_answers(self.db, [row])
+        return 201, {"stored": 1, "passed": passed}
+
+    def event(self, body: dict):
+        _keys(body, {"participant", "session", "event"})
+        p, _, session = self._participant(body)
+        if body.get("event") not in ("consent", "decline", "finish"):
+            raise Refused(422, "event must be consent, decline or finish")
+        DB.session_event(self.db, session, p, body["event"])
+        return 200, {}
+
+
+def normalise_word(s: str) -> str:
+    """What the audio check compares: lower case, letters only (the page does the same)."""
+    return re.sub(r"[^a-z\u00c0-\u024f]", "", s.lower())
+
+
+def files_of(study_dir: Path) -> dict[str, Path]:
+    """Every file of the study folder by its URL path (the database and hidden files left out)."""
+    out = {}
+    for f in sorted(study_dir.rglob("*")):
+        rel = f.relative_to(study_dir).as_posix()
+        if f.is_file() and not any(part.startswith(".") for part in rel.split("/")) and \
+                not rel.startswith(DB_PREFIXES):
+            out[rel] = f
+    return out
+
+
+DB_PREFIXES = ("responses.sqlite",)
+
+
+def server(study_dir, db: str | Path | None = None, port: int = DEFAULT_PORT, host: str = "127.0.0.1",
+           quiet: bool = False):
+    """The study's server (not yet serving): the page's files and the endpoints above."""
+    study_dir = Path(study_dir).expanduser()
+    design = load_design(study_dir)
+    db_path = DB.open_db(Path(db).expanduser() if db else study_dir / "responses.sqlite", design)
+    files = files_of(study_dir)
+    files.pop(db_path.name, None)
+    return http_server(files, port, base=StudyHandler, host=host, design=design, db=db_path,
+                       log=db_path.with_name(db_path.name + ".rejected.log"), quiet=quiet)

@@ -1,0 +1,258 @@
+"""The perception study (issue 17) run for real: a stimuli run, the built page, ``study serve`` with
+simulated participants in headless Chromium (Debian's ``chromium`` driven by Playwright), SQLite,
+the analysis, and power.
+
+One module-scoped study (8 stimuli: 4 conditions x 2 synthetic laughs, 24 participants in the design)
+is built once; the browser test runs 4 participants to the end and a 5th who closes the tab after 3
+trials, all at once, with answers drawn from a planted effect (laugh_energy rated 1 point above the
+other conditions).
+"""
+import csv
+import json
+import sqlite3
+import threading
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import pytest
+
+import fuzz
+
+PLANTED = 1.0
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    """``experiment=stimuli`` (short synthetic laughs) and ``study build`` of it, through the command line."""
+    root = tmp_path_factory.mktemp("study")
+    out = fuzz.run_cli(["experiment=stimuli", f"hydra.run.dir={root / 'stim'}", "harness.corpus.seeds=1",
+                        "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild,intense]", "progress=off"])
+    assert out.code == 0, out.stderr
+    out = fuzz.run_cli(["study", "build", str(root / "stim")])
+    assert out.code == 0, out.stderr
+    assert "study written to" in out.stdout
+    return root / "stim-study"
+
+
+def design_of(study_dir: Path) -> dict:
+    return json.loads((study_dir / "design.json").read_text())
+
+
+class Served:
+    """``study serve`` in a thread on a free port."""
+
+    def __init__(self, study_dir: Path, db: Path):
+        from laughlab.study.server import server
+
+        self.httpd = server(study_dir, db, 0, quiet=True)
+        self.url = f"http://127.0.0.1:{self.httpd.server_address[1]}"
+        self.db = db
+        threading.Thread(target=self.httpd.serve_forever, daemon=True).start()
+
+    def post(self, route: str, body, content_type="application/json", raw: bytes | None = None) -> tuple[int, dict]:
+        data = raw if raw is not None else json.dumps(body).encode()
+        req = urllib.request.Request(self.url + route, data=data, method="POST",
+                                     headers={"Content-Type": content_type})
+        try:
+            with urllib.request.urlopen(req, timeout=10) as r:
+                return r.status, json.loads(r.read())
+        except urllib.error.HTTPError as e:
+            return e.code, json.loads(e.read() or b"{}")
+
+    def oversized(self, route: str, length: int) -> int:
+        """The status of a post announcing ``length`` bytes: the server answers before the body is sent
+        (a client still sending would see the connection closed under it)."""
+        import http.client
+
+        conn = http.client.HTTPConnection("127.0.0.1", self.httpd.server_address[1], timeout=10)
+        try:
+            conn.putrequest("POST", route)
+            conn.putheader("Content-Type", "application/json")
+            conn.putheader("Content-Length", str(length))
+            conn.endheaders()
+            return conn.getresponse().status
+        finally:
+            conn.close()
+
+    def rows(self) -> list[tuple]:
+        with sqlite3.connect(self.db) as con:
+            return con.execute("SELECT participant, trial, question, value, kind, stimulus, condition "
+                               "FROM answers ORDER BY participant, trial, question").fetchall()
+
+    def close(self):
+        self.httpd.shutdown()
+        self.httpd.server_close()
+
+
+def test_the_study_folder_is_self_contained_and_follows_the_latin_square(study):
+    d = design_of(study)
+    page = (study / "index.html").read_text() + (study / "study.js").read_text()
+    assert "https://" not in page and "http://" not in page and "cdn" not in page.lower()  # works offline
+    assert (study / "vendor/jspsych/jspsych.js").stat().st_size > 10_000
+    versions = (study / "vendor/jspsych/VERSIONS.txt").read_text()
+    assert any(line.split("\t")[1:3] == ["jspsych", "8.2.2"] for line in versions.splitlines() if "\t" in line)
+    for s in d["stimuli"].values():
+        assert (study / s["file"]).is_file()
+    for a in d["audio_check"]["files"]:
+        assert (study / a["file"]).is_file() and a["answer"]
+    # design "all": every participant sees every stimulus once; the first trial's condition rotates
+    # through a balanced Latin square, so over 4 participants each condition opens once
+    conds = d["conditions"]
+    assert len(conds) == 4
+    for p, entry in d["participants"].items():
+        assert sorted(t["stimulus"] for t in entry["trials"]) == sorted(d["stimuli"])
+        assert sum(t["attention"] for t in entry["trials"]) == 2
+    firsts = [d["participants"][str(p)]["trials"][0]["condition"] for p in range(1, 5)]
+    assert sorted(firsts) == sorted(conds)
+
+
+def test_bad_posts_get_4xx_are_logged_and_never_stored(study, tmp_path):
+    d = design_of(study)
+    srv = Served(study, tmp_path / "r.sqlite")
+    try:
+        entry = d["participants"]["1"]
+        t1 = entry["trials"][0]
+        good = {"participant": 1, "session": "s-1", "trial": 1, "stimulus": t1["stimulus"],
+                "answers": {q["id"]: 5 for q in d["questions"]} | ({"attention": 2} if t1["attention"] else {}),
+                "rt_ms": 1200}
+        bad = [
+            ({**good, "stimulus": "nope.mp4"}, 422),                                   # unknown stimulus
+            ({**good, "stimulus": entry["trials"][1]["stimulus"]}, 422),               # not this trial's
+            ({**good, "answers": {**good["answers"], "naturalness": 8}}, 422),         # out of the 7 points
+            ({**good, "answers": {**good["answers"], "naturalness": 2.5}}, 422),       # not a Likert point
+            ({**good, "answers": {"naturalness": 3}}, 422),                            # a question missing
+            ({**good, "participant": 99}, 422),                                        # not in the design
+            ({**good, "trial": 99}, 422),                                              # no such trial
+            ({**good, "session": "x" * 200}, 422),
+            ({**good, "extra": 1}, 422),                                               # a field we do not know
+        ]
+        codes = [srv.post("/api/response", body)[0] for body, _ in bad]
+        assert codes == [c for _, c in bad]
+        assert srv.post("/api/response", None, raw=b"{not json")[0] == 400
+        assert srv.post("/api/response", None, raw=b"[1, 2]")[0] == 400
+        assert srv.post("/api/response", good, content_type="text/plain")[0] == 415
+        assert srv.oversized("/api/response", 2 << 20) == 413                             # oversized body
+        assert srv.post("/api/nothing", good)[0] == 404
+        assert srv.rows() == []
+        log = (tmp_path / "r.sqlite.rejected.log").read_text().splitlines()
+        assert len(log) == len(bad) + 5 and all(json.loads(line)["status"] >= 400 for line in log)
+        # the good one is stored once; the same trial again is refused (a forged or replayed post)
+        assert srv.post("/api/response", good)[0] == 201
+        assert srv.post("/api/response", good)[0] == 409
+        stored = srv.rows()
+        assert len(stored) == len(good["answers"])
+        assert {(r[2], r[3]) for r in stored} == {(q, float(v)) for q, v in good["answers"].items()}
+    finally:
+        srv.close()
+
+
+def test_simulated_participants_in_chromium_and_the_planted_effect_recovered(study, tmp_path):
+    """4 participants to the end (2 with the keyboard only, 2 with the mouse) and one who closes the tab
+    after 3 trials, all at once; then the database holds exactly what they answered and the analysis
+    finds laugh_energy - smile_only = +1 within its 95% CI."""
+    from laughlab.study import simulate as S
+
+    d = design_of(study)
+    srv = Served(study, tmp_path / "responses.sqlite")
+    try:
+        answer = S.planted(d, {"laugh_energy": PLANTED}, seed=3)
+        given = S.run_sync(srv.url, d, [1, 2, 3, 4, 5], answer, stop_after={5: 3})
+    finally:
+        srv.close()
+    for p in (1, 2, 3, 4):
+        assert given[p].saved is True
+        assert len({t for t, _ in given[p].answers}) == len(d["participants"][str(p)]["trials"])
+    stored = {(r[0], r[1], r[2]): r[3] for r in srv.rows() if r[4] in ("rating", "attention")}
+    asked = {(p, t, q): v for p, g in given.items() for (t, q), v in g.answers.items()}
+    assert stored == asked  # exactly the answers given: none lost, none mixed between participants
+    assert {t for (p, t, _) in stored if p == 5} == {1, 2, 3}  # the closed tab lost nothing answered
+    checks = [r for r in srv.rows() if r[4] == "audio_check"]
+    assert sorted(r[0] for r in checks) == [1, 2, 3, 4, 5] and all(r[3] == 1.0 for r in checks)
+
+    out = fuzz.run_cli(["study", "analyze", str(tmp_path / "responses.sqlite")])
+    assert out.code == 0, out.stderr
+    report = tmp_path / "responses-report"
+    for name in ("README.md", "tidy.csv", "exclusions.csv", "means.csv", "contrasts.csv", "fig_means.png",
+                 "fig_participants.png"):
+        assert (report / name).stat().st_size > 0, name
+    with open(report / "contrasts.csv") as f:
+        rows = list(csv.DictReader(f))
+    found = 0
+    for r in rows:
+        a, b = r["a"], r["b"]
+        if {a, b} == {"laugh_energy", "smile_only"}:
+            sign = 1.0 if a == "laugh_energy" else -1.0
+            est, lo, hi = (float(r[k]) for k in ("estimate", "ci_low", "ci_high"))
+            assert sign * est > 0.3, r
+            assert lo <= sign * PLANTED <= hi, r  # the planted size, within the 95% CI
+            found += 1
+    assert found == len(d["questions"])
+    with open(report / "tidy.csv") as f:
+        tidy = list(csv.DictReader(f))
+    assert len({row["participant"] for row in tidy}) == 5
+
+
+def test_every_study_command_fails_in_one_line(study, tmp_path):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("this,is\nnot,answers\n")
+    cases = [["study", "build", str(tmp_path / "missing")],
+             ["study", "serve", str(tmp_path)],
+             ["study", "analyze", str(tmp_path / "missing.sqlite")],
+             ["study", "analyze", str(bad)],
+             ["study", "power", str(study), "--contrast", "laugh_energy:nope", "--effect", "1"],
+             ["study", "power", str(study), "--contrast", "laugh_energy", "--effect", "1"],
+             ["study", "simulate", str(study), "--participants", "0"],
+             ["study", "build", str(study.with_name("stim")), "--out", str(study)]]  # would overwrite answers
+    for argv in cases:
+        out = fuzz.run_cli(argv)
+        assert out.code == 2, (argv, out)
+        assert out.stderr.count("\n") == 1 and out.stderr.startswith("laughlab: error: "), (argv, out.stderr)
+        assert "Traceback" not in out.stderr
+
+
+def test_power_by_simulation_grows_with_participants_and_repeats_from_its_seed(study):
+    """With 2 stimuli per condition and the default variances (participant SD 0.8, stimulus 0.3, residual
+    1.2), a 2-point effect is found almost always with 16 participants and less often with 4; no effect is
+    'found' about as often as alpha (Holm over the 6 pairs keeps it below)."""
+    from laughlab.study import power as W
+
+    d = design_of(study)
+    run = lambda: W.power(d, ("laugh_energy", "smile_only"), 2.0, [4, 16], sims=20, seed=5)  # noqa: E731
+    first = run()
+    assert first == run()  # same seed, same numbers
+    assert [r["n"] for r in first] == [4, 16]
+    assert first[1]["power"] >= 0.8 and first[1]["power"] > first[0]["power"]
+    assert all(r["ci_low"] <= r["power"] <= r["ci_high"] for r in first)
+    none = W.power(d, ("laugh_energy", "smile_only"), 0.0, [16], sims=20, seed=5)
+    assert none[0]["power"] <= 0.2
+
+
+def test_on_a_static_host_the_page_keeps_the_answers_and_its_csv_is_analysed(study, tmp_path):
+    """Pavlovia or any static host: no /api, so the page keeps the answers in the browser and offers
+    them as CSV; ``study analyze FOLDER --design STUDY`` reads those files."""
+    from laughlab.study import simulate as S
+    from laughlab.study.server import files_of
+    from laughlab.viewer.server import http_server
+
+    d = design_of(study)
+    httpd = http_server(files_of(study), 0)  # plain files: POSTs get 501, as on a static host
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    try:
+        given = S.run_sync(f"http://127.0.0.1:{httpd.server_address[1]}", d, [6, 7],
+                           S.planted(d, {"laugh_energy": PLANTED}, seed=4))
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+    folder = tmp_path / "downloads"
+    folder.mkdir()
+    for p, g in given.items():
+        assert g.saved is False  # the end page says the answers are not on a server: download them
+        (folder / f"participant_{p:03d}_answers.csv").write_text(g.csv)
+        rows = list(csv.DictReader(g.csv.splitlines()))
+        ratings = {(int(r["trial"]), r["question"]): float(r["value"]) for r in rows if r["kind"] != "audio_check"}
+        assert ratings == g.answers
+    out = fuzz.run_cli(["study", "analyze", str(folder), "--design", str(study), "--out", str(tmp_path / "rep")])
+    assert out.code == 0, out.stderr
+    with open(tmp_path / "rep" / "tidy.csv") as f:
+        assert {r["participant"] for r in csv.DictReader(f)} == {"6", "7"}
