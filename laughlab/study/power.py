@@ -59,12 +59,14 @@ def detected(df, conditions: list[str], a: str, b: str, alpha: float) -> bool:
 
 
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """The 95 % Wilson score interval of ``k`` successes in ``n`` trials."""
     if n == 0:
         return 0.0, 1.0
     p = k / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+    # (at k = 0 or k = n the bound is exactly 0 or 1; rounding would leave it just inside)
+    return (0.0 if k == 0 else max(0.0, centre - half)), (1.0 if k == n else min(1.0, centre + half))
 
 
 def pilot_variance(report_dir: Path, question: str | None) -> tuple[dict, float, str]:
