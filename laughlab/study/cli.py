@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, one_line_parser
 
 EPILOG = """\
 from stimuli to a report:
@@ -30,7 +30,7 @@ def _ints(text: str) -> list[int]:
 def parser() -> argparse.ArgumentParser:
     from laughlab.viewer.server import DEFAULT_PORT
 
-    p = argparse.ArgumentParser(prog="python -m laughlab study", epilog=EPILOG,
+    p = one_line_parser(prog="python -m laughlab study", epilog=EPILOG,
                                 formatter_class=argparse.RawDescriptionHelpFormatter,
                                 description="Run the perception study of experiment=stimuli: a jsPsych page, "
                                             "responses in SQLite, a mixed-model report, power by simulation.")
