@@ -17,7 +17,7 @@ from pathlib import Path
 from laughlab.core import interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, compose_config, conf_dir,  # noqa: F401
                                   group_options, register_plugin_configs)
-from laughlab.core.errors import LaughlabError, one_line_parser
+from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
 
 
 #: the run directory this process holds (laughlab.core.rundir), from before Hydra writes into it to the end
@@ -165,29 +165,32 @@ def task(cfg) -> dict:
     except LaughlabError as exc:
         _remove_new_run_dir(out_dir)
         fail(str(exc))
-    except KeyboardInterrupt:
-        fail(_stopped(cfg, out_dir, "interrupted"), code=130)
-    except OSError as exc:  # a full disk, a file size limit, a folder that went away: the file system's fault
-        if interrupts.received:
-            fail(_stopped(cfg, out_dir, "interrupted"), code=130)
-        fail(_stopped(cfg, out_dir, os_error_line(exc, out_dir)))
-    except Exception as exc:
-        if not interrupts.interrupted(exc):  # a bug: its traceback is what a report needs
-            raise
-        fail(_stopped(cfg, out_dir, "interrupted"), code=130)
+    except (KeyboardInterrupt, Exception) as exc:
+        what, code = _fault(exc, out_dir)
+        fail(_stopped(cfg, out_dir, what), code=code)
     finally:
         if _CLAIM is not None:
             _CLAIM.release()
             _CLAIM = None
 
 
+def _fault(exc: BaseException, where: Path | str) -> tuple[str, int]:
+    """What a run stopped by ``exc`` says, and its exit status: an interrupt (or anything after one) 130, a
+    file-system fault (a full disk, a file size limit, a folder that went away) 2.  Anything else is a bug,
+    re-raised: its traceback is what a report needs."""
+    if interrupts.interrupted(exc):
+        return "interrupted", 130
+    if isinstance(exc, OSError):
+        return os_error_line(exc, where), 2
+    raise exc
+
+
 def os_error_line(exc: OSError, where: Path | str, verb: str = "cannot write") -> str:
-    """One line for a file-system fault: the path (the file if known, else ``where``, cut to 200
-    characters) and the cause."""
+    """One line for a file-system fault: the path (the file if known, else ``where``; :func:`shown_path`)
+    and the cause."""
     import errno
 
-    path = str(exc.filename or where)
-    path = path if len(path) <= 200 else f"{path[:100]}...{path[-40:]} ({len(path)} characters)"
+    path = shown_path(exc.filename or where)
     cause = exc.strerror or type(exc).__name__
     hint = {errno.EFBIG: " (a file size limit: ulimit -f)", errno.ENOSPC: " (the disk is full)",
             errno.EDQUOT: " (the disk quota is used up)", errno.EROFS: " (a read-only file system)"}.get(exc.errno, "")
@@ -374,8 +377,6 @@ def help_text() -> str:
 
 def main(argv: list[str] | None = None) -> None:
     """The command line; a Ctrl-C or SIGTERM at any moment ends in one line and exit 130."""
-    from laughlab.core import interrupts
-
     interrupts.install()  # SIGTERM cleans up as Ctrl-C does
     try:
         _main(list(sys.argv[1:] if argv is None else argv))
@@ -443,15 +444,12 @@ def _main(argv: list[str]) -> None:
         try:
             run_composed(cfg)
         except (KeyboardInterrupt, Exception) as exc:  # outside the task: Hydra writing .hydra/, say
-            if not (isinstance(exc, OSError) or interrupts.interrupted(exc)):
-                raise
-            stop = interrupts.interrupted(exc)
-            what = "interrupted" if stop else os_error_line(exc, cfg.hydra.run.dir)
+            what, code = _fault(exc, cfg.hydra.run.dir)
             if _CLAIM is not None:  # the task had not finished: clean up as it would have
                 what = _stopped(cfg, Path(cfg.hydra.run.dir), what)
                 _CLAIM.release()
                 _CLAIM = None
-            fail(what, code=130 if stop else 2)
+            fail(what, code=code)
         return
     import hydra
 

@@ -32,8 +32,6 @@ WARM = ("numpy", "laughlab.render.plots")
 _HELPER: "Helper | None" = None
 #: True inside the helper process
 IN_HELPER = False
-#: signals that stop a run: the main process handles them (KeyboardInterrupt), the helper ignores them
-_STOP_SIGNALS = set(STOP_SIGNALS)
 
 
 def enabled() -> bool:
@@ -88,7 +86,7 @@ class Helper:
         self.proc = ctx.Process(target=_serve, args=(child, self.conn), daemon=True, name="laughlab-sinks")
         # Ctrl-C and SIGTERM are for the main process, which aborts us: the helper ignores them, and they
         # stay blocked across the fork so that one arriving before it can say so does not reach it either
-        held = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+        held = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
         try:
             self.proc.start()
         finally:
@@ -185,9 +183,9 @@ def _serve(conn, parent_end) -> None:
     global IN_HELPER
     IN_HELPER = True
     parent_end.close()
-    for sig in _STOP_SIGNALS:  # Ctrl-C and SIGTERM reach the main process, which aborts us
+    for sig in STOP_SIGNALS:  # Ctrl-C and SIGTERM reach the main process, which aborts us
         signal.signal(sig, signal.SIG_IGN)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
     for name in WARM:
         try:
             __import__(name)

@@ -9,6 +9,13 @@ class LaughlabError(Exception):
     """
 
 
+def shown_path(path, limit: int = 200) -> str:
+    """``path`` as an error line shows it: whole up to ``limit`` characters, else its start, its last 40
+    characters and its length (a 3000-character path would bury the cause)."""
+    text = str(path)
+    return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-40:]} ({len(text)} characters)"
+
+
 def one_line_parser(**kwargs):
     """An ``argparse.ArgumentParser`` whose usage errors are a :class:`LaughlabError` (one line, exit 2),
     not argparse's usage block; ``--help`` is unchanged."""

@@ -22,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from laughlab.core import hookspecs
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, shown_path
 
 hookimpl = pluggy.HookimplMarker("laughlab")
 
@@ -180,10 +180,10 @@ def make_params(cls: type, values: Any, where: str) -> Any:
 
 
 def _path_error(exc: OSError, where: str) -> LaughlabError:
-    """One line for a path parameter the system refuses: the path (cut to 80 characters) and the cause."""
-    name = str(exc.filename)
-    name = name if len(name) <= 80 else f"{name[:40]}...({len(name)} characters)"
-    return LaughlabError(f"bad parameter in {where}: cannot use {name}: {exc.strerror or exc}")
+    """One line for a path parameter the system refuses: the path (:func:`shown_path`, 80 characters) and
+    the cause."""
+    return LaughlabError(f"bad parameter in {where}: cannot use {shown_path(exc.filename, 80)}: "
+                         f"{exc.strerror or exc}")
 
 
 @functools.lru_cache(maxsize=None)

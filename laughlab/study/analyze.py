@@ -137,18 +137,18 @@ def exclusions(df, rules: dict, slider_range: float | None = None) -> dict[int, 
 def condition_means(tidy, conditions: list[str]):
     """Per question and condition: the participants' means' mean, SD, n and 95 % t interval."""
     import pandas as pd
-    from scipy import stats
+
+    from laughlab.harness.results import mean_ci
 
     rows = []
     pm = tidy.groupby(["question", "condition", "participant"], observed=True)["value"].mean().reset_index()
     for (q, c), g in pm.groupby(["question", "condition"], observed=True):
-        x = g["value"].to_numpy(float)
-        n, m = len(x), float(x.mean())
-        sd = float(x.std(ddof=1)) if n > 1 else float("nan")
-        half = float(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n)) if n > 1 else float("nan")
-        rows.append({"question": q, "condition": c, "mean": m, "sd": sd, "n_participants": n,
+        s = mean_ci(g["value"].to_numpy(float))
+        # one participant: no spread and no interval (mean_ci would give sd 0 and [m, m])
+        sd, lo, hi = (s["std"], *s["ci95"]) if s["n"] > 1 else (float("nan"),) * 3
+        rows.append({"question": q, "condition": c, "mean": s["mean"], "sd": sd, "n_participants": s["n"],
                      "n_ratings": int((tidy["question"].eq(q) & tidy["condition"].eq(c)).sum()),
-                     "ci_low": m - half, "ci_high": m + half})
+                     "ci_low": lo, "ci_high": hi})
     out = pd.DataFrame(rows)
     if not out.empty:
         out["condition"] = pd.Categorical(out["condition"], [c for c in conditions if c in set(out["condition"])])
