@@ -3,14 +3,33 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+#: exact versions, with hashes, of everything the venv holds (made by `make lock` with uv)
+LOCK := requirements.lock
+UV_VERSION := 0.13.9
 
-.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three
+.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three lock lock-upgrade
 
-$(STAMP): pyproject.toml
+## the venv: built afresh from the lock whenever the lock or pyproject.toml changes, so it holds exactly
+## the locked versions (hash-checked) and nothing else; laughlab itself installed editable on top
+$(STAMP): pyproject.toml $(LOCK)
+	rm -rf $(VENV)
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet --disable-pip-version-check --require-hashes --no-deps -r $(LOCK)
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
+	$(PY) -m pip check --disable-pip-version-check >/dev/null
 	touch $(STAMP)
+
+## lock: write requirements.lock from pyproject.toml ('.[test]' plus the build requirements) with uv,
+## keeping the versions already locked; lock-upgrade moves every package to its newest release
+LOCK_CMD = $(VENV)-lock/bin/uv pip compile pyproject.toml requirements-build.in --extra test --universal \
+	--python-version 3.11 --generate-hashes --quiet --custom-compile-command 'make lock' -o $(LOCK)
+$(VENV)-lock/bin/uv:
+	$(PYTHON) -m venv $(VENV)-lock
+	$(VENV)-lock/bin/python -m pip install --quiet --disable-pip-version-check uv==$(UV_VERSION)
+lock: $(VENV)-lock/bin/uv
+	$(LOCK_CMD)
+lock-upgrade: $(VENV)-lock/bin/uv
+	$(LOCK_CMD) --upgrade
 
 ## demo: run the default pipeline on the built-in synthetic laughter into runs/demo
 demo: $(STAMP)
@@ -63,7 +82,7 @@ clips: $(STAMP)
 	$(PY) -m laughlab_plugins.clips.author
 
 clean:
-	rm -rf $(VENV) runs outputs multirun .pytest_cache .hypothesis
+	rm -rf $(VENV) $(VENV)-lock runs outputs multirun .pytest_cache .hypothesis
 
 ## docs: regenerate the README's pictures from a fixed run (seed 0, 30 s of synthetic laughter)
 docs: $(STAMP) browser

@@ -29,7 +29,13 @@ def lib():
 
 
 def pytest_terminal_summary(terminalreporter):
-    """The fuzz suite's case count (tests/test_fuzz.py), so CI's log says how many cases it tried."""
+    """The fuzz suite's case count (tests/test_fuzz.py), so CI's log says how many cases it tried, and
+    which check the golden runs made (tests/test_golden.py: exact bytes or values within a tolerance)."""
+    golden = __import__("sys").modules.get("test_golden")
+    if golden is not None:
+        terminalreporter.write_line("golden: " + ("exact bytes (the locked environment)" if golden.EXACT else
+                                                  f"values within rtol {golden.RTOL:g}, atol {golden.ATOL:g} "
+                                                  f"(not the locked environment: {golden.WHY})"))
     fuzz = __import__("sys").modules.get("fuzz")
     counts = getattr(fuzz, "COUNTS", None)
     if counts:
