@@ -44,20 +44,29 @@ corpus: $(STAMP)
 detector: corpus
 	$(PY) -m laughlab.detector.fit
 
-## test: the default test suite (slow end-to-end checks excluded); the real corpus and the browser come first
+## test: the default test suite (slow end-to-end checks excluded), with the 25 slowest tests listed at
+## the end; the real corpus and the browser come first.  BROWSER=no skips Chromium and its tests
+BROWSER ?= yes
+PYTEST_BROWSER := $(if $(filter no,$(BROWSER)),-m 'not slow and not browser',)
 test: $(STAMP) corpus browser
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadfile --durations=25 $(PYTEST_BROWSER)
 
 ## test-all: every test, the slow ones too
 test-all: $(STAMP) corpus browser
-	$(PY) -m pytest -q -m ''
+	$(PY) -m pytest -q -n auto --dist loadfile --durations=25 -m '$(if $(filter no,$(BROWSER)),not browser,)'
 
-## browser: Debian's chromium for the viewer's test (headless; installed with apt when missing and we may)
+## browser: Debian's chromium for the viewer's and the study's tests (headless), installed with apt when
+## missing, after saying so
 browser:
+ifeq ($(BROWSER),no)
+	@echo "laughlab: BROWSER=no: Chromium is not installed and the browser tests are skipped"
+else
 	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
-	  { if [ "$$(id -u)" = 0 ]; then apt-get update -q && apt-get install -y -q chromium; \
+	  { echo "laughlab: installing Debian's chromium with apt-get (about 130 packages, 480 MB, system-wide, as root) for the viewer and study tests; to skip them: make test BROWSER=no"; \
+	    if [ "$$(id -u)" = 0 ]; then apt-get update -q && apt-get install -y -q chromium; \
 	    elif command -v sudo >/dev/null 2>&1; then sudo apt-get update -q && sudo apt-get install -y -q chromium; \
-	    else echo "laughlab: error: the viewer test needs chromium: apt-get install chromium" >&2; exit 2; fi; }
+	    else echo "laughlab: error: the browser tests need chromium: apt-get install chromium, or make test BROWSER=no" >&2; exit 2; fi; }
+endif
 
 ## vendor-three: (maintainers) copy three.js 0.160.0 from the npm registry into laughlab/viewer/vendor/three
 vendor-three: $(STAMP)

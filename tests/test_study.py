@@ -147,6 +147,7 @@ def test_bad_posts_get_4xx_are_logged_and_never_stored(study, tmp_path):
         srv.close()
 
 
+@pytest.mark.browser
 def test_simulated_participants_in_chromium_and_the_planted_effect_recovered(study, tmp_path):
     """4 participants to the end (2 with the keyboard only, 2 with the mouse) and one who closes the tab
     after 3 trials, all at once; then the database holds exactly what they answered and the analysis
@@ -231,6 +232,7 @@ def test_power_by_simulation_grows_with_participants_and_repeats_from_its_seed(s
     assert none[0]["power"] <= 0.2
 
 
+@pytest.mark.browser
 def test_on_a_static_host_the_page_keeps_the_answers_and_its_csv_is_analysed(study, tmp_path):
     """Pavlovia or any static host: no /api, so the page keeps the answers in the browser and offers
     them as CSV; ``study analyze FOLDER --design STUDY`` reads those files."""

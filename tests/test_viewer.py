@@ -35,11 +35,13 @@ def page(run_dir):
     httpd.shutdown()
 
 
+@pytest.mark.browser
 def test_the_page_loads_without_console_errors(page):
     assert page.eval("window.laughlab.error") is None
     assert page.problems() == []
 
 
+@pytest.mark.browser
 @pytest.mark.parametrize("t", [2.5, 0.4, 5.25])
 def test_the_animation_follows_the_audio_clock_within_a_frame_after_a_seek(page, t):
     got = page.eval(f"window.laughlab.check({t})")
@@ -47,6 +49,7 @@ def test_the_animation_follows_the_audio_clock_within_a_frame_after_a_seek(page,
     assert abs(got["anim"] - got["audio"]) <= 1.0 / got["fps"]
 
 
+@pytest.mark.browser
 def test_a_screenshot_shows_the_character(page):
     from PIL import Image
 
