@@ -260,15 +260,18 @@ def report_command(args: list[str]) -> None:
     from laughlab.harness.report import write_report
 
     parser = one_line_parser(prog="python -m laughlab report",
-                                     description="Write reports/<experiment>/README.md from a run or sweep folder.")
+                                     description="Write a Markdown report with figures (README.md) from a run or sweep "
+                                                 "folder, into RUN_DIR/report/ or --out DIR.")
     parser.add_argument("run_dir", help="an experiment's run folder (results.json) or a multirun sweep folder")
-    parser.add_argument("--out", help="report folder (default: reports/<experiment>)")
+    parser.add_argument("--out", help="report folder (default: RUN_DIR/report; the committed reports: "
+                                         "--out reports/<experiment>)")
     ns = parser.parse_args(args)
     command = "python -m laughlab report " + " ".join(args)
     try:
         path = write_report(ns.run_dir, ns.out, command)
     except OSError as exc:
-        raise LaughlabError(os_error_line(exc, ns.out or "reports/") + "; no report was written") from None
+        raise LaughlabError(os_error_line(exc, ns.out or Path(ns.run_dir) / "report")
+                            + "; no report was written") from None
     print(f"report written: {path}")
 
 
