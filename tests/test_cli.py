@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import soundfile as sf
+from omegaconf import OmegaConf
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -115,6 +116,47 @@ def test_bad_input_one_line_no_output(bad_files, args, message):
     r = laughlab(*args, f"hydra.run.dir={out}", cwd=bad_files)
     assert message in one_line_error(r)
     assert not out.exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["scheduler.mode=fast"],
+     "laughlab: error: scheduler.mode is a parameter of scheduler=concat, not of scheduler=energy: add scheduler=concat"),
+    (["input.path=laugh.wav"],
+     "laughlab: error: input.path is a parameter of input=file, not of input=synthetic: add input=file"),
+])
+def test_a_parameter_of_another_plugin_says_what_to_add(tmp_path, args, message):
+    """Issue 26: the two errors that were clear but left the user stuck."""
+    r = laughlab(*args, f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 2 and r.stderr.strip() == message and r.stdout == ""
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["+scheduler.mode=fast"], "scheduler.mode is a parameter of scheduler=concat, not of scheduler=energy: "
+                               "add scheduler=concat"),       # added with +: caught by the plugin's Params
+    (["scheduler=none", "scheduler.mode=fast"],                # chosen explicitly: switch, not add
+     "scheduler.mode is a parameter of scheduler=concat, not of scheduler=none: use scheduler=concat instead"),
+    (["input=file", "input.profile=mild"],
+     "input.profile is a parameter of input=synthetic, not of input=file: use input=synthetic instead"),
+    (["output.video.fps=10"], "output.video.fps is a parameter of output=video, not of output=files: add output=video"),
+    (["body.preset=deep_laugh"], "body.preset is a parameter of body=hill, not of body=shapes: add body=hill"),
+    (["mode=fast"], "there is no top-level parameter mode; scheduler=concat has scheduler.mode: "
+                    "write scheduler=concat scheduler.mode=fast"),
+    (["scheduler=concat", "mode=optimal"], "there is no top-level parameter mode; did you mean scheduler.mode=optimal?"),
+    (["video.fps=10"], "there is no top-level parameter video.fps; output=video has output.video.fps: "
+                       "write output=video output.video.fps=10"),
+    (["face.bogus=1"], "unknown parameter face.bogus; valid: smile, jaw, blink_mean_s"),   # no plugin has it
+    (["bogus=1"], "unknown parameter bogus"),
+])
+def test_an_unknown_key_names_the_plugins_that_have_it(args, message):
+    from laughlab.core import pipeline
+    from laughlab.core.config import compose_config
+    from laughlab.core.errors import LaughlabError
+
+    with pytest.raises(LaughlabError) as err:
+        cfg = compose_config(args)
+        pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")]))
+    assert str(err.value).startswith(message)
 
 
 def test_failure_during_the_run_leaves_nothing(tmp_path):
