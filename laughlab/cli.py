@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from laughlab.core import interrupts
+from laughlab.core import clock, interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, compose_config, conf_dir,  # noqa: F401
                                   group_options, register_plugin_configs)
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
@@ -22,6 +22,9 @@ from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
 
 #: the run directory this process holds (laughlab.core.rundir), from before Hydra writes into it to the end
 _CLAIM = None
+#: when the command started (time.monotonic()): the process' start for ``python -m laughlab``; None in a sweep
+#: (each job's summary times the job)
+_STARTED: float | None = None
 _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--version",
                 "--shell-completion", "-sc", "--resolve", "--package", "-p", "--config-path", "-cp",
                 "--config-name", "-cn", "--config-dir", "-cd", "--experimental-rerun"}
@@ -135,7 +138,7 @@ def task(cfg) -> dict:
     from laughlab.core import rundir
 
     out_dir = Path(HydraConfig.get().runtime.output_dir)
-    t0 = time.perf_counter()
+    t0 = time.monotonic() if _STARTED is None else _STARTED
     cfg_hash = config_hash(cfg)
     try:
         if _CLAIM is None:  # a sweep's job: Hydra made the folder and wrote .hydra/ into it
@@ -154,13 +157,14 @@ def task(cfg) -> dict:
                 return doc
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
             _CLAIM.finish(cfg_hash)
-            print(f"{doc['experiment']}: {doc['n_trials']} trials -> {out_dir / 'results.json'}; "
+            print(f"{doc['experiment']}: {doc['n_trials']} trials in {_seconds(time.monotonic() - t0)} -> "
+                  f"{out_dir / 'results.json'}; "
                   f"report: python -m laughlab report {out_dir}")
             return doc
         pipe = pipeline.build(cfg)
         metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
         _CLAIM.finish(cfg_hash)
-        print(summary_line(cfg, metrics, out_dir, time.perf_counter() - t0))
+        print(summary_line(cfg, metrics, out_dir, time.monotonic() - t0))
         return metrics
     except LaughlabError as exc:
         _remove_new_run_dir(out_dir)
@@ -211,21 +215,63 @@ def config_hash(cfg) -> str:
 
 
 def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:
-    """One line on success: what ran on what, how long (the run, and the frame loop's speed), where.
+    """One line on success: what ran on what, how long the command took, its speed, where its files are.
 
-    e.g. ``laughlab: 30.0 s of synthetic input, rms > none > smile > shapes > energy, in 1.1 s
-    (frame loop 219x real time) -> runs/demo/: channels.csv, events.csv, motion.bvh, plots/``
+    ``seconds``: the wall time from the process' start (:mod:`laughlab.core.clock`), the time the user
+    waited.  The speed is the one that means something for the run's output (:func:`speed`).
+    e.g. ``laughlab: 30.0 s of synthetic input, rms > none > smile > shapes > energy, in 3.4 s
+    (8.8x real time; frame loop 219x) -> runs/demo/: channels.csv, events.csv, motion.bvh, plots/``
     """
     src = cfg.input.name
     what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
     chain = " > ".join(str(cfg[g].name) for g in ("extractor", "detector", "face", "body", "scheduler")
                        if g in cfg and cfg[g] is not None and "name" in cfg[g])
     dur = float(metrics.get("duration_s") or 0.0)
-    rtf = metrics.get("realtime_factor")
-    speed = f" (frame loop {float(rtf):.0f}x real time)" if rtf else ""
     files = sorted(p.name + ("/" if p.is_dir() else "") for p in Path(out_dir).iterdir()
                    if not p.name.startswith("."))
-    return f"laughlab: {dur:.1f} s of {what}, {chain}, in {seconds:.1f} s{speed} -> {out_dir}/: {', '.join(files)}"
+    return (f"laughlab: {dur:.1f} s of {what}, {chain}, in {_seconds(seconds)} ({speed(cfg, metrics, seconds)}) "
+            f"-> {out_dir}/: {', '.join(files)}")
+
+
+def speed(cfg, metrics: dict, seconds: float) -> str:
+    """How fast the run went, in the terms of its output.
+
+    - a live input (the microphone): it runs at the speed of the sound, so the compute per frame against the
+      frame's time;
+    - a stream paced at the frame clock (``output=vmc`` on a file): real time by design;
+    - otherwise the whole command's real-time factor (audio seconds per second waited), then the frame loop's
+      (``metrics.json``: ``realtime_factor``, the plugins and the writers), and for a video its rendered
+      frames per second, the part that takes the time.
+    """
+    fps = float(metrics.get("fps") or cfg.get("fps") or 60.0)
+    if str(cfg.input.name) == "mic":
+        p99 = metrics.get("frame_ms_p99")
+        return f"live; compute per frame p99 {float(p99):.2f} ms of {1000 / fps:.1f} ms" if p99 is not None else "live"
+    vmc = (cfg.get("output") or {}).get("vmc")
+    if vmc is not None and str(vmc.get("realtime", "auto")) in ("auto", "on"):
+        return "paced at the frame clock for the vmc stream"
+    dur = float(metrics.get("duration_s") or 0.0)
+    parts = [f"{_factor(dur / seconds)}x real time" if seconds > 0 else "instant"]
+    if metrics.get("video_frames"):
+        rate = metrics.get("video_render_fps")
+        parts.append(f"video: {int(metrics['video_frames'])} frames rendered at {float(rate):.1f} frames/s"
+                     if rate is not None and rate == rate else f"video: {int(metrics['video_frames'])} frames")
+    elif metrics.get("realtime_factor"):
+        parts.append(f"frame loop {_factor(float(metrics['realtime_factor']))}x")
+    return "; ".join(parts)
+
+
+def _factor(x: float) -> str:
+    """A speed factor with two significant digits below 10 (0.091, 0.15, 8.8), whole above (219)."""
+    return f"{x:.0f}" if x >= 10 else f"{x:.1f}" if x >= 1 else f"{x:.2g}"
+
+
+def _seconds(s: float) -> str:
+    """A duration as a person reads it: 3.4 s, 2 min 05 s, 1 h 02 min."""
+    if s < 60:
+        return f"{s:.1f} s"
+    m = int(round(s)) // 60
+    return f"{m} min {int(round(s)) % 60:02d} s" if m < 60 else f"{m // 60} h {m % 60:02d} min"
 
 
 def _stopped(cfg, out_dir: Path, what: str) -> str:
@@ -380,7 +426,9 @@ def help_text() -> str:
 
 def main(argv: list[str] | None = None) -> None:
     """The command line; a Ctrl-C or SIGTERM at any moment ends in one line and exit 130."""
+    global _STARTED
     interrupts.install()  # SIGTERM cleans up as Ctrl-C does
+    _STARTED = clock.process_start() if argv is None else time.monotonic()  # argv given: called in-process
     try:
         _main(list(sys.argv[1:] if argv is None else argv))
     except SystemExit:
@@ -421,6 +469,9 @@ def _main(argv: list[str]) -> None:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return
     multirun = any(a in ("-m", "--multirun") for a in argv)
+    if multirun:
+        global _STARTED
+        _STARTED = None
     hydra_only = any(a.split("=")[0] in _HYDRA_FLAGS for a in argv)
     if not multirun and not hydra_only and "input=mic" not in argv:
         from laughlab.core import background
