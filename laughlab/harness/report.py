@@ -141,6 +141,9 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              "- conditions: " + "; ".join(f"**{c}** `{' '.join(o)}`" for c, o in doc["conditions"].items()),
              *[f"- skipped corpus file (harness.corpus.on_bad=skip): `{s['file']}`: {s['reason']}"
                for s in doc["corpus"].get("skipped", [])],
+             *([f"- **without the real recordings**: the real corpus was not fetched, so its sets "
+                f"({', '.join(doc['corpus']['not_fetched'])}) were left out; `python -m laughlab corpus fetch` "
+                "adds them"] if doc["corpus"].get("not_fetched") else []),
              "", "## Results", "",
              "Mean over trials with its 95% confidence interval (t distribution). ↑ higher is better, "
              "↓ lower is better; the better condition is in bold. "
