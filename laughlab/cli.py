@@ -18,6 +18,7 @@ from laughlab.core import clock, interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, compose_config, conf_dir,  # noqa: F401
                                   group_options, register_plugin_configs)
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
+from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
 
 #: the run directory this process holds (laughlab.core.rundir), from before Hydra writes into it to the end
@@ -157,7 +158,7 @@ def task(cfg) -> dict:
                 return doc
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
             _CLAIM.finish(cfg_hash)
-            print(f"{doc['experiment']}: {doc['n_trials']} trials in {_seconds(time.monotonic() - t0)} -> "
+            print(f"{doc['experiment']}: {doc['n_trials']} trials in {duration_text(time.monotonic() - t0)} -> "
                   f"{out_dir / 'results.json'}; "
                   f"report: python -m laughlab report {out_dir}")
             return doc
@@ -212,66 +213,6 @@ def config_hash(cfg) -> str:
     for k in ("overwrite", "progress", "hydra"):
         doc.pop(k, None)
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
-
-
-def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:
-    """One line on success: what ran on what, how long the command took, its speed, where its files are.
-
-    ``seconds``: the wall time from the process' start (:mod:`laughlab.core.clock`), the time the user
-    waited.  The speed is the one that means something for the run's output (:func:`speed`).
-    e.g. ``laughlab: 30.0 s of synthetic input, rms > none > smile > shapes > energy, in 3.4 s
-    (8.8x real time; frame loop 219x) -> runs/demo/: channels.csv, events.csv, motion.bvh, plots/``
-    """
-    src = cfg.input.name
-    what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
-    chain = " > ".join(str(cfg[g].name) for g in ("extractor", "detector", "face", "body", "scheduler")
-                       if g in cfg and cfg[g] is not None and "name" in cfg[g])
-    dur = float(metrics.get("duration_s") or 0.0)
-    files = sorted(p.name + ("/" if p.is_dir() else "") for p in Path(out_dir).iterdir()
-                   if not p.name.startswith("."))
-    return (f"laughlab: {dur:.1f} s of {what}, {chain}, in {_seconds(seconds)} ({speed(cfg, metrics, seconds)}) "
-            f"-> {out_dir}/: {', '.join(files)}")
-
-
-def speed(cfg, metrics: dict, seconds: float) -> str:
-    """How fast the run went, in the terms of its output.
-
-    - a live input (the microphone): it runs at the speed of the sound, so the compute per frame against the
-      frame's time;
-    - a stream paced at the frame clock (``output=vmc`` on a file): real time by design;
-    - otherwise the whole command's real-time factor (audio seconds per second waited), then the frame loop's
-      (``metrics.json``: ``realtime_factor``, the plugins and the writers), and for a video its rendered
-      frames per second, the part that takes the time.
-    """
-    fps = float(metrics.get("fps") or cfg.get("fps") or 60.0)
-    if str(cfg.input.name) == "mic":
-        p99 = metrics.get("frame_ms_p99")
-        return f"live; compute per frame p99 {float(p99):.2f} ms of {1000 / fps:.1f} ms" if p99 is not None else "live"
-    vmc = (cfg.get("output") or {}).get("vmc")
-    if vmc is not None and str(vmc.get("realtime", "auto")) in ("auto", "on"):
-        return "paced at the frame clock for the vmc stream"
-    dur = float(metrics.get("duration_s") or 0.0)
-    parts = [f"{_factor(dur / seconds)}x real time" if seconds > 0 else "instant"]
-    if metrics.get("video_frames"):
-        rate = metrics.get("video_render_fps")
-        parts.append(f"video: {int(metrics['video_frames'])} frames rendered at {float(rate):.1f} frames/s"
-                     if rate is not None and rate == rate else f"video: {int(metrics['video_frames'])} frames")
-    elif metrics.get("realtime_factor"):
-        parts.append(f"frame loop {_factor(float(metrics['realtime_factor']))}x")
-    return "; ".join(parts)
-
-
-def _factor(x: float) -> str:
-    """A speed factor with two significant digits below 10 (0.091, 0.15, 8.8), whole above (219)."""
-    return f"{x:.0f}" if x >= 10 else f"{x:.1f}" if x >= 1 else f"{x:.2g}"
-
-
-def _seconds(s: float) -> str:
-    """A duration as a person reads it: 3.4 s, 2 min 05 s, 1 h 02 min."""
-    if s < 60:
-        return f"{s:.1f} s"
-    m = int(round(s)) // 60
-    return f"{m} min {int(round(s)) % 60:02d} s" if m < 60 else f"{m // 60} h {m % 60:02d} min"
 
 
 def _stopped(cfg, out_dir: Path, what: str) -> str:
@@ -334,8 +275,12 @@ def view_command(args: list[str]) -> None:
     parser.add_argument("--out", help="write the page and its files into this new folder instead of serving")
     ns = parser.parse_args(args)
     if ns.out:
-        print(f"laughlab: viewer of {ns.run_dir} written to {V.write(ns.run_dir, ns.out)}/ (serve it with any "
-              f"static web server, e.g. python -m http.server -d {ns.out})")
+        out, opens = V.write(ns.run_dir, ns.out)
+        serve = f"python -m http.server -d {out}"
+        print(f"laughlab: viewer of {ns.run_dir} written to {out}/: open {out / 'index.html'} in a browser, or put "
+              f"the folder on any web server (e.g. {serve})" if opens else
+              f"laughlab: viewer of {ns.run_dir} written to {out}/: too large to open as a file; serve the folder "
+              f"(e.g. {serve}) and open http://127.0.0.1:8000/")
         return
     httpd = V.server(ns.run_dir, ns.port)
     print(f"laughlab: viewing {ns.run_dir} at http://127.0.0.1:{httpd.server_address[1]}/ (Ctrl-C to stop)",

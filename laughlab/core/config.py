@@ -92,6 +92,21 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
     return lines[0] if lines else type(exc).__name__
 
 
+def _owners(group: str, path: str) -> list[str]:
+    """The options of ``group`` that have the parameter ``path`` (:mod:`laughlab.core.keyhints`)."""
+    from laughlab.core import keyhints
+
+    kind = GROUP_KINDS.get(group) if group != "output" else None
+    return keyhints.options_with(conf_dir().joinpath(group), kind, path)
+
+
+def misplaced_parameter(group: str, current: str, key: str, explicit: bool = False) -> str | None:
+    """``group.key`` is not a parameter of ``group=current``: the line naming the options that have it."""
+    from laughlab.core import keyhints
+
+    return keyhints.elsewhere(group, key, current, _owners(group, key), explicit)
+
+
 def _misplaced(key: str, overrides: list[str]) -> str | None:
     """An unknown ``key`` that another option of its group has (``scheduler.mode`` under scheduler=energy),
     or that a group has when given without the group (``mode=fast``): the line saying what to write."""
@@ -104,10 +119,11 @@ def _misplaced(key: str, overrides: list[str]) -> str | None:
     group, _, rest = key.partition(".")
     if group in GROUP_KINDS and rest:
         explicit = any(o.lstrip("+~").split("=", 1)[0] == group for o in overrides)
-        return keyhints.elsewhere(group, rest, choices.get(group), explicit)
+        return misplaced_parameter(group, choices.get(group), rest, explicit)
     if group not in GROUP_KINDS and group not in ("hydra", "harness", "experiment"):
         value = next((o.split("=", 1)[1] for o in overrides if o.lstrip("+~").split("=", 1)[0] == key), None)
-        return keyhints.without_group(key, value, choices)
+        found = [(g, o) for g in keyhints.SEARCHED for o in _owners(g, key)]
+        return keyhints.without_group(key, value, choices, found)
     return None
 
 

@@ -5,8 +5,8 @@
 then says what to add instead of only listing the keys of the plugin that is chosen.
 
 An option's parameters are the keys of its YAML file (``conf/<group>/<option>.yaml``, nested keys
-as dotted paths, e.g. ``video.fps`` of ``output=video``) and, for a plugin registered without a
-YAML file, the fields of its ``Params`` dataclass.
+as dotted paths, e.g. ``video.fps`` of ``output=video``) and, for a registered plugin, the fields of
+its ``Params`` dataclass.  ``laughlab.core.config`` wires these functions to the groups.
 """
 from __future__ import annotations
 
@@ -24,35 +24,33 @@ def _paths(node, prefix: str = "") -> set[str]:
     return out
 
 
-def _option_keys(group: str) -> dict[str, frozenset]:
-    """Option name -> its parameter paths, for one group."""
+def option_keys(folder, kind: str | None) -> dict[str, set]:
+    """Option name -> its parameter paths, for one group: ``folder`` its YAML files (a path or a
+    ``Traversable``), ``kind`` the plugin kind whose registered plugins' ``Params`` count too (None: only YAML)."""
     from dataclasses import fields, is_dataclass
 
     from omegaconf import OmegaConf
 
-    from laughlab.core.config import GROUP_KINDS, conf_dir
-
     keys: dict[str, set] = {}
-    folder = conf_dir().joinpath(group)
-    if folder.is_dir():
+    if folder is not None and folder.is_dir():
         for f in folder.iterdir():
             if f.name.endswith(".yaml"):
                 doc = OmegaConf.to_container(OmegaConf.create(f.read_text()), resolve=False) or {}
                 keys[f.name[:-5]] = _paths(doc) - {"name", "defaults"}
-    if group in GROUP_KINDS and group != "output":
+    if kind is not None:
         from laughlab.core import plugins
 
-        for name, info in plugins.registry()[GROUP_KINDS[group]].items():
+        for name, info in plugins.registry()[kind].items():
             params = getattr(info.obj, "Params", None)
             if params is not None and is_dataclass(params):
                 keys.setdefault(name, set()).update(f.name for f in fields(params))
-    return {k: frozenset(v) for k, v in keys.items()}
+    return keys
 
 
-def options_with(group: str, path: str) -> list[str]:
-    """The options of ``group`` that have the parameter ``path`` (dotted, below the group), sorted."""
+def options_with(folder, kind: str | None, path: str) -> list[str]:
+    """The options of a group (see :func:`option_keys`) that have the parameter ``path``, sorted."""
     try:
-        return sorted(name for name, keys in _option_keys(group).items() if path in keys)
+        return sorted(name for name, keys in option_keys(folder, kind).items() if path in keys)
     except Exception:  # a hint is a courtesy: never let it hide the error it explains
         return []
 
@@ -62,11 +60,11 @@ def _choices(owners: list[str], group: str) -> str:
     return named[0] if len(named) == 1 else ", ".join(named[:-1]) + " and " + named[-1]
 
 
-def elsewhere(group: str, path: str, current: str | None, explicit: bool = False) -> str | None:
-    """``group.path`` is unknown for ``group=current``: a line saying which option has it and what to add,
-    or None if no other option has it.  ``explicit``: the user chose ``group=current`` on the command line
-    (then the line says to switch rather than to add)."""
-    owners = [o for o in options_with(group, path) if o != current]
+def elsewhere(group: str, path: str, current: str | None, owners: list[str], explicit: bool = False) -> str | None:
+    """``group.path`` is unknown for ``group=current`` but ``owners`` have it: the line saying which and what
+    to add (None if no other option has it).  ``explicit``: the user chose ``group=current`` on the command
+    line (then the line says to switch rather than to add)."""
+    owners = [o for o in owners if o != current]
     if not owners:
         return None
     now = f", not of {group}={current}" if current else ""
@@ -77,11 +75,9 @@ def elsewhere(group: str, path: str, current: str | None, explicit: bool = False
     return f"{group}.{path} is a parameter of {_choices(owners, group)}{now}: {todo}"
 
 
-def without_group(key: str, value: str | None, current: dict[str, str]) -> str | None:
-    """A key given without its group (``mode=fast``, ``video.fps=10``): a line naming the group's key, or None.
-
-    ``current``: group -> the option chosen now."""
-    found = [(g, o) for g in SEARCHED for o in options_with(g, key)]
+def without_group(key: str, value: str | None, current: dict[str, str], found: list[tuple[str, str]]) -> str | None:
+    """A key given without its group (``mode=fast``, ``video.fps=10``) that ``found`` (group, option) pairs
+    have: a line naming the group's key, or None.  ``current``: group -> the option chosen now."""
     if not found:
         return None
     group, option = found[0]

@@ -20,7 +20,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from laughlab.core import plugins
 from laughlab.core.bases import Chunk, Context, RunInfo
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, UnknownParameter
 from laughlab.core.frame import Frame
 from laughlab.core.mixer import Mixer
 
@@ -116,6 +116,10 @@ def build(cfg: DictConfig) -> Pipeline:
         try:  # a check a source makes only when it opens (a file's header, a generator's arguments)
             built[group] = plugins.create(kind, name, values, ctx, where=f"{group}.{name}")
             built[group].open()
+        except UnknownParameter as exc:
+            from laughlab.core.config import misplaced_parameter
+
+            raise LaughlabError(misplaced_parameter(group, name, exc.key) or str(exc)) from None
         except ValueError as exc:
             raise LaughlabError(f"bad parameter in {group}.{name}: {exc}") from None
         ctx.sample_rate = built[group].sample_rate
@@ -126,6 +130,10 @@ def build(cfg: DictConfig) -> Pipeline:
         values = _section(cfg, group)
         try:
             built[group] = plugins.create(kind, values["name"], values, ctx, where=f"{group}.{values['name']}")
+        except UnknownParameter as exc:  # say which other plugin of the group has it, if one does
+            from laughlab.core.config import misplaced_parameter
+
+            raise LaughlabError(misplaced_parameter(group, values["name"], exc.key) or str(exc)) from None
         except ValueError as exc:
             raise LaughlabError(f"bad parameter in {group}.{values['name']}: {exc}") from None
         if group == "extractor" and not getattr(built[group], "calibrates", False):

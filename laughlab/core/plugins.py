@@ -22,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from laughlab.core import hookspecs
-from laughlab.core.errors import LaughlabError, shown_path
+from laughlab.core.errors import LaughlabError, UnknownParameter, shown_path
 
 hookimpl = pluggy.HookimplMarker("laughlab")
 
@@ -160,8 +160,7 @@ def make_params(cls: type, values: Any, where: str) -> Any:
     valid = [f.name for f in fields(params_cls)]
     for key in values:
         if key not in valid:
-            raise LaughlabError(_misplaced(where, key) or
-                                f"unknown parameter {where}.{key}; valid: {', '.join(valid) or '(none)'}")
+            raise UnknownParameter(f"unknown parameter {where}.{key}; valid: {', '.join(valid) or '(none)'}", key)
     try:
         merged = OmegaConf.merge(_schema(params_cls), values)
         bad = first_nonfinite(OmegaConf.to_container(merged, resolve=True), nonfinite_ok(params_cls))
@@ -178,15 +177,6 @@ def make_params(cls: type, values: Any, where: str) -> Any:
         raise LaughlabError(f"bad parameter in {where}: {exc}") from None
     except OSError as exc:  # a path parameter the system refuses to look at (too long, no permission, ...)
         raise _path_error(exc, where) from None
-
-
-def _misplaced(where: str, key: str) -> str | None:
-    """``where`` = GROUP.OPTION: the line naming the other options of the group that have ``key``, if any."""
-    from laughlab.core.config import GROUP_KINDS
-    from laughlab.core.keyhints import elsewhere
-
-    group, _, option = where.partition(".")
-    return elsewhere(group, key, option) if group in GROUP_KINDS and group != "output" else None
 
 
 def _path_error(exc: OSError, where: str) -> LaughlabError:
