@@ -272,7 +272,8 @@ def view_command(args: list[str]) -> None:
                                                  "audio, the MCS and laughing energy scrolling below.")
     parser.add_argument("run_dir", help="a run directory (motion.bvh, channels.csv, events.csv)")
     parser.add_argument("--port", type=int, default=V.DEFAULT_PORT, help="port on 127.0.0.1 (a free one if taken)")
-    parser.add_argument("--out", help="write the page and its files into this new folder instead of serving")
+    parser.add_argument("--out", help="write the page and its files into this new folder instead of serving; "
+                                         "its index.html opens from the disk or on any web server")
     ns = parser.parse_args(args)
     if ns.out:
         out, opens = V.write(ns.run_dir, ns.out)
