@@ -91,6 +91,16 @@ def _section(cfg: DictConfig, key: str) -> dict:
     return OmegaConf.to_container(node, resolve=True)
 
 
+def _create(group: str, kind: str, name: str, values, ctx: Context):
+    """The plugin of ``group``; a parameter it does not have but another plugin of the group has says which."""
+    try:
+        return plugins.create(kind, name, values, ctx, where=f"{group}.{name}")
+    except UnknownParameter as exc:
+        from laughlab.core.config import misplaced_parameter
+
+        raise LaughlabError(misplaced_parameter(group, name, exc.key) or str(exc)) from None
+
+
 def build(cfg: DictConfig) -> Pipeline:
     """Validate every parameter, build the plugins and open the source.
 
@@ -114,12 +124,8 @@ def build(cfg: DictConfig) -> Pipeline:
             built[group] = None
             continue
         try:  # a check a source makes only when it opens (a file's header, a generator's arguments)
-            built[group] = plugins.create(kind, name, values, ctx, where=f"{group}.{name}")
+            built[group] = _create(group, kind, name, values, ctx)
             built[group].open()
-        except UnknownParameter as exc:
-            from laughlab.core.config import misplaced_parameter
-
-            raise LaughlabError(misplaced_parameter(group, name, exc.key) or str(exc)) from None
         except ValueError as exc:
             raise LaughlabError(f"bad parameter in {group}.{name}: {exc}") from None
         ctx.sample_rate = built[group].sample_rate
@@ -129,11 +135,7 @@ def build(cfg: DictConfig) -> Pipeline:
             continue
         values = _section(cfg, group)
         try:
-            built[group] = plugins.create(kind, values["name"], values, ctx, where=f"{group}.{values['name']}")
-        except UnknownParameter as exc:  # say which other plugin of the group has it, if one does
-            from laughlab.core.config import misplaced_parameter
-
-            raise LaughlabError(misplaced_parameter(group, values["name"], exc.key) or str(exc)) from None
+            built[group] = _create(group, kind, values["name"], values, ctx)
         except ValueError as exc:
             raise LaughlabError(f"bad parameter in {group}.{values['name']}: {exc}") from None
         if group == "extractor" and not getattr(built[group], "calibrates", False):
