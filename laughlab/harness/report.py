@@ -2,7 +2,8 @@
 
 ``python -m laughlab report RUN_DIR [--out DIR]`` reads ``RUN_DIR/results.json``
 (one experiment) or every ``*/results.json`` below ``RUN_DIR`` (a Hydra
-multirun sweep) and writes ``reports/<experiment>/README.md`` with its figures.
+multirun sweep) and writes ``RUN_DIR/report/README.md`` with its figures (``--out DIR``: into
+``DIR``, e.g. ``--out reports/<experiment>`` for the reports committed with laughlab).
 """
 from __future__ import annotations
 
@@ -140,6 +141,9 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              "- conditions: " + "; ".join(f"**{c}** `{' '.join(o)}`" for c, o in doc["conditions"].items()),
              *[f"- skipped corpus file (harness.corpus.on_bad=skip): `{s['file']}`: {s['reason']}"
                for s in doc["corpus"].get("skipped", [])],
+             *([f"- **without the real recordings**: the real corpus was not fetched, so its sets "
+                f"({', '.join(doc['corpus']['not_fetched'])}) were left out; `python -m laughlab corpus fetch` "
+                "adds them"] if doc["corpus"].get("not_fetched") else []),
              "", "## Results", "",
              "Mean over trials with its 95% confidence interval (t distribution). ↑ higher is better, "
              "↓ lower is better; the better condition is in bold. "
@@ -288,6 +292,8 @@ def _lines(points, a, metrics, val, path, info) -> None:
 def write_report(run_dir: str | Path, out: str | Path | None = None, command: str = "") -> Path:
     """Write the report of an experiment run or a sweep; return the README path.
 
+    The report goes into ``out``, by default ``run_dir/report`` (beside the results it is made
+    from, so that reporting never touches the committed ``reports/``).
     The report is written into a hidden sibling folder first and moved into place
     only when it is whole: a failure (a full disk, a bad figure) leaves the
     earlier report as it was, or no report.
@@ -299,8 +305,8 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
         results, write = next(root.rglob("results.json")), sweep_report
     else:
         raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)")
-    name = json.loads(results.read_text())["experiment"]
-    target = Path(out) if out else Path("reports") / name
+    json.loads(results.read_text())["experiment"]  # a results.json of an experiment, else a clear KeyError
+    target = Path(out) if out else root / "report"
     if target.exists() and not target.is_dir():
         raise LaughlabError(f"report folder {target} exists and is not a folder")
     staging = target.with_name(f".{target.name}.partial-{os.getpid()}")

@@ -1,9 +1,11 @@
 // laughlab viewer: the run's character.glb in sync with its audio, the MCS and laughing energy
 // scrolling below with the clips as blocks (cf. van Duijn 2014, Figs. 3.2 and 4.2).
 // The audio element is the clock: the animation shows audio.currentTime; without audio a wall clock does.
+// Served (python -m laughlab view RUN), the page fetches run.json and character.glb; written with --out, the
+// page carries them inline (script elements laughlab-run and laughlab-glb) so that it also works opened as a file.
 import * as THREE from 'three';
-import { GLTFLoader } from './vendor/three/examples/jsm/loaders/GLTFLoader.js';
-import { OrbitControls } from './vendor/three/examples/jsm/controls/OrbitControls.js';
+import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 
 const $ = (id) => document.getElementById(id);
 const state = { ready: false, error: null, animTime: 0, frames: 0 };
@@ -11,7 +13,22 @@ window.laughlab = state;
 window.addEventListener('error', (e) => { state.error = String(e.message || e); document.title = 'error: ' + state.error; });
 window.addEventListener('unhandledrejection', (e) => { state.error = String(e.reason); document.title = 'error: ' + state.error; });
 
-const run = await (await fetch('./run.json')).json();
+const inline = (id) => document.getElementById(id);
+async function loadRun() {
+  if (inline('laughlab-run')) return JSON.parse(inline('laughlab-run').textContent);
+  const r = await fetch('./run.json');
+  if (!r.ok) throw new Error(`run.json: HTTP ${r.status}`);
+  return r.json();
+}
+async function loadCharacter() {
+  const loader = new GLTFLoader();
+  const el = inline('laughlab-glb');
+  if (!el) return loader.loadAsync('./character.glb');
+  const bytes = Uint8Array.from(atob(el.textContent.trim()), (c) => c.charCodeAt(0));
+  return loader.parseAsync(bytes.buffer, './');
+}
+
+const run = await loadRun();
 const audio = $('audio');
 const hasAudio = run.audio !== null;
 if (hasAudio) audio.src = './' + run.audio;
@@ -52,16 +69,59 @@ const floor = new THREE.Mesh(new THREE.CircleGeometry(2.5, 48), new THREE.MeshSt
 floor.rotation.x = -Math.PI / 2;
 scene.add(floor);
 const camera = new THREE.PerspectiveCamera(28, 1, 0.05, 50);
-camera.position.set(0.5, 1.25, 3.9);
 const controls = new OrbitControls(camera, canvas);
-controls.target.set(0, 0.95, 0);
-controls.update();
+let userMoved = false;
+controls.addEventListener('start', () => { userMoved = true; });
 
-const gltf = await new GLTFLoader().loadAsync('./character.glb');
+const gltf = await loadCharacter();
 scene.add(gltf.scene);
 const mixer = new THREE.AnimationMixer(gltf.scene);
 const action = mixer.clipAction(gltf.animations[0]);
 action.play();
+const skinned = [];
+gltf.scene.traverse((o) => { if (o.isSkinnedMesh) skinned.push(o); });
+
+function pose(t) {
+  mixer.setTime(t);
+  gltf.scene.updateMatrixWorld(true);
+  for (const m of skinned) m.skeleton.update();
+}
+// every vertex of the character, posed, in world space (SkinnedMesh.getVertexPosition applies bones and morphs)
+function eachVertex(fn) {
+  const v = new THREE.Vector3();
+  for (const m of skinned) {
+    const n = m.geometry.attributes.position.count;
+    for (let i = 0; i < n; i++) { m.getVertexPosition(i, v); v.applyMatrix4(m.matrixWorld); fn(v); }
+  }
+}
+// the space the character takes over the whole run: its vertices (every 4th) at 16 moments
+const reach = new THREE.Box3(), points = [];
+for (let k = 0; k <= 16; k++) {
+  pose(run.duration * k / 16);
+  let i = 0;
+  eachVertex((v) => { reach.expandByPoint(v); if (i++ % 4 === 0) points.push(v.clone()); });
+}
+pose(0);
+
+// frame the camera on those points: from the front, a little from above and to the side, every point within
+// the middle of the view (88% of its height, 90% of its width), whatever the window's shape; the view ends
+// where the control bar starts (the page's CSS), so the bar never covers the character
+const viewFrom = new THREE.Vector3(0.5, 0.3, 3.9).normalize();
+function frameCharacter() {
+  const centre = reach.getCenter(new THREE.Vector3());
+  const p = new THREE.Vector3();
+  const fits = () => points.every((v) => { p.copy(v).project(camera); return Math.abs(p.x) < 0.9 && Math.abs(p.y) < 0.88 && p.z < 1; });
+  let d = 0.5;
+  for (let i = 0; i < 120; i++) {  // move back from close by until every point projects inside
+    camera.position.copy(centre).addScaledVector(viewFrom, d);
+    camera.lookAt(centre);
+    camera.updateMatrixWorld(true);
+    if (fits()) break;
+    d *= 1.04;
+  }
+  controls.target.copy(centre);
+  controls.update();
+}
 
 // the strip: MCS and laughing energy around now, clips as blocks, the current time as a line
 const strip = $('strip');
@@ -102,8 +162,9 @@ function drawStrip(t) {
 function resize() {
   for (const c of [canvas, strip]) { c.width = c.clientWidth * window.devicePixelRatio; c.height = c.clientHeight * window.devicePixelRatio; }
   renderer.setSize(canvas.clientWidth, canvas.clientHeight, false);
-  camera.aspect = canvas.clientWidth / canvas.clientHeight;
+  camera.aspect = canvas.clientWidth / Math.max(1, canvas.clientHeight);
   camera.updateProjectionMatrix();
+  if (!userMoved) frameCharacter();
   sctx.font = `${11 * window.devicePixelRatio}px system-ui`;
 }
 window.addEventListener('resize', resize);
@@ -129,6 +190,20 @@ window.addEventListener('keydown', (e) => { if (e.code === 'Space') { e.preventD
 audio.addEventListener('ended', () => setPlaying(false));
 
 state.check = async (t) => { await seek(t); frame(); return { anim: state.animTime, audio: state.audioTime(), fps }; };
+// where the character is drawn now, in CSS pixels of the page: its lowest and highest vertex, its feet (the
+// foot and toe joints), and the top of the control bar (for tests: nothing of the character under the bar)
+state.onScreen = () => {
+  pose(state.animTime);
+  const rect = canvas.getBoundingClientRect();
+  const y = (v) => rect.top + (1 - (v.clone().project(camera).y + 1) / 2) * rect.height;
+  let lowest = -Infinity, highest = Infinity;
+  eachVertex((v) => { const py = y(v); lowest = Math.max(lowest, py); highest = Math.min(highest, py); });
+  const feet = [];
+  gltf.scene.traverse((o) => { if (o.isBone && /foot|toe/.test(o.name)) feet.push(y(o.getWorldPosition(new THREE.Vector3()))); });
+  return { lowest, highest, feet: Math.max(...feet), viewTop: rect.top, viewBottom: rect.bottom,
+           barTop: $('bar').getBoundingClientRect().top };
+};
+for (const id of ['play', 'seek']) $(id).disabled = false;
 state.ready = true;
 state.audioTime = () => (hasAudio ? audio.currentTime : now());
 state.seek = seek;
