@@ -350,6 +350,76 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     return path
 
 
+def filmstrip_moments(times: np.ndarray, positions: np.ndarray, n: int, blocks: Sequence = ()) -> list[int]:
+    """Which of the pose samples a filmstrip of ``n`` figures shows: distinct, telling moments.
+
+    A sample's *pronouncedness* is how far its pose lies from the run's usual pose (the
+    per-joint median over every sample; distance: the mean over joints, cm).
+
+    1. One figure per clip played (``idle`` and clips of energy 0 aside): the most pronounced
+       sample inside the clip's longest block.  With more clips than ``n``, the clips with the
+       longest blocks.
+    2. Figures left over, one at a time: the stretch from the first to the last sample is cut
+       into ``n`` equal parts; among the samples in parts with no figure yet and at least half
+       a part away from every figure chosen, the one least like the figures chosen (the
+       largest distance to the nearest of their poses; the most pronounced one if none is
+       chosen yet).
+
+    So an energy run, whose clips last seconds, shows each clip once; a concatenation run,
+    which plays hundreds of short segments of a few clips, shows each of those clips and
+    then the poses least like them, spread over the run.
+
+    Parameters
+    ----------
+    times : ndarray, shape (k,)
+        The samples' times (s), increasing.
+    positions : ndarray, shape (k, J, 3)
+        Their world joint positions (cm).
+    n : int
+    blocks : sequence of (clip, start_s, stop_s, energy)
+        The clips played (:func:`laughlab.core.frame.clip_blocks`).
+
+    Returns
+    -------
+    list of int
+        Indices into ``times``, increasing, at most ``n``, all different (so all times differ).
+    """
+    times = np.asarray(times, float)
+    k = len(times)
+    if k == 0 or n <= 0:
+        return []
+    pos = np.asarray(positions, float).reshape(k, -1, 3)
+    away = np.linalg.norm(pos - np.median(pos, axis=0), axis=2).mean(axis=1)
+    longest: dict = {}
+    for name, b0, b1, e in blocks:
+        if e > 0 and name != "idle" and (name not in longest or b1 - b0 > longest[name][1] - longest[name][0]):
+            longest[name] = (b0, b1)
+    picked: list[int] = []
+    for name, (b0, b1) in sorted(longest.items(), key=lambda kv: (kv[1][0] - kv[1][1], kv[1][0])):
+        idx = np.flatnonzero((times >= b0) & (times < b1))
+        idx = idx[~np.isin(idx, picked)]
+        if len(idx) and len(picked) < n:
+            picked.append(int(idx[np.argmax(away[idx])]))
+    t0, t1 = float(times[0]), float(times[-1])
+    part = (t1 - t0) / n if t1 > t0 else 1.0
+    which = np.minimum(((times - t0) / part).astype(int), n - 1)
+    flat = pos.reshape(k, -1, 3)
+    while len(picked) < n:
+        free = ~np.isin(which, which[picked]) if picked else np.ones(k, bool)
+        for j in picked:
+            free &= np.abs(times - times[j]) >= 0.5 * part
+        idx = np.flatnonzero(free)
+        if not len(idx):
+            break
+        if picked:  # the pose least like any shown: the largest distance to its nearest shown pose
+            d = np.stack([np.linalg.norm(flat[idx] - flat[j], axis=2).mean(axis=1) for j in picked])
+            score = d.min(axis=0)
+        else:
+            score = away[idx]
+        picked.append(int(idx[np.argmax(score)]))
+    return sorted(picked)
+
+
 def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captions: Sequence[str],
               title: str = "", note: str = "") -> Path:
     """A row of stick figures (the run's skeleton at chosen frames) with a caption under each."""
@@ -369,7 +439,7 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
         ax.set_ylim(-8, 195)
         ax.set_title(f"{times[k]:.1f} s", fontsize=7, pad=1)
         ax.text(0.5, -0.02, captions[k], transform=ax.transAxes, ha="center", va="top", fontsize=5.5)
-    fig.suptitle(_titled(title or "The character at each clip (skeleton from motion.bvh)", note), fontsize=8)
+    fig.suptitle(_titled(title or "The character over the run (skeleton from motion.bvh)", note), fontsize=8)
     fig.subplots_adjust(left=0.01, right=0.99, top=0.76 if note else 0.84, bottom=0.2, wspace=0.05)
     fig.savefig(path, format="png")
     plt.close(fig)
