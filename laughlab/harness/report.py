@@ -36,17 +36,51 @@ def _arrow(hib) -> str:
     return {True: "↑", False: "↓"}.get(hib, "")
 
 
+def conditions_of(doc: dict) -> list[str]:
+    """The conditions of a results document in the experiment's order (its config), not alphabetical."""
+    have = list(doc["results"])
+    return [c for c in doc.get("conditions", {}) if c in have] + [c for c in have if c not in doc.get("conditions", {})]
+
+
+def metric_order(doc: dict) -> list[str]:
+    """The metrics of a results document, :data:`KEY_METRICS` first."""
+    return [m for m in KEY_METRICS if m in doc["metrics"]] + [m for m in doc["metrics"] if m not in KEY_METRICS]
+
+
+def _same(a, b) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-12)
+
+
+def same_everywhere(doc: dict, metric: str) -> bool:
+    """True when two or more conditions were compared and ``metric`` came out the same under each:
+    the same number of trials, mean and 95 % CI (e.g. a detector metric when only the scheduler
+    changes).  Such a metric says nothing about the conditions; the report lists it apart."""
+    rs = [doc["results"][c][metric] for c in conditions_of(doc)]
+    if len(rs) < 2 or not rs[0]["n"]:
+        return False
+    first = rs[0]
+    return all(r["n"] == first["n"] and _same(r["mean"], first["mean"])
+               and all(_same(x, y) for x, y in zip(r["ci95"], first["ci95"])) for r in rs[1:])
+
+
 def comparison_figure(doc: dict, path: Path) -> Path:
-    """One panel per metric: the mean of each condition with its 95 % CI."""
-    conds = list(doc["results"])
-    order = [m for m in KEY_METRICS if m in doc["metrics"]] + [m for m in doc["metrics"] if m not in KEY_METRICS]
-    names = [m for m in order if any(doc["results"][c][m]["n"] for c in conds)]
+    """One panel per metric that differs between the conditions: each condition's mean with its 95 % CI.
+
+    Metrics the same under every condition (:func:`same_everywhere`) get no panel; a line under
+    the panels names them.
+    """
+    conds = conditions_of(doc)
+    measured = [m for m in metric_order(doc) if any(doc["results"][c][m]["n"] for c in conds)]
+    names = [m for m in measured if not same_everywhere(doc, m)]
+    same = [m for m in measured if same_everywhere(doc, m)]
     if not names:
         return path
-    cols = 5
+    cols = min(5, len(names))
     rows = math.ceil(len(names) / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(2.3 * cols, 1.9 * rows), dpi=130, squeeze=False,
-                             layout="constrained")
+    fig, axes = plt.subplots(rows, cols, figsize=(2.3 * cols, 1.9 * rows + (0.4 if same else 0)), dpi=130,
+                             squeeze=False, layout="constrained")
     colors = plt.get_cmap("tab10")
     for ax, name in zip(axes.flat, names):
         for i, c in enumerate(conds):
@@ -63,7 +97,14 @@ def comparison_figure(doc: dict, path: Path) -> Path:
         ax.spines[["top", "right"]].set_visible(False)
     for ax in axes.flat[len(names):]:
         ax.set_axis_off()
-    fig.suptitle(f"{doc['experiment']}: mean and 95% CI over {doc['n_trials']} trials", fontsize=9)
+    fig.suptitle(f"{doc['experiment']}: mean and 95% CI over {doc['n_trials']} trials "
+                 "(↑ higher is better, ↓ lower is better)", fontsize=9)
+    if same:
+        import textwrap
+
+        fig.supxlabel("\n".join(textwrap.wrap(
+            f"Not shown, the same under every condition: {', '.join(same)} (values in the report's table).",
+            int(2.3 * cols * 15))), fontsize=7, color="0.3")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     plt.close(fig)
@@ -71,11 +112,13 @@ def comparison_figure(doc: dict, path: Path) -> Path:
 
 
 def _results_table(doc: dict) -> list[str]:
-    conds = list(doc["results"])
-    order = [m for m in KEY_METRICS if m in doc["metrics"]] + [m for m in doc["metrics"] if m not in KEY_METRICS]
+    """The metrics that differ between the conditions: one column per condition, the best in bold."""
+    conds = conditions_of(doc)
     lines = ["| metric | units | " + " | ".join(f"{c} mean [95% CI]" for c in conds) + " |",
              "|---|---|" + "---|" * len(conds)]
-    for m in order:
+    for m in metric_order(doc):
+        if same_everywhere(doc, m):
+            continue
         info = doc["metrics"][m]
         cells = []
         means = [doc["results"][c][m]["mean"] for c in conds]
@@ -85,14 +128,33 @@ def _results_table(doc: dict) -> list[str]:
             best = max(finite) if info["higher_is_better"] else min(finite)
         for c in conds:
             r = doc["results"][c][m]
-            cell = f"{_fmt(r['mean'])} [{_fmt(r['ci95'][0])}, {_fmt(r['ci95'][1])}]" if r["n"] else "n/a"
-            cells.append(f"**{cell}**" if best is not None and r["mean"] == best else cell)
+            cells.append(f"**{_cell(r)}**" if best is not None and r["mean"] == best else _cell(r))
         lines.append(f"| {m} {_arrow(info['higher_is_better'])} | {info['units']} | " + " | ".join(cells) + " |")
     return lines
 
 
+def _cell(r: dict) -> str:
+    return f"{_fmt(r['mean'])} [{_fmt(r['ci95'][0])}, {_fmt(r['ci95'][1])}]" if r["n"] else "n/a"
+
+
+def _same_table(doc: dict) -> list[str]:
+    """The metrics the same under every condition, once each (empty when there are none)."""
+    same = [m for m in metric_order(doc) if same_everywhere(doc, m)]
+    if not same:
+        return []
+    first = conditions_of(doc)[0]
+    lines = ["These metrics came out the same under every condition (the same trials, mean and 95% CI), so "
+             "they are left out of the table and the figure above:", "",
+             "| metric | units | every condition: mean [95% CI] |", "|---|---|---|"]
+    for m in same:
+        info = doc["metrics"][m]
+        lines.append(f"| {m} {_arrow(info['higher_is_better'])} | {info['units']} | "
+                     f"{_cell(doc['results'][first][m])} |")
+    return lines
+
+
 def _profile_table(doc: dict, metric: str) -> list[str]:
-    conds = list(doc["by_profile"])
+    conds = [c for c in conditions_of(doc) if c in doc["by_profile"]]
     profiles = sorted({p for c in conds for p in doc["by_profile"][c]})
     lines = [f"| profile | " + " | ".join(conds) + " |", "|---|" + "---|" * len(conds)]
     for p in profiles:
@@ -148,6 +210,9 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              "machine; `make bench` measures them alone.", ""]
     lines += _results_table(doc)
     lines += ["", "![metrics](figures/metrics.png)", ""]
+    same = _same_table(doc)
+    if same:
+        lines += same + [""]
     shows = sorted(p.name for p in figs.glob("*_fig4_2_energy.png"))
     if shows:
         lines += ["## The same input under each condition", ""]
