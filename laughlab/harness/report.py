@@ -291,16 +291,28 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
         lines.append("| " + " | ".join(p["params"].get(k, "") for k in varying) + " | "
                      + " | ".join(_fmt(val(p, m)) for m in metrics) + " |")
     lines.append("")
-    heat_metrics = [m for m in ("intensity_r_clip", "miss_rate", "silent_start_rate") if m in metrics]
+    heat_metrics, flat = [], []
+    for m in metrics:
+        values = [v for v in (val(p, m) for p in points) if math.isfinite(v)]
+        if not values:
+            flat.append(f"`{m}` (no value at any point)")
+        elif max(values) - min(values) <= 1e-12 * max(1.0, abs(max(values))):
+            flat.append(f"`{m}` ({_fmt(values[0])} at every point)")
+        else:
+            heat_metrics.append(m)
     pairs = list(combinations(varying, 2))
     if pairs:
         lines += ["## Heatmaps", "", "Each cell: the metric's mean over the sweep points with those two values "
-                  "(averaged over the other swept parameters).", ""]
-    for a, b in pairs:
+                  "(averaged over the other swept parameters). In every heatmap the bright (yellow) end is the "
+                  "better one: each colour bar has its better end at the top and says so, so the bar of a "
+                  "lower-is-better metric (↓) runs from high values at the bottom to low ones at the top.", ""]
+    if (pairs or len(varying) == 1) and flat:
+        lines += ["No figure for " + ", ".join(flat) + ": the sweep did not change it.", ""]
+    for a, b in (pairs if heat_metrics else []):
         name = f"heatmap_{a}_{b}.png".replace("/", "_")
         _heatmaps(points, a, b, heat_metrics, val, figs / name, doc0["metrics"])
         lines += [f"![{a} x {b}](figures/{name})", ""]
-    if len(varying) == 1:
+    if len(varying) == 1 and heat_metrics:
         name = f"line_{varying[0]}.png"
         _lines(points, varying[0], heat_metrics, val, figs / name, doc0["metrics"])
         lines += [f"![{varying[0]}](figures/{name})", ""]
@@ -308,20 +320,36 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
     return out / "README.md"
 
 
+def better_label(higher_is_better) -> str:
+    """A colour bar's or value axis' label saying which way is better."""
+    return {True: "better ↑ (higher is better)", False: "better ↑ (lower is better)"}.get(
+        higher_is_better, "neither end is better")
+
+
+def _panel_grid(n: int, w: float, h: float, cols: int = 3):
+    cols = max(1, min(cols, n))
+    rows = max(1, math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(w * cols, h * rows), dpi=130, squeeze=False, layout="constrained")
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    return fig, list(axes.flat[:n])
+
+
 def _heatmaps(points, a, b, metrics, val, path, info) -> None:
+    """One heatmap per metric over parameters ``a`` (x) and ``b`` (y); bright is better in each."""
     xs = sorted({p["params"][a] for p in points}, key=_num)
     ys = sorted({p["params"][b] for p in points}, key=_num)
-    fig, axes = plt.subplots(1, len(metrics), figsize=(3.3 * len(metrics), 2.8), dpi=130, squeeze=False,
-                             layout="constrained")
-    for ax, m in zip(axes[0], metrics):
+    fig, axes = _panel_grid(len(metrics), 3.4, 2.7)
+    for ax, m in zip(axes, metrics):
         grid = np.full((len(ys), len(xs)), np.nan)
         for i, y in enumerate(ys):
             for j, x in enumerate(xs):
                 v = [val(p, m) for p in points if p["params"][a] == x and p["params"][b] == y]
                 v = [u for u in v if math.isfinite(u)]
                 grid[i, j] = np.mean(v) if v else np.nan
-        cmap = "viridis" if info[m]["higher_is_better"] else "viridis_r"
-        im = ax.imshow(grid, origin="lower", cmap=cmap, aspect="auto")
+        hib = info[m]["higher_is_better"]
+        # bright (yellow) is the better end: viridis runs dark to bright with the value, so flip it when lower is better
+        im = ax.imshow(grid, origin="lower", cmap="viridis" if hib is not False else "viridis_r", aspect="auto")
         for i in range(len(ys)):
             for j in range(len(xs)):
                 bright = np.mean(im.cmap(im.norm(grid[i, j]))[:3]) > 0.5
@@ -330,21 +358,29 @@ def _heatmaps(points, a, b, metrics, val, path, info) -> None:
         ax.set_yticks(range(len(ys)), ys, fontsize=7)
         ax.set_xlabel(a, fontsize=7)
         ax.set_ylabel(b, fontsize=7)
-        ax.set_title(f"{m} {_arrow(info[m]['higher_is_better'])}", fontsize=8)
-        fig.colorbar(im, ax=ax, shrink=0.8)
+        ax.set_title(f"{m} {_arrow(hib)}", fontsize=8)
+        cb = fig.colorbar(im, ax=ax, shrink=0.9)
+        if hib is False:
+            cb.ax.invert_yaxis()  # the better (lower) end at the top, as on every other bar
+        cb.set_label(better_label(hib), fontsize=6.5)
+        cb.ax.tick_params(labelsize=6)
     fig.savefig(path)
     plt.close(fig)
 
 
 def _lines(points, a, metrics, val, path, info) -> None:
+    """One panel per metric against the one swept parameter ``a``."""
     xs = sorted({p["params"][a] for p in points}, key=_num)
-    fig, axes = plt.subplots(1, len(metrics), figsize=(3.0 * len(metrics), 2.4), dpi=130, squeeze=False,
-                             layout="constrained")
-    for ax, m in zip(axes[0], metrics):
+    fig, axes = _panel_grid(len(metrics), 3.0, 2.3)
+    for ax, m in zip(axes, metrics):
         ys = [np.nanmean([val(p, m) for p in points if p["params"][a] == x]) for x in xs]
         ax.plot([_num(x) for x in xs], ys, "o-")
         ax.set_xlabel(a, fontsize=7)
-        ax.set_title(f"{m} {_arrow(info[m]['higher_is_better'])}", fontsize=8)
+        hib = info[m]["higher_is_better"]
+        way = {True: " (higher is better)", False: " (lower is better)"}.get(hib, "")
+        ax.set_ylabel(info[m]["units"] + way, fontsize=6)
+        ax.tick_params(labelsize=6)
+        ax.set_title(f"{m} {_arrow(hib)}", fontsize=8)
         ax.spines[["top", "right"]].set_visible(False)
     fig.savefig(path)
     plt.close(fig)
