@@ -132,9 +132,12 @@ def drawn_texts(fig) -> list[tuple[Text, Bbox]]:
     return [(t, bb) for t, bb in drawn if bb.width > 0 and bb.height > 0]
 
 
-def overlapping_texts(fig, tolerance_px: float = 0.5) -> list[tuple[str, str]]:
-    """Pairs of drawn texts of ``fig`` whose boxes overlap by more than ``tolerance_px`` each way."""
-    boxes = [(t.get_text(), bb) for t, bb in drawn_texts(fig)]
+def overlapping_texts(fig, drawn: list | None = None, tolerance_px: float = 0.5) -> list[tuple[str, str]]:
+    """Pairs of drawn texts of ``fig`` whose boxes overlap by more than ``tolerance_px`` each way.
+
+    ``drawn``: the figure's :func:`drawn_texts` if already at hand (else the figure is drawn).
+    """
+    boxes = [(t.get_text(), bb) for t, bb in (drawn if drawn is not None else drawn_texts(fig))]
     bad = []
     for (sa, a), (sb, b) in combinations(boxes, 2):
         w = min(a.x1, b.x1) - max(a.x0, b.x0)

@@ -17,6 +17,8 @@ Steps, each written to the report folder:
 4. ``model.csv``, ``variance.csv``: per question a linear mixed model
    ``value ~ condition + (1 | participant) + (1 | stimulus)`` fitted by REML with statsmodels'
    ``MixedLM`` (crossed random intercepts as variance components of one all-ones group).
+   statsmodels' warnings while fitting go to ``report.json`` (``model_warnings``); the README says
+   in one sentence per question what they mean for the result (:func:`fit_note`).
    Why this model: it is the one the design calls for (Baayen, Davidson & Bates 2008; Judd,
    Westfall & Kenny 2012): every participant rates every condition, and each stimulus is a
    sample of possible stimuli, so both are random; statsmodels is maintained, on PyPI, and fits
@@ -134,8 +136,11 @@ def exclusions(df, rules: dict, slider_range: float | None = None) -> dict[int, 
 
 # -- statistics -----------------------------------------------------------------------------------------------------
 
-def condition_means(tidy, conditions: list[str]):
-    """Per question and condition: the participants' means' mean, SD, n and 95 % t interval."""
+def condition_means(tidy, conditions: list[str], questions: list[str] | None = None):
+    """Per question and condition: the participants' means' mean, SD, n and 95 % t interval.
+
+    Rows in the order of ``questions`` (else alphabetical), and within a question of ``conditions``.
+    """
     import pandas as pd
 
     from laughlab.harness.results import mean_ci
@@ -152,8 +157,11 @@ def condition_means(tidy, conditions: list[str]):
     out = pd.DataFrame(rows)
     if not out.empty:
         out["condition"] = pd.Categorical(out["condition"], [c for c in conditions if c in set(out["condition"])])
+        qs = [q for q in (questions or []) if q in set(out["question"])]
+        out["question"] = pd.Categorical(out["question"], qs + sorted(set(out["question"]) - set(qs)))
         out = out.sort_values(["question", "condition"]).reset_index(drop=True)
         out["condition"] = out["condition"].astype(str)
+        out["question"] = out["question"].astype(str)
     return out
 
 
@@ -174,6 +182,53 @@ def fit_model(data, conditions: list[str]):
         fit = model.fit(reml=True, method=["lbfgs", "powell"])
     notes = sorted({str(w.message).splitlines()[0] for w in caught})
     return fit, ref, notes
+
+
+#: what the statsmodels warnings of a MixedLM fit say, found by the start of their text
+_RETRIED = ("Maximum Likelihood optimization failed to converge", "Retrying MixedLM optimization",
+            "Gradient optimization failed")
+_BOUNDARY = "The MLE may be on the boundary"
+_HESSIAN = "The Hessian matrix at the estimated parameter values is not positive definite"
+
+
+def fit_note(fit, warned: list[str]) -> str:
+    """One plain sentence on what statsmodels' warnings while fitting mean for the result ("" if none).
+
+    The fit tries L-BFGS, then Powell's method; statsmodels warns when the first stops short and the
+    second is tried, when an estimate lies on the edge of its range (a variance component at or
+    near zero: the ratings show no spread between participants, or stimuli, beyond the residual
+    noise, and the model is in effect the one without that random intercept) and when the
+    curvature there is not positive definite (the variance components' own standard errors are
+    then undefined).  None of these touches the condition estimates and their tests as long as
+    the fit converged and their standard errors are finite; a fit that did not converge is not to
+    be trusted.  Other warnings are named as such (their text is in ``report.json``).
+    """
+    if not warned:
+        return ""
+    fe_ok = bool(np.all(np.isfinite(np.asarray(fit.bse_fe, float))))
+    if not fit.converged or not fe_ok:
+        return ("The fit did not converge" if not fit.converged else "The condition estimates have no finite "
+                "standard errors") + ", so this question's estimates and tests below are not to be trusted."
+    head = "The fit converged"
+    if any(w.startswith(_RETRIED) for w in warned):
+        head += " only with the second optimiser (Powell's method, after L-BFGS stopped short)"
+    clauses = []
+    if any(w.startswith(_BOUNDARY) for w in warned):
+        var = {name: float(v) for name, v in zip(fit.model.exog_vc.names, fit.vcomp)}
+        total = sum(var.values()) + float(fit.scale)
+        low = [n for n, v in var.items() if v < 0.01 * total] or ([min(var, key=var.get)] if var else [])
+        plural = {"participant": "participants", "stimulus": "stimuli"}
+        clauses.append(f"the {' and '.join(low)} variance is at or near zero ("
+                       f"{' and '.join(plural.get(n, n) for n in low)} differ no more than the rating noise, so the "
+                       "model is in effect one without that random intercept)")
+    if any(w.startswith(_HESSIAN) for w in warned):
+        clauses.append("the variances' own standard errors cannot be computed")
+    known = (*_RETRIED, _BOUNDARY, _HESSIAN)
+    if any(not w.startswith(known) for w in warned):
+        return head + ("; " + " and ".join(clauses) if clauses else "") + (
+            ", but statsmodels also warned of something else (see report.json), so check these estimates.")
+    return head + ("; " + " and ".join(clauses) if clauses else "") + (
+        ", which leaves the condition estimates and tests below valid.")
 
 
 def _coef_index(fit, ref: str, cond: str) -> int | None:
@@ -252,14 +307,16 @@ def analyze(source, out=None, design_dir=None) -> Path:
         raise LaughlabError(f"no ratings are left after the exclusions ({len(excluded)} participants excluded: "
                             f"{'; '.join(r[0] for r in excluded.values())[:200]})")
     questions = [q for q in questions if q in set(tidy["question"])]
-    means = condition_means(tidy, conditions)
-    fixed, variances, cons, notes = [], [], [], {}
+    means = condition_means(tidy, conditions, questions)
+    fixed, variances, cons, notes, warned = [], [], [], {}, {}
     for q in questions:
         data = tidy[tidy["question"] == q]
         if data["condition"].nunique() < 2 or data["participant"].nunique() < 2:
-            notes[q] = ["fewer than two conditions or participants: no model"]
+            notes[q] = "Fewer than two conditions or participants: no model."
             continue
-        fit, ref, notes[q] = fit_model(data, conditions)
+        fit, ref, warned[q] = fit_model(data, conditions)
+        if warned[q]:
+            notes[q] = fit_note(fit, warned[q])
         ci = fit.conf_int()
         for name in fit.fe_params.index:
             fixed.append({"question": q, "term": name.replace(f"C(condition, Treatment(reference={ref!r}))", "condition"),
@@ -296,6 +353,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
     doc = {"source": str(source), "design_id": (design or {}).get("id"), "participants": n_all,
            "excluded": {str(p): r for p, r in excluded.items()}, "included": n_all - len(excluded),
            "conditions": conditions, "questions": questions, "model_notes": notes,
+           "model_warnings": {q: w for q, w in warned.items() if w},
            "means": means.to_dict("records"), "fixed": fixed, "variance": variances,
            "contrasts": contrast_df.to_dict("records")}
     (tmp / "report.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
@@ -326,9 +384,10 @@ def _markdown(doc: dict, source: Path) -> str:
     for v in doc["variance"]:
         lines.append(f"| {v['question']} | {_fmt(v['var_participant'], 3)} | {_fmt(v.get('var_stimulus'), 3)} | "
                      f"{_fmt(v['var_residual'], 3)} | {v['converged']} |")
-    for q, ns in doc["model_notes"].items():
-        for n in ns:
-            lines.append(f"\n{q}: {n}")
+    if doc["model_notes"]:
+        lines.append("")
+    for q, note in doc["model_notes"].items():
+        lines.append(f"- {q}: {note}")
     lines += ["", "## Pairwise contrasts (Holm over each question's pairs)", "",
               "| question | a - b | estimate | 95 % CI | z | p | p (Holm) | d [95 % CI] |",
               "|---|---|---|---|---|---|---|---|"]
