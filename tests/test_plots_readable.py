@@ -8,6 +8,7 @@ study report's figures.  Inputs are short (10 s runs, 4 s trials) to keep the te
 """
 import json
 import re
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +38,8 @@ class Saved:
         self.overlaps = overlapping_texts(fig, drawn)
         self.undirected = colorbars_without_direction(fig)
         self.n_colorbars = len(colorbars(fig))
+        # (label, colour map, values rising upwards) of each colour bar
+        self.bars = [(cb.ax.get_ylabel(), cb.cmap.name, not cb.ax.yaxis_inverted()) for cb in colorbars(fig)]
         self.titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
         self.xticks = [[t.get_text() for t in ax.get_xticklabels()] for ax in fig.axes if ax.get_visible()]
 
@@ -113,8 +116,7 @@ def test_the_figures_of_an_experiment_report(tmp_path, saved):
     from laughlab.harness.report import same_everywhere, write_report
 
     run = tmp_path / "exp"
-    doc = _tiny_experiment(run, "energy_vs_concat", [], {"energy": ["scheduler=energy"],
-                                                          "concat": ["scheduler=concat"]}, showcase="intense-s00")
+    doc = _tiny_experiment(run, "smoke", [], {"energy": ["scheduler=energy"], "concat": ["scheduler=concat"]})
     readme = write_report(run, tmp_path / "rep", "cmd").read_text()
     assert_readable(saved)
     same = [m for m in doc["metrics"] if same_everywhere(doc, m)]
@@ -131,40 +133,56 @@ def test_the_figures_of_an_experiment_report(tmp_path, saved):
     assert "| metric | units | energy mean [95% CI] | concat mean [95% CI] |" in readme
 
 
-def _sweep(root: Path, points: list[dict]) -> None:
-    """A Hydra-like sweep folder: one experiment per point, with its ``.hydra/overrides.yaml``."""
+def _sweep_point(job: Path, overrides: list[str], doc: dict | None = None, scale: float = 1.0) -> dict:
+    """One point of a Hydra-like sweep folder: its experiment (run, or ``doc`` with every mean and CI
+    times ``scale``) and its ``.hydra/overrides.yaml``."""
     import yaml
 
-    for k, params in enumerate(points):
-        job = root / str(k)
-        ov = [f"{a}={b}" for a, b in params.items()]
-        _tiny_experiment(job, "energy_ablation", ov, {"energy": ["scheduler=energy"]})
-        (job / ".hydra").mkdir(parents=True, exist_ok=True)
-        (job / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(["experiment=energy_ablation", *ov]))
+    from laughlab.harness.results import write_json
+
+    if doc is None:
+        doc = _tiny_experiment(job, "energy_ablation", overrides, {"energy": ["scheduler=energy"]})
+    else:
+        doc = json.loads(json.dumps(doc))
+        for r in doc["results"]["energy"].values():
+            if r["mean"] is not None:
+                r["mean"] *= scale
+                r["ci95"] = [v * scale if v is not None else None for v in r["ci95"]]
+        job.mkdir(parents=True)
+        write_json(job / "results.json", doc)
+    (job / ".hydra").mkdir(parents=True, exist_ok=True)
+    (job / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(["experiment=energy_ablation", *overrides]))
+    return doc
 
 
 def test_the_figures_of_a_sweep_report(tmp_path, saved):
+    """A 2 x 1 sweep run for real (line plots), then made a 2 x 2 one (heatmaps) by two more points whose
+    results are the first two's scaled by 1.2 (what the sweep changed is all the report reads)."""
     from laughlab.harness.report import KEY_METRICS, write_report
 
-    grid = [{"scheduler.overrule_c": c, "scheduler.decrease_per_s": d} for c in (1.5, 3) for d in (6, 20)]
-    _sweep(tmp_path / "sweep", grid)
+    docs = [_sweep_point(tmp_path / "line" / str(k), [f"scheduler.overrule_c={c}", "scheduler.decrease_per_s=6"])
+            for k, c in enumerate((1.5, 3))]
+    write_report(tmp_path / "line", tmp_path / "rep_line", "cmd")
+    lines = [f for f in saved if f.name.startswith("line_")]
+    assert len(lines) == 1
+    assert all("is better" in t for t in lines[0].texts if t.startswith(("fraction", "s (", "Pearson")))
+    shutil.copytree(tmp_path / "line", tmp_path / "sweep")
+    for k, (c, doc) in enumerate(zip((1.5, 3), docs), start=2):
+        _sweep_point(tmp_path / "sweep" / str(k), [f"scheduler.overrule_c={c}", "scheduler.decrease_per_s=20"],
+                     doc, 1.2)
     readme = write_report(tmp_path / "sweep", tmp_path / "rep", "cmd").read_text()
     (heat,) = [f for f in saved if f.name.startswith("heatmap_")]
     flat = re.findall(r"`(\w+)` \(", readme.split("No figure for")[1].split("\n")[0]) if "No figure for" in readme \
         else []
     # every metric of the table has a heatmap, or the report says why not
-    assert sorted(t.split(" ")[0] for t in heat.titles if t and "better" not in t) == \
-        sorted(m for m in KEY_METRICS if m not in flat)
+    assert sorted(t.split(" ")[0] for t in heat.titles if t) == sorted(m for m in KEY_METRICS if m not in flat)
     assert heat.n_colorbars == len(KEY_METRICS) - len(flat) > 0
-    assert "the sweep did not change it" in readme or not flat
-    # a 2 x 1 sweep: one parameter varies, line plots
-    line_root = tmp_path / "line"
-    line_root.mkdir()
-    for k in (0, 1):
-        (line_root / str(k)).symlink_to(tmp_path / "sweep" / str(k), target_is_directory=True)
-    write_report(line_root, tmp_path / "rep_line", "cmd")
-    lines = [f for f in saved if f.name.startswith("line_")]
-    assert len(lines) == 1 and all("is better" in t for t in lines[0].texts if t.startswith(("fraction", "s ")))
+    assert all(f"`{m}` (" in readme for m in flat) and ("the sweep did not change it" in readme or not flat)
+    # bright (the top of viridis) is better in every heatmap, and every bar's top is its better end
+    for label, cmap, rising in heat.bars:
+        assert (label, cmap, rising) in {("better ↑ (higher is better)", "viridis", True),
+                                         ("better ↑ (lower is better)", "viridis_r", False)}
+    assert {b[0] for b in heat.bars} == {"better ↑ (higher is better)", "better ↑ (lower is better)"}
     assert_readable(saved)
 
 
@@ -228,3 +246,30 @@ def test_a_fit_note_says_what_the_warnings_mean():
     assert fit_note(fit, []) == ""
     assert fit_note(fit, ["Something new"]).endswith("statsmodels also warned of something else (see report.json), "
                                                      "so check these estimates.")
+
+
+def test_filmstrip_moments_by_hand():
+    from laughlab.render.plots import filmstrip_moments
+
+    times = np.arange(10.0)
+    pos = np.zeros((10, 2, 3))
+    pos[3, :, 0] = 10.0            # the pose farthest from the usual one (all zeros), in the clap block
+    pos[8, :, 0] = 5.0
+    blocks = [("clap", 2.0, 5.0, 15.0), ("idle", 5.0, 10.0, 0.0)]
+    # 3 (clap's most pronounced); then parts [0, 3) and [6, 9]: 0 (the first pose unlike 3), then
+    # 8 (the one unlike both 3 and 0)
+    assert filmstrip_moments(times, pos, 3, blocks) == [0, 3, 8]
+    assert filmstrip_moments(times, pos, 1, blocks) == [3]
+    assert filmstrip_moments(times[:3], pos[:3], 20, []) == [0, 1, 2]
+    assert filmstrip_moments(times[:0], pos[:0], 8, blocks) == []
+
+
+def test_the_checks_see_overprinting_and_a_colour_bar_that_does_not_say_which_way_is_better():
+    fig = Figure()
+    ax = fig.subplots()
+    ax.text(0.5, 0.5, "lean_front2")
+    ax.text(0.52, 0.5, "lean_back2")
+    im = ax.imshow(np.arange(4.0).reshape(2, 2))
+    fig.colorbar(im, ax=ax, label="miss_rate")
+    assert overlapping_texts(fig) == [("lean_front2", "lean_back2")]
+    assert colorbars_without_direction(fig) == ["miss_rate"]

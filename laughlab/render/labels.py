@@ -112,9 +112,10 @@ def place_label(ax, renderer, text: str, spots: Sequence[dict], taken: list, lin
 def drawn_texts(fig) -> list[tuple[Text, Bbox]]:
     """Every non-empty text the figure draws, with its box in display pixels.
 
-    The figure is drawn once with :meth:`Text.draw` watched, so the list holds exactly what
-    the PNG shows: titles, tick labels in view, axis labels, legend entries, annotations;
-    not the texts of hidden axes or of axes turned off.
+    The figure is drawn once (without rasterising: ``draw_without_rendering``) with
+    :meth:`Text.draw` watched, so the list holds exactly what the PNG shows: titles, tick labels
+    in view, axis labels, legend entries, annotations; not the texts of hidden axes or of axes
+    turned off.
     """
     drawn = []
     original = Text.draw
@@ -126,7 +127,7 @@ def drawn_texts(fig) -> list[tuple[Text, Bbox]]:
 
     Text.draw = watched
     try:
-        fig.canvas.draw()
+        fig.draw_without_rendering()
     finally:
         Text.draw = original
     return [(t, bb) for t, bb in drawn if bb.width > 0 and bb.height > 0]
