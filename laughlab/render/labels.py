@@ -28,7 +28,9 @@ PAD_PX = 1.5
 
 def layout_now(fig):
     """Run the figure's layout engine and return its renderer (positions are final after this)."""
-    fig.draw_without_rendering()
+    engine = fig.get_layout_engine()
+    if engine is not None:
+        engine.execute(fig)
     return fig.canvas.get_renderer()
 
 

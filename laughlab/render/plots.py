@@ -131,8 +131,10 @@ def _draw_clip_blocks(ax, events: Sequence, end: float, top: float) -> list:
     blocks = clip_blocks(events, end)
     colors = clip_colors(b[0] for b in blocks)
     for name, t0, t1, e in blocks:
-        ax.add_patch(plt.Rectangle((t0, 0), t1 - t0, e if e > 0 else ZERO_BLOCK * top, facecolor=colors[name],
-                                   alpha=0.7 if e > 0 else 0.9, edgecolor="0.3", lw=0.4))
+        patch = ax.add_patch(plt.Rectangle((t0, 0), t1 - t0, e if e > 0 else ZERO_BLOCK * top,
+                                           facecolor=colors[name], alpha=0.7 if e > 0 else 0.9, edgecolor="0.3",
+                                           lw=0.4))
+        patch.set_in_layout(False)  # inside the axes: the layout need not measure hundreds of them
     return blocks
 
 
