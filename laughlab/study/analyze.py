@@ -17,8 +17,8 @@ Steps, each written to the report folder:
 4. ``model.csv``, ``variance.csv``: per question a linear mixed model
    ``value ~ condition + (1 | participant) + (1 | stimulus)`` fitted by REML with statsmodels'
    ``MixedLM`` (crossed random intercepts as variance components of one all-ones group).
-   Each model is fitted twice, by L-BFGS and by Powell's method, and the converged fit with the
-   higher REML likelihood is kept: L-BFGS alone can stop short of the maximum and call it
+   Each model is fitted twice, by L-BFGS and by Powell's method, and of the sound fits (converged,
+   finite standard errors, no numerical warning) the one with the higher REML likelihood is kept: L-BFGS alone can stop short of the maximum and call it
    converged (on the study demo's naturalness ratings with ``smile_only`` as the reference level it
    stops at a log-likelihood of -118.79 with a stimulus variance of 0.02, where the maximum is
    -118.41 with that variance at 0; with another reference level it said so and statsmodels' retry
@@ -171,7 +171,8 @@ def condition_means(tidy, conditions: list[str], questions: list[str] | None = N
     return out
 
 
-#: the optimisers each mixed model is fitted with; the converged fit with the highest REML likelihood is kept
+#: the optimisers each mixed model is fitted with; of the sound fits (:func:`_sound`) the one with the
+#: highest REML likelihood is kept (none sound: the first that converged, else the first)
 FIT_METHODS = ("lbfgs", "powell")
 
 
@@ -195,11 +196,22 @@ def fit_model(data, conditions: list[str]):
                 fit = model.fit(reml=True, method=[method])
             except (np.linalg.LinAlgError, ValueError):  # this optimiser failed outright: the other one stands
                 continue
-        fits.append((fit, sorted({str(w.message).splitlines()[0] for w in caught})))
+            finite = bool(np.all(np.isfinite(np.asarray(fit.bse_fe, float))))  # may warn too: caught here
+        warned = sorted({str(w.message).splitlines()[0] for w in caught})
+        fits.append((fit, warned, _sound(fit, warned, finite)))
     if not fits:
         raise LaughlabError("the mixed model could not be fitted by any optimiser")
-    fit, notes = max(fits, key=lambda fw: (bool(fw[0].converged), fw[0].llf))
+    sound = [f for f in fits if f[2]]
+    fit, notes, _ = max(sound, key=lambda f: f[0].llf) if sound else \
+        next((f for f in fits if f[0].converged), fits[0])
     return fit, ref, notes
+
+
+def _sound(fit, warned: list[str], finite_se: bool) -> bool:
+    """A fit to choose from: converged, finite standard errors of the condition effects, and no
+    numerical trouble on the way (an "invalid value" warning: e.g. a residual variance run to zero
+    on degenerate ratings, where the likelihood grows without bound)."""
+    return bool(fit.converged) and finite_se and not any("invalid value" in w for w in warned)
 
 
 #: what the statsmodels warnings of a MixedLM fit say, found by the start of their text
@@ -279,7 +291,8 @@ def contrasts(fit, ref: str, conditions: list[str]):
             i = _coef_index(fit, ref, c)
             if i is not None:
                 L[i] += sign
-        est, se = float(L @ beta), float(math.sqrt(L @ cov @ L))
+        est, v = float(L @ beta), float(L @ cov @ L)
+        se = math.sqrt(v) if v > 0 else float("nan")  # a degenerate fit's covariance may not be positive
         z = est / se if se > 0 else float("nan")
         rows.append({"a": a, "b": b, "estimate": est, "se": se, "ci_low": est - 1.959964 * se,
                      "ci_high": est + 1.959964 * se, "z": z, "p": float(2 * stats.norm.sf(abs(z))),
