@@ -111,13 +111,12 @@ ZERO_BLOCK = 0.02
 def clip_colors(names) -> dict:
     """A colour per clip name: the bundled clips' fixed ones (:data:`CLIP_COLORS`), then the spare ones."""
     cmap = plt.get_cmap("tab20")
-    free = _SPARE_COLORS
     out, k = {}, 0
     for n in sorted(set(names)):
         if n in CLIP_COLORS:
             out[n] = cmap(CLIP_COLORS[n])
         else:
-            out[n] = cmap(free[k % len(free)])
+            out[n] = cmap(_SPARE_COLORS[k % len(_SPARE_COLORS)])
             k += 1
     return out
 
