@@ -154,8 +154,8 @@ def task(cfg) -> dict:
                 return doc
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
             _CLAIM.finish(cfg_hash)
-            print(f"{doc['experiment']}: {doc['n_trials']} trials -> {out_dir / 'results.json'}; "
-                  f"report: python -m laughlab report {out_dir}")
+            hint = "" if _in_sweep() else f"; report: python -m laughlab report {out_dir}"   # a sweep: one at its end
+            print(f"{doc['experiment']}: {doc['n_trials']} trials -> {out_dir / 'results.json'}{hint}")
             return doc
         pipe = pipeline.build(cfg)
         metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
@@ -172,6 +172,13 @@ def task(cfg) -> dict:
         if _CLAIM is not None:
             _CLAIM.release()
             _CLAIM = None
+
+
+def _in_sweep() -> bool:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    return HydraConfig.get().mode == RunMode.MULTIRUN
 
 
 def _fault(exc: BaseException, where: Path | str) -> tuple[str, int]:
