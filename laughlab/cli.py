@@ -376,8 +376,8 @@ def help_text() -> str:
         names = ([first] if first in names else []) + [n for n in names if n != first]
         lines.append(f"  {g + ':':<12} {', '.join(names)}")
     lines += ["", HELP_EXAMPLES.rstrip(), "",
-              "docs: README.md (what each plugin implements, outputs, experiments, benchmarks) and",
-              "docs/architecture.md in the source; each conf/<group>/<option>.yaml explains its parameters.",
+              "docs: README.md and the docs/ pages it links (pipeline.md: outputs; experiments.md; papers.md:",
+              "what each plugin implements; benchmarks.md); each conf/<group>/<option>.yaml explains its parameters.",
               "Hydra's own flags: python -m laughlab --hydra-help"]
     return "\n".join(lines)
 
