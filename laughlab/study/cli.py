@@ -176,3 +176,6 @@ def run_power(ns) -> None:
     W.plot(out / "power.png", rows, ns.target, title)
     print(f"laughlab: {W.verdict(rows, ns.target)} for {a} - {b} = {ns.effect:g} (alpha {ns.alpha:g}, Holm); "
           f"{out}/power.csv, power.png")
+    hint = W.advice(rows, ns.target, ns.effect)
+    if hint:
+        print(f"laughlab: {hint}")

@@ -50,18 +50,24 @@ def simulate(trials: list[list[tuple[str, str]]], effects: dict[str, float], var
 
 
 def verdict(rows: list[dict], target: float) -> str:
-    """What :func:`power`'s ``rows`` say: the fewest participants reaching ``target`` power, or, when none
-    does, the best tried and what to change to reach it."""
+    """What :func:`power`'s ``rows`` say: the fewest participants reaching ``target`` power, or the best tried."""
     enough = next((r["n"] for r in rows if r["power"] >= target), None)
     if enough is not None:
         return f"{enough} participants reach {target:.0%} power"
     best = max(rows, key=lambda r: (r["power"], r["n"]))
+    return (f"none of {', '.join(str(r['n']) for r in rows)} participants reaches {target:.0%} power "
+            f"(best {best['power']:.0%} with {best['n']})")
+
+
+def advice(rows: list[dict], target: float, effect: float) -> str | None:
+    """When no size reaches ``target``: what to change (None when one does)."""
+    if any(r["power"] >= target for r in rows):
+        return None
     top = max(r["n"] for r in rows)
     more = ",".join(str(k * top) for k in (2, 3, 4))
-    return (f"none of {', '.join(str(r['n']) for r in rows)} participants reaches {target:.0%} power "
-            f"(best {best['power']:.0%} with {best['n']}); to reach it try more participants (--participants {more}), "
-            f"more stimuli per condition (more audio items in experiment=stimuli, e.g. harness.corpus.seeds=N), "
-            f"or a larger --effect")
+    return (f"to reach {target:.0%}: more participants (--participants {more}), more stimuli per condition "
+            f"(more audio items: experiment=stimuli harness.corpus.seeds=N), or a larger effect than {effect:g}")
+
 
 def detected(df, conditions: list[str], a: str, b: str, alpha: float) -> bool:
     from laughlab.study.analyze import contrasts, fit_model
