@@ -151,6 +151,7 @@ def plot(path: Path, rows: list[dict], target: float, title: str) -> None:
     err = np.vstack([p - [r["ci_low"] for r in rows], [r["ci_high"] for r in rows] - p])
     ax.errorbar(n, p, yerr=err, fmt="o-", capsize=4, color="tab:blue")
     ax.axhline(target, color="tab:red", ls="--", lw=1, label=f"target {target:.0%}")
+    ax.set_xticks(sorted(set(n)))           # whole participants, not 8.5
     ax.set_xlabel("participants")
     ax.set_ylabel("power (95 % CI)")
     ax.set_ylim(0, 1.02)
