@@ -158,9 +158,9 @@ def task(cfg) -> dict:
                 return doc
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
             _CLAIM.finish(cfg_hash)
+            hint = "" if _in_sweep() else f"; report: python -m laughlab report {out_dir}"   # a sweep: one at its end
             print(f"{doc['experiment']}: {doc['n_trials']} trials in {duration_text(time.monotonic() - t0)} -> "
-                  f"{out_dir / 'results.json'}; "
-                  f"report: python -m laughlab report {out_dir}")
+                  f"{out_dir / 'results.json'}{hint}")
             return doc
         pipe = pipeline.build(cfg)
         metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
@@ -177,6 +177,13 @@ def task(cfg) -> dict:
         if _CLAIM is not None:
             _CLAIM.release()
             _CLAIM = None
+
+
+def _in_sweep() -> bool:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    return HydraConfig.get().mode == RunMode.MULTIRUN
 
 
 def _fault(exc: BaseException, where: Path | str) -> tuple[str, int]:
@@ -364,8 +371,8 @@ def help_text() -> str:
         names = ([first] if first in names else []) + [n for n in names if n != first]
         lines.append(f"  {g + ':':<12} {', '.join(names)}")
     lines += ["", HELP_EXAMPLES.rstrip(), "",
-              "docs: README.md (what each plugin implements, outputs, experiments, benchmarks) and",
-              "docs/architecture.md in the source; each conf/<group>/<option>.yaml explains its parameters.",
+              "docs: README.md and the docs/ pages it links (pipeline.md: outputs; experiments.md; papers.md:",
+              "what each plugin implements; benchmarks.md); each conf/<group>/<option>.yaml explains its parameters.",
               "Hydra's own flags: python -m laughlab --hydra-help"]
     return "\n".join(lines)
 
