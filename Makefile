@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three
+.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three vendor-three-vrm
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,6 +47,15 @@ vendor-three: $(STAMP)
 	for f in LICENSE build/three.module.min.js examples/jsm/loaders/GLTFLoader.js \
 	         examples/jsm/controls/OrbitControls.js examples/jsm/utils/BufferGeometryUtils.js; do \
 	  mkdir -p laughlab/viewer/vendor/three/$$(dirname $$f) && cp build/three/package/$$f laughlab/viewer/vendor/three/$$f; done
+
+## vendor-three-vrm: (maintainers) copy @pixiv/three-vrm and @pixiv/three-vrm-animation 3.5.5 (MIT) from the npm
+## registry into laughlab/viewer/vendor/three_vrm*/ (their ES module builds, which import only 'three', and licences)
+vendor-three-vrm: $(STAMP)
+	rm -rf build/three-vrm && mkdir -p build/three-vrm
+	cd build/three-vrm && ../../$(VENV)/bin/npm pack @pixiv/three-vrm@3.5.5 @pixiv/three-vrm-animation@3.5.5 --silent
+	for p in three-vrm three-vrm-animation; do d=$$(echo $$p | tr - _); \
+	  mkdir -p build/three-vrm/$$p laughlab/viewer/vendor/$$d && tar xzf build/three-vrm/pixiv-$$p-3.5.5.tgz -C build/three-vrm/$$p && \
+	  cp build/three-vrm/$$p/package/LICENSE build/three-vrm/$$p/package/lib/$$p.module.min.js laughlab/viewer/vendor/$$d/; done
 
 ## bench: every benchmark (pipeline speed and memory, call detection, latency, Hill fit, detector, faces and Hill on real laughs); figures in benchmarks/results/
 bench: $(STAMP) corpus

@@ -283,12 +283,14 @@ def view_command(args: list[str]) -> None:
     parser.add_argument("run_dir", help="a run directory (motion.bvh, channels.csv, events.csv)")
     parser.add_argument("--port", type=int, default=V.DEFAULT_PORT, help="port on 127.0.0.1 (a free one if taken)")
     parser.add_argument("--out", help="write the page and its files into this new folder instead of serving")
+    parser.add_argument("--character", help="show the run on this avatar (VRM 0.x/1.0, or a humanoid glTF/GLB; "
+                                            "docs/avatars.md) instead of the mannequin")
     ns = parser.parse_args(args)
     if ns.out:
-        print(f"laughlab: viewer of {ns.run_dir} written to {V.write(ns.run_dir, ns.out)}/ (serve it with any "
-              f"static web server, e.g. python -m http.server -d {ns.out})")
+        print(f"laughlab: viewer of {ns.run_dir} written to {V.write(ns.run_dir, ns.out, ns.character)}/ (serve "
+              f"it with any static web server, e.g. python -m http.server -d {ns.out})")
         return
-    httpd = V.server(ns.run_dir, ns.port)
+    httpd = V.server(ns.run_dir, ns.port, ns.character)
     print(f"laughlab: viewing {ns.run_dir} at http://127.0.0.1:{httpd.server_address[1]}/ (Ctrl-C to stop)",
           flush=True)
     V.serve_until_interrupted(httpd)
@@ -343,6 +345,7 @@ examples:
   python -m laughlab output=video face=facs                 + video.mp4 of the character
   python -m laughlab output=gltf face=facs                  + character.glb (Blender, three.js, Unity)
   python -m laughlab view runs/demo                         the run on the character in a browser
+  python -m laughlab view runs/demo --character my.vrm      ... on your VRM or humanoid glTF avatar
   python -m laughlab study build runs/stimuli               the stimuli's perception study (study --help)
   python -m laughlab experiment=energy_vs_concat hydra.run.dir=runs/evc; python -m laughlab report runs/evc
   python -m laughlab -m experiment=energy_ablation          a parameter sweep

@@ -136,6 +136,9 @@ def read_gltf(path: str | Path) -> tuple[dict, bytes]:
         raise _fail(path, "is JSON but not glTF (no 'asset')")
     buffers = doc.get("buffers") or []
     binary = b""
+    if len(buffers) > 1:
+        raise _fail(path, f"has {len(buffers)} buffers; laughlab reads avatars with one (a .glb, or a .gltf "
+                          "with one .bin)")
     if buffers:
         uri = buffers[0].get("uri", "")
         if uri.startswith("data:"):

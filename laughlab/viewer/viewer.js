@@ -57,11 +57,41 @@ const controls = new OrbitControls(camera, canvas);
 controls.target.set(0, 0.95, 0);
 controls.update();
 
-const gltf = await new GLTFLoader().loadAsync('./character.glb');
-scene.add(gltf.scene);
-const mixer = new THREE.AnimationMixer(gltf.scene);
+// a user's avatar (--character): a VRM goes through three-vrm (MToon materials, spring bones); the run is
+// baked into the file's first animation (bones and morph weights), so the mixer plays it as it plays ours
+const avatar = run.avatar || { vrm: false, bones: {}, scale: 1 };
+const loader = new GLTFLoader();
+if (avatar.vrm) {
+  const { VRMLoaderPlugin } = await import('./vendor/three_vrm/three-vrm.module.min.js');
+  loader.register((parser) => new VRMLoaderPlugin(parser, { autoUpdateHumanBones: false }));
+}
+const gltf = await loader.loadAsync('./character.glb');
+const vrm = gltf.userData.vrm || null;
+scene.add(vrm ? vrm.scene : gltf.scene);
+const mixer = new THREE.AnimationMixer(vrm ? vrm.scene : gltf.scene);
 const action = mixer.clipAction(gltf.animations[0]);
 action.play();
+if (avatar.facing < 0) (vrm ? vrm.scene : gltf.scene).rotation.y = Math.PI;  // VRM 0.x faces -Z: turn it to the camera
+if (avatar.file) {  // frame the avatar as the 1.78 m mannequin is framed
+  const box = new THREE.Box3().setFromObject(vrm ? vrm.scene : gltf.scene);
+  const scale = Math.max(0.2, (box.max.y - Math.min(0, box.min.y)) / 1.78);
+  camera.position.multiplyScalar(scale);
+  controls.target.multiplyScalar(scale);
+  controls.update();
+}
+// node index -> its object, for the tests' check of the joints' world positions
+const nodes = {};
+(vrm ? vrm.scene : gltf.scene).traverse((o) => {
+  const a = gltf.parser.associations.get(o);
+  if (a && a.nodes !== undefined && !(a.nodes in nodes)) nodes[a.nodes] = o;
+});
+state.world = (indices) => indices.map((i) => { const p = new THREE.Vector3(); nodes[i].getWorldPosition(p); return p.toArray(); });
+state.morphs = () => { const out = {}; (vrm ? vrm.scene : gltf.scene).traverse((o) => {
+  const a = gltf.parser.associations.get(o);
+  if (o.morphTargetInfluences && a && a.meshes !== undefined) out[o.name] = Array.from(o.morphTargetInfluences);
+}); return out; };
+state.vrm = vrm !== null;
+let lastT = 0;
 
 // the strip: MCS and laughing energy around now, clips as blocks, the current time as a line
 const strip = $('strip');
@@ -112,6 +142,8 @@ resize();
 function frame() {
   const t = Math.min(now(), run.duration);
   mixer.setTime(t);
+  if (vrm && vrm.springBoneManager) { vrm.scene.updateMatrixWorld(true); vrm.springBoneManager.update(Math.max(0, Math.min(0.1, t - lastT))); }
+  lastT = t;
   state.animTime = mixer.time;
   state.frames += 1;
   renderer.render(scene, camera);
