@@ -87,6 +87,8 @@ docs: $(STAMP) browser
 	   extractor.calibration_s=1.0 output=files
 	cp runs/docs-calibration/plots/fig3_1_calibration.png docs/img/
 	$(PY) -m laughlab.viewer.browser runs/docs docs/img/viewer.png --at 9
+	$(PY) -m laughlab.viewer.browser runs/docs docs/img/avatar_godette.png --at 9 --character tests/assets/avatars/Godette_vrm_v4.vrm
+	$(PY) -m laughlab.viewer.browser runs/docs docs/img/avatar_robot.png --at 9 --character tests/assets/avatars/debug_robot.vrm
 	rm -rf runs/docs-video
 	$(PY) -m laughlab hydra.run.dir=runs/docs-video seed=0 input.duration_s=10 output=video face=facs
 	$(PY) -c "import imageio_ffmpeg, subprocess; subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), '-loglevel', 'error', '-y', '-ss', '2.5', '-i', 'runs/docs-video/video.mp4', '-frames:v', '1', 'docs/img/video_frame.png'], check=True)"

@@ -352,3 +352,14 @@ def test_a_very_large_avatar_is_refused_from_its_size(tmp_path):
 def test_a_character_no_output_uses_is_said(tmp_path):
     out = _cli(tmp_path, "input.duration_s=1", f"character={GODETTE}")
     assert out.returncode == 2 and "do not use it" in out.stderr and not (tmp_path / "run").exists()
+
+
+def test_the_docs_tables_are_the_codes():
+    """docs/avatars.md lists every accepted node name and the ARKit -> VRM table exactly as the code has them."""
+    from laughlab.avatar.names import NODE_NAMES
+
+    doc = (Path(__file__).parent.parent / "docs" / "avatars.md").read_text()
+    for bone, names in NODE_NAMES.items():
+        assert f"| `{bone}` | " + ", ".join(f"`{n}`" for n in names) + " |" in doc, bone
+    for expr, terms in ARKIT_TO_VRM.items():
+        assert f"| `{expr}` | " in doc and " + ".join(f"{w:g} `{k}`" for k, w in terms.items()) + " |" in doc, expr
