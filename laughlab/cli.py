@@ -80,6 +80,8 @@ def preflight(argv: list[str]):
         if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
             check_conditions(cfg.harness.get("conditions"))
             build_corpus(OmegaConf.to_container(cfg.harness.get("corpus") or {}, resolve=True))
+    else:
+        pipeline.check_character_used(cfg)
     full = cfg
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
     pipe = pipeline.build(cfg)

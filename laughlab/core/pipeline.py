@@ -138,7 +138,6 @@ def build(cfg: DictConfig) -> Pipeline:
                                 f"(got {str(params)[:40]!r})")
     character = cfg.get("character")
     if character is not None:
-        _check_character(str(character), outputs)
         for name in outputs:
             if "character" in _param_names("sink", name) and not (outputs[name] or {}).get("character"):
                 outputs[name] = {**(outputs[name] or {}), "character": str(character)}
@@ -158,10 +157,14 @@ def _param_names(kind: str, name: str) -> set[str]:
     return {f.name for f in dataclasses.fields(params)} if dataclasses.is_dataclass(params) else set()
 
 
-def _check_character(path: str, outputs: dict) -> None:
-    """``character=PATH``: an output must use it (the sink that does checks the file as it is built)."""
-    if not any("character" in _param_names("sink", name) for name in outputs):
-        raise LaughlabError(f"character={path} is shown by output=gltf (or `laughlab view RUN --character PATH`); "
+def check_character_used(cfg: DictConfig) -> None:
+    """A plain run with ``character=PATH`` must have an output that uses it (the sink that does checks the
+    file as it is built); experiments set their own outputs per trial."""
+    path = cfg.get("character")
+    outputs = dict(cfg.get("output") or {})
+    if path is not None and not any("character" in _param_names("sink", name) for name in outputs):
+        raise LaughlabError(f"character={path} is shown by output=gltf and output=video (and `laughlab view RUN "
+                            f"--character PATH`); "
                             f"this run's outputs ({', '.join(outputs) or 'none'}) do not use it")
 
 
