@@ -363,3 +363,30 @@ def test_the_docs_tables_are_the_codes():
         assert f"| `{bone}` | " + ", ".join(f"`{n}`" for n in names) + " |" in doc, bone
     for expr, terms in ARKIT_TO_VRM.items():
         assert f"| `{expr}` | " in doc and " + ".join(f"{w:g} `{k}`" for k, w in terms.items()) + " |" in doc, expr
+
+
+MIXAMO = {"hips": "Hips", "spine": "Spine", "spine1": "Spine1", "spine2": "Spine2", "neck": "Neck", "head": "Head",
+          **{f"{s}_{j}": f"{S}{m}" for s, S in (("left", "Left"), ("right", "Right"))
+             for j, m in (("clavicle", "Shoulder"), ("upper_arm", "Arm"), ("forearm", "ForeArm"), ("hand", "Hand"),
+                          ("thigh", "UpLeg"), ("shin", "Leg"), ("foot", "Foot"), ("toe", "ToeBase"))}}
+
+
+def test_a_mixamo_named_gltf_json_is_recognised_and_retargets_exactly(tmp_path, godette_run):
+    """The mannequin with Mixamo's node names (``mixamorig:LeftArm``...), as a .gltf JSON with its buffer in a
+    data URI: every joint found by name, and its joints where the BVH's are."""
+    import base64
+
+    doc, binary = parse_glb(mannequin_arkit_glb())
+    for n in doc["nodes"]:
+        if n.get("name") in MIXAMO:
+            n["name"] = "mixamorig:" + MIXAMO[n["name"]]
+    doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(binary).decode()
+    path = tmp_path / "mixamo.gltf"
+    path.write_text(json.dumps(doc))
+    av = load_avatar(path)
+    assert av.kind == "gltf" and len(av.bones) == 22 and av.facing == 1
+    motion, want = bvh_world(godette_run)
+    world = animated_world(av, retarget(av, motion[list(FRAMES)]))
+    for k, f in enumerate(FRAMES):
+        got = np.array([world[k, av.bones[JOINT_TO_VRM[n]], :3, 3] for n in HUMANOID.names])
+        np.testing.assert_allclose(got, want[f], atol=1e-9)
