@@ -3,14 +3,33 @@ PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
+#: exact versions, with hashes, of everything the venv holds (made by `make lock` with uv)
+LOCK := requirements.lock
+UV_VERSION := 0.13.9
 
-.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three vendor-three-vrm
+.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three vendor-three-vrm lock lock-upgrade
 
-$(STAMP): pyproject.toml
+## the venv: built afresh from the lock whenever the lock or pyproject.toml changes, so it holds exactly
+## the locked versions (hash-checked) and nothing else; laughlab itself installed editable on top
+$(STAMP): pyproject.toml $(LOCK)
+	rm -rf $(VENV)
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet --disable-pip-version-check --require-hashes --no-deps -r $(LOCK)
+	$(PY) -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
+	$(PY) -m pip check --disable-pip-version-check >/dev/null
 	touch $(STAMP)
+
+## lock: write requirements.lock from pyproject.toml ('.[test]' plus the build requirements) with uv,
+## keeping the versions already locked; lock-upgrade moves every package to its newest release
+LOCK_CMD = $(VENV)-lock/bin/uv pip compile pyproject.toml requirements-build.in --extra test --universal \
+	--python-version 3.11 --generate-hashes --quiet --custom-compile-command 'make lock' -o $(LOCK)
+$(VENV)-lock/bin/uv:
+	$(PYTHON) -m venv $(VENV)-lock
+	$(VENV)-lock/bin/python -m pip install --quiet --disable-pip-version-check uv==$(UV_VERSION)
+lock: $(VENV)-lock/bin/uv
+	$(LOCK_CMD)
+lock-upgrade: $(VENV)-lock/bin/uv
+	$(LOCK_CMD) --upgrade
 
 ## demo: run the default pipeline on the built-in synthetic laughter into runs/demo
 demo: $(STAMP)
@@ -25,20 +44,29 @@ corpus: $(STAMP)
 detector: corpus
 	$(PY) -m laughlab.detector.fit
 
-## test: the default test suite (slow end-to-end checks excluded); the real corpus and the browser come first
+## test: the default test suite (slow end-to-end checks excluded), with the 25 slowest tests listed at
+## the end; the real corpus and the browser come first.  BROWSER=no skips Chromium and its tests
+BROWSER ?= yes
+PYTEST_BROWSER := $(if $(filter no,$(BROWSER)),-m 'not slow and not browser',)
 test: $(STAMP) corpus browser
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n auto --dist loadfile --durations=25 $(PYTEST_BROWSER)
 
 ## test-all: every test, the slow ones too
 test-all: $(STAMP) corpus browser
-	$(PY) -m pytest -q -m ''
+	$(PY) -m pytest -q -n auto --dist loadfile --durations=25 -m '$(if $(filter no,$(BROWSER)),not browser,)'
 
-## browser: Debian's chromium for the viewer's test (headless; installed with apt when missing and we may)
+## browser: Debian's chromium for the viewer's and the study's tests (headless), installed with apt when
+## missing, after saying so
 browser:
+ifeq ($(BROWSER),no)
+	@echo "laughlab: BROWSER=no: Chromium is not installed and the browser tests are skipped"
+else
 	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
-	  { if [ "$$(id -u)" = 0 ]; then apt-get update -q && apt-get install -y -q chromium; \
+	  { echo "laughlab: installing Debian's chromium with apt-get (about 130 packages, 480 MB, system-wide, as root) for the viewer and study tests; to skip them: make test BROWSER=no"; \
+	    if [ "$$(id -u)" = 0 ]; then apt-get update -q && apt-get install -y -q chromium; \
 	    elif command -v sudo >/dev/null 2>&1; then sudo apt-get update -q && sudo apt-get install -y -q chromium; \
-	    else echo "laughlab: error: the viewer test needs chromium: apt-get install chromium" >&2; exit 2; fi; }
+	    else echo "laughlab: error: the browser tests need chromium: apt-get install chromium, or make test BROWSER=no" >&2; exit 2; fi; }
+endif
 
 ## vendor-three: (maintainers) copy three.js 0.160.0 from the npm registry into laughlab/viewer/vendor/three
 vendor-three: $(STAMP)
@@ -72,7 +100,7 @@ clips: $(STAMP)
 	$(PY) -m laughlab_plugins.clips.author
 
 clean:
-	rm -rf $(VENV) runs outputs multirun .pytest_cache .hypothesis
+	rm -rf $(VENV) $(VENV)-lock runs outputs multirun .pytest_cache .hypothesis
 
 ## docs: regenerate the README's pictures from a fixed run (seed 0, 30 s of synthetic laughter)
 docs: $(STAMP) browser

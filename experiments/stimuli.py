@@ -376,7 +376,8 @@ def run(cfg, out_dir) -> dict:
     orders = write_orders(out_dir, manifest, list(conditions), [u[0] for u in units], n_participants, design,
                           columns)
     doc = {"experiment": h.get("name") or "stimuli", "preset": preset_name, "design": design,
-           "conditions": conditions, "muted": sorted(muted), "n_stimuli": len(manifest),
+           "conditions": conditions, "condition_order": list(conditions),  # the file's keys are sorted
+           "muted": sorted(muted), "n_stimuli": len(manifest),
            "audio_items": [u[0] for u in units], "participants": n_participants,
            "latin_square_rows": len(williams(len(conditions))), "loudness_target_lufs": target,
            "orders": [str(p.relative_to(out_dir)) for p in orders]}

@@ -14,14 +14,18 @@ import sys
 import time
 from pathlib import Path
 
-from laughlab.core import interrupts
+from laughlab.core import clock, interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, compose_config, conf_dir,  # noqa: F401
                                   group_options, register_plugin_configs)
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
+from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
 
 #: the run directory this process holds (laughlab.core.rundir), from before Hydra writes into it to the end
 _CLAIM = None
+#: when the command started (time.monotonic()): the process' start for ``python -m laughlab``; None in a sweep
+#: (each job's summary times the job)
+_STARTED: float | None = None
 _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--version",
                 "--shell-completion", "-sc", "--resolve", "--package", "-p", "--config-path", "-cp",
                 "--config-name", "-cn", "--config-dir", "-cd", "--experimental-rerun"}
@@ -137,7 +141,7 @@ def task(cfg) -> dict:
     from laughlab.core import rundir
 
     out_dir = Path(HydraConfig.get().runtime.output_dir)
-    t0 = time.perf_counter()
+    t0 = time.monotonic() if _STARTED is None else _STARTED
     cfg_hash = config_hash(cfg)
     try:
         if _CLAIM is None:  # a sweep's job: Hydra made the folder and wrote .hydra/ into it
@@ -156,13 +160,14 @@ def task(cfg) -> dict:
                 return doc
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
             _CLAIM.finish(cfg_hash)
-            print(f"{doc['experiment']}: {doc['n_trials']} trials -> {out_dir / 'results.json'}; "
-                  f"report: python -m laughlab report {out_dir}")
+            hint = "" if _in_sweep() else f"; report: python -m laughlab report {out_dir}"   # a sweep: one at its end
+            print(f"{doc['experiment']}: {doc['n_trials']} trials in {duration_text(time.monotonic() - t0)} -> "
+                  f"{out_dir / 'results.json'}{hint}")
             return doc
         pipe = pipeline.build(cfg)
         metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
         _CLAIM.finish(cfg_hash)
-        print(summary_line(cfg, metrics, out_dir, time.perf_counter() - t0))
+        print(summary_line(cfg, metrics, out_dir, time.monotonic() - t0))
         return metrics
     except LaughlabError as exc:
         _remove_new_run_dir(out_dir)
@@ -174,6 +179,13 @@ def task(cfg) -> dict:
         if _CLAIM is not None:
             _CLAIM.release()
             _CLAIM = None
+
+
+def _in_sweep() -> bool:
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    return HydraConfig.get().mode == RunMode.MULTIRUN
 
 
 def _fault(exc: BaseException, where: Path | str) -> tuple[str, int]:
@@ -212,24 +224,6 @@ def config_hash(cfg) -> str:
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:
-    """One line on success: what ran on what, how long (the run, and the frame loop's speed), where.
-
-    e.g. ``laughlab: 30.0 s of synthetic input, rms > none > smile > shapes > energy, in 1.1 s
-    (frame loop 219x real time) -> runs/demo/: channels.csv, events.csv, motion.bvh, plots/``
-    """
-    src = cfg.input.name
-    what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
-    chain = " > ".join(str(cfg[g].name) for g in ("extractor", "detector", "face", "body", "scheduler")
-                       if g in cfg and cfg[g] is not None and "name" in cfg[g])
-    dur = float(metrics.get("duration_s") or 0.0)
-    rtf = metrics.get("realtime_factor")
-    speed = f" (frame loop {float(rtf):.0f}x real time)" if rtf else ""
-    files = sorted(p.name + ("/" if p.is_dir() else "") for p in Path(out_dir).iterdir()
-                   if not p.name.startswith("."))
-    return f"laughlab: {dur:.1f} s of {what}, {chain}, in {seconds:.1f} s{speed} -> {out_dir}/: {', '.join(files)}"
-
-
 def _stopped(cfg, out_dir: Path, what: str) -> str:
     """Clean up after a run stopped by a signal or a file-system fault; the one line that says so.
 
@@ -262,20 +256,24 @@ def report_command(args: list[str]) -> None:
     from laughlab.harness.report import write_report
 
     parser = one_line_parser(prog="python -m laughlab report",
-                                     description="Write reports/<experiment>/README.md from a run or sweep folder.")
+                                     description="Write a Markdown report with figures (README.md) from a run or sweep "
+                                                 "folder, into RUN_DIR/report/ or --out DIR.")
     parser.add_argument("run_dir", help="an experiment's run folder (results.json) or a multirun sweep folder")
-    parser.add_argument("--out", help="report folder (default: reports/<experiment>)")
+    parser.add_argument("--out", help="report folder (default: RUN_DIR/report; the committed reports: "
+                                         "--out reports/<experiment>)")
     ns = parser.parse_args(args)
     command = "python -m laughlab report " + " ".join(args)
     try:
         path = write_report(ns.run_dir, ns.out, command)
     except OSError as exc:
-        raise LaughlabError(os_error_line(exc, ns.out or "reports/") + "; no report was written") from None
+        raise LaughlabError(os_error_line(exc, ns.out or Path(ns.run_dir) / "report")
+                            + "; no report was written") from None
     print(f"report written: {path}")
 
 
 def view_command(args: list[str]) -> None:
-    """``python -m laughlab view RUN_DIR [--port N] [--out DIR]``: the run on the character in a browser."""
+    """``python -m laughlab view RUN_DIR [--port N] [--out DIR] [--character PATH]``: the run on the character
+    (or the user's avatar) in a browser."""
 
     from laughlab.viewer import server as V
 
@@ -284,13 +282,18 @@ def view_command(args: list[str]) -> None:
                                                  "audio, the MCS and laughing energy scrolling below.")
     parser.add_argument("run_dir", help="a run directory (motion.bvh, channels.csv, events.csv)")
     parser.add_argument("--port", type=int, default=V.DEFAULT_PORT, help="port on 127.0.0.1 (a free one if taken)")
-    parser.add_argument("--out", help="write the page and its files into this new folder instead of serving")
+    parser.add_argument("--out", help="write the page and its files into this new folder instead of serving; "
+                                         "its index.html opens from the disk or on any web server")
     parser.add_argument("--character", help="show the run on this avatar (VRM 0.x/1.0, or a humanoid glTF/GLB; "
                                             "docs/avatars.md) instead of the mannequin")
     ns = parser.parse_args(args)
     if ns.out:
-        print(f"laughlab: viewer of {ns.run_dir} written to {V.write(ns.run_dir, ns.out, ns.character)}/ (serve "
-              f"it with any static web server, e.g. python -m http.server -d {ns.out})")
+        out, opens = V.write(ns.run_dir, ns.out, ns.character)
+        serve = f"python -m http.server -d {out}"
+        print(f"laughlab: viewer of {ns.run_dir} written to {out}/: open {out / 'index.html'} in a browser, or put "
+              f"the folder on any web server (e.g. {serve})" if opens else
+              f"laughlab: viewer of {ns.run_dir} written to {out}/: too large to open as a file; serve the folder "
+              f"(e.g. {serve}) and open http://127.0.0.1:8000/")
         return
     httpd = V.server(ns.run_dir, ns.port, ns.character)
     print(f"laughlab: viewing {ns.run_dir} at http://127.0.0.1:{httpd.server_address[1]}/ (Ctrl-C to stop)",
@@ -374,15 +377,17 @@ def help_text() -> str:
         names = ([first] if first in names else []) + [n for n in names if n != first]
         lines.append(f"  {g + ':':<12} {', '.join(names)}")
     lines += ["", HELP_EXAMPLES.rstrip(), "",
-              "docs: README.md (what each plugin implements, outputs, experiments, benchmarks) and",
-              "docs/architecture.md in the source; each conf/<group>/<option>.yaml explains its parameters.",
+              "docs: README.md and the docs/ pages it links (pipeline.md: outputs; experiments.md; papers.md:",
+              "what each plugin implements; benchmarks.md); each conf/<group>/<option>.yaml explains its parameters.",
               "Hydra's own flags: python -m laughlab --hydra-help"]
     return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> None:
     """The command line; a Ctrl-C or SIGTERM at any moment ends in one line and exit 130."""
+    global _STARTED
     interrupts.install()  # SIGTERM cleans up as Ctrl-C does
+    _STARTED = clock.process_start() if argv is None else time.monotonic()  # argv given: called in-process
     try:
         _main(list(sys.argv[1:] if argv is None else argv))
     except SystemExit:
@@ -423,6 +428,9 @@ def _main(argv: list[str]) -> None:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return
     multirun = any(a in ("-m", "--multirun") for a in argv)
+    if multirun:
+        global _STARTED
+        _STARTED = None
     hydra_only = any(a.split("=")[0] in _HYDRA_FLAGS for a in argv)
     if not multirun and not hydra_only and "input=mic" not in argv:
         from laughlab.core import background

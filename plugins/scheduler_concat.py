@@ -14,6 +14,15 @@ motion control signal: ``silence`` if ``control['mcs'] < mcs_silence``, else
 ``vowel`` (0 when there is no ``mcs``).  A new pseudo-phoneme starts whenever
 the label differs from the previous frame's.
 
+Silence is a pseudo-phoneme too.  Ding et al.'s input is the whole pseudo-phoneme
+sequence, pauses included (e.g. ``[a, silence, nasal]``; silence is the most frequent of
+the 14 classes in their corpus, 729 occurrences), and a segment is concatenated for every
+pseudo-phoneme in it.  So the scheduler plays segments from the first frame on, before the
+first laugh and between bouts: the ``silence`` class's segments, the library's slowest
+pieces (most of them cut from ``idle``).  A run's ``events.csv`` and Fig. 4.2 therefore show
+segments from t = 0 on, and many short ones (each call and pause is its own
+pseudo-phoneme); this is the method, not a fault.
+
 ``mode: greedy`` (default, real time; the paper's "simplified version").  At the
 first frame of a pseudo-phoneme its duration is not known yet, so the target
 duration d(p) is *predicted*: the running mean duration of the class so far,

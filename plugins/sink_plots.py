@@ -23,8 +23,12 @@ class PlotsParams:
     power : float
         Exponent of the MCS for Fig. 3.2 (the ``rms`` extractor's ``power``).
     filmstrip_frames : int
-        Stick figures in ``plots/filmstrip.png`` (0: no filmstrip): one in the
-        middle of each clip played, in order, else evenly spaced.
+        Stick figures in ``plots/filmstrip.png`` (0: no filmstrip): each clip
+        played at its most pronounced pose (the farthest from the run's usual
+        pose), then the most pronounced poses of the parts of the run not shown
+        yet, all at different times, in time order
+        (:func:`laughlab.render.plots.filmstrip_moments`); under each, the clip
+        playing then and the smile and jaw weights.
     """
 
     max_seconds: float = 60.0
@@ -133,22 +137,24 @@ class PlotsSink(Sink):
                     title=f"The thesis' min/max mapping of this run's sound (its MCS: extractor={name}; cf. Fig. 3.1)")
 
     def _filmstrip(self, path, data, note: str = "") -> None:
+        from laughlab.motion.skeleton import forward_kinematics
         from laughlab.render import plots
 
         idx = np.concatenate(self.pose_idx)
         poses = np.concatenate(self.poses)
-        n = self.params.filmstrip_frames
+        times = idx / self.run.fps
+        positions = forward_kinematics(self.run.skeleton, poses)
         blocks = plots.clip_blocks(self.events, float(data["time"][-1]))
-        wanted = [(0.5 * (b[1] + b[2]), b[0]) for b in blocks][:n]
-        if not wanted:
-            wanted = [(t, "idle") for t in np.linspace(0, data["time"][-1], n)]
-        pick = [int(np.argmin(np.abs(idx / self.run.fps - t))) for t, _ in wanted]
-        frames = idx[pick]
+        pick = plots.filmstrip_moments(times, positions, self.params.filmstrip_frames, blocks)
         caps = []
-        for (t, name), f in zip(wanted, frames):
-            face = ", ".join(f"{k} {data[k][f]:.2f}" for k in ("smile", "jaw") if k in data)
-            caps.append(f"{name}\n{face}")
-        plots.filmstrip(path, self.run.skeleton, frames / self.run.fps, poses[pick], caps, note=note)
+        for i in pick:
+            t = times[i]
+            playing = [b[0] for b in blocks if b[1] <= t < b[2]]
+            face = ", ".join(f"{k} {data[k][idx[i]]:.2f}" for k in ("smile", "jaw") if k in data)
+            caps.append(f"{playing[-1] if playing else 'no clip'}\n{face}")
+        plots.filmstrip(path, self.run.skeleton, times[pick], poses[pick], caps, note=note,
+                        title="The character over the run: each clip's most pronounced pose, then the run's "
+                              "(skeleton from motion.bvh)")
 
     def abort(self) -> None:
         self.staging.abort()

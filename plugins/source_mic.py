@@ -62,10 +62,14 @@ class MicSource(Source):
     def open(self) -> None:
         try:
             import sounddevice as sd
-        except (ImportError, OSError) as exc:
-            raise LaughlabError(
-                f"input=mic needs sounddevice and PortAudio (pip install 'laughlab[mic]'): {exc}"
-            ) from None
+        except ImportError:
+            from laughlab.core.install import extra_command
+
+            raise LaughlabError(f"input=mic needs the sounddevice package: {extra_command('mic')}") from None
+        except OSError as exc:  # sounddevice is there, the PortAudio library it loads is not
+            raise LaughlabError(f"input=mic needs the PortAudio library ({str(exc).splitlines()[0]}): "
+                                "apt-get install libportaudio2 (Debian, Ubuntu) or brew install portaudio "
+                                "(macOS)") from None
         device = self.params.device
         if isinstance(device, str) and device.isdigit():
             device = int(device)

@@ -1,4 +1,5 @@
 import os
+import sys
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 
@@ -28,10 +29,42 @@ def lib():
     return ClipLibrary.load()
 
 
+#: the fuzz cases the workers ran (pytest-xdist): kind -> count, added up as each worker ends
+_WORKER_FUZZ: dict = {}
+
+
+def _fuzz_counts() -> dict:
+    fuzz = sys.modules.get("fuzz")
+    return dict(getattr(fuzz, "COUNTS", None) or {})
+
+
+def pytest_sessionfinish(session):
+    """In a pytest-xdist worker: hand the fuzz suite's counts to the controller."""
+    if hasattr(session.config, "workeroutput"):
+        session.config.workeroutput["fuzz_counts"] = _fuzz_counts()
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    """In the pytest-xdist controller: add up a finished worker's fuzz counts."""
+    for kind, n in (getattr(node, "workeroutput", None) or {}).get("fuzz_counts", {}).items():
+        _WORKER_FUZZ[kind] = _WORKER_FUZZ.get(kind, 0) + n
+
+
 def pytest_terminal_summary(terminalreporter):
-    """The fuzz suite's case count (tests/test_fuzz.py), so CI's log says how many cases it tried."""
-    fuzz = __import__("sys").modules.get("fuzz")
-    counts = getattr(fuzz, "COUNTS", None)
+    """The fuzz suite's case count (tests/test_fuzz.py), so CI's log says how many cases it tried, and
+    which check the golden runs made (tests/test_golden.py: exact bytes or values within a tolerance)."""
+    ran = {r.nodeid.split("::")[0] for rs in terminalreporter.stats.values() for r in rs if hasattr(r, "nodeid")}
+    if "tests/test_golden.py" in ran:
+        from golden import ATOL, RTOL, exact_environment
+
+        exact, why = exact_environment()
+        terminalreporter.write_line("golden: " + ("exact bytes (the locked environment)" if exact else
+                                                  f"values within rtol {RTOL:g}, atol {ATOL:g} "
+                                                  f"(not the locked environment: {why})"))
+    counts = _fuzz_counts()
+    for kind, n in _WORKER_FUZZ.items():
+        counts[kind] = counts.get(kind, 0) + n
     if counts:
         terminalreporter.write_line(f"fuzz: {sum(counts.values())} cases, every one one line or finite output: "
                                     + "; ".join(f"{n} {k}" for k, n in sorted(counts.items())))

@@ -1,20 +1,40 @@
-"""Golden outputs: the bytes of a few fixed runs, so a refactor or a speed-up is proven not to change them.
+"""Golden outputs: a few fixed runs, so a refactor or a speed-up is proven not to change them.
 
-``python tests/golden.py --update`` rewrites ``tests/data/golden.json`` from the current code;
-do that only when an output is meant to change, and say why in the commit.  The digests hold on
-one platform's numpy/scipy/libm; a different BLAS or CPU may need a regeneration.
+Two strengths of check, chosen by where the test runs:
+
+- **exact bytes** in the environment the goldens were made in: every package pinned in
+  ``requirements.lock`` installed at its locked version (what ``make test`` builds), on the Python
+  minor version, OS and CPU architecture recorded in ``tests/data/golden.json``.  numpy, scipy, numba
+  and libm round differently from release to release, so bytes only hold in the locked environment.
+- **values within a tolerance** anywhere else (a newer numpy, macOS, ARM): every number of every
+  output file equal to the golden file's within ``RTOL``/``ATOL`` below, every word equal.
+
+``python tests/golden.py --update`` rewrites ``tests/data/golden.json`` and the golden files
+(``tests/data/golden/NAME/FILE.gz``) from the current code, in the locked environment only; do it
+only when an output is meant to change, and say why in the commit.
 """
 from __future__ import annotations
 
+import gzip
 import hashlib
 import json
+import platform
+import re
 import subprocess
 import sys
+from importlib import metadata
 from pathlib import Path
 
+ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = Path(__file__).parent / "data" / "golden.json"
+GOLDEN_DIR = Path(__file__).parent / "data" / "golden"
+LOCK = ROOT / "requirements.lock"
 FILES = ("channels.csv", "events.csv", "motion.bvh", "face_arkit.csv")
 REAL = "ovos/female-407676__nagwense__comical-evil-laugh"  # 11 s, 48 kHz, test split
+
+#: outside the locked environment, numbers must agree to a relative 1e-6 or an absolute 1e-4
+#: (channels are weights in [0, 1] and angles in degrees written with 4-6 decimals)
+RTOL, ATOL = 1e-6, 1e-4
 
 #: name -> command-line overrides (every run: seed 0)
 RUNS = {
@@ -33,8 +53,8 @@ def real_path() -> str:
     return str(fetch.require(kinds=["laugh"])[REAL])
 
 
-def run(name: str, out: Path) -> dict[str, str]:
-    """Run one golden combination into ``out``; the sha256 of each of its output files."""
+def run(name: str, out: Path) -> dict[str, bytes]:
+    """Run one golden combination into ``out``; the bytes of each of its output files."""
     args = list(RUNS[name])
     if "input=file" in args:
         args.append(f"input.path={real_path()}")
@@ -42,18 +62,109 @@ def run(name: str, out: Path) -> dict[str, str]:
                           capture_output=True, text=True)
     if proc.returncode:
         raise RuntimeError(f"golden run {name} failed: {proc.stderr.strip()}")
-    return {f: hashlib.sha256((out / f).read_bytes()).hexdigest() for f in FILES if (out / f).exists()}
+    return {f: (out / f).read_bytes() for f in FILES if (out / f).exists()}
+
+
+def sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+# -- the environment ---------------------------------------------------------------------------------
+
+def platform_tag() -> dict[str, str]:
+    """What, besides the packages, decides the bytes: Python's minor version, the OS, the CPU."""
+    return {"python": platform.python_version_tuple()[0] + "." + platform.python_version_tuple()[1],
+            "system": platform.system(), "machine": platform.machine()}
+
+
+def locked_pins(lock: Path = LOCK) -> dict[str, str]:
+    """The lock's ``name==version`` pins that apply here (their environment markers evaluated)."""
+    from packaging.markers import Marker
+
+    pins = {}
+    for line in lock.read_text().splitlines():
+        m = re.match(r"^([A-Za-z0-9_.\-]+)==([^\s;\\]+)\s*(?:;\s*([^\\]+?))?\s*\\?$", line)
+        if m and (m.group(3) is None or Marker(m.group(3)).evaluate()):
+            pins[re.sub(r"[-_.]+", "-", m.group(1)).lower()] = m.group(2)
+    return pins
+
+
+def lock_mismatches(lock: Path = LOCK) -> list[str]:
+    """Every locked package that is missing here or installed at another version, as ``name want (have)``."""
+    out = []
+    for name, want in sorted(locked_pins(lock).items()):
+        try:
+            have = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            have = "missing"
+        if have != want:
+            out.append(f"{name} {want} ({have})")
+    return out
+
+
+def exact_environment() -> tuple[bool, str]:
+    """Whether this is the environment the golden bytes hold in, and if not, why (one line)."""
+    recorded = json.loads(GOLDEN.read_text())["environment"]
+    why = [f"{k} {recorded[k]} ({v})" for k, v in platform_tag().items() if recorded.get(k) != v]
+    off = lock_mismatches()
+    if off:
+        why.append(f"{len(off)} packages off the lock, e.g. " + ", ".join(off[:3]))
+    return not why, "; ".join(why)
+
+
+# -- comparing by value ------------------------------------------------------------------------------
+
+_NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:nan|inf)", re.I)
+
+
+def value_differences(got: bytes, want: bytes, rtol: float = RTOL, atol: float = ATOL) -> str | None:
+    """None when two text outputs differ only in numbers within the tolerance; else the first difference.
+
+    Both files are cut into words and numbers (CSV cells, BVH tokens); the words must be equal, the
+    numbers close: |a - b| <= atol + rtol * |b|, NaN equal to NaN.
+    """
+    import numpy as np
+
+    g, w = got.decode(), want.decode()
+    g_words, w_words = _NUMBER.split(g), _NUMBER.split(w)
+    if g_words != w_words:
+        first = next((i for i, (a, b) in enumerate(zip(g_words, w_words)) if a != b), None)
+        if first is None:
+            return f"{len(g_words)} text pieces where the golden file has {len(w_words)}"
+        return f"text differs near {w_words[first][:40]!r}"
+    a = np.array([float(x) for x in _NUMBER.findall(g)])
+    b = np.array([float(x) for x in _NUMBER.findall(w)])
+    bad = ~np.isclose(a, b, rtol=rtol, atol=atol, equal_nan=True)
+    if bad.any():
+        i = int(np.argmax(bad))
+        return (f"{int(bad.sum())} of {len(b)} numbers beyond rtol {rtol:g}/atol {atol:g}, "
+                f"the first {a[i]!r} vs {b[i]!r}, the largest difference {float(np.max(np.abs(a - b)[bad])):.3g}")
+    return None
+
+
+def golden_file(name: str, file: str) -> bytes:
+    return gzip.decompress((GOLDEN_DIR / name / f"{file}.gz").read_bytes())
 
 
 def main() -> None:
     import tempfile
 
     if "--update" not in sys.argv:
-        sys.exit("usage: python tests/golden.py --update   (rewrites tests/data/golden.json)")
+        sys.exit("usage: python tests/golden.py --update   (rewrites tests/data/golden.json and tests/data/golden/)")
+    off = lock_mismatches()
+    if off and "--force" not in sys.argv:
+        sys.exit(f"golden.py: this environment is not the lock's ({len(off)} packages differ, e.g. "
+                 f"{', '.join(off[:3])}): run `make test` first, or add --force")
+    runs = {}
     with tempfile.TemporaryDirectory() as tmp:
-        digests = {name: run(name, Path(tmp) / name) for name in RUNS}
-    GOLDEN.write_text(json.dumps(digests, indent=1, sort_keys=True) + "\n")
-    print(f"wrote {GOLDEN}")
+        for name in RUNS:
+            files = run(name, Path(tmp) / name)
+            runs[name] = {f: sha256(data) for f, data in files.items()}
+            (GOLDEN_DIR / name).mkdir(parents=True, exist_ok=True)
+            for f, data in files.items():  # mtime 0: the same output, the same .gz bytes
+                (GOLDEN_DIR / name / f"{f}.gz").write_bytes(gzip.compress(data, compresslevel=9, mtime=0))
+    GOLDEN.write_text(json.dumps({"environment": platform_tag(), "runs": runs}, indent=1, sort_keys=True) + "\n")
+    print(f"wrote {GOLDEN} and {GOLDEN_DIR}")
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import soundfile as sf
+from omegaconf import OmegaConf
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -117,6 +118,47 @@ def test_bad_input_one_line_no_output(bad_files, args, message):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("args, message", [
+    (["scheduler.mode=fast"],
+     "laughlab: error: scheduler.mode is a parameter of scheduler=concat, not of scheduler=energy: add scheduler=concat"),
+    (["input.path=laugh.wav"],
+     "laughlab: error: input.path is a parameter of input=file, not of input=synthetic: add input=file"),
+])
+def test_a_parameter_of_another_plugin_says_what_to_add(tmp_path, args, message):
+    """Issue 26: the two errors that were clear but left the user stuck."""
+    r = laughlab(*args, f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 2 and r.stderr.strip() == message and r.stdout == ""
+    assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("args, message", [
+    (["+scheduler.mode=fast"], "scheduler.mode is a parameter of scheduler=concat, not of scheduler=energy: "
+                               "add scheduler=concat"),       # added with +: caught by the plugin's Params
+    (["scheduler=none", "scheduler.mode=fast"],                # chosen explicitly: switch, not add
+     "scheduler.mode is a parameter of scheduler=concat, not of scheduler=none: use scheduler=concat instead"),
+    (["input=file", "input.profile=mild"],
+     "input.profile is a parameter of input=synthetic, not of input=file: use input=synthetic instead"),
+    (["output.video.fps=10"], "output.video.fps is a parameter of output=video, not of output=files: add output=video"),
+    (["body.preset=deep_laugh"], "body.preset is a parameter of body=hill, not of body=shapes: add body=hill"),
+    (["mode=fast"], "there is no top-level parameter mode; scheduler=concat has scheduler.mode: "
+                    "write scheduler=concat scheduler.mode=fast"),
+    (["scheduler=concat", "mode=optimal"], "there is no top-level parameter mode; did you mean scheduler.mode=optimal?"),
+    (["video.fps=10"], "there is no top-level parameter video.fps; output=video has output.video.fps: "
+                       "write output=video output.video.fps=10"),
+    (["face.bogus=1"], "unknown parameter face.bogus; valid: smile, jaw, blink_mean_s"),   # no plugin has it
+    (["bogus=1"], "unknown parameter bogus"),
+])
+def test_an_unknown_key_names_the_plugins_that_have_it(args, message):
+    from laughlab.core import pipeline
+    from laughlab.core.config import compose_config
+    from laughlab.core.errors import LaughlabError
+
+    with pytest.raises(LaughlabError) as err:
+        cfg = compose_config(args)
+        pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")]))
+    assert str(err.value).startswith(message)
+
+
 def test_failure_during_the_run_leaves_nothing(tmp_path):
     plugdir = tmp_path / "plug"
     plugdir.mkdir()
@@ -201,3 +243,84 @@ def test_help_lists_every_group_with_examples_and_docs():
                  "  detector:    none, laugh"):
         assert line in r.stdout
     assert "examples:" in r.stdout and "README.md" in r.stdout and "--hydra-help" in r.stdout
+
+
+def test_the_summary_times_the_whole_command_from_the_process_start(tmp_path):
+    """Issue 26: the summary said 'in 1.7 s' for a command that took 3.4 s (it timed from the task's start,
+    after start-up and composition)."""
+    import re
+    import time
+
+    out = tmp_path / "run"
+    t_spawn = time.monotonic()
+    p = subprocess.Popen([sys.executable, "-m", "laughlab", f"hydra.run.dir={out}", "input.duration_s=4"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+    line = p.stdout.readline()
+    waited = time.monotonic() - t_spawn         # spawn to the summary line, as the user sees it
+    rest, err = p.communicate(timeout=300)
+    assert p.returncode == 0, err
+    m = re.fullmatch(r"laughlab: 4\.0 s of synthetic input, .* in (\d+\.\d) s \((\S+)x real time; "
+                     r"frame loop (\S+)x\) -> .*\n", line)
+    assert m, line
+    said = float(m.group(1))
+    loop_s = json.loads((out / "metrics.json").read_text())["wall_s"]
+    assert said >= loop_s - 0.05                       # the frame loop is part of the command
+    assert waited - 0.5 <= said <= waited + 0.06, (waited, said)  # started after the spawn; 0.05: rounding
+    assert float(m.group(2)) == pytest.approx(4.0 / said, rel=0.1, abs=0.01)   # printed to 2 digits
+
+
+#: the speed each output group's summary states, for 30 s of audio in 3.4 s (metrics below)
+SPEEDS = {
+    "files": "8.8x real time; frame loop 219x",
+    "gltf": "8.8x real time; frame loop 219x",
+    "vrma": "8.8x real time; frame loop 219x",
+    "trial": "8.8x real time; frame loop 219x",
+    "video": "8.8x real time; video: 900 frames rendered at 4.5 frames/s",
+    "vmc": "paced at the frame clock for the vmc stream",
+}
+
+
+@pytest.mark.parametrize("output", sorted(p.stem for p in (ROOT / "conf" / "output").glob("*.yaml")))
+def test_every_output_group_states_a_meaningful_speed(output):
+    """Issue 26: output=video said 'frame loop 0x real time'.  A new output group fails here until its
+    speed is stated (SPEEDS)."""
+    from laughlab.cli import summary_line
+    from laughlab.core.config import compose_config
+
+    cfg = compose_config([f"output={output}"])
+    metrics = {"duration_s": 30.0, "fps": 60.0, "realtime_factor": 219.4, "frame_ms_p99": 0.23}
+    if output == "video":
+        metrics.update(video_frames=900, video_render_fps=4.51, realtime_factor=0.149)
+    line = summary_line(cfg, metrics, ROOT / "conf" / "output", 3.4)
+    assert f"rms > none > smile > shapes > energy, in 3.4 s ({SPEEDS[output]}) -> " in line
+
+
+@pytest.mark.parametrize("args, seconds, metrics, said", [
+    (["input=mic"], 31.0, {"duration_s": 30.0, "fps": 60.0, "frame_ms_p99": 0.234},
+     "in 31.0 s (live; compute per frame p99 0.23 ms of 16.7 ms)"),
+    (["input=mic", "output=vmc"], 31.0, {"duration_s": 30.0, "fps": 30.0, "frame_ms_p99": 1.5},
+     "in 31.0 s (live; compute per frame p99 1.50 ms of 33.3 ms)"),
+    (["output=vmc", "output.vmc.realtime=off"], 0.8, {"duration_s": 30.0, "realtime_factor": 80.0},
+     "in 0.8 s (38x real time; frame loop 80x)"),
+    (["output=video"], 21.7, {"duration_s": 2.0, "realtime_factor": 0.1, "video_frames": 60,
+                              "video_render_fps": 9.17}, "in 21.7 s (0.092x real time; video: 60 frames rendered at 9.2 frames/s)"),
+    ([], 1925.0, {"duration_s": 1800.0, "realtime_factor": 716.0}, "in 32 min 05 s (0.94x real time; frame loop 716x)"),
+])
+def test_the_speed_by_hand(args, seconds, metrics, said):
+    from laughlab.cli import summary_line
+    from laughlab.core.config import compose_config
+
+    assert said in summary_line(compose_config(args), metrics, ROOT / "conf" / "output", seconds)
+
+
+def test_a_sweep_of_experiments_prints_one_report_hint_at_its_end(tmp_path):
+    """Each point of a sweep prints its own line, and the sweep one ``report:`` line for its folder (it
+    used to print one per point: 36 for the README's 'small' sweep)."""
+    out = laughlab("-m", "experiment=smoke", "extractor.rise_per_s=12,24", "harness.corpus.seeds=1",
+              "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild]", "harness.showcase=null",
+              "harness.jobs=1", "progress=off", f"hydra.sweep.dir={tmp_path / 'sweep'}")
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert [line for line in lines if "report" in line] == [f"report: python -m laughlab report {tmp_path / 'sweep'}"]
+    assert lines[-1].startswith("report: ")
+    assert sum(line.startswith("smoke: 2 trials in ") for line in lines) == 2

@@ -1,7 +1,6 @@
 """Segment concatenation (Ding et al. 2014, 4.2): costs by hand, DP == brute force, the segment DB,
 the ``concat`` scheduler and the mixer playing its segments."""
 import math
-import time
 
 import numpy as np
 import pytest
@@ -206,10 +205,8 @@ def test_labels_follow_the_documented_rules(db):
             assert max(lo) <= min(hi)
 
 
-def test_build_is_fast_deterministic_and_cached(lib):
-    t0 = time.perf_counter()
+def test_build_is_deterministic_and_cached(lib):
     a = build(lib)
-    assert time.perf_counter() - t0 < 0.5
     b = build(lib)
     assert [(s.clip, s.start_s, s.end_s, s.label) for s in a] == [(s.clip, s.start_s, s.end_s, s.label) for s in b]
     assert segment_db(lib) is segment_db(lib)

@@ -1,7 +1,6 @@
 """Fourier functional models (Unuma, Anjyo, Takeuchi 1995) and the ``fourier`` body driver."""
 from __future__ import annotations
 
-import time
 from dataclasses import fields
 from importlib.resources import files
 
@@ -290,7 +289,7 @@ def test_driver_fits_given_bvh_files(tmp_path):
             np.testing.assert_allclose(got.amp, want.amp, atol=0.02)
 
 
-def test_driver_shiver_speed_and_cost():
+def test_driver_shiver_and_speed():
     a = driver(shiver_deg=0.5)
     b = driver(shiver_deg=0.5)
     s = np.linspace(0, 1.25, 200)
@@ -302,13 +301,7 @@ def test_driver_shiver_speed_and_cost():
     slow = driver()
     slow.play(np.ones(121))  # 2 s at speed 1: the same rescaled time
     assert fast.layers["shake"].theta == pytest.approx(slow.layers["shake"].theta, abs=1e-9)
-    body = driver()
-    frames = [Frame(k, k / 60, 1 / 60, {"mcs": 0.5 + 0.5 * np.sin(k / 20)}) for k in range(3000)]
-    t0 = time.perf_counter()
-    for f in frames:
-        body.step(f)
-    per_frame = (time.perf_counter() - t0) / len(frames)
-    assert per_frame < 100e-6  # about 15-20 us on the project machine
+    # its cost per frame is measured by benchmarks/bench_pipeline.py (per-plugin p50/p99), not here
 
 
 def test_conf_yaml_equals_the_params_defaults():

@@ -475,3 +475,19 @@ def test_compiled_step_takes_one_torso_s_activations_as_a_row_like_the_numpy_ste
         slow.step(np.full(len(GROUPS), 0.2), 0.1, 1 / 240)
     np.testing.assert_allclose(fast.lung_pressure, slow.lung_pressure, rtol=1e-9, atol=1e-12)
     assert fast.muscle_act.shape == (1, len(MUSCLES))
+
+
+def test_one_force_unit_of_the_table_is_force_unit_cmh2o_on_the_wall_it_moves():
+    """The paper's table gives F_max and k_PE without a unit; ``TorsoParams.force_unit_cmh2o`` (6) makes one
+    unit that many cm H2O on the muscle's wall: G = c_p A force_unit (c_p = 0.0980665 N per cm H2O L/m)."""
+    p = TorsoParams()
+    t = Torso(p)
+    assert p.force_unit_cmh2o == 6.0
+    assert t.gain[5] == pytest.approx(0.0980665 * p.diaphragm_area_l_per_m * 6.0)      # diaphragm
+    assert t.gain[6] == pytest.approx(0.0980665 * p.ribcage_area_l_per_m * 6.0)       # inner intercostals
+    assert t.gain[7] == pytest.approx(0.0980665 * p.ribcage_area_l_per_m * 6.0)       # outer intercostals
+    # full diaphragm effort (F_max 5) presses 5 x 6 = 30 cm H2O on its wall
+    assert 5.0 * t.gain[5] / (0.0980665 * p.diaphragm_area_l_per_m) == pytest.approx(30.0)
+    double = Torso(TorsoParams(force_unit_cmh2o=12.0))
+    np.testing.assert_allclose(double.gain[:8], 2 * t.gain[:8])                      # every table muscle scales
+    np.testing.assert_allclose(double.gain[8:], t.gain[8:])                          # the clavicles' torque does not

@@ -171,6 +171,28 @@ def test_error_is_normalised_by_a_constant_zero_pressure():
     assert pr.costs(pr.to_unit(np.array([[0.3, 0.1, 0.0, 0.0, 6.0, 0.0, 6.0]])))[1][0] == pytest.approx(rms)
 
 
+def test_the_lead_frames_count_in_the_cost_with_the_settling_penalty_too():
+    """With ``lead_s`` and ``settle_weight`` > 0 the optimised cost is the RMS error over the lead and
+    the call frames (against the previous call's target there) plus the weighted settling term, the
+    same cost :meth:`CallProblem.residuals` reports (the lead frames' cost used to be dropped)."""
+    lead_target = 0.08 * pulses([0.05], n=6)                  # the end of the previous call
+    target = pulses([0.1], n=12)
+    pr = hf.CallProblem(target, 0.1, FPS, lambda t: np.zeros((len(t), 6)), Torso().get_state(0), TorsoParams(),
+                        hf.FitParams(settle_weight=2.0, lead_s=0.1), lead_frames=6, lead_target=lead_target)
+    u = pr.to_unit(np.array([[0.1, 0.6, 0.3, -0.05, 6.0, 0.14, 6.0]]))   # pushes in the lead, inhales after
+    p, _ = pr.simulate(pr.to_physical(u))
+    p = p[:, 0]
+    norm = np.sqrt(np.mean(target ** 2))
+    over_lead_and_call = np.sqrt(np.mean((p[:18] - np.concatenate([lead_target, target])) ** 2)) / norm
+    settle = np.sqrt(np.mean(np.minimum(p[18:], 0.0) ** 2)) / norm
+    assert len(p) == 6 + 12 + 6 and settle > 0.1 and over_lead_and_call != pytest.approx(
+        np.sqrt(np.mean((p[6:18] - target) ** 2)) / norm)    # the lead frames change the cost here
+    cost, err = pr.costs(u)
+    assert err[0] == pytest.approx(np.sqrt(np.mean((p[6:18] - target) ** 2)) / norm)   # the paper's error: the call
+    assert cost[0] == pytest.approx(over_lead_and_call + 2.0 * settle)
+    assert pr.residuals(u)[1][0] == pytest.approx(cost[0])
+
+
 def oracle(xs, n_frames=12, gap=0):
     """A target made by the model itself: calls of n_frames with known parameters."""
     calls, f0 = [], 6

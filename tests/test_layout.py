@@ -126,16 +126,16 @@ def test_the_framework_imports_no_method_package():
             assert not above, f"{m} imports {sorted(above)}"
 
 
-def test_the_readme_layout_names_every_subpackage_and_module():
-    """The README's layout block and the tree agree: every subpackage and module is named there."""
-    readme = (PKG.parent / "README.md").read_text()
-    block = readme.split("## Layout", 1)[1].split("```", 2)[1]
+def test_the_layout_block_names_every_subpackage_and_module():
+    """The layout block of docs/architecture.md and the tree agree: every subpackage and module is named there."""
+    page = (PKG.parent / "docs" / "architecture.md").read_text()
+    block = page.split("## Layout", 1)[1].split("```", 2)[1]
     packages = sorted(p.parent.name for p in PKG.glob("*/__init__.py"))
     for name in packages:
-        assert f"  {name}/" in block, f"README layout misses laughlab/{name}/"
+        assert f"  {name}/" in block, f"the layout misses laughlab/{name}/"
     for path in PKG.glob("*/*.py"):
         if path.name != "__init__.py" and path.parent.name not in ("harness", "corpora"):
-            assert path.name in block, f"README layout misses {path.relative_to(PKG.parent)}"
+            assert path.name in block, f"the layout misses {path.relative_to(PKG.parent)}"
     for line in block.splitlines():  # and names no folder that is not there
         word = line.strip().split(" ")[0]
         if word.endswith("/") and not line.startswith(" "):

@@ -1,5 +1,4 @@
 """Skeleton, forward kinematics and BVH read/write."""
-import time
 
 import numpy as np
 import pytest
@@ -175,8 +174,11 @@ def test_write_rejects_wrong_width(tmp_path):
 
 
 @pytest.mark.slow
-def test_write_speed_36000_frames(tmp_path):
+def test_write_36000_frames(tmp_path):
+    """A 25-minute take at 24 fps is written whole (its speed: benchmarks/bench_pipeline.py)."""
     motion = np.random.default_rng(3).normal(0, 50, (36000, SK.n_channels))
-    t0 = time.perf_counter()
     write_bvh(tmp_path / "big.bvh", SK, motion, 1 / 24)
-    assert time.perf_counter() - t0 < 2.0
+    lines = (tmp_path / "big.bvh").read_text().splitlines()
+    k = lines.index("MOTION")
+    assert lines[k + 1].split() == ["Frames:", "36000"] and len(lines) - k - 3 == 36000
+    np.testing.assert_allclose(np.array(lines[-1].split(), float), motion[-1], atol=1e-3)

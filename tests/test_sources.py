@@ -1,6 +1,8 @@
 """Audio sources: file formats, sample rates, channel mixing, block reading, the microphone error."""
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -78,6 +80,32 @@ def test_microphone_without_a_device_is_one_clear_line(tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and ("microphone" in lines[0] or "sounddevice" in lines[0])
     assert not (tmp_path / "run").exists()
+
+
+def _build_mic():
+    from omegaconf import OmegaConf
+
+    from laughlab.core import pipeline
+    from laughlab.core.config import compose_config
+
+    cfg = compose_config(["input=mic"])
+    pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")]))
+
+
+def test_microphone_without_sounddevice_says_the_install_command_for_this_installation(monkeypatch):
+    """Issue 26: the hint and the docs agree: a clone installs the extra with -e, a wheel by name."""
+    from laughlab.core import install
+
+    monkeypatch.setitem(sys.modules, "sounddevice", None)  # import sounddevice -> ImportError
+    root = Path(__file__).resolve().parents[1]
+    assert install.clone_dir() == root                   # the tests run from the clone
+    with pytest.raises(LaughlabError, match=r"^input=mic needs the sounddevice package: "
+                                            rf"pip install -e '\.\[mic\]' in {re.escape(str(root))}$"):
+        _build_mic()
+    monkeypatch.setattr(install, "clone_dir", lambda: None)  # installed from a wheel
+    with pytest.raises(LaughlabError, match=r"^input=mic needs the sounddevice package: "
+                                            r"pip install 'laughlab\[mic\]'$"):
+        _build_mic()
 
 
 class FakeSoundDevice:

@@ -147,6 +147,7 @@ def test_bad_posts_get_4xx_are_logged_and_never_stored(study, tmp_path):
         srv.close()
 
 
+@pytest.mark.browser
 def test_simulated_participants_in_chromium_and_the_planted_effect_recovered(study, tmp_path):
     """4 participants to the end (2 with the keyboard only, 2 with the mouse) and one who closes the tab
     after 3 trials, all at once; then the database holds exactly what they answered and the analysis
@@ -231,6 +232,7 @@ def test_power_by_simulation_grows_with_participants_and_repeats_from_its_seed(s
     assert none[0]["power"] <= 0.2
 
 
+@pytest.mark.browser
 def test_on_a_static_host_the_page_keeps_the_answers_and_its_csv_is_analysed(study, tmp_path):
     """Pavlovia or any static host: no /api, so the page keeps the answers in the browser and offers
     them as CSV; ``study analyze FOLDER --design STUDY`` reads those files."""
@@ -319,3 +321,16 @@ def test_every_bundled_preset_loads_with_the_questions_of_its_paper(tmp_path):
     broken.write_text("questions:\n  - {id: a, prompt: Is it? really, labels: [x, y]\n")
     with pytest.raises(LaughlabError, match="q.yaml"):
         load_preset(str(broken))
+
+
+def test_power_says_what_to_change_when_no_size_reaches_the_target():
+    from laughlab.study.power import advice, verdict
+
+    row = lambda n, p: {"n": n, "detected": 0, "sims": 10, "power": p, "ci_low": 0.0, "ci_high": 1.0}  # noqa: E731
+    enough = [row(8, 0.4), row(12, 0.81), row(16, 0.9)]
+    assert verdict(enough, 0.8) == "12 participants reach 80% power" and advice(enough, 0.8, 1.0) is None
+    short = [row(8, 0.2), row(16, 0.55), row(12, 0.4)]
+    assert verdict(short, 0.8) == "none of 8, 16, 12 participants reaches 80% power (best 55% with 16)"
+    assert advice(short, 0.8, 0.5) == ("to reach 80%: more participants (--participants 32,48,64), more stimuli per "
+                                       "condition (more audio items: experiment=stimuli harness.corpus.seeds=N), "
+                                       "or a larger effect than 0.5")

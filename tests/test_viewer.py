@@ -35,11 +35,13 @@ def page(run_dir):
     httpd.shutdown()
 
 
+@pytest.mark.browser
 def test_the_page_loads_without_console_errors(page):
     assert page.eval("window.laughlab.error") is None
     assert page.problems() == []
 
 
+@pytest.mark.browser
 @pytest.mark.parametrize("t", [2.5, 0.4, 5.25])
 def test_the_animation_follows_the_audio_clock_within_a_frame_after_a_seek(page, t):
     got = page.eval(f"window.laughlab.check({t})")
@@ -47,11 +49,9 @@ def test_the_animation_follows_the_audio_clock_within_a_frame_after_a_seek(page,
     assert abs(got["anim"] - got["audio"]) <= 1.0 / got["fps"]
 
 
-def test_a_screenshot_shows_the_character(page):
+def shows_the_character(png: bytes) -> None:
     from PIL import Image
 
-    page.eval("window.laughlab.check(3.0)")
-    png = page.screenshot()
     img = np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
     view = img[: int(0.6 * img.shape[0])]
     background = np.array([0x2a, 0x30, 0x40])
@@ -61,6 +61,27 @@ def test_a_screenshot_shows_the_character(page):
     skin = figure & (r > g + 20) & (g > b) & (r > 150)
     shirt = figure & (b > r + 25)
     assert skin.sum() > 200 and shirt.sum() > 2000  # a face and hands, a blue shirt: not only a floor
+
+
+@pytest.mark.browser
+def test_a_screenshot_shows_the_character(page):
+    page.eval("window.laughlab.check(3.0)")
+    shows_the_character(page.screenshot())
+
+
+def whole_character_above_the_bar(page, times=(0.5, 2.0, 4.0, 5.5)):
+    """Issue 26: the control bar hid the character's feet.  Every vertex of the posed character projects
+    into the 3D view, which ends where the bar starts."""
+    for t in times:
+        page.eval(f"window.laughlab.check({t})")
+        at = page.eval("window.laughlab.onScreen()")
+        assert at["viewBottom"] <= at["barTop"] + 0.5, at                     # the view ends above the bar
+        assert at["viewTop"] < at["highest"] and at["feet"] < at["lowest"] < at["barTop"] - 4, (t, at)
+
+
+@pytest.mark.browser
+def test_the_control_bar_never_covers_the_character(page):
+    whole_character_above_the_bar(page)
 
 
 def test_bad_input_is_one_line(tmp_path, run_dir):
@@ -85,7 +106,8 @@ def test_a_port_in_use_gives_a_free_one(run_dir):
 
 
 def test_the_page_can_be_written_for_static_hosting(run_dir, tmp_path):
-    out = V.write(run_dir, tmp_path / "site")
+    out, opens_as_file = V.write(run_dir, tmp_path / "site")
+    assert out == tmp_path / "site" and opens_as_file
     names = {p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()}
     assert {"index.html", "viewer.js", "run.json", "character.glb", "audio.wav", "vendor/three/LICENSE",
             "vendor/three/build/three.module.min.js"} <= names
@@ -93,3 +115,64 @@ def test_the_page_can_be_written_for_static_hosting(run_dir, tmp_path):
     assert run["fps"] == 60.0 and run["duration"] == pytest.approx(6.0) and run["clips"]
     with pytest.raises(Exception, match="not an empty folder"):
         V.write(run_dir, tmp_path / "site")
+
+
+@pytest.fixture(scope="module")
+def site(run_dir, tmp_path_factory):
+    out, opens_as_file = V.write(run_dir, tmp_path_factory.mktemp("static") / "site")
+    assert opens_as_file
+    return out
+
+
+@pytest.mark.browser
+@pytest.mark.parametrize("width, height", [(960, 720), (1280, 500), (480, 900)])
+def test_the_written_page_plays_opened_as_a_file(site, width, height):
+    """Issue 26: ``view RUN --out DIR`` opened as a file showed a blank page with '0.00 / 0.00 s'."""
+    p = Page((site / "index.html").as_uri(), width=width, height=height)
+    try:
+        p.wait_ready()
+        assert p.eval("window.laughlab.error") is None and p.problems() == []
+        got = p.eval("window.laughlab.check(2.5)")
+        assert got["audio"] == pytest.approx(2.5, abs=0.01)   # the audio beside the page loads and seeks
+        assert abs(got["anim"] - got["audio"]) <= 1.0 / got["fps"]
+        assert p.eval("document.getElementById('time').textContent") == "2.50 / 6.00 s"
+        whole_character_above_the_bar(p)
+        if width == 960:
+            shows_the_character(p.screenshot())
+            p.eval("document.getElementById('play').click()")
+            p.eval("new Promise((r) => setTimeout(r, 1500))")
+            after = p.eval("window.laughlab.check(window.laughlab.audioTime())")
+            assert after["audio"] > 2.6 and abs(after["anim"] - after["audio"]) <= 1.0 / after["fps"]  # it plays
+    finally:
+        p.close()
+
+
+@pytest.mark.browser
+def test_a_page_too_large_to_inline_says_on_the_page_how_to_serve_it(run_dir, tmp_path, monkeypatch):
+    import time
+
+    from laughlab.viewer import page as P
+
+    monkeypatch.setattr(P, "INLINE_MAX_BYTES", 1000)
+    out, opens_as_file = V.write(run_dir, tmp_path / "big")
+    assert not opens_as_file
+    p = Page((out / "index.html").as_uri())
+    try:
+        t0, msg = time.time(), None
+        while msg is None and time.time() - t0 < 60:
+            msg = p.eval("(m => m && !m.hidden ? m.textContent : null)(document.getElementById('msg'))")
+            time.sleep(0.2)
+        assert msg is not None and "opened as a file" in msg
+        assert f"python -m http.server -d {out} 8000" in msg and f"python -m laughlab view {run_dir}" in msg
+        assert p.eval("document.getElementById('time').textContent") == "not loaded"
+    finally:
+        p.close()
+
+
+def test_view_out_says_how_to_open_the_page(run_dir, tmp_path):
+    r = subprocess.run([sys.executable, "-m", "laughlab", "view", str(run_dir), "--out", str(tmp_path / "s")],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == (f"laughlab: viewer of {run_dir} written to {tmp_path / 's'}/: open "
+                                f"{tmp_path / 's' / 'index.html'} in a browser, or put the folder on any web server "
+                                f"(e.g. python -m http.server -d {tmp_path / 's'})")

@@ -62,6 +62,7 @@ def vrma_run(tmp_path_factory):
     return run(tmp_path_factory.mktemp("vrma-three"), "output=vrma", "face=facs", "input.duration_s=4")
 
 
+@pytest.mark.browser
 @pytest.mark.parametrize("avatar", ["Godette_vrm_v4.vrm", "debug_robot.vrm"], ids=["godette-vrm0", "robot-vrm1"])
 def test_three_vrm_animation_plays_the_vrma_on_both_avatars(vrma_run, avatar):
     import time

@@ -39,7 +39,7 @@ def rise_fall_3_2(signal, rise, fall, dt=1.0):
 
 
 def listing_5_2(amplitudes, minAmp, maxAmp):
-    """Listing 5.2 (line order restored as shared/papers/README.md explains): the motion control signal."""
+    """Listing 5.2 (line order restored as docs/papers.md explains): the motion control signal."""
     out = []
     previousMotionSignal = 0.0  # READING: not initialised in the listing; 0 (silence)
     for amplitude in amplitudes:                         # for every timestep:

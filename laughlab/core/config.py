@@ -77,6 +77,9 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
     if m:
         key = m.group(1)
         group = key.split(".")[0]
+        hint = _misplaced(key, overrides)
+        if hint:
+            return hint
         valid = ""
         if group in GROUP_KINDS and group != "output" and "." in key:
             try:
@@ -89,17 +92,58 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
     return lines[0] if lines else type(exc).__name__
 
 
+def _owners(group: str, path: str) -> list[str]:
+    """The options of ``group`` that have the parameter ``path`` (:mod:`laughlab.core.keyhints`)."""
+    from laughlab.core import keyhints
+
+    kind = GROUP_KINDS.get(group) if group != "output" else None
+    return keyhints.options_with(conf_dir().joinpath(group), kind, path)
+
+
+def misplaced_parameter(group: str, current: str, key: str, explicit: bool = False) -> str | None:
+    """``group.key`` is not a parameter of ``group=current``: the line naming the options that have it."""
+    from laughlab.core import keyhints
+
+    return keyhints.elsewhere(group, key, current, _owners(group, key), explicit)
+
+
+def _misplaced(key: str, overrides: list[str]) -> str | None:
+    """An unknown ``key`` that another option of its group has (``scheduler.mode`` under scheduler=energy),
+    or that a group has when given without the group (``mode=fast``): the line saying what to write."""
+    from laughlab.core import keyhints
+
+    try:
+        choices = chosen(overrides)
+    except Exception:  # a hint is a courtesy
+        return None
+    group, _, rest = key.partition(".")
+    if group in GROUP_KINDS and rest:
+        explicit = any(o.lstrip("+~").split("=", 1)[0] == group for o in overrides)
+        return misplaced_parameter(group, choices.get(group), rest, explicit)
+    if group not in GROUP_KINDS and group not in ("hydra", "harness", "experiment"):
+        value = next((o.split("=", 1)[1] for o in overrides if o.lstrip("+~").split("=", 1)[0] == key), None)
+        found = [(g, o) for g in keyhints.SEARCHED for o in _owners(g, key)]
+        return keyhints.without_group(key, value, choices, found)
+    return None
+
+
+def chosen(overrides: list[str]) -> dict[str, str]:
+    """Group -> the option the user's group choices (and the defaults) select."""
+    from hydra import compose
+
+    choices = [o for o in overrides if "=" in o and "." not in o.split("=")[0]
+               and o.split("=")[0].lstrip("+~") in (*GROUP_KINDS, "experiment")]
+    cfg = compose("config", overrides=choices, return_hydra_config=True)
+    return {g: str(v) for g, v in cfg.hydra.runtime.choices.items() if g in GROUP_KINDS and v is not None}
+
+
 def valid_keys(group: str, overrides: list[str]) -> list[str]:
     """Parameter names of the plugin chosen for ``group`` (with the user's group choices)."""
     from dataclasses import fields
 
-    from hydra import compose
-
-    choices = [o for o in overrides if "=" in o and "." not in o.split("=")[0]]
-    cfg = compose("config", overrides=choices)
     from laughlab.core import plugins
 
-    info = plugins.get(GROUP_KINDS[group], cfg[group]["name"])
+    info = plugins.get(GROUP_KINDS[group], chosen(overrides)[group])
     return [f.name for f in fields(info.obj.Params)]
 
 

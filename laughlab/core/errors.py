@@ -9,6 +9,15 @@ class LaughlabError(Exception):
     """
 
 
+class UnknownParameter(LaughlabError):
+    """A key that the plugin's ``Params`` does not have; ``key`` is that key (the pipeline adds which other
+    plugins of the group have it: ``laughlab.core.config.misplaced_parameter``)."""
+
+    def __init__(self, message: str, key: str):
+        super().__init__(message)
+        self.key = key
+
+
 def shown_path(path, limit: int = 200) -> str:
     """``path`` as an error line shows it: whole up to ``limit`` characters, else its start, its last 40
     characters and its length (a 3000-character path would bury the cause)."""

@@ -21,7 +21,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from laughlab.core import plugins
 from laughlab.core.bases import Chunk, Context, RunInfo
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, UnknownParameter
 from laughlab.core.frame import Frame
 from laughlab.core.mixer import Mixer
 
@@ -92,6 +92,16 @@ def _section(cfg: DictConfig, key: str) -> dict:
     return OmegaConf.to_container(node, resolve=True)
 
 
+def _create(group: str, kind: str, name: str, values, ctx: Context):
+    """The plugin of ``group``; a parameter it does not have but another plugin of the group has says which."""
+    try:
+        return plugins.create(kind, name, values, ctx, where=f"{group}.{name}")
+    except UnknownParameter as exc:
+        from laughlab.core.config import misplaced_parameter
+
+        raise LaughlabError(misplaced_parameter(group, name, exc.key) or str(exc)) from None
+
+
 def build(cfg: DictConfig) -> Pipeline:
     """Validate every parameter, build the plugins and open the source.
 
@@ -115,7 +125,7 @@ def build(cfg: DictConfig) -> Pipeline:
             built[group] = None
             continue
         try:  # a check a source makes only when it opens (a file's header, a generator's arguments)
-            built[group] = plugins.create(kind, name, values, ctx, where=f"{group}.{name}")
+            built[group] = _create(group, kind, name, values, ctx)
             built[group].open()
         except ValueError as exc:
             raise LaughlabError(f"bad parameter in {group}.{name}: {exc}") from None
@@ -126,7 +136,7 @@ def build(cfg: DictConfig) -> Pipeline:
             continue
         values = _section(cfg, group)
         try:
-            built[group] = plugins.create(kind, values["name"], values, ctx, where=f"{group}.{values['name']}")
+            built[group] = _create(group, kind, values["name"], values, ctx)
         except ValueError as exc:
             raise LaughlabError(f"bad parameter in {group}.{values['name']}: {exc}") from None
         if group == "extractor" and not getattr(built[group], "calibrates", False):

@@ -22,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from laughlab.core import hookspecs
-from laughlab.core.errors import LaughlabError, shown_path
+from laughlab.core.errors import LaughlabError, UnknownParameter, shown_path
 
 hookimpl = pluggy.HookimplMarker("laughlab")
 
@@ -160,7 +160,7 @@ def make_params(cls: type, values: Any, where: str) -> Any:
     valid = [f.name for f in fields(params_cls)]
     for key in values:
         if key not in valid:
-            raise LaughlabError(f"unknown parameter {where}.{key}; valid: {', '.join(valid) or '(none)'}")
+            raise UnknownParameter(f"unknown parameter {where}.{key}; valid: {', '.join(valid) or '(none)'}", key)
     try:
         merged = OmegaConf.merge(_schema(params_cls), values)
         bad = first_nonfinite(OmegaConf.to_container(merged, resolve=True), nonfinite_ok(params_cls))

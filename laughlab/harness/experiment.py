@@ -73,13 +73,25 @@ def _task_overrides() -> list[str]:
     return [o for o in ovs if not o.split("=")[0].lstrip("+~").startswith(("hydra", "overwrite", "progress"))]
 
 
+def not_fetched_line(name: str, sets: list, n_inputs: int) -> str:
+    """The one line an experiment prints when it runs without the real corpus."""
+    from laughlab.corpora.fetch import data_dir
+
+    return (f"{name}: the real corpus is not fetched (in {data_dir()}), so its sets ({', '.join(sets)}) are left "
+            f"out: running the other {n_inputs} inputs. To add them: python -m laughlab corpus fetch (once), then "
+            "run this command again into a new hydra.run.dir")
+
+
 def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, progress: bool = True) -> dict:
     """Run the experiment described by ``cfg.harness`` into ``out_dir``; return results.json's content."""
     h = OmegaConf.to_container(cfg.harness, resolve=True)
     name = h.get("name") or "experiment"
     conditions = check_conditions(h.get("conditions"))
     skipped: list = []  # corpus files left out (harness.corpus.on_bad=skip), with the reason
-    items = build_corpus(h.get("corpus") or {}, skipped)
+    not_fetched: list = []  # real sets left out: the real corpus is not fetched (harness.corpus.real.if_missing)
+    items = build_corpus(h.get("corpus") or {}, skipped, not_fetched)
+    if not_fetched:
+        print(not_fetched_line(name, not_fetched, len(items)), file=sys.stderr)
     run_seeds = [int(s) for s in h.get("run_seeds") or [0]]
     base = _task_overrides() if base_overrides is None else list(base_overrides)
     out_dir = Path(out_dir)
@@ -144,7 +156,8 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
         "plugins": res.plugin_origins(),
         "config": OmegaConf.to_container(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True),
         "corpus": {"inputs": [i.id for i in items], "profiles": sorted({i.profile for i in items}),
-                   "seeds": sorted({r["seed"] for r in run.records}), "skipped": skipped},
+                   "seeds": sorted({r["seed"] for r in run.records}), "skipped": skipped,
+                   "not_fetched": not_fetched},
         "conditions": conditions,
         "n_trials": len(run.records),
         "metrics": metric_info,

@@ -2,7 +2,8 @@
 
 ``python -m laughlab report RUN_DIR [--out DIR]`` reads ``RUN_DIR/results.json``
 (one experiment) or every ``*/results.json`` below ``RUN_DIR`` (a Hydra
-multirun sweep) and writes ``reports/<experiment>/README.md`` with its figures.
+multirun sweep) and writes ``RUN_DIR/report/README.md`` with its figures (``--out DIR``: into
+``DIR``, e.g. ``--out reports/<experiment>`` for the reports committed with laughlab).
 """
 from __future__ import annotations
 
@@ -36,17 +37,51 @@ def _arrow(hib) -> str:
     return {True: "↑", False: "↓"}.get(hib, "")
 
 
+def conditions_of(doc: dict) -> list[str]:
+    """The conditions of a results document in the experiment's order (its config), not alphabetical."""
+    have = list(doc["results"])
+    return [c for c in doc.get("conditions", {}) if c in have] + [c for c in have if c not in doc.get("conditions", {})]
+
+
+def metric_order(doc: dict) -> list[str]:
+    """The metrics of a results document, :data:`KEY_METRICS` first."""
+    return [m for m in KEY_METRICS if m in doc["metrics"]] + [m for m in doc["metrics"] if m not in KEY_METRICS]
+
+
+def _same(a, b) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-12)
+
+
+def same_everywhere(doc: dict, metric: str) -> bool:
+    """True when two or more conditions were compared and ``metric`` came out the same under each:
+    the same number of trials, mean and 95 % CI (e.g. a detector metric when only the scheduler
+    changes).  Such a metric says nothing about the conditions; the report lists it apart."""
+    rs = [doc["results"][c][metric] for c in conditions_of(doc)]
+    if len(rs) < 2 or not rs[0]["n"]:
+        return False
+    first = rs[0]
+    return all(r["n"] == first["n"] and _same(r["mean"], first["mean"])
+               and all(_same(x, y) for x, y in zip(r["ci95"], first["ci95"])) for r in rs[1:])
+
+
 def comparison_figure(doc: dict, path: Path) -> Path:
-    """One panel per metric: the mean of each condition with its 95 % CI."""
-    conds = list(doc["results"])
-    order = [m for m in KEY_METRICS if m in doc["metrics"]] + [m for m in doc["metrics"] if m not in KEY_METRICS]
-    names = [m for m in order if any(doc["results"][c][m]["n"] for c in conds)]
+    """One panel per metric that differs between the conditions: each condition's mean with its 95 % CI.
+
+    Metrics the same under every condition (:func:`same_everywhere`) get no panel; a line under
+    the panels names them.
+    """
+    conds = conditions_of(doc)
+    measured = [m for m in metric_order(doc) if any(doc["results"][c][m]["n"] for c in conds)]
+    names = [m for m in measured if not same_everywhere(doc, m)]
+    same = [m for m in measured if same_everywhere(doc, m)]
     if not names:
         return path
-    cols = 5
+    cols = min(5, len(names))
     rows = math.ceil(len(names) / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(2.3 * cols, 1.9 * rows), dpi=130, squeeze=False,
-                             layout="constrained")
+    fig, axes = plt.subplots(rows, cols, figsize=(2.3 * cols, 1.9 * rows + (0.4 if same else 0)), dpi=130,
+                             squeeze=False, layout="constrained")
     colors = plt.get_cmap("tab10")
     for ax, name in zip(axes.flat, names):
         for i, c in enumerate(conds):
@@ -63,7 +98,14 @@ def comparison_figure(doc: dict, path: Path) -> Path:
         ax.spines[["top", "right"]].set_visible(False)
     for ax in axes.flat[len(names):]:
         ax.set_axis_off()
-    fig.suptitle(f"{doc['experiment']}: mean and 95% CI over {doc['n_trials']} trials", fontsize=9)
+    fig.suptitle(f"{doc['experiment']}: mean and 95% CI over {doc['n_trials']} trials "
+                 "(↑ higher is better, ↓ lower is better)", fontsize=9)
+    if same:
+        import textwrap
+
+        fig.supxlabel("\n".join(textwrap.wrap(
+            f"Not shown, the same under every condition: {', '.join(same)} (values in the report's table).",
+            int(2.3 * cols * 15))), fontsize=7, color="0.3")
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     plt.close(fig)
@@ -71,11 +113,13 @@ def comparison_figure(doc: dict, path: Path) -> Path:
 
 
 def _results_table(doc: dict) -> list[str]:
-    conds = list(doc["results"])
-    order = [m for m in KEY_METRICS if m in doc["metrics"]] + [m for m in doc["metrics"] if m not in KEY_METRICS]
+    """The metrics that differ between the conditions: one column per condition, the best in bold."""
+    conds = conditions_of(doc)
     lines = ["| metric | units | " + " | ".join(f"{c} mean [95% CI]" for c in conds) + " |",
              "|---|---|" + "---|" * len(conds)]
-    for m in order:
+    for m in metric_order(doc):
+        if same_everywhere(doc, m):
+            continue
         info = doc["metrics"][m]
         cells = []
         means = [doc["results"][c][m]["mean"] for c in conds]
@@ -85,14 +129,33 @@ def _results_table(doc: dict) -> list[str]:
             best = max(finite) if info["higher_is_better"] else min(finite)
         for c in conds:
             r = doc["results"][c][m]
-            cell = f"{_fmt(r['mean'])} [{_fmt(r['ci95'][0])}, {_fmt(r['ci95'][1])}]" if r["n"] else "n/a"
-            cells.append(f"**{cell}**" if best is not None and r["mean"] == best else cell)
+            cells.append(f"**{_cell(r)}**" if best is not None and r["mean"] == best else _cell(r))
         lines.append(f"| {m} {_arrow(info['higher_is_better'])} | {info['units']} | " + " | ".join(cells) + " |")
     return lines
 
 
+def _cell(r: dict) -> str:
+    return f"{_fmt(r['mean'])} [{_fmt(r['ci95'][0])}, {_fmt(r['ci95'][1])}]" if r["n"] else "n/a"
+
+
+def _same_table(doc: dict) -> list[str]:
+    """The metrics the same under every condition, once each (empty when there are none)."""
+    same = [m for m in metric_order(doc) if same_everywhere(doc, m)]
+    if not same:
+        return []
+    first = conditions_of(doc)[0]
+    lines = ["These metrics came out the same under every condition (the same trials, mean and 95% CI), so "
+             "they are left out of the table and the figure above:", "",
+             "| metric | units | every condition: mean [95% CI] |", "|---|---|---|"]
+    for m in same:
+        info = doc["metrics"][m]
+        lines.append(f"| {m} {_arrow(info['higher_is_better'])} | {info['units']} | "
+                     f"{_cell(doc['results'][first][m])} |")
+    return lines
+
+
 def _profile_table(doc: dict, metric: str) -> list[str]:
-    conds = list(doc["by_profile"])
+    conds = [c for c in conditions_of(doc) if c in doc["by_profile"]]
     profiles = sorted({p for c in conds for p in doc["by_profile"][c]})
     lines = [f"| profile | " + " | ".join(conds) + " |", "|---|" + "---|" * len(conds)]
     for p in profiles:
@@ -140,6 +203,9 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              "- conditions: " + "; ".join(f"**{c}** `{' '.join(o)}`" for c, o in doc["conditions"].items()),
              *[f"- skipped corpus file (harness.corpus.on_bad=skip): `{s['file']}`: {s['reason']}"
                for s in doc["corpus"].get("skipped", [])],
+             *([f"- **without the real recordings**: the real corpus was not fetched, so its sets "
+                f"({', '.join(doc['corpus']['not_fetched'])}) were left out; `python -m laughlab corpus fetch` "
+                "adds them"] if doc["corpus"].get("not_fetched") else []),
              "", "## Results", "",
              "Mean over trials with its 95% confidence interval (t distribution). ↑ higher is better, "
              "↓ lower is better; the better condition is in bold. "
@@ -148,6 +214,9 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              "machine; `make bench` measures them alone.", ""]
     lines += _results_table(doc)
     lines += ["", "![metrics](figures/metrics.png)", ""]
+    same = _same_table(doc)
+    if same:
+        lines += same + [""]
     shows = sorted(p.name for p in figs.glob("*_fig4_2_energy.png"))
     if shows:
         lines += ["## The same input under each condition", ""]
@@ -226,16 +295,28 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
         lines.append("| " + " | ".join(p["params"].get(k, "") for k in varying) + " | "
                      + " | ".join(_fmt(val(p, m)) for m in metrics) + " |")
     lines.append("")
-    heat_metrics = [m for m in ("intensity_r_clip", "miss_rate", "silent_start_rate") if m in metrics]
+    heat_metrics, flat = [], []
+    for m in metrics:
+        values = [v for v in (val(p, m) for p in points) if math.isfinite(v)]
+        if not values:
+            flat.append(f"`{m}` (no value at any point)")
+        elif max(values) - min(values) <= 1e-12 * max(1.0, abs(max(values))):
+            flat.append(f"`{m}` ({_fmt(values[0])} at every point)")
+        else:
+            heat_metrics.append(m)
     pairs = list(combinations(varying, 2))
     if pairs:
         lines += ["## Heatmaps", "", "Each cell: the metric's mean over the sweep points with those two values "
-                  "(averaged over the other swept parameters).", ""]
-    for a, b in pairs:
+                  "(averaged over the other swept parameters). In every heatmap the bright (yellow) end is the "
+                  "better one: each colour bar has its better end at the top and says so, so the bar of a "
+                  "lower-is-better metric (↓) runs from high values at the bottom to low ones at the top.", ""]
+    if (pairs or len(varying) == 1) and flat:
+        lines += ["No figure for " + ", ".join(flat) + ": the sweep did not change it.", ""]
+    for a, b in (pairs if heat_metrics else []):
         name = f"heatmap_{a}_{b}.png".replace("/", "_")
         _heatmaps(points, a, b, heat_metrics, val, figs / name, doc0["metrics"])
         lines += [f"![{a} x {b}](figures/{name})", ""]
-    if len(varying) == 1:
+    if len(varying) == 1 and heat_metrics:
         name = f"line_{varying[0]}.png"
         _lines(points, varying[0], heat_metrics, val, figs / name, doc0["metrics"])
         lines += [f"![{varying[0]}](figures/{name})", ""]
@@ -243,20 +324,36 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
     return out / "README.md"
 
 
+def better_label(higher_is_better) -> str:
+    """A colour bar's or value axis' label saying which way is better."""
+    return {True: "better ↑ (higher is better)", False: "better ↑ (lower is better)"}.get(
+        higher_is_better, "neither end is better")
+
+
+def _panel_grid(n: int, w: float, h: float, cols: int = 3):
+    cols = max(1, min(cols, n))
+    rows = max(1, math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(w * cols, h * rows), dpi=130, squeeze=False, layout="constrained")
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    return fig, list(axes.flat[:n])
+
+
 def _heatmaps(points, a, b, metrics, val, path, info) -> None:
+    """One heatmap per metric over parameters ``a`` (x) and ``b`` (y); bright is better in each."""
     xs = sorted({p["params"][a] for p in points}, key=_num)
     ys = sorted({p["params"][b] for p in points}, key=_num)
-    fig, axes = plt.subplots(1, len(metrics), figsize=(3.3 * len(metrics), 2.8), dpi=130, squeeze=False,
-                             layout="constrained")
-    for ax, m in zip(axes[0], metrics):
+    fig, axes = _panel_grid(len(metrics), 3.4, 2.7)
+    for ax, m in zip(axes, metrics):
         grid = np.full((len(ys), len(xs)), np.nan)
         for i, y in enumerate(ys):
             for j, x in enumerate(xs):
                 v = [val(p, m) for p in points if p["params"][a] == x and p["params"][b] == y]
                 v = [u for u in v if math.isfinite(u)]
                 grid[i, j] = np.mean(v) if v else np.nan
-        cmap = "viridis" if info[m]["higher_is_better"] else "viridis_r"
-        im = ax.imshow(grid, origin="lower", cmap=cmap, aspect="auto")
+        hib = info[m]["higher_is_better"]
+        # bright (yellow) is the better end: viridis runs dark to bright with the value, so flip it when lower is better
+        im = ax.imshow(grid, origin="lower", cmap="viridis" if hib is not False else "viridis_r", aspect="auto")
         for i in range(len(ys)):
             for j in range(len(xs)):
                 bright = np.mean(im.cmap(im.norm(grid[i, j]))[:3]) > 0.5
@@ -265,21 +362,29 @@ def _heatmaps(points, a, b, metrics, val, path, info) -> None:
         ax.set_yticks(range(len(ys)), ys, fontsize=7)
         ax.set_xlabel(a, fontsize=7)
         ax.set_ylabel(b, fontsize=7)
-        ax.set_title(f"{m} {_arrow(info[m]['higher_is_better'])}", fontsize=8)
-        fig.colorbar(im, ax=ax, shrink=0.8)
+        ax.set_title(f"{m} {_arrow(hib)}", fontsize=8)
+        cb = fig.colorbar(im, ax=ax, shrink=0.9)
+        if hib is False:
+            cb.ax.invert_yaxis()  # the better (lower) end at the top, as on every other bar
+        cb.set_label(better_label(hib), fontsize=6.5)
+        cb.ax.tick_params(labelsize=6)
     fig.savefig(path)
     plt.close(fig)
 
 
 def _lines(points, a, metrics, val, path, info) -> None:
+    """One panel per metric against the one swept parameter ``a``."""
     xs = sorted({p["params"][a] for p in points}, key=_num)
-    fig, axes = plt.subplots(1, len(metrics), figsize=(3.0 * len(metrics), 2.4), dpi=130, squeeze=False,
-                             layout="constrained")
-    for ax, m in zip(axes[0], metrics):
+    fig, axes = _panel_grid(len(metrics), 3.0, 2.3)
+    for ax, m in zip(axes, metrics):
         ys = [np.nanmean([val(p, m) for p in points if p["params"][a] == x]) for x in xs]
         ax.plot([_num(x) for x in xs], ys, "o-")
         ax.set_xlabel(a, fontsize=7)
-        ax.set_title(f"{m} {_arrow(info[m]['higher_is_better'])}", fontsize=8)
+        hib = info[m]["higher_is_better"]
+        way = {True: " (higher is better)", False: " (lower is better)"}.get(hib, "")
+        ax.set_ylabel(info[m]["units"] + way, fontsize=6)
+        ax.tick_params(labelsize=6)
+        ax.set_title(f"{m} {_arrow(hib)}", fontsize=8)
         ax.spines[["top", "right"]].set_visible(False)
     fig.savefig(path)
     plt.close(fig)
@@ -288,6 +393,8 @@ def _lines(points, a, metrics, val, path, info) -> None:
 def write_report(run_dir: str | Path, out: str | Path | None = None, command: str = "") -> Path:
     """Write the report of an experiment run or a sweep; return the README path.
 
+    The report goes into ``out``, by default ``run_dir/report`` (beside the results it is made
+    from, so that reporting never touches the committed ``reports/``).
     The report is written into a hidden sibling folder first and moved into place
     only when it is whole: a failure (a full disk, a bad figure) leaves the
     earlier report as it was, or no report.
@@ -299,8 +406,8 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
         results, write = next(root.rglob("results.json")), sweep_report
     else:
         raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)")
-    name = json.loads(results.read_text())["experiment"]
-    target = Path(out) if out else Path("reports") / name
+    json.loads(results.read_text())["experiment"]  # a results.json of an experiment, else a clear KeyError
+    target = Path(out) if out else root / "report"
     if target.exists() and not target.is_dir():
         raise LaughlabError(f"report folder {target} exists and is not a folder")
     staging = target.with_name(f".{target.name}.partial-{os.getpid()}")

@@ -10,7 +10,9 @@ Schema of ``results.json``::
       "versions": {"laughlab": str, "python": str, "numpy": str, ...},
       "plugins": {"kind/name": "origin (distribution version)"},
       "config": {...},                    # the composed experiment configuration
-      "corpus": {"inputs": [str], "profiles": [str], "seeds": [int]},
+      "corpus": {"inputs": [str], "profiles": [str], "seeds": [int],
+                 "skipped": [{"file": str, "reason": str}],   # bad files left out (on_bad=skip)
+                 "not_fetched": [str]},                        # real sets left out: corpus not fetched
       "conditions": {name: [override, ...]},
       "n_trials": int,
       "metrics": {name: {"higher_is_better": bool | null, "units": str, "description": str}},

@@ -93,7 +93,7 @@ def segment_calls_level(rms, fps: float, prominence_db: float = 5.0, min_distanc
     ``smooth_frames`` frames.  Peaks: local maxima at least ``min_distance_s``
     apart (0.08 s: up to 12 calls a second), no lower than ``depth_db`` below
     the 99th percentile of ``L`` and more prominent than ``prominence_db``
-    (chosen on the training split of the real corpus, README).  Boundaries as
+    (chosen on the training split of the real corpus, docs/benchmarks.md).  Boundaries as
     :func:`segment_calls`: the centre of the valley between two peaks less than
     two ``max_half_s`` apart; otherwise the call ends where ``L`` falls
     ``floor_db`` below its peak (or ``max_half_s`` after it) and the next starts

@@ -13,7 +13,7 @@ Units: pressures are absolute, in atm, inside this module (the paper's unit of
 ``k``); :attr:`Lung.gauge_cmh2o` gives the lung pressure relative to the
 atmosphere in cm H2O (1 atm = 1033.23 cm H2O).  Volumes in litres, flow in L/s.
 
-Reading of the equations (see ``shared/papers/README.md``)
+Reading of the equations (docs/papers.md, "Reading notes")
 ----------------------------------------------------------
 * Eq. 2 is Boyle's law for the pleural space: ``P_pl * V_pl`` is constant
   while only the walls move.

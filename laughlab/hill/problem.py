@@ -261,8 +261,8 @@ class CallProblem:
         cost = err
         if self.lead:   # the lead frames belong to the previous call: what this call's start does to them counts
             cost = np.sqrt(np.mean((p[:end] - self.lead_target[:, None]) ** 2, axis=0)) / norm
-        if self.n_look and self.fit.settle_weight > 0:
-            cost = err + self.fit.settle_weight * np.sqrt(np.mean(np.minimum(p[end:], 0.0) ** 2, axis=0)) / norm
+        if self.n_look and self.fit.settle_weight > 0:   # added to the cost above, the lead frames' included
+            cost = cost + self.fit.settle_weight * np.sqrt(np.mean(np.minimum(p[end:], 0.0) ** 2, axis=0)) / norm
         return self._record(cost, err)
 
     def _record(self, cost: np.ndarray, err: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -19,7 +19,7 @@ range of force generation (Zajac 1989) (it is at most 1 by construction);
 ``F~_v`` is clipped at 0 for ``|v~| > b / a_v = 1`` (it is at most 1, at
 ``v~ = 0``).  ``v_max`` is read in rest lengths per second.
 
-Note (reading notes, ``shared/papers/README.md``): ``F~_v`` uses ``|v~|``, so it
+Note (reading notes in docs/papers.md): ``F~_v`` uses ``|v~|``, so it
 is symmetric: a *lengthening* active muscle loses force exactly like a
 shortening one, unlike most Hill models (where eccentric force exceeds
 isometric).  It is implemented as written.  Numerically that is negative

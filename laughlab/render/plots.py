@@ -98,17 +98,111 @@ def _energy_floor(energy: np.ndarray, top: float) -> float:
     return 0.0 if low >= 0.0 else low - 0.05 * (top - low)
 
 
-def _draw_clip_blocks(ax, events: Sequence, end: float) -> list:
-    """The clips played as blocks: width their time on screen, height their energy e(a) (Figs. 4.1, 4.2)."""
-    blocks = clip_blocks(events, end)
+#: each bundled clip's tab20 colour (the same in every figure); other clips take the spare ones by name
+CLIP_COLORS = {"lean_front1": 17, "lean_back1": 19, "lean_front2": 2, "lean_back2": 3, "clap_hands": 16,
+               "hands_on_belly": 18, "point1": 12, "point2": 13, "slap_leg": 8, "stop_it": 9, "rofl": 10,
+               "idle": 14}
+#: tab20 colours left for other clips (blue, green and red draw the figures' lines)
+_SPARE_COLORS = (1, 5, 7, 11, 15, 0, 4, 6)
+#: a block of energy 0 (idle) is drawn this high, as a fraction of the energy axis, so that it shows
+ZERO_BLOCK = 0.02
+
+
+def clip_colors(names) -> dict:
+    """A colour per clip name: the bundled clips' fixed ones (:data:`CLIP_COLORS`), then the spare ones."""
     cmap = plt.get_cmap("tab20")
-    colors = {n: cmap(i % 20) for i, n in enumerate(sorted({b[0] for b in blocks}))}
+    out, k = {}, 0
+    for n in sorted(set(names)):
+        if n in CLIP_COLORS:
+            out[n] = cmap(CLIP_COLORS[n])
+        else:
+            out[n] = cmap(_SPARE_COLORS[k % len(_SPARE_COLORS)])
+            k += 1
+    return out
+
+
+def _draw_clip_blocks(ax, events: Sequence, end: float, top: float) -> list:
+    """The clips played as blocks: width their time on screen, height their energy e(a) (Figs. 4.1, 4.2).
+
+    Returns the blocks ``(clip, start, stop, energy)``; :func:`_clip_key` and :func:`_label_blocks`
+    say which block is which clip.
+    """
+    blocks = clip_blocks(events, end)
+    colors = clip_colors(b[0] for b in blocks)
     for name, t0, t1, e in blocks:
-        ax.add_patch(plt.Rectangle((t0, 0), t1 - t0, e, facecolor=colors[name], alpha=0.55,
-                                   edgecolor="0.3", lw=0.4))
-        if t1 - t0 > 0.04 * max(end, 1e-9):
-            ax.text(t0 + 0.01 * end, e, name, fontsize=5.5, va="bottom", ha="left", rotation=0)
+        patch = ax.add_patch(plt.Rectangle((t0, 0), t1 - t0, e if e > 0 else ZERO_BLOCK * top,
+                                           facecolor=colors[name], alpha=0.7 if e > 0 else 0.9, edgecolor="0.3",
+                                           lw=0.4))
+        patch.set_in_layout(False)  # inside the axes: the layout need not measure hundreds of them
     return blocks
+
+
+def _clip_key(blocks) -> tuple[list, list]:
+    """Legend handles and labels naming every clip shown, mildest first: the colour key of the blocks."""
+    from matplotlib.patches import Patch
+
+    energy = {}
+    for name, _, _, e in blocks:
+        energy.setdefault(name, e)
+    colors = clip_colors(energy)
+    names = sorted(energy, key=lambda n: (energy[n], n))
+    return ([Patch(facecolor=colors[n], alpha=0.7 if energy[n] > 0 else 0.9, edgecolor="0.3", lw=0.4)
+             for n in names], [f"{n}, e={energy[n]:g}" for n in names])
+
+
+def _label_blocks(fig, ax, blocks, lines, top: float) -> list:
+    """Write each clip's name on its block where it fits, clear of the other labels and of ``lines``.
+
+    Tried in order: inside the block (at its top, three quarters, half, a quarter of its height, its
+    bottom), inside it turned upright (at half, 0.7, 0.3 of its height), above it (centred, then flush
+    left, then flush right).  A block with no free spot stays unlabelled: the colour key names
+    it.  Blocks are labelled widest first; blocks narrower than a label's height are skipped, and so is
+    a block whose clip is already named within a quarter of the axes' width (concatenation plays
+    the same clips many times over).  A label above a block keeps off the other blocks.
+    """
+    from matplotlib.transforms import Bbox, ScaledTranslation
+
+    from laughlab.render.labels import layout_now, line_pixels, place_label
+
+    renderer = layout_now(fig)
+    paths = [line_pixels(ln) for ln in lines]
+    taken: list = []
+    down = ax.transData + ScaledTranslation(0, -1.5 / 72, fig.dpi_scale_trans)
+    up = ax.transData + ScaledTranslation(0, 1.0 / 72, fig.dpi_scale_trans)
+    up_bottom = ax.transData + ScaledTranslation(0, 1.5 / 72, fig.dpi_scale_trans)
+    to_px = ax.transData.transform
+    boxes = []
+    for _, t0, t1, e in blocks:
+        (x0, y0), (x1, y1) = to_px((t0, 0.0)), to_px((t1, e if e > 0 else ZERO_BLOCK * top))
+        boxes.append(Bbox.from_extents(x0, y0, x1, y1))
+    spacing = 0.25 * ax.get_window_extent(renderer).width  # a clip's name again only this far (pixels) from itself
+    labelled: dict = {}
+    placed = []
+    order = sorted(range(len(blocks)), key=lambda i: (-(blocks[i][2] - blocks[i][1]), blocks[i][1]))
+    for i in order:
+        name, t0, t1, e = blocks[i]
+        box = boxes[i]
+        if box.width < 7 or any(abs(box.x0 - x) < spacing for x in labelled.get(name, ())):
+            continue
+        h = e if e > 0 else ZERO_BLOCK * top
+        mid = 0.5 * (t0 + t1)
+        inside = ([dict(x=mid, y=h, ha="center", va="top", transform=down)]
+                  + [dict(x=mid, y=f * h, ha="center", va="center") for f in (0.75, 0.5, 0.25)]
+                  + [dict(x=mid, y=0, ha="center", va="bottom", transform=up_bottom)]
+                  + [dict(x=mid, y=f * h, ha="center", va="center", rotation=90) for f in (0.5, 0.7, 0.3)])
+        above = [dict(x=mid, y=h, ha="center", va="bottom", transform=up),
+                 dict(x=t0, y=h, ha="left", va="bottom", transform=up),
+                 dict(x=t1, y=h, ha="right", va="bottom", transform=up)]
+        t = None
+        if e > 0:
+            t = place_label(ax, renderer, name, inside, taken, paths, inside=box, fontsize=5.5)
+        if t is None:
+            others = [b for k, b in enumerate(boxes) if k != i and b.x1 > box.x0 - 80 and b.x0 < box.x1 + 80]
+            t = place_label(ax, renderer, name, above, taken, paths, avoid=others, fontsize=5.5)
+        if t is not None:
+            placed.append(t)
+            labelled.setdefault(name, []).append(box.x0)
+    return placed
 
 
 def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: float, calibration_s: float = 0.0,
@@ -186,26 +280,46 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     ax1.set_ylabel("MCS")
     ax1.set_ylim(-0.02, 1.05)
     end = float(times[-1]) if len(times) else 0.0
-    blocks = _draw_clip_blocks(ax2, events, end)
-    ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L (clips consuming)")
-    top = max([b[3] for b in blocks] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
+    top = max([e for _, _, _, e in clip_blocks(events, end)] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
+    blocks = _draw_clip_blocks(ax2, events, end, top)
+    (line,) = ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L")
     ax2.set_ylim(_energy_floor(energy, top), top * 1.15)
     _set_xlim(ax2, times[0] if len(times) else 0, end or 1)
-    ax2.set_ylabel("laughing energy / clip energy")
+    ax2.set_ylabel("laughing energy L /\nclip energy e(a)")
     ax2.set_xlabel("time (s)")
     axp = ax2.twinx()
-    axp.plot(times, primitive, color="tab:blue", lw=1.0, label="no consumption: primitive of the MCS (right axis)")
+    (prim,) = axp.plot(times, primitive, color="tab:blue", lw=1.0, label="primitive of the MCS (right axis)")
     axp.set_ylim(0, max(1.0, float(primitive[-1]) if len(primitive) else 1.0) * 1.05)
     axp.set_ylabel("primitive of MCS", color="tab:blue", fontsize=8)
     axp.tick_params(axis="y", colors="tab:blue", labelsize=7)
     axp.spines[["top"]].set_visible(False)
     ax1.set_title(_titled(title or "The laughing energy process (cf. van Duijn 2014, Fig. 4.1)", note), fontsize=9)
-    h2, l2 = ax2.get_legend_handles_labels()
-    hp, lp = axp.get_legend_handles_labels()
-    fig.legend(h2 + hp, l2 + lp, fontsize=7, loc="outside lower center", ncols=3, frameon=False)
+    _legend_with_clip_key(fig, [ax2, axp], blocks)
+    _label_blocks(fig, ax2, blocks, [line, prim], top)
     fig.savefig(path, format="png")
     plt.close(fig)
     return path
+
+
+def _legend_with_clip_key(fig, axes, blocks, max_cols: int = 7) -> None:
+    """One legend under the figure: the lines and shades of ``axes`` in the first column, then the
+    colour key of the clips (every clip shown, mildest first) in the next ones."""
+    from matplotlib.patches import Patch
+
+    handles, labels = [], []
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    kh, kl = _clip_key(blocks)
+    rows = max(len(labels), 1, -(-(len(labels) + len(kl)) // max_cols))
+    while len(labels) < rows:  # the clips start a column of their own
+        handles.append(Patch(visible=False))
+        labels.append("")
+    handles, labels = handles + kh, labels + kl
+    fig.legend(handles, labels, fontsize=6.5, loc="outside lower center", ncols=-(-len(labels) // rows),
+               frameon=False, handlelength=1.4, columnspacing=1.0, handletextpad=0.5)
 
 
 def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
@@ -219,22 +333,92 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     ax1.set_ylabel("MCS")
     ax1.set_ylim(-0.02, 1.05)
     end = float(times[-1]) if len(times) else 0.0
-    blocks = _draw_clip_blocks(ax2, events, end)
-    ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L")
-    ax2.set_ylabel("laughing energy / clip energy")
+    top = max([e for _, _, _, e in clip_blocks(events, end)] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
+    blocks = _draw_clip_blocks(ax2, events, end, top)
+    (line,) = ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L")
+    ax2.set_ylabel("laughing energy L /\nclip energy e(a)")
     ax2.set_xlabel("time (s)")
-    top = max([b[3] for b in blocks] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
     ax2.set_ylim(_energy_floor(energy, top), top * 1.15)
     _set_xlim(ax2, times[0] if len(times) else 0, end or 1)
     ax1.set_title(_titled(title or "Laughing energy and clip selection (cf. van Duijn 2014, Fig. 4.2)", note),
                   fontsize=9)
-    handles, labels = ax2.get_legend_handles_labels()
-    ax2.legend(handles, labels, fontsize=7, loc="upper right", frameon=False)
     for ax in (ax1, ax2):
         _setup_axis(ax)
+    _legend_with_clip_key(fig, [ax2], blocks)
+    _label_blocks(fig, ax2, blocks, [line], top)
     fig.savefig(path, format="png")
     plt.close(fig)
     return path
+
+
+def filmstrip_moments(times: np.ndarray, positions: np.ndarray, n: int, blocks: Sequence = ()) -> list[int]:
+    """Which of the pose samples a filmstrip of ``n`` figures shows: distinct, telling moments.
+
+    A sample's *pronouncedness* is how far its pose lies from the run's usual pose (the
+    per-joint median over every sample; distance: the mean over joints, cm).
+
+    1. One figure per clip played (``idle`` and clips of energy 0 aside): the most pronounced
+       sample inside the clip's longest block.  With more clips than ``n``, the clips with the
+       longest blocks.
+    2. Figures left over, one at a time: the stretch from the first to the last sample is cut
+       into ``n`` equal parts; among the samples in parts with no figure yet and at least half
+       a part away from every figure chosen, the one least like the figures chosen (the
+       largest distance to the nearest of their poses; the most pronounced one if none is
+       chosen yet).
+
+    So an energy run, whose clips last seconds, shows each clip once; a concatenation run,
+    which plays hundreds of short segments of a few clips, shows each of those clips and
+    then the poses least like them, spread over the run.
+
+    Parameters
+    ----------
+    times : ndarray, shape (k,)
+        The samples' times (s), increasing.
+    positions : ndarray, shape (k, J, 3)
+        Their world joint positions (cm).
+    n : int
+    blocks : sequence of (clip, start_s, stop_s, energy)
+        The clips played (:func:`laughlab.core.frame.clip_blocks`).
+
+    Returns
+    -------
+    list of int
+        Indices into ``times``, increasing, at most ``n``, all different (so all times differ).
+    """
+    times = np.asarray(times, float)
+    k = len(times)
+    if k == 0 or n <= 0:
+        return []
+    pos = np.asarray(positions, float).reshape(k, -1, 3)
+    away = np.linalg.norm(pos - np.median(pos, axis=0), axis=2).mean(axis=1)
+    longest: dict = {}
+    for name, b0, b1, e in blocks:
+        if e > 0 and name != "idle" and (name not in longest or b1 - b0 > longest[name][1] - longest[name][0]):
+            longest[name] = (b0, b1)
+    picked: list[int] = []
+    for name, (b0, b1) in sorted(longest.items(), key=lambda kv: (kv[1][0] - kv[1][1], kv[1][0])):
+        idx = np.flatnonzero((times >= b0) & (times < b1))
+        idx = idx[~np.isin(idx, picked)]
+        if len(idx) and len(picked) < n:
+            picked.append(int(idx[np.argmax(away[idx])]))
+    t0, t1 = float(times[0]), float(times[-1])
+    part = (t1 - t0) / n if t1 > t0 else 1.0
+    which = np.minimum(((times - t0) / part).astype(int), n - 1)
+    flat = pos.reshape(k, -1, 3)
+    while len(picked) < n:
+        free = ~np.isin(which, which[picked]) if picked else np.ones(k, bool)
+        for j in picked:
+            free &= np.abs(times - times[j]) >= 0.5 * part
+        idx = np.flatnonzero(free)
+        if not len(idx):
+            break
+        if picked:  # the pose least like any shown: the largest distance to its nearest shown pose
+            d = np.stack([np.linalg.norm(flat[idx] - flat[j], axis=2).mean(axis=1) for j in picked])
+            score = d.min(axis=0)
+        else:
+            score = away[idx]
+        picked.append(int(idx[np.argmax(score)]))
+    return sorted(picked)
 
 
 def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captions: Sequence[str],
@@ -256,7 +440,7 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
         ax.set_ylim(-8, 195)
         ax.set_title(f"{times[k]:.1f} s", fontsize=7, pad=1)
         ax.text(0.5, -0.02, captions[k], transform=ax.transAxes, ha="center", va="top", fontsize=5.5)
-    fig.suptitle(_titled(title or "The character at each clip (skeleton from motion.bvh)", note), fontsize=8)
+    fig.suptitle(_titled(title or "The character over the run (skeleton from motion.bvh)", note), fontsize=8)
     fig.subplots_adjust(left=0.01, right=0.99, top=0.76 if note else 0.84, bottom=0.2, wspace=0.05)
     fig.savefig(path, format="png")
     plt.close(fig)

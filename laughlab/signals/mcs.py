@@ -1,6 +1,6 @@
 """Extractor ``rms``: the motion control signal (MCS) of van Duijn 2014 (ch. 3.1, listing 5.2).
 
-Per frame, in the order of the thesis listing (reading notes in shared/papers):
+Per frame, in the order of the thesis listing (restored: reading notes in docs/papers.md):
 amplitude (RMS, Eq. 3.1), running min/max update, mapping to [0, 1], falloff of
 min/max, rise/fall limit (Eq. 3.2), store previous, raise to the power 2.
 

@@ -17,6 +17,14 @@ Steps, each written to the report folder:
 4. ``model.csv``, ``variance.csv``: per question a linear mixed model
    ``value ~ condition + (1 | participant) + (1 | stimulus)`` fitted by REML with statsmodels'
    ``MixedLM`` (crossed random intercepts as variance components of one all-ones group).
+   Each model is fitted twice, by L-BFGS and by Powell's method, and of the sound fits (converged,
+   finite standard errors, no numerical warning) the one with the higher REML likelihood is kept: L-BFGS alone can stop short of the maximum and call it
+   converged (on the study demo's naturalness ratings with ``smile_only`` as the reference level it
+   stops at a log-likelihood of -118.79 with a stimulus variance of 0.02, where the maximum is
+   -118.41 with that variance at 0; with another reference level it said so and statsmodels' retry
+   found the maximum), which made the result depend on which condition is listed first.
+   statsmodels' warnings while fitting go to ``report.json`` (``model_warnings``); the README says
+   in one sentence per question what they mean for the result (:func:`fit_note`).
    Why this model: it is the one the design calls for (Baayen, Davidson & Bates 2008; Judd,
    Westfall & Kenny 2012): every participant rates every condition, and each stimulus is a
    sample of possible stimuli, so both are random; statsmodels is maintained, on PyPI, and fits
@@ -134,8 +142,11 @@ def exclusions(df, rules: dict, slider_range: float | None = None) -> dict[int, 
 
 # -- statistics -----------------------------------------------------------------------------------------------------
 
-def condition_means(tidy, conditions: list[str]):
-    """Per question and condition: the participants' means' mean, SD, n and 95 % t interval."""
+def condition_means(tidy, conditions: list[str], questions: list[str] | None = None):
+    """Per question and condition: the participants' means' mean, SD, n and 95 % t interval.
+
+    Rows in the order of ``questions`` (else alphabetical), and within a question of ``conditions``.
+    """
     import pandas as pd
 
     from laughlab.harness.results import mean_ci
@@ -152,9 +163,17 @@ def condition_means(tidy, conditions: list[str]):
     out = pd.DataFrame(rows)
     if not out.empty:
         out["condition"] = pd.Categorical(out["condition"], [c for c in conditions if c in set(out["condition"])])
+        qs = [q for q in (questions or []) if q in set(out["question"])]
+        out["question"] = pd.Categorical(out["question"], qs + sorted(set(out["question"]) - set(qs)))
         out = out.sort_values(["question", "condition"]).reset_index(drop=True)
         out["condition"] = out["condition"].astype(str)
+        out["question"] = out["question"].astype(str)
     return out
+
+
+#: the optimisers each mixed model is fitted with; of the sound fits (:func:`_sound`) the one with the
+#: highest REML likelihood is kept (none sound: the first that converged, else the first)
+FIT_METHODS = ("lbfgs", "powell")
 
 
 def fit_model(data, conditions: list[str]):
@@ -169,11 +188,74 @@ def fit_model(data, conditions: list[str]):
         vc["stimulus"] = "0 + C(stimulus)"
     model = smf.mixedlm(f"value ~ C(condition, Treatment(reference={ref!r}))", d, groups="one", re_formula="0",
                         vc_formula=vc)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        fit = model.fit(reml=True, method=["lbfgs", "powell"])
-    notes = sorted({str(w.message).splitlines()[0] for w in caught})
+    fits = []
+    for method in FIT_METHODS:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                fit = model.fit(reml=True, method=[method])
+            except (np.linalg.LinAlgError, ValueError):  # this optimiser failed outright: the other one stands
+                continue
+            finite = bool(np.all(np.isfinite(np.asarray(fit.bse_fe, float))))  # may warn too: caught here
+        warned = sorted({str(w.message).splitlines()[0] for w in caught})
+        fits.append((fit, warned, _sound(fit, warned, finite)))
+    if not fits:
+        raise LaughlabError("the mixed model could not be fitted by any optimiser")
+    sound = [f for f in fits if f[2]]
+    fit, notes, _ = max(sound, key=lambda f: f[0].llf) if sound else \
+        next((f for f in fits if f[0].converged), fits[0])
     return fit, ref, notes
+
+
+def _sound(fit, warned: list[str], finite_se: bool) -> bool:
+    """A fit to choose from: converged, finite standard errors of the condition effects, and no
+    numerical trouble on the way (an "invalid value" warning: e.g. a residual variance run to zero
+    on degenerate ratings, where the likelihood grows without bound)."""
+    return bool(fit.converged) and finite_se and not any("invalid value" in w for w in warned)
+
+
+#: what the statsmodels warnings of a MixedLM fit say, found by the start of their text
+_UNCONVERGED = ("Maximum Likelihood optimization failed to converge", "Retrying MixedLM optimization",
+                "Gradient optimization failed")
+_BOUNDARY = "The MLE may be on the boundary"
+_HESSIAN = "The Hessian matrix at the estimated parameter values is not positive definite"
+
+
+def fit_note(fit, warned: list[str]) -> str:
+    """One plain sentence on what statsmodels' warnings while fitting mean for the result ("" if none).
+
+    statsmodels warns when an optimiser stops short, when an estimate lies on the edge of its range
+    (a variance component at or near zero: the ratings show no spread between participants, or stimuli, beyond the residual
+    noise, and the model is in effect the one without that random intercept) and when the
+    curvature there is not positive definite (the variance components' own standard errors are
+    then undefined).  None of these touches the condition estimates and their tests as long as
+    the fit converged and their standard errors are finite; a fit that did not converge is not to
+    be trusted.  Other warnings are named as such (their text is in ``report.json``).
+    """
+    if not warned:
+        return ""
+    fe_ok = bool(np.all(np.isfinite(np.asarray(fit.bse_fe, float))))
+    if not fit.converged or not fe_ok:
+        return ("The fit did not converge" if not fit.converged else "The condition estimates have no finite "
+                "standard errors") + ", so this question's estimates and tests below are not to be trusted."
+    head = "The fit converged"
+    clauses = []
+    if any(w.startswith(_BOUNDARY) for w in warned):
+        var = {name: float(v) for name, v in zip(fit.model.exog_vc.names, fit.vcomp)}
+        total = sum(var.values()) + float(fit.scale)
+        low = [n for n, v in var.items() if v < 0.01 * total] or ([min(var, key=var.get)] if var else [])
+        plural = {"participant": "participants", "stimulus": "stimuli"}
+        clauses.append(f"the {' and '.join(low)} variance is at or near zero ("
+                       f"{' and '.join(plural.get(n, n) for n in low)} differ no more than the rating noise, so the "
+                       "model is in effect one without that random intercept)")
+    if any(w.startswith(_HESSIAN) for w in warned):
+        clauses.append("the variances' own standard errors cannot be computed")
+    known = (*_UNCONVERGED, _BOUNDARY, _HESSIAN)
+    if any(not w.startswith(known) for w in warned):
+        return head + ("; " + " and ".join(clauses) if clauses else "") + (
+            ", but statsmodels also warned of something else (see report.json), so check these estimates.")
+    return head + ("; " + " and ".join(clauses) if clauses else "") + (
+        ", which leaves the condition estimates and tests below valid.")
 
 
 def _coef_index(fit, ref: str, cond: str) -> int | None:
@@ -209,7 +291,8 @@ def contrasts(fit, ref: str, conditions: list[str]):
             i = _coef_index(fit, ref, c)
             if i is not None:
                 L[i] += sign
-        est, se = float(L @ beta), float(math.sqrt(L @ cov @ L))
+        est, v = float(L @ beta), float(L @ cov @ L)
+        se = math.sqrt(v) if v > 0 else float("nan")  # a degenerate fit's covariance may not be positive
         z = est / se if se > 0 else float("nan")
         rows.append({"a": a, "b": b, "estimate": est, "se": se, "ci_low": est - 1.959964 * se,
                      "ci_high": est + 1.959964 * se, "z": z, "p": float(2 * stats.norm.sf(abs(z))),
@@ -252,14 +335,16 @@ def analyze(source, out=None, design_dir=None) -> Path:
         raise LaughlabError(f"no ratings are left after the exclusions ({len(excluded)} participants excluded: "
                             f"{'; '.join(r[0] for r in excluded.values())[:200]})")
     questions = [q for q in questions if q in set(tidy["question"])]
-    means = condition_means(tidy, conditions)
-    fixed, variances, cons, notes = [], [], [], {}
+    means = condition_means(tidy, conditions, questions)
+    fixed, variances, cons, notes, warned = [], [], [], {}, {}
     for q in questions:
         data = tidy[tidy["question"] == q]
         if data["condition"].nunique() < 2 or data["participant"].nunique() < 2:
-            notes[q] = ["fewer than two conditions or participants: no model"]
+            notes[q] = "Fewer than two conditions or participants: no model."
             continue
-        fit, ref, notes[q] = fit_model(data, conditions)
+        fit, ref, warned[q] = fit_model(data, conditions)
+        if warned[q]:
+            notes[q] = fit_note(fit, warned[q])
         ci = fit.conf_int()
         for name in fit.fe_params.index:
             fixed.append({"question": q, "term": name.replace(f"C(condition, Treatment(reference={ref!r}))", "condition"),
@@ -296,6 +381,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
     doc = {"source": str(source), "design_id": (design or {}).get("id"), "participants": n_all,
            "excluded": {str(p): r for p, r in excluded.items()}, "included": n_all - len(excluded),
            "conditions": conditions, "questions": questions, "model_notes": notes,
+           "model_warnings": {q: w for q, w in warned.items() if w},
            "means": means.to_dict("records"), "fixed": fixed, "variance": variances,
            "contrasts": contrast_df.to_dict("records")}
     (tmp / "report.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
@@ -326,9 +412,10 @@ def _markdown(doc: dict, source: Path) -> str:
     for v in doc["variance"]:
         lines.append(f"| {v['question']} | {_fmt(v['var_participant'], 3)} | {_fmt(v.get('var_stimulus'), 3)} | "
                      f"{_fmt(v['var_residual'], 3)} | {v['converged']} |")
-    for q, ns in doc["model_notes"].items():
-        for n in ns:
-            lines.append(f"\n{q}: {n}")
+    if doc["model_notes"]:
+        lines.append("")
+    for q, note in doc["model_notes"].items():
+        lines.append(f"- {q}: {note}")
     lines += ["", "## Pairwise contrasts (Holm over each question's pairs)", "",
               "| question | a - b | estimate | 95 % CI | z | p | p (Holm) | d [95 % CI] |",
               "|---|---|---|---|---|---|---|---|"]

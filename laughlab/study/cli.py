@@ -174,7 +174,8 @@ def run_power(ns) -> None:
         w.writerows(rows)
     title = f"{a} - {b} = {ns.effect:g} points; variances: {source}"
     W.plot(out / "power.png", rows, ns.target, title)
-    enough = next((r["n"] for r in rows if r["power"] >= ns.target), None)
-    verdict = f"{enough} participants reach {ns.target:.0%} power" if enough else \
-        f"none of {', '.join(map(str, ns.participants))} participants reaches {ns.target:.0%} power"
-    print(f"laughlab: {verdict} for {a} - {b} = {ns.effect:g} (alpha {ns.alpha:g}, Holm); {out}/power.csv, power.png")
+    print(f"laughlab: {W.verdict(rows, ns.target)} for {a} - {b} = {ns.effect:g} (alpha {ns.alpha:g}, Holm); "
+          f"{out}/power.csv, power.png")
+    hint = W.advice(rows, ns.target, ns.effect)
+    if hint:
+        print(f"laughlab: {hint}")

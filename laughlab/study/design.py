@@ -161,7 +161,9 @@ def make_design(run_dir: Path, preset: dict, preset_name: str, audio_files: list
     doc = {
         "format": 1,
         "title": preset["title"], "preset": preset_name, "stimuli_preset": info.get("preset"),
-        "design": info.get("design"), "conditions": list(info.get("conditions") or {}),
+        "design": info.get("design"),
+        # the preset's order (stimuli.json's keys are sorted; an older one has no condition_order)
+        "conditions": list(info.get("condition_order") or info.get("conditions") or {}),
         "muted": info.get("muted") or [],
         "scale": preset["scale"], "points": preset["points"], "slider": preset["slider"],
         "questions": preset["questions"],

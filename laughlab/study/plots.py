@@ -43,6 +43,15 @@ def _label(q: str, design) -> str:
     return q
 
 
+def _tick(condition: str, width: int = 12) -> str:
+    """A condition's tick label: horizontal, a long name broken after its underscore nearest the middle."""
+    cuts = [i for i, ch in enumerate(condition) if ch == "_"]
+    if len(condition) <= width or not cuts:
+        return condition
+    i = min(cuts, key=lambda k: abs(k - len(condition) / 2))
+    return condition[:i + 1] + "\n" + condition[i + 1:]
+
+
 def means_plot(path: Path, means, tidy, questions: list[str], conditions: list[str], design=None) -> None:
     """Condition means with 95 % CIs per question; each participant's mean as a faint dot."""
     fig, axes = _panels(len(questions))
@@ -57,7 +66,7 @@ def means_plot(path: Path, means, tidy, questions: list[str], conditions: list[s
                 ax.scatter(i + rng.uniform(-0.12, 0.12, len(v)), v, s=10, color="0.65", zorder=1, linewidths=0)
         err = np.vstack([m["mean"] - m["ci_low"], m["ci_high"] - m["mean"]])
         ax.errorbar(x, m["mean"], yerr=err, fmt="o", color="tab:blue", ms=7, capsize=5, lw=1.8, zorder=3)
-        ax.set_xticks(x, conditions, rotation=20, ha="right")
+        ax.set_xticks(x, [_tick(c) for c in conditions], fontsize=8)
         ax.set_title(_label(q, design), fontsize=9)
         ax.set_ylabel("rating (mean, 95 % CI)")
         ax.grid(axis="y", alpha=0.3)
@@ -78,7 +87,7 @@ def participant_lines(path: Path, tidy, means, questions: list[str], conditions:
             ax.plot(x, row.to_numpy(float), color="0.55", alpha=0.55, lw=1, marker="o", ms=3)
         m = means[means["question"] == q].set_index("condition").reindex(conditions)
         ax.plot(x, m["mean"], color="tab:red", lw=2.5, marker="o", ms=6, label="mean", zorder=3)
-        ax.set_xticks(x, conditions, rotation=20, ha="right")
+        ax.set_xticks(x, [_tick(c) for c in conditions], fontsize=8)
         ax.set_title(_label(q, design), fontsize=9)
         ax.set_ylabel("rating (participant mean)")
         ax.grid(axis="y", alpha=0.3)

@@ -48,6 +48,27 @@ def simulate(trials: list[list[tuple[str, str]]], effects: dict[str, float], var
     return df
 
 
+
+def verdict(rows: list[dict], target: float) -> str:
+    """What :func:`power`'s ``rows`` say: the fewest participants reaching ``target`` power, or the best tried."""
+    enough = next((r["n"] for r in rows if r["power"] >= target), None)
+    if enough is not None:
+        return f"{enough} participants reach {target:.0%} power"
+    best = max(rows, key=lambda r: (r["power"], r["n"]))
+    return (f"none of {', '.join(str(r['n']) for r in rows)} participants reaches {target:.0%} power "
+            f"(best {best['power']:.0%} with {best['n']})")
+
+
+def advice(rows: list[dict], target: float, effect: float) -> str | None:
+    """When no size reaches ``target``: what to change (None when one does)."""
+    if any(r["power"] >= target for r in rows):
+        return None
+    top = max(r["n"] for r in rows)
+    more = ",".join(str(k * top) for k in (2, 3, 4))
+    return (f"to reach {target:.0%}: more participants (--participants {more}), more stimuli per condition "
+            f"(more audio items: experiment=stimuli harness.corpus.seeds=N), or a larger effect than {effect:g}")
+
+
 def detected(df, conditions: list[str], a: str, b: str, alpha: float) -> bool:
     from laughlab.study.analyze import contrasts, fit_model
 
@@ -130,6 +151,7 @@ def plot(path: Path, rows: list[dict], target: float, title: str) -> None:
     err = np.vstack([p - [r["ci_low"] for r in rows], [r["ci_high"] for r in rows] - p])
     ax.errorbar(n, p, yerr=err, fmt="o-", capsize=4, color="tab:blue")
     ax.axhline(target, color="tab:red", ls="--", lw=1, label=f"target {target:.0%}")
+    ax.set_xticks(sorted(set(n)))           # whole participants, not 8.5
     ax.set_xlabel("participants")
     ax.set_ylabel("power (95 % CI)")
     ax.set_ylim(0, 1.02)

@@ -24,12 +24,12 @@ import json
 import shutil
 from functools import partial
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
 from laughlab.core.errors import LaughlabError
+from laughlab.viewer import page
 
 DEFAULT_PORT = 8765
 NEEDED = ("motion.bvh", "channels.csv", "events.csv")
@@ -143,23 +143,34 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
            "clips": clips, "energy_max": max([c["energy"] for c in clips] + [max(pick.get("energy", [1.0]))]),
            "avatar": _view_of(avatar)}
     files["run.json"] = json.dumps(run, separators=(",", ":")).encode()
-    page = resources.files("laughlab.viewer")
-    files["index.html"] = page.joinpath("index.html").read_bytes().replace(
-        b"<title>laughlab viewer</title>", f"<title>laughlab: {run['name']}</title>".encode())
-    files["viewer.js"] = page.joinpath("viewer.js").read_bytes()
-    vendor = Path(str(page.joinpath("vendor")))
+    files["index.html"] = page.served(run["name"])
+    files["viewer.js"] = page.viewer_js()
+    vendor = page.vendor_dir()
     for f in sorted(vendor.rglob("*")):
         if f.is_file():
             files["vendor/" + f.relative_to(vendor).as_posix()] = f
     return files
 
 
-def write(run_dir: str | Path, out: str | Path, character: str | Path | None = None) -> Path:
-    """Write the viewer's files into ``out`` (a new or empty folder)."""
+def write(run_dir: str | Path, out: str | Path, character: str | Path | None = None) -> tuple[Path, bool]:
+    """Write the viewer's files into ``out`` (a new or empty folder); return it, and whether its page opens
+    as a file.  ``character``: a user's avatar to show instead of the mannequin (as :func:`assets`).
+
+    Its ``index.html`` carries three.js (and three-vrm for a VRM), the run and the character inline
+    (``laughlab.viewer.page``), so it works opened as a file; the audio stays beside it (a page opened as a
+    file may play a sibling file).  Past :data:`laughlab.viewer.page.INLINE_MAX_BYTES` the page loads its
+    files instead, and opened as a file it says how to serve the folder.  The separate files are written
+    too, for any static web server.
+    """
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise LaughlabError(f"{out} exists and is not an empty folder; choose another --out")
     files = assets(run_dir, character)
+    run = json.loads(files["run.json"])
+    glb = files["character.glb"]
+    glb = glb.read_bytes() if isinstance(glb, Path) else glb
+    files["index.html"] = page.static(run["name"], files["run.json"], glb, out.resolve(), Path(run_dir).resolve(),
+                                      vrm=run["avatar"]["vrm"])
     tmp = out.with_name(f".{out.name}.part")
     shutil.rmtree(tmp, ignore_errors=True)
     for name, data in files.items():
@@ -172,7 +183,7 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
     if out.exists():
         out.rmdir()
     tmp.rename(out)
-    return out
+    return out, page.fits_inline(files["run.json"], glb)
 
 
 class _Handler(SimpleHTTPRequestHandler):

@@ -1,9 +1,11 @@
 // laughlab viewer: the run's character.glb in sync with its audio, the MCS and laughing energy
 // scrolling below with the clips as blocks (cf. van Duijn 2014, Figs. 3.2 and 4.2).
 // The audio element is the clock: the animation shows audio.currentTime; without audio a wall clock does.
+// Served (python -m laughlab view RUN), the page fetches run.json and character.glb; written with --out, the
+// page carries them inline (script elements laughlab-run and laughlab-glb) so that it also works opened as a file.
 import * as THREE from 'three';
-import { GLTFLoader } from './vendor/three/examples/jsm/loaders/GLTFLoader.js';
-import { OrbitControls } from './vendor/three/examples/jsm/controls/OrbitControls.js';
+import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 
 const $ = (id) => document.getElementById(id);
 const state = { ready: false, error: null, animTime: 0, frames: 0 };
@@ -11,7 +13,29 @@ window.laughlab = state;
 window.addEventListener('error', (e) => { state.error = String(e.message || e); document.title = 'error: ' + state.error; });
 window.addEventListener('unhandledrejection', (e) => { state.error = String(e.reason); document.title = 'error: ' + state.error; });
 
-const run = await (await fetch('./run.json')).json();
+const inline = (id) => document.getElementById(id);
+async function loadRun() {
+  if (inline('laughlab-run')) return JSON.parse(inline('laughlab-run').textContent);
+  const r = await fetch('./run.json');
+  if (!r.ok) throw new Error(`run.json: HTTP ${r.status}`);
+  return r.json();
+}
+// a user's avatar (--character): a VRM goes through three-vrm (MToon materials, spring bones), which the import
+// map names 'three-vrm' (a file beside the page when served, a data: URL when inlined); the run is baked into
+// the file's first animation (bones and morph weights), so the mixer plays it as it plays ours
+async function loadCharacter(avatar) {
+  const loader = new GLTFLoader();
+  if (avatar.vrm) {
+    const { VRMLoaderPlugin } = await import('three-vrm');
+    loader.register((parser) => new VRMLoaderPlugin(parser, { autoUpdateHumanBones: false }));
+  }
+  const el = inline('laughlab-glb');
+  if (!el) return loader.loadAsync('./character.glb');
+  const bytes = Uint8Array.from(atob(el.textContent.trim()), (c) => c.charCodeAt(0));
+  return loader.parseAsync(bytes.buffer, './');
+}
+
+const run = await loadRun();
 const audio = $('audio');
 const hasAudio = run.audio !== null;
 if (hasAudio) audio.src = './' + run.audio;
@@ -52,46 +76,82 @@ const floor = new THREE.Mesh(new THREE.CircleGeometry(2.5, 48), new THREE.MeshSt
 floor.rotation.x = -Math.PI / 2;
 scene.add(floor);
 const camera = new THREE.PerspectiveCamera(28, 1, 0.05, 50);
-camera.position.set(0.5, 1.25, 3.9);
 const controls = new OrbitControls(camera, canvas);
-controls.target.set(0, 0.95, 0);
-controls.update();
+let userMoved = false;
+controls.addEventListener('start', () => { userMoved = true; });
 
-// a user's avatar (--character): a VRM goes through three-vrm (MToon materials, spring bones); the run is
-// baked into the file's first animation (bones and morph weights), so the mixer plays it as it plays ours
-const avatar = run.avatar || { vrm: false, bones: {}, scale: 1 };
-const loader = new GLTFLoader();
-if (avatar.vrm) {
-  const { VRMLoaderPlugin } = await import('./vendor/three_vrm/three-vrm.module.min.js');
-  loader.register((parser) => new VRMLoaderPlugin(parser, { autoUpdateHumanBones: false }));
-}
-const gltf = await loader.loadAsync('./character.glb');
+const avatar = run.avatar || { vrm: false, facing: 1, bones: {} };
+const gltf = await loadCharacter(avatar);
 const vrm = gltf.userData.vrm || null;
-scene.add(vrm ? vrm.scene : gltf.scene);
-const mixer = new THREE.AnimationMixer(vrm ? vrm.scene : gltf.scene);
+const root = vrm ? vrm.scene : gltf.scene;
+scene.add(root);
+if (avatar.facing < 0) root.rotation.y = Math.PI;  // VRM 0.x faces -Z: turn it to the camera
+const mixer = new THREE.AnimationMixer(root);
 const action = mixer.clipAction(gltf.animations[0]);
 action.play();
-if (avatar.facing < 0) (vrm ? vrm.scene : gltf.scene).rotation.y = Math.PI;  // VRM 0.x faces -Z: turn it to the camera
-if (avatar.file) {  // frame the avatar as the 1.78 m mannequin is framed
-  const box = new THREE.Box3().setFromObject(vrm ? vrm.scene : gltf.scene);
-  const scale = Math.max(0.2, (box.max.y - Math.min(0, box.min.y)) / 1.78);
-  camera.position.multiplyScalar(scale);
-  controls.target.multiplyScalar(scale);
-  controls.update();
+// the character's meshes: skinned ones, and rigid ones that ride on a bone (as some avatars' parts do)
+const meshes = [];
+root.traverse((o) => { if (o.isMesh && o.geometry && o.geometry.attributes.position) meshes.push(o); });
+let lastT = 0;
+
+function pose(t) {
+  mixer.setTime(t);
+  root.updateMatrixWorld(true);
+  for (const m of meshes) if (m.isSkinnedMesh) m.skeleton.update();
 }
+// every vertex of the character, posed, in world space (Mesh.getVertexPosition applies the morphs, and a
+// SkinnedMesh's the bones too)
+function eachVertex(fn) {
+  const v = new THREE.Vector3();
+  for (const m of meshes) {
+    const n = m.geometry.attributes.position.count;
+    for (let i = 0; i < n; i++) { m.getVertexPosition(i, v); v.applyMatrix4(m.matrixWorld); fn(v); }
+  }
+}
+// the space the character takes over the whole run: its vertices at 16 moments (every one in the box, every
+// 4th, or fewer for a large avatar, kept to fit the camera to)
+const vertices = meshes.reduce((n, m) => n + m.geometry.attributes.position.count, 0);
+const stride = Math.max(4, Math.ceil(17 * vertices / 40000));
+const reach = new THREE.Box3(), points = [];
+for (let k = 0; k <= 16; k++) {
+  pose(run.duration * k / 16);
+  let i = 0;
+  eachVertex((v) => { reach.expandByPoint(v); if (i++ % stride === 0) points.push(v.clone()); });
+}
+pose(0);
+
 // node index -> its object, for the tests' check of the joints' world positions
 const nodes = {};
-(vrm ? vrm.scene : gltf.scene).traverse((o) => {
+root.traverse((o) => {
   const a = gltf.parser.associations.get(o);
   if (a && a.nodes !== undefined && !(a.nodes in nodes)) nodes[a.nodes] = o;
 });
 state.world = (indices) => indices.map((i) => { const p = new THREE.Vector3(); nodes[i].getWorldPosition(p); return p.toArray(); });
-state.morphs = () => { const out = {}; (vrm ? vrm.scene : gltf.scene).traverse((o) => {
+state.morphs = () => { const out = {}; root.traverse((o) => {
   const a = gltf.parser.associations.get(o);
   if (o.morphTargetInfluences && a && a.meshes !== undefined) out[o.name] = Array.from(o.morphTargetInfluences);
 }); return out; };
 state.vrm = vrm !== null;
-let lastT = 0;
+
+// frame the camera on those points: from the front, a little from above and to the side, every point within
+// the middle of the view (88% of its height, 90% of its width), whatever the window's shape; the view ends
+// where the control bar starts (the page's CSS), so the bar never covers the character
+const viewFrom = new THREE.Vector3(0.5, 0.3, 3.9).normalize();
+function frameCharacter() {
+  const centre = reach.getCenter(new THREE.Vector3());
+  const p = new THREE.Vector3();
+  const fits = () => points.every((v) => { p.copy(v).project(camera); return Math.abs(p.x) < 0.9 && Math.abs(p.y) < 0.88 && p.z < 1; });
+  let d = 0.5;
+  for (let i = 0; i < 120; i++) {  // move back from close by until every point projects inside
+    camera.position.copy(centre).addScaledVector(viewFrom, d);
+    camera.lookAt(centre);
+    camera.updateMatrixWorld(true);
+    if (fits()) break;
+    d *= 1.04;
+  }
+  controls.target.copy(centre);
+  controls.update();
+}
 
 // the strip: MCS and laughing energy around now, clips as blocks, the current time as a line
 const strip = $('strip');
@@ -132,8 +192,9 @@ function drawStrip(t) {
 function resize() {
   for (const c of [canvas, strip]) { c.width = c.clientWidth * window.devicePixelRatio; c.height = c.clientHeight * window.devicePixelRatio; }
   renderer.setSize(canvas.clientWidth, canvas.clientHeight, false);
-  camera.aspect = canvas.clientWidth / canvas.clientHeight;
+  camera.aspect = canvas.clientWidth / Math.max(1, canvas.clientHeight);
   camera.updateProjectionMatrix();
+  if (!userMoved) frameCharacter();
   sctx.font = `${11 * window.devicePixelRatio}px system-ui`;
 }
 window.addEventListener('resize', resize);
@@ -161,6 +222,23 @@ window.addEventListener('keydown', (e) => { if (e.code === 'Space') { e.preventD
 audio.addEventListener('ended', () => setPlaying(false));
 
 state.check = async (t) => { await seek(t); frame(); return { anim: state.animTime, audio: state.audioTime(), fps }; };
+// where the character is drawn now, in CSS pixels of the page: its lowest and highest vertex, its feet (the
+// foot and toe joints), and the top of the control bar (for tests: nothing of the character under the bar)
+state.onScreen = () => {
+  pose(state.animTime);
+  const rect = canvas.getBoundingClientRect();
+  const y = (v) => rect.top + (1 - (v.clone().project(camera).y + 1) / 2) * rect.height;
+  let lowest = -Infinity, highest = Infinity;
+  eachVertex((v) => { const py = y(v); lowest = Math.max(lowest, py); highest = Math.min(highest, py); });
+  const feet = [];
+  // an avatar's humanoid feet and toes (its joints may have any names, or be plain nodes), else the mannequin's
+  const humanoid = Object.entries(avatar.bones || {}).filter(([b]) => /foot|toes/i.test(b)).map(([, i]) => nodes[i]);
+  if (humanoid.length) for (const o of humanoid) feet.push(y(o.getWorldPosition(new THREE.Vector3())));
+  else root.traverse((o) => { if (o.isBone && /foot|toe/.test(o.name)) feet.push(y(o.getWorldPosition(new THREE.Vector3()))); });
+  return { lowest, highest, feet: Math.max(...feet), viewTop: rect.top, viewBottom: rect.bottom,
+           barTop: $('bar').getBoundingClientRect().top };
+};
+for (const id of ['play', 'seek']) $(id).disabled = false;
 state.ready = true;
 state.audioTime = () => (hasAudio ? audio.currentTime : now());
 state.seek = seek;

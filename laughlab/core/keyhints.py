@@ -1,0 +1,88 @@
+"""Where an unknown parameter belongs: the options of a config group that have it.
+
+``scheduler.mode=fast`` under the default ``scheduler=energy`` is an unknown parameter, but
+``scheduler=concat`` has ``mode``; ``input.path=...`` belongs to ``input=file``.  The error line
+then says what to add instead of only listing the keys of the plugin that is chosen.
+
+An option's parameters are the keys of its YAML file (``conf/<group>/<option>.yaml``, nested keys
+as dotted paths, e.g. ``video.fps`` of ``output=video``) and, for a registered plugin, the fields of
+its ``Params`` dataclass.  ``laughlab.core.config`` wires these functions to the groups.
+"""
+from __future__ import annotations
+
+#: the groups searched for a key given without its group (e.g. ``mode=fast``)
+SEARCHED = ("input", "extractor", "detector", "face", "body", "scheduler", "output")
+
+
+def _paths(node, prefix: str = "") -> set[str]:
+    out = set()
+    if isinstance(node, dict):
+        for k, v in node.items():
+            path = f"{prefix}{k}"
+            out.add(path)
+            out |= _paths(v, path + ".")
+    return out
+
+
+def option_keys(folder, kind: str | None) -> dict[str, set]:
+    """Option name -> its parameter paths, for one group: ``folder`` its YAML files (a path or a
+    ``Traversable``), ``kind`` the plugin kind whose registered plugins' ``Params`` count too (None: only YAML)."""
+    from dataclasses import fields, is_dataclass
+
+    from omegaconf import OmegaConf
+
+    keys: dict[str, set] = {}
+    if folder is not None and folder.is_dir():
+        for f in folder.iterdir():
+            if f.name.endswith(".yaml"):
+                doc = OmegaConf.to_container(OmegaConf.create(f.read_text()), resolve=False) or {}
+                keys[f.name[:-5]] = _paths(doc) - {"name", "defaults"}
+    if kind is not None:
+        from laughlab.core import plugins
+
+        for name, info in plugins.registry()[kind].items():
+            params = getattr(info.obj, "Params", None)
+            if params is not None and is_dataclass(params):
+                keys.setdefault(name, set()).update(f.name for f in fields(params))
+    return keys
+
+
+def options_with(folder, kind: str | None, path: str) -> list[str]:
+    """The options of a group (see :func:`option_keys`) that have the parameter ``path``, sorted."""
+    try:
+        return sorted(name for name, keys in option_keys(folder, kind).items() if path in keys)
+    except Exception:  # a hint is a courtesy: never let it hide the error it explains
+        return []
+
+
+def _choices(owners: list[str], group: str) -> str:
+    named = [f"{group}={o}" for o in owners]
+    return named[0] if len(named) == 1 else ", ".join(named[:-1]) + " and " + named[-1]
+
+
+def elsewhere(group: str, path: str, current: str | None, owners: list[str], explicit: bool = False) -> str | None:
+    """``group.path`` is unknown for ``group=current`` but ``owners`` have it: the line saying which and what
+    to add (None if no other option has it).  ``explicit``: the user chose ``group=current`` on the command
+    line (then the line says to switch rather than to add)."""
+    owners = [o for o in owners if o != current]
+    if not owners:
+        return None
+    now = f", not of {group}={current}" if current else ""
+    if explicit:
+        todo = f"use {group}={owners[0]} instead" if len(owners) == 1 else "use one of them instead"
+    else:
+        todo = f"add {group}={owners[0]}" if len(owners) == 1 else f"add one of them, e.g. {group}={owners[0]}"
+    return f"{group}.{path} is a parameter of {_choices(owners, group)}{now}: {todo}"
+
+
+def without_group(key: str, value: str | None, current: dict[str, str], found: list[tuple[str, str]]) -> str | None:
+    """A key given without its group (``mode=fast``, ``video.fps=10``) that ``found`` (group, option) pairs
+    have: a line naming the group's key, or None.  ``current``: group -> the option chosen now."""
+    if not found:
+        return None
+    group, option = found[0]
+    setting = f"{group}.{key}" + (f"={value}" if value is not None else "")
+    if current.get(group) == option:
+        return f"there is no top-level parameter {key}; did you mean {setting}?"
+    return (f"there is no top-level parameter {key}; {group}={option} has {group}.{key}: "
+            f"write {group}={option} {setting}")

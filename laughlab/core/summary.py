@@ -1,0 +1,64 @@
+"""The one line a run prints when it succeeds: what ran on what, how long the command took, how fast, where."""
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:
+    """One line on success: what ran on what, how long the command took, its speed, where its files are.
+
+    ``seconds``: the wall time from the process' start (:mod:`laughlab.core.clock`), the time the user
+    waited.  The speed is the one that means something for the run's output (:func:`speed`).
+    e.g. ``laughlab: 30.0 s of synthetic input, rms > none > smile > shapes > energy, in 3.4 s
+    (8.8x real time; frame loop 219x) -> runs/demo/: channels.csv, events.csv, motion.bvh, plots/``
+    """
+    src = cfg.input.name
+    what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
+    chain = " > ".join(str(cfg[g].name) for g in ("extractor", "detector", "face", "body", "scheduler")
+                       if g in cfg and cfg[g] is not None and "name" in cfg[g])
+    dur = float(metrics.get("duration_s") or 0.0)
+    files = sorted(p.name + ("/" if p.is_dir() else "") for p in Path(out_dir).iterdir()
+                   if not p.name.startswith("."))
+    took = f"in {duration_text(seconds)} ({speed(cfg, metrics, seconds)})"
+    return f"laughlab: {dur:.1f} s of {what}, {chain}, {took} -> {out_dir}/: {', '.join(files)}"
+
+
+def speed(cfg, metrics: dict, seconds: float) -> str:
+    """How fast the run went, in the terms of its output.
+
+    - a live input (the microphone): it runs at the speed of the sound, so the compute per frame against the
+      frame's time;
+    - a stream paced at the frame clock (``output=vmc`` on a file): real time by design;
+    - otherwise the whole command's real-time factor (audio seconds per second waited), then the frame loop's
+      (``metrics.json``: ``realtime_factor``, the plugins and the writers), and for a video its rendered
+      frames per second, the part that takes the time.
+    """
+    fps = float(metrics.get("fps") or cfg.get("fps") or 60.0)
+    if str(cfg.input.name) == "mic":
+        p99 = metrics.get("frame_ms_p99")
+        return f"live; compute per frame p99 {float(p99):.2f} ms of {1000 / fps:.1f} ms" if p99 is not None else "live"
+    vmc = (cfg.get("output") or {}).get("vmc")
+    if vmc is not None and str(vmc.get("realtime", "auto")) in ("auto", "on"):
+        return "paced at the frame clock for the vmc stream"
+    dur = float(metrics.get("duration_s") or 0.0)
+    parts = [f"{_factor(dur / seconds)}x real time" if seconds > 0 else "instant"]
+    if metrics.get("video_frames"):
+        rate = metrics.get("video_render_fps")
+        parts.append(f"video: {int(metrics['video_frames'])} frames rendered at {float(rate):.1f} frames/s"
+                     if rate is not None and rate == rate else f"video: {int(metrics['video_frames'])} frames")
+    elif metrics.get("realtime_factor"):
+        parts.append(f"frame loop {_factor(float(metrics['realtime_factor']))}x")
+    return "; ".join(parts)
+
+
+def _factor(x: float) -> str:
+    """A speed factor with two significant digits below 10 (0.091, 0.15, 8.8), whole above (219)."""
+    return f"{x:.0f}" if x >= 10 else f"{x:.1f}" if x >= 1 else f"{x:.2g}"
+
+
+def duration_text(s: float) -> str:
+    """A duration as a person reads it: 3.4 s, 2 min 05 s, 1 h 02 min."""
+    if s < 60:
+        return f"{s:.1f} s"
+    m = int(round(s)) // 60
+    return f"{m} min {int(round(s)) % 60:02d} s" if m < 60 else f"{m // 60} h {m % 60:02d} min"

@@ -1,0 +1,278 @@
+"""Every figure laughlab draws can be read: no two texts overprint, every clip is named, every colour
+bar says which way is better (issue 26, item 5).
+
+Each figure is checked as it is saved (``Figure.savefig`` is watched), with matplotlib's own renderer
+(``laughlab.render.labels``): the figures of a default run and of a concatenation run, of an
+experiment report (energy against concat) and of a sweep report (2 x 2 and 2 x 1 points), and the
+study report's figures.  Inputs are short (10 s runs, 4 s trials) to keep the test fast.
+"""
+import json
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from matplotlib.figure import Figure
+from omegaconf import OmegaConf
+
+from laughlab.core import pipeline
+from laughlab.core.config import compose_config
+from laughlab.core.frame import ClipEvent, clip_blocks
+from laughlab.render.labels import colorbars, colorbars_without_direction, drawn_texts, overlapping_texts
+
+
+def cfg_for(*overrides):
+    cfg = compose_config(list(overrides))
+    return OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+
+
+class Saved:
+    """What one saved figure showed."""
+
+    def __init__(self, name, fig):
+        drawn = drawn_texts(fig)
+        self.name = re.sub(r"^\.|\.part$", "", Path(name).name)
+        self.texts = [t.get_text() for t, _ in drawn]
+        self.overlaps = overlapping_texts(fig, drawn)
+        self.undirected = colorbars_without_direction(fig)
+        self.n_colorbars = len(colorbars(fig))
+        # (label, colour map, values rising upwards) of each colour bar
+        self.bars = [(cb.ax.get_ylabel(), cb.cmap.name, not cb.ax.yaxis_inverted()) for cb in colorbars(fig)]
+        self.titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
+        self.xticks = [[t.get_text() for t in ax.get_xticklabels()] for ax in fig.axes if ax.get_visible()]
+
+
+@pytest.fixture
+def saved(monkeypatch):
+    """Every figure saved during the test, checked just before it is written."""
+    seen: list[Saved] = []
+    original = Figure.savefig
+
+    def watched(self, fname, *args, **kwargs):
+        seen.append(Saved(fname, self))
+        return original(self, fname, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", watched)
+    return seen
+
+
+def assert_readable(figures):
+    assert figures
+    for f in figures:
+        assert not f.overlaps, f"{f.name}: overprinted texts {f.overlaps}"
+        assert not f.undirected, f"{f.name}: colour bars that do not say which way is better: {f.undirected}"
+
+
+def read_events(run: Path) -> list:
+    ev = pd.read_csv(run / "events.csv")
+    return [ClipEvent(r.time, r.event, r.clip, r.energy, r.speed) for r in ev.itertuples()]
+
+
+@pytest.mark.parametrize("scheduler", ["energy", "concat"])
+def test_the_figures_of_a_run(tmp_path, saved, monkeypatch, scheduler):
+    from laughlab.render import plots
+
+    strips = []
+    real = plots.filmstrip
+    monkeypatch.setattr(plots, "filmstrip", lambda path, sk, times, *a, **k: strips.append(np.asarray(times))
+                        or real(path, sk, times, *a, **k))
+    pipeline.execute(pipeline.build(cfg_for("input.duration_s=10", f"scheduler={scheduler}", "~output.bvh")),
+                     tmp_path)
+    names = {f.name for f in saved}
+    wanted = {"fig3_1_calibration.png", "fig3_2_mcs.png", "fig4_2_energy.png", "filmstrip.png"}
+    assert names == wanted | ({"fig4_1_energy.png"} if scheduler == "energy" else set())
+    assert_readable(saved)
+    # every clip played is named in Figs. 4.1 and 4.2 (its block's label or the colour key)
+    played = {b[0] for b in clip_blocks(read_events(tmp_path), 10.0)}
+    assert played
+    for f in saved:
+        if f.name.startswith("fig4_"):
+            for clip in played:
+                assert any(t == clip or t.startswith(f"{clip}, e=") for t in f.texts), (f.name, clip)
+    # the filmstrip: distinct moments (as printed, 0.1 s), spread over the run, in order
+    (times,) = strips
+    shown = [f"{t:.1f}" for t in times]
+    assert len(set(shown)) == len(shown) == 8
+    assert np.all(np.diff(times) > 0) and times[-1] - times[0] > 5.0
+
+
+def _tiny_experiment(out: Path, name: str, overrides: list[str], conditions: dict, showcase=None) -> dict:
+    from laughlab.harness.experiment import run_experiment
+
+    cfg = compose_config([f"experiment={name}", *overrides])
+    h = OmegaConf.to_container(cfg.harness)
+    h.update(conditions=conditions, jobs=1, showcase=showcase,
+             corpus={**h["corpus"], "profiles": ["intense"], "seeds": 1, "duration_s": 4.0})
+    h["corpus"].pop("real", None)
+    if "gap_inputs" in h:
+        h["gap_inputs"] = 1
+    cfg.harness = OmegaConf.create(h)
+    return run_experiment(cfg, out, base_overrides=overrides, progress=False)
+
+
+def test_the_figures_of_an_experiment_report(tmp_path, saved):
+    from laughlab.harness.report import same_everywhere, write_report
+
+    run = tmp_path / "exp"
+    doc = _tiny_experiment(run, "smoke", [], {"energy": ["scheduler=energy"], "concat": ["scheduler=concat"]})
+    readme = write_report(run, tmp_path / "rep", "cmd").read_text()
+    assert_readable(saved)
+    same = [m for m in doc["metrics"] if same_everywhere(doc, m)]
+    differ = [m for m in doc["metrics"] if m not in same and doc["results"]["energy"][m]["n"]]
+    # the detector and the face do not depend on the scheduler: the same under both
+    assert {"detector_f1", "jaw_call_r"} <= set(same) and "cutoff_rate" in differ
+    metrics = [f for f in saved if f.name == "metrics.png"][-1]            # the report's (the run drew one too)
+    panels = {t.split(" ")[0] for t in metrics.titles if t}
+    assert panels == set(differ)
+    assert all(m in " ".join(metrics.texts) for m in same)           # named under the panels instead
+    assert all(t == ["energy", "concat"] for t, title in zip(metrics.xticks, metrics.titles) if title)
+    table = readme.split("![metrics]")[0]
+    assert all(f"| {m} " not in table for m in same) and all(f"| {m} " in readme for m in same)
+    assert "| metric | units | energy mean [95% CI] | concat mean [95% CI] |" in readme
+
+
+def _sweep_point(job: Path, overrides: list[str], doc: dict | None = None, scale: float = 1.0) -> dict:
+    """One point of a Hydra-like sweep folder: its experiment (run, or ``doc`` with every mean and CI
+    times ``scale``) and its ``.hydra/overrides.yaml``."""
+    import yaml
+
+    from laughlab.harness.results import write_json
+
+    if doc is None:
+        doc = _tiny_experiment(job, "energy_ablation", overrides, {"energy": ["scheduler=energy"]})
+    else:
+        doc = json.loads(json.dumps(doc))
+        for r in doc["results"]["energy"].values():
+            if r["mean"] is not None:
+                r["mean"] *= scale
+                r["ci95"] = [v * scale if v is not None else None for v in r["ci95"]]
+        job.mkdir(parents=True)
+        write_json(job / "results.json", doc)
+    (job / ".hydra").mkdir(parents=True, exist_ok=True)
+    (job / ".hydra" / "overrides.yaml").write_text(yaml.safe_dump(["experiment=energy_ablation", *overrides]))
+    return doc
+
+
+def test_the_figures_of_a_sweep_report(tmp_path, saved):
+    """A 2 x 1 sweep run for real (line plots), then made a 2 x 2 one (heatmaps) by two more points whose
+    results are the first two's scaled by 1.2 (what the sweep changed is all the report reads)."""
+    from laughlab.harness.report import KEY_METRICS, write_report
+
+    docs = [_sweep_point(tmp_path / "line" / str(k), [f"scheduler.overrule_c={c}", "scheduler.decrease_per_s=6"])
+            for k, c in enumerate((1.5, 3))]
+    write_report(tmp_path / "line", tmp_path / "rep_line", "cmd")
+    lines = [f for f in saved if f.name.startswith("line_")]
+    assert len(lines) == 1
+    assert all("is better" in t for t in lines[0].texts if t.startswith(("fraction", "s (", "Pearson")))
+    shutil.copytree(tmp_path / "line", tmp_path / "sweep")
+    for k, (c, doc) in enumerate(zip((1.5, 3), docs), start=2):
+        _sweep_point(tmp_path / "sweep" / str(k), [f"scheduler.overrule_c={c}", "scheduler.decrease_per_s=20"],
+                     doc, 1.2)
+    readme = write_report(tmp_path / "sweep", tmp_path / "rep", "cmd").read_text()
+    (heat,) = [f for f in saved if f.name.startswith("heatmap_")]
+    flat = re.findall(r"`(\w+)` \(", readme.split("No figure for")[1].split("\n")[0]) if "No figure for" in readme \
+        else []
+    # every metric of the table has a heatmap, or the report says why not
+    assert sorted(t.split(" ")[0] for t in heat.titles if t) == sorted(m for m in KEY_METRICS if m not in flat)
+    assert heat.n_colorbars == len(KEY_METRICS) - len(flat) > 0
+    assert all(f"`{m}` (" in readme for m in flat) and ("the sweep did not change it" in readme or not flat)
+    # bright (the top of viridis) is better in every heatmap, and every bar's top is its better end
+    for label, cmap, rising in heat.bars:
+        assert (label, cmap, rising) in {("better ↑ (higher is better)", "viridis", True),
+                                         ("better ↑ (lower is better)", "viridis_r", False)}
+    assert {b[0] for b in heat.bars} == {"better ↑ (higher is better)", "better ↑ (lower is better)"}
+    assert_readable(saved)
+
+
+def test_the_study_figures_keep_the_design_order_and_the_fit_says_what_its_warnings_mean(tmp_path, saved):
+    from laughlab.study.analyze import analyze
+
+    design_order = ["smile_only", "face_breathing", "laugh_energy", "laugh_concat"]
+    rng = np.random.default_rng(3)
+    rows = []
+    for p in range(1, 9):
+        rows.append(dict(participant=p, trial=0, stimulus="", condition="", kind="audio_check", question="",
+                         value=1))
+        for t, (c, s) in enumerate(((c, s) for c in design_order for s in ("a", "b")), start=1):
+            for q in ("naturalness", "body_sound_match"):
+                v = 4 + (c == "laugh_energy") + rng.normal(0, 0.7)
+                rows.append(dict(participant=p, trial=t, stimulus=f"{c}-{s}", condition=c, kind="rating",
+                                 question=q, value=int(np.clip(np.round(v), 1, 7))))
+    pd.DataFrame(rows).to_csv(tmp_path / "answers.csv", index=False)
+    study = tmp_path / "study"
+    study.mkdir()
+    (study / "design.json").write_text(json.dumps({
+        "conditions": design_order, "scale": "likert", "points": 7, "slider": {"min": 0, "max": 100},
+        "questions": [{"id": "naturalness", "prompt": "How natural was it?"},
+                      {"id": "body_sound_match", "prompt": "How well did the body match the sound?"}],
+        "exclusions": {"audio_check": True, "attention_max_fail": 0, "straightline": True}}))
+    out = analyze(tmp_path / "answers.csv", tmp_path / "report", study)
+    assert_readable(saved)
+    for f in saved:
+        assert all([t.replace("\n", "") for t in ticks] == design_order for ticks in f.xticks), f.name
+    means = pd.read_csv(out / "means.csv")
+    assert list(means["condition"][:4]) == design_order and list(means["question"][:4]) == ["naturalness"] * 4
+    report = json.loads((out / "report.json").read_text())
+    text = (out / "README.md").read_text()
+    assert "mle_retvals" not in text and "Retrying" not in text and "boundary of the parameter" not in text
+    assert report["model_warnings"]                  # these ratings make statsmodels warn
+    for q, warned in report["model_warnings"].items():
+        note = report["model_notes"][q]
+        assert note.count(". ") == 0 and note.endswith(".") and f"- {q}: {note}" in text   # one sentence
+        assert not any(w in text for w in warned)                                            # not pasted raw
+        if any(w.startswith("The MLE may be on the boundary") for w in warned):
+            assert "variance is at or near zero" in note
+
+
+def test_a_fit_note_says_what_the_warnings_mean():
+    from laughlab.study.analyze import fit_model, fit_note
+
+    conds = ["smile_only", "face_breathing", "laugh_energy", "laugh_concat"]
+    rng = np.random.default_rng(1)
+    d = pd.DataFrame([dict(participant=p, stimulus=f"{c}-{s}", condition=c,
+                           value=float(np.clip(np.round(4 + (c == "laugh_energy") + rng.normal(0, 0.7)), 1, 7)))
+                      for p in range(1, 9) for c in conds for s in ("a", "b")])
+    fit, ref, warned = fit_model(d, conds)
+    assert ref == "smile_only" and fit.converged
+    assert any(w.startswith("The MLE may be on the boundary") for w in warned)
+    assert fit.vcomp[0] < 1e-6 < fit.vcomp[1]       # participants: no spread beyond the noise
+    assert fit_note(fit, warned) == (
+        "The fit converged; the participant variance is at or near zero (participants differ no more than the "
+        "rating noise, so the model is in effect one without that random intercept), which leaves the condition "
+        "estimates and tests below valid.")
+    # the same maximum whichever condition is the reference level (both optimisers are tried)
+    other, ref2, _ = fit_model(d, conds[::-1])
+    assert ref2 == "laugh_concat" and other.llf == pytest.approx(fit.llf, abs=1e-6)
+    assert np.allclose(other.vcomp, fit.vcomp, atol=1e-5) and other.scale == pytest.approx(fit.scale, rel=1e-5)
+    assert fit_note(fit, []) == ""
+    assert fit_note(fit, ["Something new"]).endswith("statsmodels also warned of something else (see report.json), "
+                                                     "so check these estimates.")
+
+
+def test_filmstrip_moments_by_hand():
+    from laughlab.render.plots import filmstrip_moments
+
+    times = np.arange(10.0)
+    pos = np.zeros((10, 2, 3))
+    pos[3, :, 0] = 10.0            # the pose farthest from the usual one (all zeros), in the clap block
+    pos[8, :, 0] = 5.0
+    blocks = [("clap", 2.0, 5.0, 15.0), ("idle", 5.0, 10.0, 0.0)]
+    # 3 (clap's most pronounced); then parts [0, 3) and [6, 9]: 0 (the first pose unlike 3), then
+    # 8 (the one unlike both 3 and 0)
+    assert filmstrip_moments(times, pos, 3, blocks) == [0, 3, 8]
+    assert filmstrip_moments(times, pos, 1, blocks) == [3]
+    assert filmstrip_moments(times[:3], pos[:3], 20, []) == [0, 1, 2]
+    assert filmstrip_moments(times[:0], pos[:0], 8, blocks) == []
+
+
+def test_the_checks_see_overprinting_and_a_colour_bar_that_does_not_say_which_way_is_better():
+    fig = Figure()
+    ax = fig.subplots()
+    ax.text(0.5, 0.5, "lean_front2")
+    ax.text(0.52, 0.5, "lean_back2")
+    im = ax.imshow(np.arange(4.0).reshape(2, 2))
+    fig.colorbar(im, ax=ax, label="miss_rate")
+    assert overlapping_texts(fig) == [("lean_front2", "lean_back2")]
+    assert colorbars_without_direction(fig) == ["miss_rate"]
