@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 LOCK := requirements.lock
 UV_VERSION := 0.13.9
 
-.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three lock lock-upgrade
+.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three vendor-three-vrm lock lock-upgrade
 
 ## the venv: built afresh from the lock whenever the lock or pyproject.toml changes, so it holds exactly
 ## the locked versions (hash-checked) and nothing else; laughlab itself installed editable on top
@@ -76,6 +76,15 @@ vendor-three: $(STAMP)
 	         examples/jsm/controls/OrbitControls.js examples/jsm/utils/BufferGeometryUtils.js; do \
 	  mkdir -p laughlab/viewer/vendor/three/$$(dirname $$f) && cp build/three/package/$$f laughlab/viewer/vendor/three/$$f; done
 
+## vendor-three-vrm: (maintainers) copy @pixiv/three-vrm and @pixiv/three-vrm-animation 3.5.5 (MIT) from the npm
+## registry into laughlab/viewer/vendor/three_vrm*/ (their ES module builds, which import only 'three', and licences)
+vendor-three-vrm: $(STAMP)
+	rm -rf build/three-vrm && mkdir -p build/three-vrm
+	cd build/three-vrm && ../../$(VENV)/bin/npm pack @pixiv/three-vrm@3.5.5 @pixiv/three-vrm-animation@3.5.5 --silent
+	for p in three-vrm three-vrm-animation; do d=$$(echo $$p | tr - _); \
+	  mkdir -p build/three-vrm/$$p laughlab/viewer/vendor/$$d && tar xzf build/three-vrm/pixiv-$$p-3.5.5.tgz -C build/three-vrm/$$p && \
+	  cp build/three-vrm/$$p/package/LICENSE build/three-vrm/$$p/package/lib/$$p.module.min.js laughlab/viewer/vendor/$$d/; done
+
 ## bench: every benchmark (pipeline speed and memory, call detection, latency, Hill fit, detector, faces and Hill on real laughs); figures in benchmarks/results/
 bench: $(STAMP) corpus
 	$(PY) benchmarks/bench_pipeline.py
@@ -106,6 +115,12 @@ docs: $(STAMP) browser
 	   extractor.calibration_s=1.0 output=files
 	cp runs/docs-calibration/plots/fig3_1_calibration.png docs/img/
 	$(PY) -m laughlab.viewer.browser runs/docs docs/img/viewer.png --at 9
+	$(PY) -m laughlab.viewer.browser runs/docs docs/img/avatar_godette.png --at 9 --character tests/assets/avatars/Godette_vrm_v4.vrm
+	$(PY) -m laughlab.viewer.browser runs/docs docs/img/avatar_robot.png --at 9 --character tests/assets/avatars/debug_robot.vrm
+	rm -rf runs/docs-avatar-video
+	$(PY) -m laughlab hydra.run.dir=runs/docs-avatar-video seed=0 input.duration_s=4 output=video face=facs \
+	   character=tests/assets/avatars/Godette_vrm_v4.vrm output.video.supersample=1
+	$(PY) -c "import imageio_ffmpeg, subprocess; subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), '-loglevel', 'error', '-y', '-ss', '2.3', '-i', 'runs/docs-avatar-video/video.mp4', '-frames:v', '1', 'docs/img/avatar_video.png'], check=True)"
 	rm -rf runs/docs-video
 	$(PY) -m laughlab hydra.run.dir=runs/docs-video seed=0 input.duration_s=10 output=video face=facs
 	$(PY) -c "import imageio_ffmpeg, subprocess; subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), '-loglevel', 'error', '-y', '-ss', '2.5', '-i', 'runs/docs-video/video.mp4', '-frames:v', '1', 'docs/img/video_frame.png'], check=True)"

@@ -84,6 +84,8 @@ def preflight(argv: list[str]):
         if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
             check_conditions(cfg.harness.get("conditions"))
             build_corpus(OmegaConf.to_container(cfg.harness.get("corpus") or {}, resolve=True))
+    else:
+        pipeline.check_character_used(cfg)
     full = cfg
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
     pipe = pipeline.build(cfg)
@@ -270,7 +272,8 @@ def report_command(args: list[str]) -> None:
 
 
 def view_command(args: list[str]) -> None:
-    """``python -m laughlab view RUN_DIR [--port N] [--out DIR]``: the run on the character in a browser."""
+    """``python -m laughlab view RUN_DIR [--port N] [--out DIR] [--character PATH]``: the run on the character
+    (or the user's avatar) in a browser."""
 
     from laughlab.viewer import server as V
 
@@ -281,16 +284,18 @@ def view_command(args: list[str]) -> None:
     parser.add_argument("--port", type=int, default=V.DEFAULT_PORT, help="port on 127.0.0.1 (a free one if taken)")
     parser.add_argument("--out", help="write the page and its files into this new folder instead of serving; "
                                          "its index.html opens from the disk or on any web server")
+    parser.add_argument("--character", help="show the run on this avatar (VRM 0.x/1.0, or a humanoid glTF/GLB; "
+                                            "docs/avatars.md) instead of the mannequin")
     ns = parser.parse_args(args)
     if ns.out:
-        out, opens = V.write(ns.run_dir, ns.out)
+        out, opens = V.write(ns.run_dir, ns.out, ns.character)
         serve = f"python -m http.server -d {out}"
         print(f"laughlab: viewer of {ns.run_dir} written to {out}/: open {out / 'index.html'} in a browser, or put "
               f"the folder on any web server (e.g. {serve})" if opens else
               f"laughlab: viewer of {ns.run_dir} written to {out}/: too large to open as a file; serve the folder "
               f"(e.g. {serve}) and open http://127.0.0.1:8000/")
         return
-    httpd = V.server(ns.run_dir, ns.port)
+    httpd = V.server(ns.run_dir, ns.port, ns.character)
     print(f"laughlab: viewing {ns.run_dir} at http://127.0.0.1:{httpd.server_address[1]}/ (Ctrl-C to stop)",
           flush=True)
     V.serve_until_interrupted(httpd)
@@ -345,6 +350,7 @@ examples:
   python -m laughlab output=video face=facs                 + video.mp4 of the character
   python -m laughlab output=gltf face=facs                  + character.glb (Blender, three.js, Unity)
   python -m laughlab view runs/demo                         the run on the character in a browser
+  python -m laughlab view runs/demo --character my.vrm      ... on your VRM or humanoid glTF avatar
   python -m laughlab study build runs/stimuli               the stimuli's perception study (study --help)
   python -m laughlab experiment=energy_vs_concat hydra.run.dir=runs/evc; python -m laughlab report runs/evc
   python -m laughlab -m experiment=energy_ablation          a parameter sweep

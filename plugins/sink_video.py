@@ -11,6 +11,7 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -103,6 +104,9 @@ class VideoParams:
         The ``schematic`` style's camera.
     character_camera : CameraParams
         The ``character`` style's camera (upper body and face).
+    character : str or None
+        A user's avatar (VRM, humanoid glTF) to render instead of the mannequin (``character`` style;
+        the top-level ``character=PATH`` sets it): :mod:`laughlab.render.avatar_view`.
     """
 
     file: str = "video.mp4"
@@ -123,6 +127,7 @@ class VideoParams:
     camera: CameraParams = field(default_factory=CameraParams)
     character_camera: CameraParams = field(default_factory=lambda: CameraParams(
         azimuth_deg=15.0, elevation_deg=3.0, distance_cm=170.0, target_height_cm=138.0, fov_deg=30.0))
+    character: Optional[str] = None
 
     def __post_init__(self) -> None:
         if not self.file or "/" in self.file or "\\" in self.file:
@@ -144,6 +149,8 @@ class VideoParams:
         check_range("inset_size", self.inset_size, 0.1, 0.9)
         check_range("audio_bitrate_k", self.audio_bitrate_k, 16, 512)
         check_range("audio_rate", self.audio_rate, 8000, 96000)
+        if self.character and self.style != "character":
+            raise ValueError(f"a character (avatar) is drawn in style=character only (got style={self.style})")
 
 
 class VideoSink(Sink):
@@ -158,6 +165,17 @@ class VideoSink(Sink):
 
     name = "video"
     Params = VideoParams
+
+    def __init__(self, params=None, ctx=None):
+        super().__init__(params, ctx)
+        self.avatar = None
+        if self.params.character:  # check the avatar now: a bad file stops the run before anything is written
+            from laughlab.avatar.load import AvatarError, load_avatar
+
+            try:
+                self.avatar = load_avatar(self.params.character)
+            except AvatarError as exc:
+                raise LaughlabError(str(exc)) from None
 
     def open(self, run) -> None:
         super().open(run)
@@ -179,7 +197,12 @@ class VideoSink(Sink):
                 else:
                     audio = source_audio(run.source, self.tmp_dir)
             self.audio = audio
-            if p.style == "character":
+            if self.avatar is not None:
+                from laughlab.render.avatar_view import AvatarRenderer
+
+                self.renderer = AvatarRenderer(self.avatar, run.skeleton, p.width, p.height,
+                                               Camera(**vars(p.character_camera)), p.supersample)
+            elif p.style == "character":
                 from laughlab.render.character_view import CharacterRenderer
 
                 self.renderer = CharacterRenderer(run.skeleton, p.width, p.height,
@@ -212,6 +235,10 @@ class VideoSink(Sink):
         sk = self.run.skeleton
         idx = np.array(want)
         poses = np.nan_to_num(np.asarray(chunk.poses, dtype=np.float64)[idx])
+        if self.avatar is not None:
+            self._avatar_frames(chunk, idx, poses)
+            self.render_s += time.perf_counter() - t0
+            return
         if self.params.style == "character":
             from laughlab.character.body import morph_weights
 
@@ -231,6 +258,20 @@ class VideoSink(Sink):
             frame = self.renderer.render(pos[i], rot[i], ends[i], w, body["chest"][i], body["belly"][i])
             self.encoder.write(frame)
         self.render_s += time.perf_counter() - t0
+
+    def _avatar_frames(self, chunk, idx: np.ndarray, poses: np.ndarray) -> None:
+        from laughlab.avatar.channels import face_and_breath
+        from laughlab.avatar.expressions import breathing_on_bones, breathing_pose, morph_weights
+
+        arkit, breath = face_and_breath(chunk.channels)
+        arkit = {k: np.asarray(v)[idx] for k, v in arkit.items()}
+        breath = {k: np.asarray(v)[idx] for k, v in breath.items()}
+        if breathing_on_bones(self.avatar):
+            poses = breathing_pose(poses, breath, self.run.skeleton)
+        morphs = morph_weights(self.avatar, arkit, breath, len(idx))
+        world = self.renderer.worlds(poses)
+        for i in range(len(idx)):
+            self.encoder.write(self.renderer.render(poses[i], {k: v[i] for k, v in morphs.items()}, world[i]))
 
     def close(self):
         try:

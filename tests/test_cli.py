@@ -273,6 +273,7 @@ def test_the_summary_times_the_whole_command_from_the_process_start(tmp_path):
 SPEEDS = {
     "files": "8.8x real time; frame loop 219x",
     "gltf": "8.8x real time; frame loop 219x",
+    "vrma": "8.8x real time; frame loop 219x",
     "trial": "8.8x real time; frame loop 219x",
     "video": "8.8x real time; video: 900 frames rendered at 4.5 frames/s",
     "vmc": "paced at the frame clock for the vmc stream",

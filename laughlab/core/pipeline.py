@@ -5,6 +5,7 @@ same ``step`` calls, so live and offline results agree.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 from array import array
 import math
@@ -145,11 +146,36 @@ def build(cfg: DictConfig) -> Pipeline:
         if params is not None and not isinstance(params, dict):
             raise LaughlabError(f"output.{name} must hold the sink's parameters, e.g. output.{name}.KEY=VALUE "
                                 f"(got {str(params)[:40]!r})")
+    character = cfg.get("character")
+    if character is not None:
+        for name in outputs:
+            if "character" in _param_names("sink", name) and not (outputs[name] or {}).get("character"):
+                outputs[name] = {**(outputs[name] or {}), "character": str(character)}
     sinks = [plugins.create("sink", name, params or {}, ctx, where=f"output.{name}")
              for name, params in outputs.items()]
     return Pipeline(ctx, built["input"], built["extractor"], built["detector"], built["scheduler"], built["body"],
                     built["face"],
                     Mixer(ctx.clips), sinks, run)
+
+
+def _param_names(kind: str, name: str) -> set[str]:
+    """The parameter names of a plugin (empty if it has none or is unknown)."""
+    try:
+        params = getattr(plugins.get(kind, name).obj, "Params", None)
+    except LaughlabError:
+        return set()
+    return {f.name for f in dataclasses.fields(params)} if dataclasses.is_dataclass(params) else set()
+
+
+def check_character_used(cfg: DictConfig) -> None:
+    """A plain run with ``character=PATH`` must have an output that uses it (the sink that does checks the
+    file as it is built); experiments set their own outputs per trial."""
+    path = cfg.get("character")
+    outputs = dict(cfg.get("output") or {})
+    if path is not None and not any("character" in _param_names("sink", name) for name in outputs):
+        raise LaughlabError(f"character={path} is shown by output=gltf and output=video (and `laughlab view RUN "
+                            f"--character PATH`); "
+                            f"this run's outputs ({', '.join(outputs) or 'none'}) do not use it")
 
 
 class _Recorder:

@@ -31,13 +31,13 @@ _COMPONENT = {np.dtype(np.float32): _FLOAT, np.dtype(np.uint16): _USHORT, np.dty
 _TYPE = {1: "SCALAR", 3: "VEC3", 4: "VEC4", 16: "MAT4"}
 
 
-class _Buffer:
+class Buffer:
     """The binary chunk with its buffer views and accessors."""
 
-    def __init__(self):
-        self.data = bytearray()
-        self.views: list[dict] = []
-        self.accessors: list[dict] = []
+    def __init__(self, data: bytes = b"", views: list | None = None, accessors: list | None = None):
+        self.data = bytearray(data)
+        self.views: list[dict] = list(views or [])
+        self.accessors: list[dict] = list(accessors or [])
 
     def accessor(self, arr: np.ndarray, target: int | None = None, minmax: bool = False) -> int:
         arr = np.ascontiguousarray(arr)
@@ -83,7 +83,7 @@ def character_glb(character, times_s: np.ndarray, poses: np.ndarray, morph_weigh
         raise ValueError(f"glTF export needs F times, (F, {sk.n_channels}) poses and (F, "
                          f"{len(character.morph_names)}) morph weights; got {len(times)}, {poses.shape}, "
                          f"{weights.shape}")
-    buf = _Buffer()
+    buf = Buffer()
     # the mesh
     attrs = {
         "POSITION": buf.accessor(character.positions, _ARRAY_BUFFER, minmax=True),
@@ -141,8 +141,16 @@ def character_glb(character, times_s: np.ndarray, poses: np.ndarray, morph_weigh
         "bufferViews": buf.views,
         "accessors": buf.accessors,
     }
+    return glb_bytes(doc, buf)
+
+
+def glb_bytes(doc: dict, buf: Buffer) -> bytes:
+    """A ``.glb``: ``doc`` (its buffer 0, buffer views and accessors set from ``buf``) and ``buf``'s bytes."""
     buf.data += b"\0" * (-len(buf.data) % 4)
-    doc["buffers"][0]["byteLength"] = len(buf.data)
+    doc["buffers"] = [{**(doc.get("buffers") or [{}])[0], "byteLength": len(buf.data)}]
+    doc["buffers"][0].pop("uri", None)
+    doc["bufferViews"] = buf.views
+    doc["accessors"] = buf.accessors
     js = json.dumps(doc, separators=(",", ":"), sort_keys=True).encode()
     js += b" " * (-len(js) % 4)
     total = 12 + 8 + len(js) + 8 + len(buf.data)
@@ -152,10 +160,17 @@ def character_glb(character, times_s: np.ndarray, poses: np.ndarray, morph_weigh
 
 def read_glb(path: str | Path) -> tuple[dict, bytes]:
     """The JSON document and the binary chunk of a ``.glb`` file."""
-    data = Path(path).read_bytes()
+    try:
+        return parse_glb(Path(path).read_bytes())
+    except ValueError:
+        raise ValueError(f"{path} is not a glTF 2.0 binary") from None
+
+
+def parse_glb(data: bytes) -> tuple[dict, bytes]:
+    """The JSON document and the binary chunk of ``.glb`` bytes."""
     magic, version, total = struct.unpack_from("<4sII", data, 0)
     if magic != b"glTF" or version != 2 or total != len(data):
-        raise ValueError(f"{path} is not a glTF 2.0 binary")
+        raise ValueError("not a glTF 2.0 binary")
     n, kind = struct.unpack_from("<I4s", data, 12)
     doc = json.loads(data[20:20 + n])
     m, kind2 = struct.unpack_from("<I4s", data, 20 + n)

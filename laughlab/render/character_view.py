@@ -47,10 +47,7 @@ class CharacterRenderer:
         self.rest = rest                                                # joints' rest positions, cm
         key, fill = KEY / np.linalg.norm(KEY), FILL / np.linalg.norm(FILL)
         self.key, self.fill = key, fill
-        h, w = height * supersample, width * supersample
-        top, bottom = np.array([58.0, 66.0, 84.0]), np.array([28.0, 31.0, 40.0])
-        ramp = np.linspace(0.0, 1.0, h)[:, None, None]
-        self.background = np.broadcast_to(top + (bottom - top) * ramp, (h, w, 3)).astype(np.float32)
+        self.background = background(height * supersample, width * supersample)
 
     def render(self, pose: np.ndarray, morph_weights: np.ndarray) -> np.ndarray:
         """One frame ``(height, width, 3)`` uint8 of ``pose`` (BVH channel vector) with ``morph_weights``."""
@@ -71,12 +68,22 @@ class CharacterRenderer:
         target = 0.5 * (pos[chest] + pos[head])
         self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
         xy, depth = self.camera.projector(self.width * self.ss, self.height * self.ss, target=self.aim)(out)
-        img = rasterise(xy, depth, colour, self.tris, self.background)
-        s = self.ss
-        if s > 1:  # the mean of each s x s block, summed slice by slice (a strided mean is 10x slower)
-            acc = np.zeros((self.height, self.width, 3), dtype=np.float32)
-            for dy in range(s):
-                for dx in range(s):
-                    acc += img[dy::s, dx::s]
-            img = acc * np.float32(1.0 / (s * s))
-        return np.clip(img + 0.5, 0, 255).astype(np.uint8)
+        return downsample(rasterise(xy, depth, colour, self.tris, self.background), self.ss)
+
+
+def background(height: int, width: int) -> np.ndarray:
+    """The frames' backdrop: a vertical gradient from blue-grey to dark, float32 ``(height, width, 3)``."""
+    top, bottom = np.array([58.0, 66.0, 84.0]), np.array([28.0, 31.0, 40.0])
+    ramp = np.linspace(0.0, 1.0, height)[:, None, None]
+    return np.broadcast_to(top + (bottom - top) * ramp, (height, width, 3)).astype(np.float32)
+
+
+def downsample(img: np.ndarray, s: int) -> np.ndarray:
+    """A frame drawn at ``s`` times the size, averaged down to uint8 (anti-aliasing)."""
+    if s > 1:  # the mean of each s x s block, summed slice by slice (a strided mean is 10x slower)
+        acc = np.zeros((img.shape[0] // s, img.shape[1] // s, 3), dtype=np.float32)
+        for dy in range(s):
+            for dx in range(s):
+                acc += img[dy::s, dx::s]
+        img = acc * np.float32(1.0 / (s * s))
+    return np.clip(img + 0.5, 0, 255).astype(np.uint8)

@@ -1,7 +1,7 @@
 """Driving the viewer in headless Chromium over the DevTools protocol (what Puppeteer speaks).
 
 Used by the viewer's tests and by ``make docs`` for the README's picture of the viewer:
-``python -m laughlab.viewer.browser RUN_DIR OUT.png [--at SECONDS]``.  Needs Debian's
+``python -m laughlab.viewer.browser RUN_DIR OUT.png [--at SECONDS] [--character AVATAR]``.  Needs Debian's
 ``chromium`` (``make browser``) and the ``websocket-client`` package (the ``test`` extra).
 """
 from __future__ import annotations
@@ -103,8 +103,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("run_dir")
     parser.add_argument("out", help="PNG file to write")
     parser.add_argument("--at", type=float, default=3.0, help="time to show (s)")
+    parser.add_argument("--character", help="a user's avatar to show the run on (VRM, humanoid glTF)")
     ns = parser.parse_args(argv)
-    httpd = V.server(ns.run_dir, 0)
+    httpd = V.server(ns.run_dir, 0, ns.character)
     threading.Thread(target=httpd.serve_forever, daemon=True).start()
     page = Page(f"http://127.0.0.1:{httpd.server_address[1]}/")
     try:

@@ -4,7 +4,8 @@ A page opened as a file (``file://``) may not fetch the files beside it, nor loa
 the browser treats each file as a separate origin.  So the page that ``view RUN --out DIR`` writes carries them:
 
 * three.js and its loader and controls as ``data:`` URLs in the page's import map (the add-ons' relative
-  imports rewritten to ``three/addons/...``, which the map also resolves);
+  imports rewritten to ``three/addons/...``, which the map also resolves); for a VRM avatar
+  (``view RUN --character my.vrm``) three-vrm too, as ``three-vrm`` (the name the served page maps to its file);
 * the viewer's own module inline;
 * ``run.json`` and ``character.glb`` (base64) in ``<script>`` elements the viewer reads instead of fetching.
 
@@ -48,7 +49,8 @@ def _json_in_html(doc) -> str:
 
 def served(name: str) -> bytes:
     """The page that loads three.js, the viewer, the run and the character from its folder."""
-    imports = {"three": "./vendor/three/build/three.module.min.js", "three/addons/": "./vendor/three/examples/jsm/"}
+    imports = {"three": "./vendor/three/build/three.module.min.js", "three/addons/": "./vendor/three/examples/jsm/",
+               "three-vrm": "./vendor/three_vrm/three-vrm.module.min.js"}
     text = _template(name).replace(
         "<!--laughlab:importmap-->", f'<script type="importmap">{_json_in_html({"imports": imports})}</script>'
     ).replace("<!--laughlab:viewer-->", f'<script type="module" src="./viewer.js" onerror="{_ONERROR}"></script>')
@@ -59,8 +61,9 @@ def _module_url(source: str) -> str:
     return "data:text/javascript;base64," + base64.b64encode(source.encode()).decode()
 
 
-def inline_imports() -> dict[str, str]:
-    """The import map that resolves ``three`` and every vendored add-on to a ``data:`` URL."""
+def inline_imports(vrm: bool = False) -> dict[str, str]:
+    """The import map that resolves ``three`` and every vendored add-on to a ``data:`` URL; with ``vrm``,
+    ``three-vrm`` too (it imports only ``three``)."""
     three = vendor_dir() / "three"
     imports = {"three": _module_url((three / "build" / "three.module.min.js").read_text(encoding="utf-8"))}
     jsm = three / "examples" / "jsm"
@@ -76,6 +79,9 @@ def inline_imports() -> dict[str, str]:
 
         source = re.sub(r"""(from\s+['"])(\.{1,2}/[^'"]+)(['"])""", bare, f.read_text(encoding="utf-8"))
         imports[f"three/addons/{f.relative_to(jsm).as_posix()}"] = _module_url(source)
+    if vrm:
+        imports["three-vrm"] = _module_url((vendor_dir() / "three_vrm" / "three-vrm.module.min.js")
+                                           .read_text(encoding="utf-8"))
     return imports
 
 
@@ -83,9 +89,10 @@ def fits_inline(run_json: bytes, glb: bytes) -> bool:
     return len(run_json) + len(glb) <= INLINE_MAX_BYTES
 
 
-def static(name: str, run_json: bytes, glb: bytes, folder: Path, run_dir: Path) -> bytes:
+def static(name: str, run_json: bytes, glb: bytes, folder: Path, run_dir: Path, vrm: bool = False) -> bytes:
     """The page with everything but the audio inline (or, past :data:`INLINE_MAX_BYTES`, the served page);
-    ``folder`` (where it is written) and ``run_dir`` are named in the message shown if it cannot start."""
+    ``folder`` (where it is written) and ``run_dir`` are named in the message shown if it cannot start;
+    ``vrm``: the character is a VRM (three-vrm inlined too)."""
     if not fits_inline(run_json, glb):
         text = served(name).decode()
     else:
@@ -96,7 +103,7 @@ def static(name: str, run_json: bytes, glb: bytes, folder: Path, run_dir: Path) 
                 f'<script type="application/octet-stream" id="laughlab-glb">{base64.b64encode(glb).decode()}</script>')
         text = _template(name).replace(
             "<!--laughlab:importmap-->",
-            f'<script type="importmap">{_json_in_html({"imports": inline_imports()})}</script>'
+            f'<script type="importmap">{_json_in_html({"imports": inline_imports(vrm)})}</script>'
         ).replace("<!--laughlab:viewer-->", f'{data}\n<script type="module" onerror="{_ONERROR}">\n{js}</script>')
     return text.replace("<body>", f'<body data-folder="{html.escape(str(folder))}" '
                                   f'data-run="{html.escape(str(run_dir))}">', 1).encode()

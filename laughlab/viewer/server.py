@@ -8,7 +8,10 @@ copied from the npm package ``three`` (``make vendor-three``).
 What the page gets from the run directory:
 
 * ``character.glb``: the run's own (``output=gltf``), else built here from ``motion.bvh`` and
-  ``channels.csv`` exactly as the ``gltf`` sink builds it;
+  ``channels.csv`` exactly as the ``gltf`` sink builds it; with ``--character PATH`` the user's
+  avatar with the run baked in, as ``output=gltf character=PATH`` writes it (a VRM is shown
+  through ``@pixiv/three-vrm`` 3.5.5, MIT, ``vendor/three_vrm/LICENSE``: its MToon materials and
+  spring bones; ``make vendor-three-vrm``);
 * the audio: ``input.wav`` (synthetic input), else the recording named in ``.hydra/config.yaml``;
   without either the page plays on a wall clock;
 * ``run.json``: frames per second, duration, the ``mcs`` and ``energy`` channels and the clips
@@ -33,7 +36,11 @@ NEEDED = ("motion.bvh", "channels.csv", "events.csv")
 
 
 def _channels(run_dir: Path) -> dict[str, np.ndarray]:
-    with open(run_dir / "channels.csv", newline="") as f:
+    return _channels_file(run_dir / "channels.csv")
+
+
+def _channels_file(path: Path) -> dict[str, np.ndarray]:
+    with open(path, newline="") as f:
         rows = list(csv.reader(f))
     head, body = rows[0], rows[1:]
     out = {}
@@ -70,8 +77,35 @@ def _audio(run_dir: Path) -> Path | None:
     return None
 
 
-def assets(run_dir: str | Path) -> dict[str, bytes | Path]:
-    """Every file the page needs, by its URL path: bytes, or a path to send as it is."""
+def _avatar_glb(run_dir: Path, character: str | Path, skeleton, motion: np.ndarray, ch: dict, fps: float):
+    """The avatar and its ``.glb`` with the run baked in (the face from ``face_arkit.csv`` if the run wrote it)."""
+    from laughlab.avatar.bake import baked_glb
+    from laughlab.avatar.channels import face_and_breath
+    from laughlab.avatar.load import AvatarError, load_avatar
+
+    try:
+        avatar = load_avatar(character)
+    except AvatarError as exc:
+        raise LaughlabError(str(exc)) from None
+    arkit, breath = face_and_breath(ch)
+    if (run_dir / "face_arkit.csv").exists():
+        arkit = {k: v for k, v in _channels_file(run_dir / "face_arkit.csv").items() if k != "time"}
+    n = len(motion)
+    return avatar, baked_glb(avatar, skeleton, np.arange(n) / fps, motion, arkit, breath,
+                             audio_duration_s=n / fps, fps=fps)
+
+
+def _view_of(avatar) -> dict:
+    """What the page needs to know of an avatar: VRM or not, its facing, its humanoid bones' nodes."""
+    if avatar is None:
+        return {"vrm": False, "facing": 1, "bones": {}}
+    return {"vrm": avatar.kind in ("vrm0", "vrm1"), "facing": int(avatar.facing),
+            "bones": dict(sorted(avatar.bones.items())), "file": avatar.path.name}
+
+
+def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str, bytes | Path]:
+    """Every file the page needs, by its URL path: bytes, or a path to send as it is; ``character``: a user's
+    avatar to show instead of the mannequin."""
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise LaughlabError(f"no run directory at {run_dir}")
@@ -88,7 +122,10 @@ def assets(run_dir: str | Path) -> dict[str, bytes | Path]:
     n = len(motion)
     duration = n / fps
     files: dict[str, bytes | Path] = {}
-    if (run_dir / "character.glb").exists():
+    avatar = None
+    if character is not None:
+        avatar, files["character.glb"] = _avatar_glb(run_dir, character, skeleton, motion, ch, fps)
+    elif (run_dir / "character.glb").exists():
         files["character.glb"] = run_dir / "character.glb"
     else:
         from laughlab.character.body import build, morph_weights
@@ -103,7 +140,8 @@ def assets(run_dir: str | Path) -> dict[str, bytes | Path]:
     clips = _clips(run_dir, duration)
     run = {"name": run_dir.resolve().name, "fps": fps, "duration": duration,
            "audio": ("audio" + audio.suffix.lower()) if audio is not None else None, "channels": pick,
-           "clips": clips, "energy_max": max([c["energy"] for c in clips] + [max(pick.get("energy", [1.0]))])}
+           "clips": clips, "energy_max": max([c["energy"] for c in clips] + [max(pick.get("energy", [1.0]))]),
+           "avatar": _view_of(avatar)}
     files["run.json"] = json.dumps(run, separators=(",", ":")).encode()
     files["index.html"] = page.served(run["name"])
     files["viewer.js"] = page.viewer_js()
@@ -114,23 +152,25 @@ def assets(run_dir: str | Path) -> dict[str, bytes | Path]:
     return files
 
 
-def write(run_dir: str | Path, out: str | Path) -> tuple[Path, bool]:
+def write(run_dir: str | Path, out: str | Path, character: str | Path | None = None) -> tuple[Path, bool]:
     """Write the viewer's files into ``out`` (a new or empty folder); return it, and whether its page opens
-    as a file.
+    as a file.  ``character``: a user's avatar to show instead of the mannequin (as :func:`assets`).
 
-    Its ``index.html`` carries three.js, the run and the character inline (``laughlab.viewer.page``), so it
-    works opened as a file; the audio stays beside it (a page opened as a file may play a sibling file).
-    Past :data:`laughlab.viewer.page.INLINE_MAX_BYTES` the page loads its files instead, and opened as a file
-    it says how to serve the folder.  The separate files are written too, for any static web server.
+    Its ``index.html`` carries three.js (and three-vrm for a VRM), the run and the character inline
+    (``laughlab.viewer.page``), so it works opened as a file; the audio stays beside it (a page opened as a
+    file may play a sibling file).  Past :data:`laughlab.viewer.page.INLINE_MAX_BYTES` the page loads its
+    files instead, and opened as a file it says how to serve the folder.  The separate files are written
+    too, for any static web server.
     """
     out = Path(out)
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise LaughlabError(f"{out} exists and is not an empty folder; choose another --out")
-    files = assets(run_dir)
+    files = assets(run_dir, character)
     run = json.loads(files["run.json"])
     glb = files["character.glb"]
     glb = glb.read_bytes() if isinstance(glb, Path) else glb
-    files["index.html"] = page.static(run["name"], files["run.json"], glb, out.resolve(), Path(run_dir).resolve())
+    files["index.html"] = page.static(run["name"], files["run.json"], glb, out.resolve(), Path(run_dir).resolve(),
+                                      vrm=run["avatar"]["vrm"])
     tmp = out.with_name(f".{out.name}.part")
     shutil.rmtree(tmp, ignore_errors=True)
     for name, data in files.items():
@@ -185,9 +225,9 @@ class _Handler(SimpleHTTPRequestHandler):
         pass
 
 
-def server(run_dir: str | Path, port: int = DEFAULT_PORT) -> ThreadingHTTPServer:
+def server(run_dir: str | Path, port: int = DEFAULT_PORT, character: str | Path | None = None) -> ThreadingHTTPServer:
     """A server of the run's viewer on 127.0.0.1 (``port``, or a free one if it is taken)."""
-    return http_server(assets(run_dir), port)
+    return http_server(assets(run_dir, character), port)
 
 
 def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: str = "127.0.0.1",

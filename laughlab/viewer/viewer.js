@@ -20,8 +20,15 @@ async function loadRun() {
   if (!r.ok) throw new Error(`run.json: HTTP ${r.status}`);
   return r.json();
 }
-async function loadCharacter() {
+// a user's avatar (--character): a VRM goes through three-vrm (MToon materials, spring bones), which the import
+// map names 'three-vrm' (a file beside the page when served, a data: URL when inlined); the run is baked into
+// the file's first animation (bones and morph weights), so the mixer plays it as it plays ours
+async function loadCharacter(avatar) {
   const loader = new GLTFLoader();
+  if (avatar.vrm) {
+    const { VRMLoaderPlugin } = await import('three-vrm');
+    loader.register((parser) => new VRMLoaderPlugin(parser, { autoUpdateHumanBones: false }));
+  }
   const el = inline('laughlab-glb');
   if (!el) return loader.loadAsync('./character.glb');
   const bytes = Uint8Array.from(atob(el.textContent.trim()), (c) => c.charCodeAt(0));
@@ -73,35 +80,58 @@ const controls = new OrbitControls(camera, canvas);
 let userMoved = false;
 controls.addEventListener('start', () => { userMoved = true; });
 
-const gltf = await loadCharacter();
-scene.add(gltf.scene);
-const mixer = new THREE.AnimationMixer(gltf.scene);
+const avatar = run.avatar || { vrm: false, facing: 1, bones: {} };
+const gltf = await loadCharacter(avatar);
+const vrm = gltf.userData.vrm || null;
+const root = vrm ? vrm.scene : gltf.scene;
+scene.add(root);
+if (avatar.facing < 0) root.rotation.y = Math.PI;  // VRM 0.x faces -Z: turn it to the camera
+const mixer = new THREE.AnimationMixer(root);
 const action = mixer.clipAction(gltf.animations[0]);
 action.play();
-const skinned = [];
-gltf.scene.traverse((o) => { if (o.isSkinnedMesh) skinned.push(o); });
+// the character's meshes: skinned ones, and rigid ones that ride on a bone (as some avatars' parts do)
+const meshes = [];
+root.traverse((o) => { if (o.isMesh && o.geometry && o.geometry.attributes.position) meshes.push(o); });
+let lastT = 0;
 
 function pose(t) {
   mixer.setTime(t);
-  gltf.scene.updateMatrixWorld(true);
-  for (const m of skinned) m.skeleton.update();
+  root.updateMatrixWorld(true);
+  for (const m of meshes) if (m.isSkinnedMesh) m.skeleton.update();
 }
-// every vertex of the character, posed, in world space (SkinnedMesh.getVertexPosition applies bones and morphs)
+// every vertex of the character, posed, in world space (Mesh.getVertexPosition applies the morphs, and a
+// SkinnedMesh's the bones too)
 function eachVertex(fn) {
   const v = new THREE.Vector3();
-  for (const m of skinned) {
+  for (const m of meshes) {
     const n = m.geometry.attributes.position.count;
     for (let i = 0; i < n; i++) { m.getVertexPosition(i, v); v.applyMatrix4(m.matrixWorld); fn(v); }
   }
 }
-// the space the character takes over the whole run: its vertices (every 4th) at 16 moments
+// the space the character takes over the whole run: its vertices at 16 moments (every one in the box, every
+// 4th, or fewer for a large avatar, kept to fit the camera to)
+const vertices = meshes.reduce((n, m) => n + m.geometry.attributes.position.count, 0);
+const stride = Math.max(4, Math.ceil(17 * vertices / 40000));
 const reach = new THREE.Box3(), points = [];
 for (let k = 0; k <= 16; k++) {
   pose(run.duration * k / 16);
   let i = 0;
-  eachVertex((v) => { reach.expandByPoint(v); if (i++ % 4 === 0) points.push(v.clone()); });
+  eachVertex((v) => { reach.expandByPoint(v); if (i++ % stride === 0) points.push(v.clone()); });
 }
 pose(0);
+
+// node index -> its object, for the tests' check of the joints' world positions
+const nodes = {};
+root.traverse((o) => {
+  const a = gltf.parser.associations.get(o);
+  if (a && a.nodes !== undefined && !(a.nodes in nodes)) nodes[a.nodes] = o;
+});
+state.world = (indices) => indices.map((i) => { const p = new THREE.Vector3(); nodes[i].getWorldPosition(p); return p.toArray(); });
+state.morphs = () => { const out = {}; root.traverse((o) => {
+  const a = gltf.parser.associations.get(o);
+  if (o.morphTargetInfluences && a && a.meshes !== undefined) out[o.name] = Array.from(o.morphTargetInfluences);
+}); return out; };
+state.vrm = vrm !== null;
 
 // frame the camera on those points: from the front, a little from above and to the side, every point within
 // the middle of the view (88% of its height, 90% of its width), whatever the window's shape; the view ends
@@ -173,6 +203,8 @@ resize();
 function frame() {
   const t = Math.min(now(), run.duration);
   mixer.setTime(t);
+  if (vrm && vrm.springBoneManager) { vrm.scene.updateMatrixWorld(true); vrm.springBoneManager.update(Math.max(0, Math.min(0.1, t - lastT))); }
+  lastT = t;
   state.animTime = mixer.time;
   state.frames += 1;
   renderer.render(scene, camera);
@@ -199,7 +231,10 @@ state.onScreen = () => {
   let lowest = -Infinity, highest = Infinity;
   eachVertex((v) => { const py = y(v); lowest = Math.max(lowest, py); highest = Math.min(highest, py); });
   const feet = [];
-  gltf.scene.traverse((o) => { if (o.isBone && /foot|toe/.test(o.name)) feet.push(y(o.getWorldPosition(new THREE.Vector3()))); });
+  // an avatar's humanoid feet and toes (its joints may have any names, or be plain nodes), else the mannequin's
+  const humanoid = Object.entries(avatar.bones || {}).filter(([b]) => /foot|toes/i.test(b)).map(([, i]) => nodes[i]);
+  if (humanoid.length) for (const o of humanoid) feet.push(y(o.getWorldPosition(new THREE.Vector3())));
+  else root.traverse((o) => { if (o.isBone && /foot|toe/.test(o.name)) feet.push(y(o.getWorldPosition(new THREE.Vector3()))); });
   return { lowest, highest, feet: Math.max(...feet), viewTop: rect.top, viewBottom: rect.bottom,
            barTop: $('bar').getBoundingClientRect().top };
 };

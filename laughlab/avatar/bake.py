@@ -1,0 +1,57 @@
+"""A user's avatar with a run baked in: the avatar's own glTF plus one animation, ``laugh``.
+
+Everything of the avatar file is kept (meshes, skins, materials, textures, its VRM extension);
+the animation is appended: the humanoid bones' local rotations and the hips' translation per
+frame (:func:`laughlab.avatar.retarget.retarget`), and every mesh node's morph weights per frame
+(:func:`laughlab.avatar.expressions.morph_weights`).  ``scenes[0].extras.laughlab`` carries fps,
+frames and the input audio's duration as in laughlab's own ``character.glb``.
+"""
+from __future__ import annotations
+
+import copy
+from typing import Mapping
+
+import numpy as np
+
+from laughlab.avatar.expressions import breathing_on_bones, breathing_pose, morph_weights
+from laughlab.avatar.load import Avatar
+from laughlab.avatar.retarget import retarget
+from laughlab.io.gltf import Buffer, glb_bytes
+from laughlab.motion.skeleton import Skeleton
+
+
+def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np.ndarray,
+              arkit: Mapping[str, np.ndarray], breath: Mapping[str, np.ndarray], audio_duration_s: float,
+              fps: float) -> bytes:
+    """The avatar's ``.glb`` bytes with the run's animation appended."""
+    times = np.asarray(times_s, dtype=np.float32)
+    f = len(times)
+    poses = np.asarray(poses, dtype=np.float64)
+    if f == 0 or poses.shape != (f, skeleton.n_channels):
+        raise ValueError(f"the baked avatar needs F times and (F, {skeleton.n_channels}) poses; got {f}, "
+                         f"{poses.shape}")
+    if breathing_on_bones(avatar):
+        poses = breathing_pose(poses, breath, skeleton)
+    moved = retarget(avatar, poses, skeleton)
+    doc = copy.deepcopy(avatar.doc)
+    buf = Buffer(avatar.binary, doc.get("bufferViews"), doc.get("accessors"))
+    t_in = buf.accessor(times, minmax=True)
+    samplers, channels = [], []
+
+    def track(node: int, path: str, values: np.ndarray) -> None:
+        samplers.append({"input": t_in, "output": buf.accessor(np.ascontiguousarray(values, dtype=np.float32)),
+                         "interpolation": "LINEAR"})
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": int(node), "path": path}})
+
+    track(avatar.bones["hips"], "translation", moved.hips_translation)
+    for k, node in enumerate(moved.nodes):
+        track(node, "rotation", moved.rotations[:, k])
+    for node, w in sorted(morph_weights(avatar, arkit, breath, f).items()):
+        track(node, "weights", w.reshape(-1))
+    doc.setdefault("animations", []).insert(0, {"name": "laugh", "samplers": samplers, "channels": channels})
+    scene = doc.get("scene", 0)
+    if doc.get("scenes"):
+        extras = doc["scenes"][scene].setdefault("extras", {})
+        extras["laughlab"] = {"fps": float(fps), "frames": int(f), "audio_duration_s": float(audio_duration_s)}
+    doc["asset"] = {**doc.get("asset", {}), "generator": f"laughlab (avatar: {doc.get('asset', {}).get('generator', '?')})"}
+    return glb_bytes(doc, buf)

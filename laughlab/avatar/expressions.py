@@ -1,0 +1,127 @@
+"""The face's ARKit weights and the body's breathing on an avatar: morph targets, VRM expressions, spine bones.
+
+Three routes, in this order:
+
+1. **ARKit names.**  A morph target named as an ARKit blendshape (``jawOpen``, ``eyeBlinkLeft``,
+   ...; case and a ``prefix.`` such as ``blendShape1.`` ignored) takes that weight.
+2. **VRM expressions.**  If the avatar has no ARKit-named morph at all, its VRM expressions
+   (1.0 preset names; 0.x's ``a``, ``joy``, ``blink_l``... are translated) take
+   ``clip(sum of weight x ARKit value, 0, 1)`` from :data:`ARKIT_TO_VRM`, and each expression's
+   morph binds add ``expression weight x bind weight`` to its morph targets (clipped to [0, 1]).
+   ``blink`` is driven only if the avatar lacks ``blinkLeft`` or ``blinkRight`` (else the two
+   eyes are driven apart and ``blink`` stays 0, so no eye closes twice).
+3. **Breathing.**  The body's ``chest`` and ``belly`` channels go to morph targets of those names
+   (case ignored) if the avatar has them, else to the spine bones (:func:`breathing_pose`).
+"""
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from laughlab.avatar.load import Avatar
+from laughlab.character.body import FACE_MORPHS
+from laughlab.motion.skeleton import Skeleton
+
+#: VRM 1.0 expression <- ARKit blendshape weights (linear; the sum is clipped to [0, 1])
+ARKIT_TO_VRM: dict[str, dict[str, float]] = {
+    "aa": {"jawOpen": 1.0},
+    "ih": {"mouthLowerDownLeft": 0.5, "mouthLowerDownRight": 0.5},
+    "ou": {"mouthPucker": 1.0},
+    "ee": {"mouthStretchLeft": 0.5, "mouthStretchRight": 0.5},
+    "oh": {"mouthFunnel": 1.0},
+    "happy": {"mouthSmileLeft": 0.5, "mouthSmileRight": 0.5},
+    "relaxed": {"cheekSquintLeft": 0.5, "cheekSquintRight": 0.5},
+    "sad": {"mouthFrownLeft": 0.5, "mouthFrownRight": 0.5},
+    "angry": {"browDownLeft": 0.5, "browDownRight": 0.5},
+    "surprised": {"browInnerUp": 0.5, "browOuterUpLeft": 0.25, "browOuterUpRight": 0.25},
+    "blink": {"eyeBlinkLeft": 0.5, "eyeBlinkRight": 0.5},
+    "blinkLeft": {"eyeBlinkLeft": 1.0},
+    "blinkRight": {"eyeBlinkRight": 1.0},
+}
+
+#: every ARKit blendshape name (Apple's ARFaceAnchor.BlendShapeLocation), for recognising morph targets
+ARKIT_NAMES: tuple[str, ...] = tuple(sorted(set(FACE_MORPHS) | {
+    "eyeLookDownLeft", "eyeLookInLeft", "eyeLookOutLeft", "eyeLookUpLeft", "eyeWideLeft", "eyeLookDownRight",
+    "eyeLookInRight", "eyeLookOutRight", "eyeLookUpRight", "eyeWideRight", "jawForward", "jawLeft", "jawRight",
+    "mouthClose", "mouthFunnel", "mouthPucker", "mouthLeft", "mouthRight", "mouthDimpleLeft", "mouthDimpleRight",
+    "mouthRollLower", "mouthRollUpper", "mouthShrugLower", "mouthShrugUpper", "mouthPressLeft",
+    "mouthPressRight", "cheekPuff", "noseSneerLeft", "noseSneerRight", "tongueOut"}))
+_ARKIT_LOWER = {n.lower(): n for n in ARKIT_NAMES}
+
+#: breathing on the spine bones, degrees of X rotation (x > 0 bends forward) per unit of channel
+BREATH_DEGREES: dict[str, dict[str, float]] = {
+    "chest": {"spine1": -3.0, "neck": 3.0},   # the rib cage lifts (the chest leans back), the head keeps its gaze
+    "belly": {"spine": -2.0, "spine1": 2.0},  # the belly pushes out, the chest stays upright
+}
+
+
+def arkit_morph(name: str) -> str | None:
+    """The ARKit blendshape a morph target's name stands for, or None."""
+    return _ARKIT_LOWER.get((name or "").rsplit(".", 1)[-1].lower())
+
+
+def has_arkit_morphs(avatar: Avatar) -> bool:
+    return any(arkit_morph(n) for n in avatar.all_morph_names())
+
+
+def expression_weights(avatar: Avatar, arkit: Mapping[str, np.ndarray], n: int) -> dict[str, np.ndarray]:
+    """VRM expression -> weight per frame, from :data:`ARKIT_TO_VRM` (see the module's docstring).
+
+    Only the expressions the table drives; ``blink`` is left out when the avatar has both
+    ``blinkLeft`` and ``blinkRight`` (``avatar=None``: every expression of the table).
+    """
+    out = {}
+    split_eyes = avatar is None or {"blinkLeft", "blinkRight"} <= set(avatar.expressions)
+    for name, terms in ARKIT_TO_VRM.items():
+        if name == "blink" and split_eyes:
+            continue
+        if name in ("blinkLeft", "blinkRight") and not split_eyes:
+            continue
+        w = np.zeros(n)
+        for k, c in terms.items():
+            if k in arkit:
+                w = w + c * np.nan_to_num(np.asarray(arkit[k], dtype=np.float64))
+        out[name] = np.clip(w, 0.0, 1.0)
+    return out
+
+
+def morph_weights(avatar: Avatar, arkit: Mapping[str, np.ndarray], breath: Mapping[str, np.ndarray],
+                  n: int) -> dict[int, np.ndarray]:
+    """Mesh node -> its morph targets' weights per frame ``(F, T)`` in [0, 1]."""
+    out = {node: np.zeros((n, len(names))) for node, names in avatar.morph_names.items() if names}
+    if has_arkit_morphs(avatar):
+        for node, names in avatar.morph_names.items():
+            for k, name in enumerate(names):
+                a = arkit_morph(name)
+                if a is not None and a in arkit:
+                    out[node][:, k] = arkit[a]
+    else:
+        for expr, w in expression_weights(avatar, arkit, n).items():
+            for node, index, weight in avatar.expressions.get(expr, []):
+                if node in out and 0 <= index < out[node].shape[1]:
+                    out[node][:, index] += w * weight
+    for node, names in avatar.morph_names.items():
+        for k, name in enumerate(names):
+            if name.lower() in breath:
+                out[node][:, k] = breath[name.lower()]
+    return {node: np.clip(np.nan_to_num(w), 0.0, 1.0) for node, w in out.items()}
+
+
+def breathing_on_bones(avatar: Avatar) -> bool:
+    """True if the avatar has no ``chest``/``belly`` morph, so breathing moves its spine bones."""
+    names = {n.lower() for n in avatar.all_morph_names()}
+    return not ({"chest", "belly"} & names)
+
+
+def breathing_pose(poses: np.ndarray, breath: Mapping[str, np.ndarray], skeleton: Skeleton) -> np.ndarray:
+    """``poses`` with the breathing of :data:`BREATH_DEGREES` added to the spine joints' X angles."""
+    poses = np.array(poses, dtype=np.float64, copy=True)
+    for channel, joints in BREATH_DEGREES.items():
+        if channel not in breath:
+            continue
+        w = np.clip(np.nan_to_num(np.asarray(breath[channel], dtype=np.float64)), 0.0, 1.0)
+        for joint, deg in joints.items():
+            if joint in skeleton.names:
+                poses[:, skeleton.angle_slice(joint).start + 1] += deg * w
+    return poses

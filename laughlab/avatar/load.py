@@ -1,0 +1,262 @@
+"""Loading a user's avatar: the glTF document, its humanoid bones, its rest pose, its morphs and expressions.
+
+Accepted: a VRM 0.x file (``VRM`` extension), a VRM 1.0 file (``VRMC_vrm``), or a glTF 2.0
+(``.glb``, or ``.gltf`` with embedded or neighbouring buffers) whose node names follow
+:data:`laughlab.avatar.names.NODE_NAMES` (Mixamo, Ready Player Me, VRM or Unity names).
+Anything else raises :class:`AvatarError` (a ``ValueError``) whose one line names the file and
+what is missing.  A file over :data:`MAX_BYTES` is refused from its size alone, before it is read.
+"""
+from __future__ import annotations
+
+import base64
+import json
+import struct
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from laughlab.avatar.names import REQUIRED, bones_by_name
+
+MAX_BYTES = 100 * 1024 * 1024
+"""The largest avatar file laughlab loads (100 MB)."""
+
+
+class AvatarError(ValueError):
+    """A file that is not a usable humanoid avatar."""
+
+
+@dataclass
+class Avatar:
+    """A humanoid avatar in its rest pose.
+
+    Attributes
+    ----------
+    path : Path
+    kind : str
+        ``vrm0``, ``vrm1`` or ``gltf`` (bones recognised by name).
+    doc : dict
+        The glTF JSON document (as read; the exporters copy it).
+    binary : bytes
+        The binary buffer (buffer 0).
+    bones : dict
+        VRM humanoid bone name -> node index.
+    parents : ndarray (N,) int
+        Each node's parent, -1 for a scene root.
+    rest_local : ndarray (N, 4, 4)
+        Each node's local transform in the rest pose.
+    rest_world : ndarray (N, 4, 4)
+        Each node's world transform in the rest pose.
+    facing : int
+        +1 if the avatar faces +Z (its left is +X), -1 if it faces -Z (VRM 0.x).
+    expressions : dict
+        Expression name (VRM 1.0 preset names, 0.x names translated) -> list of (mesh node, morph index, weight).
+    morph_names : dict
+        Mesh node index -> its morph target names ('' where unnamed).
+    """
+
+    path: Path
+    kind: str
+    doc: dict
+    binary: bytes
+    bones: dict
+    parents: np.ndarray
+    rest_local: np.ndarray
+    rest_world: np.ndarray
+    facing: int
+    expressions: dict = field(default_factory=dict)
+    morph_names: dict = field(default_factory=dict)
+
+    @property
+    def order(self) -> list[int]:
+        """Node indices, every parent before its children."""
+        depth = np.zeros(len(self.parents), int)
+        for i in range(len(self.parents)):
+            p, d = self.parents[i], 0
+            while p >= 0:
+                p, d = self.parents[p], d + 1
+            depth[i] = d
+        return [int(i) for i in np.argsort(depth, kind="stable")]
+
+    def leg_height_m(self) -> float:
+        """The hips' height above the lowest of the feet and toes in the rest pose (m)."""
+        ys = [self.rest_world[self.bones[b], 1, 3] for b in ("leftFoot", "rightFoot", "leftToes", "rightToes")
+              if b in self.bones]
+        return float(self.rest_world[self.bones["hips"], 1, 3] - min(ys))
+
+    def all_morph_names(self) -> set[str]:
+        return {n for names in self.morph_names.values() for n in names if n}
+
+
+#: VRM 0.x preset names -> VRM 1.0 preset names
+VRM0_PRESETS = {"a": "aa", "i": "ih", "u": "ou", "e": "ee", "o": "oh", "joy": "happy", "angry": "angry",
+                "sorrow": "sad", "fun": "relaxed", "blink": "blink", "blink_l": "blinkLeft", "blink_r": "blinkRight",
+                "lookup": "lookUp", "lookdown": "lookDown", "lookleft": "lookLeft", "lookright": "lookRight",
+                "neutral": "neutral", "surprised": "surprised"}
+
+
+def _fail(path: Path, what: str) -> AvatarError:
+    return AvatarError(f"{path}: {what}")
+
+
+def read_gltf(path: str | Path) -> tuple[dict, bytes]:
+    """The JSON document and buffer 0 of a ``.glb``/``.vrm`` (binary) or ``.gltf`` (JSON) file."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise _fail(path, f"cannot read the avatar ({exc.strerror or exc})") from None
+    if not path.is_file():
+        raise _fail(path, "is not a file")
+    if size > MAX_BYTES:
+        raise _fail(path, f"the avatar is {size / 1e6:.0f} MB; laughlab loads avatars up to "
+                          f"{MAX_BYTES // (1024 * 1024)} MB")
+    with open(path, "rb") as fh:
+        head = fh.read(12)
+        if len(head) == 12 and head[:4] == b"glTF":
+            version, total = struct.unpack_from("<II", head, 4)
+            if version != 2:
+                raise _fail(path, f"is glTF version {version}; laughlab reads glTF 2.0")
+            data = head + fh.read()
+            if total != len(data) or len(data) < 20:
+                raise _fail(path, "is a truncated glTF binary (its header's length is not the file's)")
+            n, kind = struct.unpack_from("<I4s", data, 12)
+            if kind != b"JSON" or 20 + n > len(data):
+                raise _fail(path, "is not a glTF binary (no JSON chunk)")
+            doc = _json(path, data[20:20 + n])
+            binary = b""
+            if 20 + n + 8 <= len(data):
+                m, kind2 = struct.unpack_from("<I4s", data, 20 + n)
+                if kind2 == b"BIN\0":
+                    binary = data[28 + n:28 + n + m]
+            return doc, binary
+        fh.seek(0)
+        doc = _json(path, fh.read())
+    if "asset" not in doc:
+        raise _fail(path, "is JSON but not glTF (no 'asset')")
+    buffers = doc.get("buffers") or []
+    binary = b""
+    if len(buffers) > 1:
+        raise _fail(path, f"has {len(buffers)} buffers; laughlab reads avatars with one (a .glb, or a .gltf "
+                          "with one .bin)")
+    if buffers:
+        uri = buffers[0].get("uri", "")
+        if uri.startswith("data:"):
+            binary = base64.b64decode(uri.split(",", 1)[1])
+        elif uri:
+            try:
+                binary = (path.parent / uri).read_bytes()
+            except OSError:
+                raise _fail(path, f"its buffer {uri} cannot be read") from None
+    return doc, binary
+
+
+def _json(path: Path, raw: bytes) -> dict:
+    try:
+        doc = json.loads(raw)
+    except (UnicodeDecodeError, json.JSONDecodeError):
+        raise _fail(path, "is not a glTF file (neither a glTF binary nor glTF JSON)") from None
+    if not isinstance(doc, dict):
+        raise _fail(path, "is not a glTF file")
+    return doc
+
+
+def _quat_matrix(q) -> np.ndarray:
+    x, y, z, w = (float(v) for v in q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def local_matrix(node: dict) -> np.ndarray:
+    """A node's local transform (4x4) from its ``matrix`` or its TRS."""
+    if "matrix" in node:
+        return np.array(node["matrix"], dtype=np.float64).reshape(4, 4).T
+    m = np.eye(4)
+    m[:3, :3] = _quat_matrix(node.get("rotation", (0, 0, 0, 1))) * np.asarray(node.get("scale", (1, 1, 1)), float)
+    m[:3, 3] = node.get("translation", (0, 0, 0))
+    return m
+
+
+def _humanoid(path: Path, doc: dict) -> tuple[str, dict]:
+    ext = doc.get("extensions") or {}
+    n_nodes = len(doc.get("nodes") or [])
+    if "VRMC_vrm" in ext:
+        bones = {k: v.get("node") for k, v in ((ext["VRMC_vrm"].get("humanoid") or {}).get("humanBones") or {}).items()}
+        kind = "vrm1"
+    elif "VRM" in ext:
+        bones = {b.get("bone"): b.get("node") for b in (ext["VRM"].get("humanoid") or {}).get("humanBones") or []}
+        kind = "vrm0"
+    else:
+        names = [n.get("name", "") for n in doc.get("nodes") or []]
+        bones = bones_by_name(names)
+        if not bones:
+            raise _fail(path, "has no humanoid: no VRM humanoid bone map and no node named as a Mixamo, Ready "
+                              "Player Me or VRM bone (docs/avatars.md lists the names)")
+        kind = "gltf"
+    bones = {k: int(v) for k, v in bones.items() if isinstance(v, int) and 0 <= v < n_nodes}
+    missing = [b for b in REQUIRED if b not in bones]
+    if missing:
+        what = "VRM humanoid" if kind != "gltf" else "humanoid (bones recognised by name)"
+        raise _fail(path, f"the {what} lacks the required bone{'s' if len(missing) > 1 else ''} "
+                          f"{', '.join(missing)}")
+    return kind, bones
+
+
+def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> dict:
+    """Expression -> [(mesh node, morph index, weight 0-1)]."""
+    ext = doc.get("extensions") or {}
+    out: dict[str, list] = {}
+    if kind == "vrm1":
+        groups = (ext["VRMC_vrm"].get("expressions") or {})
+        for section in ("preset", "custom"):
+            for name, e in (groups.get(section) or {}).items():
+                out[name] = [(int(b["node"]), int(b["index"]), float(b.get("weight", 1.0)))
+                             for b in e.get("morphTargetBinds") or []]
+    elif kind == "vrm0":
+        for g in (ext["VRM"].get("blendShapeMaster") or {}).get("blendShapeGroups") or []:
+            preset = str(g.get("presetName", "unknown")).lower()
+            name = VRM0_PRESETS.get(preset, g.get("name", preset)) if preset != "unknown" else g.get("name", "")
+            binds = []
+            for b in g.get("binds") or []:
+                for node in mesh_nodes.get(int(b.get("mesh", -1)), []):
+                    binds.append((node, int(b["index"]), float(b.get("weight", 100.0)) / 100.0))
+            out[name] = binds
+    return out
+
+
+def load_avatar(path: str | Path) -> Avatar:
+    """Read and check an avatar file (see the module's docstring)."""
+    path = Path(path)
+    doc, binary = read_gltf(path)
+    nodes = doc.get("nodes") or []
+    if not nodes:
+        raise _fail(path, "has no nodes, so no skeleton")
+    kind, bones = _humanoid(path, doc)
+    n = len(nodes)
+    parents = np.full(n, -1, int)
+    for i, node in enumerate(nodes):
+        for c in node.get("children") or []:
+            if 0 <= c < n:
+                parents[c] = i
+    rest_local = np.array([local_matrix(nd) for nd in nodes])
+    av = Avatar(path, kind, doc, binary, bones, parents, rest_local, np.zeros_like(rest_local), 1)
+    for i in av.order:
+        av.rest_world[i] = rest_local[i] if parents[i] < 0 else av.rest_world[parents[i]] @ rest_local[i]
+    lx = av.rest_world[bones["leftUpperArm"], 0, 3] - av.rest_world[bones["rightUpperArm"], 0, 3]
+    av.facing = 1 if lx > 0 else -1
+    if kind == "gltf" and not doc.get("skins") and not any("mesh" in nd for nd in nodes):
+        raise _fail(path, "has bones but nothing to show: no skin and no mesh")
+    mesh_nodes: dict[int, list[int]] = {}
+    for i, nd in enumerate(nodes):
+        if "mesh" in nd:
+            mesh_nodes.setdefault(int(nd["mesh"]), []).append(i)
+            mesh = doc["meshes"][nd["mesh"]]
+            names = list((mesh.get("extras") or {}).get("targetNames") or [])
+            prims = mesh.get("primitives") or [{}]
+            n_t = len(prims[0].get("targets") or [])
+            if not names:
+                names = list((prims[0].get("extras") or {}).get("targetNames") or [])
+            av.morph_names[i] = (names + [""] * n_t)[:n_t]
+    av.expressions = _expressions(doc, kind, mesh_nodes)
+    return av

@@ -1,0 +1,76 @@
+"""Humanoid bone names: laughlab's joints, VRM humanoid bones, and the node names of Mixamo and Ready Player Me.
+
+A VRM file declares its humanoid bones (``VRM.humanoid.humanBones`` in 0.x,
+``VRMC_vrm.humanoid.humanBones`` in 1.0), so no name is guessed for it.  A plain glTF/GLB is
+recognised by its node names, compared after dropping a ``mixamorig:`` / ``mixamorig_`` prefix
+(any ``NAME:`` prefix) and case: :data:`NODE_NAMES` lists, per VRM bone, the names accepted.
+"""
+from __future__ import annotations
+
+import re
+
+#: laughlab joint -> VRM humanoid bone (VRM 1.0 names; 0.x uses the same ones)
+JOINT_TO_VRM: dict[str, str] = {
+    "hips": "hips", "spine": "spine", "spine1": "chest", "spine2": "upperChest", "neck": "neck", "head": "head",
+    **{f"{s}_{j}": f"{s}{b}" for s in ("left", "right")
+       for j, b in (("clavicle", "Shoulder"), ("upper_arm", "UpperArm"), ("forearm", "LowerArm"), ("hand", "Hand"),
+                    ("thigh", "UpperLeg"), ("shin", "LowerLeg"), ("foot", "Foot"), ("toe", "Toes"))},
+}
+
+#: VRM bones every humanoid must have (VRM 1.0's required set; VRM 0.x also requires chest and neck,
+#: but an avatar without them is still driven: see :data:`laughlab.avatar.retarget`)
+REQUIRED: tuple[str, ...] = (
+    "hips", "spine", "head", "leftUpperArm", "leftLowerArm", "leftHand", "rightUpperArm", "rightLowerArm",
+    "rightHand", "leftUpperLeg", "leftLowerLeg", "leftFoot", "rightUpperLeg", "rightLowerLeg", "rightFoot",
+)
+
+
+def _sided(left_right: dict[str, tuple[str, ...]]) -> dict[str, tuple[str, ...]]:
+    out = {}
+    for bone, names in left_right.items():
+        for side, s in (("left", "Left"), ("right", "Right")):
+            out[f"{side}{bone}"] = tuple(n.format(S=s, s=s[0], l=side) for n in names)
+    return out
+
+
+#: VRM bone -> node names accepted in a plain glTF (laughlab's own joints as in ``motion.bvh``, Mixamo and Ready
+#: Player Me (``LeftArm``, ``LeftUpLeg``...), VRM and Unity names, ``UpperArm_L``/``UpperArm.L`` styles)
+NODE_NAMES: dict[str, tuple[str, ...]] = {
+    "hips": ("Hips", "hips", "pelvis"),
+    "spine": ("Spine", "spine"),
+    "chest": ("Spine1", "Chest", "chest"),
+    "upperChest": ("Spine2", "UpperChest", "upperChest"),
+    "neck": ("Neck", "neck"),
+    "head": ("Head", "head"),
+    **_sided({
+        "Shoulder": ("{l}_clavicle", "{S}Shoulder", "{S}_Shoulder", "Shoulder_{s}", "Shoulder.{s}"),
+        "UpperArm": ("{l}_upper_arm", "{S}Arm", "{S}UpperArm", "{S}_UpperArm", "UpperArm_{s}", "UpperArm.{s}"),
+        "LowerArm": ("{l}_forearm", "{S}ForeArm", "{S}LowerArm", "{S}_LowerArm", "LowerArm_{s}", "LowerArm.{s}"),
+        "Hand": ("{l}_hand", "{S}Hand", "{S}_Hand", "Hand_{s}", "Hand.{s}"),
+        "UpperLeg": ("{l}_thigh", "{S}UpLeg", "{S}UpperLeg", "{S}_UpperLeg", "UpperLeg_{s}", "UpperLeg.{s}"),
+        "LowerLeg": ("{l}_shin", "{S}Leg", "{S}LowerLeg", "{S}_LowerLeg", "LowerLeg_{s}", "LowerLeg.{s}"),
+        "Foot": ("{l}_foot", "{S}Foot", "{S}_Foot", "Foot_{s}", "Foot.{s}"),
+        "Toes": ("{l}_toe", "{S}ToeBase", "{S}Toes", "{S}_Toes", "Toes_{s}", "Toes.{s}"),
+    }),
+}
+
+
+def plain_name(name: str) -> str:
+    """A node name without its ``prefix:`` (``mixamorig:Hips`` -> ``hips``), lower case."""
+    name = re.sub(r"^mixamorig[0-9]*_", "", name or "")
+    return name.rsplit(":", 1)[-1].strip().lower()
+
+
+def bones_by_name(node_names: list[str]) -> dict[str, int]:
+    """VRM bone -> node index for nodes whose names :data:`NODE_NAMES` knows (the first match wins)."""
+    index: dict[str, int] = {}
+    for i, n in enumerate(node_names):
+        index.setdefault(plain_name(n), i)
+    out = {}
+    for bone, names in NODE_NAMES.items():
+        for n in names:
+            i = index.get(n.lower())
+            if i is not None:
+                out[bone] = i
+                break
+    return out

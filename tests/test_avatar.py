@@ -1,0 +1,392 @@
+"""Issue 28: a user's avatar (VRM 0.x, VRM 1.0, humanoid glTF) driven by a run; VRM Animation export."""
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+from scipy.spatial.transform import Rotation
+
+from laughlab.avatar.expressions import ARKIT_TO_VRM, BREATH_DEGREES
+from laughlab.avatar.load import MAX_BYTES, AvatarError, load_avatar, local_matrix
+from laughlab.avatar.mannequin import mannequin_arkit_glb, mannequin_vrm
+from laughlab.avatar.names import JOINT_TO_VRM
+from laughlab.avatar.retarget import animated_world, retarget
+from laughlab.core import pipeline
+from laughlab.core.config import compose_config
+from laughlab.io.bvh import read_bvh
+from laughlab.io.gltf import accessor_array, parse_glb, read_glb
+from laughlab.motion.skeleton import HUMANOID, forward_kinematics, global_transforms, rest_pose
+
+ASSETS = Path(__file__).parent / "assets" / "avatars"
+GODETTE = ASSETS / "Godette_vrm_v4.vrm"
+ROBOT = ASSETS / "debug_robot.vrm"
+FRAMES = (0, 61, 137, 239)  # frames of the 4 s run checked (60 fps)
+
+
+def run(tmp_path, *overrides):
+    cfg = compose_config([*overrides])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+    pipeline.execute(pipeline.build(cfg), tmp_path)
+    return tmp_path
+
+
+@pytest.fixture(scope="module")
+def avatars(tmp_path_factory):
+    d = tmp_path_factory.mktemp("avatars")
+    (d / "mannequin.vrm").write_bytes(mannequin_vrm())
+    (d / "mannequin_arkit.glb").write_bytes(mannequin_arkit_glb())
+    return d
+
+
+@pytest.fixture(scope="module")
+def vrma_run(tmp_path_factory):
+    return run(tmp_path_factory.mktemp("vrma"), "output=vrma", "face=facs", "input.duration_s=4")
+
+
+def baked(tmp_path_factory, character, name):
+    return run(tmp_path_factory.mktemp(name), "output=gltf", "face=facs", "input.duration_s=4",
+               f"character={character}")
+
+
+@pytest.fixture(scope="module")
+def godette_run(tmp_path_factory):
+    return baked(tmp_path_factory, GODETTE, "godette")
+
+
+@pytest.fixture(scope="module")
+def arkit_run(tmp_path_factory, avatars):
+    return baked(tmp_path_factory, avatars / "mannequin_arkit.glb", "arkit")
+
+
+def file_world(path: Path, frame: int) -> tuple[dict, np.ndarray, dict]:
+    """World transforms of every node of a glTF file at ``frame`` of its first animation, composed in Python
+    from the file's node hierarchy and animation channels (what a player shows); and the morph weights."""
+    doc, binary = read_glb(path)
+    local = np.array([local_matrix(n) for n in doc["nodes"]])
+    anim = doc["animations"][0]
+    weights = {}
+    for ch in anim["channels"]:
+        s = anim["samplers"][ch["sampler"]]
+        v = accessor_array(doc, binary, s["output"])
+        node, what = ch["target"]["node"], ch["target"]["path"]
+        if what == "rotation":
+            scale = np.linalg.norm(local[node, :3, :3], axis=0)
+            local[node, :3, :3] = Rotation.from_quat(v[frame].astype(float)).as_matrix() * scale
+        elif what == "translation":
+            local[node, :3, 3] = v[frame]
+        elif what == "weights":
+            t = len(accessor_array(doc, binary, s["input"]))
+            weights[node] = v.reshape(t, -1)[frame]
+    parents = {c: i for i, n in enumerate(doc["nodes"]) for c in n.get("children", [])}
+    world = np.zeros_like(local)
+    done = set()
+
+    def solve(i):
+        if i in done:
+            return world[i]
+        world[i] = local[i] if i not in parents else solve(parents[i]) @ local[i]
+        done.add(i)
+        return world[i]
+
+    for i in range(len(local)):
+        solve(i)
+    return doc, world, weights
+
+
+def bvh_world(run_dir: Path):
+    sk, motion, _ = read_bvh(run_dir / "motion.bvh")
+    return motion, forward_kinematics(HUMANOID, motion) * 0.01
+
+
+def test_the_test_avatars_load_as_their_kind():
+    g, r = load_avatar(GODETTE), load_avatar(ROBOT)
+    assert (g.kind, g.facing, len(g.bones)) == ("vrm0", -1, 45)  # VRM 0.x faces -Z
+    assert (r.kind, r.facing, len(r.bones)) == ("vrm1", 1, 53)   # VRM 1.0 faces +Z
+    # Godette's 0.x presets under 1.0 names, binds with weights 0-1 (the file says 0-100)
+    assert {"aa", "ih", "ou", "ee", "oh", "happy", "blink", "blinkLeft", "blinkRight"} <= set(g.expressions)
+    face = next(n for n, names in g.morph_names.items() if "ah" in names)
+    assert g.expressions["aa"] == [(face, g.morph_names[face].index("ah"), 1.0)]
+    assert sorted(g.expressions["happy"]) == [(face, 9, 0.5), (face, 10, 0.25)]
+
+
+def test_the_mannequin_as_vrm_and_glb_retargets_exactly(avatars, arkit_run, tmp_path):
+    """Same proportions, same rest: the avatar's joints are where the BVH's are, to float32 precision."""
+    motion, want = bvh_world(arkit_run)
+    doc, _, _ = file_world(arkit_run / "character.glb", 0)
+    idx = {n["name"]: i for i, n in enumerate(doc["nodes"])}
+    for f in FRAMES:
+        _, world, _ = file_world(arkit_run / "character.glb", f)
+        got = np.array([world[idx[name], :3, 3] for name in HUMANOID.names])
+        np.testing.assert_allclose(got, want[f], atol=2e-5)
+    # the VRM (bones from its humanoid map, not names) gives the same world positions in memory
+    vrm = load_avatar(avatars / "mannequin.vrm")
+    world = animated_world(vrm, retarget(vrm, motion[list(FRAMES)]))
+    for k, f in enumerate(FRAMES):
+        got = np.array([world[k, vrm.bones[JOINT_TO_VRM[n]], :3, 3] for n in HUMANOID.names])
+        np.testing.assert_allclose(got, want[f], atol=1e-9)
+
+
+def _bone_dirs(world, bones, facing, names):
+    out = []
+    for a, b in names:
+        d = world[bones[b], :3, 3] - world[bones[a], :3, 3]
+        out.append(d / np.linalg.norm(d) * np.array([facing, 1, facing]))
+    return np.array(out)
+
+
+LIMBS = [("leftUpperArm", "leftLowerArm"), ("leftLowerArm", "leftHand"), ("rightUpperArm", "rightLowerArm"),
+         ("rightLowerArm", "rightHand"), ("leftUpperLeg", "leftLowerLeg"), ("leftLowerLeg", "leftFoot"),
+         ("rightUpperLeg", "rightLowerLeg"), ("rightLowerLeg", "rightFoot")]
+OURS = {v: k for k, v in JOINT_TO_VRM.items()}
+
+
+@pytest.mark.parametrize("path", [GODETTE, ROBOT], ids=["godette-vrm0", "robot-vrm1"])
+def test_other_proportions_follow_the_bvh_limb_by_limb(path, godette_run):
+    """Arms and legs point where the BVH's do (the facing undone), within 0.5 degrees; the hips move by the
+    BVH's displacement scaled by the leg heights' ratio."""
+    motion, want = bvh_world(godette_run)
+    av = load_avatar(path)
+    moved = retarget(av, motion)
+    world = animated_world(av, moved)
+    ours = np.array([[want[f, HUMANOID.index(OURS[b])] - want[f, HUMANOID.index(OURS[a])] for a, b in LIMBS]
+                     for f in range(len(motion))])
+    ours /= np.linalg.norm(ours, axis=-1, keepdims=True)
+    for f in FRAMES:
+        got = _bone_dirs(world[f], av.bones, av.facing, LIMBS)
+        angle = np.degrees(np.arccos(np.clip(np.sum(got * ours[f], axis=1), -1, 1)))
+        assert angle.max() < 0.5, (f, angle)
+    # the arms really move in this run (else the check above would be empty)
+    assert np.degrees(np.arccos(np.clip(np.sum(ours[0] * ours[137], axis=1), -1, 1))).max() > 5
+    hips = world[:, av.bones["hips"], :3, 3]
+    scale = av.leg_height_m() / 0.93
+    step = (want[:, 0] - want[0, 0]) * scale * np.array([av.facing, 1, av.facing])
+    np.testing.assert_allclose(hips - hips[0], step, atol=1e-6)
+
+
+def test_the_trunk_keeps_the_avatars_posture_and_turns_as_the_bvh(godette_run):
+    """Godette (no upperChest): her chest turns as laughlab's spine2 (the missing bone falls back to its
+    parent), her head as laughlab's head, both from her own rest orientation."""
+    motion, _ = bvh_world(godette_run)
+    av = load_avatar(GODETTE)
+    assert "upperChest" not in av.bones
+    world = animated_world(av, retarget(av, motion))
+    _, G = global_transforms(HUMANOID, motion)
+    F = np.diag([-1.0, 1, -1])
+    for bone, joint in (("chest", "spine2"), ("head", "head"), ("spine", "spine")):
+        rest = av.rest_world[av.bones[bone], :3, :3]
+        for f in FRAMES:
+            want = F @ G[f, HUMANOID.index(joint)] @ F.T @ rest
+            np.testing.assert_allclose(world[f, av.bones[bone], :3, :3], want, atol=1e-9)
+
+
+def test_an_a_pose_avatar_is_turned_into_the_t_pose_first(avatars, godette_run):
+    """The mannequin with its arms lowered 40 degrees at rest (an A-pose): the arms still follow the BVH."""
+    doc, binary = parse_glb((avatars / "mannequin_arkit.glb").read_bytes())
+    for side, s in (("left", -1), ("right", 1)):
+        i = next(k for k, n in enumerate(doc["nodes"]) if n["name"] == f"{side}_upper_arm")
+        doc["nodes"][i]["rotation"] = [float(x) for x in Rotation.from_euler("z", s * 40, degrees=True).as_quat()]
+    from laughlab.io.gltf import Buffer, glb_bytes
+
+    a_pose = avatars / "a_pose.glb"
+    a_pose.write_bytes(glb_bytes(doc, Buffer(binary, doc["bufferViews"], doc["accessors"])))
+    av = load_avatar(a_pose)
+    hand = av.rest_world[av.bones["leftHand"], :3, 3] - av.rest_world[av.bones["leftUpperArm"], :3, 3]
+    assert hand[1] < -0.3  # the arm hangs at rest
+    motion, want = bvh_world(godette_run)
+    world = animated_world(av, retarget(av, motion))
+    for f in FRAMES:
+        for a, b in LIMBS[:4]:
+            d = world[f, av.bones[b], :3, 3] - world[f, av.bones[a], :3, 3]
+            o = want[f, HUMANOID.index(OURS[b])] - want[f, HUMANOID.index(OURS[a])]
+            np.testing.assert_allclose(d, o, atol=1e-9)  # same bone lengths: same positions
+
+
+def test_expressions_follow_the_face_channels(godette_run):
+    """Godette has no ARKit morph: her VRM 0.x presets take the documented table, and each morph the sum of
+    the expressions bound to it.  Her 'ah' morph is bound by A (weight 1) and Angry (0.25)."""
+    arkit = np.genfromtxt(godette_run / "face_arkit.csv", delimiter=",", names=True)
+    doc, _, _ = file_world(godette_run / "character.glb", 0)
+    face = next(i for i, n in enumerate(doc["nodes"]) if "mesh" in n and doc["meshes"][n["mesh"]]["name"] == "FaceMesh")
+    names = doc["meshes"][doc["nodes"][face]["mesh"]]["primitives"][0]["extras"]["targetNames"]
+    angry = np.clip(0.5 * arkit["browDownLeft"] + 0.5 * arkit["browDownRight"], 0, 1)
+    for f in FRAMES:
+        _, _, w = file_world(godette_run / "character.glb", f)
+        ah = np.clip(arkit["jawOpen"][f] + 0.25 * angry[f], 0, 1)
+        assert w[face][names.index("ah")] == pytest.approx(ah, abs=1e-6)
+        # blink_left: Blink_L (1.0) and Angry (0.25) and Sorrow (0.1); Blink is not driven (split eyes)
+        frown = [arkit[k][f] if k in arkit.dtype.names else 0.0 for k in ("mouthFrownLeft", "mouthFrownRight")]
+        sad = np.clip(0.5 * frown[0] + 0.5 * frown[1], 0, 1)
+        want = np.clip(arkit["eyeBlinkLeft"][f] + 0.25 * angry[f] + 0.1 * sad, 0, 1)
+        assert w[face][names.index("blink_left")] == pytest.approx(want, abs=1e-6)
+    assert arkit["jawOpen"].max() > 0.3 and arkit["eyeBlinkLeft"].max() > 0.5  # the run moves both
+
+
+def test_arkit_named_morphs_pass_through_by_name(arkit_run):
+    arkit = np.genfromtxt(arkit_run / "face_arkit.csv", delimiter=",", names=True)
+    channels = np.genfromtxt(arkit_run / "channels.csv", delimiter=",", names=True)
+    doc, _, _ = file_world(arkit_run / "character.glb", 0)
+    mesh = next(i for i, n in enumerate(doc["nodes"]) if "mesh" in n)
+    names = doc["meshes"][doc["nodes"][mesh]["mesh"]]["extras"]["targetNames"]
+    for f in FRAMES:
+        _, _, w = file_world(arkit_run / "character.glb", f)
+        for name in ("jawOpen", "mouthSmileLeft", "eyeBlinkRight", "cheekSquintLeft"):
+            assert w[mesh][names.index(name)] == pytest.approx(np.clip(arkit[name][f], 0, 1), abs=1e-6)
+        # the avatar has chest and belly morphs: breathing goes there, not to the bones
+        assert w[mesh][names.index("chest")] == pytest.approx(np.clip(channels["chest"][f], 0, 1), abs=1e-6)
+
+
+def test_the_vrma_holds_the_bvh_the_breathing_and_the_expressions(vrma_run):
+    doc, binary = read_glb(vrma_run / "animation.vrma")
+    ext = doc["extensions"]["VRMC_vrm_animation"]
+    assert ext["specVersion"] == "1.0" and doc["extensionsUsed"] == ["VRMC_vrm_animation"]
+    assert set(ext["humanoid"]["humanBones"]) == set(JOINT_TO_VRM.values())
+    assert doc["scenes"][0]["extras"]["laughlab"]["audio_duration_s"] == pytest.approx(4.0)
+    sk, motion, _ = read_bvh(vrma_run / "motion.bvh")
+    ch = np.genfromtxt(vrma_run / "channels.csv", delimiter=",", names=True)
+    arkit = np.genfromtxt(vrma_run / "face_arkit.csv", delimiter=",", names=True)
+    # the breathing on the spine bones, by hand: spine x -2 belly, spine1 x -3 chest + 2 belly, neck x +3 chest
+    breathing = motion.copy()
+    chest, belly = np.clip(ch["chest"], 0, 1), np.clip(ch["belly"], 0, 1)
+    assert BREATH_DEGREES == {"chest": {"spine1": -3.0, "neck": 3.0}, "belly": {"spine": -2.0, "spine1": 2.0}}
+    breathing[:, HUMANOID.angle_slice("spine").start + 1] += -2 * belly
+    breathing[:, HUMANOID.angle_slice("spine1").start + 1] += -3 * chest + 2 * belly
+    breathing[:, HUMANOID.angle_slice("neck").start + 1] += 3 * chest
+    assert chest.max() > 0.2
+    want = forward_kinematics(HUMANOID, breathing) * 0.01
+    bones = {b: v["node"] for b, v in ext["humanoid"]["humanBones"].items()}
+    for f in FRAMES:
+        _, world, _ = file_world(vrma_run / "animation.vrma", f)
+        got = np.array([world[bones[JOINT_TO_VRM[n]], :3, 3] for n in HUMANOID.names])
+        np.testing.assert_allclose(got, want[f], atol=2e-5)
+        # expressions: the X of each expression node's translation
+        for name, node in ((k, v["node"]) for k, v in ext["expressions"]["preset"].items()):
+            x = world[node, 0, 3]
+            w = np.clip(sum(c * arkit[a][f] for a, c in ARKIT_TO_VRM[name].items() if a in arkit.dtype.names), 0, 1)
+            assert x == pytest.approx(w, abs=1e-6), name
+    assert "blink" not in ext["expressions"]["preset"]  # the eyes go apart: blinkLeft and blinkRight
+    # the rest pose is the VRM T-pose: identity rotations, facing +Z, left = +X
+    assert all("rotation" not in n for n in doc["nodes"])
+    rest = forward_kinematics(HUMANOID, rest_pose())
+    assert rest[HUMANOID.index("left_hand"), 0] > 0
+
+
+def test_the_same_run_gives_the_same_bytes(tmp_path, vrma_run, godette_run, tmp_path_factory):
+    again = run(tmp_path, "output=vrma", "face=facs", "input.duration_s=4")
+    assert (again / "animation.vrma").read_bytes() == (vrma_run / "animation.vrma").read_bytes()
+    again = baked(tmp_path_factory, GODETTE, "godette-again")
+    assert (again / "character.glb").read_bytes() == (godette_run / "character.glb").read_bytes()
+
+
+def test_the_khronos_validator_finds_no_error(vrma_run, godette_run, arkit_run, tmp_path_factory, tmp_path):
+    from test_gltf import validator_issues
+
+    robot = baked(tmp_path_factory, ROBOT, "robot")
+    for path, source in ((vrma_run / "animation.vrma", None), (godette_run / "character.glb", GODETTE),
+                         (arkit_run / "character.glb", None), (robot / "character.glb", ROBOT)):
+        found = validator_issues(path, tmp_path)
+        assert found["numErrors"] == 0, (path, found["messages"])
+        # warnings only those the avatar file itself has (Godette: the 'VRM' extension's name, its images)
+        codes = {m["code"] for m in found["messages"] if m["severity"] <= 1}
+        theirs = set() if source is None else {m["code"] for m in validator_issues(source, tmp_path)["messages"]
+                                               if m["severity"] <= 1}
+        assert codes <= theirs, (path, codes - theirs)
+
+
+# -- bad input ---------------------------------------------------------------------------------------------------
+
+def _cli(tmp_path, *args):
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "laughlab", *args, f"hydra.run.dir={tmp_path / 'run'}"],
+                         capture_output=True, text=True, timeout=300)
+    return out
+
+
+def _robot_without(bone: str, path: Path) -> Path:
+    doc, binary = parse_glb(ROBOT.read_bytes())
+    del doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"][bone]
+    from laughlab.io.gltf import Buffer, glb_bytes
+
+    path.write_bytes(glb_bytes(doc, Buffer(binary, doc["bufferViews"], doc["accessors"])))
+    return path
+
+
+def _no_humanoid(path: Path) -> Path:
+    doc, binary = parse_glb(ROBOT.read_bytes())
+    del doc["extensions"], doc["extensionsUsed"]
+    for k, n in enumerate(doc["nodes"]):
+        n["name"] = f"part{k}"
+    from laughlab.io.gltf import Buffer, glb_bytes
+
+    path.write_bytes(glb_bytes(doc, Buffer(binary, doc["bufferViews"], doc["accessors"])))
+    return path
+
+
+@pytest.mark.parametrize("make, says", [
+    (lambda p: p.write_bytes(b"RIFF\0\0\0\0WAVEfmt ") and p, "is not a glTF file"),
+    (lambda p: _no_humanoid(p), "has no humanoid: no VRM humanoid bone map and no node named as a Mixamo"),
+    (lambda p: _robot_without("leftHand", p), "the VRM humanoid lacks the required bone leftHand"),
+], ids=["not-gltf", "no-humanoid", "vrm-missing-bone"])
+def test_a_bad_avatar_is_one_line_exit_2_and_nothing_written(tmp_path, make, says):
+    path = make(tmp_path / "avatar.glb") or tmp_path / "avatar.glb"
+    out = _cli(tmp_path, "output=gltf", "input.duration_s=1", f"character={path}")
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.strip().count("\n") == 0 and "Traceback" not in out.stderr
+    assert out.stderr.startswith(f"laughlab: error: {path}: ") and says in out.stderr, out.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_very_large_avatar_is_refused_from_its_size(tmp_path):
+    big = tmp_path / "big.vrm"
+    with open(big, "wb") as fh:  # sparse: 101 MB on paper, nothing on disk
+        fh.write(b"glTF")
+        fh.truncate(MAX_BYTES + 1024 * 1024)
+    with pytest.raises(AvatarError, match=r"big.vrm: the avatar is 106 MB; laughlab loads avatars up to 100 MB"):
+        load_avatar(big)
+    out = _cli(tmp_path, "output=gltf", "input.duration_s=1", f"character={big}")
+    assert out.returncode == 2 and "up to 100 MB" in out.stderr and not (tmp_path / "run").exists()
+
+
+def test_a_character_no_output_uses_is_said(tmp_path):
+    out = _cli(tmp_path, "input.duration_s=1", f"character={GODETTE}")
+    assert out.returncode == 2 and "do not use it" in out.stderr and not (tmp_path / "run").exists()
+
+
+def test_the_docs_tables_are_the_codes():
+    """docs/avatars.md lists every accepted node name and the ARKit -> VRM table exactly as the code has them."""
+    from laughlab.avatar.names import NODE_NAMES
+
+    doc = (Path(__file__).parent.parent / "docs" / "avatars.md").read_text()
+    for bone, names in NODE_NAMES.items():
+        assert f"| `{bone}` | " + ", ".join(f"`{n}`" for n in names) + " |" in doc, bone
+    for expr, terms in ARKIT_TO_VRM.items():
+        assert f"| `{expr}` | " in doc and " + ".join(f"{w:g} `{k}`" for k, w in terms.items()) + " |" in doc, expr
+
+
+MIXAMO = {"hips": "Hips", "spine": "Spine", "spine1": "Spine1", "spine2": "Spine2", "neck": "Neck", "head": "Head",
+          **{f"{s}_{j}": f"{S}{m}" for s, S in (("left", "Left"), ("right", "Right"))
+             for j, m in (("clavicle", "Shoulder"), ("upper_arm", "Arm"), ("forearm", "ForeArm"), ("hand", "Hand"),
+                          ("thigh", "UpLeg"), ("shin", "Leg"), ("foot", "Foot"), ("toe", "ToeBase"))}}
+
+
+def test_a_mixamo_named_gltf_json_is_recognised_and_retargets_exactly(tmp_path, godette_run):
+    """The mannequin with Mixamo's node names (``mixamorig:LeftArm``...), as a .gltf JSON with its buffer in a
+    data URI: every joint found by name, and its joints where the BVH's are."""
+    import base64
+
+    doc, binary = parse_glb(mannequin_arkit_glb())
+    for n in doc["nodes"]:
+        if n.get("name") in MIXAMO:
+            n["name"] = "mixamorig:" + MIXAMO[n["name"]]
+    doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64.b64encode(binary).decode()
+    path = tmp_path / "mixamo.gltf"
+    path.write_text(json.dumps(doc))
+    av = load_avatar(path)
+    assert av.kind == "gltf" and len(av.bones) == 22 and av.facing == 1
+    motion, want = bvh_world(godette_run)
+    world = animated_world(av, retarget(av, motion[list(FRAMES)]))
+    for k, f in enumerate(FRAMES):
+        got = np.array([world[k, av.bones[JOINT_TO_VRM[n]], :3, 3] for n in HUMANOID.names])
+        np.testing.assert_allclose(got, want[f], atol=1e-9)

@@ -1,0 +1,75 @@
+"""Issue 28, item 3: ``output=video character=PATH``: the user's avatar rendered in software, its colours and
+textures, the same bytes for the same run."""
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from laughlab.avatar.load import load_avatar
+from laughlab.avatar.mesh import accessor, parts
+from laughlab.motion.skeleton import HUMANOID, rest_pose
+from laughlab.render.avatar_view import AvatarRenderer
+
+ASSETS = Path(__file__).parent / "assets" / "avatars"
+GODETTE = ASSETS / "Godette_vrm_v4.vrm"
+
+
+def test_a_vertex_takes_its_texel_times_the_base_colour():
+    """Godette's face: the colour of a vertex is the texel of its UV (nearest, repeat) in the PNG, by hand."""
+    import io
+
+    from PIL import Image
+
+    av = load_avatar(GODETTE)
+    face = next(p for p in parts(av) if len(p.morphs))
+    prim = av.doc["meshes"][av.doc["nodes"][face.node]["mesh"]]["primitives"][0]
+    uv = accessor(av, prim["attributes"]["TEXCOORD_0"])
+    image = av.doc["images"][av.doc["textures"][0]["source"]]
+    view = av.doc["bufferViews"][image["bufferView"]]
+    png = Image.open(io.BytesIO(av.binary[view["byteOffset"]:view["byteOffset"] + view["byteLength"]]))
+    png = png.convert("RGBA").convert("RGB")
+    w, h = png.size
+    for k in (0, 17, len(uv) // 2, len(uv) - 1):
+        x, y = int(np.floor((uv[k, 0] % 1.0) * w)), int(np.floor((uv[k, 1] % 1.0) * h))
+        assert tuple(face.colours[k]) == tuple(float(c) for c in png.getpixel((x, y)))  # factor 1: the texel
+    assert len(np.unique(face.colours, axis=0)) > 10  # a texture, not one colour
+
+
+def test_the_avatar_is_drawn_with_its_colours_facing_the_camera():
+    """Godette (VRM 0.x, facing -Z) in the rest pose: her face's skin and her blue clothes fill the frame's
+    middle; the same pose gives the same pixels."""
+    av = load_avatar(GODETTE)
+    r = AvatarRenderer(av, HUMANOID, 320, 240, supersample=1)
+    img = r.render(rest_pose(), {})
+    assert np.array_equal(img, AvatarRenderer(av, HUMANOID, 320, 240, supersample=1).render(rest_pose(), {}))
+    mid = img[40:200, 100:220].reshape(-1, 3).astype(int)
+    skin = (mid[:, 0] > 180) & (mid[:, 0] > mid[:, 2] + 20)           # pinkish: her face (lit from the front)
+    blue = (mid[:, 2] > mid[:, 0] + 40)                                # her blue hair and dress
+    assert skin.mean() > 0.05 and blue.mean() > 0.1, (skin.mean(), blue.mean())
+    # turned the wrong way she would show the back of her head and her backpack: little skin
+    r.facing = np.array([1.0, 1.0, 1.0])
+    r.aim = None
+    back = r.render(rest_pose(), {})[40:200, 100:220].reshape(-1, 3).astype(int)
+    assert ((back[:, 0] > 180) & (back[:, 0] > back[:, 2] + 20)).mean() < skin.mean() / 2
+
+
+def test_output_video_on_the_avatar_is_the_same_bytes_for_the_same_run(tmp_path):
+    outs = []
+    for k in range(2):
+        d = tmp_path / f"run{k}"
+        out = subprocess.run([sys.executable, "-m", "laughlab", "output=video", "face=facs", "input.duration_s=1",
+                              f"character={GODETTE}", "output.video.supersample=1", f"hydra.run.dir={d}"],
+                             capture_output=True, text=True, timeout=600)
+        assert out.returncode == 0, out.stderr
+        outs.append((d / "video.mp4").read_bytes())
+    assert outs[0] == outs[1] and len(outs[0]) > 10_000
+
+
+def test_a_character_in_the_schematic_style_is_one_line(tmp_path):
+    out = subprocess.run([sys.executable, "-m", "laughlab", "output=video", "output.video.style=schematic",
+                          f"character={GODETTE}", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 2 and out.stderr.count("\n") == 1 and "style=character only" in out.stderr
+    assert not (tmp_path / "run").exists()
