@@ -4,7 +4,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three
+.PHONY: demo test test-all bench clips docs clean corpus detector yamnet-head browser vendor-three
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -24,6 +24,10 @@ corpus: $(STAMP)
 ## detector: refit the laughter detector's model (laughlab/data/detector.json) on the corpus' train split
 detector: corpus
 	$(PY) -m laughlab.detector.fit
+
+## yamnet-head: refit the yamnet detector's head (laughlab/data/yamnet/head.json) on the corpus' train split
+yamnet-head: corpus
+	$(PY) -m laughlab.detector.yamnet_fit
 
 ## test: the default test suite (slow end-to-end checks excluded); the real corpus and the browser come first
 test: $(STAMP) corpus browser

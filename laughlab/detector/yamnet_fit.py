@@ -1,0 +1,117 @@
+"""Fit the YAMNet laughter head on the *train* split and write ``laughlab/data/yamnet/head.json``.
+
+``python -m laughlab.detector.yamnet_fit`` (after ``python -m laughlab corpus fetch``; ``make
+yamnet-head``) regenerates the bundled head byte for byte: the scenes are those of
+``laughlab.detector.fit`` (seeded, train split, 20/10/5 dB and clean, coloured by a random
+microphone/room response) plus the synthetic generator's seven profiles, the windows are
+YAMNet's on the live 16 kHz conversion, the fit (scikit-learn's L2 logistic regression,
+L-BFGS) is deterministic and the weights are written with 7 significant digits.
+``--check`` refits and compares with the bundled file instead of writing.
+
+A window (0.975 s, one every 0.25 s) counts as laughter when at least half of its last
+0.5 s lies inside an annotated bout: the head says "laughing now", not "a laugh is
+somewhere in the last second", so the gate closes soon after a laugh ends.  The
+features are the logarithms of the 521 scores (plus 1e-4).  The synthetic profiles
+are in the training data so the default run's own input counts as laughter (YAMNet
+alone hears it as speech or animal sounds: ``docs/detector.md``).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import numpy as np
+
+from laughlab.core.errors import LaughlabError
+from laughlab.detector.yamnet import N_CLASSES, WINDOW, Head, Yamnet, data_dir, window_scores
+
+SEED = 20261125
+N_SCENES = 48
+SCENE_S = 40.0
+STEP_S = 0.25
+#: the part of the window a label is about (s)
+LABEL_S = 0.5
+EPS = 1e-4
+#: inverse L2 strength of the logistic regression
+C = 0.1
+OUT = data_dir() / "head.json"
+
+
+def window_labels(rows: list[dict], ends_s: np.ndarray) -> np.ndarray:
+    """1 where at least half of ``[end - LABEL_S, end]`` lies inside the bouts of ``rows``."""
+    cover = np.zeros(len(ends_s))
+    for r in rows:
+        if r["kind"] == "bout":
+            lo = np.maximum(ends_s - LABEL_S, r["onset_s"])
+            hi = np.minimum(ends_s, r["offset_s"])
+            cover += np.clip(hi - lo, 0.0, None)
+    return (cover >= 0.5 * LABEL_S).astype(float)
+
+
+def scene_windows(model: Yamnet, x: np.ndarray, sr: int, rows: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+    step = int(round(STEP_S * sr))
+    ends = np.arange(int(WINDOW * sr / 16000), len(x) + 1, step)
+    return window_scores(x, sr, ends, model), window_labels(rows, ends / sr)
+
+
+def dataset(split: str = "train", n_scenes: int = N_SCENES, seed: int = SEED):
+    """Scores (N, 521) and labels (N,) of the windows of ``split``'s scenes and the synthetic profiles."""
+    from laughlab.corpora.mixed import SAMPLE_RATE, Pool, build_scene
+    from laughlab.detector.fit import SNRS, channel, synthetic_scenes
+
+    model = Yamnet()
+    pool = Pool.of_split(split)
+    S, Y = [], []
+    for i in range(n_scenes):
+        rng = np.random.default_rng([seed, i])
+        x, rows = build_scene(rng, pool, SCENE_S, SNRS[i % len(SNRS)])
+        x = channel(x, rng)
+        s, y = scene_windows(model, x, SAMPLE_RATE, rows)
+        S.append(s)
+        Y.append(y)
+    for x, sr, rows in synthetic_scenes(seed):
+        s, y = scene_windows(model, x, sr, rows)
+        S.append(s)
+        Y.append(y)
+    return np.concatenate(S), np.concatenate(Y)
+
+
+def fit(S: np.ndarray, y: np.ndarray) -> dict:
+    try:
+        from sklearn.linear_model import LogisticRegression
+    except ImportError:
+        raise LaughlabError("fitting the head needs scikit-learn: pip install -e '.[fit]'") from None
+    X = np.log(S + EPS)
+    clf = LogisticRegression(C=C, max_iter=5000, solver="lbfgs")
+    clf.fit(X, y.astype(int))
+    r = lambda a: [float(f"{v:.7g}") for v in np.ravel(a)]  # noqa: E731
+    return {"eps": EPS, "weights": r(clf.coef_[0]), "bias": r(clf.intercept_)[0]}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m laughlab.detector.yamnet_fit", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--out", default=str(OUT), help="where to write the head (default: the bundled file)")
+    ap.add_argument("--check", action="store_true", help="refit and compare with the bundled head; write nothing")
+    ns = ap.parse_args(argv)
+    try:
+        S, y = dataset()
+        head = fit(S, y)
+        h = Head(np.array(head["weights"]), head["bias"], head["eps"], head)
+        p = h.prob(S)
+        acc = float(((p >= 0.5) == (y > 0)).mean())
+        head["fit"] = {"command": "python -m laughlab.detector.yamnet_fit", "split": "train", "scenes": N_SCENES,
+                       "scene_s": SCENE_S, "synthetic_profiles": 7, "step_s": STEP_S, "label_s": LABEL_S,
+                       "windows": int(len(y)), "laughter_share": round(float(y.mean()), 4), "C": C, "seed": SEED,
+                       "train_accuracy": round(acc, 4), "classes": N_CLASSES}
+        text = json.dumps(head, separators=(",", ":")) + "\n"
+    except LaughlabError as exc:
+        print(f"laughlab: error: {exc}", file=sys.stderr)
+        return 2
+    from laughlab.detector.fit import write_or_check
+
+    return write_or_check(text, ns.out, OUT, ns.check, "head",
+                          f"{len(y)} windows, {100 * y.mean():.1f}% laughter, train accuracy {acc:.3f}")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
