@@ -237,3 +237,11 @@ def test_detect_bad_input_is_one_line(tmp_path, args, message):
     assert r.returncode == 2
     assert r.stderr.strip().splitlines() == [r.stderr.strip()] and message in r.stderr
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+def test_the_head_is_refitted_byte_for_byte():
+    """``python -m laughlab.detector.yamnet_fit --check`` refits on the train split and compares the bytes (~2-5 min)."""
+    from laughlab.detector.yamnet_fit import main
+
+    assert main(["--check"]) == 0
