@@ -92,7 +92,13 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m laughlab.detector.yamnet_fit", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default=str(OUT), help="where to write the head (default: the bundled file)")
     ap.add_argument("--check", action="store_true", help="refit and compare with the bundled head; write nothing")
+    ap.add_argument("--gate", action="store_true", help="print the live gate's opening rules on the train scenes")
     ns = ap.parse_args(argv)
+    if ns.gate:
+        for r in gate_sweep():
+            print(f"open_at {r['open_at']:.1f}, {r['windows']} window(s) in a row: bouts found "
+                  f"{r['bouts_found']:.3f}, openings outside laughter {r['false_per_10min']:.1f} per 10 min")
+        return 0
     try:
         S, y = dataset()
         head = fit(S, y)
@@ -111,6 +117,49 @@ def main(argv: list[str] | None = None) -> int:
 
     return write_or_check(text, ns.out, OUT, ns.check, "head",
                           f"{len(y)} windows, {100 * y.mean():.1f}% laughter, train accuracy {acc:.3f}")
+
+
+
+def gate_sweep(n_scenes: int = N_SCENES, seed: int = SEED) -> list[dict]:
+    """The live gate's opening rule on the train scenes (``--gate``): for ``open_at`` and the number of
+    windows in a row at or above it (every 0.5 s, as live), the share of bouts during which the gate opens
+    (inside the bout or up to 1 s after) and the openings outside every bout per minute of non-laughter."""
+    from laughlab.corpora.mixed import SAMPLE_RATE, Pool, build_scene
+    from laughlab.detector.fit import SNRS, channel
+
+    model, head = Yamnet(), Head.load()
+    pool = Pool.of_split("train")
+    scenes = []
+    for i in range(n_scenes):
+        rng = np.random.default_rng([seed, i])
+        x, rows = build_scene(rng, pool, SCENE_S, SNRS[i % len(SNRS)])
+        x = channel(x, rng)
+        step = SAMPLE_RATE // 2
+        ends = np.arange(step, len(x) + 1, step)
+        scenes.append((head.prob(window_scores(x, SAMPLE_RATE, ends, model)), ends / SAMPLE_RATE,
+                       [(r["onset_s"], r["offset_s"]) for r in rows if r["kind"] == "bout"], len(x) / SAMPLE_RATE))
+    out = []
+    for open_at in (0.3, 0.4, 0.5, 0.6, 0.7, 0.8):
+        for run in (1, 2):
+            found = n_bouts = false = 0
+            non_laugh_min = 0.0
+            for p, t, bouts, dur in scenes:
+                ok = p >= open_at
+                opened = ok.copy()
+                for k in range(1, run):
+                    opened[k:] &= ok[:-k]
+                    opened[:k] = False
+                onsets = t[opened & ~np.concatenate([[False], opened[:-1]])]
+                n_bouts += len(bouts)
+                found += sum(bool(((t >= a) & (t <= b + 1.0) & opened).any()) for a, b in bouts)
+                heard = np.zeros(len(onsets), bool)
+                for a, b in bouts:
+                    heard |= (onsets >= a) & (onsets <= b + 1.0)
+                false += int((~heard).sum())
+                non_laugh_min += max(dur - sum(b + 1.0 - a for a, b in bouts), 0.0) / 60.0
+            out.append({"open_at": open_at, "windows": run, "bouts_found": found / max(n_bouts, 1),
+                        "false_per_10min": 10 * false / max(non_laugh_min, 1e-9)})
+    return out
 
 
 if __name__ == "__main__":
