@@ -151,7 +151,7 @@ def gate_run(ps, mcs, **params):
 def test_the_face_answers_a_new_sound_at_once_and_clips_wait_for_the_model():
     # a sound from frame 10 on; windows every 30 frames (0.5 s): at frames 29, 59, 89 (0-based)
     mcs = [0.0] * 10 + [0.6] * 110
-    r = gate_run([0.1, 0.9, 0.1, 0.1], mcs, attack_s=0.0, release_s=0.0)
+    r = gate_run([0.1, 0.9, 0.1, 0.1], mcs, attack_s=0.0, release_s=0.0, open_windows=1)
     # frames 10..58: the face follows the sound (provisional: the window at frame 29 has heard
     # 20 frames = 0.33 s >= decide_s, so it decides: p = 0.1 -> closed)
     assert np.all(r[10:29, 2] == 1.0) and np.all(r[10:29, 3] == 0.6)
@@ -163,8 +163,16 @@ def test_the_face_answers_a_new_sound_at_once_and_clips_wait_for_the_model():
 
 
 def test_hysteresis_keeps_the_clip_gain_open_between_close_below_and_open_at():
-    r = gate_run([0.6, 0.4, 0.35, 0.2], [0.0] * 120, attack_s=0.0, release_s=0.0)
+    r = gate_run([0.6, 0.4, 0.35, 0.2], [0.0] * 120, attack_s=0.0, release_s=0.0, open_windows=1)
     assert np.all(r[29:119, 1] == 1.0) and r[119, 1] == 0.0
+
+
+def test_the_clip_gain_opens_after_open_windows_windows_in_a_row():
+    # default: two windows in a row at or above 0.5; a lone window is not enough
+    r = gate_run([0.9, 0.2, 0.6, 0.7, 0.4], [0.0] * 150, attack_s=0.0, release_s=0.0)
+    # windows at frames 29 (0.9), 59 (0.2), 89 (0.6), 119 (0.7), 149 (0.4)
+    assert np.all(r[:119, 1] == 0.0)                   # 0.9 alone is not enough, nor 0.6 alone
+    assert np.all(r[119:, 1] == 1.0)                   # 0.6 then 0.7: open at 119; 0.4 >= close_below keeps it
 
 
 def test_the_scheduler_reads_the_ungated_mcs_times_the_clip_gain():
