@@ -104,7 +104,7 @@ class Yamnet:
             from ai_edge_litert.interpreter import Interpreter
         except ImportError:
             raise ModelFileError("the yamnet detector needs ai-edge-litert (pip install ai-edge-litert); "
-                                 "where it has no wheel (Windows), use detector=laugh or detector=none") from None
+                                 "where it has no wheel (Intel Macs), use detector=laugh or detector=none") from None
         try:
             with _quiet_stderr():  # LiteRT prints "INFO: Created TensorFlow Lite XNNPACK delegate" on fd 2
                 self.it = Interpreter(model_content=data, num_threads=1)
