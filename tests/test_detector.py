@@ -193,7 +193,7 @@ def test_the_gate_scales_the_drive_and_none_passes_it(gated_and_plain):
     (["detector=laugh", "detector.model=/no/such.json"],
      "bad parameter in detector.laugh: model file not found: /no/such.json"),
     (["detector=nope"], "unknown detector 'nope'"),
-    (["detector.open_at=0.5"], "unknown parameter detector.open_at; this detector takes no parameters"),
+    (["detector=none", "detector.open_at=0.5"], "unknown parameter detector.open_at; this detector takes no parameters"),
 ])
 def test_detector_errors_are_one_line(tmp_path, args, msg):
     r = _laughlab(f"hydra.run.dir={tmp_path / 'x'}", "input.duration_s=1", *args)
