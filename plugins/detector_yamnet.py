@@ -1,14 +1,18 @@
 """Detector ``yamnet`` (the default): Google's YAMNet hears laughter; a fast face, body clips wait for it.
 
 Per frame the detector keeps the last second of audio (``laughlab.detector.yamnet.Window16k``).
-Every ``hop_s`` (0.5 s: 30 frames at 60 fps) it runs YAMNet on the 0.975 s window ending
-at the current block's last sample and turns the 521 scores into a laughter probability
-(``Head``: a logistic regression fitted on the corpus' train split; it holds until the
-next window).  Two gains follow (the rule of ``docs/detector.md``):
+Every ``hop_s`` (0.25 s: 15 frames at 60 fps) it runs YAMNet on the 0.975 s window ending
+at the current block's last sample and keeps two scores until the next window: the laughter
+probability of the ``Head`` (a logistic regression fitted on the corpus' train split) and
+the laughter classes' own score (the largest of YAMNet's six laughter classes).  Two gains
+follow (the rule of ``docs/detector.md``):
 
-- the **clip gain** (``laugh_gate``) is the model's: it opens when the probability of
-  ``open_windows`` (2) windows in a row reaches ``open_at`` and closes once it has stayed below
-  ``close_below`` for ``hold_s``.  The
+- the **clip gain** (``laugh_gate``) is the model's.  ``rule=either`` (the default): it opens
+  when the head's probability of ``open_windows`` (3) windows in a row reaches ``open_at`` or
+  the classes' score of ``class_windows`` (1) reaches ``class_open`` (0.1), and closes once both
+  are under their lower thresholds (``close_below``, ``class_close``) for ``hold_s``, or at once
+  after ``close_quiet_s`` (0.3 s) of quiet (ungated ``mcs`` under ``onset_mcs``).  ``rule=head``
+  and ``rule=classes`` use one score only.  The
   schedulers read ``mcs`` times this gain (``control['clip_gate']``), so a full-body clip
   starts only when the model agrees;
 - the **face gain** (``face_gate``) is the clip gain, except that a new sound (the
@@ -19,8 +23,8 @@ next window).  Two gains follow (the rule of ``docs/detector.md``):
   it, call onsets and labels are dropped below 0.5 (``apply_gate``).
 
 Look-ahead: the frame's own audio block.  Live and offline see the same blocks, so the
-same bytes.  ``laughter`` holds the probability, ``laugh_gate`` the clip gain, ``face_gate``
-the face gain.
+same bytes.  ``laughter`` holds the head's probability, ``laughter_classes`` the classes'
+score, ``laugh_gate`` the clip gain, ``face_gate`` the face gain.
 """
 from __future__ import annotations
 
@@ -39,16 +43,28 @@ class YamnetParams:
 
     Attributes
     ----------
+    rule : str
+        What opens the clip gain: ``head`` (the head's probability), ``classes`` (YAMNet's own
+        laughter classes, untuned: the largest of their six scores) or ``either`` (the default:
+        whichever opens first; the gain stays open while either keeps it).
     hop_s : float
-        Time between two model windows (s), rounded to whole frames; 0.5 s is YAMNet's own hop.
+        Time between two model windows (s), rounded to whole frames (0.25 s: 15 frames at 60 fps).
     open_at, close_below : float
-        The clip gain opens when the laughter probability of ``open_windows`` windows in a row
-        reaches ``open_at`` ...
+        Rule head/either: the clip gain opens when the head's probability of ``open_windows``
+        windows in a row reaches ``open_at`` ...
     open_windows : int
-        Windows in a row at or above ``open_at`` that open the clip gain (2: 0.5 s more latency,
-        11x fewer openings outside laughter on the train scenes, ``yamnet_fit --gate``).
+        Windows in a row at or above ``open_at`` that open the clip gain (3 at 0.25 s; chosen on the
+        train scenes, ``yamnet_fit --rules``).
     hold_s : float
         ... and closes once it has stayed below ``close_below`` for this long (s).
+    class_open, class_windows, class_close : float, int, float
+        Rule classes/either: the gain opens when the laughter classes' score of ``class_windows``
+        windows in a row reaches ``class_open`` and stays open while the newest window's is at or above
+        ``class_close`` (the head's ``close_below`` also keeps it open under ``either``).
+    close_quiet_s : float
+        Whatever the scores, the clip gain closes once the ungated ``mcs`` has stayed below
+        ``onset_mcs`` this long (s), and cannot open until it is back (0: never): the clip stops soon
+        after the laugh while the one-second window still holds it.
     onset_mcs, quiet_s : float
         A new sound: the ungated ``mcs`` reaches ``onset_mcs`` after ``quiet_s`` (s) below it.
     decide_s : float
@@ -59,9 +75,10 @@ class YamnetParams:
         A head JSON (``python -m laughlab.detector.yamnet_fit --out FILE``); None: the bundled one.
     """
 
-    hop_s: float = 0.5
+    rule: str = "either"
+    hop_s: float = 0.25
     open_at: float = 0.5
-    open_windows: int = 2
+    open_windows: int = 3
     close_below: float = 0.3
     hold_s: float = 0.0
     onset_mcs: float = 0.15
@@ -69,6 +86,10 @@ class YamnetParams:
     decide_s: float = 0.3
     attack_s: float = 0.05
     release_s: float = 0.25
+    class_open: float = 0.1
+    class_close: float = 0.05
+    class_windows: int = 1
+    close_quiet_s: float = 0.3
     head: str | None = None
 
     def __post_init__(self) -> None:
@@ -76,11 +97,25 @@ class YamnetParams:
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{k} must be a number >= 0 (got {v})")
-        if not (isinstance(self.open_windows, int) and self.open_windows >= 1):
-            raise ValueError(f"open_windows must be a whole number >= 1 (got {self.open_windows})")
+        if self.rule not in RULES:
+            raise ValueError(f"rule must be one of {', '.join(RULES)} (got {self.rule})")
+        if not (isinstance(self.close_quiet_s, (int, float)) and math.isfinite(self.close_quiet_s)
+                and self.close_quiet_s >= 0):
+            raise ValueError(f"close_quiet_s must be a number >= 0 (got {self.close_quiet_s})")
+        for k in ("open_windows", "class_windows"):
+            v = getattr(self, k)
+            if not (isinstance(v, int) and v >= 1):
+                raise ValueError(f"{k} must be a whole number >= 1 (got {v})")
+        if not (0.0 <= self.class_close <= self.class_open <= 1.0):
+            raise ValueError(f"need 0 <= class_close <= class_open <= 1 (got class_open={self.class_open}, "
+                             f"class_close={self.class_close})")
         if not (0.0 <= self.close_below <= self.open_at <= 1.0):
             raise ValueError(f"need 0 <= close_below <= open_at <= 1 (got open_at={self.open_at}, "
                              f"close_below={self.close_below})")
+
+
+#: which score opens the clip gain: the head's probability, the laughter classes' score, or either
+RULES = ("head", "classes", "either")
 
 
 class YamnetDetector(Detector):
@@ -102,7 +137,9 @@ class YamnetDetector(Detector):
         self.window.reset()
         self.k = 0
         self.p = 0.0
+        self.q = 0.0        # the laughter classes' score of the newest window
         self.run = 0        # windows in a row at or above open_at
+        self.qrun = 0       # windows in a row at or above class_open
         self.open = False
         self.below_s = 0.0
         self.clip_gain = 0.0
@@ -129,15 +166,20 @@ class YamnetDetector(Detector):
         else:
             self.quiet += dt
         if (self.k + 1) % self.hop == 0:
-            self.p = self.score(self.model.scores(self.window.window()))
+            self.p, self.q = self.score.both(self.model.scores(self.window.window()))
             self.run = self.run + 1 if self.p >= p.open_at else 0
+            self.qrun = self.qrun + 1 if self.q >= p.class_open else 0
             if self.pending is not None and t_end - self.pending >= p.decide_s - 1e-9:
                 self.pending = None
         self.k += 1
-        if self.run >= p.open_windows:
+        head, classes = p.rule in ("head", "either"), p.rule in ("classes", "either")
+        sound = p.close_quiet_s <= 0 or self.quiet < p.close_quiet_s - 1e-9
+        if sound and ((head and self.run >= p.open_windows) or (classes and self.qrun >= p.class_windows)):
             self.open, self.below_s = True, 0.0
         elif self.open:
-            if self.p < p.close_below:
+            if not sound:
+                self.open = False
+            elif not ((head and self.p >= p.close_below) or (classes and self.q >= p.class_close)):
                 self.below_s += dt
                 if self.below_s >= p.hold_s - 1e-9:
                     self.open = False
@@ -147,6 +189,7 @@ class YamnetDetector(Detector):
         self.face_gain = self._ramp(self.face_gain, self.open or self.pending is not None, dt)
         face = max(self.face_gain, self.clip_gain)
         c["laughter"] = self.p
+        c["laughter_classes"] = self.q
         c["laugh_gate"] = self.clip_gain
         c["face_gate"] = face
         apply_gate(frame, face)

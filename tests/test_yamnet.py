@@ -125,20 +125,23 @@ def test_a_corrupt_model_file_at_run_time_is_one_line(tmp_path):
 # --- the gate's rule ------------------------------------------------------------------------------------
 
 class FixedScore:
-    """Stands in for the head: the probabilities, one per model window, in order."""
+    """Stands in for the head and the laughter classes: their scores, one per model window, in order."""
 
-    def __init__(self, ps):
+    def __init__(self, ps, qs=None):
         self.ps = list(ps)
+        self.qs = list(qs) if qs is not None else [0.0] * len(self.ps)
 
-    def __call__(self, scores):
-        return self.ps.pop(0)
+    def both(self, scores):
+        return self.ps.pop(0), self.qs.pop(0)
 
 
-def gate_run(ps, mcs, **params):
+def gate_run(ps, mcs, qs=None, **params):
     from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
 
+    # the rule these hand-computed sequences were written for: the head alone, windows every 0.5 s, no quiet close
+    params = {"rule": "head", "hop_s": 0.5, "open_windows": 2, "close_quiet_s": 0.0, **params}
     det = YamnetDetector(YamnetParams(**params), Context(fps=FPS, sample_rate=16000))
-    det.score = FixedScore(ps)
+    det.score = FixedScore(ps, qs)
     rows = []
     for k, m in enumerate(mcs):
         f = Frame(k, k / FPS, 1 / FPS, {"mcs": m}, None, {}, {}, [], 0.0)
@@ -168,11 +171,86 @@ def test_hysteresis_keeps_the_clip_gain_open_between_close_below_and_open_at():
 
 
 def test_the_clip_gain_opens_after_open_windows_windows_in_a_row():
-    # default: two windows in a row at or above 0.5; a lone window is not enough
+    # two windows in a row at or above 0.5; a lone window is not enough
     r = gate_run([0.9, 0.2, 0.6, 0.7, 0.4], [0.0] * 150, attack_s=0.0, release_s=0.0)
     # windows at frames 29 (0.9), 59 (0.2), 89 (0.6), 119 (0.7), 149 (0.4)
     assert np.all(r[:119, 1] == 0.0)                   # 0.9 alone is not enough, nor 0.6 alone
     assert np.all(r[119:, 1] == 1.0)                   # 0.6 then 0.7: open at 119; 0.4 >= close_below keeps it
+
+
+def test_rule_classes_opens_on_the_laughter_classes_score_with_hysteresis():
+    # windows every 15 frames (0.25 s): at frames 14, 29, 44, 59, 74 (0-based); the head says 0.9 throughout,
+    # which rule=classes ignores
+    qs = [0.02, 0.12, 0.07, 0.04, 0.2]
+    r = gate_run([0.9] * 5, [0.6] * 75, qs, rule="classes", hop_s=0.25, class_open=0.1, class_close=0.05,
+                 attack_s=0.0, release_s=0.0)
+    assert np.all(r[:29, 1] == 0.0)        # 0.02 < 0.1
+    assert np.all(r[29:59, 1] == 1.0)      # 0.12 opens; 0.07 >= 0.05 keeps it open
+    assert np.all(r[59:74, 1] == 0.0)      # 0.04 < 0.05 closes it at once (hold_s = 0)
+    assert r[74, 1] == 1.0                 # 0.2 opens it again
+    assert r[29, 0] == 0.9                 # `laughter` still holds the head's probability
+
+
+def test_rule_either_opens_on_the_head_or_the_classes_and_closes_when_both_fall():
+    # windows at frames 14, 29, 44, 59, 74, 89; head 2 windows in a row >= 0.5 (keeps >= 0.3), classes 1 >= 0.1
+    ps = [0.6, 0.7, 0.2, 0.1, 0.1, 0.1]
+    qs = [0.0, 0.0, 0.06, 0.02, 0.3, 0.0]
+    r = gate_run(ps, [0.6] * 90, qs, rule="either", hop_s=0.25, class_open=0.1, class_close=0.05,
+                 attack_s=0.0, release_s=0.0)
+    assert np.all(r[:29, 1] == 0.0)        # one head window is not enough
+    assert np.all(r[29:44, 1] == 1.0)      # the head opens (0.6, 0.7)
+    assert np.all(r[44:59, 1] == 1.0)      # head 0.2 < 0.3 but classes 0.06 >= 0.05 keep it
+    assert np.all(r[59:74, 1] == 0.0)      # both below: closed
+    assert np.all(r[74:89, 1] == 1.0) and r[89, 1] == 0.0   # the classes alone open it (0.3), then 0.0 closes
+    # rule=head on the same scores: open only from frame 29 to 43
+    h = gate_run(ps, [0.6] * 90, qs, rule="head", hop_s=0.25, attack_s=0.0, release_s=0.0)
+    assert np.all(h[29:44, 1] == 1.0) and np.all(h[44:, 1] == 0.0) and np.all(h[:29, 1] == 0.0)
+
+
+@pytest.mark.parametrize("rule", ["head", "classes", "either"])
+def test_the_train_split_sweep_gates_like_the_detector(rule):
+    """``yamnet_fit --rules`` chose the thresholds with ``gate_windows``: the detector's rule, window by window."""
+    from laughlab.detector.yamnet_fit import gate_windows
+
+    rng = np.random.default_rng(3)
+    ps, qs = rng.uniform(0, 1, 40).round(2), (rng.uniform(0, 0.2, 40) ** 2 * 5).round(3)
+    kw = dict(open_windows=3, class_open=0.1, class_windows=1, class_close=0.05)
+    r = gate_run(list(ps), [0.6] * 600, list(qs), rule=rule, hop_s=0.25, attack_s=0.0, release_s=0.0, **kw)
+    want = gate_windows(ps, qs, rule, **kw)
+    assert np.array_equal(r[14::15, 1] == 1.0, want) and want.any() and not want.all()
+
+
+def test_the_clip_gain_closes_after_close_quiet_s_of_quiet_and_cannot_open_in_quiet():
+    # sound (mcs 0.6) for frames 0..39, then quiet; the classes say laughter in every window (0.5)
+    mcs = [0.6] * 40 + [0.0] * 50
+    r = gate_run([0.0] * 6, mcs, [0.5] * 6, rule="classes", hop_s=0.25, class_open=0.1, class_close=0.05,
+                 close_quiet_s=0.3, attack_s=0.0, release_s=0.0)
+    # open from the first window (frame 14); quiet from frame 40: 18 frames (0.3 s) below onset_mcs at frame 57
+    assert np.all(r[:14, 1] == 0.0) and np.all(r[14:57, 1] == 1.0)
+    assert np.all(r[57:, 1] == 0.0)        # closed, and the windows at 59, 74, 89 (0.5) do not reopen it
+    # without the quiet close the window's score keeps it open
+    k = gate_run([0.0] * 6, mcs, [0.5] * 6, rule="classes", hop_s=0.25, close_quiet_s=0.0, attack_s=0.0,
+                 release_s=0.0)
+    assert np.all(k[14:, 1] == 1.0)
+
+
+def test_bad_rule_parameters_are_refused():
+    from laughlab_plugins.detector_yamnet import YamnetParams
+
+    with pytest.raises(ValueError, match="rule must be one of head, classes, either"):
+        YamnetParams(rule="both")
+    with pytest.raises(ValueError, match="class_close <= class_open"):
+        YamnetParams(class_open=0.1, class_close=0.2)
+    with pytest.raises(ValueError, match="class_windows"):
+        YamnetParams(class_windows=0)
+
+
+def test_the_default_rule_is_either_every_quarter_second_with_the_quiet_close():
+    from laughlab_plugins.detector_yamnet import YamnetParams
+
+    p = YamnetParams()
+    assert (p.rule, p.hop_s, p.open_windows, p.class_open, p.class_windows, p.class_close, p.close_quiet_s) == \
+        ("either", 0.25, 3, 0.1, 1, 0.05, 0.3)
 
 
 def test_the_scheduler_reads_the_ungated_mcs_times_the_clip_gain():

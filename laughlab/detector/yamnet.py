@@ -267,17 +267,27 @@ class Head:
         return 1.0 / (1.0 + np.exp(-np.clip(z, -30.0, 30.0)))
 
 
+def class_score(scores: np.ndarray, idx) -> np.ndarray:
+    """YAMNet's own laughter score, untuned: the largest of the six laughter classes' scores."""
+    return np.max(np.asarray(scores)[..., idx], axis=-1)
+
+
 class LaughterScore:
-    """Scores -> laughter probability: the head when bundled, else the largest laughter-class score."""
+    """Scores -> laughter probability: the head when bundled, else the largest laughter-class score.
+
+    ``both(scores)`` gives ``(head probability, laughter-class score)`` (the head's is the class
+    score when there is no head)."""
 
     def __init__(self, head: str | Path | None = None, use_head: bool = True):
         self.idx = laugh_indices(class_names())
         self.head = Head.load(head) if use_head else None
 
     def __call__(self, scores: np.ndarray) -> float:
-        if self.head is not None:
-            return float(self.head.prob(scores))
-        return float(np.max(np.asarray(scores)[self.idx]))
+        return self.both(scores)[0]
+
+    def both(self, scores: np.ndarray) -> tuple[float, float]:
+        q = float(class_score(scores, self.idx))
+        return (float(self.head.prob(scores)) if self.head is not None else q), q
 
 
 def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: Yamnet | None = None) -> np.ndarray:

@@ -6,7 +6,9 @@ yamnet-head``) regenerates the bundled head byte for byte: the scenes are those 
 microphone/room response) plus the synthetic generator's seven profiles, the windows are
 YAMNet's on the live 16 kHz conversion, the fit (scikit-learn's L2 logistic regression,
 L-BFGS) is deterministic and the weights are written with 7 significant digits.
-``--check`` refits and compares with the bundled file instead of writing.
+``--check`` refits and compares with the bundled file instead of writing; ``--gate`` and ``--rules``
+print the live gate's rules on the train scenes (the thresholds of ``conf/detector/yamnet.yaml``
+were chosen there, never on the test split).
 
 A window (0.975 s, one every 0.25 s) counts as laughter when at least half of its last
 0.5 s lies inside an annotated bout: the head says "laughing now", not "a laugh is
@@ -93,7 +95,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default=str(OUT), help="where to write the head (default: the bundled file)")
     ap.add_argument("--check", action="store_true", help="refit and compare with the bundled head; write nothing")
     ap.add_argument("--gate", action="store_true", help="print the live gate's opening rules on the train scenes")
+    ap.add_argument("--rules", action="store_true", help="print the rules head / classes / either on the train "
+                    "scenes (windows every 0.25 s)")
     ns = ap.parse_args(argv)
+    if ns.rules:
+        for r in rule_sweep():
+            print(f"{r['rule']}: bouts found {r['bouts_found']:.3f}, openings outside laughter "
+                  f"{r['false_per_10min']:.1f} per 10 min; synthetic bouts found {r['synthetic_found']:.3f}")
+        return 0
     if ns.gate:
         for r in gate_sweep():
             print(f"open_at {r['open_at']:.1f}, {r['windows']} window(s) in a row: bouts found "
@@ -136,29 +145,101 @@ def gate_sweep(n_scenes: int = N_SCENES, seed: int = SEED) -> list[dict]:
         x = channel(x, rng)
         step = SAMPLE_RATE // 2
         ends = np.arange(step, len(x) + 1, step)
-        scenes.append((head.prob(window_scores(x, SAMPLE_RATE, ends, model)), ends / SAMPLE_RATE,
-                       [(r["onset_s"], r["offset_s"]) for r in rows if r["kind"] == "bout"], len(x) / SAMPLE_RATE))
+        scenes.append({"p": head.prob(window_scores(x, SAMPLE_RATE, ends, model)), "t": ends / SAMPLE_RATE,
+                       "bouts": [(r["onset_s"], r["offset_s"]) for r in rows if r["kind"] == "bout"],
+                       "dur": len(x) / SAMPLE_RATE})
     out = []
     for open_at in (0.3, 0.4, 0.5, 0.6, 0.7, 0.8):
         for run in (1, 2):
-            found = n_bouts = false = 0
-            non_laugh_min = 0.0
-            for p, t, bouts, dur in scenes:
-                ok = p >= open_at
+            def opened_of(sc, open_at=open_at, run=run):
+                ok = sc["p"] >= open_at
                 opened = ok.copy()
                 for k in range(1, run):
                     opened[k:] &= ok[:-k]
                     opened[:k] = False
-                onsets = t[opened & ~np.concatenate([[False], opened[:-1]])]
-                n_bouts += len(bouts)
-                found += sum(bool(((t >= a) & (t <= b + 1.0) & opened).any()) for a, b in bouts)
-                heard = np.zeros(len(onsets), bool)
-                for a, b in bouts:
-                    heard |= (onsets >= a) & (onsets <= b + 1.0)
-                false += int((~heard).sum())
-                non_laugh_min += max(dur - sum(b + 1.0 - a for a, b in bouts), 0.0) / 60.0
-            out.append({"open_at": open_at, "windows": run, "bouts_found": found / max(n_bouts, 1),
-                        "false_per_10min": 10 * false / max(non_laugh_min, 1e-9)})
+                return opened
+
+            found, false = _found_false(scenes, opened_of)
+            out.append({"open_at": open_at, "windows": run, "bouts_found": found, "false_per_10min": false})
+    return out
+
+
+def gate_windows(p: np.ndarray, q: np.ndarray, rule: str, open_at: float = 0.5, open_windows: int = 2,
+                 close_below: float = 0.3, class_open: float = 0.1, class_windows: int = 1,
+                 class_close: float = 0.05) -> np.ndarray:
+    """The live clip gate's state after each window (``plugins/detector_yamnet.py`` without the quiet close):
+    ``p`` the head's probabilities, ``q`` the laughter classes' scores, one per window."""
+    head, classes = rule in ("head", "either"), rule in ("classes", "either")
+    out = np.zeros(len(p), bool)
+    is_open, run, qrun = False, 0, 0
+    for i in range(len(p)):
+        run = run + 1 if p[i] >= open_at else 0
+        qrun = qrun + 1 if q[i] >= class_open else 0
+        if (head and run >= open_windows) or (classes and qrun >= class_windows):
+            is_open = True
+        elif is_open and not ((head and p[i] >= close_below) or (classes and q[i] >= class_close)):
+            is_open = False
+        out[i] = is_open
+    return out
+
+
+def _found_false(scenes: list, opened_of) -> tuple[float, float]:
+    """Share of bouts during which the gate is open (inside the bout or up to 1 s after) and openings outside
+    every bout (and its 1 s tail) per 10 minutes of non-laughter."""
+    found = n_bouts = false = 0
+    non_laugh_min = 0.0
+    for sc in scenes:
+        t, bouts = sc["t"], sc["bouts"]
+        opened = opened_of(sc)
+        onsets = t[opened & ~np.concatenate([[False], opened[:-1]])]
+        n_bouts += len(bouts)
+        found += sum(bool(((t >= a) & (t <= b + 1.0) & opened).any()) for a, b in bouts)
+        heard = np.zeros(len(onsets), bool)
+        for a, b in bouts:
+            heard |= (onsets >= a) & (onsets <= b + 1.0)
+        false += int((~heard).sum())
+        non_laugh_min += max(sc["dur"] - sum(b + 1.0 - a for a, b in bouts), 0.0) / 60.0
+    return found / max(n_bouts, 1), 10 * false / max(non_laugh_min, 1e-9)
+
+
+def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) -> list[dict]:
+    """The rules ``head``, ``classes`` and ``either`` on the train scenes and the synthetic profiles (``--rules``),
+    one window every ``hop_s`` as live: bouts found and openings outside laughter (as :func:`gate_sweep`)."""
+    from laughlab.corpora.mixed import SAMPLE_RATE, Pool, build_scene
+    from laughlab.detector.fit import SNRS, channel, synthetic_scenes
+    from laughlab.detector.yamnet import class_names, class_score, laugh_indices
+
+    model, head = Yamnet(), Head.load()
+    idx = laugh_indices(class_names())
+
+    def scene(x, sr, rows):
+        step = int(round(hop_s * sr))
+        ends = np.arange(step, len(x) + 1, step)
+        S = window_scores(x, sr, ends, model)
+        return {"p": head.prob(S), "q": class_score(S, idx), "t": ends / sr, "dur": len(x) / sr,
+                "bouts": [(r["onset_s"], r["offset_s"]) for r in rows if r["kind"] == "bout"]}
+
+    pool = Pool.of_split("train")
+    train = []
+    for i in range(n_scenes):
+        rng = np.random.default_rng([seed, i])
+        x, rows = build_scene(rng, pool, SCENE_S, SNRS[i % len(SNRS)])
+        train.append(scene(channel(x, rng), SAMPLE_RATE, rows))
+    synth = [scene(x, sr, rows) for x, sr, rows in synthetic_scenes(seed)]
+    rules = [(f"head, open_at 0.5 x{n}", {"rule": "head", "open_windows": n}) for n in (2, 3, 4)]
+    rules += [(f"classes, class_open {c} x{n}, class_close {c / 2:g}",
+               {"rule": "classes", "class_open": c, "class_windows": n, "class_close": c / 2})
+              for c in (0.05, 0.1, 0.15, 0.2, 0.3) for n in (1, 2)]
+    rules += [(f"either, class_open {c} x{n} or head 0.5 x{h}",
+               {"rule": "either", "class_open": c, "class_windows": n, "class_close": c / 2, "open_windows": h})
+              for c in (0.1, 0.2) for n in (1, 2) for h in (2, 3, 4)]
+    out = []
+    for name, kw in rules:
+        def opened(sc, kw=kw):
+            return gate_windows(sc["p"], sc["q"], **kw)
+        found, false = _found_false(train, opened)
+        out.append({"rule": name, **kw, "bouts_found": found, "false_per_10min": false,
+                    "synthetic_found": _found_false(synth, opened)[0]})
     return out
 
 
