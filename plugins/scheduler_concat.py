@@ -81,6 +81,7 @@ from laughlab.concat.costs import Concatenation, c_cont, c_dur, choose, label_ru
 from laughlab.core.errors import LaughlabError
 from laughlab.core.frame import ClipEvent
 from laughlab.core.plugins import check_range
+from laughlab.detector.model import clip_drive
 from laughlab.concat.segments import PSEUDO_PHONEMES, segment_db
 
 ENERGY_SCALE = 40.0
@@ -90,6 +91,11 @@ ENERGY_TAU_S = 0.5
 """Time constant of the one-pole low-pass smoothing the ``energy`` channel (s)."""
 
 MODES = ("greedy", "optimal")
+
+
+def _drive(frame) -> float:
+    """The mcs that drives clips (0 without one; see ``clip_drive``)."""
+    return clip_drive(frame.control) if "mcs" in frame.control else 0.0
 
 
 @dataclass
@@ -187,7 +193,7 @@ class ConcatScheduler(Scheduler):
         """The frame's pseudo-phoneme: ``frame.label``, else derived from MCS."""
         if frame.label is not None:
             return frame.label
-        return "silence" if frame.control.get("mcs", 0.0) < self.params.mcs_silence else "vowel"
+        return "silence" if _drive(frame) < self.params.mcs_silence else "vowel"
 
     def plan(self, labels: Sequence[str]) -> Concatenation:
         """Plan an offline run (``mode: optimal``): the minimum of Eq. 4 over the whole input.
@@ -248,7 +254,7 @@ class ConcatScheduler(Scheduler):
         # channels
         if dt != self._alpha_dt:
             self._alpha_dt, self._alpha = dt, -math.expm1(-dt / ENERGY_TAU_S)
-        self._energy += self._alpha * (ENERGY_SCALE * frame.control.get("mcs", 0.0) - self._energy)
+        self._energy += self._alpha * (ENERGY_SCALE * _drive(frame) - self._energy)
         frame.channels["energy"] = self._energy
         frame.channels["clip_energy"] = db[self.segment].energy if self.segment is not None else 0.0
         covered = (k - self._unit_start + 1) * dt

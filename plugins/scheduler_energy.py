@@ -44,6 +44,7 @@ from laughlab import hookimpl
 from laughlab.core.bases import Scheduler
 from laughlab.core.frame import ClipEvent
 from laughlab.core.plugins import check_range
+from laughlab.detector.model import clip_drive
 from laughlab.signals.smoothing import THESIS_TICK_HZ
 
 
@@ -204,7 +205,7 @@ class EnergyScheduler(Scheduler):
 
     def _step_equation(self, frame) -> float:
         p, dt = self.params, frame.dt
-        L = self._produce(frame.control["mcs"], dt, p.floor_zero)
+        L = self._produce(clip_drive(frame.control), dt, p.floor_zero)
         active = self.active
         limit = active.energy * p.overrule_c if active is not None else 0.0
         min_inactive = p.min_inactive_s
@@ -233,7 +234,7 @@ class EnergyScheduler(Scheduler):
     def _step_listing(self, frame) -> float:
         """Listings 5.4 and 5.5 line by line (one thesis tick per frame at 60 fps)."""
         p, dt = self.params, frame.dt
-        L = self._produce(frame.control["mcs"], dt, False)
+        L = self._produce(clip_drive(frame.control), dt, False)
         self.ctx.rng.shuffle(self.actions)          # random.shuffle(animationActions)
         best: _Action | None = None
         for a in self.actions:

@@ -36,14 +36,18 @@ REAL = "ovos/female-407676__nagwense__comical-evil-laugh"  # 11 s, 48 kHz, test 
 #: (channels are weights in [0, 1] and angles in degrees written with 4-6 decimals)
 RTOL, ATOL = 1e-6, 1e-4
 
-#: name -> command-line overrides (every run: seed 0)
+#: name -> command-line overrides (every run: seed 0).  The papers' pipelines pin ``detector=none`` (their
+#: bytes are the papers', whatever the default detector); the ``*_yamnet`` runs hold detector=yamnet's bytes
 RUNS = {
     "default": ["input.duration_s=12"],
-    "hill_facs": ["input.duration_s=8", "extractor=pressure", "body=hill", "face=facs", "scheduler=none"],
+    "default_yamnet": ["input.duration_s=12", "detector=yamnet"],
+    "hill_facs": ["input.duration_s=8", "extractor=pressure", "body=hill", "face=facs", "scheduler=none",
+                  "detector=none"],
     "phoneme_cgm_concat_fourier": ["input.duration_s=8", "extractor=phoneme", "face=cgm",
-                                   "scheduler=concat", "body=fourier"],
+                                   "scheduler=concat", "body=fourier", "detector=none"],
     "follow_detector": ["input.duration_s=8", "body=follow", "face=facs", "detector=laugh"],
-    "real_48k": ["input=file", "face=facs"],
+    "real_48k": ["input=file", "face=facs", "detector=none"],
+    "real_48k_yamnet": ["input=file", "face=facs", "detector=yamnet"],
 }
 
 

@@ -240,7 +240,7 @@ def test_help_lists_every_group_with_examples_and_docs():
     assert r.returncode == 0 and "Hydra" not in r.stdout.splitlines()[0]
     assert r.stdout.startswith("usage: python -m laughlab")
     for line in ("  face:        smile, cgm, facs", "  body:        shapes, follow, fourier, hill",
-                 "  detector:    none, laugh"):
+                 "  detector:    none, laugh, yamnet"):
         assert line in r.stdout
     assert "examples:" in r.stdout and "README.md" in r.stdout and "--hydra-help" in r.stdout
 

@@ -56,7 +56,9 @@ def tiny_cfg(**harness):
     from laughlab.core.config import compose_config
 
     cfg = compose_config(["experiment=smoke"])
-    h = {"name": "tiny", "conditions": {"energy": ["scheduler=energy"], "none": ["scheduler=none"]},
+    # about the harness, not the detector: the papers' pipeline (detector=none), as before issue 27
+    h = {"name": "tiny", "conditions": {"energy": ["scheduler=energy", "detector=none"],
+                                       "none": ["scheduler=none", "detector=none"]},
          "corpus": {"profiles": ["intense"], "seeds": 2, "duration_s": 4.0}, "showcase": "intense-s00", "jobs": 1}
     h.update(harness)
     cfg.harness = OmegaConf.create(h)

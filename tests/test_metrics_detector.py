@@ -49,3 +49,18 @@ def test_without_truth_or_gate_the_metrics_are_nan():
     assert np.isnan(m["detector_f1"]) and np.isnan(m["false_starts_per_min"])
     m = compute(trial(tr=truth([(2.0, 6.0, 1.0)])))
     assert np.isnan(m["detector_f1"])
+
+
+def test_false_starts_per_kind_by_hand():
+    import pandas as pd
+
+    tr = truth([(2.0, 6.0, 1.0)])
+    tr.others = pd.DataFrame([("speech", -1, 8.0, 14.0, 1.0), ("cough", -1, 15.0, 15.5, 1.0)],
+                             columns=["kind", "bout", "onset_s", "offset_s", "intensity"])
+    ev = [(6.5, "start", "giggle", 20, 1.0, ""),                                          # the bout's tail
+          (9.0, "start", "rofl", 90, 1.0, ""), (13.0, "start", "sway", 10, 1.0, ""),      # in speech: 2 in 6 s
+          (15.2, "start", "giggle", 20, 1.0, ""), (17.0, "start", "sway", 10, 1.0, "")]   # cough: 1 in 0.5 s; none
+    m = compute(trial(tr=tr, ev=ev, laugh_gate=np.ones(200)))
+    assert m["false_starts_speech_per_min"] == pytest.approx(2 / 0.1)
+    assert m["false_starts_cough_per_min"] == pytest.approx(1 / (0.5 / 60))
+    assert np.isnan(m["false_starts_music_per_min"])                                     # no music in the truth

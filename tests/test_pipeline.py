@@ -283,7 +283,8 @@ def test_replaying_the_amplitudes_gives_the_runs_mcs_exactly(tmp_path):
     from dataclasses import replace
     from laughlab.signals.mcs import RmsParams, params_of_run, replay
 
-    cfg = cfg_for("input.duration_s=6", "extractor.calibration_s=0.5", "output=[files]")
+    # the extractor's own mcs in channels.csv: no detector gating it (detector=none)
+    cfg = cfg_for("input.duration_s=6", "extractor.calibration_s=0.5", "output=[files]", "detector=none")
     pipeline.execute(pipeline.build(cfg), tmp_path)
     ch = pd.read_csv(tmp_path / "channels.csv")
     params = params_of_run(OmegaConf.to_container(cfg, resolve=True))

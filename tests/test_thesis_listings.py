@@ -113,7 +113,7 @@ def synthetic_mcs():
     from laughlab.core.config import compose_config
     from omegaconf import OmegaConf
 
-    cfg = compose_config(["input.duration_s=60", "scheduler=none", "face=smile", "body=shapes"])
+    cfg = compose_config(["input.duration_s=60", "scheduler=none", "face=smile", "body=shapes", "detector=none"])
     pipe = pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
     mcs = []
     for k, block in enumerate(pipe.source.blocks()):

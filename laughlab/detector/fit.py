@@ -164,12 +164,18 @@ def main(argv: list[str] | None = None) -> int:
     except LaughlabError as exc:
         print(f"laughlab: error: {exc}", file=sys.stderr)
         return 2
-    if ns.check:
-        same = OUT.read_text() == text
-        print("the bundled model is reproduced byte for byte" if same else "the refit differs from the bundled model")
+    return write_or_check(text, ns.out, OUT, ns.check, "model",
+                          f"{len(y)} frames, {100 * y.mean():.1f}% laughter, train gate F1 {frame_f1:.3f}")
+
+
+def write_or_check(text: str, out, bundled: Path, check: bool, what: str, summary: str) -> int:
+    """Write a refitted file (exit 0), or with ``check`` compare it with the bundled one (0 same, 1 not)."""
+    if check:
+        same = bundled.read_text() == text
+        print(f"the bundled {what} is reproduced byte for byte" if same else f"the refit differs from the bundled {what}")
         return 0 if same else 1
-    Path(ns.out).write_text(text)
-    print(f"wrote {ns.out}: {len(y)} frames, {100 * y.mean():.1f}% laughter, train gate F1 {frame_f1:.3f}")
+    Path(out).write_text(text)
+    print(f"wrote {out}: {summary}")
     return 0
 
 

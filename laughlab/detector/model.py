@@ -438,3 +438,12 @@ def apply_gate(frame, gain: float) -> None:
                 c[k] = 0.0
         if frame.label is not None:
             frame.label = SILENT_LABEL
+
+
+def clip_drive(control) -> float:
+    """The ``mcs`` a scheduler reads: ``mcs``, or ``mcs_ungated * clip_gate`` when a detector set
+    ``clip_gate`` (``detector=yamnet``: full-body clips wait for the model while the face answers)."""
+    g = control.get("clip_gate")
+    if g is None:
+        return control["mcs"]
+    return control["mcs_ungated"] * g if "mcs_ungated" in control else control["mcs"] * g

@@ -40,10 +40,12 @@ class Truth:
 
     Columns of ``truth.csv``: ``kind`` (``bout`` or ``call``), ``bout``,
     ``onset_s``, ``offset_s``, ``intensity`` (0..1), optionally ``f0_hz``.
+    Rows of other kinds (``speech``, ``cough``, ... in the mixed scenes) are in ``others``.
     """
 
     bouts: pd.DataFrame
     calls: pd.DataFrame
+    others: pd.DataFrame | None = None
 
     @classmethod
     def load(cls, path: str | Path) -> "Truth":
@@ -57,7 +59,8 @@ class Truth:
             t = pd.DataFrame(rows, columns=["kind", "bout", "onset_s", "offset_s", "intensity"])
         else:
             t = pd.read_csv(path)
-        return cls(t[t.kind == "bout"].reset_index(drop=True), t[t.kind == "call"].reset_index(drop=True))
+        return cls(t[t.kind == "bout"].reset_index(drop=True), t[t.kind == "call"].reset_index(drop=True),
+                   t[~t.kind.isin(["bout", "call"])].reset_index(drop=True))
 
     def intensity(self, times: np.ndarray) -> np.ndarray:
         """Laughter intensity at ``times``: the call's intensity inside a call, 0 elsewhere."""

@@ -1,0 +1,136 @@
+"""The clip-gate rules of ``detector=yamnet`` on the held-out (test) split: ``either`` (the default), ``classes``
+(YAMNet's own laughter classes) and ``head`` (the first rule: the head alone, every 0.5 s, two windows in a row).
+
+Runs the default live pipeline (``benchmarks/bench_detector.py``'s ``run_pipeline``, the metrics of
+``experiment=detector_eval``) on the sets ``speech``, ``mixed`` and ``real`` of the test split once per
+rule, and prints per rule: clip starts per minute of speech, bouts answered (per-file mean and pooled),
+the gate's frame F1, the first clip after a bout starts (median), false starts in ``mixed`` (on speech,
+on other sounds), and clip starts in the second after a bout ended.  Writes
+``benchmarks/results/yamnet_rules.json``.  The thresholds were chosen on the train split
+(``python -m laughlab.detector.yamnet_fit --rules``); nothing here feeds back into them.
+
+Run: ``nice python benchmarks/bench_yamnet_rules.py [--work DIR] [--jobs 2]`` (about 10 minutes per rule
+on a loaded 2-core machine; ``--work`` keeps the runs, and a run already there is not repeated).
+"""
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as cf
+import json
+import math
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parent))
+
+import bench_detector as B  # noqa: E402
+from laughlab.corpora.fetch import corpus_dir  # noqa: E402
+from laughlab.harness.corpus import set_folder  # noqa: E402
+from laughlab.harness.trialdata import TrialData  # noqa: E402
+
+RULES = {
+    "either": [],   # the defaults of conf/detector/yamnet.yaml
+    "classes": ["detector.rule=classes"],
+    "head": ["detector.rule=head", "detector.hop_s=0.5", "detector.open_windows=2", "detector.close_quiet_s=0"],
+}
+SETS = ("speech", "mixed", "real")
+OTHER = ("cough", "sneeze", "scream", "music", "noise", "vocal")
+
+
+def _mean(rows: list[dict], key: str) -> float:
+    v = [r[key] for r in rows if isinstance(r.get(key), (int, float)) and not math.isnan(r[key])]
+    return float(np.mean(v)) if v else float("nan")
+
+
+def pooled(run_dir: Path, wav: Path) -> dict:
+    """Counts of one run: bouts, bouts answered, first-clip delays, late starts, false starts by kind."""
+    truth = wav.with_name(wav.stem + ".truth.csv")
+    t = TrialData.load(run_dir, truth if truth.exists() else None)
+    s = t.starts()
+    st = s.time.to_numpy() if len(s) else np.zeros(0)
+    out = {"starts": len(st), "minutes": t.duration_s / 60, "bouts": 0, "answered": 0, "late": 0, "delays": [],
+           "false_speech": 0, "speech_min": 0.0, "false_other": 0, "other_min": 0.0}
+    if t.truth is None:
+        return out
+    heard = np.zeros(len(st), bool)
+    for on, off in t.truth.bouts[["onset_s", "offset_s"]].itertuples(index=False):
+        inside = (st >= on) & (st <= off + 1.0)
+        heard |= inside
+        out["bouts"] += 1
+        out["answered"] += int(inside.any())
+        out["late"] += int(((st > off) & (st <= off + 1.0)).sum())
+        if inside.any():
+            out["delays"].append(float(st[inside].min() - on))
+    o = t.truth.others
+    if o is not None and not o.empty:
+        for kinds, key in ((("speech",), "speech"), (OTHER, "other")):
+            ev = o[o.kind.isin(kinds)]
+            out[f"{key}_min"] += float((ev.offset_s - ev.onset_s).sum()) / 60
+            a, b = ev.onset_s.to_numpy(), ev.offset_s.to_numpy()
+            out[f"false_{key}"] += sum(bool(((a <= x) & (x < b)).any()) for x in st[~heard])
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--work", default=None, help="keep the runs here (default: a temporary folder)")
+    ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--rules", default=",".join(RULES))
+    ns = ap.parse_args()
+    work = Path(ns.work or tempfile.mkdtemp(prefix="bench_yamnet_rules_"))
+    sets = {n: sorted((corpus_dir() / "sets" / set_folder(n, "test", 6, 100.0)).glob("*.wav")) for n in SETS}
+    for n in SETS:
+        if not sets[n]:
+            B.write_set(corpus_dir() / "sets" / set_folder(n, "test", 6, 100.0), n, "test", 6, 100.0,
+                        [20.0, 10.0, 5.0], 0)
+            sets[n] = sorted((corpus_dir() / "sets" / set_folder(n, "test", 6, 100.0)).glob("*.wav"))
+    res = {}
+    for rule in ns.rules.split(","):
+        def one(job, rule=rule):
+            s, w = job
+            d = work / rule / f"{s}-{w.stem}"
+            if (d / "metrics.json").exists():   # kept from an earlier call with --work
+                truth = w.with_name(w.stem + ".truth.csv")
+                m = B.compute(TrialData.load(d, truth if truth.exists() else None))
+            else:
+                m = B.run_pipeline(w, d, "yamnet", RULES[rule])
+            return s, m, pooled(d, w)
+
+        jobs = [(s, w) for s in SETS for w in sets[s]]
+        with cf.ThreadPoolExecutor(ns.jobs) as ex:
+            got = list(ex.map(one, jobs))
+        r = {}
+        for s in SETS:
+            ms = [m for k, m, _ in got if k == s]
+            ps = [p for k, _, p in got if k == s]
+            tot = {k: sum(p[k] for p in ps) for k in ps[0] if k != "delays"}
+            delays = [d for p in ps for d in p["delays"]]
+            r[s] = {**tot, "files": len(ms), "bouts_answered_mean": _mean(ms, "bouts_answered"),
+                    "detector_f1_mean": _mean(ms, "detector_f1"),
+                    "first_clip_median_s_mean": _mean(ms, "onset_latency_median_s"),
+                    "gate_open_median_s_mean": _mean(ms, "detection_latency_median_s"),
+                    "first_clip_median_s_pooled": float(np.median(delays)) if delays else float("nan"),
+                    "false_starts_per_min_mean": _mean(ms, "false_starts_per_min"),
+                    "by_file": [{"file": w.stem, **{k: m.get(k) for k in ("bouts_answered", "false_starts_per_min",
+                                                                           "false_starts_speech_per_min")}}
+                                for (k, w), (_, m, _) in zip(jobs, got) if k == s]}
+        res[rule] = {"overrides": RULES[rule], "sets": r}
+        sp, mx, re = r["speech"], r["mixed"], r["real"]
+        print(f"{rule}: speech {sp['starts'] / max(sp['minutes'], 1e-9):.2f} starts/min; real answered "
+              f"{re['bouts_answered_mean']:.2f} ({re['answered']}/{re['bouts']}), F1 {re['detector_f1_mean']:.2f}, "
+              f"first clip {re['first_clip_median_s_mean']:.2f} s (pooled {re['first_clip_median_s_pooled']:.2f} s); "
+              f"mixed answered {mx['answered']}/{mx['bouts']}, F1 {mx['detector_f1_mean']:.2f}, false starts on "
+              f"speech {mx['false_speech']} ({mx['speech_min']:.1f} min), on other sounds {mx['false_other']} "
+              f"({mx['other_min']:.1f} min); starts in the second after a bout: {mx['late'] + re['late']}",
+              flush=True)
+    (HERE / "results").mkdir(exist_ok=True)
+    (HERE / "results" / "yamnet_rules.json").write_text(json.dumps({"data": "test split", **res}, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,191 @@
+"""Laughter segments of whole recordings (offline), their files, and their scores against a truth.
+
+:func:`laughter_prob` runs YAMNet over a whole signal, one window every ``hop_s``; the
+head's probability of a window ending at ``e`` is about ``[e - 0.5 s, e]``
+(``yamnet_fit.LABEL_S``), so offline it is placed at ``e - 0.25 s``: the window reaches
+0.74 s past the time it speaks for (look-ahead is allowed offline).  The probabilities
+are smoothed both ways (a centred moving average of ``smooth`` windows), cut at a
+threshold, and runs shorter than ``min_length_s`` dropped (as Gillick et al.'s
+``segment_laughter.py``: threshold 0.5, minimum length 0.2 s).  A recording shorter
+than a window is padded with zeros (silence) either side.
+
+Files: one CSV for a whole command (``file,start,end,probability``), and per input an
+Audacity label file (``NAME.txt``: ``start<TAB>end<TAB>laughter``) and a Praat TextGrid
+(``NAME.TextGrid``, tier ``laughter``).  :func:`read_folder` reads such a folder back
+(Audacity labels, or a CSV with ``file,start,end``), ours or a peer detector's, and
+:func:`score` compares segments with a truth file, so both are scored by the same code
+(``benchmarks/bench_detector.py --peer DIR``).
+"""
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from laughlab.core.errors import LaughlabError
+
+#: the time a window's probability speaks for, before the window's end (s)
+SPEAKS_FOR_S = 0.25
+
+
+@dataclass(frozen=True)
+class Segment:
+    start: float
+    end: float
+    prob: float = 1.0
+
+
+def laughter_prob(audio: np.ndarray, sample_rate: int, hop_s: float = 0.5, model=None, score=None):
+    """(times (s), probabilities) of a whole signal: the head's probability, one window every ``hop_s``."""
+    from laughlab.detector.yamnet import LaughterScore, Yamnet, window_scores
+
+    sr = int(sample_rate)
+    dur = len(audio) / sr
+    times = np.arange(hop_s / 2.0, max(dur, hop_s / 2.0 + 1e-9), hop_s)
+    ends = np.round((times + SPEAKS_FOR_S) * sr).astype(np.int64)
+    S = window_scores(audio, sr, ends, model or Yamnet())
+    score = score or LaughterScore()
+    return times, np.array([score(s) for s in S])
+
+
+def smooth(p: np.ndarray, n: int) -> np.ndarray:
+    """Centred moving average over ``n`` values (odd; the edges averaged over what exists)."""
+    if n <= 1 or len(p) == 0:
+        return p.copy()
+    k = np.ones(n)
+    return np.convolve(p, k, "same") / np.convolve(np.ones(len(p)), k, "same")
+
+
+def segments(times: np.ndarray, p: np.ndarray, hop_s: float, threshold: float = 0.5, min_length_s: float = 0.2,
+             duration_s: float | None = None) -> list[Segment]:
+    """Runs of ``p >= threshold``; each value covers ``time +- hop_s / 2``; runs shorter than ``min_length_s`` dropped."""
+    on = p >= threshold
+    out = []
+    k = 0
+    n = len(p)
+    end_cap = duration_s if duration_s is not None else math.inf
+    while k < n:
+        if not on[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < n and on[j + 1]:
+            j += 1
+        a, b = max(0.0, times[k] - hop_s / 2.0), min(end_cap, times[j] + hop_s / 2.0)
+        if b - a >= min_length_s - 1e-9:
+            out.append(Segment(round(float(a), 4), round(float(b), 4), round(float(p[k:j + 1].mean()), 4)))
+        k = j + 1
+    return out
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
+def audacity_text(segs: list[Segment]) -> str:
+    return "".join(f"{s.start:.4f}\t{s.end:.4f}\tlaughter\n" for s in segs)
+
+
+def textgrid_text(segs: list[Segment], duration_s: float) -> str:
+    """A Praat TextGrid (long text format), one interval tier ``laughter``: ``laugh`` or empty."""
+    iv = []
+    t = 0.0
+    for s in segs:
+        if s.start > t:
+            iv.append((t, s.start, ""))
+        iv.append((s.start, s.end, "laugh"))
+        t = s.end
+    if duration_s > t or not iv:
+        iv.append((t, max(duration_s, t), ""))
+    lines = ['File type = "ooTextFile"', 'Object class = "TextGrid"', "", "xmin = 0", f"xmax = {duration_s:.4f}",
+             "tiers? <exists>", "size = 1", "item []:", "    item [1]:", '        class = "IntervalTier"',
+             '        name = "laughter"', "        xmin = 0", f"        xmax = {duration_s:.4f}",
+             f"        intervals: size = {len(iv)}"]
+    for i, (a, b, lab) in enumerate(iv, 1):
+        lines += [f"        intervals [{i}]:", f"            xmin = {a:.4f}", f"            xmax = {b:.4f}",
+                  f'            text = "{lab}"']
+    return "\n".join(lines) + "\n"
+
+
+def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...]) -> list[Path]:
+    """Write ``segments.csv`` and per-input ``NAME.txt`` / ``NAME.TextGrid``; each file whole or not at all."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, dur, segs in results:
+        if "audacity" in formats:
+            written.append(out_dir / f"{name}.txt")
+            _atomic_write(written[-1], audacity_text(segs))
+        if "textgrid" in formats:
+            written.append(out_dir / f"{name}.TextGrid")
+            _atomic_write(written[-1], textgrid_text(segs, dur))
+    if "csv" in formats:
+        rows = ["file,start,end,probability\n"] + [f"{name},{s.start:.4f},{s.end:.4f},{s.prob:.4f}\n"
+                                                   for name, _, segs in results for s in segs]
+        written.append(out_dir / "segments.csv")
+        _atomic_write(written[-1], "".join(rows))
+    return written
+
+
+def read_folder(folder: str | Path) -> dict[str, list[Segment]]:
+    """Segments by file stem from a folder of Audacity label files (``NAME.txt``) and/or CSVs with
+    ``file,start,end`` columns (ours or a peer detector's); a stem with a label file takes its segments
+    from it.  A stem absent from both has no entry (callers count it as no segment)."""
+    d = Path(folder)
+    if not d.is_dir():
+        raise LaughlabError(f"segment folder not found: {folder}")
+    out: dict[str, list[Segment]] = {}
+    from_csv: dict[str, list[Segment]] = {}
+    for f in sorted(d.iterdir()):
+        if f.suffix == ".txt":
+            segs = []
+            for line in f.read_text(encoding="utf-8").splitlines():
+                parts = line.split("\t")
+                if len(parts) >= 2 and parts[0].strip() not in ("", "\\"):
+                    segs.append(Segment(float(parts[0]), float(parts[1])))
+            out[f.stem] = segs
+        elif f.suffix == ".csv":
+            with f.open(newline="", encoding="utf-8") as fh:
+                for r in csv.DictReader(fh):
+                    stem = Path(r["file"]).stem
+                    from_csv.setdefault(stem, []).append(Segment(float(r["start"]), float(r["end"])))
+    for stem, segs in from_csv.items():  # a file's label file, when there is one, is what counts
+        out.setdefault(stem, segs)
+    return out
+
+
+def score(segs: list[Segment], truth_rows: list[dict], duration_s: float, step_s: float = 0.01) -> dict:
+    """Frame counts (10 ms) against the truth's bouts, bouts found, and segments outside laughter by the
+    kind of sound they overlap most (``speech``, ``cough``, ... or ``none``)."""
+    n = int(math.ceil(duration_s / step_s))
+    t = (np.arange(n) + 0.5) * step_s
+    truth = np.zeros(n, bool)
+    bouts = [(r["onset_s"], r["offset_s"]) for r in truth_rows if r["kind"] == "bout"]
+    for a, b in bouts:
+        truth |= (t >= a) & (t < b)
+    det = np.zeros(n, bool)
+    for s in segs:
+        det |= (t >= s.start) & (t < s.end)
+    found = sum(any(s.start < b and s.end > a for s in segs) for a, b in bouts)
+    false_by_kind: dict[str, int] = {}
+    others = [r for r in truth_rows if r["kind"] not in ("bout", "call")]
+    for s in segs:
+        if any(s.start < b and s.end > a for a, b in bouts):
+            continue
+        best, kind = 0.0, "none"
+        for r in others:
+            ov = min(s.end, r["offset_s"]) - max(s.start, r["onset_s"])
+            if ov > best:
+                best, kind = ov, r["kind"]
+        false_by_kind[kind] = false_by_kind.get(kind, 0) + 1
+    return {"tp": int((det & truth).sum()), "fp": int((det & ~truth).sum()), "fn": int((~det & truth).sum()),
+            "bouts": len(bouts), "found": int(found), "false_segments": false_by_kind}
+
+
+def f1(tp: int, fp: int, fn: int) -> float:
+    return 1.0 if tp + fp + fn == 0 else 2 * tp / (2 * tp + fp + fn)

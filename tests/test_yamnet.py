@@ -1,0 +1,333 @@
+"""The yamnet detector: the bundled model against YAMNet's model card, the 16 kHz conversion, the gate's
+rule frame by frame, bad model files, and ``laughlab detect`` end to end."""
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import soundfile as sf
+from hypothesis import given, settings, strategies as st
+
+from laughlab.core.bases import Context
+from laughlab.core.frame import Frame
+from laughlab.detector import segments as S
+from laughlab.detector import yamnet as Y
+
+FPS = 60.0
+
+
+@pytest.fixture(scope="module")
+def model():
+    return Y.Yamnet()
+
+
+def corpus_file(iid):
+    from laughlab.corpora import fetch
+
+    return fetch.require()[iid]
+
+
+def mean_scores(model, path):
+    from laughlab.corpora.mixed import load
+
+    x = load(str(path), 16000)
+    ends = np.arange(Y.WINDOW, max(len(x), Y.WINDOW) + 1, Y.WINDOW // 2)
+    return Y.window_scores(x, 16000, ends, model).mean(axis=0)
+
+
+def test_the_class_map_is_yamnets():
+    names = Y.class_names()
+    assert len(names) == 521 and names[0] == "Speech" and names[13] == "Laughter" and names[494] == "Silence"
+    assert Y.laugh_indices(names) == [13, 14, 15, 16, 17, 18]
+
+
+def test_the_model_takes_one_16k_window_and_gives_521_scores(model):
+    s = model.scores(np.zeros(Y.WINDOW, np.float32))
+    assert s.shape == (521,) and np.all((s >= 0) & (s <= 1))
+    assert int(np.argmax(s)) == Y.class_names().index("Silence")
+
+
+@pytest.mark.parametrize("iid,cls", [("hedgewars/British-Amazing", "Speech"),        # speech, test split
+                                     ("hedgewars/Classic-Laugh", "Laughter"),
+                                     ("lmms/bassloops-briff01", "Music"),
+                                     ("hedgewars/HillBilly-PoisonCough", "Cough")])
+def test_real_recordings_score_their_class_highest(model, iid, cls):
+    m = mean_scores(model, corpus_file(iid))
+    assert Y.class_names()[int(np.argmax(m))] == cls
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.sampled_from([8000, 11025, 16000, 22050, 44100, 48000]),
+       st.lists(st.integers(1, 3000), min_size=1, max_size=12))
+def test_the_16k_conversion_does_not_depend_on_how_blocks_are_cut(sr, sizes):
+    x = np.random.default_rng(sr).uniform(-0.5, 0.5, sr // 2)
+    whole = Y.to_16k(x, sr)
+    r, parts, i, j = Y.Resampler16k(sr), [], 0, 0
+    while i < len(x):
+        k = sizes[j % len(sizes)]
+        parts.append(r.push(x[i:i + k]))
+        i, j = i + k, j + 1
+    assert np.array_equal(np.concatenate(parts), whole)
+    # one output sample per 1/16000 s whose next input sample has arrived
+    assert len(whole) == ((len(x) - 1) * 16000 - 1) // sr + 1 if sr != 16000 else len(x)
+
+
+@pytest.mark.parametrize("sr", [8000, 11025, 22050, 44100, 48000])
+def test_a_1khz_tone_keeps_its_level_through_the_conversion(sr):
+    t = np.arange(sr) / sr
+    y = Y.to_16k(0.5 * np.sin(2 * np.pi * 1000.0 * t), sr)[4000:]
+    rms = np.sqrt(np.mean(y * y))
+    assert rms == pytest.approx(0.5 / np.sqrt(2), rel=0.05)   # linear interpolation: -0.33 dB at 8 kHz
+    spec = np.abs(np.fft.rfft(y * np.hanning(len(y))))
+    assert np.argmax(spec) * 16000 / len(y) == pytest.approx(1000.0, abs=2.0)
+
+
+def test_a_stream_shorter_than_the_window_is_padded_with_silence_before_it():
+    w = Y.Window16k(16000)
+    w.push(np.full(1000, 0.25))
+    got = w.window()
+    assert got.shape == (Y.WINDOW,) and np.all(got[:-1000] == 0) and np.all(got[-1000:] == np.float32(0.25))
+
+
+def test_non_finite_samples_read_as_zero():
+    w = Y.Window16k(44100)
+    w.push(np.array([np.nan, np.inf, -np.inf, 3.0] * 100))
+    assert np.all(np.isfinite(w.window()))
+
+
+def test_a_missing_model_names_the_file_and_the_fix(tmp_path):
+    with pytest.raises(Y.ModelFileError, match=r"nothing\.tflite.*git checkout laughlab/data/yamnet"):
+        Y.Yamnet(tmp_path / "nothing.tflite")
+
+
+def test_a_corrupt_model_names_the_file_and_the_fix(tmp_path, monkeypatch):
+    bad = tmp_path / "yamnet"
+    bad.mkdir()
+    (bad / "yamnet.tflite").write_bytes(b"\0" * 1000)
+    monkeypatch.setattr(Y, "data_dir", lambda: bad)
+    with pytest.raises(Y.ModelFileError, match=r"yamnet\.tflite is damaged.*reinstall"):
+        Y.Yamnet()
+
+
+def test_a_corrupt_model_file_at_run_time_is_one_line(tmp_path):
+    """The CLI with a damaged bundled model: one line naming the file, exit 2, no run directory left."""
+    code = ("import sys, laughlab.detector.yamnet as Y, pathlib; d = pathlib.Path(sys.argv[1]); "
+            "d.mkdir(); (d / 'yamnet.tflite').write_bytes(b'x'); Y.data_dir = lambda: d; "
+            "from laughlab.cli import main; main(sys.argv[2:])")
+    r = subprocess.run([sys.executable, "-c", code, str(tmp_path / "m"), f"hydra.run.dir={tmp_path / 'run'}",
+                        "input.duration_s=2"], capture_output=True, text=True)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("laughlab: error:") and "yamnet.tflite" in lines[0], r.stderr
+    assert not (tmp_path / "run" / "channels.csv").exists()
+
+
+# --- the gate's rule ------------------------------------------------------------------------------------
+
+class FixedScore:
+    """Stands in for the head and the laughter classes: their scores, one per model window, in order."""
+
+    def __init__(self, ps, qs=None):
+        self.ps = list(ps)
+        self.qs = list(qs) if qs is not None else [0.0] * len(self.ps)
+
+    def both(self, scores):
+        return self.ps.pop(0), self.qs.pop(0)
+
+
+def gate_run(ps, mcs, qs=None, **params):
+    from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
+
+    # the rule these hand-computed sequences were written for: the head alone, windows every 0.5 s, no quiet close
+    params = {"rule": "head", "hop_s": 0.5, "open_windows": 2, "close_quiet_s": 0.0, **params}
+    det = YamnetDetector(YamnetParams(**params), Context(fps=FPS, sample_rate=16000))
+    det.score = FixedScore(ps, qs)
+    rows = []
+    for k, m in enumerate(mcs):
+        f = Frame(k, k / FPS, 1 / FPS, {"mcs": m}, None, {}, {}, [], 0.0)
+        det.step(np.zeros(int(16000 / FPS)), f)
+        rows.append((f.control["laughter"], f.control["laugh_gate"], f.control["face_gate"], f.control["mcs"],
+                     f.control["clip_gate"]))
+    return np.array(rows)
+
+
+def test_the_face_answers_a_new_sound_at_once_and_clips_wait_for_the_model():
+    # a sound from frame 10 on; windows every 30 frames (0.5 s): at frames 29, 59, 89 (0-based)
+    mcs = [0.0] * 10 + [0.6] * 110
+    r = gate_run([0.1, 0.9, 0.1, 0.1], mcs, attack_s=0.0, release_s=0.0, open_windows=1)
+    # frames 10..58: the face follows the sound (provisional: the window at frame 29 has heard
+    # 20 frames = 0.33 s >= decide_s, so it decides: p = 0.1 -> closed)
+    assert np.all(r[10:29, 2] == 1.0) and np.all(r[10:29, 3] == 0.6)
+    assert np.all(r[29:59, 2] == 0.0) and np.all(r[29:59, 3] == 0.0)
+    # the clips' gain is the model's only: open from the window that said 0.9 (frame 59) to the next (89)
+    assert np.all(r[:59, 1] == 0.0) and np.all(r[59:89, 1] == 1.0) and np.all(r[89:, 1] == 0.0)
+    assert np.all(r[59:89, 2] == 1.0) and np.all(r[59:89, 4] == 1.0)
+    assert np.all(r[:10, 2] == 0.0)   # silence: nothing provisional
+
+
+def test_hysteresis_keeps_the_clip_gain_open_between_close_below_and_open_at():
+    r = gate_run([0.6, 0.4, 0.35, 0.2], [0.0] * 120, attack_s=0.0, release_s=0.0, open_windows=1)
+    assert np.all(r[29:119, 1] == 1.0) and r[119, 1] == 0.0
+
+
+def test_the_clip_gain_opens_after_open_windows_windows_in_a_row():
+    # two windows in a row at or above 0.5; a lone window is not enough
+    r = gate_run([0.9, 0.2, 0.6, 0.7, 0.4], [0.0] * 150, attack_s=0.0, release_s=0.0)
+    # windows at frames 29 (0.9), 59 (0.2), 89 (0.6), 119 (0.7), 149 (0.4)
+    assert np.all(r[:119, 1] == 0.0)                   # 0.9 alone is not enough, nor 0.6 alone
+    assert np.all(r[119:, 1] == 1.0)                   # 0.6 then 0.7: open at 119; 0.4 >= close_below keeps it
+
+
+def test_rule_classes_opens_on_the_laughter_classes_score_with_hysteresis():
+    # windows every 15 frames (0.25 s): at frames 14, 29, 44, 59, 74 (0-based); the head says 0.9 throughout,
+    # which rule=classes ignores
+    qs = [0.02, 0.12, 0.07, 0.04, 0.2]
+    r = gate_run([0.9] * 5, [0.6] * 75, qs, rule="classes", hop_s=0.25, class_open=0.1, class_close=0.05,
+                 attack_s=0.0, release_s=0.0)
+    assert np.all(r[:29, 1] == 0.0)        # 0.02 < 0.1
+    assert np.all(r[29:59, 1] == 1.0)      # 0.12 opens; 0.07 >= 0.05 keeps it open
+    assert np.all(r[59:74, 1] == 0.0)      # 0.04 < 0.05 closes it at once (hold_s = 0)
+    assert r[74, 1] == 1.0                 # 0.2 opens it again
+    assert r[29, 0] == 0.9                 # `laughter` still holds the head's probability
+
+
+def test_rule_either_opens_on_the_head_or_the_classes_and_closes_when_both_fall():
+    # windows at frames 14, 29, 44, 59, 74, 89; head 2 windows in a row >= 0.5 (keeps >= 0.3), classes 1 >= 0.1
+    ps = [0.6, 0.7, 0.2, 0.1, 0.1, 0.1]
+    qs = [0.0, 0.0, 0.06, 0.02, 0.3, 0.0]
+    r = gate_run(ps, [0.6] * 90, qs, rule="either", hop_s=0.25, class_open=0.1, class_close=0.05,
+                 attack_s=0.0, release_s=0.0)
+    assert np.all(r[:29, 1] == 0.0)        # one head window is not enough
+    assert np.all(r[29:44, 1] == 1.0)      # the head opens (0.6, 0.7)
+    assert np.all(r[44:59, 1] == 1.0)      # head 0.2 < 0.3 but classes 0.06 >= 0.05 keep it
+    assert np.all(r[59:74, 1] == 0.0)      # both below: closed
+    assert np.all(r[74:89, 1] == 1.0) and r[89, 1] == 0.0   # the classes alone open it (0.3), then 0.0 closes
+    # rule=head on the same scores: open only from frame 29 to 43
+    h = gate_run(ps, [0.6] * 90, qs, rule="head", hop_s=0.25, attack_s=0.0, release_s=0.0)
+    assert np.all(h[29:44, 1] == 1.0) and np.all(h[44:, 1] == 0.0) and np.all(h[:29, 1] == 0.0)
+
+
+@pytest.mark.parametrize("rule", ["head", "classes", "either"])
+def test_the_train_split_sweep_gates_like_the_detector(rule):
+    """``yamnet_fit --rules`` chose the thresholds with ``gate_windows``: the detector's rule, window by window."""
+    from laughlab.detector.yamnet_fit import gate_windows
+
+    rng = np.random.default_rng(3)
+    ps, qs = rng.uniform(0, 1, 40).round(2), (rng.uniform(0, 0.2, 40) ** 2 * 5).round(3)
+    kw = dict(open_windows=3, class_open=0.1, class_windows=1, class_close=0.05)
+    r = gate_run(list(ps), [0.6] * 600, list(qs), rule=rule, hop_s=0.25, attack_s=0.0, release_s=0.0, **kw)
+    want = gate_windows(ps, qs, rule, **kw)
+    assert np.array_equal(r[14::15, 1] == 1.0, want) and want.any() and not want.all()
+
+
+def test_the_clip_gain_closes_after_close_quiet_s_of_quiet_and_cannot_open_in_quiet():
+    # sound (mcs 0.6) for frames 0..39, then quiet; the classes say laughter in every window (0.5)
+    mcs = [0.6] * 40 + [0.0] * 50
+    r = gate_run([0.0] * 6, mcs, [0.5] * 6, rule="classes", hop_s=0.25, class_open=0.1, class_close=0.05,
+                 close_quiet_s=0.3, attack_s=0.0, release_s=0.0)
+    # open from the first window (frame 14); quiet from frame 40: 18 frames (0.3 s) below onset_mcs at frame 57
+    assert np.all(r[:14, 1] == 0.0) and np.all(r[14:57, 1] == 1.0)
+    assert np.all(r[57:, 1] == 0.0)        # closed, and the windows at 59, 74, 89 (0.5) do not reopen it
+    # without the quiet close the window's score keeps it open
+    k = gate_run([0.0] * 6, mcs, [0.5] * 6, rule="classes", hop_s=0.25, close_quiet_s=0.0, attack_s=0.0,
+                 release_s=0.0)
+    assert np.all(k[14:, 1] == 1.0)
+
+
+def test_bad_rule_parameters_are_refused():
+    from laughlab_plugins.detector_yamnet import YamnetParams
+
+    with pytest.raises(ValueError, match="rule must be one of head, classes, either"):
+        YamnetParams(rule="both")
+    with pytest.raises(ValueError, match="class_close <= class_open"):
+        YamnetParams(class_open=0.1, class_close=0.2)
+    with pytest.raises(ValueError, match="class_windows"):
+        YamnetParams(class_windows=0)
+
+
+def test_the_default_rule_is_either_every_quarter_second_with_the_quiet_close():
+    from laughlab_plugins.detector_yamnet import YamnetParams
+
+    p = YamnetParams()
+    assert (p.rule, p.hop_s, p.open_windows, p.class_open, p.class_windows, p.class_close, p.close_quiet_s) == \
+        ("either", 0.25, 3, 0.1, 1, 0.05, 0.3)
+
+
+def test_the_scheduler_reads_the_ungated_mcs_times_the_clip_gain():
+    from laughlab.detector.model import clip_drive
+
+    assert clip_drive({"mcs": 0.3, "mcs_ungated": 0.6, "clip_gate": 0.5}) == 0.3
+    assert clip_drive({"mcs": 0.0, "mcs_ungated": 0.6, "clip_gate": 0.0}) == 0.0
+    assert clip_drive({"mcs": 0.7}) == 0.7   # detector=none, laugh: unchanged
+
+
+# --- offline segments -------------------------------------------------------------------------------------
+
+def test_segments_by_hand():
+    t = np.arange(10) * 0.5 + 0.25
+    p = np.array([0, 0.6, 0.7, 0, 0, 0.9, 0, 0, 0.8, 0.8])
+    got = S.segments(t, p, 0.5, threshold=0.5, min_length_s=0.6, duration_s=4.8)
+    assert got == [S.Segment(0.5, 1.5, 0.65), S.Segment(4.0, 4.8, 0.8)]   # the lone 0.5 s run is dropped
+
+
+def test_score_by_hand():
+    truth = [{"kind": "bout", "onset_s": 1.0, "offset_s": 2.0}, {"kind": "speech", "onset_s": 3.0, "offset_s": 5.0},
+             {"kind": "bout", "onset_s": 6.0, "offset_s": 7.0}]
+    got = S.score([S.Segment(1.5, 2.5), S.Segment(3.5, 4.0)], truth, 8.0)
+    assert (got["tp"], got["fp"], got["fn"]) == (50, 100, 150)
+    assert got["found"] == 1 and got["bouts"] == 2 and got["false_segments"] == {"speech": 1}
+    assert S.f1(50, 100, 150) == pytest.approx(100 / 350)
+
+
+def test_smooth_is_a_centred_average():
+    assert np.allclose(S.smooth(np.array([0, 3, 0, 0.0]), 3), [1.5, 1, 1, 0])
+
+
+def test_detect_writes_three_formats_that_read_back(tmp_path):
+    laugh = corpus_file("hedgewars/Classic-Laugh")
+    x, sr = sf.read(laugh)
+    (tmp_path / "in").mkdir()
+    sf.write(tmp_path / "in" / "a.wav", x, sr)
+    sf.write(tmp_path / "in" / "short8k.wav", np.zeros(2000), 8000)     # 0.25 s at 8 kHz: padded, still answers
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "laughlab", "detect", str(tmp_path / "in"), "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert {p.name for p in out.iterdir()} == {"segments.csv", "a.txt", "a.TextGrid", "short8k.txt",
+                                               "short8k.TextGrid"}
+    segs = S.read_folder(out)
+    assert segs["a"] and segs.get("short8k", []) == []
+    assert segs["a"][0].start < 2.0 and all(s.end <= len(x) / sr for s in segs["a"])
+    from praatio import textgrid
+
+    tg = textgrid.openTextgrid(str(out / "a.TextGrid"), includeEmptyIntervals=False)
+    laughs = [(e.start, e.end) for e in tg.getTier("laughter").entries if e.label == "laugh"]
+    assert laughs == [(s.start, s.end) for s in segs["a"]]
+    # the CSV says the same
+    csv_only = tmp_path / "csv"
+    csv_only.mkdir()
+    (csv_only / "segments.csv").write_text((out / "segments.csv").read_text())
+    assert S.read_folder(csv_only)["a"] == [S.Segment(s.start, s.end) for s in segs["a"]]
+
+
+@pytest.mark.parametrize("args,message", [
+    (["nothing.wav"], "input not found: nothing.wav"),
+    (["--threshold", "2", "x"], "--threshold must be in [0, 1]"),
+    (["--formats", "elan", "x"], "unknown format elan"),
+])
+def test_detect_bad_input_is_one_line(tmp_path, args, message):
+    if "x" in args:
+        sf.write(tmp_path / "x.wav", np.zeros(1600), 16000)
+    r = subprocess.run([sys.executable, "-m", "laughlab", "detect", *args, "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 2
+    assert r.stderr.strip().splitlines() == [r.stderr.strip()] and message in r.stderr
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow
+def test_the_head_is_refitted_byte_for_byte():
+    """``python -m laughlab.detector.yamnet_fit --check`` refits on the train split and compares the bytes (~2-5 min)."""
+    from laughlab.detector.yamnet_fit import main
+
+    assert main(["--check"]) == 0
