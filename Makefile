@@ -21,7 +21,7 @@ $(STAMP): pyproject.toml $(LOCK)
 
 ## lock: write requirements.lock from pyproject.toml ('.[test]' plus the build requirements) with uv,
 ## keeping the versions already locked; lock-upgrade moves every package to its newest release
-LOCK_CMD = $(VENV)-lock/bin/uv pip compile pyproject.toml requirements-build.in --extra test --universal \
+LOCK_CMD = $(VENV)-lock/bin/uv pip compile pyproject.toml requirements-build.in -c constraints.txt --extra test --universal \
 	--python-version 3.11 --generate-hashes --quiet --custom-compile-command 'make lock' -o $(LOCK)
 $(VENV)-lock/bin/uv:
 	$(PYTHON) -m venv $(VENV)-lock

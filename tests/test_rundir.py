@@ -77,7 +77,7 @@ def test_a_failed_run_leaves_no_folder_behind(tmp_path):
 
 def test_interrupting_a_run_leaves_no_visible_partial_file(tmp_path):
     d = tmp_path / "D"
-    p = laughlab("input.duration_s=600", f"hydra.run.dir={d}", start_new_session=True)
+    p = laughlab("input.duration_s=1800", f"hydra.run.dir={d}", start_new_session=True)
     deadline = time.time() + 60
     while not (d / ".hydra").exists() and time.time() < deadline:
         time.sleep(0.05)
@@ -91,7 +91,7 @@ def test_interrupting_a_run_leaves_no_visible_partial_file(tmp_path):
 
 def test_sigterm_to_a_run_leaves_no_visible_partial_file(tmp_path):
     d = tmp_path / "D"
-    p = laughlab("input.duration_s=600", f"hydra.run.dir={d}")
+    p = laughlab("input.duration_s=1800", f"hydra.run.dir={d}")
     deadline = time.time() + 60
     while not (d / ".hydra").exists() and time.time() < deadline:
         time.sleep(0.05)
