@@ -12,9 +12,15 @@ from laughlab.core import rundir
 from laughlab.core.errors import LaughlabError
 
 
+def _as_from_a_terminal():
+    """Ctrl-C as a terminal delivers it: a shell running the tests in the background (CI, ``make test &``)
+    hands its children SIGINT ignored, and a run then rightly keeps ignoring it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def laughlab(*args, **kw):
     return subprocess.Popen([sys.executable, "-m", "laughlab", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, **kw)
+                            stderr=subprocess.PIPE, text=True, preexec_fn=_as_from_a_terminal, **kw)
 
 
 def test_two_runs_into_one_directory_one_wins_and_the_other_says_why(tmp_path):

@@ -115,7 +115,7 @@ def test_a_corrupt_model_file_at_run_time_is_one_line(tmp_path):
             "d.mkdir(); (d / 'yamnet.tflite').write_bytes(b'x'); Y.data_dir = lambda: d; "
             "from laughlab.cli import main; main(sys.argv[2:])")
     r = subprocess.run([sys.executable, "-c", code, str(tmp_path / "m"), f"hydra.run.dir={tmp_path / 'run'}",
-                        "input.duration_s=2"], capture_output=True, text=True)
+                        "input.duration_s=2", "detector=yamnet"], capture_output=True, text=True)
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("laughlab: error:") and "yamnet.tflite" in lines[0], r.stderr
