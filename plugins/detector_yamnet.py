@@ -93,15 +93,12 @@ class YamnetParams:
     head: str | None = None
 
     def __post_init__(self) -> None:
-        for k in ("hop_s", "hold_s", "quiet_s", "decide_s", "attack_s", "release_s", "onset_mcs"):
+        for k in ("hop_s", "hold_s", "quiet_s", "decide_s", "attack_s", "release_s", "onset_mcs", "close_quiet_s"):
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise ValueError(f"{k} must be a number >= 0 (got {v})")
         if self.rule not in RULES:
             raise ValueError(f"rule must be one of {', '.join(RULES)} (got {self.rule})")
-        if not (isinstance(self.close_quiet_s, (int, float)) and math.isfinite(self.close_quiet_s)
-                and self.close_quiet_s >= 0):
-            raise ValueError(f"close_quiet_s must be a number >= 0 (got {self.close_quiet_s})")
         for k in ("open_windows", "class_windows"):
             v = getattr(self, k)
             if not (isinstance(v, int) and v >= 1):
