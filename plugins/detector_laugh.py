@@ -33,6 +33,10 @@ class LaughParams(GateParams):
     model: str | None = None
 
 
+#: the lowest frame rate the features can be measured at: 8 Hz modulation needs at least 16 frames a second
+MIN_FPS = 20.0
+
+
 class LaughDetector(Detector):
     name = "laugh"
     Params = LaughParams
@@ -45,6 +49,9 @@ class LaughDetector(Detector):
             raise ValueError(f"model file not found: {self.params.model}") from None
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"model {self.params.model or '(bundled)'} is not a detector model: {exc}") from None
+        if not self.ctx.fps >= MIN_FPS:
+            raise ValueError(f"detector=laugh needs fps >= {MIN_FPS:g}: its cues include the level's 3-8 Hz "
+                             f"modulation, measured once per frame (got fps={self.ctx.fps:g})")
         self.features = FeatureStream(self.ctx.sample_rate, self.ctx.fps)
         self.gate = Gate(self.params, self.ctx.dt)
 

@@ -19,11 +19,7 @@ ANSWER_TAIL_S = 1.0
 def _frames(trial):
     if trial.truth is None or "laugh_gate" not in trial.channels:
         return None
-    t = trial.times
-    truth = np.zeros(len(t), dtype=bool)
-    for on, off in trial.truth.bouts[["onset_s", "offset_s"]].itertuples(index=False):
-        truth |= (t >= on) & (t < off)
-    return trial.channels["laugh_gate"].to_numpy() >= 0.5, truth
+    return trial.channels["laugh_gate"].to_numpy() >= 0.5, trial.truth.in_bouts(trial.times)
 
 
 def _counts(trial):

@@ -35,6 +35,11 @@ smoothing, 0.5 s lag) against how many bouts get a clip at all:
 3 /s: r 0.19 and 11% of clip starts more than 1 s after a bout ended;
 6 /s: r 0.26, 94% of bouts, 6%; 12 /s: r 0.39, 88%, 0.6%;
 20 /s: r 0.66, but mild bouts get no clip at all.
+
+With a detector that holds clips back (``detector=yamnet``: ``clip_gate``), L is fed by the
+``mcs`` the detector passes on (``energy_drive``) and a clip may start only on frames where the
+detector allows it (``clip_allowed``): the candidate test gains one condition, the update of L is
+unchanged.  Without one (``detector=none``) both are the plain Eq. 4.1 / listing 5.4.
 """
 from __future__ import annotations
 
@@ -44,7 +49,7 @@ from laughlab import hookimpl
 from laughlab.core.bases import Scheduler
 from laughlab.core.frame import ClipEvent
 from laughlab.core.plugins import check_range
-from laughlab.detector.model import clip_drive
+from laughlab.detector.model import clip_allowed, energy_drive
 from laughlab.signals.smoothing import THESIS_TICK_HZ
 
 
@@ -205,7 +210,8 @@ class EnergyScheduler(Scheduler):
 
     def _step_equation(self, frame) -> float:
         p, dt = self.params, frame.dt
-        L = self._produce(clip_drive(frame.control), dt, p.floor_zero)
+        L = self._produce(energy_drive(frame.control), dt, p.floor_zero)
+        allowed = clip_allowed(frame.control)
         active = self.active
         limit = active.energy * p.overrule_c if active is not None else 0.0
         min_inactive = p.min_inactive_s
@@ -217,7 +223,7 @@ class EnergyScheduler(Scheduler):
                     L -= a.energy * a.speed / a.duration_s * dt
                 a.inactive_s = 0.0
                 continue
-            if L > a.energy and a.energy > limit and a.inactive_s > min_inactive:
+            if allowed and L > a.energy and a.energy > limit and a.inactive_s > min_inactive:
                 if a.energy > best_e:
                     best_e, best = a.energy, [a]
                 elif a.energy == best_e:
@@ -234,13 +240,14 @@ class EnergyScheduler(Scheduler):
     def _step_listing(self, frame) -> float:
         """Listings 5.4 and 5.5 line by line (one thesis tick per frame at 60 fps)."""
         p, dt = self.params, frame.dt
-        L = self._produce(clip_drive(frame.control), dt, False)
+        L = self._produce(energy_drive(frame.control), dt, False)
+        allowed = clip_allowed(frame.control)
         self.ctx.rng.shuffle(self.actions)          # random.shuffle(animationActions)
         best: _Action | None = None
         for a in self.actions:
             # activeAnimation.energy is read per action: a clip that finished earlier in this loop counts 0
             limit = self.active.energy * p.overrule_c if self.active is not None else 0.0
-            if L > a.energy and not a.active and a.energy > limit and a.inactive_s > p.min_inactive_s:
+            if allowed and L > a.energy and not a.active and a.energy > limit and a.inactive_s > p.min_inactive_s:
                 if best is None or a.energy > best.energy:
                     best = a
             if a.active:

@@ -37,10 +37,11 @@ REAL = "ovos/female-407676__nagwense__comical-evil-laugh"  # 11 s, 48 kHz, test 
 RTOL, ATOL = 1e-6, 1e-4
 
 #: name -> command-line overrides (every run: seed 0).  The papers' pipelines pin ``detector=none`` (their
-#: bytes are the papers', whatever the default detector); the ``*_yamnet`` runs hold detector=yamnet's bytes
+#: bytes are the papers', whatever the default detector); ``default`` is the default run (detector=yamnet),
+#: ``default_none`` the same run with every sound driving the character, as in the papers
 RUNS = {
     "default": ["input.duration_s=12"],
-    "default_yamnet": ["input.duration_s=12", "detector=yamnet"],
+    "default_none": ["input.duration_s=12", "detector=none"],
     "hill_facs": ["input.duration_s=8", "extractor=pressure", "body=hill", "face=facs", "scheduler=none",
                   "detector=none"],
     "phoneme_cgm_concat_fourier": ["input.duration_s=8", "extractor=phoneme", "face=cgm",

@@ -211,7 +211,7 @@ def test_a_successful_run_says_what_ran_how_long_and_where(tmp_path):
     lines = r.stdout.splitlines()
     assert len(lines) == 1
     line = lines[0]
-    assert line.startswith("laughlab: 2.0 s of synthetic input, rms > none > smile > shapes > energy, in ")
+    assert line.startswith("laughlab: 2.0 s of synthetic input, rms > yamnet > smile > shapes > energy, in ")
     assert "x real time" in line and f"-> {out}/: " in line
     for name in ("channels.csv", "events.csv", "motion.bvh", "plots/"):
         assert name in line and (out / name.rstrip("/")).exists()
@@ -240,7 +240,7 @@ def test_help_lists_every_group_with_examples_and_docs():
     assert r.returncode == 0 and "Hydra" not in r.stdout.splitlines()[0]
     assert r.stdout.startswith("usage: python -m laughlab")
     for line in ("  face:        smile, cgm, facs", "  body:        shapes, follow, fourier, hill",
-                 "  detector:    none, laugh, yamnet"):
+                 "  detector:    yamnet, laugh, none"):
         assert line in r.stdout
     assert "examples:" in r.stdout and "README.md" in r.stdout and "--hydra-help" in r.stdout
 
@@ -292,7 +292,7 @@ def test_every_output_group_states_a_meaningful_speed(output):
     if output == "video":
         metrics.update(video_frames=900, video_render_fps=4.51, realtime_factor=0.149)
     line = summary_line(cfg, metrics, ROOT / "conf" / "output", 3.4)
-    assert f"rms > none > smile > shapes > energy, in 3.4 s ({SPEEDS[output]}) -> " in line
+    assert f"rms > yamnet > smile > shapes > energy, in 3.4 s ({SPEEDS[output]}) -> " in line
 
 
 @pytest.mark.parametrize("args, seconds, metrics, said", [

@@ -196,6 +196,8 @@ def test_a_16bit_wav_cut_mid_frame_is_read_to_its_last_whole_frame(tmp_path):
     (["input.seed=-1"], "seed must be a whole number >= 0"),
     # found by test_parameters_long: a 2000-character model path, opened by the detector as it starts
     (["detector=laugh", "detector.model=" + "x" * 2000], "File name too long"),
+    # found by test_parameters_long: at fps=0.5 the feature MLP's call-period lags were an empty range
+    (["detector=laugh", "fps=0.5"], "detector=laugh needs fps >= 20"),
 ])
 def test_cases_the_fuzz_found(tmp_path, overrides, says):
     """Regressions: each case exactly as the fuzz found it, through the whole command line."""
@@ -236,10 +238,21 @@ def test_a_10_ms_input_prints_its_summary_and_nothing_else(tmp_path):
 
 # --- operating-system faults (child processes) -------------------------------------------------
 
-def laughlab(*args, **kw):
+def _as_from_a_terminal():
+    """Ctrl-C as a terminal delivers it: a shell running the tests in the background (CI, ``make test &``)
+    hands its children SIGINT ignored, and the run would then go on to its end (tests/test_rundir.py)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def laughlab(*args, preexec_fn=None, **kw):
     env = {**os.environ, "LAUGHLAB_WORKERS": os.environ.get("LAUGHLAB_WORKERS_CHILD", "1")}
+
+    def before():
+        _as_from_a_terminal()
+        if preexec_fn is not None:
+            preexec_fn()
     return subprocess.Popen([sys.executable, "-m", "laughlab", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=env, **kw)
+                            stderr=subprocess.PIPE, text=True, env=env, preexec_fn=before, **kw)
 
 
 def child_outcome(p, timeout=120) -> fuzz.Outcome:

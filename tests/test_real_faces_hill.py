@@ -35,27 +35,32 @@ def laughs():
     return items
 
 
-def jaw_r(path: str, face: str, extractor: str, tmp_path) -> float:
+def jaw_r(path: str, face: str, extractor: str, tmp_path, detector: str = "none") -> float:
     from laughlab.core import pipeline
     from laughlab.harness.metrics import compute
     from laughlab.harness.runner import _compose
     from laughlab.harness.trialdata import TrialData
 
     cfg = _compose(["input=file", f"input.path={path}", f"face={face}", f"extractor={extractor}", "body=shapes",
-                    "scheduler=none", "output=trial"])
+                    "scheduler=none", "output=trial", f"detector={detector}"])
     out = tmp_path / "run"
     out.mkdir(exist_ok=True)
     pipeline.execute(pipeline.build(cfg), out, OmegaConf.to_container(cfg, resolve=True))
     return compute(TrialData.load(out))["jaw_envelope_r"]
 
 
-@pytest.mark.parametrize("face, extractor, bound, example_bound", [
-    ("facs", "rms", 0.65, 0.7),        # measured: median 0.77, the example 0.82 (0.14 before issue 11)
-    ("cgm", "phoneme", 0.7, 0.65),     # measured: median 0.77, the example 0.73
+@pytest.mark.parametrize("face, extractor, detector, bound, example_bound", [
+    ("facs", "rms", "none", 0.65, 0.7),      # measured: median 0.77, the example 0.82 (0.14 before issue 11)
+    ("cgm", "phoneme", "none", 0.7, 0.65),   # measured: median 0.77, the example 0.73
+    # the default detector gates the face: it follows a new sound at once, lets go when YAMNet's window
+    # says "not laughter" and comes back when it says "laughter" (docs/detector.md): measured median 0.68
+    ("facs", "rms", "yamnet", 0.6, 0.6),
 ])
-def test_the_jaw_follows_the_calls_of_held_out_laughs(laughs, face, extractor, bound, example_bound, tmp_path):
-    rs = {iid: jaw_r(path, face, extractor, tmp_path) for iid, path, _ in laughs}
-    print(f"{face}: jaw_envelope_r median {np.median(list(rs.values())):.3f} over {len(rs)} held-out laughs")
+def test_the_jaw_follows_the_calls_of_held_out_laughs(laughs, face, extractor, detector, bound, example_bound,
+                                                       tmp_path):
+    rs = {iid: jaw_r(path, face, extractor, tmp_path, detector) for iid, path, _ in laughs}
+    print(f"{face} ({detector}): jaw_envelope_r median {np.median(list(rs.values())):.3f} over {len(rs)} "
+          f"held-out laughs, the example {rs[EXAMPLE]:.3f}")
     assert np.median(list(rs.values())) >= bound
     assert rs[EXAMPLE] >= example_bound
 

@@ -310,10 +310,29 @@ def test_detect_writes_three_formats_that_read_back(tmp_path):
     assert S.read_folder(csv_only)["a"] == [S.Segment(s.start, s.end) for s in segs["a"]]
 
 
+def test_elan_file_holds_the_segments_in_milliseconds(tmp_path):
+    """ELAN's EAF: the time slots of each ``laugh`` annotation are the segment's ends in whole ms."""
+    import xml.etree.ElementTree as ET
+
+    segs = [S.Segment(0.25, 1.2004), S.Segment(2.0, 2.5)]
+    root = ET.fromstring(S.eaf_text(segs))
+    assert root.tag == "ANNOTATION_DOCUMENT" and root.find("HEADER").get("TIME_UNITS") == "milliseconds"
+    slots = {t.get("TIME_SLOT_ID"): int(t.get("TIME_VALUE")) for t in root.iter("TIME_SLOT")}
+    got = [(slots[a.get("TIME_SLOT_REF1")], slots[a.get("TIME_SLOT_REF2")], a.findtext("ANNOTATION_VALUE"))
+           for a in root.find("TIER").iter("ALIGNABLE_ANNOTATION")]
+    assert got == [(250, 1200, "laugh"), (2000, 2500, "laugh")]
+    assert root.find("TIER").get("LINGUISTIC_TYPE_REF") == root.find("LINGUISTIC_TYPE").get("LINGUISTIC_TYPE_ID")
+    empty = ET.fromstring(S.eaf_text([]))
+    assert empty.find("TIER") is not None and not list(empty.iter("ANNOTATION"))
+    out = tmp_path / "o"
+    S.write_outputs(out, [("rec", 3.0, segs)], ("elan",))
+    assert [p.name for p in out.iterdir()] == ["rec.eaf"] and (out / "rec.eaf").read_text() == S.eaf_text(segs)
+
+
 @pytest.mark.parametrize("args,message", [
     (["nothing.wav"], "input not found: nothing.wav"),
     (["--threshold", "2", "x"], "--threshold must be in [0, 1]"),
-    (["--formats", "elan", "x"], "unknown format elan"),
+    (["--formats", "eaf", "x"], "unknown format eaf"),
 ])
 def test_detect_bad_input_is_one_line(tmp_path, args, message):
     if "x" in args:

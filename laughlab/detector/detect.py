@@ -16,7 +16,7 @@ from pathlib import Path
 from laughlab.core.errors import LaughlabError, one_line_parser
 
 AUDIO_SUFFIXES = {".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif", ".opus"}
-FORMATS = ("csv", "audacity", "textgrid")
+FORMATS = ("csv", "audacity", "textgrid", "elan")
 
 
 def inputs(paths: list[str]) -> list[Path]:
@@ -59,7 +59,7 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--min-length", type=float, default=0.2, help="shortest segment kept (s, default 0.2)")
     ap.add_argument("--hop", type=float, default=0.5, help="time between model windows (s, default 0.5)")
     ap.add_argument("--smooth", type=int, default=3, help="centred moving average over this many windows (default 3)")
-    ap.add_argument("--formats", default="csv,audacity,textgrid", help="comma-separated: csv, audacity, textgrid")
+    ap.add_argument("--formats", default="csv,audacity,textgrid", help="comma-separated: csv, audacity, textgrid, elan (default: the first three)")
     ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto")
     ns = ap.parse_args(argv)
     if not 0.0 <= ns.threshold <= 1.0:

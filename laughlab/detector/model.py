@@ -348,13 +348,23 @@ class GateParams:
             v = getattr(self, k)
             if not (isinstance(v, (int, float)) and math.isfinite(v)):
                 raise ValueError(f"{k} must be a number in [0, 1] (got {v})")
-        if not (0.0 <= self.close_below <= self.open_at <= 1.0):
-            raise ValueError(f"need 0 <= close_below <= open_at <= 1 (got open_at={self.open_at}, "
-                             f"close_below={self.close_below})")
-        for k in ("open_s", "hold_s", "attack_s", "release_s"):
-            v = getattr(self, k)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"{k} must be a number >= 0 (got {v})")
+        check_hysteresis(self, "close_below", "open_at")
+        check_non_negative(self, ("open_s", "hold_s", "attack_s", "release_s"))
+
+
+def check_hysteresis(params, low: str, high: str) -> None:
+    """A gate's two thresholds in order: 0 <= ``low`` <= ``high`` <= 1 (ValueError naming both)."""
+    lo, hi = getattr(params, low), getattr(params, high)
+    if not (0.0 <= lo <= hi <= 1.0):
+        raise ValueError(f"need 0 <= {low} <= {high} <= 1 (got {high}={hi}, {low}={lo})")
+
+
+def check_non_negative(params, names) -> None:
+    """Each of ``names`` (times, levels) a finite number >= 0 (ValueError naming the first that is not)."""
+    for k in names:
+        v = getattr(params, k)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            raise ValueError(f"{k} must be a number >= 0 (got {v})")
 
 
 class Gate:
@@ -440,9 +450,25 @@ def apply_gate(frame, gain: float) -> None:
             frame.label = SILENT_LABEL
 
 
+def clip_allowed(control) -> bool:
+    """May a full-body clip start on this frame?  Yes unless a detector set ``clip_gate`` below 0.5
+    (``detector=yamnet``: clips wait for the model to agree)."""
+    g = control.get("clip_gate")
+    return g is None or g >= 0.5
+
+
+def energy_drive(control) -> float:
+    """The ``mcs`` that feeds the energy scheduler's laughing energy (van Duijn 2014, Eq. 4.1): ``mcs`` as the
+    detector left it, i.e. under ``detector=yamnet`` scaled by the face gain, which opens at once on a new
+    sound: a laugh builds its energy while the model listens, and its clip starts as soon as
+    ``clip_allowed``."""
+    return control["mcs"]
+
+
 def clip_drive(control) -> float:
-    """The ``mcs`` a scheduler reads: ``mcs``, or ``mcs_ungated * clip_gate`` when a detector set
-    ``clip_gate`` (``detector=yamnet``: full-body clips wait for the model while the face answers)."""
+    """The ``mcs`` the concat scheduler reads (it plays segments all the time, so it has no start to hold
+    back): ``mcs``, or ``mcs_ungated * clip_gate`` when a detector set ``clip_gate`` (``detector=yamnet``:
+    full-body laughter waits for the model while the face answers)."""
     g = control.get("clip_gate")
     if g is None:
         return control["mcs"]

@@ -113,8 +113,40 @@ def textgrid_text(segs: list[Segment], duration_s: float) -> str:
     return "\n".join(lines) + "\n"
 
 
+def eaf_text(segs: list[Segment]) -> str:
+    """An ELAN annotation document (EAF 3.0): one time-alignable tier ``laughter``, ``laugh`` per segment.
+
+    Times in whole milliseconds (ELAN's unit); no media link (ELAN asks for the recording when the file is
+    opened) and a fixed DATE, so the same input gives the same bytes."""
+    from xml.sax.saxutils import quoteattr
+
+    slots, anns = [], []
+    for i, seg in enumerate(segs):
+        a, b = 2 * i + 1, 2 * i + 2
+        slots += [f'        <TIME_SLOT TIME_SLOT_ID="ts{a}" TIME_VALUE="{int(round(seg.start * 1000))}"/>',
+                  f'        <TIME_SLOT TIME_SLOT_ID="ts{b}" TIME_VALUE="{int(round(seg.end * 1000))}"/>']
+        anns += ["        <ANNOTATION>",
+                 f'            <ALIGNABLE_ANNOTATION ANNOTATION_ID="a{i + 1}" TIME_SLOT_REF1="ts{a}" '
+                 f'TIME_SLOT_REF2="ts{b}">',
+                 "                <ANNOTATION_VALUE>laugh</ANNOTATION_VALUE>",
+                 "            </ALIGNABLE_ANNOTATION>", "        </ANNOTATION>"]
+    lines = ['<?xml version="1.0" encoding="UTF-8"?>',
+             '<ANNOTATION_DOCUMENT AUTHOR=' + quoteattr("laughlab detect") + ' DATE="1970-01-01T00:00:00Z" '
+             'FORMAT="3.0" VERSION="3.0" xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance" '
+             'xsi:noNamespaceSchemaLocation="http://www.mpi.nl/tools/elan/EAFv3.0.xsd">',
+             '    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds"/>',
+             "    <TIME_ORDER>" if slots else "    <TIME_ORDER/>", *slots, *(["    </TIME_ORDER>"] if slots else []),
+             '    <TIER LINGUISTIC_TYPE_REF="default-lt" TIER_ID="laughter">' if anns else
+             '    <TIER LINGUISTIC_TYPE_REF="default-lt" TIER_ID="laughter"/>',
+             *anns, *(["    </TIER>"] if anns else []),
+             '    <LINGUISTIC_TYPE GRAPHIC_REFERENCES="false" LINGUISTIC_TYPE_ID="default-lt" TIME_ALIGNABLE="true"/>',
+             "</ANNOTATION_DOCUMENT>"]
+    return "\n".join(lines) + "\n"
+
+
 def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...]) -> list[Path]:
-    """Write ``segments.csv`` and per-input ``NAME.txt`` / ``NAME.TextGrid``; each file whole or not at all."""
+    """Write ``segments.csv`` and per-input ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf``; each file whole or not
+    at all."""
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, dur, segs in results:
@@ -124,6 +156,9 @@ def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]]
         if "textgrid" in formats:
             written.append(out_dir / f"{name}.TextGrid")
             _atomic_write(written[-1], textgrid_text(segs, dur))
+        if "elan" in formats:
+            written.append(out_dir / f"{name}.eaf")
+            _atomic_write(written[-1], eaf_text(segs))
     if "csv" in formats:
         rows = ["file,start,end,probability\n"] + [f"{name},{s.start:.4f},{s.end:.4f},{s.prob:.4f}\n"
                                                    for name, _, segs in results for s in segs]

@@ -23,6 +23,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import hashlib
+import threading
 import json
 import math
 from dataclasses import dataclass
@@ -88,12 +89,33 @@ def _quiet_stderr():
         os.close(saved)
 
 
+#: loaded interpreters (with a lock) by (file, bundled, size, mtime, thread): a changed file is read and checked
+#: again
+_LOADED: dict = {}
+
+
 class Yamnet:
     """The bundled YAMNet: ``scores(window)`` -> 521 class scores of one 0.975 s window at 16 kHz."""
 
     def __init__(self, path: str | Path | None = None):
         p = Path(path) if path is not None else data_dir() / "yamnet.tflite"
         self.path = p
+        try:
+            st = p.stat()
+        except OSError as exc:
+            raise ModelFileError(f"cannot read the YAMNet model {p} ({exc.strerror or exc}): {RESTORE}") from None
+        key = (str(p.resolve()), path is None, st.st_size, st.st_mtime_ns, threading.get_ident())
+        cached = _LOADED.get(key)
+        if cached is None:
+            cached = _LOADED[key] = self._load(p, path is None)
+        self.it, self._in, self._out, self._lock = cached
+        self._buf = np.zeros((1, WINDOW), np.float32)
+
+    @staticmethod
+    def _load(p: Path, bundled: bool):
+        """Read, check and load the model file once per process (an interpreter holds no state between
+        windows, so runs in one thread share it: the fuzz suite and the harness build many pipelines)."""
+        path = None if bundled else p
         try:
             data = p.read_bytes()
         except OSError as exc:
@@ -107,24 +129,42 @@ class Yamnet:
                                  "where it has no wheel (Intel Macs), use detector=laugh or detector=none") from None
         try:
             with _quiet_stderr():  # LiteRT prints "INFO: Created TensorFlow Lite XNNPACK delegate" on fd 2
-                self.it = Interpreter(model_content=data, num_threads=1)
-                self.it.allocate_tensors()
-            inp, out = self.it.get_input_details()[0], self.it.get_output_details()[0]
+                it = Interpreter(model_content=data, num_threads=1)
+                it.allocate_tensors()
+            inp, out = it.get_input_details()[0], it.get_output_details()[0]
         except (ValueError, RuntimeError, IndexError) as exc:
             raise ModelFileError(f"the YAMNet model {p} cannot be loaded ({str(exc).splitlines()[0][:120]}): "
                                  f"{RESTORE}") from None
         if list(inp["shape"]) != [1, WINDOW] or list(out["shape"]) != [1, N_CLASSES]:
             raise ModelFileError(f"{p} is not the YAMNet model (input {list(inp['shape'])}, output "
                                  f"{list(out['shape'])}): {RESTORE}")
-        self._in, self._out = inp["index"], out["index"]
-        self._buf = np.zeros((1, WINDOW), np.float32)
+        return it, inp["index"], out["index"], threading.Lock()
 
     def scores(self, window: np.ndarray) -> np.ndarray:
-        """The 521 scores of one window (``WINDOW`` samples at 16 kHz, float in [-1, 1])."""
-        self._buf[0] = window
-        self.it.set_tensor(self._in, self._buf)
-        self.it.invoke()
-        return self.it.get_tensor(self._out)[0].astype(np.float64)
+        """The 521 scores of one window (``WINDOW`` samples at 16 kHz, float in [-1, 1]).
+
+        Safe from any thread: the interpreter is used by one call at a time (LiteRT releases the GIL
+        while it runs, so a call in a helper thread leaves the frame thread free)."""
+        with self._lock:
+            self._buf[0] = window
+            self.it.set_tensor(self._in, self._buf)
+            self.it.invoke()
+            return self.it.get_tensor(self._out)[0].astype(np.float64)
+
+
+#: the helper thread that runs model windows off the frame thread (``detector.async_frames``), per process
+_HELPER: dict = {}
+
+
+def helper():
+    """The process' one helper thread for model windows (made again in a forked child, where it is gone)."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    pid = os.getpid()
+    if _HELPER.get("pid") != pid:
+        _HELPER.update(pid=pid, pool=ThreadPoolExecutor(1, thread_name_prefix="laughlab-yamnet"))
+    return _HELPER["pool"]
 
 
 class Resampler16k:
