@@ -2,15 +2,16 @@
 (YAMNet's own laughter classes) and ``head`` (the first rule: the head alone, every 0.5 s, two windows in a row).
 
 Runs the default live pipeline (``benchmarks/bench_detector.py``'s ``run_pipeline``, the metrics of
-``experiment=detector_eval``) on the sets ``speech``, ``mixed`` and ``real`` of the test split once per
+``experiment=detector_eval``) on the sets ``speech``, ``mixed``, ``between`` and ``real`` of the test split once per
 rule, and prints per rule: clip starts per minute of speech, bouts answered (per-file mean and pooled),
 the gate's frame F1, the first clip after a bout starts (median), false starts in ``mixed`` (on speech,
 on other sounds), and clip starts in the second after a bout ended.  Writes
 ``benchmarks/results/yamnet_rules.json``.  The thresholds were chosen on the train split
 (``python -m laughlab.detector.yamnet_fit --rules``); nothing here feeds back into them.
 
-Run: ``nice python benchmarks/bench_yamnet_rules.py [--work DIR] [--jobs 2]`` (about 10 minutes per rule
-on a loaded 2-core machine; ``--work`` keeps the runs, and a run already there is not repeated).
+Run: ``python benchmarks/bench_yamnet_rules.py [--work DIR] [--jobs 2]`` (about a minute per rule on 2
+cores: the pipelines run in-process, ``--jobs`` at once; ``--work`` keeps the runs, and a run already there
+is not repeated).
 """
 from __future__ import annotations
 
@@ -29,8 +30,6 @@ sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
 import bench_detector as B  # noqa: E402
-from laughlab.corpora.fetch import corpus_dir  # noqa: E402
-from laughlab.harness.corpus import set_folder  # noqa: E402
 from laughlab.harness.trialdata import TrialData  # noqa: E402
 
 RULES = {
@@ -38,7 +37,7 @@ RULES = {
     "classes": ["detector.rule=classes"],
     "head": ["detector.rule=head", "detector.hop_s=0.5", "detector.open_windows=2", "detector.close_quiet_s=0"],
 }
-SETS = ("speech", "mixed", "real")
+SETS = ("speech", "mixed", "between", "real")
 OTHER = ("cough", "sneeze", "scream", "music", "noise", "vocal")
 
 
@@ -76,6 +75,18 @@ def pooled(run_dir: Path, wav: Path) -> dict:
     return out
 
 
+def _one(job):
+    """One file under one rule (a process-pool job): (set, metrics, counts)."""
+    rule, work, s, w = job
+    d = work / rule / f"{s}-{w.stem}"
+    if (d / "metrics.json").exists():   # kept from an earlier call with --work
+        truth = w.with_name(w.stem + ".truth.csv")
+        m = B.compute(TrialData.load(d, truth if truth.exists() else None))
+    else:
+        m = B.run_pipeline(w, d, "yamnet", RULES[rule])
+    return s, m, pooled(d, w)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--work", default=None, help="keep the runs here (default: a temporary folder)")
@@ -83,27 +94,12 @@ def main() -> None:
     ap.add_argument("--rules", default=",".join(RULES))
     ns = ap.parse_args()
     work = Path(ns.work or tempfile.mkdtemp(prefix="bench_yamnet_rules_"))
-    sets = {n: sorted((corpus_dir() / "sets" / set_folder(n, "test", 6, 100.0)).glob("*.wav")) for n in SETS}
-    for n in SETS:
-        if not sets[n]:
-            B.write_set(corpus_dir() / "sets" / set_folder(n, "test", 6, 100.0), n, "test", 6, 100.0,
-                        [20.0, 10.0, 5.0], 0)
-            sets[n] = sorted((corpus_dir() / "sets" / set_folder(n, "test", 6, 100.0)).glob("*.wav"))
+    sets = B.held_out_sets()
     res = {}
     for rule in ns.rules.split(","):
-        def one(job, rule=rule):
-            s, w = job
-            d = work / rule / f"{s}-{w.stem}"
-            if (d / "metrics.json").exists():   # kept from an earlier call with --work
-                truth = w.with_name(w.stem + ".truth.csv")
-                m = B.compute(TrialData.load(d, truth if truth.exists() else None))
-            else:
-                m = B.run_pipeline(w, d, "yamnet", RULES[rule])
-            return s, m, pooled(d, w)
-
         jobs = [(s, w) for s in SETS for w in sets[s]]
-        with cf.ThreadPoolExecutor(ns.jobs) as ex:
-            got = list(ex.map(one, jobs))
+        with cf.ProcessPoolExecutor(ns.jobs) as ex:
+            got = list(ex.map(_one, [(rule, work, s, w) for s, w in jobs]))
         r = {}
         for s in SETS:
             ms = [m for k, m, _ in got if k == s]
@@ -120,13 +116,15 @@ def main() -> None:
                                                                            "false_starts_speech_per_min")}}
                                 for (k, w), (_, m, _) in zip(jobs, got) if k == s]}
         res[rule] = {"overrides": RULES[rule], "sets": r}
-        sp, mx, re = r["speech"], r["mixed"], r["real"]
+        sp, mx, re, bt = r["speech"], r["mixed"], r["real"], r["between"]
         print(f"{rule}: speech {sp['starts'] / max(sp['minutes'], 1e-9):.2f} starts/min; real answered "
               f"{re['bouts_answered_mean']:.2f} ({re['answered']}/{re['bouts']}), F1 {re['detector_f1_mean']:.2f}, "
               f"first clip {re['first_clip_median_s_mean']:.2f} s (pooled {re['first_clip_median_s_pooled']:.2f} s); "
               f"mixed answered {mx['answered']}/{mx['bouts']}, F1 {mx['detector_f1_mean']:.2f}, false starts on "
               f"speech {mx['false_speech']} ({mx['speech_min']:.1f} min), on other sounds {mx['false_other']} "
-              f"({mx['other_min']:.1f} min); starts in the second after a bout: {mx['late'] + re['late']}",
+              f"({mx['other_min']:.1f} min); between speech answered {bt['answered']}/{bt['bouts']}, false starts on "
+              f"speech {bt['false_speech']} ({bt['speech_min']:.1f} min), first clip {bt['first_clip_median_s_pooled']:.2f} s"
+              f"; starts in the second after a bout: {mx['late'] + re['late']}",
               flush=True)
     (HERE / "results").mkdir(exist_ok=True)
     (HERE / "results" / "yamnet_rules.json").write_text(json.dumps({"data": "test split", **res}, indent=1) + "\n")

@@ -381,6 +381,9 @@ def run(cfg, out_dir) -> dict:
            "audio_items": [u[0] for u in units], "participants": n_participants,
            "latin_square_rows": len(williams(len(conditions))), "loudness_target_lufs": target,
            "orders": [str(p.relative_to(out_dir)) for p in orders]}
+    character = OmegaConf.select(cfg, "character", default=None)
+    doc["character"] = ({"file": Path(str(character)).name, "sha256": _sha256(Path(str(character)).expanduser())}
+                        if character else "mannequin")  # which body the participants saw
     _write_text(out_dir / "stimuli.json", json.dumps(doc, indent=2, sort_keys=True) + "\n")
     print(f"stimuli: {len(manifest)} videos -> {out_dir / 'manifest.csv'}; orders for {n_participants} "
           f"participants in {out_dir / 'orders'}")

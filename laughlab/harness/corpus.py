@@ -132,7 +132,7 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
 
 
 #: the named sets of real recordings (``laughlab.corpora``): their profile names in the results
-REAL_SETS = ("real", "mixed", "speech")
+REAL_SETS = ("real", "mixed", "between", "speech")
 
 
 def set_folder(name: str, split: str, n: int, duration_s: float) -> str:
@@ -151,6 +151,8 @@ def real_items(spec, left_out: list | None = None) -> list[Item]:
     - ``real``: every annotated laugh of the split, padded with 0.5 s of silence (profile ``real``);
     - ``mixed``: ``scenes`` scenes of ``duration_s`` with the split's laughs between speech and other
       sounds over room noise, SNR cycling through ``snr_db`` (profiles ``mixed-20dB``, ...);
+    - ``between``: ``scenes`` scenes like ``mixed`` but with no noise bed (seed ``seed + 1``): laughs spliced
+      between real speech (profile ``between``);
     - ``speech``: ``scenes`` streams of ``duration_s`` of speech only (profile ``speech``).
 
     The WAVs and their ``truth.csv`` are written once under the data folder
@@ -181,7 +183,10 @@ def real_items(spec, left_out: list | None = None) -> list[Item]:
     for s in sets:
         folder = corpus_dir() / "sets" / set_folder(s, split, n, dur)
         try:
-            wavs = write_set(folder, s, split, n, dur, snr, seed)
+            if s == "between":   # the mixed scenes' kind with no noise bed, another seed
+                wavs = write_set(folder, "mixed", split, n, dur, [], seed + 1)
+            else:
+                wavs = write_set(folder, s, split, n, dur, snr, seed)
         except CorpusNotFetched:
             if if_missing == "stop":
                 raise

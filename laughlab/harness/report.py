@@ -234,7 +234,7 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
     for name in others:
         lines += [f"![{name}](figures/{name})", ""]
     lines += ["## By profile", ""]
-    for m in ("intensity_r_clip", "miss_rate", "silent_start_rate"):
+    for m in ("intensity_r_clip", "miss_rate", "silent_start_rate", "bouts_answered", "false_starts_per_min"):
         if m in doc["metrics"]:
             lines += [f"`{m}`", ""] + _profile_table(doc, m) + [""]
     if doc.get("extra"):

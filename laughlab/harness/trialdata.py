@@ -62,6 +62,13 @@ class Truth:
         return cls(t[t.kind == "bout"].reset_index(drop=True), t[t.kind == "call"].reset_index(drop=True),
                    t[~t.kind.isin(["bout", "call"])].reset_index(drop=True))
 
+    def in_bouts(self, times: np.ndarray) -> np.ndarray:
+        """Which of ``times`` lie inside an annotated bout (onset included, offset not)."""
+        out = np.zeros(len(times), dtype=bool)
+        for on, off in self.bouts[["onset_s", "offset_s"]].itertuples(index=False):
+            out |= (times >= on) & (times < off)
+        return out
+
     def intensity(self, times: np.ndarray) -> np.ndarray:
         """Laughter intensity at ``times``: the call's intensity inside a call, 0 elsewhere."""
         out = np.zeros(len(times))

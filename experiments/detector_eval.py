@@ -1,0 +1,120 @@
+"""Experiment ``detector_eval``: the detectors' scores as precision-recall curves, beside the harness' metrics.
+
+The harness' metrics judge each detector's *gate* (open or shut, and the clips it lets start).  This
+module judges the *score* behind it: per 60 fps frame, the ``laughter`` probability each detector
+condition writes (``detector=yamnet``: its head; ``detector=laugh``: the feature MLP; plus
+``yamnet classes``: YAMNet's own largest laughter-class score, ``laughter_classes``), stepped over
+every held-out recording of the corpus that has a truth (the ``real``, ``mixed`` and ``between`` sets), exactly as
+live (causal, the frame's block).  A frame is laughter when it lies inside an annotated bout.
+
+Writes ``plots/detector_pr.png`` (one curve per score, its average precision in the legend, the
+operating points of the gates' thresholds marked) and returns the average precisions and the curves'
+points at those thresholds for ``results.json``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+#: score -> (condition's detector, control written per frame, the gate's threshold on it)
+SCORES = {
+    "yamnet (head)": ("yamnet", "laughter", 0.5),
+    "yamnet classes": ("yamnet", "laughter_classes", 0.1),
+    "laugh (feature MLP)": ("laugh", "laughter", 0.7),
+}
+
+
+def frame_scores(detector: str, path: str, fps: float = 60.0) -> tuple[dict, float]:
+    """Step one detector over a recording's frames (as the pipeline cuts them); its controls per frame."""
+    from laughlab.core import plugins
+    from laughlab.core.bases import Context
+    from laughlab.core.frame import Frame
+    from laughlab.io.audio import cut_frames, probe_file, read_blocks
+
+    sr = int(probe_file(path).samplerate)
+    det = plugins.get("detector", detector).obj(ctx=Context(fps=fps, sample_rate=sr))
+    det.reset()
+    out: dict = {"laughter": [], "laughter_classes": []}
+    dt = 1.0 / fps
+    for k, block in enumerate(cut_frames(read_blocks(path), sr, fps)):
+        frame = Frame(k, k * dt, dt, {"mcs": 0.0}, None, {}, {}, [], 0.0)
+        det.step(block, frame)
+        for key in out:
+            out[key].append(float(frame.control.get(key, np.nan)))
+    return {k: np.asarray(v) for k, v in out.items()}, dt
+
+
+def truth_frames(truth: str, n: int, dt: float) -> np.ndarray:
+    from laughlab.harness.trialdata import Truth
+
+    return Truth.load(truth).in_bouts((np.arange(n) + 0.5) * dt)   # frame centres
+
+
+def pr_curve(score: np.ndarray, y: np.ndarray):
+    """Precision and recall at every distinct score (descending), and the average precision
+    (sum over thresholds of precision x recall gained, as scikit-learn's ``average_precision_score``)."""
+    order = np.argsort(-score, kind="stable")
+    s, t = score[order], y[order]
+    tp = np.cumsum(t)
+    fp = np.cumsum(~t)
+    last = np.r_[np.flatnonzero(np.diff(s)), len(s) - 1]   # the last frame of each distinct score
+    tp, fp, thr = tp[last], fp[last], s[last]
+    pos = max(int(y.sum()), 1)
+    precision = tp / np.maximum(tp + fp, 1)
+    recall = tp / pos
+    ap = float(np.sum(np.diff(np.r_[0.0, recall]) * precision))
+    return precision, recall, thr, ap
+
+
+def extra(run) -> dict:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    items = [i for i in run.items if i.truth and i.profile != "speech"]
+    wanted = {d for d, _, _ in SCORES.values() if d in {o.split("=", 1)[1] for ov in run.conditions.values()
+                                                          for o in ov if o.startswith("detector=")}}
+    if not items or not wanted:
+        return {}
+    pooled: dict = {name: [] for name, (d, _, _) in SCORES.items() if d in wanted}
+    ys = []
+    for item in items:
+        path = next(o.split("=", 1)[1] for o in item.overrides if o.startswith("input.path="))
+        got = {d: frame_scores(d, path) for d in wanted}
+        dt = next(iter(got.values()))[1]
+        n = len(next(iter(got.values()))[0]["laughter"])
+        ys.append(truth_frames(item.truth, n, dt))
+        for name in pooled:
+            d, key, _ = SCORES[name]
+            pooled[name].append(got[d][0][key])
+    y = np.concatenate(ys)
+    fig = Figure(figsize=(6.0, 5.2), dpi=150)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    out = {"what": "frame-level precision-recall of each detector's score on the held-out recordings with a "
+                   "truth (sets real, mixed and between), pooled over frames at 60 fps; a frame is laughter inside a bout",
+           "frames": int(len(y)), "laughter_share": float(y.mean()), "scores": {}}
+    for name, parts in pooled.items():
+        s = np.nan_to_num(np.concatenate(parts), nan=0.0)
+        p, r, thr, ap = pr_curve(s, y)
+        line, = ax.plot(r, p, lw=1.6, label=f"{name}: AP {ap:.2f}")
+        at = SCORES[name][2]
+        k = np.flatnonzero(thr >= at)
+        op = {"threshold": at, "precision": float(p[k[-1]]) if len(k) else float("nan"),
+              "recall": float(r[k[-1]]) if len(k) else 0.0}
+        if len(k):
+            ax.plot([op["recall"]], [op["precision"]], "o", color=line.get_color(), ms=6)
+        out["scores"][name] = {"average_precision": ap, "at_gate_threshold": op}
+    ax.axhline(float(y.mean()), color="0.6", lw=1, ls="--", label=f"chance (laughter share {y.mean():.2f})")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1.02)
+    ax.set_xlabel("recall (share of laughter frames above the threshold)")
+    ax.set_ylabel("precision")
+    ax.set_title("Laughter scores per frame, held-out recordings (dots: the gates' thresholds)", fontsize=9)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    plots = Path(run.out_dir) / "plots"
+    plots.mkdir(parents=True, exist_ok=True)
+    fig.savefig(plots / "detector_pr.png")
+    return {"detector_pr": out}

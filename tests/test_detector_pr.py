@@ -1,0 +1,41 @@
+"""The precision-recall curves of experiment=detector_eval (experiments/detector_eval.py)."""
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from sklearn.metrics import average_precision_score, precision_recall_curve
+
+from laughlab_experiments.detector_eval import pr_curve, truth_frames
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 10_000), st.integers(2, 400), st.integers(1, 20))
+def test_pr_curve_agrees_with_scikit_learn(seed, n, levels):
+    """Ties (a score held between two model windows), any share of laughter: scikit-learn's curve and AP."""
+    rng = np.random.default_rng(seed)
+    y = rng.random(n) < rng.uniform(0.05, 0.95)
+    if not y.any():
+        y[0] = True
+    s = np.round(rng.random(n) * levels) / levels + 0.2 * y * rng.random()
+    p, r, thr, ap = pr_curve(s, y)
+    assert np.isclose(ap, average_precision_score(y, s))
+    sp, sr, sthr = precision_recall_curve(y, s)
+    for t, pi, ri in zip(thr, p, r):
+        k = int(np.flatnonzero(np.isclose(sthr, t))[0])
+        assert np.isclose(pi, sp[k]) and np.isclose(ri, sr[k])
+
+
+def test_pr_curve_by_hand():
+    # scores 0.9 (laugh), 0.8 (not), 0.4 (laugh), 0.4 (not): thresholds 0.9, 0.8, 0.4
+    p, r, thr, ap = pr_curve(np.array([0.9, 0.8, 0.4, 0.4]), np.array([True, False, True, False]))
+    assert np.allclose(thr, [0.9, 0.8, 0.4])
+    assert np.allclose(p, [1.0, 0.5, 0.5]) and np.allclose(r, [0.5, 0.5, 1.0])
+    assert np.isclose(ap, 0.5 * 1.0 + 0.0 * 0.5 + 0.5 * 0.5)
+
+
+def test_truth_frames_mark_the_frames_inside_bouts(tmp_path):
+    t = tmp_path / "x.truth.csv"
+    t.write_text("kind,bout,onset_s,offset_s,intensity\nbout,0,0.1000,0.2000,1.0\n")
+    y = truth_frames(str(t), 20, 1 / 60)   # frame centres (k + 0.5) / 60
+    assert np.flatnonzero(y).tolist() == [6, 7, 8, 9, 10, 11]
