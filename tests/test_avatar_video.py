@@ -73,3 +73,34 @@ def test_a_character_in_the_schematic_style_is_one_line(tmp_path):
                          capture_output=True, text=True, timeout=300)
     assert out.returncode == 2 and out.stderr.count("\n") == 1 and "style=character only" in out.stderr
     assert not (tmp_path / "run").exists()
+
+
+def test_stimuli_are_rendered_on_the_avatar_and_say_which(tmp_path):
+    """experiment=stimuli character=PATH: every stimulus shows the avatar (its frames differ from the
+    mannequin's), and stimuli.json names the file and its sha256."""
+    import hashlib
+    import json
+
+    import imageio_ffmpeg
+
+    frames = {}
+    for who, extra in (("avatar", [f"character={GODETTE}"]), ("mannequin", [])):
+        d = tmp_path / who
+        out = subprocess.run([sys.executable, "-m", "laughlab", "experiment=stimuli", *extra,
+                              "harness.corpus.profiles=[mild]", "harness.corpus.seeds=1",
+                              "harness.corpus.duration_s=1", "harness.video.supersample=1",
+                              "harness.conditions={laugh_energy: ['scheduler=energy', 'detector=none']}",
+                              f"hydra.run.dir={d}"], capture_output=True, text=True, timeout=600)
+        assert out.returncode == 0, out.stderr
+        doc = json.loads((d / "stimuli.json").read_text())
+        assert len(list((d / "stimuli").glob("*.mp4"))) == doc["n_stimuli"] == 1
+        frames[who] = subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), "-loglevel", "error", "-ss", "0.5", "-i",
+                                      str(d / "stimuli" / "laugh_energy-mild-s00.mp4"), "-frames:v", "1",
+                                      "-f", "rawvideo", "-pix_fmt", "rgb24", "-"], capture_output=True).stdout
+        if who == "avatar":
+            assert doc["character"] == {"file": GODETTE.name,
+                                        "sha256": hashlib.sha256(GODETTE.read_bytes()).hexdigest()}
+        else:
+            assert doc["character"] == "mannequin"
+    a, m = (np.frombuffer(frames[k], np.uint8).astype(int) for k in ("avatar", "mannequin"))
+    assert len(a) == len(m) == 640 * 480 * 3 and np.abs(a - m).mean() > 5
