@@ -123,7 +123,7 @@ docs: $(STAMP) browser
 	$(PY) -m laughlab.viewer.browser runs/docs docs/img/avatar_robot.png --at 9 --character tests/assets/avatars/debug_robot.vrm
 	rm -rf runs/docs-avatar-video
 	$(PY) -m laughlab hydra.run.dir=runs/docs-avatar-video seed=0 input.duration_s=4 output=video face=facs \
-	   character=tests/assets/avatars/Godette_vrm_v4.vrm output.video.supersample=1
+	   character=tests/assets/avatars/Godette_vrm_v4.vrm
 	$(PY) -c "import imageio_ffmpeg, subprocess; subprocess.run([imageio_ffmpeg.get_ffmpeg_exe(), '-loglevel', 'error', '-y', '-ss', '2.3', '-i', 'runs/docs-avatar-video/video.mp4', '-frames:v', '1', 'docs/img/avatar_video.png'], check=True)"
 	rm -rf runs/docs-video
 	$(PY) -m laughlab hydra.run.dir=runs/docs-video seed=0 input.duration_s=10 output=video face=facs
