@@ -84,6 +84,10 @@ def preflight(argv: list[str]):
         if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
             check_conditions(cfg.harness.get("conditions"))
             build_corpus(OmegaConf.to_container(cfg.harness.get("corpus") or {}, resolve=True))
+        if cfg.get("character") is not None:   # e.g. experiment=stimuli: its trials' sinks load it later
+            from laughlab.avatar.load import load_character
+
+            load_character(cfg.character)
     else:
         pipeline.check_character_used(cfg)
     full = cfg

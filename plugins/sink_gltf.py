@@ -16,7 +16,6 @@ import numpy as np
 
 from laughlab import hookimpl
 from laughlab.core.bases import Sink
-from laughlab.core.errors import LaughlabError
 from laughlab.core.outfiles import Staging
 
 
@@ -44,12 +43,9 @@ class GltfSink(Sink):
     def __init__(self, params=None, ctx=None):
         super().__init__(params, ctx)
         if getattr(self.params, "character", None):  # check the avatar now: a bad file stops the run before anything is written
-            from laughlab.avatar.load import AvatarError, load_avatar
+            from laughlab.avatar.load import load_character
 
-            try:
-                load_avatar(self.params.character)
-            except AvatarError as exc:
-                raise LaughlabError(str(exc)) from None
+            load_character(self.params.character)
 
     def open(self, run) -> None:
         super().open(run)

@@ -170,12 +170,9 @@ class VideoSink(Sink):
         super().__init__(params, ctx)
         self.avatar = None
         if self.params.character:  # check the avatar now: a bad file stops the run before anything is written
-            from laughlab.avatar.load import AvatarError, load_avatar
+            from laughlab.avatar.load import load_character
 
-            try:
-                self.avatar = load_avatar(self.params.character)
-            except AvatarError as exc:
-                raise LaughlabError(str(exc)) from None
+            self.avatar = load_character(self.params.character)
 
     def open(self, run) -> None:
         super().open(run)
@@ -261,13 +258,12 @@ class VideoSink(Sink):
 
     def _avatar_frames(self, chunk, idx: np.ndarray, poses: np.ndarray) -> None:
         from laughlab.avatar.channels import face_and_breath
-        from laughlab.avatar.expressions import breathing_on_bones, breathing_pose, morph_weights
+        from laughlab.avatar.expressions import breath_on_bones, breathing_pose, morph_weights
 
         arkit, breath = face_and_breath(chunk.channels)
         arkit = {k: np.asarray(v)[idx] for k, v in arkit.items()}
         breath = {k: np.asarray(v)[idx] for k, v in breath.items()}
-        if breathing_on_bones(self.avatar):
-            poses = breathing_pose(poses, breath, self.run.skeleton)
+        poses = breathing_pose(poses, breath_on_bones(self.avatar, breath), self.run.skeleton)
         morphs = morph_weights(self.avatar, arkit, breath, len(idx))
         world = self.renderer.worlds(poses)
         for i in range(len(idx)):

@@ -243,6 +243,9 @@ def test_the_vrma_holds_the_bvh_the_breathing_and_the_expressions(vrma_run):
     assert ext["specVersion"] == "1.0" and doc["extensionsUsed"] == ["VRMC_vrm_animation"]
     assert set(ext["humanoid"]["humanBones"]) == set(JOINT_TO_VRM.values())
     assert doc["scenes"][0]["extras"]["laughlab"]["audio_duration_s"] == pytest.approx(4.0)
+    # the clip lasts as long as the audio: one key at 4.0 s after the last frame's (239/60 s), holding it
+    ends = [doc["accessors"][s["input"]]["max"][0] for s in doc["animations"][0]["samplers"]]
+    assert ends == pytest.approx([4.0] * len(ends))
     sk, motion, _ = read_bvh(vrma_run / "motion.bvh")
     ch = np.genfromtxt(vrma_run / "channels.csv", delimiter=",", names=True)
     arkit = np.genfromtxt(vrma_run / "face_arkit.csv", delimiter=",", names=True)
@@ -338,6 +341,13 @@ def test_a_bad_avatar_is_one_line_exit_2_and_nothing_written(tmp_path, make, say
     assert not (tmp_path / "run").exists()
 
 
+def test_stimuli_on_a_bad_avatar_are_one_line_and_nothing_written(tmp_path):
+    path = _robot_without("head", tmp_path / "avatar.vrm")
+    out = _cli(tmp_path, "experiment=stimuli", f"character={path}")
+    assert out.returncode == 2 and out.stderr.strip().count("\n") == 0, out.stderr
+    assert "the VRM humanoid lacks the required bone head" in out.stderr and not (tmp_path / "run").exists()
+
+
 def test_a_very_large_avatar_is_refused_from_its_size(tmp_path):
     big = tmp_path / "big.vrm"
     with open(big, "wb") as fh:  # sparse: 101 MB on paper, nothing on disk
@@ -347,6 +357,33 @@ def test_a_very_large_avatar_is_refused_from_its_size(tmp_path):
         load_avatar(big)
     out = _cli(tmp_path, "output=gltf", "input.duration_s=1", f"character={big}")
     assert out.returncode == 2 and "up to 100 MB" in out.stderr and not (tmp_path / "run").exists()
+
+
+def test_a_gltf_whose_buffer_file_is_very_large_is_refused_before_it_is_read(tmp_path):
+    gltf = tmp_path / "big.gltf"
+    gltf.write_text(json.dumps({"asset": {"version": "2.0"}, "buffers": [{"uri": "big.bin", "byteLength": 1}]}))
+    with open(tmp_path / "big.bin", "wb") as fh:  # sparse, as above
+        fh.truncate(MAX_BYTES)
+    with pytest.raises(AvatarError, match=r"big.gltf: the avatar with its buffer big.bin is 105 MB; laughlab loads "
+                                          r"avatars up to 100 MB"):
+        load_avatar(gltf)
+
+
+def test_breathing_goes_to_the_bones_channel_by_channel():
+    """An avatar with a ``chest`` morph but no ``belly`` one: the chest breathes on the morph, the belly on the
+    spine bones (BREATH_DEGREES), not nowhere."""
+    from types import SimpleNamespace
+
+    from laughlab.avatar.expressions import breath_on_bones, breathing_pose
+
+    breath = {"chest": np.array([0.5]), "belly": np.array([1.0])}
+    for morphs, bones in ((["Chest", "jawOpen"], {"belly"}), (["chest", "BELLY"], set()), ([], {"chest", "belly"})):
+        av = SimpleNamespace(all_morph_names=lambda m=morphs: m)
+        assert set(breath_on_bones(av, breath)) == bones
+    posed = breathing_pose(np.zeros((1, HUMANOID.n_channels)), breath_on_bones(
+        SimpleNamespace(all_morph_names=lambda: ["chest"]), breath), HUMANOID)
+    x = {j: posed[0, HUMANOID.angle_slice(j).start + 1] for j in ("spine", "spine1", "neck")}
+    assert x == pytest.approx({"spine": -2.0, "spine1": 2.0, "neck": 0.0})   # belly 1.0 only, by hand
 
 
 def test_a_character_no_output_uses_is_said(tmp_path):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from laughlab.avatar.channels import face_and_breath
-from laughlab.avatar.expressions import breathing_on_bones, breathing_pose, morph_weights
+from laughlab.avatar.expressions import breath_on_bones, breathing_pose, morph_weights
 from laughlab.avatar.load import load_avatar
 from laughlab.avatar.retarget import animated_world, retarget
 from laughlab.io.bvh import read_bvh
@@ -58,10 +58,9 @@ def joints_where_the_retargeting_puts_them(page, path, run_dir, frame):
     av = load_avatar(path)
     _, motion, _ = read_bvh(run_dir / "motion.bvh")
     poses = motion[[frame]]
-    if breathing_on_bones(av):
-        ch = V._channels(run_dir)
-        _, breath = face_and_breath({k: v[[frame]] for k, v in ch.items()})
-        poses = breathing_pose(poses, breath, HUMANOID)
+    ch = V._channels(run_dir)
+    _, breath = face_and_breath({k: v[[frame]] for k, v in ch.items()})
+    poses = breathing_pose(poses, breath_on_bones(av, breath), HUMANOID)
     want = animated_world(av, retarget(av, poses))[0, :, :3, 3]
     want = want * np.array([av.facing, 1, av.facing])  # the page turns a VRM 0.x avatar to face the camera
     nodes = [av.bones[b] for b in BONES]

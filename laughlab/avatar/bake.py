@@ -13,7 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
-from laughlab.avatar.expressions import breathing_on_bones, breathing_pose, morph_weights
+from laughlab.avatar.expressions import breath_on_bones, breathing_pose, morph_weights
 from laughlab.avatar.load import Avatar
 from laughlab.avatar.retarget import retarget
 from laughlab.io.gltf import Buffer, glb_bytes
@@ -30,8 +30,7 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
     if f == 0 or poses.shape != (f, skeleton.n_channels):
         raise ValueError(f"the baked avatar needs F times and (F, {skeleton.n_channels}) poses; got {f}, "
                          f"{poses.shape}")
-    if breathing_on_bones(avatar):
-        poses = breathing_pose(poses, breath, skeleton)
+    poses = breathing_pose(poses, breath_on_bones(avatar, breath), skeleton)
     moved = retarget(avatar, poses, skeleton)
     doc = copy.deepcopy(avatar.doc)
     buf = Buffer(avatar.binary, doc.get("bufferViews"), doc.get("accessors"))

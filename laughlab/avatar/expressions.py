@@ -108,10 +108,13 @@ def morph_weights(avatar: Avatar, arkit: Mapping[str, np.ndarray], breath: Mappi
     return {node: np.clip(np.nan_to_num(w), 0.0, 1.0) for node, w in out.items()}
 
 
-def breathing_on_bones(avatar: Avatar) -> bool:
-    """True if the avatar has no ``chest``/``belly`` morph, so breathing moves its spine bones."""
+def breath_on_bones(avatar: Avatar, breath: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The breathing channels of ``breath`` that the avatar has no morph for (by name, case ignored):
+    those move its spine bones (:func:`breathing_pose`), the others its ``chest``/``belly`` morphs.
+    Decided per channel, so an avatar with a ``chest`` morph and no ``belly`` one still breathes with
+    its belly on the bones."""
     names = {n.lower() for n in avatar.all_morph_names()}
-    return not ({"chest", "belly"} & names)
+    return {k: v for k, v in breath.items() if k.lower() not in names}
 
 
 def breathing_pose(poses: np.ndarray, breath: Mapping[str, np.ndarray], skeleton: Skeleton) -> np.ndarray:

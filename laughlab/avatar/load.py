@@ -95,6 +95,16 @@ VRM0_PRESETS = {"a": "aa", "i": "ih", "u": "ou", "e": "ee", "o": "oh", "joy": "h
                 "neutral": "neutral", "surprised": "surprised"}
 
 
+def load_character(path: str | Path) -> "Avatar":
+    """:func:`load_avatar` for ``character=PATH``: a bad file is the run's one-line error (``LaughlabError``)."""
+    from laughlab.core.errors import LaughlabError
+
+    try:
+        return load_avatar(path)
+    except AvatarError as exc:
+        raise LaughlabError(str(exc)) from None
+
+
 def _fail(path: Path, what: str) -> AvatarError:
     return AvatarError(f"{path}: {what}")
 
@@ -144,8 +154,13 @@ def read_gltf(path: str | Path) -> tuple[dict, bytes]:
         if uri.startswith("data:"):
             binary = base64.b64decode(uri.split(",", 1)[1])
         elif uri:
+            bin_path = path.parent / uri
             try:
-                binary = (path.parent / uri).read_bytes()
+                bin_size = bin_path.stat().st_size
+                if size + bin_size > MAX_BYTES:
+                    raise _fail(path, f"the avatar with its buffer {uri} is {(size + bin_size) / 1e6:.0f} MB; "
+                                      f"laughlab loads avatars up to {MAX_BYTES // (1024 * 1024)} MB")
+                binary = bin_path.read_bytes()
             except OSError:
                 raise _fail(path, f"its buffer {uri} cannot be read") from None
     return doc, binary

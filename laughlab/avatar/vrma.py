@@ -12,7 +12,8 @@ animation, ``laugh``:
 * one node per VRM preset expression of :data:`ARKIT_TO_VRM`, whose translation's X is the
   expression's weight per frame (the extension's convention), from the face's ARKit weights;
 * ``scenes[0].extras.laughlab``: fps, frames and the input audio's duration (s); the animation's
-  keys run from 0 to the last frame's time.
+  keys run from 0 to the audio's duration (the last frame held to the audio's end, one more key),
+  so a player's clip lasts exactly as long as the sound it plays beside.
 
 It does not depend on any avatar: the player retargets it.  Same run, same bytes.
 """
@@ -35,10 +36,12 @@ def vrma_bytes(skeleton: Skeleton, times_s: np.ndarray, poses: np.ndarray, arkit
     """The ``.vrma`` bytes (see the module's docstring)."""
     times = np.asarray(times_s, dtype=np.float32)
     poses = breathing_pose(np.asarray(poses, dtype=np.float64), breath, skeleton)
-    f, jn = len(times), skeleton.n_joints
-    if f == 0 or poses.shape != (f, skeleton.n_channels):
-        raise ValueError(f"VRM Animation export needs F times and (F, {skeleton.n_channels}) poses; got {f}, "
+    frames, jn = len(times), skeleton.n_joints
+    if frames == 0 or poses.shape != (frames, skeleton.n_channels):
+        raise ValueError(f"VRM Animation export needs F times and (F, {skeleton.n_channels}) poses; got {frames}, "
                          f"{poses.shape}")
+    times, poses, arkit = hold_to_end(times, audio_duration_s, poses, arkit)
+    f = len(times)
     buf = Buffer()
     nodes, bones = [], {}
     for j in range(jn):
@@ -77,8 +80,19 @@ def vrma_bytes(skeleton: Skeleton, times_s: np.ndarray, poses: np.ndarray, arkit
                                               "expressions": {"preset": presets}}},
         "scene": 0,
         "scenes": [{"name": "laugh", "nodes": [0] + [presets[n]["node"] for n in presets], "extras": {"laughlab": {
-            "fps": float(fps), "frames": int(f), "audio_duration_s": float(audio_duration_s)}}}],
+            "fps": float(fps), "frames": int(frames), "audio_duration_s": float(audio_duration_s)}}}],
         "nodes": nodes,
         "animations": [{"name": "laugh", "samplers": samplers, "channels": channels}],
     }
     return glb_bytes(doc, buf)
+
+
+def hold_to_end(times: np.ndarray, end_s: float, poses: np.ndarray, arkit: Mapping[str, np.ndarray]):
+    """``times`` (float32, s), ``poses`` and the ``arkit`` weights with one more key at ``end_s`` holding the
+    last frame, when ``end_s`` (the audio's duration) lies after the last frame's time; else unchanged."""
+    end = np.float32(end_s)
+    if not (np.isfinite(end) and end > times[-1]):
+        return times, poses, arkit
+    return (np.append(times, end), np.concatenate([poses, poses[-1:]]),
+            {k: np.append(np.asarray(v, dtype=np.float64), np.asarray(v, dtype=np.float64)[-1:])
+             for k, v in arkit.items()})
