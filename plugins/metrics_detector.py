@@ -85,6 +85,43 @@ def detection_latency_p90_s(trial):
     return finite_percentile(lat, 90)
 
 
+#: the laughter probability a detector writes (``detector=yamnet``: its head's; ``laugh``: its MLP's)
+PROBABILITY = "laughter"
+
+
+#: issue 27: the laughter probability should cross 0.5 within this long of a laugh's start (median over laughs)
+PROBABILITY_IN_TIME_S = 0.3
+
+
+def _probability_latencies(trial):
+    """Per bout: from its onset to the end of the first frame inside it whose ``laughter`` is at least 0.5 (s);
+    NaN where it never is.  None without the channel or bouts."""
+    if trial.truth is None or trial.truth.bouts.empty or PROBABILITY not in trial.channels:
+        return None
+    up = trial.channels[PROBABILITY].to_numpy() >= 0.5
+    t = trial.times
+    lat = []
+    for on, off in trial.truth.bouts[["onset_s", "offset_s"]].itertuples(index=False):
+        k = np.flatnonzero(up & (t >= on) & (t <= off))
+        lat.append(t[k[0]] + 1.0 / trial.fps - on if len(k) else np.nan)
+    return np.array(lat)
+
+
+@metric("probability_latency_median_s", False, "s")
+def probability_latency_median_s(trial):
+    """Median over the bouts where the laughter probability (``laughter``) reaches 0.5 of the time from the
+    bout's onset to the end of the first such frame inside it (s)."""
+    return finite_percentile(_probability_latencies(trial), 50)
+
+
+@metric("probability_in_time", True, "fraction")
+def probability_in_time(trial):
+    """Fraction of bouts whose laughter probability (``laughter``) reaches 0.5 within 0.3 s of the onset (the
+    median over all laughs is within 0.3 s exactly when this is at least 0.5: issue 27's target)."""
+    lat = _probability_latencies(trial)
+    return float("nan") if lat is None else float(np.mean(lat <= PROBABILITY_IN_TIME_S + 1e-9))
+
+
 def _non_laughter(trial):
     """Mask of clip starts outside every bout (+ ``ANSWER_TAIL_S``), and the non-laughter minutes."""
     starts = trial.starts().time.to_numpy()
@@ -141,7 +178,7 @@ def _false_starts_on(kind: str):
 
 
 ALL = [detector_f1, detector_precision, detector_recall, detection_latency_median_s, detection_latency_p90_s,
-       false_starts_per_min, bouts_answered] + [_false_starts_on(k) for k in KINDS]
+       probability_latency_median_s, probability_in_time, false_starts_per_min, bouts_answered] + [_false_starts_on(k) for k in KINDS]
 
 
 @hookimpl

@@ -34,6 +34,18 @@ def test_frame_scores_by_hand():
     assert m["detection_latency_p90_s"] == pytest.approx(1.1)
 
 
+def test_the_probability_latency_by_hand():
+    # 20 s at 10 fps; bouts 2-6 s, 10-12 s, 15-16 s; laughter >= 0.5 from 2.2 s, from 11.0 s, never in the third
+    tr = truth([(2.0, 6.0, 1.0), (10.0, 12.0, 1.0), (15.0, 16.0, 1.0)])
+    p = lambda t: np.where(((t >= 2.2) & (t < 6)) | ((t >= 11.0) & (t < 11.5)), 0.5, 0.49)  # noqa: E731
+    m = compute(trial(tr=tr, laughter=p, laugh_gate=np.ones(200)))
+    # 2.2 + 0.1 - 2.0 = 0.3 and 11.0 + 0.1 - 10.0 = 1.1: median 0.7 over the two that cross; 1 of 3 by 0.3 s
+    assert m["probability_latency_median_s"] == pytest.approx(0.7)
+    assert m["probability_in_time"] == pytest.approx(1 / 3)
+    m = compute(trial(tr=tr, laugh_gate=np.ones(200)))   # no probability channel (detector=none)
+    assert np.isnan(m["probability_latency_median_s"]) and np.isnan(m["probability_in_time"])
+
+
 def test_false_starts_and_answered_bouts_by_hand():
     tr = truth([(2.0, 6.0, 1.0), (10.0, 12.0, 1.0)])
     ev = [(2.5, "start", "giggle", 20, 1.0, ""), (6.8, "start", "sway", 10, 1.0, ""),    # in bout 1, its tail
