@@ -181,6 +181,24 @@ def test_the_trunk_keeps_the_avatars_posture_and_turns_as_the_bvh(godette_run):
             np.testing.assert_allclose(world[f, av.bones[bone], :3, :3], want, atol=1e-9)
 
 
+def test_a_missing_neck_and_upper_chest_fall_back_to_the_chest(godette_run, tmp_path):
+    """The VRM 1.0 robot without its optional neck and upperChest: its chest takes the deepest missing trunk
+    joint's world rotation (laughlab's neck), its head still laughlab's head, from the robot's own rest."""
+    motion, _ = bvh_world(godette_run)
+    av = load_avatar(_robot_without("neck", tmp_path / "a.vrm"))   # the robot has no upperChest of its own
+    assert "neck" not in av.bones and "upperChest" not in av.bones and av.facing == 1
+    world = animated_world(av, retarget(av, motion))
+    _, G = global_transforms(HUMANOID, motion)
+    for bone, joint in (("chest", "neck"), ("head", "head"), ("spine", "spine")):
+        rest = av.rest_world[av.bones[bone], :3, :3]
+        for f in FRAMES:
+            np.testing.assert_allclose(world[f, av.bones[bone], :3, :3], G[f, HUMANOID.index(joint)] @ rest,
+                                       atol=1e-9)
+    # and the neck really bends in this run (else the chest's check would not tell neck from spine2)
+    a, b = G[:, HUMANOID.index("neck")], G[:, HUMANOID.index("spine2")]
+    assert np.abs(a[list(FRAMES)] - b[list(FRAMES)]).max() > 1e-3
+
+
 def test_an_a_pose_avatar_is_turned_into_the_t_pose_first(avatars, godette_run):
     """The mannequin with its arms lowered 40 degrees at rest (an A-pose): the arms still follow the BVH."""
     doc, binary = parse_glb((avatars / "mannequin_arkit.glb").read_bytes())
