@@ -135,7 +135,8 @@ def _digests(run_dir: Path) -> dict:
     return {str(p.relative_to(run_dir)): hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
 
 
-@pytest.mark.parametrize("extra", [[], ["face=facs", "body=hill", "extractor=pressure"]])
+@pytest.mark.parametrize("extra", [[], pytest.param(["face=facs", "body=hill", "extractor=pressure"],
+                                                     marks=pytest.mark.slow)])  # the Hill run: make test-all
 def test_a_run_writes_the_same_bytes_with_and_without_the_helper(tmp_path, extra):
     runs = {}
     for workers in ("1", "0"):

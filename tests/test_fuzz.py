@@ -61,7 +61,7 @@ def run_picks(tmp_path_factory, picks, kind: str) -> None:
     assert not fuzz.check(out, run_dir, " ".join(o[:60] for o in overrides))
 
 
-@settings(max_examples=int(os.environ.get("FUZZ_N", 400)), derandomize=True, **SETTINGS)
+@settings(max_examples=int(os.environ.get("FUZZ_N", 250)), derandomize=True, **SETTINGS)
 @given(st.lists(st.tuples(st.sampled_from(FAST), one_value), min_size=1, max_size=3))
 def test_parameters(tmp_path_factory, picks):
     """One to three keys of one plugin choice set to bad values."""

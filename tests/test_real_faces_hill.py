@@ -50,7 +50,8 @@ def jaw_r(path: str, face: str, extractor: str, tmp_path, detector: str = "none"
 
 
 @pytest.mark.parametrize("face, extractor, detector, bound, example_bound", [
-    ("facs", "rms", "none", 0.65, 0.7),      # measured: median 0.77, the example 0.82 (0.14 before issue 11)
+    # slow: the default suite checks facs-rms under the default detector below (make test-all runs this too)
+    pytest.param("facs", "rms", "none", 0.65, 0.7, marks=pytest.mark.slow),  # measured: median 0.77, the example 0.82
     ("cgm", "phoneme", "none", 0.7, 0.65),   # measured: median 0.77, the example 0.73
     # the default detector gates the face: it follows a new sound at once, lets go when YAMNet's window
     # says "not laughter" and comes back when it says "laughter" (docs/detector.md): measured median 0.68

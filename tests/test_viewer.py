@@ -125,7 +125,8 @@ def site(run_dir, tmp_path_factory):
 
 
 @pytest.mark.browser
-@pytest.mark.parametrize("width, height", [(960, 720), (1280, 500), (480, 900)])
+@pytest.mark.parametrize("width, height", [(960, 720), pytest.param(1280, 500, marks=pytest.mark.slow),
+                                           pytest.param(480, 900, marks=pytest.mark.slow)])  # wide, tall: test-all
 def test_the_written_page_plays_opened_as_a_file(site, width, height):
     """Issue 26: ``view RUN --out DIR`` opened as a file showed a blank page with '0.00 / 0.00 s'."""
     p = Page((site / "index.html").as_uri(), width=width, height=height)
