@@ -265,9 +265,10 @@ class VideoSink(Sink):
         breath = {k: np.asarray(v)[idx] for k, v in breath.items()}
         poses = breathing_pose(poses, breath_on_bones(self.avatar, breath), self.run.skeleton)
         morphs = morph_weights(self.avatar, arkit, breath, len(idx))
-        world = self.renderer.worlds(poses)
-        for i in range(len(idx)):
-            self.encoder.write(self.renderer.render(poses[i], {k: v[i] for k, v in morphs.items()}, world[i]))
+        frames = self.renderer.render_many(self.renderer.worlds(poses),
+                                           [{k: v[i] for k, v in morphs.items()} for i in range(len(idx))])
+        for frame in frames:
+            self.encoder.write(frame)
 
     def close(self):
         try:

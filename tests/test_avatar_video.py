@@ -104,3 +104,21 @@ def test_stimuli_are_rendered_on_the_avatar_and_say_which(tmp_path):
             assert doc["character"] == "mannequin"
     a, m = (np.frombuffer(frames[k], np.uint8).astype(int) for k in ("avatar", "mannequin"))
     assert len(a) == len(m) == 640 * 480 * 3 and np.abs(a - m).mean() > 5
+
+
+def test_frames_drawn_by_two_threads_are_the_frames_drawn_one_by_one():
+    """``render_many`` (the video's path: the camera follows first, then two threads draw) gives exactly the
+    frames ``render`` gives one after another, morphs included, the camera moving between them."""
+    av = load_avatar(GODETTE)
+    face = next(p for p in parts(av) if len(p.morphs))
+    rng = np.random.default_rng(3)
+    poses = np.repeat(rest_pose()[None], 6, axis=0)
+    poses[:, 3:] += rng.normal(0.0, 12.0, poses[:, 3:].shape)          # degrees: a different pose a frame
+    morphs = [{face.node: rng.uniform(0, 1, len(face.morphs))} for _ in range(6)]
+    one = AvatarRenderer(av, HUMANOID, 160, 120, supersample=2)
+    want = [one.render(p, m) for p, m in zip(poses, morphs)]
+    two = AvatarRenderer(av, HUMANOID, 160, 120, supersample=2)
+    got = two.render_many(two.worlds(poses), morphs, threads=2)
+    assert len(got) == 6 and all(np.array_equal(a, b) for a, b in zip(got, want))
+    assert not np.array_equal(want[0], want[5])                       # the frames do differ
+    assert np.array_equal(two.aim, one.aim)                           # and the camera ended in the same place

@@ -77,12 +77,32 @@ class AvatarRenderer:
         """One frame ``(height, width, 3)`` uint8: ``pose`` (BVH channel vector), ``morphs`` mesh node -> weights
         (``world``: the frame's node world matrices if :meth:`worlds` made them for a whole chunk)."""
         world = self.worlds(pose)[0] if world is None else world
-        v, n = self.vertices(world, morphs)
-        light = 0.45 + 0.6 * np.clip(n @ self.key, 0.0, None) + 0.2 * np.clip(n @ self.fill, 0.0, None)
-        colour = np.clip(self.albedo * light[:, None], 0.0, 255.0)
+        return self._draw(world, morphs, self._follow(world))
+
+    def render_many(self, worlds: np.ndarray, morphs: list[dict], threads: int = 2) -> list[np.ndarray]:
+        """The frames of a chunk (``worlds`` from :meth:`worlds`, one ``morphs`` dict a frame), drawn by
+        ``threads`` threads at once: the camera follows frame by frame first (the only state), then each frame
+        is drawn on its own (the rasteriser releases the GIL), so the frames are the bytes :meth:`render` gives."""
+        aims = [self._follow(w) for w in worlds]
+        jobs = list(zip(worlds, morphs, aims))
+        if threads <= 1 or len(jobs) < 2:
+            return [self._draw(*j) for j in jobs]
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(threads, thread_name_prefix="laughlab-render") as pool:
+            return list(pool.map(lambda j: self._draw(*j), jobs))
+
+    def _follow(self, world: np.ndarray) -> np.ndarray:
+        """The camera's aim for a frame: it follows the chest and head, smoothed from frame to frame (cm)."""
         b = self.avatar.bones
         chest = b.get("upperChest", b.get("chest", b["spine"]))
         target = (0.3 * world[chest, :3, 3] + 0.7 * world[b["head"], :3, 3]) * self.facing * 100.0
         self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
-        xy, depth = self.camera.projector(self.width * self.ss, self.height * self.ss, target=self.aim)(v)
+        return self.aim
+
+    def _draw(self, world: np.ndarray, morphs: dict, aim: np.ndarray) -> np.ndarray:
+        v, n = self.vertices(world, morphs)
+        light = 0.45 + 0.6 * np.clip(n @ self.key, 0.0, None) + 0.2 * np.clip(n @ self.fill, 0.0, None)
+        colour = np.clip(self.albedo * light[:, None], 0.0, 255.0)
+        xy, depth = self.camera.projector(self.width * self.ss, self.height * self.ss, target=aim)(v)
         return downsample(rasterise(xy, depth, colour, self.tris, self.background), self.ss)
