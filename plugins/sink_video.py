@@ -240,8 +240,8 @@ class VideoSink(Sink):
             from laughlab.character.body import morph_weights
 
             mw = morph_weights(chunk.channels, n)[idx]
-            for i in range(len(idx)):
-                self.encoder.write(self.renderer.render(poses[i], mw[i]))
+            for frame in self.renderer.render_many(poses, mw):
+                self.encoder.write(frame)
             self.render_s += time.perf_counter() - t0
             return
         pos, rot = global_transforms(sk, poses)

@@ -122,3 +122,18 @@ def test_frames_drawn_by_two_threads_are_the_frames_drawn_one_by_one():
     assert len(got) == 6 and all(np.array_equal(a, b) for a, b in zip(got, want))
     assert not np.array_equal(want[0], want[5])                       # the frames do differ
     assert np.array_equal(two.aim, one.aim)                           # and the camera ended in the same place
+
+
+def test_the_mannequins_frames_drawn_by_two_threads_are_the_frames_drawn_one_by_one():
+    """The default video's character (``output=video``) takes the same two-thread path: the same frames."""
+    from laughlab.render.character_view import CharacterRenderer
+
+    rng = np.random.default_rng(4)
+    poses = np.repeat(rest_pose()[None], 5, axis=0)
+    poses[:, 3:] += rng.normal(0.0, 12.0, poses[:, 3:].shape)
+    one = CharacterRenderer(HUMANOID, 160, 120)
+    weights = rng.uniform(0, 1, (5, one.morphs.shape[0]))
+    want = [one.render(p, w) for p, w in zip(poses, weights)]
+    two = CharacterRenderer(HUMANOID, 160, 120)
+    got = two.render_many(poses, weights, threads=2)
+    assert all(np.array_equal(a, b) for a, b in zip(got, want)) and not np.array_equal(want[0], want[4])

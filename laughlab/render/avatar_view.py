@@ -16,7 +16,7 @@ from laughlab.avatar.load import Avatar
 from laughlab.avatar.mesh import parts
 from laughlab.avatar.retarget import animated_world, retarget
 from laughlab.render.character_view import FILL, KEY, background, downsample
-from laughlab.render.raster import rasterise
+from laughlab.render.raster import draw_frames, rasterise
 from laughlab.render.scene import Camera
 
 
@@ -83,14 +83,7 @@ class AvatarRenderer:
         """The frames of a chunk (``worlds`` from :meth:`worlds`, one ``morphs`` dict a frame), drawn by
         ``threads`` threads at once: the camera follows frame by frame first (the only state), then each frame
         is drawn on its own (the rasteriser releases the GIL), so the frames are the bytes :meth:`render` gives."""
-        aims = [self._follow(w) for w in worlds]
-        jobs = list(zip(worlds, morphs, aims))
-        if threads <= 1 or len(jobs) < 2:
-            return [self._draw(*j) for j in jobs]
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(threads, thread_name_prefix="laughlab-render") as pool:
-            return list(pool.map(lambda j: self._draw(*j), jobs))
+        return draw_frames(self._draw, [(w, m, self._follow(w)) for w, m in zip(worlds, morphs)], threads)
 
     def _follow(self, world: np.ndarray) -> np.ndarray:
         """The camera's aim for a frame: it follows the chest and head, smoothed from frame to frame (cm)."""

@@ -18,7 +18,7 @@ import numpy as np
 
 from laughlab.character.body import build
 from laughlab.motion.skeleton import global_transforms, rest_pose
-from laughlab.render.raster import rasterise
+from laughlab.render.raster import draw_frames, rasterise
 from laughlab.render.scene import Camera
 
 #: key light (from the camera's upper left), fill light (right), ambient
@@ -52,6 +52,25 @@ class CharacterRenderer:
     def render(self, pose: np.ndarray, morph_weights: np.ndarray) -> np.ndarray:
         """One frame ``(height, width, 3)`` uint8 of ``pose`` (BVH channel vector) with ``morph_weights``."""
         pos, rot = global_transforms(self.skeleton, np.asarray(pose, dtype=np.float64))
+        return self._draw(pos, rot, morph_weights, self._follow(pos))
+
+    def render_many(self, poses: np.ndarray, morph_weights: np.ndarray, threads: int = 2) -> list[np.ndarray]:
+        """The frames of a chunk, drawn by ``threads`` threads at once: the camera follows frame by frame
+        first (the only state), then each frame is drawn on its own, the bytes :meth:`render` gives."""
+        jobs = []
+        for pose, w in zip(np.asarray(poses, dtype=np.float64), morph_weights):
+            pos, rot = global_transforms(self.skeleton, pose)   # frame by frame, as render does: the same bits
+            jobs.append((pos, rot, w, self._follow(pos)))
+        return draw_frames(self._draw, jobs, threads)
+
+    def _follow(self, pos: np.ndarray) -> np.ndarray:
+        """The camera's aim for a frame's joint positions: between the chest and the head, smoothed (cm)."""
+        chest, head = self.skeleton.index("spine2"), self.skeleton.index("head")
+        target = 0.5 * (pos[chest] + pos[head])
+        self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
+        return self.aim
+
+    def _draw(self, pos: np.ndarray, rot: np.ndarray, morph_weights: np.ndarray, aim: np.ndarray) -> np.ndarray:
         v = self.base + np.tensordot(np.asarray(morph_weights, dtype=np.float64), self.morphs, axes=1)
         j, wt = self.char.joints, self.char.weights.astype(np.float64)
         out = np.zeros_like(v)
@@ -64,10 +83,7 @@ class CharacterRenderer:
         nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
         light = 0.30 + 0.75 * np.clip(nrm @ self.key, 0.0, None) + 0.25 * np.clip(nrm @ self.fill, 0.0, None)
         colour = np.clip(self.albedo * light[:, None], 0.0, 255.0)
-        chest, head = self.skeleton.index("spine2"), self.skeleton.index("head")
-        target = 0.5 * (pos[chest] + pos[head])
-        self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
-        xy, depth = self.camera.projector(self.width * self.ss, self.height * self.ss, target=self.aim)(out)
+        xy, depth = self.camera.projector(self.width * self.ss, self.height * self.ss, target=aim)(out)
         return downsample(rasterise(xy, depth, colour, self.tris, self.background), self.ss)
 
 

@@ -78,3 +78,16 @@ def rasterise(xy: np.ndarray, depth: np.ndarray, colour: np.ndarray, tris: np.nd
     _compiled(np.ascontiguousarray(xy, dtype=np.float64), np.ascontiguousarray(depth, dtype=np.float64),
               np.ascontiguousarray(colour, dtype=np.float64), np.ascontiguousarray(tris, dtype=np.int64), image, zbuf)
     return image
+
+
+def draw_frames(draw, jobs: list, threads: int = 2) -> list:
+    """``[draw(*job) for job in jobs]``, by ``threads`` threads at once (:func:`rasterise` releases the GIL).
+
+    ``draw`` must be a pure function of its job (a renderer's per-frame state, such as a camera that follows
+    the body, is computed into the jobs first), so the frames are the bytes one thread would draw."""
+    if threads <= 1 or len(jobs) < 2:
+        return [draw(*j) for j in jobs]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(threads, thread_name_prefix="laughlab-render") as pool:
+        return list(pool.map(lambda j: draw(*j), jobs))
