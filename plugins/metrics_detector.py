@@ -58,17 +58,22 @@ def detector_recall(trial):
     return c[0] / (c[0] + c[2])
 
 
+def _first_in_bouts(trial, mask: np.ndarray) -> np.ndarray:
+    """Per bout: from its onset to the end of the first frame inside it where ``mask`` holds (s); NaN where
+    none does."""
+    t = trial.times
+    lat = []
+    for on, off in trial.truth.bouts[["onset_s", "offset_s"]].itertuples(index=False):
+        k = np.flatnonzero(mask & (t >= on) & (t <= off))
+        lat.append(t[k[0]] + 1.0 / trial.fps - on if len(k) else np.nan)
+    return np.array(lat)
+
+
 def _latencies(trial):
     f = _frames(trial)
     if f is None or trial.truth.bouts.empty:
         return None
-    gate = f[0]
-    t = trial.times
-    lat = []
-    for on, off in trial.truth.bouts[["onset_s", "offset_s"]].itertuples(index=False):
-        k = np.flatnonzero(gate & (t >= on) & (t <= off))
-        lat.append(t[k[0]] + 1.0 / trial.fps - on if len(k) else np.nan)
-    return np.array(lat)
+    return _first_in_bouts(trial, f[0])
 
 
 @metric("detection_latency_median_s", False, "s")
@@ -98,13 +103,7 @@ def _probability_latencies(trial):
     NaN where it never is.  None without the channel or bouts."""
     if trial.truth is None or trial.truth.bouts.empty or PROBABILITY not in trial.channels:
         return None
-    up = trial.channels[PROBABILITY].to_numpy() >= 0.5
-    t = trial.times
-    lat = []
-    for on, off in trial.truth.bouts[["onset_s", "offset_s"]].itertuples(index=False):
-        k = np.flatnonzero(up & (t >= on) & (t <= off))
-        lat.append(t[k[0]] + 1.0 / trial.fps - on if len(k) else np.nan)
-    return np.array(lat)
+    return _first_in_bouts(trial, trial.channels[PROBABILITY].to_numpy() >= 0.5)
 
 
 @metric("probability_latency_median_s", False, "s")
