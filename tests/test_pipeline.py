@@ -206,6 +206,7 @@ def test_windows_in_a_helper_thread_take_effect_exactly_async_frames_later(tmp_p
     for d in (0, 3):
         pipe = pipeline.build(cfg_for("input.duration_s=6", "output=trial", f"detector.async_frames={d}"))
         pipeline.execute(pipe, tmp_path / f"a{d}", {})
+        assert pipe.detector.queue == []   # the run closed the detector: no window left in the helper thread
         runs[d] = pd.read_csv(tmp_path / f"a{d}" / "channels.csv")
     for col in ("laughter", "laughter_classes"):
         sync, late = runs[0][col].to_numpy(), runs[3][col].to_numpy()

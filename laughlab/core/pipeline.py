@@ -380,7 +380,8 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             helper.stop()
         if bar is not None:
             bar.close()
-        for stage in (pipe.body, pipe.face):   # stages with a worker thread (e.g. body=hill control=fit live)
+        for stage in (pipe.detector, pipe.body, pipe.face):   # stages with a worker thread (detector=yamnet
+            # detector.async_frames, body=hill control=fit live)
             stop = getattr(stage, "close", None)
             if callable(stop):
                 stop()
