@@ -33,10 +33,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from laughlab import hookimpl
 from laughlab.core.bases import Detector
 from laughlab.detector.model import apply_gate, check_hysteresis, check_non_negative
-from laughlab.detector.yamnet import LaughterScore, ModelFileError, Window16k, Yamnet, helper
+from laughlab.detector.yamnet import Ahead, LaughterScore, ModelFileError, Window16k, Yamnet, helper
 
 
 @dataclass
@@ -73,12 +75,21 @@ class YamnetParams:
         The face follows a new sound until a window has heard this much of it (s); 0: never provisional.
     attack_s, release_s : float
         Time for a gain to go 0 -> 1 once open and 1 -> 0 once closed (s).
+    model_frames : int
+        The model's work on a window is spread over this many frames (1-3), starting with the frame that
+        takes the window, and its scores take effect on the last of them (3, the default: 33 ms later at
+        60 fps; no frame carries more than a third of the network, about 1 ms).  The window's log-mel rows
+        are computed once per 10 ms frame of audio and kept while windows overlap.
     async_frames : int
-        0 (the default): a model window runs on the frame that takes it (that frame carries its 3-6 ms).
-        N > 0: it runs in a helper thread and its scores take effect N frames after the frame that took it
-        (2: 33 ms later at 60 fps), whatever the thread's timing, so live and offline runs give the same
-        bytes; a live frame thread (a game's) then never waits for the model.  Offline it is not faster: the
-        model's time dominates, and the frame thread waits for it N frames later.
+        0 (the default): the model runs in the frame thread (``model_frames``).  N > 0: a window's network
+        runs in a helper thread and its scores take effect N frames after the frame that took it (2: 33 ms
+        later at 60 fps), whatever the thread's timing, so live and offline runs give the same bytes; a live
+        frame thread (a game's) then never waits for the model (``model_frames`` is not used).
+    prefetch : bool
+        On an offline input that can be read twice (``input=file``), a helper thread reads the file ahead,
+        converts it and runs the model on the windows to come, several at once; each window's scores take
+        effect on the same frame as without it, after the frame thread has checked that the helper's window
+        holds the very samples its own holds (the same bytes; a mismatch falls back to the frame thread).
     head : str or None
         A head JSON (``python -m laughlab.detector.yamnet_fit --out FILE``); None: the bundled one.
     """
@@ -98,7 +109,9 @@ class YamnetParams:
     class_close: float = 0.05
     class_windows: int = 1
     close_quiet_s: float = 0.3
+    model_frames: int = 1
     async_frames: int = 0
+    prefetch: bool = True
     head: str | None = None
 
     def __post_init__(self) -> None:
@@ -113,12 +126,21 @@ class YamnetParams:
         if not (isinstance(self.async_frames, int) and not isinstance(self.async_frames, bool)
                 and 0 <= self.async_frames <= 60):
             raise ValueError(f"async_frames must be a whole number from 0 to 60 (got {self.async_frames})")
+        if not (isinstance(self.model_frames, int) and not isinstance(self.model_frames, bool)
+                and 1 <= self.model_frames <= len(PART_GROUPS)):
+            raise ValueError(f"model_frames must be a whole number from 1 to {len(PART_GROUPS)} (got {self.model_frames})")
+        if not isinstance(self.prefetch, bool):
+            raise ValueError(f"prefetch must be true or false (got {self.prefetch})")
         check_hysteresis(self, "class_close", "class_open")
         check_hysteresis(self, "close_below", "open_at")
 
 
 #: which score opens the clip gain: the head's probability, the laughter classes' score, or either
 RULES = ("head", "classes", "either")
+#: the network's three parts (``laughlab.detector.yamnet.PARTS``) run on each frame, by ``model_frames``
+PART_GROUPS = {1: ((0, 1, 2),), 2: ((0, 1), (2,)), 3: ((0,), (1,), (2,))}
+#: between windows, the audio is converted and the complete log-mel rows computed every this many frames
+PREPARE_EVERY = 4
 
 
 class YamnetDetector(Detector):
@@ -134,6 +156,11 @@ class YamnetDetector(Detector):
             raise ValueError(str(exc)) from None
         self.window = Window16k(self.ctx.sample_rate)
         self.hop = max(1, int(round(self.params.hop_s * self.ctx.fps)))
+        if self.params.async_frames == 0 and self.params.model_frames > self.hop:
+            raise ValueError(f"model_frames ({self.params.model_frames}) must not exceed the frames between two "
+                             f"windows (hop_s at {self.ctx.fps:g} fps: {self.hop})")
+        self.groups = PART_GROUPS[self.params.model_frames]
+        self.ahead = None    # the prefetching helper of an offline input (``prefetch``)
         self.use_head = self.params.rule in ("head", "either")
         self.use_classes = self.params.rule in ("classes", "either")
         self.reset()
@@ -151,16 +178,55 @@ class YamnetDetector(Detector):
         self.face_gain = 0.0
         self.quiet = math.inf
         self.pending = None  # time of the new sound the face follows before the model has heard it
-        self._drain()        # self.queue: (frame the scores take effect, future of the window's scores)
+        self.job = None      # [window end time, next group, network state or the window]: a window in progress
+        self._drain()        # self.queue: (frame the scores take effect, window end time, future of its scores)
+        self._stop_ahead()
 
     def _drain(self) -> None:
         """Wait for windows still in the helper thread (a reset or the end of a run)."""
-        for _, fut in getattr(self, "queue", []):
+        for _, _, fut in getattr(self, "queue", []):
             fut.result()
         self.queue = []
 
+    def _stop_ahead(self) -> None:
+        if getattr(self, "ahead", None) is not None:
+            self.ahead.close()
+        self.ahead = None
+
     def close(self) -> None:
         self._drain()
+        self._stop_ahead()
+
+    def prefetch(self, blocks) -> None:
+        """Offline input: ``blocks()`` gives the run's blocks again, from the start; a helper thread reads
+        them ahead and runs the model on the windows to come (``prefetch``; called after ``reset``)."""
+        self._stop_ahead()
+        if self.params.prefetch and self.params.async_frames == 0:
+            self.ahead = Ahead(blocks, self.ctx.sample_rate, self.hop)
+
+    def _run_job(self) -> None:
+        """This frame's share of the window in progress (``self.job``: window end time, the frame's number in
+        the window's ``model_frames``, network state or ``("ahead", window)``); the last frame takes effect."""
+        t_end, g, x = self.job
+        last = g + 1 == len(self.groups)
+        if isinstance(x, tuple):      # the helper's scores, checked against the window, on the last frame
+            if not last:
+                self.job = [t_end, g + 1, x]
+                return
+            scores = self.ahead.scores(x[1]) if self.ahead is not None else None
+            if scores is None:        # no helper, or its window differs: the frame thread computes it
+                self._stop_ahead()
+                scores = self.model.network(self.window.patch(self.model, x[1]))[0]
+            self.job = None
+            self._take(scores, t_end)
+            return
+        for i in self.groups[g]:
+            x = self.model.part(i, x)
+        if last:
+            self.job = None
+            self._take(x[0].astype(np.float64), t_end)
+        else:
+            self.job = [t_end, g + 1, x]
 
     def _take(self, scores, t_end: float) -> None:
         """A window's scores take effect (on its own frame, or ``async_frames`` later)."""
@@ -196,12 +262,20 @@ class YamnetDetector(Detector):
         else:
             self.quiet += dt
         if (self.k + 1) % self.hop == 0:
-            if p.async_frames == 0:
-                self._take(self.model.scores(self.window.window()), t_end)
+            if p.async_frames:
+                self.queue.append((self.k + p.async_frames, t_end,
+                                   helper().submit(self.model.network, self.window.patch(self.model))))
+            elif self.ahead is not None:
+                self.job = [t_end, 0, ("ahead", self.window.window())]
             else:
-                self.queue.append((self.k + p.async_frames, helper().submit(self.model.scores, self.window.window())))
+                self.job = [t_end, 0, self.window.patch(self.model)]
+        if self.job is not None:
+            self._run_job()
+        elif self.ahead is None and ((self.k + 1) % self.hop) % PREPARE_EVERY == 0:
+            self.window.prepare(self.model)   # between windows: convert the audio, compute complete rows
         while self.queue and self.queue[0][0] == self.k:
-            self._take(self.queue.pop(0)[1].result(), t_end)
+            _, t_win, fut = self.queue.pop(0)
+            self._take(fut.result()[0], t_win)
         self.k += 1
         sound = p.close_quiet_s <= 0 or self.quiet < p.close_quiet_s - 1e-9
         if sound and ((self.use_head and self.run >= p.open_windows)

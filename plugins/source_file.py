@@ -28,6 +28,7 @@ class FileSource(Source):
 
     name = "file"
     Params = FileParams
+    reread = True   # blocks() opens the file again
 
     def open(self) -> None:
         if not self.params.path:

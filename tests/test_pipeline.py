@@ -198,20 +198,25 @@ def test_live_chunked_run_equals_offline_run(tmp_path, extra):
     assert a == b
 
 
-def test_windows_in_a_helper_thread_take_effect_exactly_async_frames_later(tmp_path):
-    """detector.async_frames=3: the model's scores are the synchronous run's, 3 frames later."""
+def test_the_model_takes_effect_model_frames_or_async_frames_later(tmp_path):
+    """A window's scores take effect on the frame that takes it (model_frames=1), 2 frames later when the
+    network is spread over 3 frames (the default), 3 frames later in a helper thread (async_frames=3): the
+    same scores, only later."""
     import pandas as pd
 
     runs = {}
-    for d in (0, 3):
-        pipe = pipeline.build(cfg_for("input.duration_s=6", "output=trial", f"detector.async_frames={d}"))
-        pipeline.execute(pipe, tmp_path / f"a{d}", {})
+    for name, extra in {"now": ["detector.model_frames=1"], "spread": ["detector.model_frames=3"],
+                        "async": ["detector.async_frames=3"]}.items():
+        pipe = pipeline.build(cfg_for("input.duration_s=6", "output=trial", *extra))
+        pipeline.execute(pipe, tmp_path / name, {})
         assert pipe.detector.queue == []   # the run closed the detector: no window left in the helper thread
-        runs[d] = pd.read_csv(tmp_path / f"a{d}" / "channels.csv")
+        runs[name] = pd.read_csv(tmp_path / name / "channels.csv")
     for col in ("laughter", "laughter_classes"):
-        sync, late = runs[0][col].to_numpy(), runs[3][col].to_numpy()
-        assert np.array_equal(late[3:], sync[:-3]) and (late[:3] == 0).all()
-    assert runs[0]["laughter"].max() > 0.5   # the head hears the synthetic laughter (YAMNet's classes do not)
+        now = runs["now"][col].to_numpy()
+        for name, d in (("spread", 2), ("async", 3)):
+            late = runs[name][col].to_numpy()
+            assert np.array_equal(late[d:], now[:-d]) and (late[:d] == 0).all(), name
+    assert runs["now"]["laughter"].max() > 0.5   # the head hears the synthetic laughter (YAMNet's classes do not)
 
 
 # --- every channel finite for any input -----------------------------------------------------

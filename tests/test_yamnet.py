@@ -122,6 +122,112 @@ def test_a_corrupt_model_file_at_run_time_is_one_line(tmp_path):
     assert not (tmp_path / "run" / "channels.csv").exists()
 
 
+# --- the model split in its own layers: the same bytes, less work ---------------------------------------
+
+def random_window(rng, n=Y.WINDOW):
+    x = np.clip(rng.standard_normal(n) * 10 ** rng.uniform(-4, 0), -1, 1).astype(np.float32)
+    if rng.random() < 0.3:
+        x[:rng.integers(0, n)] = 0.0    # silence before the start, as in a stream's first second
+    return x
+
+
+def test_the_split_model_gives_the_whole_files_scores_bit_for_bit(model):
+    """Front end + network, the three parts in turn, and many patches at once: the unsplit file's bytes."""
+    rng = np.random.default_rng(11)
+    wins = [random_window(rng) for _ in range(6)] + [np.zeros(Y.WINDOW, np.float32), np.ones(Y.WINDOW, np.float32)]
+    whole = np.stack([model.whole_file_scores(w) for w in wins])
+    patches = np.stack([model.logmel(Y.frames(w)) for w in wins])
+    assert np.array_equal(model.network(patches), whole)                      # 8 windows in one call
+    assert np.array_equal(np.stack([model.scores(w) for w in wins]), whole)
+    for w, ref in zip(wins[:3], whole):
+        h = model.logmel(Y.frames(w))
+        for i in range(3):
+            h = model.part(i, h)
+        assert np.array_equal(h[0].astype(np.float64), ref)
+    # a row depends on its own frame only: any subset of frames gives the same rows
+    f = Y.frames(wins[0])
+    assert np.array_equal(model.logmel(f[[3, 50, 95]]), patches[0][[3, 50, 95]])
+
+
+def test_frames_are_the_models_own():
+    """96 frames of 400 samples every 160, as the file's reshape and gather cut them (ops 0-4)."""
+    x = np.arange(Y.WINDOW, dtype=np.float32)
+    f = Y.frames(x)
+    assert f.shape == (96, 400) and f[0, 0] == 0 and f[1, 0] == 160 and f[95, -1] == Y.WINDOW - 1
+    assert np.array_equal(Y.frame_starts(20000), 20000 - Y.WINDOW + 160 * np.arange(96))
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.sampled_from([16000, 22050, 44100, 48000]), st.lists(st.integers(1, 4000), min_size=1, max_size=8),
+       st.lists(st.booleans(), min_size=1, max_size=7), st.integers(0, 2**31))
+def test_kept_log_mel_rows_are_the_windows_own(sr, sizes, prepares, seed):
+    """Window16k.patch (rows kept from earlier windows, rows made ahead by prepare) equals the front end
+    on the window's 96 frames, whatever the blocks, the window times and the prepare calls."""
+    model = Y.Yamnet()
+    rng = np.random.default_rng(seed)
+    x = rng.uniform(-0.5, 0.5, int(sr * 2.2))
+    w, i, j, hop = Y.Window16k(sr), 0, 0, sr // 4
+    next_window = hop
+    while i < len(x):
+        k = sizes[j % len(sizes)]
+        w.push(x[i:i + k])
+        i, j = i + k, j + 1
+        if prepares[j % len(prepares)]:
+            w.prepare(model)
+        if i >= next_window:
+            next_window += hop
+            win = w.window()
+            assert np.array_equal(w.patch(model), model.logmel(Y.frames(win)))
+
+
+def test_a_tflite_file_that_is_not_yamnet_is_refused(tmp_path, model):
+    other = tmp_path / "other.tflite"
+    other.write_bytes(model.m.split["front"])          # a valid TensorFlow Lite file, but not YAMNet's layers
+    with pytest.raises(Y.ModelFileError, match=r"other\.tflite is not the YAMNet model"):
+        Y.Yamnet(other)
+
+
+def test_prefetching_a_file_gives_the_same_bytes_and_a_mismatch_falls_back(tmp_path):
+    """input=file: the helper thread's windows (prefetch, the default) give the frame thread's bytes; a
+    helper that reads other audio is caught window by window and the frame thread takes over."""
+    from laughlab.core import pipeline
+    from laughlab.harness.runner import _compose
+
+    wav = tmp_path / "in.wav"
+    sf.write(wav, corpus_audio(), 44100, subtype="PCM_16")
+
+    def run(name, extra=(), sabotage=False):
+        cfg = _compose(["input=file", f"input.path={wav}", "output=trial", "progress=off", *extra])
+        pipe = pipeline.build(cfg)
+        helpers = []
+        real_prefetch = pipe.detector.prefetch
+
+        def prefetch(blocks):
+            if sabotage:   # the helper hears the file backwards
+                real_prefetch(lambda: (b[::-1].copy() for b in blocks()))
+            else:
+                real_prefetch(blocks)
+            helpers.append(pipe.detector.ahead)
+        pipe.detector.prefetch = prefetch
+        pipeline.execute(pipe, tmp_path / name, {})
+        return helpers, (tmp_path / name / "channels.csv").read_bytes()
+
+    none, a = run("off", ["detector.prefetch=false"])
+    (on,), b = run("on")
+    n = len(a.splitlines()) - 1                                   # frames; a window every 15, 2 frames to take effect
+    assert none == [None] and on.served == len(range(14, n - 2, 15)) > 15 and not on.done and b == a
+    (bad,), c = run("bad", sabotage=True)
+    assert bad.served == 0 and bad.done and c == a
+
+
+def corpus_audio():
+    """Real speech, a real laugh, the speech again at 44.1 kHz (test split)."""
+    from laughlab.corpora.mixed import load
+
+    speech = load(str(corpus_file("hedgewars/British-Amazing")), 44100)
+    return np.concatenate([speech, load(str(corpus_file("hedgewars/Classic-Laugh")), 44100), speech])
+
+
 # --- the gate's rule ------------------------------------------------------------------------------------
 
 class FixedScore:
@@ -139,7 +245,7 @@ def gate_run(ps, mcs, qs=None, **params):
     from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
 
     # the rule these hand-computed sequences were written for: the head alone, windows every 0.5 s, no quiet close
-    params = {"rule": "head", "hop_s": 0.5, "open_windows": 2, "close_quiet_s": 0.0, **params}
+    params = {"rule": "head", "hop_s": 0.5, "open_windows": 2, "close_quiet_s": 0.0, "model_frames": 1, **params}
     det = YamnetDetector(YamnetParams(**params), Context(fps=FPS, sample_rate=16000))
     det.score = FixedScore(ps, qs)
     rows = []
@@ -243,6 +349,10 @@ def test_bad_rule_parameters_are_refused():
         YamnetParams(class_open=0.1, class_close=0.2)
     with pytest.raises(ValueError, match="class_windows"):
         YamnetParams(class_windows=0)
+    with pytest.raises(ValueError, match="model_frames must be a whole number from 1 to 3"):
+        YamnetParams(model_frames=4)
+    with pytest.raises(ValueError, match="prefetch must be true or false"):
+        YamnetParams(prefetch="yes")
 
 
 def test_the_default_rule_is_either_every_quarter_second_with_the_quiet_close():

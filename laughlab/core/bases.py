@@ -96,7 +96,9 @@ class Source(Plugin):
 
     Attributes set by ``open``: ``sample_rate`` (Hz), ``n_frames`` (None if live),
     ``truth`` (ground truth object or None), ``calibration_s`` (the calibration
-    phase this input asks for, thesis 3.1.1; 0 = none).
+    phase this input asks for, thesis 3.1.1; 0 = none).  ``reread``: ``blocks()`` may be called again,
+    from another thread, while a run reads it, and gives the same blocks (a file: a detector may read
+    ahead, ``Detector.prefetch``).
     """
 
     kind = "source"
@@ -105,6 +107,7 @@ class Source(Plugin):
     n_frames: int | None = None
     truth: Any = None
     live: bool = False
+    reread: bool = False
 
     def open(self) -> None:
         """Check the input and read its format; raise LaughlabError on bad input."""
@@ -147,6 +150,11 @@ class Detector(Plugin):
     @abstractmethod
     def step(self, block: np.ndarray, frame: Frame) -> None:
         ...
+
+    def prefetch(self, blocks) -> None:
+        """Called after ``reset`` when the input can be read again (``Source.reread``): ``blocks()`` gives
+        the run's blocks from the start.  A detector may compute ahead from them (``detector=yamnet`` runs
+        its model in a helper thread); what ``step`` writes must stay the same bytes as without it."""
 
 
 class Scheduler(Plugin):

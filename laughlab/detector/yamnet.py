@@ -21,6 +21,7 @@ Chuckle/chortle).
 from __future__ import annotations
 
 import contextlib
+import copy
 import csv
 import hashlib
 import threading
@@ -89,13 +90,143 @@ def _quiet_stderr():
         os.close(saved)
 
 
-#: loaded interpreters (with a lock) by (file, bundled, size, mtime, thread): a changed file is read and checked
-#: again
+#: The bundled model's layout, checked when it is loaded (``_split``).  The file computes, for one window:
+#: 96 frames of 400 samples every 160 (ops 0-4, a reshape and a gather: ``frames``), their log-mel rows
+#: (ops 5-14: Hann window, a 512-point DFT and a 64-band mel matrix as int8-weight matrix products with
+#: the inputs quantized row by row, magnitude, log: ``FRONT``), the rows as a 96 x 64 patch (ops 15-18),
+#: and the MobileNet v1 with its classifier (ops 19-59: ``NET``).  Each row depends on its own frame only,
+#: so rows are computed once and kept while the windows overlap; ``PARTS`` cut the network in three
+#: (layers 1-5, 6-10, 11-14 with the classifier) for ``model_frames``.  Both are bit for bit the whole
+#: file's result (``tests/test_yamnet.py``), so the split changes no score.
+FRAME, HOP, ROWS, BANDS = 400, 160, 96, 64
+FRONT = (5, 15, 79, 89)            # (first op, end op, input tensor, output tensor)
+NET = (19, 60, 93, 123)
+PARTS = ((19, 29, 93, 101), (29, 44, 101, 111), (44, 60, 111, 123))
+
+
+def frame_starts(end: int) -> np.ndarray:
+    """The first 16 kHz sample of each of a window's 96 frames, for the window ending at sample ``end``."""
+    return end - WINDOW + HOP * np.arange(ROWS)
+
+
+def frames(window: np.ndarray) -> np.ndarray:
+    """The window's 96 frames (96, 400) as the model cuts them (ops 0-4: 15,600 = 195 x 80 samples)."""
+    w = np.asarray(window, np.float32)
+    return np.lib.stride_tricks.sliding_window_view(w, FRAME)[::HOP][:ROWS]
+
+
+def _split(data: bytes) -> dict:
+    """The front end, the network and its three parts as TensorFlow Lite files of their own (bytes).
+
+    The ops, tensors and weights are the bundled file's; each part keeps only the tensors and buffers its
+    ops use.  Raises ValueError when ``data`` is not laid out as the bundled YAMNet."""
+    import flatbuffers
+    from ai_edge_litert import schema_py_generated as fb
+
+    model = fb.ModelT.InitFromObj(fb.Model.GetRootAsModel(data, 0))
+    g = model.subgraphs[0]
+    codes = {v: k for k, v in vars(fb.BuiltinOperator).items() if not k.startswith("_")}
+
+    def opname(i):
+        c = model.operatorCodes[g.operators[i].opcodeIndex]
+        return codes.get(max(c.builtinCode, c.deprecatedBuiltinCode))
+
+    shape = {t: list(g.tensors[t].shape) for t in (79, 89, 93, 123, 101, 111)} if len(g.tensors) > 123 else {}
+    if (len(g.operators) != 60 or opname(5) != "MUL" or opname(14) != "LOG" or opname(19) != "CONV_2D"
+            or opname(59) != "LOGISTIC" or shape.get(79) != [ROWS, FRAME] or shape.get(89) != [ROWS, BANDS]
+            or shape.get(93) != [1, ROWS, BANDS, 1] or shape.get(123) != [1, N_CLASSES]):
+        raise ValueError("its layers are not YAMNet's")
+
+    def part(first, end, t_in, t_out):
+        ops = g.operators[first:end]
+        used = sorted({int(t) for o in ops for t in list(o.inputs) + list(o.outputs) if t >= 0} | {t_in, t_out})
+        tmap = {t: i for i, t in enumerate(used)}
+        bufs = [0] + sorted({int(g.tensors[t].buffer) for t in used} - {0})
+        bmap = {b: i for i, b in enumerate(bufs)}
+        tensors = []
+        for t in used:
+            tt = copy.copy(g.tensors[t])
+            tt.buffer = bmap[int(tt.buffer)]
+            tensors.append(tt)
+        new_ops = []
+        for o in ops:
+            oo = copy.copy(o)
+            oo.inputs = np.array([tmap[int(t)] if t >= 0 else -1 for t in o.inputs], np.int32)
+            oo.outputs = np.array([tmap[int(t)] for t in o.outputs], np.int32)
+            new_ops.append(oo)
+        sg = copy.copy(g)
+        sg.tensors, sg.operators = tensors, new_ops
+        sg.inputs, sg.outputs = np.array([tmap[t_in]], np.int32), np.array([tmap[t_out]], np.int32)
+        m = copy.copy(model)
+        m.subgraphs, m.buffers = [sg], [model.buffers[b] for b in bufs]
+        m.metadata, m.signatureDefs, m.metadataBuffer = None, None, None
+        b = flatbuffers.Builder(1 << 16)
+        b.Finish(m.Pack(b), file_identifier=b"TFL3")
+        return bytes(b.Output())
+
+    return {"front": part(*FRONT), "net": part(*NET), "parts": [part(*p) for p in PARTS]}
+
+
+class _Runner:
+    """One TensorFlow Lite interpreter on one input, its first dimension resized when a call needs it."""
+
+    def __init__(self, data: bytes):
+        from ai_edge_litert.interpreter import Interpreter
+
+        with _quiet_stderr():  # LiteRT prints "INFO: Created TensorFlow Lite XNNPACK delegate" on fd 2
+            self.it = Interpreter(model_content=data, num_threads=1)
+            self.it.allocate_tensors()
+        self._in = self.it.get_input_details()[0]["index"]
+        self._out = self.it.get_output_details()[0]["index"]
+        self.shape = tuple(self.it.get_input_details()[0]["shape"])
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        x = np.ascontiguousarray(x, np.float32)
+        if x.shape != self.shape:
+            self.it.resize_tensor_input(self._in, list(x.shape))
+            self.it.allocate_tensors()
+            self.shape = x.shape
+        self.it.set_tensor(self._in, x)
+        self.it.invoke()
+        return self.it.get_tensor(self._out).copy()
+
+
+class _Models:
+    """The interpreters of one thread (an interpreter is used by one call at a time)."""
+
+    def __init__(self, data: bytes, split: dict):
+        self.data, self.split = data, split
+        self.front = _Runner(split["front"])
+        self.net = _Runner(split["net"])
+        self._parts = None
+        self._full = None
+        self.lock = threading.Lock()
+
+    @property
+    def parts(self) -> list:
+        if self._parts is None:
+            self._parts = [_Runner(d) for d in self.split["parts"]]
+        return self._parts
+
+    @property
+    def full(self) -> _Runner:
+        if self._full is None:
+            self._full = _Runner(self.data)
+        return self._full
+
+
+#: loaded models by (file, bundled, size, mtime, thread): a changed file is read and checked again
 _LOADED: dict = {}
+#: the split files by (file, size, mtime): made once per process
+_SPLIT: dict = {}
 
 
 class Yamnet:
-    """The bundled YAMNet: ``scores(window)`` -> 521 class scores of one 0.975 s window at 16 kHz."""
+    """The bundled YAMNet: ``scores(window)`` -> 521 class scores of one 0.975 s window at 16 kHz.
+
+    The work is split as the file's own layers are (``FRONT``, ``NET``): ``logmel(frames)`` gives the
+    log-mel rows of 400-sample frames, ``network(patches)`` the scores of 96 x 64 patches of rows (many
+    at once), ``part(i, x)`` one third of the network.  Each is bit for bit the whole file's result."""
 
     def __init__(self, path: str | Path | None = None):
         p = Path(path) if path is not None else data_dir() / "yamnet.tflite"
@@ -104,52 +235,76 @@ class Yamnet:
             st = p.stat()
         except OSError as exc:
             raise ModelFileError(f"cannot read the YAMNet model {p} ({exc.strerror or exc}): {RESTORE}") from None
-        key = (str(p.resolve()), path is None, st.st_size, st.st_mtime_ns, threading.get_ident())
+        fkey = (str(p.resolve()), path is None, st.st_size, st.st_mtime_ns)
+        key = (*fkey, threading.get_ident())
         cached = _LOADED.get(key)
         if cached is None:
-            cached = _LOADED[key] = self._load(p, path is None)
-        self.it, self._in, self._out, self._lock = cached
-        self._buf = np.zeros((1, WINDOW), np.float32)
+            cached = _LOADED[key] = self._load(p, path is None, fkey)
+        self.m = cached
 
     @staticmethod
-    def _load(p: Path, bundled: bool):
-        """Read, check and load the model file once per process (an interpreter holds no state between
-        windows, so runs in one thread share it: the fuzz suite and the harness build many pipelines)."""
-        path = None if bundled else p
+    def _load(p: Path, bundled: bool, fkey) -> _Models:
+        """Read, check and split the model file once per process, load it once per thread (an interpreter
+        holds no state between windows, so runs in one thread share it: the fuzz suite and the harness build
+        many pipelines)."""
         try:
             data = p.read_bytes()
         except OSError as exc:
             raise ModelFileError(f"cannot read the YAMNet model {p} ({exc.strerror or exc}): {RESTORE}") from None
-        if path is None and hashlib.sha256(data).hexdigest() != MODEL_SHA256:
+        if bundled and hashlib.sha256(data).hexdigest() != MODEL_SHA256:
             raise ModelFileError(f"the YAMNet model {p} is damaged (sha256 differs from the bundled file's): {RESTORE}")
         try:
-            from ai_edge_litert.interpreter import Interpreter
+            import ai_edge_litert.interpreter  # noqa: F401
         except ImportError:
             raise ModelFileError("the yamnet detector needs ai-edge-litert (pip install ai-edge-litert); "
                                  "where it has no wheel (Intel Macs), use detector=laugh or detector=none") from None
+        split = _SPLIT.get(fkey)
         try:
-            with _quiet_stderr():  # LiteRT prints "INFO: Created TensorFlow Lite XNNPACK delegate" on fd 2
-                it = Interpreter(model_content=data, num_threads=1)
-                it.allocate_tensors()
-            inp, out = it.get_input_details()[0], it.get_output_details()[0]
-        except (ValueError, RuntimeError, IndexError) as exc:
-            raise ModelFileError(f"the YAMNet model {p} cannot be loaded ({str(exc).splitlines()[0][:120]}): "
-                                 f"{RESTORE}") from None
-        if list(inp["shape"]) != [1, WINDOW] or list(out["shape"]) != [1, N_CLASSES]:
-            raise ModelFileError(f"{p} is not the YAMNet model (input {list(inp['shape'])}, output "
-                                 f"{list(out['shape'])}): {RESTORE}")
-        return it, inp["index"], out["index"], threading.Lock()
+            if split is None:
+                split = _SPLIT[fkey] = _split(data)
+            return _Models(data, split)
+        except (ValueError, RuntimeError, IndexError, TypeError, AttributeError) as exc:
+            msg = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
+            raise ModelFileError(f"{p} is not the YAMNet model ({msg}): {RESTORE}") from None
+
+    def logmel(self, frames: np.ndarray) -> np.ndarray:
+        """The log-mel rows (n, 64) of ``n`` frames of 400 samples (the file's ops 5-14).
+
+        The frames go in by multiples of 8 (zero frames after them): rows do not depend on each other, and
+        the interpreter is not resized for every count."""
+        x = np.asarray(frames, np.float32).reshape(-1, FRAME)
+        n = len(x)
+        pad = -n % 8
+        if pad:
+            x = np.concatenate([x, np.zeros((pad, FRAME), np.float32)])
+        with self.m.lock:
+            return self.m.front(x)[:n]
+
+    def network(self, patches: np.ndarray) -> np.ndarray:
+        """The 521 scores (float64) of each 96 x 64 patch of log-mel rows: (n, 96, 64) -> (n, 521)."""
+        x = np.asarray(patches, np.float32).reshape(-1, ROWS, BANDS, 1)
+        with self.m.lock:
+            return self.m.net(x).astype(np.float64)
+
+    def part(self, i: int, x: np.ndarray) -> np.ndarray:
+        """Part ``i`` (0-2) of the network on one patch (part 0) or on the previous part's output."""
+        x = np.asarray(x, np.float32)
+        if i == 0:
+            x = x.reshape(1, ROWS, BANDS, 1)
+        with self.m.lock:
+            return self.m.parts[i](x)
 
     def scores(self, window: np.ndarray) -> np.ndarray:
         """The 521 scores of one window (``WINDOW`` samples at 16 kHz, float in [-1, 1]).
 
-        Safe from any thread: the interpreter is used by one call at a time (LiteRT releases the GIL
+        Safe from any thread: the interpreters are used by one call at a time (LiteRT releases the GIL
         while it runs, so a call in a helper thread leaves the frame thread free)."""
-        with self._lock:
-            self._buf[0] = window
-            self.it.set_tensor(self._in, self._buf)
-            self.it.invoke()
-            return self.it.get_tensor(self._out)[0].astype(np.float64)
+        return self.network(self.logmel(frames(window)))[0]
+
+    def whole_file_scores(self, window: np.ndarray) -> np.ndarray:
+        """The scores by the unsplit file, in one call (the reference the split is tested against)."""
+        with self.m.lock:
+            return self.m.full(np.asarray(window, np.float32).reshape(1, WINDOW))[0].astype(np.float64)
 
 
 #: the helper thread that runs model windows off the frame thread (``detector.async_frames``), per process
@@ -197,6 +352,12 @@ class Resampler16k:
         self.j = 0          # output samples made
         self.last = 0.0     # the last filtered input sample (index n - 1)
 
+    def j_after(self, n: int) -> int:
+        """The 16 kHz samples made once ``n`` input samples have arrived (``push`` makes this many)."""
+        if self.sr == RATE:
+            return int(n)
+        return ((int(n) - 1) * RATE - 1) // self.sr + 1 if n > 1 else 0
+
     def push(self, block: np.ndarray) -> np.ndarray:
         x = np.asarray(block, dtype=np.float64).ravel()
         if self.sr == RATE:
@@ -228,35 +389,46 @@ class Window16k:
 
     The 16 kHz samples come from :class:`Resampler16k`; a stream shorter than the window is
     padded with zeros before its start.  The result depends only on the samples received
-    so far, never on how they were cut into blocks.
+    so far, never on how they were cut into blocks.  ``patch(model)`` gives the window's 96 x 64
+    log-mel rows, computing only the rows of frames the previous window did not hold.
     """
 
     def __init__(self, sample_rate: int):
         self.rs = Resampler16k(sample_rate)
         self.buf = np.zeros(WINDOW, np.float32)
         self.pending: list = []
+        self.cache: dict = {}     # log-mel row by the 16 kHz sample its frame starts at
+        self.next_start = None    # the next frame on the last window's grid
 
     def reset(self) -> None:
         self.rs.reset()
         self.buf[:] = 0.0
         self.pending = []
+        self.cache = {}
+        self.next_start = None
+
+    @property
+    def end(self) -> int:
+        """16 kHz samples made so far (the window's end), once the kept blocks are converted."""
+        self._convert()
+        return self.rs.j
 
     def push(self, block: np.ndarray) -> None:
-        """Keep a block; it is converted when the window is next asked for (the same bytes, cheaper).
+        """Keep a copy of a block; blocks are converted when the window is next asked for (the same bytes,
+        cheaper).
 
         Samples outside [-1, 1] are clipped and non-finite ones (NaN, inf) read as 0, so one bad
         sample cannot poison the filter's state."""
-        b = np.array(block, dtype=np.float64).ravel()
-        if not np.isfinite(b).all():
-            b = np.where(np.isfinite(b), b, 0.0)
-        self.pending.append(np.clip(b, -1.0, 1.0, out=b))
+        self.pending.append(np.array(block, dtype=np.float64).ravel())
 
     def _convert(self) -> None:
         if not self.pending:
             return
         x = self.pending[0] if len(self.pending) == 1 else np.concatenate(self.pending)
         self.pending = []
-        y = self.rs.push(x)
+        if not np.isfinite(x).all():
+            x = np.where(np.isfinite(x), x, 0.0)
+        y = self.rs.push(np.clip(x, -1.0, 1.0, out=x))
         k = len(y)
         if k >= WINDOW:
             self.buf[:] = y[-WINDOW:]
@@ -268,6 +440,190 @@ class Window16k:
         """The last 0.975 s at 16 kHz (zeros before the stream's start), float32 clipped to [-1, 1]."""
         self._convert()
         return np.clip(self.buf, -1.0, 1.0)
+
+    def prepare(self, model: "Yamnet") -> None:
+        """Between windows: convert the blocks kept so far and compute the log-mel rows of the next window's
+        frames that are already complete (its frames lie on the last window's grid of 160 samples), so the
+        window's own frame has less to do.  Changes no result, only when the work is done."""
+        self._convert()
+        if self.next_start is None:
+            return
+        j, s0 = self.rs.j, self.next_start
+        n = max(0, (j - FRAME - s0) // HOP + 1)      # frames starting at s0 + HOP i that end by sample j
+        if n == 0:
+            return
+        w = np.clip(self.buf, -1.0, 1.0)
+        a = s0 - (j - WINDOW)                         # the first frame's place in the buffer
+        rows = model.logmel(frames_at(w, a + HOP * np.arange(n)))
+        for i in range(n):
+            self.cache[s0 + HOP * i] = rows[i]
+        self.next_start = s0 + HOP * n
+
+    def patch(self, model: "Yamnet", window: np.ndarray | None = None) -> np.ndarray:
+        """The window's log-mel rows (96, 64): ``model.logmel(frames(window()))``, bit for bit, computing only
+        the rows of frames no earlier window or ``prepare`` has (a row depends on its own frame only)."""
+        w = self.window() if window is None else window
+        starts = frame_starts(self.rs.j)
+        out = np.empty((ROWS, BANDS), np.float32)
+        missing = []
+        for i, st in enumerate(starts.tolist()):
+            row = self.cache.get(st)
+            if row is None:
+                missing.append(i)
+            else:
+                out[i] = row
+        if missing:
+            out[missing] = model.logmel(frames(w)[missing])
+        self.cache = dict(zip(starts.tolist(), out))
+        self.next_start = int(starts[-1]) + HOP
+        return out
+
+
+def frames_at(samples: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """The 400-sample frames of ``samples`` starting at ``starts``."""
+    return np.lib.stride_tricks.sliding_window_view(np.asarray(samples, np.float32), FRAME)[starts]
+
+
+#: threads running the network on prefetched windows (``Ahead``)
+NET_THREADS = 2
+
+
+_NET_POOL: dict = {}
+
+
+def net_pool():
+    """The process' network threads for prefetched windows (made again in a forked child, where they are
+    gone); they live as long as the process, so their interpreters are loaded once."""
+    import os
+    from concurrent.futures import ThreadPoolExecutor
+
+    pid = os.getpid()
+    if _NET_POOL.get("pid") != pid:
+        _NET_POOL.update(pid=pid, pool=ThreadPoolExecutor(NET_THREADS, thread_name_prefix="laughlab-yamnet-net"))
+    return _NET_POOL["pool"]
+
+
+def _scores_here(y: np.ndarray, ends: list) -> np.ndarray:
+    """The scores of the windows of the 16 kHz samples ``y`` (clipped) ending at the indices ``ends``, by this
+    thread's own interpreters: each distinct frame's row once, then the patches in one call."""
+    model = Yamnet()
+    starts = np.stack([frame_starts(e) for e in ends])            # (windows, 96)
+    distinct, where = np.unique(starts, return_inverse=True)
+    rows = model.logmel(frames_at(y, distinct))
+    return model.network(rows[where.reshape(starts.shape)])
+
+
+class Ahead:
+    """Model windows of an offline input computed ahead, in a helper thread, several at once.
+
+    ``blocks()`` gives the run's blocks from the start (a second reading of the file).  The thread
+    converts them as :class:`Window16k` does (its own), takes a window every ``hop`` blocks, computes
+    the windows' log-mel rows and runs the network on ``batch`` patches in one call.  ``scores(window)``
+    gives the next window's scores if the helper's window is ``window`` sample for sample, else None
+    (and the frame thread computes it): the scores are bit for bit the frame thread's.  At most
+    ``ahead`` windows wait; ``close()`` stops the thread.
+    """
+
+    def __init__(self, blocks, sample_rate: int, hop: int, batch: int = 16, ahead: int = 96):
+        import queue
+
+        self.q: "queue.Queue" = queue.Queue(maxsize=ahead)
+        self.stop = threading.Event()
+        self.done = False
+        self.served = 0     # windows whose scores the frame thread took
+        self.thread = threading.Thread(target=self._run, args=(blocks, int(sample_rate), int(hop), int(batch)),
+                                       name="laughlab-yamnet-ahead", daemon=True)
+        self.thread.start()
+
+    def _put(self, item) -> bool:
+        import queue
+
+        while not self.stop.is_set():
+            try:
+                self.q.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def _run(self, blocks, sr: int, hop: int, batch: int) -> None:
+        try:
+            self._windows(blocks, sr, hop, batch)
+        except BaseException:   # the frame thread reads the input itself and meets the error there
+            pass
+        self._put(None)
+
+    def _windows(self, blocks, sr: int, hop: int, batch: int) -> None:
+        """``batch`` windows at a time: their blocks converted in one piece (the conversion does not depend on
+        how blocks are cut), then their log-mel rows and scores computed by the process' two network threads
+        (one set of interpreters each, ``net_pool``), whose results are queued in order.  The threads take the
+        GIL a few times per batch, not per window; the frame thread and the helpers share the two cores."""
+        from collections import deque
+
+        rs = Resampler16k(sr)
+        tail = np.zeros(WINDOW, np.float32)          # the 16 kHz samples before ``base`` (zeros before the start)
+        base = 0                                     # 16 kHz sample index of the sample after ``tail``
+        n_in = 0                                     # input samples read
+        kept, ends = [], []
+        running: deque = deque()                     # (windows, future of their scores), oldest first
+        it = iter(blocks())
+        k = 0
+        pool = net_pool()
+        try:
+            while not self.stop.is_set():
+                for block in it:
+                    b = np.array(block, dtype=np.float64).ravel()
+                    kept.append(b)
+                    n_in += len(b)
+                    k += 1
+                    if k % hop == 0:
+                        ends.append(rs.j_after(n_in))
+                        if len(ends) == batch:
+                            break
+                if not ends:
+                    break
+                x = np.concatenate(kept) if kept else np.zeros(0)
+                kept = []
+                if not np.isfinite(x).all():
+                    x = np.where(np.isfinite(x), x, 0.0)
+                y = np.concatenate([tail, rs.push(np.clip(x, -1.0, 1.0, out=x)).astype(np.float32)])
+                start = base - WINDOW                    # 16 kHz index of y[0]
+                yc = np.clip(y, -1.0, 1.0)
+                local = [e - start for e in ends]
+                running.append(([yc[e - WINDOW:e] for e in local], pool.submit(_scores_here, yc, local)))
+                base += len(y) - WINDOW
+                tail = y[-WINDOW:]
+                ends = []
+                while len(running) > NET_THREADS and not self._flush(running.popleft()):
+                    return
+            while running and self._flush(running.popleft()):
+                pass
+        finally:
+            for _, fut in running:
+                fut.cancel()
+
+    def _flush(self, job) -> bool:
+        wins, fut = job
+        for item in zip(wins, fut.result()):
+            if not self._put(item):
+                return False
+        return True
+
+    def scores(self, window: np.ndarray) -> np.ndarray | None:
+        """The next window's scores if the helper's window equals ``window``; None when it does not or the
+        helper has stopped (from then on it is not asked again)."""
+        if self.done:
+            return None
+        item = self.q.get()
+        if item is None or not np.array_equal(item[0], window):
+            self.done = True
+            return None
+        self.served += 1
+        return item[1]
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join()
 
 
 def to_16k(audio: np.ndarray, sample_rate: int) -> np.ndarray:
@@ -335,13 +691,20 @@ def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: 
 
     The whole signal is resampled once (offline use: ``laughlab detect``, the fits and the benchmarks);
     for a window ending at input sample ``e`` the model hears 16 kHz samples up to ``e * 16000 / sr``.
+    Windows go to the model 64 at a time, each distinct 10 ms frame's log-mel row computed once: the
+    scores are the one-window-at-a-time scores bit for bit.
     """
     model = model or Yamnet()
     sr = int(sample_rate)
     x = np.clip(to_16k(audio, sr), -1.0, 1.0).astype(np.float32)
     pad = np.concatenate([np.zeros(WINDOW, np.float32), x, np.zeros(WINDOW, np.float32)])
-    out = np.empty((len(ends), N_CLASSES))
-    for i, e in enumerate(ends):
-        e16 = int(round(int(e) * RATE / sr)) + WINDOW
-        out[i] = model.scores(pad[e16 - WINDOW:e16])
+    e16 = [int(round(int(e) * RATE / sr)) + WINDOW for e in ends]
+    out = np.empty((len(e16), N_CLASSES))
+    for a in range(0, len(e16), 64):
+        starts = np.stack([frame_starts(e) for e in e16[a:a + 64]])
+        if starts.min() < 0 or starts.max() + FRAME > len(pad):
+            raise ValueError("a window ends outside the audio")
+        distinct, where = np.unique(starts, return_inverse=True)
+        rows = model.logmel(frames_at(pad, distinct))
+        out[a:a + 64] = model.network(rows[where.reshape(starts.shape)])
     return out
