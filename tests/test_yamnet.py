@@ -104,7 +104,7 @@ def test_a_corrupt_model_names_the_file_and_the_fix(tmp_path, monkeypatch):
     bad = tmp_path / "yamnet"
     bad.mkdir()
     (bad / "yamnet.tflite").write_bytes(b"\0" * 1000)
-    monkeypatch.setattr(Y, "data_dir", lambda: bad)
+    monkeypatch.setattr(Y._model, "data_dir", lambda: bad)
     with pytest.raises(Y.ModelFileError, match=r"yamnet\.tflite is damaged.*reinstall"):
         Y.Yamnet()
 
@@ -112,7 +112,7 @@ def test_a_corrupt_model_names_the_file_and_the_fix(tmp_path, monkeypatch):
 def test_a_corrupt_model_file_at_run_time_is_one_line(tmp_path):
     """The CLI with a damaged bundled model: one line naming the file, exit 2, no run directory left."""
     code = ("import sys, laughlab.detector.yamnet as Y, pathlib; d = pathlib.Path(sys.argv[1]); "
-            "d.mkdir(); (d / 'yamnet.tflite').write_bytes(b'x'); Y.data_dir = lambda: d; "
+            "d.mkdir(); (d / 'yamnet.tflite').write_bytes(b'x'); Y._model.data_dir = lambda: d; "
             "from laughlab.cli import main; main(sys.argv[2:])")
     r = subprocess.run([sys.executable, "-c", code, str(tmp_path / "m"), f"hydra.run.dir={tmp_path / 'run'}",
                         "input.duration_s=2", "detector=yamnet"], capture_output=True, text=True)

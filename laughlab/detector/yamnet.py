@@ -1,16 +1,14 @@
-"""Google's YAMNet sound-event model, bundled as TensorFlow Lite, and its laughter score.
+"""Google's YAMNet sound-event model on a stream, and its laughter score.
 
-YAMNet (tensorflow/models, ``research/audioset/yamnet``; Apache-2.0) is a MobileNet v1
-trained on AudioSet's 521 classes.  The bundled file (``laughlab/data/yamnet/``, see
-``PROVENANCE.md`` there) takes one window of :data:`WINDOW` = 15,600 samples (0.975 s)
-of 16 kHz mono float audio in [-1, 1] and returns the 521 class scores in the order of
-``yamnet_class_map.csv``.  It runs with ``ai-edge-litert`` (Google's LiteRT
-interpreter, on PyPI), one thread, no network.
+The bundled model and its split in its own layers are :mod:`laughlab.detector.yamnet_model`
+(:class:`Yamnet`; its names are importable from here too).
 
 :class:`Window16k` keeps the last second of a stream at its own rate and gives the
 last :data:`WINDOW` samples at 16 kHz (a causal low-pass and linear interpolation,
 :class:`Resampler16k`), so any rate from 8 kHz up works.  A stream shorter than the
-window is padded with zeros *before* its start (the model hears silence there).
+window is padded with zeros *before* its start (the model hears silence there).  It also
+keeps the windows' log-mel rows, so each 10 ms frame of audio goes through the front end once.
+:class:`Ahead` computes an offline file's windows ahead in helper threads (same bytes).
 
 :class:`Head` maps the 521 scores to one laughter probability: a logistic
 regression fitted on the corpus' train split (``python -m laughlab.detector.yamnet_fit``,
@@ -20,291 +18,17 @@ Chuckle/chortle).
 """
 from __future__ import annotations
 
-import contextlib
-import copy
-import csv
-import hashlib
-import threading
 import json
-import math
+import threading
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-#: the model's input: samples at 16 kHz (0.975 s)
-RATE = 16000
-WINDOW = 15600
-N_CLASSES = 521
-#: the AudioSet laughter classes (display names of the class map)
-LAUGH_CLASSES = ("Laughter", "Baby laughter", "Giggle", "Snicker", "Belly laugh", "Chuckle, chortle")
-MODEL_SHA256 = "469be6a3421cbc52cf97e9f2f966cba984198e8e7af9854d68b3e3ebb1e04194"
-RESTORE = ("restore it with `git checkout laughlab/data/yamnet` in a source checkout, "
-           "or reinstall laughlab (pip install --force-reinstall laughlab)")
-
-
-class ModelFileError(ValueError):
-    """The model file is missing or not the bundled YAMNet: the message names the file and the fix."""
-
-
-def data_dir() -> Path:
-    return Path(str(resources.files("laughlab").joinpath("data", "yamnet")))
-
-
-def class_names(path: str | Path | None = None) -> list[str]:
-    p = Path(path) if path is not None else data_dir() / "yamnet_class_map.csv"
-    try:
-        with open(p, newline="", encoding="utf-8") as fh:
-            rows = list(csv.reader(fh))
-    except OSError as exc:
-        raise ModelFileError(f"cannot read the YAMNet class map {p} ({exc.strerror}): {RESTORE}") from None
-    names = [r[2] for r in rows[1:] if len(r) >= 3]
-    if rows[:1] != [["index", "mid", "display_name"]] or len(names) != N_CLASSES:
-        raise ModelFileError(f"the YAMNet class map {p} is damaged (expected {N_CLASSES} classes): {RESTORE}")
-    return names
-
-
-def laugh_indices(names: list[str]) -> list[int]:
-    return [names.index(n) for n in LAUGH_CLASSES]
-
-
-@contextlib.contextmanager
-def _quiet_stderr():
-    """Silence file descriptor 2 (C++ logging) for the duration of the block."""
-    import os
-    import sys
-
-    try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError):
-        yield
-        return
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 2)
-            yield
-    finally:
-        os.dup2(saved, 2)
-        os.close(saved)
-
-
-#: The bundled model's layout, checked when it is loaded (``_split``).  The file computes, for one window:
-#: 96 frames of 400 samples every 160 (ops 0-4, a reshape and a gather: ``frames``), their log-mel rows
-#: (ops 5-14: Hann window, a 512-point DFT and a 64-band mel matrix as int8-weight matrix products with
-#: the inputs quantized row by row, magnitude, log: ``FRONT``), the rows as a 96 x 64 patch (ops 15-18),
-#: and the MobileNet v1 with its classifier (ops 19-59: ``NET``).  Each row depends on its own frame only,
-#: so rows are computed once and kept while the windows overlap; ``PARTS`` cut the network in three
-#: (layers 1-5, 6-10, 11-14 with the classifier) for ``model_frames``.  Both are bit for bit the whole
-#: file's result (``tests/test_yamnet.py``), so the split changes no score.
-FRAME, HOP, ROWS, BANDS = 400, 160, 96, 64
-FRONT = (5, 15, 79, 89)            # (first op, end op, input tensor, output tensor)
-NET = (19, 60, 93, 123)
-PARTS = ((19, 29, 93, 101), (29, 44, 101, 111), (44, 60, 111, 123))
-
-
-def frame_starts(end: int) -> np.ndarray:
-    """The first 16 kHz sample of each of a window's 96 frames, for the window ending at sample ``end``."""
-    return end - WINDOW + HOP * np.arange(ROWS)
-
-
-def frames(window: np.ndarray) -> np.ndarray:
-    """The window's 96 frames (96, 400) as the model cuts them (ops 0-4: 15,600 = 195 x 80 samples)."""
-    w = np.asarray(window, np.float32)
-    return np.lib.stride_tricks.sliding_window_view(w, FRAME)[::HOP][:ROWS]
-
-
-def _split(data: bytes) -> dict:
-    """The front end, the network and its three parts as TensorFlow Lite files of their own (bytes).
-
-    The ops, tensors and weights are the bundled file's; each part keeps only the tensors and buffers its
-    ops use.  Raises ValueError when ``data`` is not laid out as the bundled YAMNet."""
-    import flatbuffers
-    from ai_edge_litert import schema_py_generated as fb
-
-    model = fb.ModelT.InitFromObj(fb.Model.GetRootAsModel(data, 0))
-    g = model.subgraphs[0]
-    codes = {v: k for k, v in vars(fb.BuiltinOperator).items() if not k.startswith("_")}
-
-    def opname(i):
-        c = model.operatorCodes[g.operators[i].opcodeIndex]
-        return codes.get(max(c.builtinCode, c.deprecatedBuiltinCode))
-
-    shape = {t: list(g.tensors[t].shape) for t in (79, 89, 93, 123, 101, 111)} if len(g.tensors) > 123 else {}
-    if (len(g.operators) != 60 or opname(5) != "MUL" or opname(14) != "LOG" or opname(19) != "CONV_2D"
-            or opname(59) != "LOGISTIC" or shape.get(79) != [ROWS, FRAME] or shape.get(89) != [ROWS, BANDS]
-            or shape.get(93) != [1, ROWS, BANDS, 1] or shape.get(123) != [1, N_CLASSES]):
-        raise ValueError("its layers are not YAMNet's")
-
-    def part(first, end, t_in, t_out):
-        ops = g.operators[first:end]
-        used = sorted({int(t) for o in ops for t in list(o.inputs) + list(o.outputs) if t >= 0} | {t_in, t_out})
-        tmap = {t: i for i, t in enumerate(used)}
-        bufs = [0] + sorted({int(g.tensors[t].buffer) for t in used} - {0})
-        bmap = {b: i for i, b in enumerate(bufs)}
-        tensors = []
-        for t in used:
-            tt = copy.copy(g.tensors[t])
-            tt.buffer = bmap[int(tt.buffer)]
-            tensors.append(tt)
-        new_ops = []
-        for o in ops:
-            oo = copy.copy(o)
-            oo.inputs = np.array([tmap[int(t)] if t >= 0 else -1 for t in o.inputs], np.int32)
-            oo.outputs = np.array([tmap[int(t)] for t in o.outputs], np.int32)
-            new_ops.append(oo)
-        sg = copy.copy(g)
-        sg.tensors, sg.operators = tensors, new_ops
-        sg.inputs, sg.outputs = np.array([tmap[t_in]], np.int32), np.array([tmap[t_out]], np.int32)
-        m = copy.copy(model)
-        m.subgraphs, m.buffers = [sg], [model.buffers[b] for b in bufs]
-        m.metadata, m.signatureDefs, m.metadataBuffer = None, None, None
-        b = flatbuffers.Builder(1 << 16)
-        b.Finish(m.Pack(b), file_identifier=b"TFL3")
-        return bytes(b.Output())
-
-    return {"front": part(*FRONT), "net": part(*NET), "parts": [part(*p) for p in PARTS]}
-
-
-class _Runner:
-    """One TensorFlow Lite interpreter on one input, its first dimension resized when a call needs it."""
-
-    def __init__(self, data: bytes):
-        from ai_edge_litert.interpreter import Interpreter
-
-        with _quiet_stderr():  # LiteRT prints "INFO: Created TensorFlow Lite XNNPACK delegate" on fd 2
-            self.it = Interpreter(model_content=data, num_threads=1)
-            self.it.allocate_tensors()
-        self._in = self.it.get_input_details()[0]["index"]
-        self._out = self.it.get_output_details()[0]["index"]
-        self.shape = tuple(self.it.get_input_details()[0]["shape"])
-
-    def __call__(self, x: np.ndarray) -> np.ndarray:
-        x = np.ascontiguousarray(x, np.float32)
-        if x.shape != self.shape:
-            self.it.resize_tensor_input(self._in, list(x.shape))
-            self.it.allocate_tensors()
-            self.shape = x.shape
-        self.it.set_tensor(self._in, x)
-        self.it.invoke()
-        return self.it.get_tensor(self._out).copy()
-
-
-class _Models:
-    """The interpreters of one thread (an interpreter is used by one call at a time)."""
-
-    def __init__(self, data: bytes, split: dict):
-        self.data, self.split = data, split
-        self.front = _Runner(split["front"])
-        self.net = _Runner(split["net"])
-        self._parts = None
-        self._full = None
-        self.lock = threading.Lock()
-
-    @property
-    def parts(self) -> list:
-        if self._parts is None:
-            self._parts = [_Runner(d) for d in self.split["parts"]]
-        return self._parts
-
-    @property
-    def full(self) -> _Runner:
-        if self._full is None:
-            self._full = _Runner(self.data)
-        return self._full
-
-
-#: loaded models by (file, bundled, size, mtime, thread): a changed file is read and checked again
-_LOADED: dict = {}
-#: the split files by (file, size, mtime): made once per process
-_SPLIT: dict = {}
-
-
-class Yamnet:
-    """The bundled YAMNet: ``scores(window)`` -> 521 class scores of one 0.975 s window at 16 kHz.
-
-    The work is split as the file's own layers are (``FRONT``, ``NET``): ``logmel(frames)`` gives the
-    log-mel rows of 400-sample frames, ``network(patches)`` the scores of 96 x 64 patches of rows (many
-    at once), ``part(i, x)`` one third of the network.  Each is bit for bit the whole file's result."""
-
-    def __init__(self, path: str | Path | None = None):
-        p = Path(path) if path is not None else data_dir() / "yamnet.tflite"
-        self.path = p
-        try:
-            st = p.stat()
-        except OSError as exc:
-            raise ModelFileError(f"cannot read the YAMNet model {p} ({exc.strerror or exc}): {RESTORE}") from None
-        fkey = (str(p.resolve()), path is None, st.st_size, st.st_mtime_ns)
-        key = (*fkey, threading.get_ident())
-        cached = _LOADED.get(key)
-        if cached is None:
-            cached = _LOADED[key] = self._load(p, path is None, fkey)
-        self.m = cached
-
-    @staticmethod
-    def _load(p: Path, bundled: bool, fkey) -> _Models:
-        """Read, check and split the model file once per process, load it once per thread (an interpreter
-        holds no state between windows, so runs in one thread share it: the fuzz suite and the harness build
-        many pipelines)."""
-        try:
-            data = p.read_bytes()
-        except OSError as exc:
-            raise ModelFileError(f"cannot read the YAMNet model {p} ({exc.strerror or exc}): {RESTORE}") from None
-        if bundled and hashlib.sha256(data).hexdigest() != MODEL_SHA256:
-            raise ModelFileError(f"the YAMNet model {p} is damaged (sha256 differs from the bundled file's): {RESTORE}")
-        try:
-            import ai_edge_litert.interpreter  # noqa: F401
-        except ImportError:
-            raise ModelFileError("the yamnet detector needs ai-edge-litert (pip install ai-edge-litert); "
-                                 "where it has no wheel (Intel Macs), use detector=laugh or detector=none") from None
-        split = _SPLIT.get(fkey)
-        try:
-            if split is None:
-                split = _SPLIT[fkey] = _split(data)
-            return _Models(data, split)
-        except (ValueError, RuntimeError, IndexError, TypeError, AttributeError) as exc:
-            msg = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
-            raise ModelFileError(f"{p} is not the YAMNet model ({msg}): {RESTORE}") from None
-
-    def logmel(self, frames: np.ndarray) -> np.ndarray:
-        """The log-mel rows (n, 64) of ``n`` frames of 400 samples (the file's ops 5-14).
-
-        The frames go in by multiples of 8 (zero frames after them): rows do not depend on each other, and
-        the interpreter is not resized for every count."""
-        x = np.asarray(frames, np.float32).reshape(-1, FRAME)
-        n = len(x)
-        pad = -n % 8
-        if pad:
-            x = np.concatenate([x, np.zeros((pad, FRAME), np.float32)])
-        with self.m.lock:
-            return self.m.front(x)[:n]
-
-    def network(self, patches: np.ndarray) -> np.ndarray:
-        """The 521 scores (float64) of each 96 x 64 patch of log-mel rows: (n, 96, 64) -> (n, 521)."""
-        x = np.asarray(patches, np.float32).reshape(-1, ROWS, BANDS, 1)
-        with self.m.lock:
-            return self.m.net(x).astype(np.float64)
-
-    def part(self, i: int, x: np.ndarray) -> np.ndarray:
-        """Part ``i`` (0-2) of the network on one patch (part 0) or on the previous part's output."""
-        x = np.asarray(x, np.float32)
-        if i == 0:
-            x = x.reshape(1, ROWS, BANDS, 1)
-        with self.m.lock:
-            return self.m.parts[i](x)
-
-    def scores(self, window: np.ndarray) -> np.ndarray:
-        """The 521 scores of one window (``WINDOW`` samples at 16 kHz, float in [-1, 1]).
-
-        Safe from any thread: the interpreters are used by one call at a time (LiteRT releases the GIL
-        while it runs, so a call in a helper thread leaves the frame thread free)."""
-        return self.network(self.logmel(frames(window)))[0]
-
-    def whole_file_scores(self, window: np.ndarray) -> np.ndarray:
-        """The scores by the unsplit file, in one call (the reference the split is tested against)."""
-        with self.m.lock:
-            return self.m.full(np.asarray(window, np.float32).reshape(1, WINDOW))[0].astype(np.float64)
+from laughlab.detector import yamnet_model as _model
+from laughlab.detector.yamnet_model import (  # noqa: F401  (the names users of this module know)
+    BANDS, FRAME, HOP, LAUGH_CLASSES, MODEL_SHA256, N_CLASSES, RATE, RESTORE, ROWS, WINDOW, ModelFileError, Yamnet,
+    class_names, data_dir, frame_starts, frames, frames_at, laugh_indices)
 
 
 #: the helper thread that runs model windows off the frame thread (``detector.async_frames``), per process
@@ -479,11 +203,6 @@ class Window16k:
         return out
 
 
-def frames_at(samples: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """The 400-sample frames of ``samples`` starting at ``starts``."""
-    return np.lib.stride_tricks.sliding_window_view(np.asarray(samples, np.float32), FRAME)[starts]
-
-
 #: threads running the network on prefetched windows (``Ahead``)
 NET_THREADS = 2
 
@@ -642,7 +361,7 @@ class Head:
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> "Head | None":
-        p = Path(path) if path is not None else data_dir() / "head.json"
+        p = Path(path) if path is not None else _model.data_dir() / "head.json"
         if path is None and not p.exists():
             return None
         try:
