@@ -109,7 +109,7 @@ class YamnetParams:
     class_close: float = 0.05
     class_windows: int = 1
     close_quiet_s: float = 0.3
-    model_frames: int = 1
+    model_frames: int = 3
     async_frames: int = 0
     prefetch: bool = True
     head: str | None = None
