@@ -140,7 +140,7 @@ RULES = ("head", "classes", "either")
 #: the network's three parts (``laughlab.detector.yamnet.PARTS``) run on each frame, by ``model_frames``
 PART_GROUPS = {1: ((0, 1, 2),), 2: ((0, 1), (2,)), 3: ((0,), (1,), (2,))}
 #: between windows, the audio is converted and the complete log-mel rows computed every this many frames
-PREPARE_EVERY = 4
+PREPARE_EVERY = 8
 
 
 class YamnetDetector(Detector):

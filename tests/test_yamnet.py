@@ -149,6 +149,22 @@ def test_the_split_model_gives_the_whole_files_scores_bit_for_bit(model):
     assert np.array_equal(model.logmel(f[[3, 50, 95]]), patches[0][[3, 50, 95]])
 
 
+def test_offline_window_scores_are_the_whole_files_one_window_at_a_time(model):
+    """window_scores (detect, fits, benchmarks): 64 windows at a time on two threads, rows shared between
+    overlapping windows; each window's scores are the unsplit file's on that window, bit for bit."""
+    rng = np.random.default_rng(5)
+    x = rng.uniform(-0.3, 0.3, 44100 * 8)
+    ends = np.arange(0, len(x) + 1, 2205)                        # 161 windows, every 50 ms, from the start
+    got = Y.window_scores(x, 44100, ends, model)
+    x16 = np.clip(Y.to_16k(x, 44100), -1.0, 1.0).astype(np.float32)
+    pad = np.concatenate([np.zeros(Y.WINDOW, np.float32), x16, np.zeros(Y.WINDOW, np.float32)])
+    for i in rng.choice(len(ends), 12, replace=False):
+        e16 = int(round(int(ends[i]) * 16000 / 44100)) + Y.WINDOW
+        assert np.array_equal(got[i], model.whole_file_scores(pad[e16 - Y.WINDOW:e16]))
+    with pytest.raises(ValueError, match="outside the audio"):
+        Y.window_scores(x, 44100, [len(x) + 44100 * 2], model)
+
+
 def test_frames_are_the_models_own():
     """96 frames of 400 samples every 160, as the file's reshape and gather cut them (ops 0-4)."""
     x = np.arange(Y.WINDOW, dtype=np.float32)

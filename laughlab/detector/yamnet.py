@@ -222,10 +222,10 @@ def net_pool():
     return _NET_POOL["pool"]
 
 
-def _scores_here(y: np.ndarray, ends: list) -> np.ndarray:
+def _scores_here(y: np.ndarray, ends: list, model: Yamnet | None = None) -> np.ndarray:
     """The scores of the windows of the 16 kHz samples ``y`` (clipped) ending at the indices ``ends``, by this
-    thread's own interpreters: each distinct frame's row once, then the patches in one call."""
-    model = Yamnet()
+    thread's own interpreters (or ``model``'s): each distinct frame's row once, then the patches in one call."""
+    model = model or Yamnet()
     starts = np.stack([frame_starts(e) for e in ends])            # (windows, 96)
     distinct, where = np.unique(starts, return_inverse=True)
     rows = model.logmel(frames_at(y, distinct))
@@ -410,20 +410,20 @@ def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: 
 
     The whole signal is resampled once (offline use: ``laughlab detect``, the fits and the benchmarks);
     for a window ending at input sample ``e`` the model hears 16 kHz samples up to ``e * 16000 / sr``.
-    Windows go to the model 64 at a time, each distinct 10 ms frame's log-mel row computed once: the
-    scores are the one-window-at-a-time scores bit for bit.
+    Windows go to the model 64 at a time, each distinct 10 ms frame's log-mel row computed once, on the
+    process' two network threads (the bundled model): the scores are the one-window-at-a-time scores bit
+    for bit.
     """
     model = model or Yamnet()
     sr = int(sample_rate)
     x = np.clip(to_16k(audio, sr), -1.0, 1.0).astype(np.float32)
     pad = np.concatenate([np.zeros(WINDOW, np.float32), x, np.zeros(WINDOW, np.float32)])
     e16 = [int(round(int(e) * RATE / sr)) + WINDOW for e in ends]
-    out = np.empty((len(e16), N_CLASSES))
-    for a in range(0, len(e16), 64):
-        starts = np.stack([frame_starts(e) for e in e16[a:a + 64]])
-        if starts.min() < 0 or starts.max() + FRAME > len(pad):
-            raise ValueError("a window ends outside the audio")
-        distinct, where = np.unique(starts, return_inverse=True)
-        rows = model.logmel(frames_at(pad, distinct))
-        out[a:a + 64] = model.network(rows[where.reshape(starts.shape)])
-    return out
+    if e16 and (min(e16) < WINDOW or max(e16) > len(pad)):
+        raise ValueError("a window ends outside the audio")
+    chunks = [e16[a:a + 64] for a in range(0, len(e16), 64)]
+    if model.bundled and len(chunks) > 1:   # the process' two network threads, 64 windows each at a time
+        parts = [f.result() for f in [net_pool().submit(_scores_here, pad, c) for c in chunks]]
+    else:
+        parts = [_scores_here(pad, c, model) for c in chunks]
+    return np.concatenate(parts) if parts else np.empty((0, N_CLASSES))
