@@ -173,15 +173,16 @@ def test_frames_are_the_models_own():
     assert np.array_equal(Y.frame_starts(20000), 20000 - Y.WINDOW + 160 * np.arange(96))
 
 
-@settings(max_examples=20, deadline=None)
-@given(st.sampled_from([16000, 22050, 44100, 48000]), st.lists(st.integers(1, 4000), min_size=1, max_size=8),
+@settings(max_examples=12, deadline=None)
+@given(st.sampled_from([16000, 22050, 44100, 48000]), st.lists(st.integers(1, 4000), min_size=1, max_size=8).map(
+           lambda sizes: [max(s, 200) if i % 2 else s for i, s in enumerate(sizes)]),   # short blocks, not only
        st.lists(st.booleans(), min_size=1, max_size=7), st.integers(0, 2**31))
 def test_kept_log_mel_rows_are_the_windows_own(sr, sizes, prepares, seed):
     """Window16k.patch (rows kept from earlier windows, rows made ahead by prepare) equals the front end
     on the window's 96 frames, whatever the blocks, the window times and the prepare calls."""
     model = Y.Yamnet()
     rng = np.random.default_rng(seed)
-    x = rng.uniform(-0.5, 0.5, int(sr * 2.2))
+    x = rng.uniform(-0.5, 0.5, int(sr * 1.6))
     w, i, j, hop = Y.Window16k(sr), 0, 0, sr // 4
     next_window = hop
     while i < len(x):
