@@ -2,7 +2,9 @@
 
 Per frame the detector keeps the last second of audio (``laughlab.detector.yamnet.Window16k``).
 Every ``hop_s`` (0.25 s: 15 frames at 60 fps) it runs YAMNet on the 0.975 s window ending
-at the current block's last sample and keeps two scores until the next window: the laughter
+at the current block's last sample (its log-mel rows kept from earlier windows, its network
+spread over ``model_frames`` frames, the scores taking effect on the last of them; on a file,
+computed ahead in helper threads with the same result) and keeps two scores until the next window: the laughter
 probability of the ``Head`` (a logistic regression fitted on the corpus' train split) and
 the laughter classes' own score (the largest of YAMNet's six laughter classes).  Two gains
 follow (the rule of ``docs/detector.md``):
