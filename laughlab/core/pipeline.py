@@ -315,7 +315,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             opened.append(sink)
         for plugin in (pipe.extractor, pipe.detector, pipe.scheduler, pipe.body, pipe.face, pipe.mixer):
             plugin.reset()
-        if getattr(src, "reread", False) and not src.live and hasattr(pipe.detector, "prefetch"):
+        if getattr(src, "reread", False) and not src.live:
             pipe.detector.prefetch(src.blocks)   # an offline file: the detector may read ahead (same bytes)
         ext, det, sch, body, face, mixer = (pipe.extractor, pipe.detector, pipe.scheduler, pipe.body, pipe.face,
                                             pipe.mixer)

@@ -108,6 +108,14 @@ class Resampler16k:
         return ext[k] * (1.0 - frac) + ext[k + 1] * frac
 
 
+def cleaned(x: np.ndarray) -> np.ndarray:
+    """Samples as the model's conversion takes them: non-finite ones (NaN, inf) read as 0, the rest clipped
+    to [-1, 1] (in place: ``x`` is the caller's own copy)."""
+    if not np.isfinite(x).all():
+        x = np.where(np.isfinite(x), x, 0.0)
+    return np.clip(x, -1.0, 1.0, out=x)
+
+
 class Window16k:
     """The last ``WINDOW`` samples of a stream at 16 kHz, from blocks at the stream's own rate (causal).
 
@@ -150,9 +158,7 @@ class Window16k:
             return
         x = self.pending[0] if len(self.pending) == 1 else np.concatenate(self.pending)
         self.pending = []
-        if not np.isfinite(x).all():
-            x = np.where(np.isfinite(x), x, 0.0)
-        y = self.rs.push(np.clip(x, -1.0, 1.0, out=x))
+        y = self.rs.push(cleaned(x))
         k = len(y)
         if k >= WINDOW:
             self.buf[:] = y[-WINDOW:]
@@ -303,9 +309,7 @@ class Ahead:
                     break
                 x = np.concatenate(kept) if kept else np.zeros(0)
                 kept = []
-                if not np.isfinite(x).all():
-                    x = np.where(np.isfinite(x), x, 0.0)
-                y = np.concatenate([tail, rs.push(np.clip(x, -1.0, 1.0, out=x)).astype(np.float32)])
+                y = np.concatenate([tail, rs.push(cleaned(x)).astype(np.float32)])
                 start = base - WINDOW                    # 16 kHz index of y[0]
                 yc = np.clip(y, -1.0, 1.0)
                 local = [e - start for e in ends]

@@ -99,15 +99,14 @@ def frame_starts(end: int) -> np.ndarray:
     return end - WINDOW + HOP * np.arange(ROWS)
 
 
-def frames(window: np.ndarray) -> np.ndarray:
-    """The window's 96 frames (96, 400) as the model cuts them (ops 0-4: 15,600 = 195 x 80 samples)."""
-    w = np.asarray(window, np.float32)
-    return np.lib.stride_tricks.sliding_window_view(w, FRAME)[::HOP][:ROWS]
-
-
 def frames_at(samples: np.ndarray, starts: np.ndarray) -> np.ndarray:
     """The 400-sample frames of ``samples`` starting at ``starts``."""
     return np.lib.stride_tricks.sliding_window_view(np.asarray(samples, np.float32), FRAME)[starts]
+
+
+def frames(window: np.ndarray) -> np.ndarray:
+    """The window's 96 frames (96, 400) as the model cuts them (ops 0-4: 15,600 = 195 x 80 samples)."""
+    return frames_at(window, HOP * np.arange(ROWS))
 
 
 def _split(data: bytes) -> dict:
