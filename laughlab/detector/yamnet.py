@@ -35,15 +35,20 @@ from laughlab.detector.yamnet_model import (  # noqa: F401  (the names users of 
 _HELPER: dict = {}
 
 
-def helper():
-    """The process' one helper thread for model windows (made again in a forked child, where it is gone)."""
+def _process_pool(store: dict, threads: int, prefix: str):
+    """A thread pool that lives as long as the process (made again in a forked child, where it is gone)."""
     import os
     from concurrent.futures import ThreadPoolExecutor
 
     pid = os.getpid()
-    if _HELPER.get("pid") != pid:
-        _HELPER.update(pid=pid, pool=ThreadPoolExecutor(1, thread_name_prefix="laughlab-yamnet"))
-    return _HELPER["pool"]
+    if store.get("pid") != pid:
+        store.update(pid=pid, pool=ThreadPoolExecutor(threads, thread_name_prefix=prefix))
+    return store["pool"]
+
+
+def helper():
+    """The process' one helper thread for model windows (``detector.async_frames``)."""
+    return _process_pool(_HELPER, 1, "laughlab-yamnet")
 
 
 class Resampler16k:
@@ -98,7 +103,7 @@ class Resampler16k:
         if len(x):
             self.last = float(x[-1])
         # outputs j with floor(j sr / 16000) + 1 <= n - 1, i.e. the sample after the instant is here
-        j_end = ((self.n - 1) * RATE - 1) // self.sr + 1 if self.n > 1 else 0
+        j_end = self.j_after(self.n)
         j = np.arange(self.j, max(self.j, j_end), dtype=np.int64)
         self.j = max(self.j, j_end)
         num = j * self.sr
@@ -138,12 +143,6 @@ class Window16k:
         self.pending = []
         self.cache = {}
         self.next_start = None
-
-    @property
-    def end(self) -> int:
-        """16 kHz samples made so far (the window's end), once the kept blocks are converted."""
-        self._convert()
-        return self.rs.j
 
     def push(self, block: np.ndarray) -> None:
         """Keep a copy of a block; blocks are converted when the window is next asked for (the same bytes,
@@ -217,15 +216,9 @@ _NET_POOL: dict = {}
 
 
 def net_pool():
-    """The process' network threads for prefetched windows (made again in a forked child, where they are
-    gone); they live as long as the process, so their interpreters are loaded once."""
-    import os
-    from concurrent.futures import ThreadPoolExecutor
-
-    pid = os.getpid()
-    if _NET_POOL.get("pid") != pid:
-        _NET_POOL.update(pid=pid, pool=ThreadPoolExecutor(NET_THREADS, thread_name_prefix="laughlab-yamnet-net"))
-    return _NET_POOL["pool"]
+    """The process' network threads for prefetched and offline windows; they live as long as the process,
+    so their interpreters are loaded once."""
+    return _process_pool(_NET_POOL, NET_THREADS, "laughlab-yamnet-net")
 
 
 def _scores_here(y: np.ndarray, ends: list, model: Yamnet | None = None) -> np.ndarray:
