@@ -251,6 +251,17 @@ def test_truth_table_and_csv(mixed, tmp_path):
     assert isinstance(mixed.calls[0], Call) and isinstance(mixed.bouts[0], Bout)
 
 
+@pytest.mark.parametrize("profile", PROFILES)
+def test_truth_csv_has_the_bytes_pandas_writes(profile, tmp_path):
+    """write_truth formats the CSV itself (no pandas import in a run); its bytes are pandas' own."""
+    for seed in (0, 3):
+        s = SyntheticLaughter(profile=profile, duration_s=20.0, seed=seed)
+        ours, theirs = tmp_path / "ours.csv", tmp_path / "theirs.csv"
+        s.write_truth(ours)
+        s.truth_table().to_csv(theirs, index=False, lineterminator="\n")
+        assert ours.read_bytes() == theirs.read_bytes()
+
+
 @pytest.mark.parametrize("kwargs", [dict(profile="nope"), dict(duration_s=0.0),
                                     dict(duration_s=-1.0), dict(sample_rate=0),
                                     dict(sample_rate=-8000), dict(duration_s=float("nan"))])
