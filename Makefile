@@ -48,9 +48,11 @@ detector: corpus
 ## the end; the real corpus and the browser come first.  BROWSER=no skips Chromium and its tests
 BROWSER ?= yes
 PYTEST_BROWSER := $(if $(filter no,$(BROWSER)),-m 'not slow and not browser',)
-## yamnet-head: refit the yamnet detector's head (laughlab/data/yamnet/head.json) on the corpus' train split
+## yamnet-head: refit the yamnet detector's head (laughlab/data/yamnet/head.json) on the corpus' train split, then
+## the fused head on top of it (fuse.json, detector.fuse=true)
 yamnet-head: corpus
 	$(PY) -m laughlab.detector.yamnet_fit
+	$(PY) -m laughlab.detector.yamnet_fit --fuse
 
 test: $(STAMP) corpus browser
 	$(PY) -m pytest -q -n auto --dist loadfile --durations=25 $(PYTEST_BROWSER)

@@ -36,6 +36,11 @@ RULES = {
     "either": [],   # the defaults of conf/detector/yamnet.yaml
     "classes": ["detector.rule=classes"],
     "head": ["detector.rule=head", "detector.hop_s=0.5", "detector.open_windows=2", "detector.close_quiet_s=0"],
+    # the fused head (YAMNet with the feature MLP's cues) at the rule chosen on the train split (yamnet_fit --fuse --rules)
+    "fused": ["detector.fuse=true", "detector.open_at=0.6", "detector.open_windows=2"],
+    # two more of its operating points on the train split's curve, for the trade-off (not chosen here)
+    "fused-0.5x2": ["detector.fuse=true", "detector.open_at=0.5", "detector.open_windows=2"],
+    "fused-0.7x1": ["detector.fuse=true", "detector.open_at=0.7", "detector.open_windows=1"],
 }
 SETS = ("speech", "mixed", "between", "real")
 OTHER = ("cough", "sneeze", "scream", "music", "noise", "vocal")

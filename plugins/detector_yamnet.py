@@ -94,6 +94,14 @@ class YamnetParams:
         holds the very samples its own holds (the same bytes; a mismatch falls back to the frame thread).
     head : str or None
         A head JSON (``python -m laughlab.detector.yamnet_fit --out FILE``); None: the bundled one.
+    fuse : bool
+        The head's probability fused with the feature MLP's cues of the window's last frame
+        (``laughlab.detector.fuse``: a logistic regression on the laughter classes' score, the head's
+        probability, the MLP's probability and its 23 features, fitted on the train split): ``laughter``
+        is then the fused probability, and ``open_at``/``open_windows``/``close_below`` apply to it.  The cues
+        cost a short spectrum and pitch search every frame (``docs/detector.md``).
+    fuse_file : str or None
+        A fused head JSON (``python -m laughlab.detector.yamnet_fit --fuse --out FILE``); None: the bundled one.
     """
 
     rule: str = "either"
@@ -115,6 +123,8 @@ class YamnetParams:
     async_frames: int = 0
     prefetch: bool = True
     head: str | None = None
+    fuse: bool = False
+    fuse_file: str | None = None
 
     def __post_init__(self) -> None:
         check_non_negative(self, ("hop_s", "hold_s", "quiet_s", "decide_s", "attack_s", "release_s", "onset_mcs",
@@ -131,8 +141,9 @@ class YamnetParams:
         if not (isinstance(self.model_frames, int) and not isinstance(self.model_frames, bool)
                 and 1 <= self.model_frames <= len(PART_GROUPS)):
             raise ValueError(f"model_frames must be a whole number from 1 to {len(PART_GROUPS)} (got {self.model_frames})")
-        if not isinstance(self.prefetch, bool):
-            raise ValueError(f"prefetch must be true or false (got {self.prefetch})")
+        for k in ("prefetch", "fuse"):
+            if not isinstance(getattr(self, k), bool):
+                raise ValueError(f"{k} must be true or false (got {getattr(self, k)})")
         check_hysteresis(self, "class_close", "class_open")
         check_hysteresis(self, "close_below", "open_at")
 
@@ -156,6 +167,12 @@ class YamnetDetector(Detector):
             self.score = LaughterScore(self.params.head)
         except ModelFileError as exc:
             raise ValueError(str(exc)) from None
+        self.cues = self.fusion = None
+        if self.params.fuse:
+            from laughlab.detector.fuse import FrameCues, Fusion
+
+            self.fusion = Fusion.load(self.params.fuse_file)
+            self.cues = FrameCues(self.ctx.sample_rate, self.ctx.fps)
         self.window = Window16k(self.ctx.sample_rate)
         self.hop = max(1, int(round(self.params.hop_s * self.ctx.fps)))
         if self.params.async_frames == 0 and self.params.model_frames > self.hop:
@@ -169,6 +186,8 @@ class YamnetDetector(Detector):
 
     def reset(self) -> None:
         self.window.reset()
+        if self.cues is not None:
+            self.cues.reset()
         self.k = 0
         self.p = 0.0
         self.q = 0.0        # the laughter classes' score of the newest window
@@ -180,13 +199,13 @@ class YamnetDetector(Detector):
         self.face_gain = 0.0
         self.quiet = math.inf
         self.pending = None  # time of the new sound the face follows before the model has heard it
-        self.job = None      # [window end time, next group, network state or the window]: a window in progress
-        self._drain()        # self.queue: (frame the scores take effect, window end time, future of its scores)
+        self.job = None      # [window end time, next group, network state or the window, cues]: a window in progress
+        self._drain()        # self.queue: (frame the scores take effect, window end time, future of its scores, cues)
         self._stop_ahead()
 
     def _drain(self) -> None:
         """Wait for windows still in the helper thread (a reset or the end of a run)."""
-        for _, _, fut in getattr(self, "queue", []):
+        for _, _, fut, _ in getattr(self, "queue", []):
             fut.result()
         self.queue = []
 
@@ -209,31 +228,36 @@ class YamnetDetector(Detector):
     def _run_job(self) -> None:
         """This frame's share of the window in progress (``self.job``: window end time, the frame's number in
         the window's ``model_frames``, network state or ``("ahead", window)``); the last frame takes effect."""
-        t_end, g, x = self.job
+        t_end, g, x, cues = self.job
         last = g + 1 == len(self.groups)
         if isinstance(x, tuple):      # the helper's scores, checked against the window, on the last frame
             if not last:
-                self.job = [t_end, g + 1, x]
+                self.job = [t_end, g + 1, x, cues]
                 return
             scores = self.ahead.scores(x[1]) if self.ahead is not None else None
             if scores is None:        # no helper, or its window differs: the frame thread computes it
                 self._stop_ahead()
                 scores = self.model.network(self.window.patch(self.model, x[1]))[0]
             self.job = None
-            self._take(scores, t_end)
+            self._take(scores, t_end, cues)
             return
         for i in self.groups[g]:
             x = self.model.part(i, x)
         if last:
             self.job = None
-            self._take(x[0].astype(np.float64), t_end)
+            self._take(x[0].astype(np.float64), t_end, cues)
         else:
-            self.job = [t_end, g + 1, x]
+            self.job = [t_end, g + 1, x, cues]
 
-    def _take(self, scores, t_end: float) -> None:
-        """A window's scores take effect (on its own frame, or ``async_frames`` later)."""
+    def _take(self, scores, t_end: float, cues=None) -> None:
+        """A window's scores take effect (on its own frame, or ``async_frames`` later); ``cues``: the feature
+        MLP's (features, probability) at the window's frame when ``fuse``."""
         p = self.params
         self.p, self.q = self.score.both(scores)
+        if cues is not None:
+            from laughlab.detector.fuse import inputs
+
+            self.p = float(self.fusion.prob(inputs(self.q, self.p, cues[1], cues[0]))[0])
         self.run = self.run + 1 if self.p >= p.open_at else 0
         self.qrun = self.qrun + 1 if self.q >= p.class_open else 0
         if (self.pending is not None and t_end - self.pending >= p.decide_s - 1e-9
@@ -254,6 +278,8 @@ class YamnetDetector(Detector):
     def step(self, block, frame) -> None:
         p, dt = self.params, frame.dt
         self.window.push(block)
+        if self.cues is not None:
+            self.cues.push(block)
         t_end = (self.k + 1) * dt  # the block's end: the newest sample the window holds
         c = frame.control
         mcs = float(c.get("mcs", 0.0))
@@ -264,20 +290,21 @@ class YamnetDetector(Detector):
         else:
             self.quiet += dt
         if (self.k + 1) % self.hop == 0:
+            cues = self.cues.now() if self.cues is not None else None
             if p.async_frames:
                 self.queue.append((self.k + p.async_frames, t_end,
-                                   helper().submit(self.model.network, self.window.patch(self.model))))
+                                   helper().submit(self.model.network, self.window.patch(self.model)), cues))
             elif self.ahead is not None:
-                self.job = [t_end, 0, ("ahead", self.window.window())]
+                self.job = [t_end, 0, ("ahead", self.window.window()), cues]
             else:
-                self.job = [t_end, 0, self.window.patch(self.model)]
+                self.job = [t_end, 0, self.window.patch(self.model), cues]
         if self.job is not None:
             self._run_job()
         elif self.ahead is None and ((self.k + 1) % self.hop) % PREPARE_EVERY == 0:
             self.window.prepare(self.model)   # between windows: convert the audio, compute complete rows
         while self.queue and self.queue[0][0] == self.k:
-            _, t_win, fut = self.queue.pop(0)
-            self._take(fut.result()[0], t_win)
+            _, t_win, fut, cues = self.queue.pop(0)
+            self._take(fut.result()[0], t_win, cues)
         self.k += 1
         sound = p.close_quiet_s <= 0 or self.quiet < p.close_quiet_s - 1e-9
         if sound and ((self.use_head and self.run >= p.open_windows)

@@ -160,9 +160,17 @@ class FeatureStream:
         self.hist[:, 2] = 7.0
         self.level_dbfs = -120.0
         self.peak_db = -120.0
+        self._last = (-120.0, 0.0, 0.0, 0.0)
 
     def step(self, block: np.ndarray) -> np.ndarray:
         """Take one frame's samples; return the feature vector (``FEATURES`` order)."""
+        self.push(block)
+        return self.features()
+
+    def push(self, block: np.ndarray) -> None:
+        """Take one frame's samples: the frame's own measures (level, spectrum, pitch) go into the history.
+        :meth:`features` then gives what :meth:`step` would have (a user that needs the features only now and
+        then pushes every frame and asks on those frames)."""
         b = np.asarray(block, dtype=np.float64)
         n = len(b)
         if n >= self.win:
@@ -211,9 +219,11 @@ class FeatureStream:
         row[0], row[1], row[2], row[3], row[4] = e, voi, math.log2(self.sr_ac / lag), hf, flat
         row[5] = float(np.abs(cep - H[-2, 6:-1]).sum()) / N_CEP
         row[6:-1] = cep
-        return self._features(e, voi, hf, flat)
+        self._last = (e, voi, hf, flat)
 
-    def _features(self, e, voi, hf, flat) -> np.ndarray:
+    def features(self) -> np.ndarray:
+        """The feature vector (``FEATURES`` order) after the last :meth:`push`."""
+        e, voi, hf, flat = self._last
         H, ns, nl, W = self.hist, self.ns, self.nl, self.weights
         E = H[:, 0]
         top = float(E.max())

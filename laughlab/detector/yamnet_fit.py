@@ -8,7 +8,10 @@ YAMNet's on the live 16 kHz conversion, the fit (scikit-learn's L2 logistic regr
 L-BFGS) is deterministic and the weights are written with 7 significant digits.
 ``--check`` refits and compares with the bundled file instead of writing; ``--gate`` and ``--rules``
 print the live gate's rules on the train scenes (the thresholds of ``conf/detector/yamnet.yaml``
-were chosen there, never on the test split).
+were chosen there, never on the test split).  ``--fuse`` does the same for the fused head
+(``laughlab/data/yamnet/fuse.json``, ``detector.fuse=true``: ``laughlab.detector.fuse``): the same train
+scenes, one window every 0.25 s ending on a 60 fps frame's end, its inputs at that frame; C chosen by a
+4-fold cross-validation over the scenes (average precision); ``--fuse --rules`` prints its opening rules.
 
 A window (0.975 s, one every 0.25 s) counts as laughter when at least half of its last
 0.5 s lies inside an annotated bout: the head says "laughing now", not "a laugh is
@@ -56,22 +59,27 @@ def scene_windows(model: Yamnet, x: np.ndarray, sr: int, rows: list[dict]) -> tu
     return window_scores(x, sr, ends, model), window_labels(rows, ends / sr)
 
 
-def dataset(split: str = "train", n_scenes: int = N_SCENES, seed: int = SEED):
-    """Scores (N, 521) and labels (N,) of the windows of ``split``'s scenes and the synthetic profiles."""
+def train_scenes(n_scenes: int = N_SCENES, seed: int = SEED):
+    """The train split's scenes of every fit here, one at a time: ``(audio, sample rate, truth rows)``, each built
+    with its own seeded generator (``laughlab.corpora.mixed.build_scene`` at the SNRs of ``laughlab.detector.fit``)
+    and coloured by a random microphone response (``laughlab.detector.fit.channel``)."""
     from laughlab.corpora.mixed import SAMPLE_RATE, Pool, build_scene
-    from laughlab.detector.fit import SNRS, channel, synthetic_scenes
+    from laughlab.detector.fit import SNRS, channel
 
-    model = Yamnet()
-    pool = Pool.of_split(split)
-    S, Y = [], []
+    pool = Pool.of_split("train")
     for i in range(n_scenes):
         rng = np.random.default_rng([seed, i])
         x, rows = build_scene(rng, pool, SCENE_S, SNRS[i % len(SNRS)])
-        x = channel(x, rng)
-        s, y = scene_windows(model, x, SAMPLE_RATE, rows)
-        S.append(s)
-        Y.append(y)
-    for x, sr, rows in synthetic_scenes(seed):
+        yield channel(x, rng), SAMPLE_RATE, rows
+
+
+def dataset(n_scenes: int = N_SCENES, seed: int = SEED):
+    """Scores (N, 521) and labels (N,) of the windows of the train split's scenes and the synthetic profiles."""
+    from laughlab.detector.fit import synthetic_scenes
+
+    model = Yamnet()
+    S, Y = [], []
+    for x, sr, rows in [*train_scenes(n_scenes, seed), *synthetic_scenes(seed)]:
         s, y = scene_windows(model, x, sr, rows)
         S.append(s)
         Y.append(y)
@@ -92,12 +100,16 @@ def fit(S: np.ndarray, y: np.ndarray) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m laughlab.detector.yamnet_fit", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", default=str(OUT), help="where to write the head (default: the bundled file)")
+    ap.add_argument("--out", default=None, help="where to write the head (default: the bundled file)")
+    ap.add_argument("--fuse", action="store_true", help="the fused head (YAMNet with the feature MLP's cues, "
+                    "laughlab/data/yamnet/fuse.json) instead; with --rules, its opening rules on the train scenes")
     ap.add_argument("--check", action="store_true", help="refit and compare with the bundled head; write nothing")
     ap.add_argument("--gate", action="store_true", help="print the live gate's opening rules on the train scenes")
     ap.add_argument("--rules", action="store_true", help="print the rules head / classes / either on the train "
                     "scenes (windows every 0.25 s)")
     ns = ap.parse_args(argv)
+    if ns.fuse:
+        return main_fuse(ns)
     if ns.rules:
         for r in rule_sweep():
             print(f"{r['rule']}: bouts found {r['bouts_found']:.3f}, openings outside laughter "
@@ -124,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     from laughlab.detector.fit import write_or_check
 
-    return write_or_check(text, ns.out, OUT, ns.check, "head",
+    return write_or_check(text, ns.out or OUT, OUT, ns.check, "head",
                           f"{len(y)} windows, {100 * y.mean():.1f}% laughter, train accuracy {acc:.3f}")
 
 
@@ -133,21 +145,14 @@ def gate_sweep(n_scenes: int = N_SCENES, seed: int = SEED) -> list[dict]:
     """The live gate's opening rule on the train scenes (``--gate``): for ``open_at`` and the number of
     windows in a row at or above it (every 0.5 s, as live), the share of bouts during which the gate opens
     (inside the bout or up to 1 s after) and the openings outside every bout per minute of non-laughter."""
-    from laughlab.corpora.mixed import SAMPLE_RATE, Pool, build_scene
-    from laughlab.detector.fit import SNRS, channel
-
     model, head = Yamnet(), Head.load()
-    pool = Pool.of_split("train")
     scenes = []
-    for i in range(n_scenes):
-        rng = np.random.default_rng([seed, i])
-        x, rows = build_scene(rng, pool, SCENE_S, SNRS[i % len(SNRS)])
-        x = channel(x, rng)
-        step = SAMPLE_RATE // 2
+    for x, sr, rows in train_scenes(n_scenes, seed):
+        step = sr // 2
         ends = np.arange(step, len(x) + 1, step)
-        scenes.append({"p": head.prob(window_scores(x, SAMPLE_RATE, ends, model)), "t": ends / SAMPLE_RATE,
+        scenes.append({"p": head.prob(window_scores(x, sr, ends, model)), "t": ends / sr,
                        "bouts": [(r["onset_s"], r["offset_s"]) for r in rows if r["kind"] == "bout"],
-                       "dur": len(x) / SAMPLE_RATE})
+                       "dur": len(x) / sr})
     out = []
     for open_at in (0.3, 0.4, 0.5, 0.6, 0.7, 0.8):
         for run in (1, 2):
@@ -205,8 +210,7 @@ def _found_false(scenes: list, opened_of) -> tuple[float, float]:
 def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) -> list[dict]:
     """The rules ``head``, ``classes`` and ``either`` on the train scenes and the synthetic profiles (``--rules``),
     one window every ``hop_s`` as live: bouts found and openings outside laughter (as :func:`gate_sweep`)."""
-    from laughlab.corpora.mixed import SAMPLE_RATE, Pool, build_scene
-    from laughlab.detector.fit import SNRS, channel, synthetic_scenes
+    from laughlab.detector.fit import synthetic_scenes
     from laughlab.detector.yamnet import class_names, class_score, laugh_indices
 
     model, head = Yamnet(), Head.load()
@@ -219,12 +223,7 @@ def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) 
         return {"p": head.prob(S), "q": class_score(S, idx), "t": ends / sr, "dur": len(x) / sr,
                 "bouts": [(r["onset_s"], r["offset_s"]) for r in rows if r["kind"] == "bout"]}
 
-    pool = Pool.of_split("train")
-    train = []
-    for i in range(n_scenes):
-        rng = np.random.default_rng([seed, i])
-        x, rows = build_scene(rng, pool, SCENE_S, SNRS[i % len(SNRS)])
-        train.append(scene(channel(x, rng), SAMPLE_RATE, rows))
+    train = [scene(x, sr, rows) for x, sr, rows in train_scenes(n_scenes, seed)]
     synth = [scene(x, sr, rows) for x, sr, rows in synthetic_scenes(seed)]
     rules = [(f"head, open_at 0.5 x{n}", {"rule": "head", "open_windows": n}) for n in (2, 3, 4)]
     rules += [(f"classes, class_open {c} x{n}, class_close {c / 2:g}",
@@ -242,6 +241,126 @@ def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) 
                     "synthetic_found": _found_false(synth, opened)[0]})
     return out
 
+
+
+# -- the fused head (``--fuse``): YAMNet's scores with the feature MLP's cues ------------------------------------
+
+FUSE_OUT = data_dir() / "fuse.json"
+#: frames per second of the feature stream (the pipeline's default rate; the live cues are per frame)
+FUSE_FPS = 60.0
+#: inverse L2 strengths tried by the grouped cross-validation (scenes in FUSE_FOLDS folds, train split only)
+FUSE_CS = (0.003, 0.01, 0.03, 0.1, 0.3, 1.0)
+FUSE_FOLDS = 4
+
+
+def fuse_scene(model: Yamnet, head: Head, x: np.ndarray, sr: int, rows: list[dict], hop_s: float = STEP_S) -> dict:
+    """One window every ``hop_s`` at frame ends, as live: the fused head's inputs (``laughlab.detector.fuse``),
+    the head's and the classes' scores, labels (:func:`window_labels`), times and bouts."""
+    from laughlab.detector.fuse import inputs
+    from laughlab.detector.model import Model, probabilities
+    from laughlab.detector.yamnet import class_names, class_score, laugh_indices
+
+    step = int(round(hop_s * sr))
+    ends = np.arange(step, len(x) + 1, step)
+    k = np.rint(ends * FUSE_FPS / sr).astype(int)       # frames up to the window's end
+    if not np.array_equal(np.rint(k * sr / FUSE_FPS).astype(int), ends):
+        raise ValueError(f"windows every {hop_s} s do not end on frame ends at {sr} Hz")
+    feats, prob, _ = probabilities(x, sr, FUSE_FPS, Model.load())
+    S = window_scores(x, sr, ends, model)
+    p, q = head.prob(S), class_score(S, laugh_indices(class_names()))
+    return {"X": inputs(q, p, prob[k - 1], feats[k - 1]), "p": p, "q": q, "y": window_labels(rows, ends / sr),
+            "t": ends / sr, "dur": len(x) / sr, "bouts": [(r["onset_s"], r["offset_s"]) for r in rows if r["kind"] == "bout"]}
+
+
+def fuse_scenes(n_scenes: int = N_SCENES, seed: int = SEED) -> tuple[list[dict], list[dict]]:
+    """The train split's scenes (as :func:`dataset`) and the synthetic profiles, through :func:`fuse_scene`."""
+    from laughlab.detector.fit import synthetic_scenes
+
+    model, head = Yamnet(), Head.load()
+    train = [fuse_scene(model, head, x, sr, rows) for x, sr, rows in train_scenes(n_scenes, seed)]
+    synth = [fuse_scene(model, head, x, sr, rows) for x, sr, rows in synthetic_scenes(seed)]
+    return train, synth
+
+
+def fit_fuse(scenes: list[dict]) -> dict:
+    """Standardise the inputs and fit the L2 logistic regression; C by grouped cross-validation (scenes in
+    ``FUSE_FOLDS`` folds by index, the average precision of the held-out folds' windows)."""
+    try:
+        from sklearn.linear_model import LogisticRegression
+        from sklearn.metrics import average_precision_score
+    except ImportError:
+        raise LaughlabError("fitting the fused head needs scikit-learn: pip install -e '.[fit]'") from None
+    from laughlab.detector.fuse import INPUTS
+
+    X = np.concatenate([sc["X"] for sc in scenes])
+    y = np.concatenate([sc["y"] for sc in scenes]).astype(int)
+    fold = np.concatenate([np.full(len(sc["y"]), i % FUSE_FOLDS) for i, sc in enumerate(scenes)])
+
+    def standardised(fit_rows, rows):
+        m, s = fit_rows.mean(axis=0), fit_rows.std(axis=0)
+        s = np.where(s > 0, s, 1.0)
+        return (rows - m) / s, m, s
+
+    cv = {}
+    for c in FUSE_CS:
+        aps = []
+        for f in range(FUSE_FOLDS):
+            tr, te = fold != f, fold == f
+            Z, m, s = standardised(X[tr], X)
+            clf = LogisticRegression(C=c, max_iter=5000, solver="lbfgs").fit(Z[tr], y[tr])
+            aps.append(average_precision_score(y[te], clf.predict_proba(Z[te])[:, 1]))
+        cv[c] = float(np.mean(aps))
+    best = max(FUSE_CS, key=lambda c: (round(cv[c], 6), -c))   # ties: the stronger regularisation
+    Z, m, s = standardised(X, X)
+    clf = LogisticRegression(C=best, max_iter=5000, solver="lbfgs").fit(Z, y)
+    r = lambda a: [float(f"{v:.7g}") for v in np.ravel(a)]  # noqa: E731
+    return {"inputs": list(INPUTS), "mean": r(m), "scale": r(s), "weights": r(clf.coef_[0]),
+            "bias": r(clf.intercept_)[0], "cv_average_precision": {f"{c:g}": round(v, 4) for c, v in cv.items()},
+            "C": best}
+
+
+def fuse_rules(train: list[dict], synth: list[dict], fusion) -> list[dict]:
+    """The clip gain's opening rule with the fused probability (``rule=either``: the classes' score at 0.1 in one
+    window, or the fused probability at ``open_at`` in ``open_windows`` windows in a row) on the train scenes."""
+    out = []
+    for open_at in (0.4, 0.5, 0.6, 0.7):
+        for n in (1, 2, 3):
+            def opened(sc, open_at=open_at, n=n):
+                return gate_windows(fusion.prob(sc["X"]), sc["q"], "either", open_at=open_at, open_windows=n)
+
+            found, false = _found_false(train, opened)
+            out.append({"open_at": open_at, "open_windows": n, "bouts_found": found, "false_per_10min": false,
+                        "synthetic_found": _found_false(synth, opened)[0]})
+    return out
+
+
+def main_fuse(ns) -> int:
+    from laughlab.detector.fit import write_or_check
+    from laughlab.detector.fuse import Fusion
+
+    try:
+        train, synth = fuse_scenes()
+        d = fit_fuse(train + synth)
+    except LaughlabError as exc:
+        print(f"laughlab: error: {exc}", file=sys.stderr)
+        return 2
+    fusion = Fusion(np.array(d["mean"]), np.array(d["scale"]), np.array(d["weights"]), d["bias"], d)
+    y = np.concatenate([sc["y"] for sc in train + synth])
+    acc = float(((fusion.prob(np.concatenate([sc["X"] for sc in train + synth])) >= 0.5) == (y > 0)).mean())
+    d["fit"] = {"command": "python -m laughlab.detector.yamnet_fit --fuse", "split": "train", "scenes": N_SCENES,
+                "scene_s": SCENE_S, "synthetic_profiles": 7, "step_s": STEP_S, "label_s": LABEL_S, "fps": FUSE_FPS,
+                "windows": int(len(y)), "laughter_share": round(float(y.mean()), 4), "seed": SEED,
+                "folds": FUSE_FOLDS, "train_accuracy": round(acc, 4)}
+    if ns.rules:
+        for r in fuse_rules(train, synth, fusion):
+            print(f"either, classes 0.1 x1 or fused {r['open_at']:.1f} x{r['open_windows']}: bouts found "
+                  f"{r['bouts_found']:.3f}, openings outside laughter {r['false_per_10min']:.1f} per 10 min; "
+                  f"synthetic bouts found {r['synthetic_found']:.3f}")
+        return 0
+    text = json.dumps(d, separators=(",", ":")) + "\n"
+    return write_or_check(text, ns.out or FUSE_OUT, FUSE_OUT, ns.check, "fused head",
+                          f"{len(y)} windows, C {d['C']:g} (cross-validated AP {d['cv_average_precision']}), "
+                          f"train accuracy {acc:.3f}")
 
 if __name__ == "__main__":
     raise SystemExit(main())

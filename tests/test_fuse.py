@@ -1,0 +1,127 @@
+"""``detector.fuse``: YAMNet's scores fused with the feature MLP's cues (``laughlab.detector.fuse``)."""
+import json
+import math
+
+import numpy as np
+import pytest
+import soundfile as sf
+from hypothesis import given, settings, strategies as st
+
+from laughlab.core.bases import Context
+from laughlab.core.frame import Frame
+from laughlab.detector import fuse as F
+from laughlab.detector.model import FEATURES, FeatureStream
+
+FPS = 60.0
+
+
+@settings(max_examples=10, deadline=None)
+@given(sr=st.sampled_from([16000, 44100, 48000]), every=st.integers(1, 20), seed=st.integers(0, 2**31))
+def test_features_asked_now_and_then_are_the_every_frame_features(sr, every, seed):
+    """The detector pushes every frame and asks for the features on window frames only: the same numbers as
+    ``step`` every frame."""
+    rng = np.random.default_rng(seed)
+    x = rng.standard_normal(sr * 3) * np.repeat(rng.uniform(0, 0.5, 30), sr // 10)
+    a, b = FeatureStream(sr, FPS), FeatureStream(sr, FPS)
+    for k in range(int(3 * FPS)):
+        blk = x[int(round(k * sr / FPS)):int(round((k + 1) * sr / FPS))]
+        want = a.step(blk)
+        b.push(blk)
+        if k % every == every - 1:
+            assert np.array_equal(b.features(), want)
+
+
+def test_the_fused_probability_by_hand():
+    """p = sigmoid(w . (x - mean) / scale + b) on log(q + 1e-4), logit(head), logit(mlp) and the 23 features."""
+    n = len(F.INPUTS)
+    w = np.zeros(n)
+    w[0], w[2], w[3] = 1.0, 1.0, 0.5
+    mean, scale = np.zeros(n), np.ones(n)
+    scale[3] = 2.0
+    fus = F.Fusion(mean, scale, w, -0.25, {})
+    feats = np.zeros(len(FEATURES))
+    feats[0] = -6.0                                  # rel_db
+    x = F.inputs(0.1, 0.5, 0.9, feats)
+    assert x.shape == (1, n)
+    z = math.log(0.1 + 1e-4) + math.log(0.9 / 0.1) + 0.5 * (-6.0 / 2.0) - 0.25
+    assert fus.prob(x)[0] == pytest.approx(1.0 / (1.0 + math.exp(-z)), rel=1e-12)
+    # probabilities of 0 and 1 enter clipped to 1e-4: finite
+    assert np.isfinite(F.inputs(0.0, 0.0, 1.0, feats)).all()
+    assert F.inputs(0.0, 0.0, 1.0, feats)[0, 1] == pytest.approx(math.log(1e-4 / (1 - 1e-4)))
+
+
+def test_the_bundled_fused_head_is_complete_and_a_foreign_one_is_refused(tmp_path):
+    fus = F.Fusion.load()
+    assert fus.meta["inputs"] == list(F.INPUTS) and fus.weights.shape == (len(F.INPUTS),)
+    assert fus.meta["fit"]["split"] == "train" and np.all(fus.scale > 0)
+    d = dict(fus.meta, inputs=list(F.INPUTS[:-1]))
+    (tmp_path / "f.json").write_text(json.dumps(d))
+    with pytest.raises(ValueError, match="refit: python -m laughlab.detector.yamnet_fit --fuse"):
+        F.Fusion.load(tmp_path / "f.json")
+
+
+def corpus_audio():
+    from laughlab.corpora import fetch
+    from laughlab.corpora.mixed import load
+
+    files = fetch.require()
+    speech = load(str(files["hedgewars/British-Amazing"]), 44100)
+    return np.concatenate([speech, load(str(files["hedgewars/Classic-Laugh"]), 44100), speech])
+
+
+def test_the_live_fused_probability_is_the_fits_offline_one():
+    """The detector's ``laughter`` on each window's frame (fuse=true, scores on the window's own frame) is the
+    fused head on ``yamnet_fit.fuse_scene``'s inputs, the offline path the head was fitted on."""
+    from laughlab.detector.yamnet import Head, Yamnet
+    from laughlab.detector.yamnet_fit import fuse_scene
+    from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
+
+    sr = 44100
+    x = corpus_audio()
+    det = YamnetDetector(YamnetParams(fuse=True, model_frames=1), Context(fps=FPS, sample_rate=sr))
+    live = []
+    n = int(len(x) * FPS / sr)
+    for k in range(n):
+        f = Frame(k, k / FPS, 1 / FPS, {"mcs": 0.5}, None, {}, {}, [], 0.0)
+        det.step(x[int(round(k * sr / FPS)):int(round((k + 1) * sr / FPS))], f)
+        if (k + 1) % 15 == 0:
+            live.append(f.control["laughter"])
+    off = fuse_scene(Yamnet(), Head.load(), x[:int(round(n * sr / FPS))], sr, [])
+    want = det.fusion.prob(off["X"])
+    assert len(live) == len(want) > 15
+    np.testing.assert_allclose(live, want, rtol=1e-9, atol=1e-12)
+    assert 0.0 < min(live) < max(live) < 1.0
+
+
+def test_a_fused_run_gives_the_same_bytes_with_and_without_the_look_ahead(tmp_path):
+    """input=file, fuse=true: the helper thread's windows (prefetch) and the frame thread's give the same bytes,
+    and they differ from the unfused run's."""
+    from laughlab.core import pipeline
+    from laughlab.harness.runner import _compose
+
+    wav = tmp_path / "in.wav"
+    sf.write(wav, corpus_audio(), 44100, subtype="PCM_16")
+
+    def run(name, *extra):
+        cfg = _compose(["input=file", f"input.path={wav}", "output=trial", "progress=off", *extra])
+        pipeline.execute(pipeline.build(cfg), tmp_path / name, {})
+        return (tmp_path / name / "channels.csv").read_bytes()
+
+    a = run("on", "detector.fuse=true")
+    assert run("off", "detector.fuse=true", "detector.prefetch=false") == a
+    assert run("plain") != a
+
+
+def test_a_bad_fuse_value_is_refused():
+    from laughlab_plugins.detector_yamnet import YamnetParams
+
+    with pytest.raises(ValueError, match=r"fuse must be true or false \(got maybe\)"):
+        YamnetParams(fuse="maybe")
+
+
+@pytest.mark.slow
+def test_the_fused_head_is_refitted_byte_for_byte():
+    """``python -m laughlab.detector.yamnet_fit --fuse --check`` refits on the train split and compares (~3-5 min)."""
+    from laughlab.detector.yamnet_fit import main
+
+    assert main(["--fuse", "--check"]) == 0
