@@ -1,5 +1,6 @@
 """The clip-gate rules of ``detector=yamnet`` on the held-out (test) split: ``either`` (the default), ``classes``
-(YAMNet's own laughter classes) and ``head`` (the first rule: the head alone, every 0.5 s, two windows in a row).
+(YAMNet's own laughter classes), ``head`` (the first rule: the head alone, every 0.5 s, two windows in a row) and
+``fused`` (``detector=yamnet_fused``; ``fused-0.5x2`` and ``fused-0.7x1`` are two more points of its train curve).
 
 Runs the default live pipeline (``benchmarks/bench_detector.py``'s ``run_pipeline``, the metrics of
 ``experiment=detector_eval``) on the sets ``speech``, ``mixed``, ``between`` and ``real`` of the test split once per
@@ -36,7 +37,8 @@ RULES = {
     "either": [],   # the defaults of conf/detector/yamnet.yaml
     "classes": ["detector.rule=classes"],
     "head": ["detector.rule=head", "detector.hop_s=0.5", "detector.open_windows=2", "detector.close_quiet_s=0"],
-    # the fused head (YAMNet with the feature MLP's cues) at the rule chosen on the train split (yamnet_fit --fuse --rules)
+    # detector=yamnet_fused: the fused head (YAMNet with the feature MLP's cues) at the rule chosen on the train split
+    # (yamnet_fit --fuse --rules): detector.fuse=true detector.open_at=0.6 detector.open_windows=2
     "fused": ["detector.fuse=true", "detector.open_at=0.6", "detector.open_windows=2"],
     # two more of its operating points on the train split's curve, for the trade-off (not chosen here)
     "fused-0.5x2": ["detector.fuse=true", "detector.open_at=0.5", "detector.open_windows=2"],

@@ -2,10 +2,10 @@
 
 The harness' metrics judge each detector's *gate* (open or shut, and the clips it lets start).  This
 module judges the *score* behind it: per 60 fps frame, the ``laughter`` probability each detector
-condition writes (``detector=yamnet``: its head; ``detector=laugh``: the feature MLP; plus
-``yamnet classes``: YAMNet's own largest laughter-class score, ``laughter_classes``), stepped over
-every held-out recording of the corpus that has a truth (the ``real``, ``mixed`` and ``between`` sets), exactly as
-live (causal, the frame's block).  A frame is laughter when it lies inside an annotated bout.
+condition writes (``detector=yamnet``: its head; ``detector=yamnet_fused``: the head fused with the feature MLP's
+cues; ``detector=laugh``: the feature MLP; plus ``yamnet classes``: YAMNet's own largest laughter-class score,
+``laughter_classes``), stepped over every held-out recording of the corpus that has a truth (the ``real``,
+``mixed`` and ``between`` sets), exactly as live (causal, the frame's block).  A frame is laughter when it lies inside an annotated bout.
 
 Writes ``plots/detector_pr.png`` (one curve per score, its average precision in the legend, the
 operating points of the gates' thresholds marked) and returns the average precisions and the curves'
@@ -17,23 +17,30 @@ from pathlib import Path
 
 import numpy as np
 
-#: score -> (condition's detector, control written per frame, the gate's threshold on it)
+#: score -> (condition's ``detector=`` option, control written per frame, the gate's threshold on it)
 SCORES = {
     "yamnet (head)": ("yamnet", "laughter", 0.5),
     "yamnet classes": ("yamnet", "laughter_classes", 0.1),
+    "yamnet fused": ("yamnet_fused", "laughter", 0.6),
     "laugh (feature MLP)": ("laugh", "laughter", 0.7),
 }
 
 
 def frame_scores(detector: str, path: str, fps: float = 60.0) -> tuple[dict, float]:
-    """Step one detector over a recording's frames (as the pipeline cuts them); its controls per frame."""
+    """Step one detector (a ``detector=`` option, its configuration composed as a run's) over a recording's
+    frames (as the pipeline cuts them); its controls per frame."""
+    from omegaconf import OmegaConf
+
     from laughlab.core import plugins
     from laughlab.core.bases import Context
     from laughlab.core.frame import Frame
+    from laughlab.harness.runner import _compose
     from laughlab.io.audio import cut_frames, probe_file, read_blocks
 
     sr = int(probe_file(path).samplerate)
-    det = plugins.get("detector", detector).obj(ctx=Context(fps=fps, sample_rate=sr))
+    conf = OmegaConf.to_container(_compose([f"detector={detector}"]).detector)
+    cls = plugins.get("detector", conf.pop("name")).obj
+    det = cls(plugins.make_params(cls, conf, f"detector.{detector}"), ctx=Context(fps=fps, sample_rate=sr))
     det.reset()
     out: dict = {"laughter": [], "laughter_classes": []}
     dt = 1.0 / fps

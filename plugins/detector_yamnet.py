@@ -26,6 +26,10 @@ follow (the rule of ``docs/detector.md``):
   energy scheduler's energy is fed by that ``mcs``, so a laugh's clip is ready when the
   model agrees.
 
+With ``fuse`` (``detector=yamnet_fused``) the head's probability is replaced by the head fused with the feature
+MLP's cues of the window's last frame (``laughlab.detector.fuse``; its opening rule in
+``conf/detector/yamnet_fused.yaml``).
+
 Look-ahead: the frame's own audio block.  Live and offline see the same blocks, so the
 same bytes.  ``laughter`` holds the head's probability, ``laughter_classes`` the classes'
 score, ``laugh_gate`` the clip gain, ``face_gate`` the face gain.
@@ -171,7 +175,10 @@ class YamnetDetector(Detector):
         if self.params.fuse:
             from laughlab.detector.fuse import FrameCues, Fusion
 
-            self.fusion = Fusion.load(self.params.fuse_file)
+            try:
+                self.fusion = Fusion.load(self.params.fuse_file)
+            except ModelFileError as exc:
+                raise ValueError(str(exc)) from None
             self.cues = FrameCues(self.ctx.sample_rate, self.ctx.fps)
         self.window = Window16k(self.ctx.sample_rate)
         self.hop = max(1, int(round(self.params.hop_s * self.ctx.fps)))

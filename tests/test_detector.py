@@ -193,8 +193,9 @@ def test_the_gate_scales_the_drive_and_none_passes_it(gated_and_plain):
     (["detector=laugh", "detector.model=/no/such.json"],
      "bad parameter in detector.laugh: model file not found: /no/such.json"),
     (["detector=nope"], "unknown detector 'nope'"),
-    (["detector=none", "detector.open_at=0.5"], "detector.open_at is a parameter of detector=laugh and "
-                                                "detector=yamnet, not of detector=none: use one of them instead"),
+    (["detector=none", "detector.open_at=0.5"], "detector.open_at is a parameter of detector=laugh, "
+                                                "detector=yamnet and detector=yamnet_fused, not of detector=none: "
+                                                "use one of them instead"),
     (["detector.model=/x.json"], "detector.model is a parameter of detector=laugh, not of detector=yamnet: "
                                  "add detector=laugh"),
 ])

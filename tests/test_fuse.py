@@ -56,8 +56,23 @@ def test_the_bundled_fused_head_is_complete_and_a_foreign_one_is_refused(tmp_pat
     assert fus.meta["fit"]["split"] == "train" and np.all(fus.scale > 0)
     d = dict(fus.meta, inputs=list(F.INPUTS[:-1]))
     (tmp_path / "f.json").write_text(json.dumps(d))
-    with pytest.raises(ValueError, match="refit: python -m laughlab.detector.yamnet_fit --fuse"):
+    with pytest.raises(ValueError, match=r"f\.json was fitted on other inputs; refit: python -m laughlab\.detector\.yamnet_fit --fuse"):
         F.Fusion.load(tmp_path / "f.json")
+    (tmp_path / "g.json").write_text("{not json")
+    with pytest.raises(ValueError, match=r"cannot read the fused head .*g\.json .*git checkout laughlab/data/yamnet"):
+        F.Fusion.load(tmp_path / "g.json")
+
+
+def test_a_missing_fuse_file_is_one_line_and_no_run_folder(tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "laughlab", "input.duration_s=1", "detector.fuse=true",
+                        f"detector.fuse_file={tmp_path / 'nope.json'}", f"hydra.run.dir={out}"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert "cannot read the fused head" in r.stderr and "nope.json" in r.stderr and not out.exists()
 
 
 def corpus_audio():
@@ -125,3 +140,27 @@ def test_the_fused_head_is_refitted_byte_for_byte():
     from laughlab.detector.yamnet_fit import main
 
     assert main(["--fuse", "--check"]) == 0
+
+
+def test_detector_yamnet_fused_is_yamnet_with_the_rule_chosen_for_the_fused_head():
+    from laughlab.harness.runner import _compose
+
+    d = _compose(["detector=yamnet_fused"]).detector
+    plain = _compose(["detector=yamnet"]).detector
+    assert (d.name, d.fuse, d.open_at, d.open_windows) == ("yamnet", True, 0.6, 2)
+    assert {k: v for k, v in d.items() if k not in ("fuse", "open_at", "open_windows")} == \
+        {k: v for k, v in plain.items() if k not in ("fuse", "open_at", "open_windows")}
+
+
+def test_the_detector_comparison_steps_the_fused_preset_as_a_run_would(tmp_path):
+    """experiments/detector_eval.py composes a ``detector=`` option as a run does: the fused preset's
+    ``laughter`` is the fused probability (it differs from the plain head's), per frame, live."""
+    from laughlab_experiments.detector_eval import frame_scores
+
+    wav = tmp_path / "in.wav"
+    sf.write(wav, corpus_audio()[: 44100 * 4], 44100, subtype="PCM_16")
+    fused, dt = frame_scores("yamnet_fused", str(wav))
+    plain, _ = frame_scores("yamnet", str(wav))
+    assert dt == pytest.approx(1 / 60) and len(fused["laughter"]) == len(plain["laughter"]) == 240
+    assert np.array_equal(fused["laughter_classes"], plain["laughter_classes"])
+    assert not np.array_equal(fused["laughter"], plain["laughter"])

@@ -276,3 +276,20 @@ def test_the_checks_see_overprinting_and_a_colour_bar_that_does_not_say_which_wa
     fig.colorbar(im, ax=ax, label="miss_rate")
     assert overlapping_texts(fig) == [("lean_front2", "lean_back2")]
     assert colorbars_without_direction(fig) == ["miss_rate"]
+
+
+@pytest.mark.parametrize("names", [["yamnet", "yamnet_fused", "laugh", "none"],
+                                   ["energy_fast_decay", "energy_slow_decay", "concat_segments"]])
+def test_the_comparison_figure_keeps_long_condition_names_apart(tmp_path, saved, names):
+    """reports/detector_eval drew 'yamnet', 'yamnet_fused' and 'laugh' on top of each other under every panel."""
+    from laughlab.harness.report import comparison_figure
+
+    metrics = {"bouts_answered": {"higher_is_better": True, "units": "fraction"},
+               "frame_ms_p99": {"higher_is_better": False, "units": "ms"}}
+    results = {c: {m: {"n": 3, "mean": 0.2 + 0.1 * i + j, "ci95": [0.1 + 0.1 * i + j, 0.3 + 0.1 * i + j]}
+                   for j, m in enumerate(metrics)} for i, c in enumerate(names)}
+    doc = {"experiment": "detector_eval", "n_trials": 3 * len(names), "conditions": {c: [] for c in names},
+           "results": results, "metrics": metrics}
+    comparison_figure(doc, tmp_path / "metrics.png")
+    assert_readable(saved)
+    assert saved[-1].xticks[0] == names

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -62,14 +61,24 @@ class Fusion:
 
     @classmethod
     def load(cls, path: str | Path | None = None) -> "Fusion":
-        if path is None:
-            text = resources.files("laughlab").joinpath("data", "yamnet", "fuse.json").read_text()
-        else:
-            text = Path(path).read_text(encoding="utf-8")
-        d = json.loads(text)
-        if tuple(d["inputs"]) != INPUTS:
-            raise ValueError("the fused head was fitted on other inputs; refit: python -m laughlab.detector.yamnet_fit --fuse")
-        return cls(np.array(d["mean"]), np.array(d["scale"]), np.array(d["weights"]), float(d["bias"]), d)
+        """The bundled fused head, or the file ``path``; a file that cannot be read or was fitted on other inputs
+        raises ``ModelFileError`` (a ``ValueError``), its message one line naming the file and the fix."""
+        from laughlab.detector.yamnet_model import RESTORE, ModelFileError, data_dir
+
+        p = Path(path) if path is not None else data_dir() / "fuse.json"
+        refit = "python -m laughlab.detector.yamnet_fit --fuse"
+        try:
+            d = json.loads(p.read_text(encoding="utf-8"))
+            other = tuple(d["inputs"]) != INPUTS
+            if not other:
+                f = cls(np.array(d["mean"], dtype=np.float64), np.array(d["scale"], dtype=np.float64),
+                        np.array(d["weights"], dtype=np.float64), float(d["bias"]), d)
+                if not (f.mean.shape == f.scale.shape == f.weights.shape == (len(INPUTS),)):
+                    raise ValueError("wrong length")
+                return f
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise ModelFileError(f"cannot read the fused head {p} ({exc}): {RESTORE}; or refit it: {refit}") from None
+        raise ModelFileError(f"the fused head {p} was fitted on other inputs; refit: {refit}")
 
     def prob(self, x: np.ndarray) -> np.ndarray:
         """Probabilities of the input rows ``x`` ((N, len(INPUTS)))."""

@@ -83,6 +83,9 @@ def comparison_figure(doc: dict, path: Path) -> Path:
     fig, axes = plt.subplots(rows, cols, figsize=(2.3 * cols, 1.9 * rows + (0.4 if same else 0)), dpi=130,
                              squeeze=False, layout="constrained")
     colors = plt.get_cmap("tab10")
+    # condition names wider than their slot under a panel (about 0.55 em a character at 7 pt) stand upright
+    slot_in = 2.3 / max(len(conds), 1)
+    upright = max(len(c) for c in conds) * 0.55 * 7 / 72 > 0.9 * slot_in
     for ax, name in zip(axes.flat, names):
         for i, c in enumerate(conds):
             r = doc["results"][c][name]
@@ -93,6 +96,8 @@ def comparison_figure(doc: dict, path: Path) -> Path:
         info = doc["metrics"][name]
         ax.set_title(f"{name} {_arrow(info['higher_is_better'])}", fontsize=7)
         ax.set_xticks(range(len(conds)), conds, fontsize=7)
+        if upright:
+            ax.set_xticklabels(conds, rotation=90, fontsize=7)
         ax.tick_params(axis="y", labelsize=6)
         ax.set_ylabel(info["units"], fontsize=6)
         ax.spines[["top", "right"]].set_visible(False)
