@@ -23,6 +23,7 @@ alone hears it as speech or animal sounds: ``docs/detector.md``).
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import sys
 import numpy as np
@@ -79,7 +80,7 @@ def dataset(n_scenes: int = N_SCENES, seed: int = SEED):
 
     model = Yamnet()
     S, Y = [], []
-    for x, sr, rows in [*train_scenes(n_scenes, seed), *synthetic_scenes(seed)]:
+    for x, sr, rows in itertools.chain(train_scenes(n_scenes, seed), synthetic_scenes(seed)):   # one scene at a time
         s, y = scene_windows(model, x, sr, rows)
         S.append(s)
         Y.append(y)
@@ -240,7 +241,6 @@ def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) 
         out.append({"rule": name, **kw, "bouts_found": found, "false_per_10min": false,
                     "synthetic_found": _found_false(synth, opened)[0]})
     return out
-
 
 
 # -- the fused head (``--fuse``): YAMNet's scores with the feature MLP's cues ------------------------------------
