@@ -164,3 +164,26 @@ def test_the_detector_comparison_steps_the_fused_preset_as_a_run_would(tmp_path)
     assert dt == pytest.approx(1 / 60) and len(fused["laughter"]) == len(plain["laughter"]) == 240
     assert np.array_equal(fused["laughter_classes"], plain["laughter_classes"])
     assert not np.array_equal(fused["laughter"], plain["laughter"])
+
+
+def test_the_fused_scores_in_a_helper_thread_are_the_frame_threads_shifted_by_async_frames():
+    """async_frames=2 carries each window's cues with it: the fused probability is the in-thread one, 2 frames later."""
+    from laughlab.corpora import fetch
+    from laughlab.corpora.mixed import load
+    from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
+
+    sr = 44100
+    x = load(str(fetch.require()["hedgewars/Classic-Laugh"]), sr)
+
+    def run(**kw):
+        det = YamnetDetector(YamnetParams(fuse=True, **kw), Context(fps=FPS, sample_rate=sr))
+        out = []
+        for k in range(int(len(x) * FPS / sr)):
+            f = Frame(k, k / FPS, 1 / FPS, {"mcs": 0.5}, None, {}, {}, [], 0.0)
+            det.step(x[int(round(k * sr / FPS)):int(round((k + 1) * sr / FPS))], f)
+            out.append(f.control["laughter"])
+        det.close()
+        return np.array(out)
+
+    a, b = run(model_frames=1), run(async_frames=2)
+    assert len(a) > 60 and a.max() > 0.5 and np.array_equal(a[:-2], b[2:])
