@@ -13,6 +13,7 @@ points at those thresholds for ``results.json``.
 """
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -26,21 +27,30 @@ SCORES = {
 }
 
 
-def frame_scores(detector: str, path: str, fps: float = 60.0) -> tuple[dict, float]:
-    """Step one detector (a ``detector=`` option, its configuration composed as a run's) over a recording's
-    frames (as the pipeline cuts them); its controls per frame."""
+@functools.lru_cache(maxsize=None)
+def _detector(option: str):
+    """A ``detector=`` option's plugin class and parameters, composed as a run's (once per option: a
+    composition takes about 0.3 s, and every recording steps every detector)."""
     from omegaconf import OmegaConf
 
     from laughlab.core import plugins
+    from laughlab.harness.runner import _compose
+
+    conf = OmegaConf.to_container(_compose([f"detector={option}"]).detector)
+    cls = plugins.get("detector", conf.pop("name")).obj
+    return cls, plugins.make_params(cls, conf, f"detector.{option}")
+
+
+def frame_scores(detector: str, path: str, fps: float = 60.0) -> tuple[dict, float]:
+    """Step one detector (a ``detector=`` option, its configuration composed as a run's) over a recording's
+    frames (as the pipeline cuts them); its controls per frame."""
     from laughlab.core.bases import Context
     from laughlab.core.frame import Frame
-    from laughlab.harness.runner import _compose
     from laughlab.io.audio import cut_frames, probe_file, read_blocks
 
     sr = int(probe_file(path).samplerate)
-    conf = OmegaConf.to_container(_compose([f"detector={detector}"]).detector)
-    cls = plugins.get("detector", conf.pop("name")).obj
-    det = cls(plugins.make_params(cls, conf, f"detector.{detector}"), ctx=Context(fps=fps, sample_rate=sr))
+    cls, params = _detector(detector)
+    det = cls(params, ctx=Context(fps=fps, sample_rate=sr))
     det.reset()
     out: dict = {"laughter": [], "laughter_classes": []}
     dt = 1.0 / fps

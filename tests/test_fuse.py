@@ -11,6 +11,7 @@ from laughlab.core.bases import Context
 from laughlab.core.frame import Frame
 from laughlab.detector import fuse as F
 from laughlab.detector.model import FEATURES, FeatureStream
+from test_yamnet import corpus_audio   # real speech, a real laugh, the speech again (44.1 kHz, test split)
 
 FPS = 60.0
 
@@ -73,15 +74,6 @@ def test_a_missing_fuse_file_is_one_line_and_no_run_folder(tmp_path):
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert "cannot read the fused head" in r.stderr and "nope.json" in r.stderr and not out.exists()
-
-
-def corpus_audio():
-    from laughlab.corpora import fetch
-    from laughlab.corpora.mixed import load
-
-    files = fetch.require()
-    speech = load(str(files["hedgewars/British-Amazing"]), 44100)
-    return np.concatenate([speech, load(str(files["hedgewars/Classic-Laugh"]), 44100), speech])
 
 
 def test_the_live_fused_probability_is_the_fits_offline_one():

@@ -53,7 +53,7 @@ def test_a_folder_of_the_users_files_is_refused_and_overwrite_keeps_them(tmp_pat
     p = laughlab("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS)
     assert p.wait(timeout=120) == 2 and "not empty and not a laughlab run (notes.txt)" in p.stderr.read()
     assert sorted(x.name for x in d.iterdir()) == [".laughlab.lock", "notes.txt"]
-    assert laughlab("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", "output=gltf", "~output.plots").wait(120) == 0
+    assert laughlab("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", "output=gltf", *NO_PLOTS).wait(120) == 0
     assert (d / "character.glb").exists() and (d / "notes.txt").read_text() == "my notes"
     marker = json.loads((d / rundir.MARKER).read_text())
     assert marker["complete"] and "character.glb" in marker["files"] and "notes.txt" not in marker["files"]
