@@ -160,3 +160,65 @@ def compose_config(overrides: list[str], job_name: str = "app"):
             if isinstance(exc, LaughlabError):
                 raise
             raise LaughlabError(composition_error(exc, overrides)) from None
+
+
+#: compositions of the config-group choices (Hydra's slow part), by the choices and the registered plugins
+_COMPOSED: dict = {}
+
+
+def _is_group(key: str) -> bool:
+    """Does an override's key name a config group (``detector``, ``hydra/launcher``), not a value
+    (``seed``, ``input.path``)?  Groups are the config module's folders and the ConfigStore's groups."""
+    if "." in key:
+        return False
+    if key.split("/")[0] == "hydra":
+        return True
+    from hydra.core.config_store import ConfigStore
+
+    node = ConfigStore.instance().repo
+    for part in key.split("/"):
+        node = node.get(part) if isinstance(node, dict) else None
+    return isinstance(node, dict) or conf_dir().joinpath(key).is_dir()
+
+
+def compose_app(overrides) -> "DictConfig":  # noqa: F821
+    """``compose_config(overrides)`` without its ``hydra`` node, as a run uses it; composed once per set
+    of config-group choices in a process.
+
+    Hydra composes the defaults list from the group overrides, then applies the value overrides in
+    order to the result (``ConfigLoaderImpl._apply_overrides_to_config``).  This does the same with
+    the group composition kept: an experiment's trials differ in their input's values and seed, and
+    Hydra's composition (about 0.6 s) was most of a short trial's time.  The result equals a fresh
+    composition's (``tests/test_config.py`` compares them over experiments' trials)."""
+    import copy
+
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from omegaconf import OmegaConf
+
+    from laughlab.core import plugins
+
+    register_plugin_configs()
+    overrides = list(overrides)
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except Exception as exc:
+        raise LaughlabError(composition_error(exc, overrides)) from None
+    groups = [p.input_line for p in parsed if _is_group(p.key_or_group)]
+    values = [p for p in parsed if not _is_group(p.key_or_group)
+              and p.key_or_group.split(".")[0] not in ("hydra", "harness")]   # the nodes a run does not get
+    key = (tuple(groups), tuple((kind, tuple(sorted(reg))) for kind, reg in sorted(plugins.registry().items())))
+    base = _COMPOSED.get(key)
+    if base is None:
+        full = compose_config(groups)
+        base = OmegaConf.masked_copy(full, [k for k in full if k not in ("hydra", "harness")])
+        _COMPOSED[key] = base
+    cfg = copy.deepcopy(base)
+    flag = cfg._get_node_flag("struct")
+    OmegaConf.set_struct(cfg, True)      # as Hydra applies them: a value override cannot add a key
+    try:
+        ConfigLoaderImpl._apply_overrides_to_config(values, cfg)
+    except Exception as exc:
+        raise LaughlabError(composition_error(exc, overrides)) from None
+    OmegaConf.set_struct(cfg, flag)      # then as the masked copy of Hydra's result has it
+    return cfg

@@ -43,11 +43,10 @@ class Trial:
 
 
 def _compose(overrides: list[str]):
-    from laughlab.core.config import compose_config, register_plugin_configs
+    """The trial's configuration without ``hydra`` and ``harness`` (group choices composed once per process)."""
+    from laughlab.core.config import compose_app
 
-    register_plugin_configs()
-    cfg = compose_config(overrides)
-    return OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+    return compose_app(overrides)
 
 
 def run_trial(trial: Trial) -> dict:

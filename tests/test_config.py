@@ -1,0 +1,64 @@
+"""The cached trial composition (``laughlab.core.config.compose_app``) equals Hydra's own, trial by trial."""
+from __future__ import annotations
+
+import pytest
+from omegaconf import OmegaConf
+
+from laughlab.core.config import compose_app, compose_config, register_plugin_configs
+from laughlab.core.errors import LaughlabError
+from laughlab.harness.corpus import build_corpus
+from laughlab.harness.runner import check_conditions, make_trials
+
+
+def fresh(overrides):
+    """A trial's configuration the way the runner composed it before the cache: Hydra, every time."""
+    register_plugin_configs()
+    cfg = compose_config(list(overrides))
+    return OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+
+
+def same(a, b) -> None:
+    assert OmegaConf.to_yaml(a) == OmegaConf.to_yaml(b)                      # the values, interpolations unresolved
+    assert OmegaConf.to_container(a, resolve=True) == OmegaConf.to_container(b, resolve=True)
+    assert OmegaConf.is_struct(a) == OmegaConf.is_struct(b)
+
+
+def trials_of(experiment: str, base: list[str]):
+    cfg = compose_config([f"experiment={experiment}", *base])
+    h = OmegaConf.to_container(cfg.harness, resolve=True)
+    h["corpus"].setdefault("real", {})["if_missing"] = "skip"
+    items = build_corpus(h["corpus"])
+    seeds = [int(s) for s in h.get("run_seeds") or [0]]
+    return make_trials(items, check_conditions(h["conditions"]), lambda i: [i.seed] if i.seed is not None else seeds,
+                       base, __import__("pathlib").Path("/tmp/unused"))
+
+
+@pytest.mark.parametrize("experiment,base", [
+    ("smoke", ["experiment=smoke", "harness.corpus.seeds=2", "fps=30"]),
+    ("energy_vs_concat", ["experiment=energy_vs_concat", "hydra.run.dir=/tmp/x", "seed=4"]),
+    ("detector_eval", ["experiment=detector_eval"]),
+])
+def test_every_trial_composes_as_hydra_composes_it(experiment, base):
+    trials = trials_of(experiment, base)
+    picked = {}
+    for t in trials:   # a trial of each condition and each kind of input (synthetic, a recording)
+        picked.setdefault((t.condition, t.item.overrides[:1]), t)
+    picked = list(picked.values())
+    assert len({t.condition for t in picked}) >= 2
+    for t in picked:
+        ov = [*t.overrides, "output=trial"]
+        same(compose_app(ov), fresh(ov))
+
+
+def test_value_overrides_apply_in_order_to_a_copy_and_bad_ones_are_one_message():
+    a = compose_app(["detector=none", "seed=3", "input.duration_s=2", "seed=5"])
+    b = compose_app(["detector=none", "seed=1"])
+    same(a, fresh(["detector=none", "seed=3", "input.duration_s=2", "seed=5"]))
+    assert (a.seed, a.input.duration_s, b.seed) == (5, 2, 1)   # b's copy kept nothing of a's values
+    same(compose_app(["~output.plots", "detector=yamnet", "detector.open_at=0.4"]),
+         fresh(["~output.plots", "detector=yamnet", "detector.open_at=0.4"]))
+    with pytest.raises(LaughlabError) as bad:
+        compose_app(["detector=none", "input.no_such_key=1"])
+    assert "no_such_key" in str(bad.value) and "\n" not in str(bad.value).strip()
+    with pytest.raises(LaughlabError):
+        compose_app(["detector=no_such_detector"])
