@@ -95,10 +95,15 @@ def step_cost(sr: int, seconds: float = 60.0, detector: str = "yamnet", params=N
     if hasattr(det, "close"):
         det.close()
     process = (time.process_time_ns() - p0) / 1e6 / n
+    hop = getattr(det, "hop", None)
+    where = (np.arange(n) + 1) % hop if hop else None   # 0: the frame that takes a window
     return {"detector": detector, "sample_rate": sr, "frames": n, "params": params or {},
             "ms_mean": float(ts.mean()), "ms_mean_process": float(process),
             "ms_p50": float(np.percentile(ts, 50)),
-            "ms_p99": float(np.percentile(ts, 99)), "ms_max": float(ts.max())}
+            "ms_p99": float(np.percentile(ts, 99)), "ms_max": float(ts.max()),
+            # the median frame by its place after a window (which frames carry the network's parts, the rows)
+            "ms_median_by_frame_after_window": [] if where is None else
+            [round(float(np.median(ts[where == i])), 4) for i in range(hop)]}
 
 
 def run_pipeline(wav: Path, out: Path, detector: str, extra=()) -> dict:
@@ -269,6 +274,9 @@ def main() -> None:
         print(f"{c['detector']} {c['params'] or ''} step at {c['sample_rate']} Hz (frame thread): mean "
               f"{c['ms_mean']:.3f} ms, p50 {c['ms_p50']:.3f} ms, p99 {c['ms_p99']:.3f} ms, max {c['ms_max']:.3f} ms; "
               f"whole process {c['ms_mean_process']:.3f} ms a frame")
+        if c["ms_median_by_frame_after_window"]:
+            print("  median by frame after a window (ms): "
+                  + " ".join(f"{v:.2f}" for v in c["ms_median_by_frame_after_window"]))
     print(f"{'set/detector':22s} {'F1':>6s} {'P':>6s} {'R':>6s} {'answered':>8s} {'lat med':>7s} {'lat p90':>7s} "
           f"{'false/10min':>11s} {'starts':>6s} {'rofl':>4s} {'min':>6s} {'frame p99 ms':>12s} {'p.5 med':>7s} "
           f"{'p.5 by 0.3s':>11s}")

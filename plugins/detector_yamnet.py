@@ -156,8 +156,19 @@ class YamnetParams:
 RULES = ("head", "classes", "either")
 #: the network's three parts (``laughlab.detector.yamnet.PARTS``) run on each frame, by ``model_frames``
 PART_GROUPS = {1: ((0, 1, 2),), 2: ((0, 1), (2,)), 3: ((0,), (1,), (2,))}
-#: between windows, the audio is converted and the complete log-mel rows computed every this many frames
-PREPARE_EVERY = 8
+#: between windows, the audio is converted and the complete log-mel rows computed every this many frames,
+#: counted back from the next window (``prepare_now``)
+PREPARE_EVERY = 16
+
+
+def prepare_now(pos: int, hop: int) -> bool:
+    """Is the frame ``pos`` (1 to ``hop`` - 1) frames after a window one that converts the audio and computes
+    the complete log-mel rows (``Window16k.prepare``)?  The frame before the next window and every
+    ``PREPARE_EVERY`` frames before that, so the window's own frame (which also runs the network's first part)
+    has one block to convert and one or two rows to compute.  At 60 fps and a window every 15 frames that is
+    one frame in 15, as before 2026-11-26 (then the 8th after the window: the window's frame converted 7
+    blocks and computed about 12 rows)."""
+    return (hop - 1 - pos) % PREPARE_EVERY == 0
 
 
 class YamnetDetector(Detector):
@@ -307,7 +318,7 @@ class YamnetDetector(Detector):
                 self.job = [t_end, 0, self.window.patch(self.model), cues]
         if self.job is not None:
             self._run_job()
-        elif self.ahead is None and ((self.k + 1) % self.hop) % PREPARE_EVERY == 0:
+        elif self.ahead is None and prepare_now((self.k + 1) % self.hop, self.hop):
             self.window.prepare(self.model)   # between windows: convert the audio, compute complete rows
         while self.queue and self.queue[0][0] == self.k:
             _, t_win, fut, cues = self.queue.pop(0)

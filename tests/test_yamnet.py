@@ -237,6 +237,35 @@ def test_prefetching_a_file_gives_the_same_bytes_and_a_mismatch_falls_back(tmp_p
     assert bad.served == 0 and bad.done and c == a
 
 
+@pytest.mark.parametrize("fps,hop_s", [(60, 0.25), (30, 0.3), (60, 0.1), (25, 0.5)])  # windows on the 10 ms grid
+def test_a_windows_frame_converts_at_most_one_block_and_computes_few_rows(fps, hop_s):
+    """The frame that takes a window also runs the network's first part: the frames between windows have
+    converted the audio and computed the complete rows (``prepare``), up to the frame before it."""
+    from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
+
+    det = YamnetDetector(YamnetParams(hop_s=hop_s), Context(fps=fps, sample_rate=44100))
+    seen, rows, patch, logmel = [], [], det.window.patch, det.model.logmel
+
+    def counting_rows(frames):
+        rows.append(len(frames))
+        return logmel(frames)
+
+    def counting(model, window=None):
+        pending, rows[:] = len(det.window.pending), []
+        out = patch(model, window)
+        seen.append((pending, sum(rows)))
+        return out
+
+    det.window.patch, det.model.logmel = counting, counting_rows
+    rng = np.random.default_rng(3)
+    n = int(round(44100 / fps))
+    for k in range(int(4 * fps)):
+        det.step(rng.uniform(-0.3, 0.3, n), Frame(k, k / fps, 1 / fps, {"mcs": 0.5}, None, {}, {}, [], 0.0))
+    assert len(seen) >= 7 and seen[0][1] == 96                   # the first window computes all its rows
+    for pending, computed in seen[1:]:
+        assert pending <= 1 and computed <= int(np.ceil(100.0 / fps)) + 1
+
+
 def corpus_audio():
     """Real speech, a real laugh, the speech again at 44.1 kHz (test split)."""
     from laughlab.corpora.mixed import load
