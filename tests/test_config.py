@@ -1,6 +1,8 @@
 """The cached trial composition (``laughlab.core.config.compose_app``) equals Hydra's own, trial by trial."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from omegaconf import OmegaConf
 
@@ -30,7 +32,7 @@ def trials_of(experiment: str, base: list[str]):
     items = build_corpus(h["corpus"])
     seeds = [int(s) for s in h.get("run_seeds") or [0]]
     return make_trials(items, check_conditions(h["conditions"]), lambda i: [i.seed] if i.seed is not None else seeds,
-                       base, __import__("pathlib").Path("/tmp/unused"))
+                       base, Path("unused"))
 
 
 @pytest.mark.parametrize("experiment,base", [

@@ -188,8 +188,8 @@ def compose_app(overrides) -> "DictConfig":  # noqa: F821
     Hydra composes the defaults list from the group overrides, then applies the value overrides in
     order to the result (``ConfigLoaderImpl._apply_overrides_to_config``).  This does the same with
     the group composition kept: an experiment's trials differ in their input's values and seed, and
-    Hydra's composition (about 0.6 s) was most of a short trial's time.  The result equals a fresh
-    composition's (``tests/test_config.py`` compares them over experiments' trials)."""
+    Hydra's composition takes 0.25-0.3 s a trial on a 2-core machine (a copy takes 0.02 s).  The result
+    equals a fresh composition's (``tests/test_config.py`` compares them over experiments' trials)."""
     import copy
 
     from hydra._internal.config_loader_impl import ConfigLoaderImpl
@@ -214,7 +214,7 @@ def compose_app(overrides) -> "DictConfig":  # noqa: F821
         base = OmegaConf.masked_copy(full, [k for k in full if k not in ("hydra", "harness")])
         _COMPOSED[key] = base
     cfg = copy.deepcopy(base)
-    flag = cfg._get_node_flag("struct")
+    flag = OmegaConf.is_struct(cfg)      # None on the masked copy (inherit), as Hydra's result gives it
     OmegaConf.set_struct(cfg, True)      # as Hydra applies them: a value override cannot add a key
     try:
         ConfigLoaderImpl._apply_overrides_to_config(values, cfg)
