@@ -13,10 +13,10 @@ Two ways of running a case, both in-process:
 
 * :func:`run_cli`: ``laughlab.cli.main(argv)`` itself, catching ``SystemExit`` (the whole command:
   composition, preflight, the run directory, cleanup);
-* :func:`run_fast`: the configuration composed once per choice of plugins and cached, the case's
-  overrides parsed by Hydra's own override parser and set into a copy, then the run built and executed
-  as the CLI's task does, its errors printed as the CLI prints them.  Hydra's composition (~0.15 s a
-  case) is the only step it skips, so a thousand parameter cases fit in CI's time.
+* :func:`run_fast`: the configuration as the harness composes a trial's (``laughlab.core.config.compose_app``:
+  each choice of plugins composed once, the case's values applied to a copy by Hydra's own code), then
+  the run built and executed as the CLI's task does, its errors printed as the CLI prints them.  Hydra's
+  composition (0.25-0.3 s a case) is the only step it skips, so a thousand parameter cases fit in CI's time.
 """
 from __future__ import annotations
 
@@ -78,50 +78,21 @@ def run_cli(argv: list[str]) -> Outcome:
     return _capture(lambda: cli.main(list(argv)))
 
 
-_BASE_CFG: dict = {}
-
-
-def _choices(overrides) -> tuple:
-    return tuple(o for o in overrides if "=" in o and "." not in o.split("=", 1)[0]
-                 and o.split("=", 1)[0] in (*GROUPS, "experiment"))
-
-
-def composed(choices: tuple):
-    """The configuration for these group choices, composed once (cached)."""
-    from laughlab.core.config import compose_config, register_plugin_configs
-
-    if choices not in _BASE_CFG:
-        register_plugin_configs()
-        _BASE_CFG[choices] = compose_config(list(choices))
-    return _BASE_CFG[choices]
-
-
 def run_fast(overrides: list[str], run_dir: Path) -> Outcome:
-    """The case without Hydra's composition: parse and set the overrides, then build and run as the CLI does."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-    from omegaconf import OmegaConf, open_dict
+    """The case with the harness' trial composition (``compose_app``: each choice of plugins composed once,
+    the values applied by Hydra's own code), then built and run as the CLI does."""
+    from omegaconf import OmegaConf
 
     from laughlab import cli
     from laughlab.core import pipeline
+    from laughlab.core.config import compose_app
     from laughlab.core.errors import LaughlabError
-
-    choices = _choices(overrides)
-    params = [o for o in overrides if o not in choices]
 
     def case():
         try:
-            base = composed(choices)
+            cfg = compose_app(overrides)
         except LaughlabError as exc:
             cli.fail(str(exc))
-        cfg = OmegaConf.masked_copy(base, [k for k in base if k != "hydra"])
-        parser = OverridesParser.create()
-        for text in params:
-            o = parser.parse_override(text)
-            key = o.key_or_group
-            if not _has_key(cfg, key):
-                cli.fail(f"unknown parameter {key}")
-            with open_dict(cfg):
-                OmegaConf.update(cfg, key, o.value(), merge=False)
         try:
             pipe = pipeline.build(cfg)
         except LaughlabError as exc:
@@ -133,15 +104,6 @@ def run_fast(overrides: list[str], run_dir: Path) -> Outcome:
             cli.fail(str(exc))
 
     return _capture(case)
-
-
-def _has_key(cfg, key: str) -> bool:
-    """Whether the dotted key is in the configuration (a required ``???`` value counts: it is there to set)."""
-    from omegaconf import DictConfig, OmegaConf
-
-    parent, _, leaf = key.rpartition(".")
-    node = OmegaConf.select(cfg, parent) if parent else cfg
-    return isinstance(node, DictConfig) and leaf in node.keys()  # `in node` is False for ???
 
 
 def check(outcome: Outcome, run_dir: Path | None, what: str) -> list[str]:
@@ -198,7 +160,7 @@ def parameter_cases() -> list[tuple[tuple, str]]:
     """
     from omegaconf import OmegaConf
 
-    from laughlab.core.config import group_options, register_plugin_configs
+    from laughlab.core.config import compose_app, group_options, register_plugin_configs
 
     register_plugin_configs()
     cases = [((), key) for key in TOP_LEVEL]
@@ -207,7 +169,7 @@ def parameter_cases() -> list[tuple[tuple, str]]:
             choices = (f"{group}={option}",)
             if (group, option) == ("input", "file"):
                 continue  # its one key (path) is fuzzed with files by the audio cases
-            cfg = composed(choices)
+            cfg = compose_app(choices)
             node = OmegaConf.to_container(cfg[group], resolve=False)
             for key in _leaves(node):
                 if key != "name":
