@@ -13,7 +13,6 @@ points at those thresholds for ``results.json``.
 """
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import numpy as np
@@ -27,10 +26,9 @@ SCORES = {
 }
 
 
-@functools.lru_cache(maxsize=None)
 def _detector(option: str):
-    """A ``detector=`` option's plugin class and parameters, composed as a run's (once per option: a
-    composition takes about 0.3 s, and every recording steps every detector)."""
+    """A ``detector=`` option's plugin class and parameters, composed as a run's (the harness' composition:
+    Hydra once per option in a process, a copy per call)."""
     from omegaconf import OmegaConf
 
     from laughlab.core import plugins
