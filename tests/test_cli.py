@@ -318,7 +318,7 @@ def test_a_sweep_of_experiments_prints_one_report_hint_at_its_end(tmp_path):
     used to print one per point: 36 for the README's 'small' sweep)."""
     out = laughlab("-m", "experiment=smoke", "extractor.rise_per_s=12,24", "harness.corpus.seeds=1",
               "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild]", "harness.showcase=null",
-              "harness.jobs=1", "progress=off", f"hydra.sweep.dir={tmp_path / 'sweep'}")
+              "harness.jobs=1", "harness.plots=false", "progress=off", f"hydra.sweep.dir={tmp_path / 'sweep'}")
     assert out.returncode == 0, out.stderr
     lines = out.stdout.splitlines()
     assert [line for line in lines if "report" in line] == [f"report: python -m laughlab report {tmp_path / 'sweep'}"]

@@ -93,7 +93,8 @@ def test_experiment_records_and_results_schema(tiny_run):
 
 def test_experiment_is_reproducible(tiny_run, tmp_path):
     out, doc = tiny_run
-    doc2 = run_experiment(tiny_cfg(showcase=None), tmp_path, base_overrides=[], progress=False)
+    doc2 = run_experiment(tiny_cfg(showcase=None, plots=False), tmp_path, base_overrides=[], progress=False)
+    assert not (tmp_path / "plots").exists()  # harness.plots=false: results.json only (a report draws the figure)
     for cond in ("energy", "none"):
         for m in ("intensity_r_clip", "miss_rate", "clip_entropy", "onset_latency_median_s"):
             a, b = doc["results"][cond][m]["mean"], doc2["results"][cond][m]["mean"]
@@ -231,7 +232,7 @@ def test_on_bad_skip_runs_the_rest_and_records_what_it_skipped(tmp_path):
     out = tmp_path / "run"
     r = subprocess.run([sys.executable, "-m", "laughlab", "experiment=smoke", f"hydra.run.dir={out}",
                         f"harness.corpus.folder={corpus}", "harness.corpus.profiles=[]", "harness.corpus.on_bad=skip",
-                        "harness.showcase=null", "progress=off"], capture_output=True, text=True)
+                        "harness.showcase=null", "harness.plots=false", "progress=off"], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     doc = json.loads((out / "results.json").read_text())
     assert doc["corpus"]["inputs"] == ["rec-good1", "rec-good2"]

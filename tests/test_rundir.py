@@ -113,7 +113,9 @@ def test_sigterm_to_a_run_leaves_no_visible_partial_file(tmp_path):
     assert laughlab("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS).wait(120) == 0
 
 
-SMOKE = ["experiment=smoke", "harness.jobs=1", "harness.showcase=null", "progress=off", "harness.corpus.seeds=2"]
+#: 8 short trials, no figures: the run folder's life is the subject
+SMOKE = ["experiment=smoke", "harness.jobs=1", "harness.showcase=null", "progress=off", "harness.corpus.seeds=2",
+         "harness.corpus.duration_s=4", "harness.plots=false"]
 
 
 def _results_without_timings(path):
@@ -134,10 +136,12 @@ def test_an_experiment_killed_after_some_trials_resumes_to_the_same_results(tmp_
     p.wait()
     done = len(journal.read_text().splitlines())
     assert 3 <= done < 8
-    again = laughlab(*SMOKE, f"hydra.run.dir={d}")
+    # how the rest is run (in parallel, with the figure) is not what the experiment is: it still resumes
+    again = laughlab(*SMOKE, "harness.jobs=2", "harness.plots=true", f"hydra.run.dir={d}")
     assert again.wait(timeout=300) == 0
     assert f"resuming: {done} of 8 trials were done, running {8 - done}" in again.stderr.read()
     assert laughlab(*SMOKE, f"hydra.run.dir={ref}").wait(timeout=300) == 0
+    assert (d / "plots" / "metrics.png").exists() and not (ref / "plots").exists()
     assert _results_without_timings(d / "results.json") == _results_without_timings(ref / "results.json")
     leftovers = list((d / "trials").glob("**/*")) if (d / "trials").exists() else []
     assert leftovers == []  # the killed trial's half-written folder went with the rerun

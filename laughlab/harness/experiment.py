@@ -13,6 +13,8 @@ adds experiment-specific numbers and figures::
       showcase: mixed-s00     # the input drawn for every condition (Fig. 4.2 style)
       jobs: 2                 # parallel trial processes
       keep_trials: false      # keep every trial's outputs
+      plots: true             # draw plots/metrics.png at the end (false: results.json only, for sweeps;
+                              # ``python -m laughlab report`` draws the figures from results.json later)
 """
 from __future__ import annotations
 
@@ -30,8 +32,8 @@ from laughlab.core.errors import LaughlabError
 from laughlab.harness import results as res
 from laughlab.harness.corpus import Item, build_corpus, synthetic_items
 from laughlab.harness.metrics import registered
-from laughlab.harness.runner import (Journal, Trial, check_conditions, input_hash, make_trials, run_trials,
-                                     trial_hash, write_records)
+from laughlab.harness.runner import (Journal, Trial, check_conditions, input_hash, make_trials, run_overrides,
+                                     run_trials, trial_hash, write_records)
 
 
 @dataclass
@@ -103,9 +105,10 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     run = ExperimentRun(cfg, out_dir, h, conditions, items, base_overrides=base)
     trials = make_trials(items, conditions, seeds_for, base, out_dir, bool(h.get("keep_trials", False)))
     # resume: trials already journaled in metrics.jsonl (same experiment, same trial, same input bytes) are kept
-    same = {k: v for k, v in h.items() if k not in ("jobs",)}
-    journal = Journal(out_dir / "metrics.jsonl", hashlib.sha256(
-        json.dumps({"harness": same, "base": base}, sort_keys=True, default=str).encode()).hexdigest()[:16])
+    same = {k: v for k, v in h.items() if k not in ("jobs", "plots")}  # how a run is carried out, not what it is
+    key = {"harness": same, "base": run_overrides(base)}
+    journal = Journal(out_dir / "metrics.jsonl",
+                      hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16])
     out_dir.mkdir(parents=True, exist_ok=True)
     done = journal.done()
 
@@ -166,9 +169,10 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
         "extra": extra,
     }
     res.write_json(out_dir / "results.json", doc)
-    from laughlab.harness.report import comparison_figure
+    if h.get("plots", True):
+        from laughlab.harness.report import comparison_figure
 
-    comparison_figure(doc, out_dir / "plots" / "metrics.png")
+        comparison_figure(doc, out_dir / "plots" / "metrics.png")
     return doc
 
 

@@ -192,8 +192,15 @@ class Journal:
             os.fsync(f.fileno())
 
 
+def run_overrides(overrides) -> list[str]:
+    """The overrides that reach a trial's run: ``harness.*`` ones never do (:func:`_compose` skips them; the
+    harness' values are hashed as the experiment's), so ``harness.jobs`` or ``harness.plots`` given again
+    differently still resumes."""
+    return [o for o in overrides if not o.lstrip("+~").startswith("harness.")]
+
+
 def trial_hash(trial: Trial) -> str:
-    return hashlib.sha256(json.dumps([trial.condition, trial.item.id, trial.seed, list(trial.overrides)])
+    return hashlib.sha256(json.dumps([trial.condition, trial.item.id, trial.seed, run_overrides(trial.overrides)])
                           .encode()).hexdigest()[:16]
 
 
