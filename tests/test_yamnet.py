@@ -266,6 +266,31 @@ def test_a_windows_frame_converts_at_most_one_block_and_computes_few_rows(fps, h
         assert pending <= 1 and computed <= int(np.ceil(100.0 / fps)) + 1
 
 
+@pytest.mark.parametrize("fps,hop_s", [(30, 0.25), (60, 0.25), (30, 0.3)])
+def test_windows_off_one_anothers_grid_compute_no_row_twice(fps, hop_s):
+    """At 30 fps a window every 8 frames (4,266.7 samples at 16 kHz) never falls on the last one's 160-sample
+    grid: the rows the frames between windows made on that grid were thrown away (119 rows a window for 96).
+    ``prepare`` now makes rows only while the windows keep one grid; the scores are the same either way."""
+    from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
+
+    det = YamnetDetector(YamnetParams(hop_s=hop_s), Context(fps=fps, sample_rate=44100))
+    rows, logmel, windows = [], det.model.logmel, []
+    det.model.logmel = lambda frames: rows.append(len(frames)) or logmel(frames)
+    patch = det.window.patch
+    det.window.patch = lambda model, window=None: windows.append(1) or patch(model, window)
+    rng = np.random.default_rng(5)
+    n = int(round(44100 / fps))
+    for k in range(int(6 * fps)):
+        det.step(rng.uniform(-0.3, 0.3, n), Frame(k, k / fps, 1 / fps, {"mcs": 0.5}, None, {}, {}, [], 0.0))
+    new_rows = 96 + (len(windows) - 1) * round(hop_s * 100)       # the first window's, then each hop's frames
+    off_grid = round(hop_s * fps) * 16000 % (fps * 160) != 0
+    assert len(windows) >= 20
+    if off_grid:   # each window's own rows; in vain only between the first two (the stride is not known yet)
+        assert 96 * len(windows) <= sum(rows) <= 96 * len(windows) + round(hop_s * 100)
+    else:
+        assert sum(rows) <= new_rows + 2 * len(windows)            # kept rows reused; at most a frame's straddle
+
+
 def corpus_audio():
     """Real speech, a real laugh, the speech again at 44.1 kHz (test split)."""
     from laughlab.corpora.mixed import load

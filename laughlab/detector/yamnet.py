@@ -136,6 +136,8 @@ class Window16k:
         self.pending: list = []
         self.cache: dict = {}     # log-mel row by the 16 kHz sample its frame starts at
         self.next_start = None    # the next frame on the last window's grid
+        self.last_end = None      # the 16 kHz sample count at the last window
+        self.on_grid = True       # did the last window fall on the grid of the one before (stride a multiple of HOP)?
 
     def reset(self) -> None:
         self.rs.reset()
@@ -143,6 +145,8 @@ class Window16k:
         self.pending = []
         self.cache = {}
         self.next_start = None
+        self.last_end = None
+        self.on_grid = True
 
     def push(self, block: np.ndarray) -> None:
         """Keep a copy of a block; blocks are converted when the window is next asked for (the same bytes,
@@ -173,9 +177,14 @@ class Window16k:
     def prepare(self, model: "Yamnet") -> None:
         """Between windows: convert the blocks kept so far and compute the log-mel rows of the next window's
         frames that are already complete (its frames lie on the last window's grid of 160 samples), so the
-        window's own frame has less to do.  Changes no result, only when the work is done."""
+        window's own frame has less to do.  Changes no result, only when the work is done.
+
+        Rows are computed only while windows fall on one another's grid: when the last two windows were not
+        a multiple of 160 samples apart (at 30 fps a window every 8 frames is 4,266.7 samples), the next one
+        will not be on the last one's grid either, and rows made on it would be thrown away (they were: 119
+        rows a window instead of 96 before 2026-11-26)."""
         self._convert()
-        if self.next_start is None:
+        if self.next_start is None or not self.on_grid:
             return
         j, s0 = self.rs.j, self.next_start
         n = max(0, (j - FRAME - s0) // HOP + 1)      # frames starting at s0 + HOP i that end by sample j
@@ -205,6 +214,9 @@ class Window16k:
             out[missing] = model.logmel(frames(w)[missing])
         self.cache = dict(zip(starts.tolist(), out))
         self.next_start = int(starts[-1]) + HOP
+        j = self.rs.j
+        self.on_grid = self.last_end is None or (j - self.last_end) % HOP == 0
+        self.last_end = j
         return out
 
 
