@@ -79,7 +79,9 @@ def preflight(argv: list[str]):
         from laughlab.harness.corpus import build_corpus
         from laughlab.harness.experiment import experiment_module
         from laughlab.harness.runner import check_conditions
+        from laughlab.harness.settings import check_harness
 
+        check_harness(OmegaConf.to_container(cfg.harness, resolve=True))
         module = experiment_module(cfg.harness.get("module"))
         if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
             check_conditions(cfg.harness.get("conditions"))
@@ -156,7 +158,9 @@ def task(cfg) -> dict:
                 return {}
         if cfg.get("harness"):
             from laughlab.harness.experiment import experiment_module, run_experiment
+            from laughlab.harness.settings import check_harness
 
+            check_harness(OmegaConf.to_container(cfg.harness, resolve=True))
             module = experiment_module(cfg.harness.get("module"))
             if module is not None and hasattr(module, "run"):  # an experiment with its own procedure
                 doc = module.run(cfg, out_dir)

@@ -34,6 +34,7 @@ from laughlab.harness.corpus import Item, build_corpus, synthetic_items
 from laughlab.harness.metrics import registered
 from laughlab.harness.runner import (Journal, Trial, check_conditions, input_hash, make_trials, run_overrides,
                                      run_trials, trial_hash, write_records)
+from laughlab.harness.settings import check_harness
 
 
 @dataclass
@@ -87,6 +88,7 @@ def not_fetched_line(name: str, sets: list, n_inputs: int) -> str:
 def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, progress: bool = True) -> dict:
     """Run the experiment described by ``cfg.harness`` into ``out_dir``; return results.json's content."""
     h = OmegaConf.to_container(cfg.harness, resolve=True)
+    check_harness(h)
     name = h.get("name") or "experiment"
     conditions = check_conditions(h.get("conditions"))
     skipped: list = []  # corpus files left out (harness.corpus.on_bad=skip), with the reason

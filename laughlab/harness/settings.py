@@ -1,0 +1,89 @@
+"""The experiment settings every experiment shares (``harness.*``), checked before anything runs.
+
+A wrong type given on the command line (``harness.jobs=two``, ``harness.corpus.profiles=mild``,
+``harness.plots=maybe``) is one line naming the key, what it takes and what it got, before any trial and
+before anything is written.  Keys an experiment adds for itself (``harness.fit``, ``harness.presets``,
+...) are its own module's to check.
+"""
+from __future__ import annotations
+
+from numbers import Real
+
+from laughlab.core.errors import LaughlabError
+
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, Real) and not isinstance(v, bool)
+
+
+def _fail(key: str, takes: str, got) -> None:
+    raise LaughlabError(f"harness.{key} must be {takes} (got {got!r})")
+
+
+def _check(spec: dict, key: str, ok, takes: str, prefix: str = "") -> None:
+    if key in spec and not ok(spec[key]):
+        _fail(prefix + key, takes, spec[key])
+
+
+def _section(spec: dict, key: str, prefix: str, takes: str) -> dict | None:
+    """``spec[key]``, a mapping of settings, or None when it is absent or null."""
+    v = spec.get(key)
+    if v is not None and not isinstance(v, dict):
+        _fail(prefix + key, takes, v)
+    return v
+
+
+def _str_or_none(v) -> bool:
+    return v is None or isinstance(v, str)
+
+
+def _list_of(test):
+    return lambda v: isinstance(v, list) and all(test(x) for x in v)
+
+
+def _seconds(v) -> bool:
+    return _is_number(v) and v > 0
+
+
+#: (key, test, what it takes) of ``harness.corpus`` and of ``harness.corpus.real``
+CORPUS = (("profiles", _list_of(lambda p: isinstance(p, str)), "a list of synthetic profiles, e.g. [mild, intense]"),
+          ("seeds", lambda v: (_is_int(v) and v >= 0) or _list_of(_is_int)(v), "a number of seeds or a list of seeds"),
+          ("duration_s", _seconds, "a duration in seconds, above 0"),
+          ("folder", _str_or_none, "a folder of recordings or null"),
+          ("on_bad", lambda v: v in ("stop", "skip"), "stop or skip"))
+REAL = (("sets", _list_of(lambda s: isinstance(s, str)), "a list of sets, e.g. [real, mixed]"),
+        ("split", lambda v: v in ("train", "test", "all"), "train, test or all"),
+        ("scenes", lambda v: _is_int(v) and v >= 0, "a whole number of scenes"),
+        ("duration_s", _seconds, "a duration in seconds, above 0"),
+        ("snr_db", _list_of(_is_number), "a list of signal-to-noise ratios in dB, e.g. [20, 10]"),
+        ("seed", _is_int, "a whole number"),
+        ("if_missing", lambda v: v in ("stop", "skip"), "stop or skip"))
+
+
+def check_harness(h: dict) -> None:
+    """Raise one ``LaughlabError`` line for the first shared ``harness`` setting of the wrong type or range
+    (``h``: the resolved ``harness`` section as plain containers)."""
+    if not isinstance(h, dict):
+        raise LaughlabError(f"harness must be a mapping of settings (got {h!r})")
+    _check(h, "name", _str_or_none, "a name")
+    _check(h, "module", _str_or_none, "a module name or null")
+    _check(h, "conditions", lambda c: c is None or (isinstance(c, dict) and all(
+        v is None or _list_of(lambda o: isinstance(o, str))(v) for v in c.values())),
+        "a mapping of condition name to a list of overrides, e.g. {energy: [scheduler=energy]}")
+    _check(h, "run_seeds", _list_of(_is_int), "a list of whole numbers, e.g. [0, 1]")
+    _check(h, "showcase", _str_or_none, "an input's id (e.g. mixed-s00) or null")
+    _check(h, "jobs", lambda v: _is_int(v) and v >= 1, "a whole number of parallel trial processes, at least 1")
+    for flag in ("keep_trials", "plots"):
+        _check(h, flag, lambda v: isinstance(v, bool), "true or false")
+    corpus = _section(h, "corpus", "", "a mapping (profiles, seeds, duration_s, folder, on_bad, real)")
+    if corpus is None:
+        return
+    for key, ok, takes in CORPUS:
+        _check(corpus, key, ok, takes, "corpus.")
+    real = _section(corpus, "real", "corpus.", "a mapping (sets, split, scenes, duration_s, snr_db, seed, if_missing)")
+    for key, ok, takes in REAL if real is not None else ():
+        _check(real, key, ok, takes, "corpus.real.")

@@ -1,0 +1,70 @@
+"""The shared experiment settings (``harness.*``): a wrong type is one line before anything runs.
+
+``harness.jobs=two`` or ``harness.corpus.profiles=mild`` used to end in a Python traceback (or, for
+``profiles``, in the profile ``'m'``: the string read letter by letter)."""
+import pytest
+from hypothesis import given, settings, strategies as st
+from omegaconf import OmegaConf
+
+import fuzz
+from laughlab.core.config import compose_config, group_options
+from laughlab.core.errors import LaughlabError
+from laughlab.harness.settings import check_harness
+
+
+@pytest.mark.parametrize("experiment", group_options("experiment"))
+def test_every_shipped_experiment_passes(experiment):
+    cfg = compose_config([f"experiment={experiment}"])
+    check_harness(OmegaConf.to_container(cfg.harness, resolve=True))
+
+
+@pytest.mark.parametrize("override,key", [
+    ("harness.jobs=two", "jobs"),
+    ("harness.jobs=0", "jobs"),
+    ("harness.plots=maybe", "plots"),
+    ("harness.keep_trials=3", "keep_trials"),
+    ("harness.run_seeds=[a]", "run_seeds"),
+    ("harness.showcase=3", "showcase"),
+    ("harness.conditions=5", "conditions"),
+    ("harness.corpus=3", "corpus"),
+    ("harness.corpus.profiles=mild", "corpus.profiles"),
+    ("harness.corpus.seeds=two", "corpus.seeds"),
+    ("harness.corpus.seeds=true", "corpus.seeds"),
+    ("harness.corpus.duration_s=0", "corpus.duration_s"),
+    ("harness.corpus.on_bad=ignore", "corpus.on_bad"),
+    ("harness.corpus.real.snr_db=[x]", "corpus.real.snr_db"),
+])
+def test_a_wrong_setting_is_one_line_before_anything_is_written(tmp_path, override, key):
+    run = tmp_path / "run"
+    out = fuzz.run_cli(["experiment=smoke", override, f"hydra.run.dir={run}", "progress=off"])
+    assert out.code == 2 and not out.exception and "Traceback" not in out.stderr + out.stdout
+    assert out.stderr.count("\n") == 1 and out.stderr.startswith(f"laughlab: error: harness.{key} must be ")
+    assert not run.exists()
+
+
+VALUES = st.one_of(st.none(), st.booleans(), st.integers(-3, 3), st.floats(allow_nan=True), st.text(max_size=5),
+                   st.lists(st.one_of(st.integers(-2, 2), st.text(max_size=3)), max_size=3),
+                   st.dictionaries(st.text(max_size=3), st.integers(), max_size=2))
+KEYS = ("name", "module", "conditions", "run_seeds", "showcase", "jobs", "keep_trials", "plots", "corpus",
+        "corpus.profiles", "corpus.seeds", "corpus.duration_s", "corpus.folder", "corpus.on_bad", "corpus.real",
+        "corpus.real.sets", "corpus.real.split", "corpus.real.scenes", "corpus.real.duration_s",
+        "corpus.real.snr_db", "corpus.real.seed", "corpus.real.if_missing")
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(st.sampled_from(KEYS), VALUES), min_size=1, max_size=3))
+def test_any_values_pass_or_are_one_error_naming_a_key(picks):
+    h = {"name": "x", "conditions": {"a": ["scheduler=energy"]}, "jobs": 1,
+         "corpus": {"profiles": ["mild"], "seeds": 1, "real": {"sets": []}}}
+    for key, value in picks:
+        *parents, leaf = key.split(".")
+        node = h
+        for p in parents:
+            if not isinstance(node.get(p), dict):
+                node[p] = {}
+            node = node[p]
+        node[leaf] = value
+    try:
+        check_harness(h)
+    except LaughlabError as exc:
+        assert str(exc).startswith("harness.") and "\n" not in str(exc)
