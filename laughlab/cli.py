@@ -414,12 +414,16 @@ def main(argv: list[str] | None = None) -> None:
         fail("interrupted", code=130)
 
 
+#: the sub-commands (``plugins`` lists the plugins; anything else is a run's overrides)
+COMMANDS = ("detect", "report", "corpus", "study", "view", "plugins")
+
+
 def _main(argv: list[str]) -> None:
     if argv in (["--help"], ["-h"], ["help"]):
         print(help_text())
         return
     for name, command in (("report", report_command), ("corpus", corpus_command), ("view", view_command),
-                          ("study", study_command), ("detect", detect_command)):
+                          ("study", study_command), ("detect", detect_command)):  # the COMMANDS
         if argv[:1] == [name]:
             try:
                 command(argv[1:])
@@ -443,6 +447,9 @@ def _main(argv: list[str]) -> None:
 
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return
+    if argv and "=" not in argv[0] and not argv[0].startswith(("~", "-")):   # e.g. a mistyped command
+        fail(f"unknown command {argv[0]!r}: the commands are {', '.join(COMMANDS)}; a run takes overrides "
+             "key=value (python -m laughlab --help)")
     multirun = any(a in ("-m", "--multirun") for a in argv)
     if multirun:
         global _STARTED
