@@ -414,16 +414,13 @@ def main(argv: list[str] | None = None) -> None:
         fail("interrupted", code=130)
 
 
-#: the sub-commands (``plugins`` lists the plugins; anything else is a run's overrides)
-COMMANDS = ("detect", "report", "corpus", "study", "view", "plugins")
-
-
 def _main(argv: list[str]) -> None:
     if argv in (["--help"], ["-h"], ["help"]):
         print(help_text())
         return
-    for name, command in (("report", report_command), ("corpus", corpus_command), ("view", view_command),
-                          ("study", study_command), ("detect", detect_command)):  # the COMMANDS
+    commands = (("detect", detect_command), ("report", report_command), ("corpus", corpus_command),
+                ("study", study_command), ("view", view_command))
+    for name, command in commands:
         if argv[:1] == [name]:
             try:
                 command(argv[1:])
@@ -448,8 +445,8 @@ def _main(argv: list[str]) -> None:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return
     if argv and "=" not in argv[0] and not argv[0].startswith(("~", "-")):   # e.g. a mistyped command
-        fail(f"unknown command {argv[0]!r}: the commands are {', '.join(COMMANDS)}; a run takes overrides "
-             "key=value (python -m laughlab --help)")
+        fail(f"unknown command {argv[0]!r}: the commands are {', '.join(n for n, _ in commands)}, plugins; a run "
+             "takes overrides key=value (python -m laughlab --help)")
     multirun = any(a in ("-m", "--multirun") for a in argv)
     if multirun:
         global _STARTED

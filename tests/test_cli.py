@@ -110,7 +110,7 @@ def bad_files(tmp_path_factory):
     (["fps=0"], "fps must be a positive number"),
     (["fps=-30"], "fps must be a positive number"),
     (["experiment=nope"], "unknown experiment 'nope'"),
-    (["detekt"], "unknown command 'detekt': the commands are detect, report,"),   # was Hydra's 'Error parsing override'
+    (["detekt"], "unknown command 'detekt': the commands are detect, report, corpus, study, view, plugins;"),   # was Hydra's 'Error parsing override'
 ])
 def test_bad_input_one_line_no_output(bad_files, args, message):
     out = bad_files / "run"

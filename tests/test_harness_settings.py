@@ -31,6 +31,7 @@ def test_every_shipped_experiment_passes(experiment):
     ("harness.corpus.seeds=two", "corpus.seeds"),
     ("harness.corpus.seeds=true", "corpus.seeds"),
     ("harness.corpus.duration_s=0", "corpus.duration_s"),
+    ("harness.corpus.duration_s=inf", "corpus.duration_s"),
     ("harness.corpus.on_bad=ignore", "corpus.on_bad"),
     ("harness.corpus.real.snr_db=[x]", "corpus.real.snr_db"),
 ])

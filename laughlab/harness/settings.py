@@ -7,6 +7,7 @@ before anything is written.  Keys an experiment adds for itself (``harness.fit``
 """
 from __future__ import annotations
 
+import math
 from numbers import Real
 
 from laughlab.core.errors import LaughlabError
@@ -46,19 +47,19 @@ def _list_of(test):
 
 
 def _seconds(v) -> bool:
-    return _is_number(v) and v > 0
+    return _is_number(v) and 0 < v < math.inf
 
 
 #: (key, test, what it takes) of ``harness.corpus`` and of ``harness.corpus.real``
 CORPUS = (("profiles", _list_of(lambda p: isinstance(p, str)), "a list of synthetic profiles, e.g. [mild, intense]"),
           ("seeds", lambda v: (_is_int(v) and v >= 0) or _list_of(_is_int)(v), "a number of seeds or a list of seeds"),
-          ("duration_s", _seconds, "a duration in seconds, above 0"),
+          ("duration_s", _seconds, "a finite duration in seconds, above 0"),
           ("folder", _str_or_none, "a folder of recordings or null"),
           ("on_bad", lambda v: v in ("stop", "skip"), "stop or skip"))
 REAL = (("sets", _list_of(lambda s: isinstance(s, str)), "a list of sets, e.g. [real, mixed]"),
         ("split", lambda v: v in ("train", "test", "all"), "train, test or all"),
         ("scenes", lambda v: _is_int(v) and v >= 0, "a whole number of scenes"),
-        ("duration_s", _seconds, "a duration in seconds, above 0"),
+        ("duration_s", _seconds, "a finite duration in seconds, above 0"),
         ("snr_db", _list_of(_is_number), "a list of signal-to-noise ratios in dB, e.g. [20, 10]"),
         ("seed", _is_int, "a whole number"),
         ("if_missing", lambda v: v in ("stop", "skip"), "stop or skip"))
