@@ -72,6 +72,10 @@ def preflight(argv: list[str]):
     register_plugin_configs()
     _check_overrides(overrides)
     cfg = compose_config(overrides, job_name="cli")
+    if "plots" in (cfg.get("output") or {}):
+        from laughlab.core import background
+
+        background.warm(background.PLOTTING)   # the helper imports matplotlib while the run is built
     run_dir = Path(cfg.hydra.run.dir)
     if run_dir.exists() and not run_dir.is_dir():
         raise LaughlabError(f"hydra.run.dir {run_dir} exists and is not a folder")
@@ -455,7 +459,7 @@ def _main(argv: list[str]) -> None:
     if not multirun and not hydra_only and "input=mic" not in argv:
         from laughlab.core import background
 
-        background.start()  # forked now, it imports the plotting modules while we compose
+        background.start()  # forked now, before heavy imports and threads (preflight has it warm the plots)
     try:
         if not multirun and not hydra_only:
             cfg = preflight(argv)

@@ -66,6 +66,36 @@ def test_a_helper_writes_what_the_sink_writes_in_process(tmp_path):
     assert not h.proc.is_alive()
 
 
+class ModulesSink(FileSink):
+    """Writes at open whether the helper has imported ``module``."""
+
+    def __init__(self, path, module):
+        super().__init__(path)
+        self.module = module
+
+    def open(self, run):
+        super().open(run)
+        self.f.write(str(self.module in sys.modules))
+
+
+@pytest.mark.skipif("tabnanny" in sys.modules, reason="the test process has imported it already")
+def test_the_helper_imports_the_plotting_modules_only_when_asked(tmp_path):
+    """A run without the plots sink does not pay for matplotlib in the helper (0.9 s of CPU): the helper
+    imports what the main process asks for once it has composed its configuration (``warm``)."""
+    said = {}
+    for asked in (False, True):
+        h = background.Helper()
+        try:
+            if asked:
+                h.warm(["tabnanny"])     # a module nothing here imports: a stand-in for the plotting modules
+            h.open([ModulesSink(tmp_path / f"{asked}.txt", "tabnanny")], info(tmp_path))
+            h.close()
+        finally:
+            h.stop()
+        said[asked] = (tmp_path / f"{asked}.txt").read_text()
+    assert said == {False: "False", True: "True"}
+
+
 def test_a_sink_error_in_the_helper_comes_back_as_the_same_error_and_nothing_is_left(tmp_path):
     h = background.Helper()
     try:
