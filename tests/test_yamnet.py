@@ -464,6 +464,16 @@ def test_smooth_is_a_centred_average():
     assert np.allclose(S.smooth(np.array([0, 3, 0, 0.0]), 3), [1.5, 1, 1, 0])
 
 
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(0, 1), min_size=1, max_size=12), st.integers(1, 9))
+def test_smoothing_keeps_the_length_and_averages_the_neighbours_that_exist(p, n):
+    """Fewer windows than the smoothing (a file under a few seconds) used to get ``n`` values back, shifted."""
+    got = S.smooth(np.array(p), n)
+    h = (n - 1) // 2
+    want = [np.mean(p[max(0, i + h - n + 1):i + h + 1]) for i in range(len(p))]   # n values, centred (odd n)
+    assert len(got) == len(p) and np.allclose(got, want)
+
+
 def test_detect_writes_three_formats_that_read_back(tmp_path):
     laugh = corpus_file("hedgewars/Classic-Laugh")
     x, sr = sf.read(laugh)

@@ -53,11 +53,15 @@ def laughter_prob(audio: np.ndarray, sample_rate: int, hop_s: float = 0.5, model
 
 
 def smooth(p: np.ndarray, n: int) -> np.ndarray:
-    """Centred moving average over ``n`` values (odd; the edges averaged over what exists)."""
+    """Centred moving average over ``n`` values (odd; the edges averaged over what exists), as long as ``p``.
+
+    The middle of the full convolution, not numpy's ``"same"``: that is as long as the longer of its inputs,
+    so a file with fewer windows than ``n`` got ``n`` values, shifted, and a run reaching past its last
+    window ended in an IndexError (before 2026-11-26).  For ``len(p) >= n`` the values are the same bits."""
     if n <= 1 or len(p) == 0:
         return p.copy()
-    k = np.ones(n)
-    return np.convolve(p, k, "same") / np.convolve(np.ones(len(p)), k, "same")
+    k, h, m = np.ones(n), (n - 1) // 2, len(p)
+    return np.convolve(p, k)[h:h + m] / np.convolve(np.ones(m), k)[h:h + m]
 
 
 def segments(times: np.ndarray, p: np.ndarray, hop_s: float, threshold: float = 0.5, min_length_s: float = 0.2,
