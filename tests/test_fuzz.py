@@ -6,6 +6,7 @@ parameter is covered the day it lands.  The default run tries 1122 cases in abou
 ``pytest -m slow tests/test_fuzz.py`` tries 20 000 more.  The number run is printed at the end of
 the session (tests/conftest.py).
 """
+import functools
 import os
 import signal
 import subprocess
@@ -20,7 +21,24 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 import fuzz
 
 COUNTS = fuzz.COUNTS
-CASES = fuzz.parameter_cases()
+
+
+@functools.lru_cache(maxsize=None)
+def cases() -> list:
+    """The parameter cases, made when a test first draws from them: composing every option of every group
+    takes about 15 s, which every pytest-xdist worker paid while collecting when it ran at import."""
+    return fuzz.parameter_cases()
+
+
+def fast_cases() -> list:
+    """Cases the composed-once runner can take: not the sinks' keys (their runs need the CLI's run directory
+    and some draw for seconds) and not the keys the CLI reads before composing (plugins_dir)."""
+    return [c for c in cases() if not c[1].startswith("output.") and c[1] not in fuzz.CLI_ONLY]
+
+
+#: strategies over the cases, made lazily (st.deferred)
+FAST = st.deferred(lambda: st.sampled_from(fast_cases()))
+CLI_CASES = st.deferred(lambda: st.sampled_from([c for c in cases() if c[1].startswith("output.") or not c[0]]))
 SETTINGS = dict(deadline=None, suppress_health_check=list(HealthCheck), database=None)
 
 
@@ -36,6 +54,7 @@ def fresh_dir(root, label="r"):
 def test_the_cases_cover_every_group_option_and_the_top_level():
     from laughlab.core.config import group_options
 
+    CASES = cases()
     groups = {c.split("=")[0] for choices, _ in CASES for c in choices}
     assert groups == set(fuzz.GROUPS)
     keys = {k for _, k in CASES}
@@ -45,9 +64,6 @@ def test_the_cases_cover_every_group_option_and_the_top_level():
 
 
 one_value = st.sampled_from(fuzz.BAD_VALUES)
-#: cases the composed-once runner can take: not the sinks' keys (their runs need the CLI's run directory and
-#: some draw for seconds) and not the keys the CLI reads before composing (plugins_dir)
-FAST = [c for c in CASES if not c[1].startswith("output.") and c[1] not in fuzz.CLI_ONLY]
 
 
 def run_picks(tmp_path_factory, picks, kind: str) -> None:
@@ -62,14 +78,14 @@ def run_picks(tmp_path_factory, picks, kind: str) -> None:
 
 
 @settings(max_examples=int(os.environ.get("FUZZ_N", 250)), derandomize=True, **SETTINGS)
-@given(st.lists(st.tuples(st.sampled_from(FAST), one_value), min_size=1, max_size=3))
+@given(st.lists(st.tuples(FAST, one_value), min_size=1, max_size=3))
 def test_parameters(tmp_path_factory, picks):
     """One to three keys of one plugin choice set to bad values."""
     run_picks(tmp_path_factory, picks, "parameters (in-process, composed once)")
 
 
 @settings(max_examples=40, derandomize=True, **SETTINGS)
-@given(st.sampled_from([c for c in CASES if c[1].startswith("output.") or not c[0]]), one_value)
+@given(CLI_CASES, one_value)
 def test_through_the_command_line(tmp_path_factory, case, value):
     """The CLI entry itself (composition, preflight, run directory, cleanup), top level and output keys."""
     choices, key = case
@@ -305,7 +321,7 @@ def test_a_signal_at_some_moment(tmp_path, sig, delay):
 
 @pytest.mark.slow
 @settings(max_examples=20000, **SETTINGS)
-@given(st.lists(st.tuples(st.sampled_from(FAST), one_value), min_size=1, max_size=4))
+@given(st.lists(st.tuples(FAST, one_value), min_size=1, max_size=4))
 def test_parameters_long(tmp_path_factory, picks):
     """20 000 random combinations of one to four keys, not derandomized: each long run tries new ones."""
     run_picks(tmp_path_factory, picks, "parameters, long run (slow)")
