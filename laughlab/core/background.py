@@ -2,10 +2,11 @@
 
 Formatting ``channels.csv`` and ``motion.bvh`` and drawing the plots cost about as much as
 computing the frames.  On a machine with two or more cores an offline run forks one helper
-process at start-up; once the main process has composed a configuration that draws figures, it
-imports the plotting modules while the run is built (:func:`warm`), runs the file sinks (those whose class sets ``background = True``) on the
-chunks the frame loop sends, and draws the figures in parallel at the end.  The bytes
-written are the same as in-process (a test holds the two equal).
+process at start-up.  Once the main process has composed a configuration that draws figures,
+the helper imports the plotting modules while the run is built (:func:`warm`).  It runs the file
+sinks (those whose class sets ``background = True``) on the chunks the frame loop sends, and
+draws the figures in parallel at the end.  The bytes written are the same as in-process (a test
+holds the two equal).
 
 Failures keep the sinks' contract: a sink error in the helper comes back to the main process
 as the same exception (a ``LaughlabError`` stays one line); on any failure of the run the
