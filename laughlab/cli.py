@@ -15,8 +15,8 @@ import time
 from pathlib import Path
 
 from laughlab.core import clock, interrupts
-from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, compose_config, conf_dir,  # noqa: F401
-                                  group_options, register_plugin_configs)
+from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, compose_config,  # noqa: F401
+                                  conf_dir, group_options, register_plugin_configs)
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
@@ -97,7 +97,7 @@ def preflight(argv: list[str]):
     else:
         pipeline.check_character_used(cfg)
     full = cfg
-    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in NOT_IN_A_RUN])
     pipe = pipeline.build(cfg)
     pipe.source.close()
     return full

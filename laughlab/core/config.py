@@ -164,6 +164,13 @@ def compose_config(overrides: list[str], job_name: str = "app"):
 
 #: compositions of the config-group choices (Hydra's slow part), by the choices and the registered plugins
 _COMPOSED: dict = {}
+#: the top-level nodes a run never gets: Hydra's own and the experiment's
+NOT_IN_A_RUN = ("hydra", "harness")
+
+
+def reaches_run(key: str) -> bool:
+    """Does an override of ``key`` (``seed``, ``+input.path``, ``harness.jobs``) reach a run's configuration?"""
+    return key.lstrip("+~").split(".")[0] not in NOT_IN_A_RUN
 
 
 def _is_group(key: str) -> bool:
@@ -204,14 +211,14 @@ def compose_app(overrides) -> "DictConfig":  # noqa: F821
         parsed = OverridesParser.create().parse_overrides(overrides)
     except Exception as exc:
         raise LaughlabError(composition_error(exc, overrides)) from None
-    groups = [p.input_line for p in parsed if _is_group(p.key_or_group)]
-    values = [p for p in parsed if not _is_group(p.key_or_group)
-              and p.key_or_group.split(".")[0] not in ("hydra", "harness")]   # the nodes a run does not get
+    is_group = [_is_group(p.key_or_group) for p in parsed]
+    groups = [p.input_line for p, g in zip(parsed, is_group) if g]
+    values = [p for p, g in zip(parsed, is_group) if not g and reaches_run(p.key_or_group)]
     key = (tuple(groups), tuple((kind, tuple(sorted(reg))) for kind, reg in sorted(plugins.registry().items())))
     base = _COMPOSED.get(key)
     if base is None:
         full = compose_config(groups)
-        base = OmegaConf.masked_copy(full, [k for k in full if k not in ("hydra", "harness")])
+        base = OmegaConf.masked_copy(full, [k for k in full if k not in NOT_IN_A_RUN])
         _COMPOSED[key] = base
     cfg = copy.deepcopy(base)
     flag = OmegaConf.is_struct(cfg)      # None on the masked copy (inherit), as Hydra's result gives it

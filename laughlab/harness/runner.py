@@ -193,10 +193,12 @@ class Journal:
 
 
 def run_overrides(overrides) -> list[str]:
-    """The overrides that reach a trial's run: ``harness.*`` ones never do (:func:`_compose` skips them; the
-    harness' values are hashed as the experiment's), so ``harness.jobs`` or ``harness.plots`` given again
-    differently still resumes."""
-    return [o for o in overrides if not o.lstrip("+~").startswith("harness.")]
+    """The overrides that reach a trial's run (``laughlab.core.config.reaches_run``, the rule :func:`_compose`
+    applies): ``harness.*`` ones never do (the harness' values are hashed as the experiment's), so
+    ``harness.jobs`` or ``harness.plots`` given again differently still resumes."""
+    from laughlab.core.config import reaches_run
+
+    return [o for o in overrides if reaches_run(o.split("=", 1)[0])]
 
 
 def trial_hash(trial: Trial) -> str:
