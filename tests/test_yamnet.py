@@ -237,30 +237,37 @@ def test_prefetching_a_file_gives_the_same_bytes_and_a_mismatch_falls_back(tmp_p
     assert bad.served == 0 and bad.done and c == a
 
 
-@pytest.mark.parametrize("fps,hop_s", [(60, 0.25), (30, 0.3), (60, 0.1), (25, 0.5)])  # windows on the 10 ms grid
-def test_a_windows_frame_converts_at_most_one_block_and_computes_few_rows(fps, hop_s):
-    """The frame that takes a window also runs the network's first part: the frames between windows have
-    converted the audio and computed the complete rows (``prepare``), up to the frame before it."""
+def _count_rows(fps, hop_s, seconds, seed):
+    """Step the default detector at 44.1 kHz over noise, counting the log-mel rows: per window, the blocks
+    still to convert and the rows its ``patch`` computed; and all the rows the run computed."""
     from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
 
     det = YamnetDetector(YamnetParams(hop_s=hop_s), Context(fps=fps, sample_rate=44100))
-    seen, rows, patch, logmel = [], [], det.window.patch, det.model.logmel
+    per_window, rows, patch, logmel = [], [], det.window.patch, det.model.logmel
 
     def counting_rows(frames):
         rows.append(len(frames))
         return logmel(frames)
 
     def counting(model, window=None):
-        pending, rows[:] = len(det.window.pending), []
+        pending, before = len(det.window.pending), len(rows)
         out = patch(model, window)
-        seen.append((pending, sum(rows)))
+        per_window.append((pending, sum(rows[before:])))
         return out
 
     det.window.patch, det.model.logmel = counting, counting_rows
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(seed)
     n = int(round(44100 / fps))
-    for k in range(int(4 * fps)):
+    for k in range(int(seconds * fps)):
         det.step(rng.uniform(-0.3, 0.3, n), Frame(k, k / fps, 1 / fps, {"mcs": 0.5}, None, {}, {}, [], 0.0))
+    return per_window, sum(rows)
+
+
+@pytest.mark.parametrize("fps,hop_s", [(60, 0.25), (30, 0.3), (60, 0.1), (25, 0.5)])  # windows on the 10 ms grid
+def test_a_windows_frame_converts_at_most_one_block_and_computes_few_rows(fps, hop_s):
+    """The frame that takes a window also runs the network's first part: the frames between windows have
+    converted the audio and computed the complete rows (``prepare``), up to the frame before it."""
+    seen, _ = _count_rows(fps, hop_s, 4, 3)
     assert len(seen) >= 7 and seen[0][1] == 96                   # the first window computes all its rows
     for pending, computed in seen[1:]:
         assert pending <= 1 and computed <= int(np.ceil(100.0 / fps)) + 1
@@ -271,24 +278,15 @@ def test_windows_off_one_anothers_grid_compute_no_row_twice(fps, hop_s):
     """At 30 fps a window every 8 frames (4,266.7 samples at 16 kHz) never falls on the last one's 160-sample
     grid: the rows the frames between windows made on that grid were thrown away (119 rows a window for 96).
     ``prepare`` now makes rows only while the windows keep one grid; the scores are the same either way."""
-    from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
-
-    det = YamnetDetector(YamnetParams(hop_s=hop_s), Context(fps=fps, sample_rate=44100))
-    rows, logmel, windows = [], det.model.logmel, []
-    det.model.logmel = lambda frames: rows.append(len(frames)) or logmel(frames)
-    patch = det.window.patch
-    det.window.patch = lambda model, window=None: windows.append(1) or patch(model, window)
-    rng = np.random.default_rng(5)
-    n = int(round(44100 / fps))
-    for k in range(int(6 * fps)):
-        det.step(rng.uniform(-0.3, 0.3, n), Frame(k, k / fps, 1 / fps, {"mcs": 0.5}, None, {}, {}, [], 0.0))
-    new_rows = 96 + (len(windows) - 1) * round(hop_s * 100)       # the first window's, then each hop's frames
+    seen, rows = _count_rows(fps, hop_s, 6, 5)
+    windows = len(seen)
+    new_rows = 96 + (windows - 1) * round(hop_s * 100)             # the first window's, then each hop's frames
     off_grid = round(hop_s * fps) * 16000 % (fps * 160) != 0
-    assert len(windows) >= 20
+    assert windows >= 20
     if off_grid:   # each window's own rows; in vain only between the first two (the stride is not known yet)
-        assert 96 * len(windows) <= sum(rows) <= 96 * len(windows) + round(hop_s * 100)
+        assert 96 * windows <= rows <= 96 * windows + round(hop_s * 100)
     else:
-        assert sum(rows) <= new_rows + 2 * len(windows)            # kept rows reused; at most a frame's straddle
+        assert rows <= new_rows + 2 * windows                       # kept rows reused; at most a frame's straddle
 
 
 def corpus_audio():
