@@ -45,6 +45,7 @@ from laughlab import hookimpl
 from laughlab.core.bases import Detector
 from laughlab.detector.model import apply_gate, check_hysteresis, check_non_negative
 from laughlab.detector.yamnet import Ahead, LaughterScore, ModelFileError, Window16k, Yamnet, helper
+from laughlab.detector.yamnet_model import CUTS
 
 
 @dataclass
@@ -143,8 +144,8 @@ class YamnetParams:
                 and 0 <= self.async_frames <= 60):
             raise ValueError(f"async_frames must be a whole number from 0 to 60 (got {self.async_frames})")
         if not (isinstance(self.model_frames, int) and not isinstance(self.model_frames, bool)
-                and 1 <= self.model_frames <= len(PART_GROUPS)):
-            raise ValueError(f"model_frames must be a whole number from 1 to {len(PART_GROUPS)} (got {self.model_frames})")
+                and 1 <= self.model_frames <= max(CUTS)):
+            raise ValueError(f"model_frames must be a whole number from 1 to {max(CUTS)} (got {self.model_frames})")
         for k in ("prefetch", "fuse"):
             if not isinstance(getattr(self, k), bool):
                 raise ValueError(f"{k} must be true or false (got {getattr(self, k)})")
@@ -154,8 +155,6 @@ class YamnetParams:
 
 #: which score opens the clip gain: the head's probability, the laughter classes' score, or either
 RULES = ("head", "classes", "either")
-#: the network's three parts (``laughlab.detector.yamnet.PARTS``) run on each frame, by ``model_frames``
-PART_GROUPS = {1: ((0, 1, 2),), 2: ((0, 1), (2,)), 3: ((0,), (1,), (2,))}
 #: between windows, the audio is converted and the complete log-mel rows computed every this many frames,
 #: counted back from the next window (``prepare_now``)
 PREPARE_EVERY = 16
@@ -196,7 +195,6 @@ class YamnetDetector(Detector):
         if self.params.async_frames == 0 and self.params.model_frames > self.hop:
             raise ValueError(f"model_frames ({self.params.model_frames}) must not exceed the frames between two "
                              f"windows (hop_s at {self.ctx.fps:g} fps: {self.hop})")
-        self.groups = PART_GROUPS[self.params.model_frames]
         self.ahead = None    # the prefetching helper of an offline input (``prefetch``)
         self.use_head = self.params.rule in ("head", "either")
         self.use_classes = self.params.rule in ("classes", "either")
@@ -247,7 +245,8 @@ class YamnetDetector(Detector):
         """This frame's share of the window in progress (``self.job``: window end time, the frame's number in
         the window's ``model_frames``, network state or ``("ahead", window)``); the last frame takes effect."""
         t_end, g, x, cues = self.job
-        last = g + 1 == len(self.groups)
+        n = self.params.model_frames
+        last = g + 1 == n
         if isinstance(x, tuple):      # the helper's scores, checked against the window, on the last frame
             if not last:
                 self.job = [t_end, g + 1, x, cues]
@@ -259,8 +258,7 @@ class YamnetDetector(Detector):
             self.job = None
             self._take(scores, t_end, cues)
             return
-        for i in self.groups[g]:
-            x = self.model.part(i, x)
+        x = self.model.part(g, x, n)
         if last:
             self.job = None
             self._take(x[0].astype(np.float64), t_end, cues)

@@ -51,6 +51,40 @@ def helper():
     return _process_pool(_HELPER, 1, "laughlab-yamnet")
 
 
+def sosfilt_carry(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``scipy.signal.sosfilt(sos, x, zi=zi)`` for a 1-D float64 ``x``: (filtered ``x``, final state).
+
+    scipy 1.16's ``sosfilt`` spends about 0.15 ms per call checking and reshaping its arguments (array-API
+    dispatch, validation) before its compiled kernel runs: more than filtering one 60 fps block at 44.1 kHz
+    takes.  This calls that kernel (``scipy.signal._sosfilt._sosfilt``, which filters ``x`` in place) with
+    the arguments already in its layout, bit for bit ``sosfilt``'s result (``tests/test_yamnet.py`` compares
+    them on random blocks); where the kernel is not there (another scipy), ``sosfilt`` itself."""
+    kernel = _sos_kernel()
+    if kernel is not None:
+        y = np.array(x, np.float64, order="C").reshape(1, -1)
+        z = np.array(zi, np.float64, order="C").reshape(1, len(sos), 2)
+        kernel(np.asarray(sos, np.float64), y, z)
+        return y[0], z[0]
+    from scipy.signal import sosfilt
+
+    return sosfilt(sos, x, zi=zi)
+
+
+_SOS: list = []
+
+
+def _sos_kernel():
+    """scipy's compiled second-order-sections filter where scipy 1.11-1.16 keep it, else None (looked up
+    once, when first used: importing ``scipy.signal`` takes about half a second)."""
+    if not _SOS:
+        try:
+            from scipy.signal._sosfilt import _sosfilt
+        except ImportError:
+            _sosfilt = None
+        _SOS.append(_sosfilt)
+    return _SOS[0]
+
+
 class Resampler16k:
     """Streaming conversion to 16 kHz, exact whatever the block sizes (causal, stateful).
 
@@ -94,9 +128,7 @@ class Resampler16k:
             self.j += len(x)
             return x
         if self.sos is not None and len(x):
-            from scipy.signal import sosfilt
-
-            x, self.zi = sosfilt(self.sos, x, zi=self.zi)
+            x, self.zi = sosfilt_carry(self.sos, x, self.zi)
         base = self.n - 1                   # index of ``self.last``
         ext = np.concatenate([[self.last], x])
         self.n += len(x)
@@ -134,8 +166,8 @@ class Window16k:
         self.rs = Resampler16k(sample_rate)
         self.buf = np.zeros(WINDOW, np.float32)
         self.pending: list = []
-        self.cache: dict = {}     # log-mel row by the 16 kHz sample its frame starts at
-        self.next_start = None    # the next frame on the last window's grid
+        self.rows = np.empty((0, BANDS), np.float32)  # log-mel rows of the frames starting at first + HOP i
+        self.first = None         # the 16 kHz sample the first kept row's frame starts at
         self.last_end = None      # the 16 kHz sample count at the last window
         self.on_grid = True       # did the last window fall on the grid of the one before (stride a multiple of HOP)?
 
@@ -143,8 +175,8 @@ class Window16k:
         self.rs.reset()
         self.buf[:] = 0.0
         self.pending = []
-        self.cache = {}
-        self.next_start = None
+        self.rows = np.empty((0, BANDS), np.float32)
+        self.first = None
         self.last_end = None
         self.on_grid = True
 
@@ -184,37 +216,39 @@ class Window16k:
         will not be on the last one's grid either, and rows made on it would be thrown away (they were: 119
         rows a window instead of 96 before 2026-11-26)."""
         self._convert()
-        if self.next_start is None or not self.on_grid:
+        if self.first is None or not self.on_grid:
             return
-        j, s0 = self.rs.j, self.next_start
+        j, s0 = self.rs.j, self.first + HOP * len(self.rows)   # the next frame on the last window's grid
         n = max(0, (j - FRAME - s0) // HOP + 1)      # frames starting at s0 + HOP i that end by sample j
         if n == 0:
             return
         w = np.clip(self.buf, -1.0, 1.0)
         a = s0 - (j - WINDOW)                         # the first frame's place in the buffer
-        rows = model.logmel(frames_at(w, a + HOP * np.arange(n)))
-        for i in range(n):
-            self.cache[s0 + HOP * i] = rows[i]
-        self.next_start = s0 + HOP * n
+        self.rows = np.concatenate([self.rows, model.logmel(frames_at(w, a + HOP * np.arange(n)))])
 
     def patch(self, model: "Yamnet", window: np.ndarray | None = None) -> np.ndarray:
         """The window's log-mel rows (96, 64): ``model.logmel(frames(window()))``, bit for bit, computing only
-        the rows of frames no earlier window or ``prepare`` has (a row depends on its own frame only)."""
+        the rows of frames no earlier window or ``prepare`` has (a row depends on its own frame only).
+
+        The kept rows are one run on a grid of 160 samples (the last window's, then ``prepare``'s), so the
+        rows this window can take from them are one run of its own, found by arithmetic."""
         w = self.window() if window is None else window
-        starts = frame_starts(self.rs.j)
-        out = np.empty((ROWS, BANDS), np.float32)
-        missing = []
-        for i, st in enumerate(starts.tolist()):
-            row = self.cache.get(st)
-            if row is None:
-                missing.append(i)
-            else:
-                out[i] = row
-        if missing:
-            out[missing] = model.logmel(frames(w)[missing])
-        self.cache = dict(zip(starts.tolist(), out))
-        self.next_start = int(starts[-1]) + HOP
         j = self.rs.j
+        start = j - WINDOW                                 # the window's first frame
+        lo = hi = 0                                        # its rows [lo, hi) are kept ones
+        if self.first is not None and (start - self.first) % HOP == 0:
+            d = (start - self.first) // HOP                # the kept row of the window's first frame
+            lo, hi = max(0, -d), min(ROWS, len(self.rows) - d)
+        if lo >= hi:
+            out = model.logmel(frames(w))
+        else:
+            out = np.empty((ROWS, BANDS), np.float32)
+            out[lo:hi] = self.rows[lo + d:hi + d]
+            if lo:
+                out[:lo] = model.logmel(frames_at(w, HOP * np.arange(lo)))
+            if hi < ROWS:
+                out[hi:] = model.logmel(frames_at(w, HOP * np.arange(hi, ROWS)))
+        self.rows, self.first = out, start
         self.on_grid = self.last_end is None or (j - self.last_end) % HOP == 0
         self.last_end = j
         return out

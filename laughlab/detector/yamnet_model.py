@@ -82,15 +82,21 @@ def _quiet_stderr():
 #: (ops 5-14: Hann window, a 512-point DFT and a 64-band mel matrix as int8-weight matrix products with
 #: the inputs quantized row by row, magnitude, log: ``FRONT``), the rows as a 96 x 64 patch (ops 15-18),
 #: and the MobileNet v1 with its classifier (ops 19-59: ``NET``).  Each row depends on its own frame only,
-#: so rows are computed once and kept while the windows overlap; ``PARTS`` cut the network in three
-#: (layers 1-3, 4-9, 10-14 with the classifier: the first is the lightest, as its frame also takes the window;
-#: medians of 150 calls in turn, 0.95, 1.76 and 1.66 ms, against 0.94, 1.46 and 1.93 ms with the cut after layer 8)
-#: for ``model_frames``.  Both are bit for bit the whole
-#: file's result (``tests/test_yamnet.py``), so the split changes no score.
+#: so rows are computed once and kept while the windows overlap.  Both are bit for bit the whole file's
+#: result (``tests/test_yamnet.py``), so the split changes no score.
 FRAME, HOP, ROWS, BANDS = 400, 160, 96, 64
 FRONT = (5, 15, 79, 89)            # (first op, end op, input tensor, output tensor)
 NET = (19, 60, 93, 123)
-PARTS = ((19, 24, 93, 98), (24, 42, 98, 110), (42, 60, 110, 123))
+#: the network's 14 layers (a convolution, then 13 depthwise + pointwise pairs) and the classifier: the first
+#: op and the input tensor of each layer from the 4th (layers 1-3 are one piece, ops 19-23), and the end
+LAYERS = {1: (19, 93), 4: (24, 98), 5: (27, 100), 6: (30, 102), 7: (33, 104), 8: (36, 106), 9: (39, 108),
+          10: (42, 110), 11: (45, 112), 12: (48, 114), 13: (51, 116), 14: (54, 118), 15: (60, 123)}
+#: ``model_frames`` -> the layers each of its parts starts at (the last part ends with the classifier).  The
+#: window's own frame also converts its block and computes one or two rows, so its part is the lightest.
+#: Medians of 150 calls of each part in turn (2026-11-26, the machine slow): 4 parts, layers 1-3, 4-6, 7-10,
+#: 11-14: 0.81, 0.92, 0.95, 1.14 ms; 3 parts, 1-3, 4-9, 10-14: 0.80, 1.53, 1.47 ms (1-4, 5-9, 10-14: 1.12,
+#: 1.18, 1.41 ms; 1-3, 4-8, 9-14: 0.79, 1.26, 1.64 ms).
+CUTS = {1: (1,), 2: (1, 10), 3: (1, 4, 10), 4: (1, 4, 7, 11)}
 #: frames the live front end takes per call
 SMALL = 8
 
@@ -101,8 +107,14 @@ def frame_starts(end: int) -> np.ndarray:
 
 
 def frames_at(samples: np.ndarray, starts: np.ndarray) -> np.ndarray:
-    """The 400-sample frames of ``samples`` starting at ``starts``."""
-    return np.lib.stride_tricks.sliding_window_view(np.asarray(samples, np.float32), FRAME)[starts]
+    """The 400-sample frames of ``samples`` starting at ``starts`` (a copy, (len(starts), 400)).
+
+    The frames are read through a strided view of ``samples`` made directly (numpy's
+    ``sliding_window_view`` takes 0.05 ms to make the same view: as long as computing a log-mel row)."""
+    x = np.ascontiguousarray(samples, np.float32)
+    if x.ndim != 1 or len(x) < FRAME:
+        return np.lib.stride_tricks.sliding_window_view(x, FRAME)[starts]
+    return np.ndarray((len(x) - FRAME + 1, FRAME), np.float32, x, 0, (x.itemsize, x.itemsize))[starts]
 
 
 def frames(window: np.ndarray) -> np.ndarray:
@@ -110,29 +122,47 @@ def frames(window: np.ndarray) -> np.ndarray:
     return frames_at(window, HOP * np.arange(ROWS))
 
 
-def _split(data: bytes) -> dict:
-    """The front end, the network and its three parts as TensorFlow Lite files of their own (bytes).
+class _Layout:
+    """The bundled file parsed, and its pieces as TensorFlow Lite files of their own (bytes): ``front`` (the
+    log-mel rows), ``net`` (the network) and ``parts(n)``, the network cut in ``n`` parts at ``CUTS[n]``
+    (made when first asked for: about 35 ms each).
 
-    The ops, tensors and weights are the bundled file's; each part keeps only the tensors and buffers its
+    The ops, tensors and weights are the bundled file's; each piece keeps only the tensors and buffers its
     ops use.  Raises ValueError when ``data`` is not laid out as the bundled YAMNet."""
-    import flatbuffers
-    from ai_edge_litert import schema_py_generated as fb
 
-    model = fb.ModelT.InitFromObj(fb.Model.GetRootAsModel(data, 0))
-    g = model.subgraphs[0]
-    codes = {v: k for k, v in vars(fb.BuiltinOperator).items() if not k.startswith("_")}
+    def __init__(self, data: bytes):
+        from ai_edge_litert import schema_py_generated as fb
 
-    def opname(i):
-        c = model.operatorCodes[g.operators[i].opcodeIndex]
-        return codes.get(max(c.builtinCode, c.deprecatedBuiltinCode))
+        self.model = model = fb.ModelT.InitFromObj(fb.Model.GetRootAsModel(data, 0))
+        g = model.subgraphs[0]
+        codes = {v: k for k, v in vars(fb.BuiltinOperator).items() if not k.startswith("_")}
 
-    shape = {t: list(g.tensors[t].shape) for t in (79, 89, 93, 123)} if len(g.tensors) > 123 else {}
-    if (len(g.operators) != 60 or opname(5) != "MUL" or opname(14) != "LOG" or opname(19) != "CONV_2D"
-            or opname(59) != "LOGISTIC" or shape.get(79) != [ROWS, FRAME] or shape.get(89) != [ROWS, BANDS]
-            or shape.get(93) != [1, ROWS, BANDS, 1] or shape.get(123) != [1, N_CLASSES]):
-        raise ValueError("its layers are not YAMNet's")
+        def opname(i):
+            c = model.operatorCodes[g.operators[i].opcodeIndex]
+            return codes.get(max(c.builtinCode, c.deprecatedBuiltinCode))
 
-    def part(first, end, t_in, t_out):
+        shape = {t: list(g.tensors[t].shape) for t in (79, 89, 93, 123)} if len(g.tensors) > 123 else {}
+        if (len(g.operators) != 60 or opname(5) != "MUL" or opname(14) != "LOG" or opname(19) != "CONV_2D"
+                or opname(59) != "LOGISTIC" or shape.get(79) != [ROWS, FRAME] or shape.get(89) != [ROWS, BANDS]
+                or shape.get(93) != [1, ROWS, BANDS, 1] or shape.get(123) != [1, N_CLASSES]):
+            raise ValueError("its layers are not YAMNet's")
+        self.front, self.net = self.piece(*FRONT), self.piece(*NET)
+        self._parts: dict = {}
+        self._lock = threading.Lock()
+
+    def parts(self, n: int) -> list:
+        with self._lock:
+            if n not in self._parts:
+                starts = [LAYERS[k] for k in CUTS[n]] + [LAYERS[15]]
+                self._parts[n] = [self.piece(a[0], b[0], a[1], b[1]) for a, b in zip(starts, starts[1:])]
+            return self._parts[n]
+
+    def piece(self, first: int, end: int, t_in: int, t_out: int) -> bytes:
+        """Ops ``first`` to ``end`` - 1, from tensor ``t_in`` to tensor ``t_out``, as a file of their own."""
+        import flatbuffers
+
+        model = self.model
+        g = model.subgraphs[0]
         ops = g.operators[first:end]
         used = sorted({int(t) for o in ops for t in list(o.inputs) + list(o.outputs) if t >= 0} | {t_in, t_out})
         tmap = {t: i for i, t in enumerate(used)}
@@ -159,7 +189,10 @@ def _split(data: bytes) -> dict:
         b.Finish(m.Pack(b), file_identifier=b"TFL3")
         return bytes(b.Output())
 
-    return {"front": part(*FRONT), "net": part(*NET), "parts": [part(*p) for p in PARTS]}
+
+def _split(data: bytes) -> _Layout:
+    """The bundled file cut in its own layers (``_Layout``); ValueError when it is not laid out as YAMNet."""
+    return _Layout(data)
 
 
 class _Runner:
@@ -189,12 +222,13 @@ class _Runner:
 class _Models:
     """The interpreters of one thread (an interpreter is used by one call at a time)."""
 
-    def __init__(self, data: bytes, split: dict):
+    def __init__(self, data: bytes, split: _Layout):
         self.data, self.split = data, split
-        self.front = _Runner(split["front"])      # SMALL rows at a time, never resized (a resize costs 0.3 ms)
-        self.net = _Runner(split["net"])          # one patch at a time, never resized
+        self.front = _Runner(split.front)         # SMALL rows at a time, never resized (a resize costs 0.3 ms)
+        self.net = _Runner(split.net)             # one patch at a time, never resized
         self._front_many = self._net_many = None  # many rows / patches at once (offline), resized as needed
-        self._parts = None
+        self._front_few: dict = {}                # n < SMALL rows at a time, one interpreter per n (never resized)
+        self._parts: dict = {}                    # model_frames -> its parts' interpreters
         self._full = None
         self.lock = threading.Lock()
         self.front(np.zeros((SMALL, FRAME), np.float32))
@@ -202,20 +236,26 @@ class _Models:
     @property
     def front_many(self) -> _Runner:
         if self._front_many is None:
-            self._front_many = _Runner(self.split["front"])
+            self._front_many = _Runner(self.split.front)
         return self._front_many
+
+    def front_few(self, n: int) -> _Runner:
+        r = self._front_few.get(n)
+        if r is None:
+            r = self._front_few[n] = _Runner(self.split.front)
+            r(np.zeros((n, FRAME), np.float32))
+        return r
 
     @property
     def net_many(self) -> _Runner:
         if self._net_many is None:
-            self._net_many = _Runner(self.split["net"])
+            self._net_many = _Runner(self.split.net)
         return self._net_many
 
-    @property
-    def parts(self) -> list:
-        if self._parts is None:
-            self._parts = [_Runner(d) for d in self.split["parts"]]
-        return self._parts
+    def parts(self, n: int) -> list:
+        if n not in self._parts:
+            self._parts[n] = [_Runner(d) for d in self.split.parts(n)]
+        return self._parts[n]
 
     @property
     def full(self) -> _Runner:
@@ -235,7 +275,7 @@ class Yamnet:
 
     The work is split as the file's own layers are (``FRONT``, ``NET``): ``logmel(frames)`` gives the
     log-mel rows of 400-sample frames, ``network(patches)`` the scores of 96 x 64 patches of rows (many
-    at once), ``part(i, x)`` one third of the network.  Each is bit for bit the whole file's result."""
+    at once), ``part(i, x, n)`` part ``i`` of the network cut in ``n``.  Each is bit for bit the whole file's result."""
 
     def __init__(self, path: str | Path | None = None):
         p = Path(path) if path is not None else data_dir() / "yamnet.tflite"
@@ -279,17 +319,20 @@ class Yamnet:
     def logmel(self, frames: np.ndarray) -> np.ndarray:
         """The log-mel rows (n, 64) of ``n`` frames of 400 samples (the file's ops 5-14).
 
-        Up to 32 frames go in ``SMALL`` at a time (zero frames after the last): rows do not depend on each
-        other, and the interpreter is never resized on the live path; more go in at once."""
+        Up to 32 frames go in ``SMALL`` at a time and the rest (fewer than ``SMALL``) in an interpreter made
+        for that many: rows do not depend on each other, and no interpreter is resized on the live path (the
+        window's own frame computes one or two rows: 0.04 ms, against 0.08 ms padded to ``SMALL``).  More
+        than 32 go in at once."""
         x = np.asarray(frames, np.float32).reshape(-1, FRAME)
         n = len(x)
         with self.m.lock:
             if n > 4 * SMALL:
                 return self.m.front_many(x)
-            pad = -n % SMALL
-            if pad:
-                x = np.concatenate([x, np.zeros((pad, FRAME), np.float32)])
-            return np.concatenate([self.m.front(x[i:i + SMALL]) for i in range(0, n + pad, SMALL)])[:n]
+            full = n - n % SMALL
+            out = [self.m.front(x[i:i + SMALL]) for i in range(0, full, SMALL)]
+            if full < n:
+                out.append(self.m.front_few(n - full)(x[full:]))
+            return out[0] if len(out) == 1 else np.concatenate(out) if out else np.empty((0, BANDS), np.float32)
 
     def network(self, patches: np.ndarray) -> np.ndarray:
         """The 521 scores (float64) of each 96 x 64 patch of log-mel rows: (n, 96, 64) -> (n, 521)."""
@@ -297,13 +340,14 @@ class Yamnet:
         with self.m.lock:
             return (self.m.net if len(x) == 1 else self.m.net_many)(x).astype(np.float64)
 
-    def part(self, i: int, x: np.ndarray) -> np.ndarray:
-        """Part ``i`` (0-2) of the network on one patch (part 0) or on the previous part's output."""
+    def part(self, i: int, x: np.ndarray, n: int) -> np.ndarray:
+        """Part ``i`` of the network cut in ``n`` parts (``CUTS``) on one patch (part 0) or on the output of
+        part ``i`` - 1; the last part gives the (1, 521) scores."""
         x = np.asarray(x, np.float32)
         if i == 0:
             x = x.reshape(1, ROWS, BANDS, 1)
         with self.m.lock:
-            return self.m.parts[i](x)
+            return self.m.parts(n)[i](x)
 
     def scores(self, window: np.ndarray) -> np.ndarray:
         """The 521 scores of one window (``WINDOW`` samples at 16 kHz, float in [-1, 1]).
