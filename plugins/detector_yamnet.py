@@ -83,10 +83,11 @@ class YamnetParams:
     attack_s, release_s : float
         Time for a gain to go 0 -> 1 once open and 1 -> 0 once closed (s).
     model_frames : int
-        The model's work on a window is spread over this many frames (1-3), starting with the frame that
-        takes the window, and its scores take effect on the last of them (3, the default: 33 ms later at
-        60 fps; no frame carries more than a third of the network, about 1 ms).  The window's log-mel rows
-        are computed once per 10 ms frame of audio and kept while windows overlap.
+        The model's work on a window is spread over this many frames (1-4), starting with the frame that
+        takes the window, and its scores take effect on the last of them (4, the default: 50 ms later at
+        60 fps; no frame carries more than about a quarter of the network, 0.6-0.9 ms on a 2-core machine;
+        ``CUTS`` in ``laughlab.detector.yamnet_model``).  The window's log-mel rows are computed once per
+        10 ms frame of audio and kept while windows overlap.
     async_frames : int
         0 (the default): the model runs in the frame thread (``model_frames``).  N > 0: a window's network
         runs in a helper thread and its scores take effect N frames after the frame that took it (2: 33 ms
@@ -124,7 +125,7 @@ class YamnetParams:
     class_close: float = 0.05
     class_windows: int = 1
     close_quiet_s: float = 0.3
-    model_frames: int = 3
+    model_frames: int = 4
     async_frames: int = 0
     prefetch: bool = True
     head: str | None = None
@@ -195,6 +196,8 @@ class YamnetDetector(Detector):
         if self.params.async_frames == 0 and self.params.model_frames > self.hop:
             raise ValueError(f"model_frames ({self.params.model_frames}) must not exceed the frames between two "
                              f"windows (hop_s at {self.ctx.fps:g} fps: {self.hop})")
+        if self.params.async_frames == 0:
+            self.model.load_parts(self.params.model_frames)
         self.ahead = None    # the prefetching helper of an offline input (``prefetch``)
         self.use_head = self.params.rule in ("head", "either")
         self.use_classes = self.params.rule in ("classes", "either")

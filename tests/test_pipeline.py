@@ -200,20 +200,20 @@ def test_live_chunked_run_equals_offline_run(tmp_path, extra):
 
 def test_the_model_takes_effect_model_frames_or_async_frames_later(tmp_path):
     """A window's scores take effect on the frame that takes it (model_frames=1), 2 frames later when the
-    network is spread over 3 frames (the default), 3 frames later in a helper thread (async_frames=3): the
-    same scores, only later."""
+    network is spread over 3 frames, 3 frames later over 4 (the default) or in a helper thread
+    (async_frames=3): the same scores, only later."""
     import pandas as pd
 
     runs = {}
-    for name, extra in {"now": ["detector.model_frames=1"], "spread": ["detector.model_frames=3"],
-                        "async": ["detector.async_frames=3"]}.items():
+    for name, extra in {"now": ["detector.model_frames=1"], "three": ["detector.model_frames=3"],
+                        "four": [], "async": ["detector.async_frames=3"]}.items():
         pipe = pipeline.build(cfg_for("input.duration_s=6", "output=trial", *extra))
         pipeline.execute(pipe, tmp_path / name, {})
         assert pipe.detector.queue == []   # the run closed the detector: no window left in the helper thread
         runs[name] = pd.read_csv(tmp_path / name / "channels.csv")
     for col in ("laughter", "laughter_classes"):
         now = runs["now"][col].to_numpy()
-        for name, d in (("spread", 2), ("async", 3)):
+        for name, d in (("three", 2), ("four", 3), ("async", 3)):
             late = runs[name][col].to_numpy()
             assert np.array_equal(late[d:], now[:-d]) and (late[:d] == 0).all(), name
     assert runs["now"]["laughter"].max() > 0.5   # the head hears the synthetic laughter (YAMNet's classes do not)

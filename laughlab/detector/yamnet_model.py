@@ -93,10 +93,10 @@ LAYERS = {1: (19, 93), 4: (24, 98), 5: (27, 100), 6: (30, 102), 7: (33, 104), 8:
           10: (42, 110), 11: (45, 112), 12: (48, 114), 13: (51, 116), 14: (54, 118), 15: (60, 123)}
 #: ``model_frames`` -> the layers each of its parts starts at (the last part ends with the classifier).  The
 #: window's own frame also converts its block and computes one or two rows, so its part is the lightest.
-#: Medians of 150 calls of each part in turn (2026-11-26, the machine slow): 4 parts, layers 1-3, 4-6, 7-10,
-#: 11-14: 0.81, 0.92, 0.95, 1.14 ms; 3 parts, 1-3, 4-9, 10-14: 0.80, 1.53, 1.47 ms (1-4, 5-9, 10-14: 1.12,
-#: 1.18, 1.41 ms; 1-3, 4-8, 9-14: 0.79, 1.26, 1.64 ms).
-CUTS = {1: (1,), 2: (1, 10), 3: (1, 4, 10), 4: (1, 4, 7, 11)}
+#: Medians of 150 calls of each part in turn (2026-11-26): 4 parts at layers 1-3, 4-7, 8-11, 12-14: 0.59,
+#: 0.81, 0.88, 0.76 ms (1-3, 4-6, 7-10, 11-14: 0.59, 0.72, 0.78, 0.99 ms); 3 parts, 1-3, 4-9, 10-14: 0.80,
+#: 1.53, 1.47 ms, the machine slower (1-4, 5-9, 10-14: 1.12, 1.18, 1.41 ms; 1-3, 4-8, 9-14: 0.79, 1.26, 1.64).
+CUTS = {1: (1,), 2: (1, 10), 3: (1, 4, 10), 4: (1, 4, 8, 12)}
 #: frames the live front end takes per call
 SMALL = 8
 
@@ -339,6 +339,11 @@ class Yamnet:
         x = np.asarray(patches, np.float32).reshape(-1, ROWS, BANDS, 1)
         with self.m.lock:
             return (self.m.net if len(x) == 1 else self.m.net_many)(x).astype(np.float64)
+
+    def load_parts(self, n: int) -> None:
+        """Make the network's ``n`` parts and their interpreters now (about 50 ms), not on the first window."""
+        with self.m.lock:
+            self.m.parts(n)
 
     def part(self, i: int, x: np.ndarray, n: int) -> np.ndarray:
         """Part ``i`` of the network cut in ``n`` parts (``CUTS``) on one patch (part 0) or on the output of
