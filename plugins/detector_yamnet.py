@@ -96,8 +96,9 @@ class YamnetParams:
     prefetch : bool
         On an offline input that can be read twice (``input=file``), a helper thread reads the file ahead,
         converts it and runs the model on the windows to come, several at once; each window's scores take
-        effect on the same frame as without it, after the frame thread has checked that the helper's window
-        holds the very samples its own holds (the same bytes; a mismatch falls back to the frame thread).
+        effect on the same frame as without it, after the frame thread has checked that the helper read the
+        very input samples it did (the same bytes; the frame thread then converts nothing itself; on a
+        mismatch it takes the stream up from where the helper last agreed).
     head : str or None
         A head JSON (``python -m laughlab.detector.yamnet_fit --out FILE``); None: the bundled one.
     fuse : bool
@@ -218,7 +219,8 @@ class YamnetDetector(Detector):
         self.face_gain = 0.0
         self.quiet = math.inf
         self.pending = None  # time of the new sound the face follows before the model has heard it
-        self.job = None      # [window end time, next group, network state or the window, cues]: a window in progress
+        self.job = None      # [window end time, next part, network state or ("ahead", samples), cues]: a window in progress
+        self.raw = []        # the input's blocks since the last window, while a helper converts them (``prefetch``)
         self._drain()        # self.queue: (frame the scores take effect, window end time, future of its scores, cues)
         self._stop_ahead()
 
@@ -246,18 +248,18 @@ class YamnetDetector(Detector):
 
     def _run_job(self) -> None:
         """This frame's share of the window in progress (``self.job``: window end time, the frame's number in
-        the window's ``model_frames``, network state or ``("ahead", window)``); the last frame takes effect."""
+        the window's ``model_frames``, network state or ``("ahead", input samples since the window before)``);
+        the last frame takes effect."""
         t_end, g, x, cues = self.job
         n = self.params.model_frames
         last = g + 1 == n
-        if isinstance(x, tuple):      # the helper's scores, checked against the window, on the last frame
+        if isinstance(x, tuple):      # the helper's scores, checked against the input, on the last frame
             if not last:
                 self.job = [t_end, g + 1, x, cues]
                 return
-            scores = self.ahead.scores(x[1]) if self.ahead is not None else None
-            if scores is None:        # no helper, or its window differs: the frame thread computes it
-                self._stop_ahead()
-                scores = self.model.network(self.window.patch(self.model, x[1]))[0]
+            scores = self.ahead.scores(x[1])
+            if scores is None:        # the helper read other samples (or stopped): the frame thread takes over
+                scores = self._take_over(x[1])
             self.job = None
             self._take(scores, t_end, cues)
             return
@@ -267,6 +269,19 @@ class YamnetDetector(Detector):
             self._take(x[0].astype(np.float64), t_end, cues)
         else:
             self.job = [t_end, g + 1, x, cues]
+
+    def _take_over(self, raw: np.ndarray) -> np.ndarray:
+        """The helper's samples differ from the input's (or it stopped): the stream is taken up from the
+        conversion's state where the helper last agreed, the window of ``raw`` (the input's samples since
+        then) computed here, and from now on every block converted here, as without a helper."""
+        self.window.restore(self.ahead.state)
+        self._stop_ahead()
+        self.window.push(raw)
+        scores = self.model.network(self.window.patch(self.model))[0]
+        for b in self.raw:            # the blocks since this window's frame
+            self.window.push(b)
+        self.raw = []
+        return scores
 
     def _take(self, scores, t_end: float, cues=None) -> None:
         """A window's scores take effect (on its own frame, or ``async_frames`` later); ``cues``: the feature
@@ -296,7 +311,10 @@ class YamnetDetector(Detector):
 
     def step(self, block, frame) -> None:
         p, dt = self.params, frame.dt
-        self.window.push(block)
+        if self.ahead is None:
+            self.window.push(block)
+        else:                         # the helper converts the input: keep its samples to check the helper's
+            self.raw.append(np.array(block, dtype=np.float64).ravel())
         if self.cues is not None:
             self.cues.push(block)
         t_end = (self.k + 1) * dt  # the block's end: the newest sample the window holds
@@ -314,7 +332,9 @@ class YamnetDetector(Detector):
                 self.queue.append((self.k + p.async_frames, t_end,
                                    helper().submit(self.model.network, self.window.patch(self.model)), cues))
             elif self.ahead is not None:
-                self.job = [t_end, 0, ("ahead", self.window.window()), cues]
+                raw = np.concatenate(self.raw) if self.raw else np.zeros(0)
+                self.raw = []
+                self.job = [t_end, 0, ("ahead", raw), cues]
             else:
                 self.job = [t_end, 0, self.window.patch(self.model), cues]
         if self.job is not None:

@@ -234,15 +234,15 @@ def test_prefetching_a_file_gives_the_same_bytes_and_a_mismatch_falls_back(tmp_p
     wav = tmp_path / "in.wav"
     sf.write(wav, corpus_audio(), 44100, subtype="PCM_16")
 
-    def run(name, extra=(), sabotage=False):
+    def run(name, extra=(), sabotage=None):
         cfg = _compose(["input=file", f"input.path={wav}", "output=trial", "progress=off", *extra])
         pipe = pipeline.build(cfg)
         helpers = []
         real_prefetch = pipe.detector.prefetch
 
         def prefetch(blocks):
-            if sabotage:   # the helper hears the file backwards
-                real_prefetch(lambda: (b[::-1].copy() for b in blocks()))
+            if sabotage is not None:   # from block ``sabotage`` on, the helper hears each block backwards
+                real_prefetch(lambda: (b[::-1].copy() if i >= sabotage else b for i, b in enumerate(blocks())))
             else:
                 real_prefetch(blocks)
             helpers.append(pipe.detector.ahead)
@@ -252,10 +252,13 @@ def test_prefetching_a_file_gives_the_same_bytes_and_a_mismatch_falls_back(tmp_p
 
     none, a = run("off", ["detector.prefetch=false"])
     (on,), b = run("on")
-    n = len(a.splitlines()) - 1                                   # frames; a window every 15, 2 frames to take effect
-    assert none == [None] and on.served == len(range(14, n - 2, 15)) > 15 and not on.done and b == a
-    (bad,), c = run("bad", sabotage=True)
+    n = len(a.splitlines()) - 1                                   # frames; a window every 15, 3 frames to take effect
+    assert none == [None] and on.served == len(range(14, n - 3, 15)) > 15 and not on.done and b == a
+    (bad,), c = run("bad", sabotage=0)
     assert bad.served == 0 and bad.done and c == a
+    # the helper agrees for 7 windows (blocks 0-104), then not: the frame thread takes the stream up there
+    (late,), d = run("late", sabotage=110)
+    assert late.served == 7 and late.done and d == a
 
 
 def _count_rows(fps, hop_s, seconds, seed):

@@ -115,6 +115,14 @@ class Resampler16k:
         self.j = 0          # output samples made
         self.last = 0.0     # the last filtered input sample (index n - 1)
 
+    def state(self) -> tuple:
+        """Everything the next ``push`` depends on (``restore`` takes it back)."""
+        return (None if self.zi is None else self.zi.copy(), self.n, self.j, self.last)
+
+    def restore(self, state: tuple) -> None:
+        zi, self.n, self.j, self.last = state
+        self.zi = None if zi is None else zi.copy()
+
     def j_after(self, n: int) -> int:
         """The 16 kHz samples made once ``n`` input samples have arrived (``push`` makes this many)."""
         if self.sr == RATE:
@@ -179,6 +187,14 @@ class Window16k:
         self.first = None
         self.last_end = None
         self.on_grid = True
+
+    def restore(self, state) -> None:
+        """Take up a stream where :class:`Ahead` left it: ``state`` = (the conversion's state, the last
+        ``WINDOW`` samples at 16 kHz) after the last window it served; None: the stream's start."""
+        self.reset()
+        if state is not None:
+            self.rs.restore(state[0])
+            self.buf[:] = state[1]
 
     def push(self, block: np.ndarray) -> None:
         """Keep a copy of a block; blocks are converted when the window is next asked for (the same bytes,
@@ -282,9 +298,13 @@ class Ahead:
 
     ``blocks()`` gives the run's blocks from the start (a second reading of the file).  The thread
     converts them as :class:`Window16k` does (its own), takes a window every ``hop`` blocks, computes
-    the windows' log-mel rows and runs the network on ``batch`` patches in one call.  ``scores(window)``
-    gives the next window's scores if the helper's window is ``window`` sample for sample, else None
-    (and the frame thread computes it): the scores are bit for bit the frame thread's.  At most
+    the windows' log-mel rows and runs the network on ``batch`` patches in one call.
+    ``scores(raw)`` gives the next window's scores if the input samples the helper read since the
+    window before (its ``hop`` blocks) are ``raw`` sample for sample, else None: the conversion
+    depends on the samples only, so equal samples mean the frame thread's own window, and the
+    scores are bit for bit the frame thread's.  The frame thread therefore converts nothing while
+    the helper serves it; ``state`` is the conversion's state at the end of the last window served
+    (``Window16k.restore``), from which the frame thread takes over on a mismatch.  At most
     ``ahead`` windows wait; ``close()`` stops the thread.
     """
 
@@ -295,6 +315,7 @@ class Ahead:
         self.stop = threading.Event()
         self.done = False
         self.served = 0     # windows whose scores the frame thread took
+        self.state = None   # the conversion's state after the last window served (None: the start)
         self.thread = threading.Thread(target=self._run, args=(blocks, int(sample_rate), int(hop), int(batch)),
                                        name="laughlab-yamnet-ahead", daemon=True)
         self.thread.start()
@@ -318,69 +339,69 @@ class Ahead:
         self._put(None)
 
     def _windows(self, blocks, sr: int, hop: int, batch: int) -> None:
-        """``batch`` windows at a time: their blocks converted in one piece (the conversion does not depend on
-        how blocks are cut), then their log-mel rows and scores computed by the process' two network threads
-        (one set of interpreters each, ``net_pool``), whose results are queued in order.  The threads take the
-        GIL a few times per batch, not per window; the frame thread and the helpers share the two cores."""
+        """``batch`` windows at a time: each window's blocks converted in one piece (the conversion does not
+        depend on how blocks are cut), the conversion's state kept at each window's end, then the windows'
+        log-mel rows and scores computed by the process' two network threads (one set of interpreters each,
+        ``net_pool``), whose results are queued in order.  The threads take the GIL a few times per batch,
+        not per window; the frame thread and the helpers share the two cores."""
         from collections import deque
 
         rs = Resampler16k(sr)
         tail = np.zeros(WINDOW, np.float32)          # the 16 kHz samples before ``base`` (zeros before the start)
         base = 0                                     # 16 kHz sample index of the sample after ``tail``
-        n_in = 0                                     # input samples read
-        kept, ends = [], []
-        running: deque = deque()                     # (windows, future of their scores), oldest first
+        kept: list = []                              # the blocks since the last window
+        raws, pieces, states = [], [], []            # per window of the batch: its input samples, 16 kHz, state
+        running: deque = deque()                     # (raws, states, windows' ends, y, future of scores)
         it = iter(blocks())
         k = 0
         pool = net_pool()
         try:
             while not self.stop.is_set():
                 for block in it:
-                    b = np.array(block, dtype=np.float64).ravel()
-                    kept.append(b)
-                    n_in += len(b)
+                    kept.append(np.array(block, dtype=np.float64).ravel())
                     k += 1
                     if k % hop == 0:
-                        ends.append(rs.j_after(n_in))
-                        if len(ends) == batch:
+                        raw = np.concatenate(kept)
+                        kept = []
+                        raws.append(raw)
+                        pieces.append(rs.push(cleaned(raw.copy())).astype(np.float32))
+                        states.append(rs.state())
+                        if len(raws) == batch:
                             break
-                if not ends:
+                if not raws:
                     break
-                x = np.concatenate(kept) if kept else np.zeros(0)
-                kept = []
-                y = np.concatenate([tail, rs.push(cleaned(x)).astype(np.float32)])
-                start = base - WINDOW                    # 16 kHz index of y[0]
-                yc = np.clip(y, -1.0, 1.0)
-                local = [e - start for e in ends]
-                running.append(([yc[e - WINDOW:e] for e in local], pool.submit(_scores_here, yc, local)))
+                y = np.concatenate([tail, *pieces])
+                ends = list(np.cumsum([len(q) for q in pieces]) + WINDOW)
+                running.append((raws, states, ends, y, pool.submit(_scores_here, np.clip(y, -1.0, 1.0), ends)))
                 base += len(y) - WINDOW
                 tail = y[-WINDOW:]
-                ends = []
+                raws, pieces, states = [], [], []
                 while len(running) > NET_THREADS and not self._flush(running.popleft()):
                     return
             while running and self._flush(running.popleft()):
                 pass
         finally:
-            for _, fut in running:
+            for *_, fut in running:
                 fut.cancel()
 
     def _flush(self, job) -> bool:
-        wins, fut = job
-        for item in zip(wins, fut.result()):
-            if not self._put(item):
+        raws, states, ends, y, fut = job
+        for raw, st, e, sc in zip(raws, states, ends, fut.result()):
+            if not self._put((raw, sc, (st, y[e - WINDOW:e]))):
                 return False
         return True
 
-    def scores(self, window: np.ndarray) -> np.ndarray | None:
-        """The next window's scores if the helper's window equals ``window``; None when it does not or the
-        helper has stopped (from then on it is not asked again)."""
+    def scores(self, raw: np.ndarray) -> np.ndarray | None:
+        """The next window's scores if the helper read ``raw`` (the input samples since the window before);
+        None when it did not or the helper has stopped (from then on it is not asked again)."""
         if self.done:
             return None
         item = self.q.get()
-        if item is None or not np.array_equal(item[0], window):
+        if item is None or not np.array_equal(item[0], raw):
             self.done = True
             return None
         self.served += 1
+        self.state = item[2]
         return item[1]
 
     def close(self) -> None:
