@@ -233,7 +233,7 @@ def main() -> None:
     dets = [d for d in ns.detectors.split(",") if d]
     res = {"machine": platform.platform(), "python": platform.python_version(), "data": "test split"}
     res["cost"] = [step_cost(sr, detector=d) for d in ("yamnet", "laugh") for sr in (44100, 16000)]
-    # the default spreads a window's network over 3 frames; all of it on the window's frame; in a helper thread
+    # the default spreads a window's network over 4 frames; all of it on the window's frame; in a helper thread
     res["cost"] += [step_cost(44100, detector="yamnet", params=p) for p in ({"model_frames": 1}, {"async_frames": 2})]
     sets = held_out_sets(ns.scenes, ns.duration)
     res["files"] = {k: [w.stem for w in v] for k, v in sets.items()}
