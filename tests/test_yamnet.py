@@ -260,6 +260,13 @@ def test_prefetching_a_file_gives_the_same_bytes_and_a_mismatch_falls_back(tmp_p
     # the helper agrees for 7 windows (blocks 0-104), then not: the frame thread takes the stream up there
     (late,), d = run("late", sabotage=110)
     assert late.served == 7 and late.done and d == a
+    # a float file with NaN samples (read as 0 by the conversion): the helper's samples still agree
+    x = corpus_audio().astype(np.float32)
+    x[[1000, 50_000, 200_000]] = np.nan
+    sf.write(wav, x, 44100, subtype="FLOAT")
+    none, e = run("nan-off", ["detector.prefetch=false"])
+    (nan,), f = run("nan-on")
+    assert nan.served > 15 and not nan.done and f == e
 
 
 def _count_rows(fps, hop_s, seconds, seed):

@@ -177,7 +177,7 @@ class Ahead:
         if self.done:
             return None
         item = self.q.get()
-        if item is None or not np.array_equal(item[0], raw):
+        if item is None or not np.array_equal(item[0], raw, equal_nan=True):   # NaN samples read as 0 in both
             self.done = True
             return None
         self.served += 1

@@ -5,7 +5,7 @@ AudioSet's 521 classes.  The bundled file (``laughlab/data/yamnet/``, see ``PROV
 takes one window of :data:`WINDOW` = 15,600 samples (0.975 s) of 16 kHz mono float audio in [-1, 1]
 and returns the 521 class scores in the order of ``yamnet_class_map.csv``.  It runs with
 ``ai-edge-litert`` (Google's LiteRT interpreter, on PyPI), one thread, no network.  :class:`Yamnet`
-checks the file (sha256), cuts it into its front end and its network (``_split``, bit for bit the
+checks the file (sha256), cuts it into its front end and its network (``_Layout``, bit for bit the
 whole file's scores) and loads each part once per thread.
 """
 from __future__ import annotations
@@ -77,7 +77,7 @@ def _quiet_stderr():
         os.close(saved)
 
 
-#: The bundled model's layout, checked when it is loaded (``_split``).  The file computes, for one window:
+#: The bundled model's layout, checked when it is loaded (``_Layout``).  The file computes, for one window:
 #: 96 frames of 400 samples every 160 (ops 0-4, a reshape and a gather: ``frames``), their log-mel rows
 #: (ops 5-14: Hann window, a 512-point DFT and a 64-band mel matrix as int8-weight matrix products with
 #: the inputs quantized row by row, magnitude, log: ``FRONT``), the rows as a 96 x 64 patch (ops 15-18),
@@ -188,11 +188,6 @@ class _Layout:
         b = flatbuffers.Builder(1 << 16)
         b.Finish(m.Pack(b), file_identifier=b"TFL3")
         return bytes(b.Output())
-
-
-def _split(data: bytes) -> _Layout:
-    """The bundled file cut in its own layers (``_Layout``); ValueError when it is not laid out as YAMNet."""
-    return _Layout(data)
 
 
 class _Runner:
@@ -310,7 +305,7 @@ class Yamnet:
         split = _SPLIT.get(fkey)
         try:
             if split is None:
-                split = _SPLIT[fkey] = _split(data)
+                split = _SPLIT[fkey] = _Layout(data)
             return _Models(data, split)
         except (ValueError, RuntimeError, IndexError, TypeError, AttributeError) as exc:
             msg = str(exc).splitlines()[0][:120] if str(exc) else type(exc).__name__
