@@ -83,10 +83,11 @@ class YamnetParams:
     attack_s, release_s : float
         Time for a gain to go 0 -> 1 once open and 1 -> 0 once closed (s).
     model_frames : int
-        The model's work on a window is spread over this many frames (1-4), starting with the frame that
-        takes the window, and its scores take effect on the last of them (4, the default: 50 ms later at
-        60 fps; no frame carries more than about a quarter of the network, 0.6-0.9 ms on a 2-core machine;
-        ``CUTS`` in ``laughlab.detector.yamnet_model``).  The window's log-mel rows are computed once per
+        The model's work on a window is spread over this many frames (1-4; over fewer when windows come
+        more often: at most the frames from one window to the next), starting with the frame that takes the
+        window, and its scores take effect on the last of them (4, the default: 50 ms later at 60 fps; no
+        frame carries more than about a quarter of the network, 0.6-0.9 ms on a 2-core machine; ``CUTS`` in
+        ``laughlab.detector.yamnet_model``).  The window's log-mel rows are computed once per
         10 ms frame of audio and kept while windows overlap.
     async_frames : int
         0 (the default): the model runs in the frame thread (``model_frames``).  N > 0: a window's network
@@ -194,11 +195,12 @@ class YamnetDetector(Detector):
             self.cues = FrameCues(self.ctx.sample_rate, self.ctx.fps)
         self.window = Window16k(self.ctx.sample_rate)
         self.hop = max(1, int(round(self.params.hop_s * self.ctx.fps)))
-        if self.params.async_frames == 0 and self.params.model_frames > self.hop:
-            raise ValueError(f"model_frames ({self.params.model_frames}) must not exceed the frames between two "
-                             f"windows (hop_s at {self.ctx.fps:g} fps: {self.hop})")
+        # a window's network is spread over model_frames frames, or over all the frames until the next window
+        # when windows come more often (below 14 fps at hop_s = 0.25 s); before 2026-11-26 that was an error,
+        # which the default configuration met at 10 fps
+        self.frames = min(self.params.model_frames, self.hop)
         if self.params.async_frames == 0:
-            self.model.load_parts(self.params.model_frames)
+            self.model.load_parts(self.frames)
         self.ahead = None    # the prefetching helper of an offline input (``prefetch``)
         self.use_head = self.params.rule in ("head", "either")
         self.use_classes = self.params.rule in ("classes", "either")
@@ -251,7 +253,7 @@ class YamnetDetector(Detector):
         the window's ``model_frames``, network state or ``("ahead", input samples since the window before)``);
         the last frame takes effect."""
         t_end, g, x, cues = self.job
-        n = self.params.model_frames
+        n = self.frames
         last = g + 1 == n
         if isinstance(x, tuple):      # the helper's scores, checked against the input, on the last frame
             if not last:

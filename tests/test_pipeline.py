@@ -219,6 +219,22 @@ def test_the_model_takes_effect_model_frames_or_async_frames_later(tmp_path):
     assert runs["now"]["laughter"].max() > 0.5   # the head hears the synthetic laughter (YAMNet's classes do not)
 
 
+def test_at_a_low_fps_the_network_is_spread_over_the_frames_between_windows(tmp_path):
+    """At 12 fps a window comes every 3 frames: the default's 4 model frames become 3, its scores taking
+    effect 2 frames after the window (a ``model_frames`` above the frames between windows was an error, which
+    the default configuration met at 10 fps, before 2026-11-26)."""
+    import pandas as pd
+
+    runs = {}
+    for name, extra in {"now": ["detector.model_frames=1"], "default": []}.items():
+        pipe = pipeline.build(cfg_for("input.duration_s=6", "output=trial", "fps=12", *extra))
+        assert pipe.detector.frames == (1 if extra else 3)
+        pipeline.execute(pipe, tmp_path / name, {})
+        runs[name] = pd.read_csv(tmp_path / name / "channels.csv")["laughter"].to_numpy()
+    now, late = runs["now"], runs["default"]
+    assert np.array_equal(late[2:], now[:-2]) and (late[:2] == 0).all() and now.max() > 0.5
+
+
 # --- every channel finite for any input -----------------------------------------------------
 
 class ArraySource(Source):
