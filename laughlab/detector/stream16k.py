@@ -8,6 +8,7 @@ names are importable from there too).
 """
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -37,19 +38,15 @@ def sosfilt_carry(sos: np.ndarray, x: np.ndarray, zi: np.ndarray) -> tuple[np.nd
     return sosfilt(sos, x, zi=zi)
 
 
-_SOS: list = []
-
-
+@functools.cache
 def _sos_kernel():
     """scipy's compiled second-order-sections filter where scipy 1.11-1.16 keep it, else None (looked up
     once, when first used: importing ``scipy.signal`` takes about half a second)."""
-    if not _SOS:
-        try:
-            from scipy.signal._sosfilt import _sosfilt
-        except ImportError:
-            _sosfilt = None
-        _SOS.append(_sosfilt)
-    return _SOS[0]
+    try:
+        from scipy.signal._sosfilt import _sosfilt
+    except ImportError:
+        return None
+    return _sosfilt
 
 
 class Resampler16k:
@@ -243,10 +240,16 @@ class Window16k:
 CONVERT_CHUNK = 1 << 18
 
 
-def to_16k(audio: np.ndarray, sample_rate: int) -> np.ndarray:
-    """A whole signal at 16 kHz, the live conversion's bytes (:class:`Resampler16k`)."""
+def pieces_16k(audio: np.ndarray, sample_rate: int):
+    """A whole signal at 16 kHz in pieces, ``CONVERT_CHUNK`` input samples at a time (the live conversion's
+    bytes, :class:`Resampler16k`); at least one piece."""
     rs = Resampler16k(sample_rate)
     x = np.asarray(audio, dtype=np.float64).ravel()
-    if len(x) <= CONVERT_CHUNK:
-        return rs.push(x)
-    return np.concatenate([rs.push(x[i:i + CONVERT_CHUNK]) for i in range(0, len(x), CONVERT_CHUNK)])
+    for i in range(0, max(len(x), 1), CONVERT_CHUNK):
+        yield rs.push(x[i:i + CONVERT_CHUNK])
+
+
+def to_16k(audio: np.ndarray, sample_rate: int) -> np.ndarray:
+    """A whole signal at 16 kHz, the live conversion's bytes (:class:`Resampler16k`)."""
+    parts = list(pieces_16k(audio, sample_rate))
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)

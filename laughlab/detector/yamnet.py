@@ -24,7 +24,7 @@ import numpy as np
 
 from laughlab.detector import yamnet_model as _model
 from laughlab.detector.stream16k import (  # noqa: F401  (the names users of this module know)
-    CONVERT_CHUNK, Resampler16k, Window16k, cleaned, sosfilt_carry, to_16k)
+    CONVERT_CHUNK, Resampler16k, Window16k, cleaned, pieces_16k, sosfilt_carry, to_16k)
 from laughlab.detector.yamnet_model import (  # noqa: F401  (the names users of this module know)
     BANDS, FRAME, HOP, LAUGH_CLASSES, MODEL_SHA256, N_CLASSES, RATE, RESTORE, ROWS, WINDOW, ModelFileError, Yamnet,
     class_names, data_dir, frame_starts, frames, frames_at, laugh_indices)
@@ -256,9 +256,7 @@ def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: 
     """
     model = model or Yamnet()
     sr = int(sample_rate)
-    x = np.asarray(audio, dtype=np.float64).ravel()
-    rs = Resampler16k(sr)
-    pad = np.zeros(rs.j_after(len(x)) + 2 * WINDOW, np.float32)     # zeros before the start and past the end
+    pad = np.zeros(Resampler16k(sr).j_after(np.size(audio)) + 2 * WINDOW, np.float32)  # zeros around the audio
     e16 = [int(round(int(e) * RATE / sr)) + WINDOW for e in ends]
     if e16 and (min(e16) < WINDOW or max(e16) > len(pad)):
         raise ValueError("a window ends outside the audio")
@@ -272,8 +270,7 @@ def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: 
             c = chunks[len(parts)]
             parts.append(net_pool().submit(_scores_here, pad, c) if threads else _scores_here(pad, c, model))
 
-    for i in range(0, len(x), CONVERT_CHUNK):
-        y = rs.push(x[i:i + CONVERT_CHUNK])
+    for y in pieces_16k(audio, sr):
         pad[filled:filled + len(y)] = np.clip(y, -1.0, 1.0)
         filled += len(y)
         ready(filled)
