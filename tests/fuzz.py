@@ -29,8 +29,6 @@ import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
-os.environ.setdefault("LAUGHLAB_WORKERS", "0")  # in-process: every sink in this process, no helper fork
-
 #: cases run in this session, by kind (printed at the end of the session by tests/conftest.py)
 COUNTS: dict = {}
 #: values every parameter is tried with: wrong types, NaN/inf, out of range, empty, very long
@@ -55,10 +53,23 @@ class Outcome:
     exception: str = ""
 
 
+@contextlib.contextmanager
+def _sinks_in_this_process():
+    """``LAUGHLAB_WORKERS=0`` while a case runs (every sink in this process: no fork of a test worker), and
+    as it was afterwards, so that the child processes other tests start run as a user's would."""
+    before = os.environ.get("LAUGHLAB_WORKERS")
+    os.environ["LAUGHLAB_WORKERS"] = "0" if before is None else before
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop("LAUGHLAB_WORKERS", None)
+
+
 def _capture(fn) -> Outcome:
     out, err = io.StringIO(), io.StringIO()
     code, exc = 0, ""
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), \
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), _sinks_in_this_process(), \
             warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:

@@ -1,6 +1,5 @@
 """Issue 28: a user's avatar (VRM 0.x, VRM 1.0, humanoid glTF) driven by a run; VRM Animation export."""
 import json
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -318,11 +317,9 @@ def test_the_khronos_validator_finds_no_error(vrma_run, godette_run, arkit_run, 
 # -- bad input ---------------------------------------------------------------------------------------------------
 
 def _cli(tmp_path, *args):
-    import sys
+    from inprocess import laughlab
 
-    out = subprocess.run([sys.executable, "-m", "laughlab", *args, f"hydra.run.dir={tmp_path / 'run'}"],
-                         capture_output=True, text=True, timeout=300)
-    return out
+    return laughlab(*args, f"hydra.run.dir={tmp_path / 'run'}")
 
 
 def _robot_without(bone: str, path: Path) -> Path:

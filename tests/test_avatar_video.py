@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
 from laughlab.avatar.load import load_avatar
 from laughlab.avatar.mesh import accessor, parts
 from laughlab.motion.skeleton import HUMANOID, rest_pose
@@ -56,21 +57,22 @@ def test_the_avatar_is_drawn_with_its_colours_facing_the_camera():
 
 
 def test_output_video_on_the_avatar_is_the_same_bytes_for_the_same_run(tmp_path):
+    """A child process and a run in this process (tests/inprocess.py) write the same bytes."""
     outs = []
     for k in range(2):
         d = tmp_path / f"run{k}"
-        out = subprocess.run([sys.executable, "-m", "laughlab", "output=video", "face=facs", "input.duration_s=1",
-                              f"character={GODETTE}", "output.video.supersample=1", f"hydra.run.dir={d}"],
-                             capture_output=True, text=True, timeout=600)
+        args = ["output=video", "face=facs", "input.duration_s=1", f"character={GODETTE}",
+                "output.video.supersample=1", f"hydra.run.dir={d}"]
+        out = (subprocess.run([sys.executable, "-m", "laughlab", *args], capture_output=True, text=True, timeout=600)
+               if k == 0 else laughlab(*args))
         assert out.returncode == 0, out.stderr
         outs.append((d / "video.mp4").read_bytes())
     assert outs[0] == outs[1] and len(outs[0]) > 10_000
 
 
 def test_a_character_in_the_schematic_style_is_one_line(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "laughlab", "output=video", "output.video.style=schematic",
-                          f"character={GODETTE}", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}"],
-                         capture_output=True, text=True, timeout=300)
+    out = laughlab("output=video", "output.video.style=schematic", f"character={GODETTE}", "input.duration_s=1",
+                   f"hydra.run.dir={tmp_path / 'run'}")
     assert out.returncode == 2 and out.stderr.count("\n") == 1 and "style=character only" in out.stderr
     assert not (tmp_path / "run").exists()
 
@@ -86,11 +88,9 @@ def test_stimuli_are_rendered_on_the_avatar_and_say_which(tmp_path):
     frames = {}
     for who, extra in (("avatar", [f"character={GODETTE}"]), ("mannequin", [])):
         d = tmp_path / who
-        out = subprocess.run([sys.executable, "-m", "laughlab", "experiment=stimuli", *extra,
-                              "harness.corpus.profiles=[mild]", "harness.corpus.seeds=1",
-                              "harness.corpus.duration_s=1", "harness.video.supersample=1",
-                              "harness.conditions={laugh_energy: ['scheduler=energy', 'detector=none']}",
-                              f"hydra.run.dir={d}"], capture_output=True, text=True, timeout=600)
+        out = laughlab("experiment=stimuli", *extra, "harness.corpus.profiles=[mild]", "harness.corpus.seeds=1",
+                       "harness.corpus.duration_s=1", "harness.video.supersample=1",
+                       "harness.conditions={laugh_energy: ['scheduler=energy', 'detector=none']}", f"hydra.run.dir={d}")
         assert out.returncode == 0, out.stderr
         doc = json.loads((d / "stimuli.json").read_text())
         assert len(list((d / "stimuli").glob("*.mp4"))) == doc["n_stimuli"] == 1

@@ -1,14 +1,13 @@
 """Issue 28, item 2: ``view RUN --character PATH`` in a real headless Chromium (three.js + three-vrm): the
 avatar's joints are where the retargeting puts them, its morphs follow the face channels, the camera frames it
 above the control bar; with ``--out`` the page opens from the disk (three-vrm inside its import map)."""
-import subprocess
-import sys
 import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
 from laughlab.avatar.channels import face_and_breath
 from laughlab.avatar.expressions import breath_on_bones, breathing_pose, morph_weights
 from laughlab.avatar.load import load_avatar
@@ -108,8 +107,7 @@ def test_the_face_in_the_browser_follows_the_face_channels(viewed, run_dir):
 def test_view_with_a_bad_character_is_one_line(run_dir, tmp_path):
     bad = tmp_path / "not.vrm"
     bad.write_text("hello")
-    out = subprocess.run([sys.executable, "-m", "laughlab", "view", str(run_dir), "--character", str(bad), "--out",
-                          str(tmp_path / "page")], capture_output=True, text=True, timeout=120)
+    out = laughlab("view", str(run_dir), "--character", str(bad), "--out", str(tmp_path / "page"))
     assert out.returncode == 2 and out.stderr == f"laughlab: error: {bad}: is not a glTF file (neither a glTF " \
                                                   f"binary nor glTF JSON)\n"
     assert not (tmp_path / "page").exists()
@@ -132,9 +130,7 @@ def shows_godette(png: bytes, at: dict) -> None:
 @pytest.fixture(scope="module")
 def godette_site(run_dir, tmp_path_factory):
     out = tmp_path_factory.mktemp("avatar-static") / "site"
-    r = subprocess.run([sys.executable, "-m", "laughlab", "view", str(run_dir), "--character",
-                        str(ASSETS / "Godette_vrm_v4.vrm"), "--out", str(out)], capture_output=True, text=True,
-                       timeout=300)
+    r = laughlab("view", str(run_dir), "--character", str(ASSETS / "Godette_vrm_v4.vrm"), "--out", str(out))
     assert r.returncode == 0, r.stderr
     assert r.stdout.startswith(f"laughlab: viewer of {run_dir} written to {out}/: open {out / 'index.html'} in a "
                                f"browser"), r.stdout

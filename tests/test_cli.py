@@ -11,10 +11,13 @@ import pytest
 import soundfile as sf
 from omegaconf import OmegaConf
 
+from inprocess import laughlab  # what a run writes and says, in this process (tests/inprocess.py)
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def laughlab(*args, cwd=None):
+def laughlab_process(*args, cwd=None):
+    """A real ``python -m laughlab`` child, for what only a process shows."""
     return subprocess.run([sys.executable, "-m", "laughlab", *args], capture_output=True, text=True,
                           cwd=cwd or ROOT, timeout=300)
 
@@ -26,7 +29,7 @@ def sha(path):
 @pytest.fixture(scope="module")
 def default_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("runs") / "default"
-    r = laughlab(f"hydra.run.dir={out}", "input.duration_s=12")
+    r = laughlab_process(f"hydra.run.dir={out}", "input.duration_s=12")
     assert r.returncode == 0, r.stderr
     return out
 
@@ -177,7 +180,7 @@ def test_failure_during_the_run_leaves_nothing(tmp_path):
         "def register_extractors(register):\n"
         "    register(Fragile)\n")
     out = tmp_path / "run"
-    r = laughlab(f"plugins_dir={plugdir}", "extractor=fragile", f"hydra.run.dir={out}")
+    r = laughlab_process(f"plugins_dir={plugdir}", "extractor=fragile", f"hydra.run.dir={out}")  # its own registry
     assert "audio went away at frame 700" in one_line_error(r)
     assert not out.exists()
 

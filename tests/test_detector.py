@@ -159,10 +159,9 @@ def test_bundled_model_says_how_it_was_fitted():
 
 # ------------------------------------------------------------------ in the pipeline
 def _laughlab(*args):
-    import subprocess
-    import sys
+    from inprocess import laughlab
 
-    return subprocess.run([sys.executable, "-m", "laughlab", *args], capture_output=True, text=True, timeout=300)
+    return laughlab(*args)
 
 
 @pytest.fixture(scope="module")

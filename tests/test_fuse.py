@@ -65,13 +65,11 @@ def test_the_bundled_fused_head_is_complete_and_a_foreign_one_is_refused(tmp_pat
 
 
 def test_a_missing_fuse_file_is_one_line_and_no_run_folder(tmp_path):
-    import subprocess
-    import sys
+    from inprocess import laughlab
 
     out = tmp_path / "run"
-    r = subprocess.run([sys.executable, "-m", "laughlab", "input.duration_s=1", "detector.fuse=true",
-                        f"detector.fuse_file={tmp_path / 'nope.json'}", f"hydra.run.dir={out}"],
-                       capture_output=True, text=True, timeout=300)
+    r = laughlab("input.duration_s=1", "detector.fuse=true", f"detector.fuse_file={tmp_path / 'nope.json'}",
+                 f"hydra.run.dir={out}")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert "cannot read the fused head" in r.stderr and "nope.json" in r.stderr and not out.exists()
 

@@ -8,6 +8,7 @@ import time
 
 import pytest
 
+from inprocess import laughlab as run  # what a run writes and says, in this process (tests/inprocess.py)
 from laughlab.core import rundir
 from laughlab.core.errors import LaughlabError
 
@@ -23,6 +24,7 @@ NO_PLOTS = ("~output.plots",)
 
 
 def laughlab(*args, **kw):
+    """A real ``python -m laughlab`` child: for two processes at once, signals and kills."""
     return subprocess.Popen([sys.executable, "-m", "laughlab", *args], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True, preexec_fn=_as_from_a_terminal, **kw)
 
@@ -40,8 +42,7 @@ def test_two_runs_into_one_directory_one_wins_and_the_other_says_why(tmp_path):
     assert json.loads((d / "metrics.json").read_text())["seed"] == winner
     assert f"seed={winner}" in (d / ".hydra" / "overrides.yaml").read_text()
     ref = tmp_path / "ref"
-    p = laughlab("input.duration_s=20", f"hydra.run.dir={ref}", f"seed={winner}", *NO_PLOTS)
-    assert p.wait(timeout=300) == 0
+    assert run("input.duration_s=20", f"hydra.run.dir={ref}", f"seed={winner}", *NO_PLOTS).returncode == 0
     for name in ("channels.csv", "events.csv", "motion.bvh", "truth.csv", "input.wav"):
         assert (d / name).read_bytes() == (ref / name).read_bytes(), name
 
@@ -50,18 +51,18 @@ def test_a_folder_of_the_users_files_is_refused_and_overwrite_keeps_them(tmp_pat
     d = tmp_path / "mine"
     d.mkdir()
     (d / "notes.txt").write_text("my notes")
-    p = laughlab("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS)
-    assert p.wait(timeout=120) == 2 and "not empty and not a laughlab run (notes.txt)" in p.stderr.read()
+    p = run("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS)
+    assert p.returncode == 2 and "not empty and not a laughlab run (notes.txt)" in p.stderr
     assert sorted(x.name for x in d.iterdir()) == [".laughlab.lock", "notes.txt"]
-    assert laughlab("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", "output=gltf", *NO_PLOTS).wait(120) == 0
+    assert run("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", "output=gltf", *NO_PLOTS).returncode == 0
     assert (d / "character.glb").exists() and (d / "notes.txt").read_text() == "my notes"
     marker = json.loads((d / rundir.MARKER).read_text())
     assert marker["complete"] and "character.glb" in marker["files"] and "notes.txt" not in marker["files"]
     # overwriting that run removes its files the new run does not write, never the user's
-    assert laughlab("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", *NO_PLOTS).wait(120) == 0
+    assert run("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", *NO_PLOTS).returncode == 0
     assert not (d / "character.glb").exists() and (d / "notes.txt").read_text() == "my notes"
-    p = laughlab("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS)
-    assert p.wait(timeout=120) == 2 and "already holds a run" in p.stderr.read()
+    p = run("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS)
+    assert p.returncode == 2 and "already holds a run" in p.stderr
 
 
 def test_a_crashed_run_leaves_no_stale_lock(tmp_path):
@@ -80,8 +81,7 @@ def test_a_crashed_run_leaves_no_stale_lock(tmp_path):
 
 def test_a_failed_run_leaves_no_folder_behind(tmp_path):
     d = tmp_path / "new"
-    p = laughlab("input=file", f"input.path={tmp_path / 'missing.wav'}", f"hydra.run.dir={d}")
-    assert p.wait(timeout=120) == 2
+    assert run("input=file", f"input.path={tmp_path / 'missing.wav'}", f"hydra.run.dir={d}").returncode == 2
     assert not d.exists()
 
 
@@ -96,7 +96,7 @@ def test_interrupting_a_run_leaves_no_visible_partial_file(tmp_path):
     assert p.wait(timeout=60) == 130
     visible = [x.name for x in d.iterdir() if not x.name.startswith(".")] if d.exists() else []
     assert visible == []  # the sinks removed what they had staged; the folder went with them
-    assert laughlab("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS).wait(120) == 0  # the next run works
+    assert run("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS).returncode == 0  # the next run works
 
 
 def test_sigterm_to_a_run_leaves_no_visible_partial_file(tmp_path):
@@ -110,12 +110,23 @@ def test_sigterm_to_a_run_leaves_no_visible_partial_file(tmp_path):
     assert p.wait(timeout=60) == 130
     visible = [x.name for x in d.iterdir() if not x.name.startswith(".")] if d.exists() else []
     assert visible == []
-    assert laughlab("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS).wait(120) == 0
+    assert run("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS).returncode == 0
 
 
 #: 8 short trials, no figures: the run folder's life is the subject
 SMOKE = ["experiment=smoke", "harness.jobs=1", "harness.showcase=null", "progress=off", "harness.corpus.seeds=2",
          "harness.corpus.duration_s=4", "harness.plots=false"]
+
+
+def _complete_lines(journal):
+    """The journal's lines a reader can take as records (a kill can cut the last one)."""
+    out = []
+    for line in journal.read_text().splitlines():
+        try:
+            out.append(json.loads(line))
+        except ValueError:
+            pass
+    return out
 
 
 def _results_without_timings(path):
@@ -129,18 +140,18 @@ def test_an_experiment_killed_after_some_trials_resumes_to_the_same_results(tmp_
     p = laughlab(*SMOKE, f"hydra.run.dir={d}")
     journal = d / "metrics.jsonl"
     deadline = time.time() + 120
-    while not (journal.exists() and len(journal.read_text().splitlines()) >= 3):
+    while not (journal.exists() and len(_complete_lines(journal)) >= 3):
         assert time.time() < deadline and p.poll() is None, "the experiment did not journal its trials"
         time.sleep(0.05)
     p.kill()
     p.wait()
-    done = len(journal.read_text().splitlines())
+    done = len(_complete_lines(journal))  # a line the kill cut is not a trial done
     assert 3 <= done < 8
     # how the rest is run (in parallel, with the figure) is not what the experiment is: it still resumes
-    again = laughlab(*SMOKE, "harness.jobs=2", "harness.plots=true", f"hydra.run.dir={d}")
-    assert again.wait(timeout=300) == 0
-    assert f"resuming: {done} of 8 trials were done, running {8 - done}" in again.stderr.read()
-    assert laughlab(*SMOKE, f"hydra.run.dir={ref}").wait(timeout=300) == 0
+    again = run(*SMOKE, "harness.jobs=2", "harness.plots=true", f"hydra.run.dir={d}")
+    assert again.returncode == 0, again.stderr
+    assert f"resuming: {done} of 8 trials were done, running {8 - done}" in again.stderr
+    assert run(*SMOKE, f"hydra.run.dir={ref}").returncode == 0
     assert (d / "plots" / "metrics.png").exists() and not (ref / "plots").exists()
     assert _results_without_timings(d / "results.json") == _results_without_timings(ref / "results.json")
     leftovers = list((d / "trials").glob("**/*")) if (d / "trials").exists() else []
@@ -157,24 +168,23 @@ def test_a_changed_config_does_not_mix_into_an_interrupted_experiment(tmp_path):
         time.sleep(0.05)
     p.kill()
     p.wait()
-    other = laughlab(*SMOKE, "harness.corpus.duration_s=7", f"hydra.run.dir={d}")
-    assert other.wait(timeout=120) == 2
-    assert "interrupted experiment with another configuration" in other.stderr.read()
+    other = run(*SMOKE, "harness.corpus.duration_s=7", f"hydra.run.dir={d}")
+    assert other.returncode == 2
+    assert "interrupted experiment with another configuration" in other.stderr
 
 
 def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):
     d = tmp_path / "sweep"
     args = ["-m", "seed=0,1", "input.duration_s=1", f"hydra.sweep.dir={d}", *NO_PLOTS]
-    first = laughlab(*args)
-    assert first.wait(timeout=300) == 0
+    assert run(*args).returncode == 0
     before = (d / "0" / "channels.csv").read_bytes()
     import shutil
 
     shutil.rmtree(d / "1")  # as if the sweep had been stopped before its second job
-    again = laughlab(*args)
-    assert again.wait(timeout=300) == 0
-    out = again.stdout.read()
+    again = run(*args)
+    assert again.returncode == 0, again.stderr
+    out = again.stdout
     assert out.count("already holds this job's finished run; skipped") == 1 and f"{d / '1'}/:" in out
     assert (d / "0" / "channels.csv").read_bytes() == before and (d / "1" / "channels.csv").exists()
-    changed = laughlab("-m", "seed=0,1", "input.duration_s=2", f"hydra.sweep.dir={d}")
-    assert changed.wait(timeout=300) != 0 and "already holds a run" in changed.stderr.read()
+    changed = run("-m", "seed=0,1", "input.duration_s=2", f"hydra.sweep.dir={d}")
+    assert changed.returncode != 0 and "already holds a run" in changed.stderr

@@ -4,13 +4,12 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
 from laughlab.core.config import compose_config
 from laughlab.core.errors import LaughlabError
 from laughlab.io.video import decode_audio, probe
@@ -96,9 +95,8 @@ def test_orders_for_psychopy_and_jspsych(rendered):
 def test_riddle_preset_through_the_command_line(tmp_path):
     """SS/SL/LS/LL: smiles are silent, laughs are heard; one trial per condition with role and response."""
     out = tmp_path / "riddle"
-    r = subprocess.run([sys.executable, "-m", "laughlab", "experiment=stimuli", "harness.preset=riddle", *SMALL,
-                        "harness.corpus.profiles=[intense,mild]", f"hydra.run.dir={out}"],
-                       capture_output=True, text=True, cwd=tmp_path)
+    r = laughlab("experiment=stimuli", "harness.preset=riddle", *SMALL, "harness.corpus.profiles=[intense,mild]",
+                 f"hydra.run.dir={out}", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     rows = read_csv(out / "manifest.csv")
     assert [r["condition"] for r in rows] == ["SS", "SS", "SL", "SL", "LS", "LS", "LL", "LL"]

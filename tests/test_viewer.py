@@ -1,14 +1,13 @@
 """``python -m laughlab view``: the character in a real headless Chromium, in sync with the audio (issue 13, item 3)."""
 import io
 import json
-import subprocess
-import sys
 import threading
 
 import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
 from laughlab.core import pipeline
 from laughlab.core.config import compose_config
 from laughlab.viewer import server as V
@@ -85,13 +84,11 @@ def test_the_control_bar_never_covers_the_character(page):
 
 
 def test_bad_input_is_one_line(tmp_path, run_dir):
-    r = subprocess.run([sys.executable, "-m", "laughlab", "view", str(tmp_path / "nope")], capture_output=True,
-                       text=True)
+    r = laughlab("view", str(tmp_path / "nope"))
     assert r.returncode == 2 and r.stderr.strip().count("\n") == 0 and "no run directory" in r.stderr
     (tmp_path / "half").mkdir()
     (tmp_path / "half" / "channels.csv").write_text("time\n0\n")
-    r = subprocess.run([sys.executable, "-m", "laughlab", "view", str(tmp_path / "half")], capture_output=True,
-                       text=True)
+    r = laughlab("view", str(tmp_path / "half"))
     assert r.returncode == 2 and "motion.bvh, events.csv" in r.stderr and "Traceback" not in r.stderr
 
 
@@ -171,8 +168,7 @@ def test_a_page_too_large_to_inline_says_on_the_page_how_to_serve_it(run_dir, tm
 
 
 def test_view_out_says_how_to_open_the_page(run_dir, tmp_path):
-    r = subprocess.run([sys.executable, "-m", "laughlab", "view", str(run_dir), "--out", str(tmp_path / "s")],
-                       capture_output=True, text=True)
+    r = laughlab("view", str(run_dir), "--out", str(tmp_path / "s"))
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == (f"laughlab: viewer of {run_dir} written to {tmp_path / 's'}/: open "
                                 f"{tmp_path / 's' / 'index.html'} in a browser, or put the folder on any web server "

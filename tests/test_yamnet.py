@@ -8,6 +8,7 @@ import pytest
 import soundfile as sf
 from hypothesis import given, settings, strategies as st
 
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
 from laughlab.core.bases import Context
 from laughlab.core.frame import Frame
 from laughlab.detector import segments as S
@@ -511,8 +512,7 @@ def test_detect_writes_three_formats_that_read_back(tmp_path):
     sf.write(tmp_path / "in" / "a.wav", x, sr)
     sf.write(tmp_path / "in" / "short8k.wav", np.zeros(2000), 8000)     # 0.25 s at 8 kHz: padded, still answers
     out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "laughlab", "detect", str(tmp_path / "in"), "--out", str(out)],
-                       capture_output=True, text=True)
+    r = laughlab("detect", str(tmp_path / "in"), "--out", str(out))
     assert r.returncode == 0, r.stderr
     assert {p.name for p in out.iterdir()} == {"segments.csv", "a.txt", "a.TextGrid", "short8k.txt",
                                                "short8k.TextGrid"}
@@ -558,8 +558,7 @@ def test_elan_file_holds_the_segments_in_milliseconds(tmp_path):
 def test_detect_bad_input_is_one_line(tmp_path, args, message):
     if "x" in args:
         sf.write(tmp_path / "x.wav", np.zeros(1600), 16000)
-    r = subprocess.run([sys.executable, "-m", "laughlab", "detect", *args, "--out", str(tmp_path / "o")],
-                       capture_output=True, text=True, cwd=tmp_path)
+    r = laughlab("detect", *args, "--out", str(tmp_path / "o"), cwd=tmp_path)
     assert r.returncode == 2
     assert r.stderr.strip().splitlines() == [r.stderr.strip()] and message in r.stderr
     assert not (tmp_path / "o").exists()
