@@ -15,9 +15,13 @@ Windows of 0.975 s end every 0.1 s (causal: a window ending at ``t`` holds audio
 ``benchmarks/bench_detector.py``'s held-out sets.  Printed per score and threshold: bouts whose score reaches
 the threshold between their start and 1 s after their end, the median time from a bout's start to that
 window's end, the share within 0.3 s, and openings (the score rising through the threshold) outside bouts
-per 10 minutes.  Writes ``benchmarks/results/yamnet_local.json``.  Nothing here is fitted.
+per 10 minutes.  Then, for each score, the threshold is chosen on the train split (the head's 48 scenes,
+``laughlab.detector.yamnet_fit.train_scenes``, a window every 0.25 s as live): the lowest of 0.05-0.4 with no
+more openings outside laughter than the file's own score at the live gate's ``class_open`` (0.1); the test
+sets are scored again at those thresholds, a window every 0.25 s.  Writes
+``benchmarks/results/yamnet_local.json``.
 
-Run: ``python benchmarks/bench_yamnet_local.py`` (about 4 minutes on one core).
+Run: ``python benchmarks/bench_yamnet_local.py [--scenes 48]`` (about 7 minutes on one core).
 """
 from __future__ import annotations
 
@@ -40,6 +44,9 @@ from laughlab.detector.yamnet_model import (WINDOW, Yamnet, _Layout, _Runner, cl
 
 HOP_S = 0.1
 THRESHOLDS = (0.05, 0.1, 0.15, 0.2, 0.3)
+#: the live gate's hop and its class_open (conf/detector/yamnet.yaml), and the thresholds tried on the train split
+LIVE_HOP_S, CLASS_OPEN = 0.25, 0.1
+CHOICES = tuple(np.round(np.arange(0.05, 0.401, 0.025), 3))
 #: the bundled file's pre-pool map (tensor 120, (1, 3, 2, 1024)), the dense layer's weights and bias
 MAP_OPS, MAP_IN, MAP_OUT, DENSE_W, DENSE_B = (19, 57), 93, 120, 12, 1
 
@@ -119,33 +126,75 @@ def summarise(rows: list[dict], key: str, thr: float) -> dict:
             "openings_per_10_min": opened / dur * 600 if dur else 0.0}
 
 
-def main() -> None:
-    sets = B.held_out_sets()
-    local = LocalScores()
-    data = {}
-    for name in ("real", "between", "speech"):
-        rows = []
-        for wav in sorted(sets[name]):
-            x, sr = sf.read(wav, dtype="float64", always_2d=True)
-            y16 = to_16k(x.mean(axis=1), sr).astype(np.float32)
-            ends = np.arange(int(0.25 * 16000), len(y16) + 1, int(HOP_S * 16000))
-            rows.append({"file": wav.name, "t": (ends / 16000).tolist(), "bouts": bouts(wav),
-                         **{k: v.tolist() for k, v in local(y16, ends).items()}})
-        data[name] = rows
-    y16 = to_16k(sf.read(sorted(sets["real"])[0], dtype="float64", always_2d=True)[0].mean(axis=1), 44100)
-    worst = local.check(y16.astype(np.float32), np.arange(16000, len(y16) + 1, 4000)[:8])
-    table = {key: {str(thr): {name: summarise(data[name], key, thr) for name in data} for thr in THRESHOLDS}
-             for key in ("global", "last2", "last")}
-    print(f"global against the whole file's score: largest difference {worst:.2g}")
+def score_rows(local: LocalScores, items, hop_s: float) -> list[dict]:
+    """``items``: (name, audio, sample rate, bouts); per item the window ends (s) and the three scores."""
+    rows = []
+    for name, x, sr, truth in items:
+        y16 = to_16k(x, sr).astype(np.float32)
+        ends = np.arange(int(0.25 * 16000), len(y16) + 1, int(round(hop_s * 16000)))
+        rows.append({"file": name, "t": (ends / 16000).tolist(), "bouts": truth,
+                     **{k: v.tolist() for k, v in local(y16, ends).items()}})
+    return rows
+
+
+def _wavs(paths):
+    for wav in sorted(paths):
+        x, sr = sf.read(wav, dtype="float64", always_2d=True)
+        yield wav.name, x.mean(axis=1), sr, bouts(wav)
+
+
+def _train(n_scenes: int):
+    from laughlab.detector.yamnet_fit import train_scenes
+
+    for i, (x, sr, rows) in enumerate(train_scenes(n_scenes)):
+        yield f"train-{i:02d}", x, sr, [(r["onset_s"], r["offset_s"]) for r in rows if r["kind"] == "bout"]
+
+
+def _print(table: dict) -> None:
     for key, by_thr in table.items():
         for thr, r in by_thr.items():
             cells = [f"{n}: {v['found']}/{v['bouts']}, {v['latency_median_s'] or float('nan'):.2f} s, "
                      f"{v['within_0_3_s']:.0%} in 0.3 s, {v['openings_per_10_min']:.1f}/10 min"
                      if v["bouts"] else f"{n}: {v['openings_per_10_min']:.1f}/10 min" for n, v in r.items()]
-            print(f"{key:6s} {float(thr):.2f} | " + " | ".join(cells))
+            print(f"{key:6s} {float(thr):.3f} | " + " | ".join(cells))
+
+
+def main() -> None:
+    import argparse
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--scenes", type=int, default=48, help="train scenes for the choice of thresholds (48: the head's)")
+    ns = ap.parse_args()
+    sets = B.held_out_sets()
+    local = LocalScores()
+    test = {name: score_rows(local, _wavs(sets[name]), HOP_S) for name in ("real", "between", "speech")}
+    y16 = to_16k(sf.read(sorted(sets["real"])[0], dtype="float64", always_2d=True)[0].mean(axis=1), 44100)
+    worst = local.check(y16.astype(np.float32), np.arange(16000, len(y16) + 1, 4000)[:8])
+    table = {key: {str(thr): {name: summarise(test[name], key, thr) for name in test} for thr in THRESHOLDS}
+             for key in ("global", "last2", "last")}
+    print(f"global against the whole file's score: largest difference {worst:.2g}")
+    print(f"test split, a window every {HOP_S} s:")
+    _print(table)
+    # thresholds chosen on the train split (a window every 0.25 s, as live): for each score the lowest with no more
+    # openings outside laughter than the file's own score at the live gate's class_open (0.1); then the test split
+    train = score_rows(local, _train(ns.scenes), LIVE_HOP_S)
+    limit = summarise(train, "global", CLASS_OPEN)["openings_per_10_min"]
+    chosen = {}
+    for key in ("global", "last2", "last"):
+        ok = [thr for thr in CHOICES if summarise(train, key, thr)["openings_per_10_min"] <= limit + 1e-9]
+        chosen[key] = float(min(ok)) if ok else float(max(CHOICES))
+    live = {name: score_rows(local, _wavs(sets[name]), LIVE_HOP_S) for name in ("real", "between", "speech")}
+    at_live = {key: {f"{thr:g}": {"train": summarise(train, key, thr),
+                                  **{name: summarise(live[name], key, thr) for name in live}}}
+               for key, thr in chosen.items()}
+    print(f"thresholds chosen on {ns.scenes} train scenes ({limit:.1f} openings per 10 min, the file's score at "
+          f"{CLASS_OPEN}); a window every {LIVE_HOP_S} s:")
+    _print(at_live)
     out = HERE / "results" / "yamnet_local.json"
     out.parent.mkdir(exist_ok=True)
-    out.write_text(json.dumps({"hop_s": HOP_S, "check_max_abs_diff": worst, "table": table}, indent=1) + "\n")
+    out.write_text(json.dumps({"hop_s": HOP_S, "check_max_abs_diff": worst, "table": table,
+                               "chosen_on_train": chosen, "live_hop_s": LIVE_HOP_S, "at_live_hop": at_live},
+                              indent=1) + "\n")
 
 
 if __name__ == "__main__":
