@@ -225,3 +225,25 @@ def test_on_bad_skip_runs_the_rest_and_records_what_it_skipped(tmp_path):
     assert doc["corpus"]["inputs"] == ["rec-good1", "rec-good2"]
     assert sorted(s["file"] for s in doc["corpus"]["skipped"]) == ["cut.ogg", "notes.wav", "overlap.wav"]
     assert all(s["reason"] for s in doc["corpus"]["skipped"])
+
+
+def test_an_inputs_hash_is_of_its_overrides_or_its_bytes_not_of_its_id(tmp_path):
+    """A sweep runs its experiments in one process, where one id can name two inputs (the hash was cached by id:
+    the second experiment journaled the first one's hash, and an interrupted one resumed fewer trials)."""
+    import hashlib
+    import os
+
+    from laughlab.harness.corpus import Item
+    from laughlab.harness.runner import input_hash
+
+    short = Item("mild-s00", ("input.profile=mild", "input.seed=0", "input.duration_s=4"), "mild", 0, None)
+    long = Item("mild-s00", ("input.profile=mild", "input.seed=0", "input.duration_s=7"), "mild", 0, None)
+    assert input_hash(short) == hashlib.sha256(json.dumps(list(short.overrides)).encode()).hexdigest()
+    assert input_hash(long) != input_hash(short)
+    wav = tmp_path / "a.wav"
+    wav.write_bytes(b"first")
+    rec = Item("rec-a", ("input=file", f"input.path={wav}"), "recording", None, None)
+    assert input_hash(rec) == hashlib.sha256(b"first").hexdigest()
+    wav.write_bytes(b"second, longer")                       # the same file name, other bytes
+    os.utime(wav, ns=(1, 1))
+    assert input_hash(rec) == hashlib.sha256(b"second, longer").hexdigest()

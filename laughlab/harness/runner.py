@@ -206,22 +206,27 @@ def trial_hash(trial: Trial) -> str:
                           .encode()).hexdigest()[:16]
 
 
-_INPUT_HASHES: dict = {}
+#: file hashes already computed, by (path, size, mtime): one read per recording per process
+_FILE_HASHES: dict = {}
 
 
 def input_hash(item: Item) -> str:
-    """sha256 of a recording's bytes (once per file), or of a synthetic input's overrides."""
-    if item.id not in _INPUT_HASHES:
-        path = next((o.split("=", 1)[1] for o in item.overrides if o.startswith("input.path=")), None)
+    """sha256 of a recording's bytes, or of a synthetic input's overrides.
+
+    Keyed by what the hash is of, not by the input's id: a sweep runs its experiments in one process, and the
+    same id (``mild-s00``) can be another input there (another ``harness.corpus.duration_s``)."""
+    path = next((o.split("=", 1)[1] for o in item.overrides if o.startswith("input.path=")), None)
+    if path is None or not Path(path).exists():
+        return hashlib.sha256(json.dumps(list(item.overrides)).encode()).hexdigest()
+    st = Path(path).stat()
+    key = (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+    if key not in _FILE_HASHES:
         h = hashlib.sha256()
-        if path is not None and Path(path).exists():
-            with open(path, "rb") as f:
-                for block in iter(lambda: f.read(1 << 20), b""):
-                    h.update(block)
-        else:
-            h.update(json.dumps(list(item.overrides)).encode())
-        _INPUT_HASHES[item.id] = h.hexdigest()
-    return _INPUT_HASHES[item.id]
+        with open(path, "rb") as f:
+            for block in iter(lambda: f.read(1 << 20), b""):
+                h.update(block)
+        _FILE_HASHES[key] = h.hexdigest()
+    return _FILE_HASHES[key]
 
 
 def write_records(path: Path, records: list[dict]) -> None:
