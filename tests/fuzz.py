@@ -55,8 +55,9 @@ class Outcome:
 
 @contextlib.contextmanager
 def _sinks_in_this_process():
-    """``LAUGHLAB_WORKERS=0`` while a case runs (every sink in this process: no fork of a test worker), and
-    as it was afterwards, so that the child processes other tests start run as a user's would."""
+    """``LAUGHLAB_WORKERS=0`` while a case runs, unless the environment sets it (every sink in this process: no
+    fork of a test worker); unset again afterwards, so that the child processes other tests start run as a
+    user's would."""
     before = os.environ.get("LAUGHLAB_WORKERS")
     os.environ["LAUGHLAB_WORKERS"] = "0" if before is None else before
     try:

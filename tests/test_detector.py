@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
 from laughlab.detector.model import (FEATURES, SILENCE_DBFS, FeatureStream, Gate, GateParams, Model, apply_gate,
                                probabilities)
 from laughlab.core.frame import Frame
@@ -158,12 +159,6 @@ def test_bundled_model_says_how_it_was_fitted():
 
 
 # ------------------------------------------------------------------ in the pipeline
-def _laughlab(*args):
-    from inprocess import laughlab
-
-    return laughlab(*args)
-
-
 @pytest.fixture(scope="module")
 def gated_and_plain(tmp_path_factory):
     import pandas as pd
@@ -171,7 +166,7 @@ def gated_and_plain(tmp_path_factory):
     d = tmp_path_factory.mktemp("det")
     out = {}
     for det in ("laugh", "none"):
-        r = _laughlab(f"hydra.run.dir={d / det}", "input.duration_s=10", "input.profile=intense",
+        r = laughlab(f"hydra.run.dir={d / det}", "input.duration_s=10", "input.profile=intense",
                       f"detector={det}", "output=trial")
         assert r.returncode == 0, r.stderr
         out[det] = pd.read_csv(d / det / "channels.csv")
@@ -199,7 +194,7 @@ def test_the_gate_scales_the_drive_and_none_passes_it(gated_and_plain):
                                  "add detector=laugh"),
 ])
 def test_detector_errors_are_one_line(tmp_path, args, msg):
-    r = _laughlab(f"hydra.run.dir={tmp_path / 'x'}", "input.duration_s=1", *args)
+    r = laughlab(f"hydra.run.dir={tmp_path / 'x'}", "input.duration_s=1", *args)
     assert r.returncode == 2
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and msg in lines[0], r.stderr
