@@ -25,7 +25,6 @@ Run: ``python benchmarks/bench_yamnet_local.py [--scenes 48]`` (about 7 minutes 
 """
 from __future__ import annotations
 
-import csv
 import json
 import sys
 from pathlib import Path
@@ -78,29 +77,26 @@ class LocalScores:
         return (1.0 / (1.0 + np.exp(-z))).max(axis=1)
 
     def __call__(self, y16: np.ndarray, ends: np.ndarray) -> dict[str, np.ndarray]:
-        maps = []
-        for e in ends:
-            w = y16[max(0, e - WINDOW):e]
-            w = np.concatenate([np.zeros(WINDOW - len(w), np.float32), w])  # silence before the start
-            maps.append(self.map(self.model.logmel(frames(w)).reshape(1, 96, 64, 1))[0])
-        m = np.array(maps)  # (windows, 3, 2, 1024)
+        m = np.array([self.map(self.model.logmel(frames(_window(y16, e))).reshape(1, 96, 64, 1))[0]
+                      for e in ends])  # (windows, 3, 2, 1024)
         return {"global": self._classes(m.mean(axis=(1, 2))), "last2": self._classes(m[:, 1:].mean(axis=(1, 2))),
                 "last": self._classes(m[:, 2].mean(axis=1))}
 
     def check(self, y16: np.ndarray, ends: np.ndarray) -> float:
         """Largest difference between ``global`` and the whole file's laughter classes on these windows."""
         ours = self(y16, ends)["global"]
-        theirs = [self.model.scores(np.concatenate([np.zeros(max(0, WINDOW - e), np.float32),
-                                                    y16[max(0, e - WINDOW):e]]))[self.idx].max() for e in ends]
+        theirs = [self.model.scores(_window(y16, e))[self.idx].max() for e in ends]
         return float(np.max(np.abs(ours - np.array(theirs))))
 
 
+def _window(y16: np.ndarray, end: int) -> np.ndarray:
+    """The window of 16 kHz samples ending at ``end``, silence before the start."""
+    w = y16[max(0, end - WINDOW):end]
+    return np.concatenate([np.zeros(WINDOW - len(w), np.float32), w])
+
+
 def bouts(wav: Path) -> list[tuple[float, float]]:
-    t = wav.with_name(wav.stem + ".truth.csv")
-    if not t.exists():
-        return []
-    with t.open(newline="") as fh:
-        return [(float(r["onset_s"]), float(r["offset_s"])) for r in csv.DictReader(fh) if r["kind"] == "bout"]
+    return [(r["onset_s"], r["offset_s"]) for r in B.truth_rows(wav) if r["kind"] == "bout"]
 
 
 def _openings(t: np.ndarray, s: np.ndarray, thr: float, truth) -> int:

@@ -127,8 +127,7 @@ class Ahead:
         from collections import deque
 
         rs = Resampler16k(sr)
-        tail = np.zeros(WINDOW, np.float32)          # the 16 kHz samples before ``base`` (zeros before the start)
-        base = 0                                     # 16 kHz sample index of the sample after ``tail``
+        tail = np.zeros(WINDOW, np.float32)          # the last WINDOW samples at 16 kHz (zeros before the start)
         kept: list = []                              # the blocks since the last window
         raws, pieces, states = [], [], []            # per window of the batch: its input samples, 16 kHz, state
         running: deque = deque()                     # (raws, states, windows' ends, y, future of scores)
@@ -153,7 +152,6 @@ class Ahead:
                 y = np.concatenate([tail, *pieces])
                 ends = list(np.cumsum([len(q) for q in pieces]) + WINDOW)
                 running.append((raws, states, ends, y, pool.submit(_scores_here, np.clip(y, -1.0, 1.0), ends)))
-                base += len(y) - WINDOW
                 tail = y[-WINDOW:]
                 raws, pieces, states = [], [], []
                 while len(running) > NET_THREADS and not self._flush(running.popleft()):
