@@ -7,7 +7,6 @@ against 0.1 load unchanged.  New code imports the public names from ``laughlab``
 from __future__ import annotations
 
 import importlib
-import importlib.abc
 import importlib.util
 import sys
 import warnings
@@ -29,8 +28,13 @@ MOVED = {
 }
 
 
-class _Alias(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """Resolve ``laughlab.<old>`` to the module it moved to."""
+class _Alias:
+    """Resolve ``laughlab.<old>`` to the module it moved to.
+
+    A finder and loader by protocol (``find_spec``, ``create_module``, ``exec_module``), not by the
+    ``importlib.abc`` classes: importing those pulls in tempfile, random and typing (40 ms here), all before
+    ``python -m laughlab`` can install its signal handler.
+    """
 
     def find_spec(self, fullname, path=None, target=None):
         pkg, _, name = fullname.partition(".")

@@ -305,10 +305,31 @@ MOMENTS = [(signal.SIGINT if i % 2 else signal.SIGTERM, round(d, 2))
            for i, d in enumerate(np.random.default_rng(19).uniform(0.05, 1.8, 10))]
 
 
+def _wait_until_it_handles_signals(pid: int, timeout: float = 60.0) -> None:
+    """Until the child catches SIGTERM, i.e. ``python -m laughlab`` has installed its handler (Linux's
+    ``/proc/PID/status``, ``SigCgt``). Before that the interpreter is still starting (``site``, the package's
+    ``__init__``), where no program can answer a signal: on this loaded machine that took up to 0.16 s, and a
+    Ctrl-C there is Python's own KeyboardInterrupt traceback. Where there is no /proc, no wait."""
+    bit = 1 << (signal.SIGTERM - 1)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            with open(f"/proc/{pid}/status", encoding="ascii") as fh:
+                status = fh.read()
+        except OSError:
+            return
+        caught = next((ln.split()[1] for ln in status.splitlines() if ln.startswith("SigCgt:")), None)
+        if caught is None or int(caught, 16) & bit:
+            return
+        time.sleep(0.002)
+    raise AssertionError(f"the child did not install its signal handler within {timeout} s")
+
+
 @pytest.mark.parametrize("sig, delay", MOMENTS)
 def test_a_signal_at_some_moment(tmp_path, sig, delay):
     run_dir = tmp_path / "run"
     p = laughlab("input.duration_s=300", f"hydra.run.dir={run_dir}", start_new_session=True)
+    _wait_until_it_handles_signals(p.pid)
     time.sleep(delay)
     os.killpg(p.pid, sig)
     out = child_outcome(p)
