@@ -3,10 +3,11 @@
 ``fused`` (``detector=yamnet_fused``; ``fused-0.5x2`` and ``fused-0.7x1`` are two more points of its train curve).
 
 Runs the default live pipeline (``benchmarks/bench_detector.py``'s ``run_pipeline``, the metrics of
-``experiment=detector_eval``) on the sets ``speech``, ``mixed``, ``between`` and ``real`` of the test split once per
-rule, and prints per rule: clip starts per minute of speech, bouts answered (per-file mean and pooled),
+``experiment=detector_eval``) on the sets ``speech``, ``mixed``, ``between``, ``real`` and ``others`` of the test split
+once per rule, and prints per rule: clip starts per minute of speech, bouts answered (per-file mean and pooled),
 the gate's frame F1, the first clip after a bout starts (median), false starts in ``mixed`` (on speech,
-on other sounds), and clip starts in the second after a bout ended.  Writes
+on other sounds), clip starts in the second after a bout ended, and the other human sounds alone that start a
+clip.  Writes
 ``benchmarks/results/yamnet_rules.json``.  The thresholds were chosen on the train split
 (``python -m laughlab.detector.yamnet_fit --rules``); nothing here feeds back into them.
 
@@ -35,6 +36,10 @@ from laughlab.harness.trialdata import TrialData  # noqa: E402
 
 RULES = {
     "either": [],   # the defaults of conf/detector/yamnet.yaml
+    # the veto of windows where YAMNet hears another human sound more than laughter (detector.veto): the default
+    # vetoes the classes' score; none (the default before 2026-11-26) and both (the head's probability too)
+    "either-noveto": ["detector.veto=none"],
+    "either-vetoboth": ["detector.veto=both"],
     "classes": ["detector.rule=classes"],
     "head": ["detector.rule=head", "detector.hop_s=0.5", "detector.open_windows=2", "detector.close_quiet_s=0"],
     # detector=yamnet_fused: the fused head (YAMNet with the feature MLP's cues) at the rule chosen on the train split
@@ -44,7 +49,7 @@ RULES = {
     "fused-0.5x2": ["detector.fuse=true", "detector.open_at=0.5", "detector.open_windows=2"],
     "fused-0.7x1": ["detector.fuse=true", "detector.open_at=0.7", "detector.open_windows=1"],
 }
-SETS = ("speech", "mixed", "between", "real")
+SETS = ("speech", "mixed", "between", "real", "others")
 OTHER = ("cough", "sneeze", "scream", "music", "noise", "vocal")
 
 
@@ -119,11 +124,14 @@ def main() -> None:
                     "gate_open_median_s_mean": _mean(ms, "detection_latency_median_s"),
                     "first_clip_median_s_pooled": float(np.median(delays)) if delays else float("nan"),
                     "false_starts_per_min_mean": _mean(ms, "false_starts_per_min"),
+                    "started": sum(int(m.get("human_sounds_starting_a_clip", 0) > 0) for m in ms),
+                    "started_by_kind": B.by_kind([w for k, w in jobs if k == s],
+                                                 [m.get("human_sounds_starting_a_clip", 0) > 0 for m in ms]),
                     "by_file": [{"file": w.stem, **{k: m.get(k) for k in ("bouts_answered", "false_starts_per_min",
                                                                            "false_starts_speech_per_min")}}
                                 for (k, w), (_, m, _) in zip(jobs, got) if k == s]}
         res[rule] = {"overrides": RULES[rule], "sets": r}
-        sp, mx, re, bt = r["speech"], r["mixed"], r["real"], r["between"]
+        sp, mx, re, bt, ot = r["speech"], r["mixed"], r["real"], r["between"], r["others"]
         print(f"{rule}: speech {sp['starts'] / max(sp['minutes'], 1e-9):.2f} starts/min; real answered "
               f"{re['bouts_answered_mean']:.2f} ({re['answered']}/{re['bouts']}), F1 {re['detector_f1_mean']:.2f}, "
               f"first clip {re['first_clip_median_s_mean']:.2f} s (pooled {re['first_clip_median_s_pooled']:.2f} s); "
@@ -131,7 +139,8 @@ def main() -> None:
               f"speech {mx['false_speech']} ({mx['speech_min']:.1f} min), on other sounds {mx['false_other']} "
               f"({mx['other_min']:.1f} min); between speech answered {bt['answered']}/{bt['bouts']}, false starts on "
               f"speech {bt['false_speech']} ({bt['speech_min']:.1f} min), first clip {bt['first_clip_median_s_pooled']:.2f} s"
-              f"; starts in the second after a bout: {mx['late'] + re['late']}",
+              f"; starts in the second after a bout: {mx['late'] + re['late']}; other human sounds alone starting a "
+              f"clip: {ot['started']}/{ot['files']}",
               flush=True)
     (HERE / "results").mkdir(exist_ok=True)
     (HERE / "results" / "yamnet_rules.json").write_text(json.dumps({"data": "test split", **res}, indent=1) + "\n")

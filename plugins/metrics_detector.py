@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from laughlab import hookimpl
+from laughlab.corpora.mixed import HUMAN_KINDS
 from laughlab.harness.metrics import finite_percentile, metric
 
 #: a clip start up to this long after a bout's end still answers the bout (s)
@@ -176,8 +177,26 @@ def _false_starts_on(kind: str):
     return metric(fn.__name__, False, "starts/min")(fn)
 
 
+@metric("human_sounds_starting_a_clip", False, "fraction")
+def human_sounds_starting_a_clip(trial):
+    """Fraction of the human sounds that are neither laughter nor speech (the truth's cough, sneeze, scream,
+    breath and vocal rows: cries, moans, grunts, shouts) during which, or up to 1 s after which, a clip starts
+    outside every bout (issue 27: at most 1 in 10)."""
+    o = trial.truth.others if trial.truth is not None else None
+    if o is None or o.empty:
+        return float("nan")
+    ev = o[o.kind.isin(HUMAN_KINDS)]
+    if ev.empty:
+        return float("nan")
+    false, _ = _non_laughter(trial)
+    starts = trial.starts().time.to_numpy()[false]
+    return float(np.mean([bool(((starts >= on) & (starts <= off + ANSWER_TAIL_S)).any())
+                          for on, off in ev[["onset_s", "offset_s"]].itertuples(index=False)]))
+
+
 ALL = [detector_f1, detector_precision, detector_recall, detection_latency_median_s, detection_latency_p90_s,
-       probability_latency_median_s, probability_in_time, false_starts_per_min, bouts_answered] + [_false_starts_on(k) for k in KINDS]
+       probability_latency_median_s, probability_in_time, false_starts_per_min, bouts_answered,
+       human_sounds_starting_a_clip] + [_false_starts_on(k) for k in KINDS]
 
 
 @hookimpl

@@ -76,3 +76,19 @@ def test_false_starts_per_kind_by_hand():
     assert m["false_starts_speech_per_min"] == pytest.approx(2 / 0.1)
     assert m["false_starts_cough_per_min"] == pytest.approx(1 / (0.5 / 60))
     assert np.isnan(m["false_starts_music_per_min"])                                     # no music in the truth
+
+
+def test_human_sounds_starting_a_clip_by_hand():
+    import pandas as pd
+
+    tr = truth([(2.0, 6.0, 1.0)])
+    tr.others = pd.DataFrame([("cough", -1, 8.0, 8.5, 0.0), ("vocal", -1, 10.0, 10.4, 0.0),
+                              ("sneeze", -1, 13.0, 13.3, 0.0), ("speech", -1, 15.0, 19.0, 0.0)],
+                             columns=["kind", "bout", "onset_s", "offset_s", "intensity"])
+    ev = [(6.5, "start", "giggle", 20, 1.0, ""),    # the bout's tail: answers the laugh, not a sound
+          (9.3, "start", "sway", 10, 1.0, ""),      # 0.8 s after the cough: within its 1 s tail
+          (16.0, "start", "rofl", 90, 1.0, "")]     # in speech: not a human sound of this metric
+    m = compute(trial(tr=tr, ev=ev, laugh_gate=np.ones(200)))
+    assert m["human_sounds_starting_a_clip"] == pytest.approx(1 / 3)   # the cough; not the vocal, not the sneeze
+    tr.others = tr.others[tr.others.kind == "speech"]
+    assert np.isnan(compute(trial(tr=tr, ev=ev, laugh_gate=np.ones(200)))["human_sounds_starting_a_clip"])

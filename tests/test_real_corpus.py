@@ -52,6 +52,27 @@ def test_held_out_laughs_open_the_gate(model):
     assert np.mean(found) >= 0.35                           # measured 0.41 (34 bouts)
 
 
+def test_the_others_set_is_every_other_human_sound_of_the_split_alone():
+    import soundfile as sf
+
+    from laughlab.corpora.fetch import load_lock
+    from laughlab.corpora.mixed import HUMAN_KINDS
+
+    lock = load_lock()["files"]
+    want = sorted(f"{e['kind']}__{iid.replace('/', '__')}" for iid, e in lock.items()
+                  if e["kind"] in HUMAN_KINDS and e["split"] == "test")
+    wavs = write_set(corpus_dir() / "sets" / "others-test", "others", "test", 6, 100.0, [], 0)  # as the harness
+    assert sorted(w.stem for w in wavs) == want and len(want) >= 40
+    for w in wavs[:: max(1, len(wavs) // 12)]:
+        iid = w.stem.split("__", 1)[1].replace("__", "/")
+        x, sr = sf.read(w)
+        tr = pd.read_csv(w.with_name(w.stem + ".truth.csv"))
+        assert sr == SAMPLE_RATE and len(tr) == 1 and tr.kind[0] == lock[iid]["kind"] == w.stem.split("__")[0]
+        assert tr.onset_s[0] == 0.5 and abs(len(x) / sr - 1.0 - lock[iid]["duration_s"]) < 0.05  # the whole recording
+        assert abs(tr.offset_s[0] - (len(x) / sr - 0.5)) < 1e-3
+        assert not x[: int(0.5 * sr)].any() and not x[-int(0.5 * sr):].any() and np.abs(x).max() > 0.01
+
+
 @pytest.mark.slow
 def test_the_bundled_model_is_regenerated_byte_for_byte():
     """``python -m laughlab.detector.fit --check`` refits on the train split and compares the bytes (~3 min)."""

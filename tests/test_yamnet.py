@@ -333,23 +333,28 @@ def corpus_audio():
 # --- the gate's rule ------------------------------------------------------------------------------------
 
 class FixedScore:
-    """Stands in for the head and the laughter classes: their scores, one per model window, in order."""
+    """Stands in for the head, the laughter classes and the other human sounds (``os``, the veto): their scores,
+    one per model window, in order."""
 
-    def __init__(self, ps, qs=None):
+    def __init__(self, ps, qs=None, os=None):
         self.ps = list(ps)
         self.qs = list(qs) if qs is not None else [0.0] * len(self.ps)
+        self.os = list(os) if os is not None else [0.0] * len(self.ps)
 
     def both(self, scores):
         return self.ps.pop(0), self.qs.pop(0)
 
+    def other_human(self, scores):
+        return self.os.pop(0)
 
-def gate_run(ps, mcs, qs=None, **params):
+
+def gate_run(ps, mcs, qs=None, os=None, **params):
     from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
 
     # the rule these hand-computed sequences were written for: the head alone, windows every 0.5 s, no quiet close
     params = {"rule": "head", "hop_s": 0.5, "open_windows": 2, "close_quiet_s": 0.0, "model_frames": 1, **params}
     det = YamnetDetector(YamnetParams(**params), Context(fps=FPS, sample_rate=16000))
-    det.score = FixedScore(ps, qs)
+    det.score = FixedScore(ps, qs, os)
     rows = []
     for k, m in enumerate(mcs):
         f = Frame(k, k / FPS, 1 / FPS, {"mcs": m}, None, {}, {}, [], 0.0)
@@ -415,17 +420,46 @@ def test_rule_either_opens_on_the_head_or_the_classes_and_closes_when_both_fall(
     assert np.all(h[29:44, 1] == 1.0) and np.all(h[44:, 1] == 0.0) and np.all(h[:29, 1] == 0.0)
 
 
+def test_a_window_where_another_human_sound_outscores_laughter_neither_opens_nor_keeps_the_gain():
+    # windows at frames 14, 29, 44, 59, 74, 89; the classes' score 0.3 in every window (opens under rule=classes);
+    # YAMNet's other human sounds (a cough...) outscore it in the 1st, 2nd and 5th windows
+    qs, os_ = [0.3] * 6, [0.5, 0.4, 0.1, 0.2, 0.9, 0.0]
+    kw = dict(rule="classes", hop_s=0.25, class_open=0.1, class_close=0.05, attack_s=0.0, release_s=0.0)
+    r = gate_run([0.0] * 6, [0.6] * 90, qs, os_, **kw)
+    assert np.all(r[:44, 1] == 0.0)                       # vetoed: no opening on a cough that sounds like laughter
+    assert np.all(r[44:74, 1] == 1.0)                     # 0.3 > 0.1 and > 0.2: laughter
+    assert np.all(r[74:89, 1] == 0.0) and r[89, 1] == 1.0  # the veto closes it at once; the next window reopens
+    assert np.all(r[:29, 2] == 1.0)                       # the face follows the new sound provisionally ...
+    assert np.all(r[29:44, 2] == 0.0)                     # ... until a vetoed window decides: not laughter
+    assert r[14, 0] == 0.0 and r[14, 1] == 0.0            # `laughter` (the published score) is unchanged
+    off = gate_run([0.0] * 6, [0.6] * 90, qs, os_, veto="none", **kw)
+    assert np.all(off[14:, 1] == 1.0)                     # detector.veto=none: the classes alone decide
+    # veto=both: the head under rule=either too: 0.9 x3 with a louder cough in the 3rd window starts over
+    cough = [0.0, 0.0, 0.5, 0.0, 0.0, 0.0]
+    e = gate_run([0.9] * 6, [0.6] * 90, [0.0] * 6, cough, rule="either", hop_s=0.25, open_windows=3, veto="both",
+                 attack_s=0.0, release_s=0.0)
+    assert np.all(e[:89, 1] == 0.0) and e[89, 1] == 1.0   # windows 4, 5, 6 in a row: open at frame 89
+    c = gate_run([0.9] * 6, [0.6] * 90, [0.0] * 6, cough, rule="either", hop_s=0.25, open_windows=3, veto="classes",
+                 attack_s=0.0, release_s=0.0)
+    assert np.all(c[:44, 1] == 0.0) and np.all(c[44:, 1] == 1.0)   # veto=classes leaves the head alone
+
+
 @pytest.mark.parametrize("rule", ["head", "classes", "either"])
-def test_the_train_split_sweep_gates_like_the_detector(rule):
+@pytest.mark.parametrize("veto", ["none", "classes", "both"])
+def test_the_train_split_sweep_gates_like_the_detector(rule, veto):
     """``yamnet_fit --rules`` chose the thresholds with ``gate_windows``: the detector's rule, window by window."""
     from laughlab.detector.yamnet_fit import gate_windows
 
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(5)   # a draw where each veto changes some window (asserted below)
     ps, qs = rng.uniform(0, 1, 40).round(2), (rng.uniform(0, 0.2, 40) ** 2 * 5).round(3)
+    os_ = np.where(rng.random(40) < 0.25, 0.5, 0.0)   # a quarter of the windows: a cough louder than laughter
     kw = dict(open_windows=3, class_open=0.1, class_windows=1, class_close=0.05)
-    r = gate_run(list(ps), [0.6] * 600, list(qs), rule=rule, hop_s=0.25, attack_s=0.0, release_s=0.0, **kw)
-    want = gate_windows(ps, qs, rule, **kw)
+    r = gate_run(list(ps), [0.6] * 600, list(qs), list(os_), rule=rule, hop_s=0.25, attack_s=0.0, release_s=0.0,
+                 veto=veto, **kw)
+    want = gate_windows(ps, qs, rule, other=os_, veto=veto, **kw)
     assert np.array_equal(r[14::15, 1] == 1.0, want) and want.any() and not want.all()
+    if veto != "none" and not (rule == "head" and veto == "classes"):   # the veto changed something here
+        assert not np.array_equal(want, gate_windows(ps, qs, rule, **kw))
 
 
 def test_the_clip_gain_closes_after_close_quiet_s_of_quiet_and_cannot_open_in_quiet():

@@ -35,6 +35,8 @@ from laughlab.corpora.fetch import load_lock, require
 
 SAMPLE_RATE = 44100
 OTHER_KINDS = ("cough", "sneeze", "scream", "breath", "clap", "singing", "music", "noise", "vocal")
+#: the human sounds that are neither laughter nor speech (``vocal``: cries, moans, grunts, shouts, "hmm", "ow")
+HUMAN_KINDS = ("cough", "sneeze", "scream", "breath", "vocal")
 BED_KINDS = ("noise", "music")
 FG_DBFS = -26.0
 
@@ -217,9 +219,11 @@ def write_truth(path: Path, rows: list[dict]) -> None:
 
 
 def write_set(out_dir: Path, kind: str, split: str, n: int, duration_s: float, snr_db: list, seed: int) -> list[Path]:
-    """Write ``n`` scenes (``kind="mixed"``), ``n`` speech-only streams (``speech``) or the annotated
-    laughs themselves (``real``) with ``NAME.truth.csv`` beside each WAV; reuse them when their
-    parameters and the lock are unchanged.  Returns the WAV paths."""
+    """Write ``n`` scenes (``kind="mixed"``), ``n`` speech-only streams (``speech``), the annotated
+    laughs themselves (``real``) or every other human sound of the split alone (``others``: the
+    ``HUMAN_KINDS``, one file each, truth one row of its kind) with ``NAME.truth.csv`` beside each WAV;
+    reuse them when their parameters and the lock are unchanged.  ``real`` and ``others`` have half a
+    second of silence around each recording.  Returns the WAV paths."""
     import soundfile as sf
 
     spec = {"kind": kind, "split": split, "n": n, "duration_s": duration_s, "snr_db": list(snr_db), "seed": seed,
@@ -235,7 +239,16 @@ def write_set(out_dir: Path, kind: str, split: str, n: int, duration_s: float, s
     for old in list(out_dir.glob("*.wav")) + list(out_dir.glob("*.truth.csv")):
         old.unlink()
     paths = []
-    if kind == "real":
+    if kind == "others":
+        for kind_of in HUMAN_KINDS:
+            for iid, path in sorted(pool.by_kind.get(kind_of, [])):
+                name = f"{kind_of}__{iid.replace('/', '__')}"
+                x = load(path)
+                pad = np.zeros(int(0.5 * SAMPLE_RATE))
+                sf.write(out_dir / f"{name}.wav", np.concatenate([pad, x, pad]), SAMPLE_RATE, subtype="PCM_16")
+                write_truth(out_dir / f"{name}.truth.csv", [_event(kind_of, len(pad), x, 2 * len(pad) + len(x))])
+                paths.append(out_dir / f"{name}.wav")
+    elif kind == "real":
         for iid, a in sorted(pool.annotations.items()):
             name = iid.replace("/", "__")
             x = load(dict(pool.by_kind["laugh"])[iid])

@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         return main_fuse(ns)
     if ns.rules:
         for r in rule_sweep():
-            print(f"{r['rule']}: bouts found {r['bouts_found']:.3f}, openings outside laughter "
+            print(f"{r['name']}: bouts found {r['bouts_found']:.3f}, openings outside laughter "
                   f"{r['false_per_10min']:.1f} per 10 min; synthetic bouts found {r['synthetic_found']:.3f}")
         return 0
     if ns.gate:
@@ -172,18 +172,23 @@ def gate_sweep(n_scenes: int = N_SCENES, seed: int = SEED) -> list[dict]:
 
 def gate_windows(p: np.ndarray, q: np.ndarray, rule: str, open_at: float = 0.5, open_windows: int = 2,
                  close_below: float = 0.3, class_open: float = 0.1, class_windows: int = 1,
-                 class_close: float = 0.05) -> np.ndarray:
+                 class_close: float = 0.05, other: np.ndarray | None = None, veto: str = "both") -> np.ndarray:
     """The live clip gate's state after each window (``plugins/detector_yamnet.py`` without the quiet close):
-    ``p`` the head's probabilities, ``q`` the laughter classes' scores, one per window."""
+    ``p`` the head's probabilities, ``q`` the laughter classes' scores, one per window; ``other``: YAMNet's other
+    human sounds' score, and a window where it exceeds ``q`` does not count as laughter for the classes' score
+    (``veto="classes"``) or for both scores (``"both"``)."""
     head, classes = rule in ("head", "either"), rule in ("classes", "either")
     out = np.zeros(len(p), bool)
     is_open, run, qrun = False, 0, 0
     for i in range(len(p)):
-        run = run + 1 if p[i] >= open_at else 0
-        qrun = qrun + 1 if q[i] >= class_open else 0
+        vetoed = other is not None and veto != "none" and other[i] > q[i]
+        head_vetoed = vetoed and veto == "both"
+        run = run + 1 if p[i] >= open_at and not head_vetoed else 0
+        qrun = qrun + 1 if q[i] >= class_open and not vetoed else 0
         if (head and run >= open_windows) or (classes and qrun >= class_windows):
             is_open = True
-        elif is_open and not ((head and p[i] >= close_below) or (classes and q[i] >= class_close)):
+        elif is_open and not ((head and p[i] >= close_below and not head_vetoed)
+                              or (classes and q[i] >= class_close and not vetoed)):
             is_open = False
         out[i] = is_open
     return out
@@ -214,14 +219,17 @@ def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) 
     from laughlab.detector.fit import synthetic_scenes
     from laughlab.detector.yamnet import class_names, class_score, laugh_indices
 
+    from laughlab.detector.yamnet_model import OTHER_HUMAN_CLASSES
+
     model, head = Yamnet(), Head.load()
-    idx = laugh_indices(class_names())
+    idx, other_idx = laugh_indices(class_names()), laugh_indices(class_names(), OTHER_HUMAN_CLASSES)
 
     def scene(x, sr, rows):
         step = int(round(hop_s * sr))
         ends = np.arange(step, len(x) + 1, step)
         S = window_scores(x, sr, ends, model)
-        return {"p": head.prob(S), "q": class_score(S, idx), "t": ends / sr, "dur": len(x) / sr,
+        return {"p": head.prob(S), "q": class_score(S, idx), "o": class_score(S, other_idx), "t": ends / sr,
+                "dur": len(x) / sr,
                 "bouts": [(r["onset_s"], r["offset_s"]) for r in rows if r["kind"] == "bout"]}
 
     train = [scene(x, sr, rows) for x, sr, rows in train_scenes(n_scenes, seed)]
@@ -233,12 +241,16 @@ def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) 
     rules += [(f"either, class_open {c} x{n} or head 0.5 x{h}",
                {"rule": "either", "class_open": c, "class_windows": n, "class_close": c / 2, "open_windows": h})
               for c in (0.1, 0.2) for n in (1, 2) for h in (2, 3, 4)]
+    # the default (either, 0.1 x1 or head x3) with the veto of other human sounds (detector.veto, untuned)
+    rules += [(f"either, class_open 0.1 x1 or head 0.5 x3, veto {v}",
+               {"rule": "either", "class_open": 0.1, "class_windows": 1, "class_close": 0.05, "open_windows": 3,
+                "veto": v}) for v in ("classes", "both")]
     out = []
     for name, kw in rules:
         def opened(sc, kw=kw):
-            return gate_windows(sc["p"], sc["q"], **kw)
+            return gate_windows(sc["p"], sc["q"], other=sc["o"], **{"veto": "none", **kw})
         found, false = _found_false(train, opened)
-        out.append({"rule": name, **kw, "bouts_found": found, "false_per_10min": false,
+        out.append({"name": name, **kw, "bouts_found": found, "false_per_10min": false,
                     "synthetic_found": _found_false(synth, opened)[0]})
     return out
 

@@ -26,6 +26,11 @@ WINDOW = 15600
 N_CLASSES = 521
 #: the AudioSet laughter classes (display names of the class map)
 LAUGH_CLASSES = ("Laughter", "Baby laughter", "Giggle", "Snicker", "Belly laugh", "Chuckle, chortle")
+#: YAMNet's classes of the human voice's other non-speech sounds (AudioSet ontology, "Human voice" and
+#: "Respiratory sounds"): where one of them outscores laughter, the gate does not take the window as laughter
+OTHER_HUMAN_CLASSES = ("Screaming", "Crying, sobbing", "Baby cry, infant cry", "Whimper", "Wail, moan", "Sigh",
+                       "Groan", "Grunt", "Breathing", "Wheeze", "Snoring", "Gasp", "Pant", "Snort", "Cough",
+                       "Throat clearing", "Sneeze", "Sniff", "Burping, eructation", "Hiccup")
 MODEL_SHA256 = "469be6a3421cbc52cf97e9f2f966cba984198e8e7af9854d68b3e3ebb1e04194"
 RESTORE = ("restore it with `git checkout laughlab/data/yamnet` in a source checkout, "
            "or reinstall laughlab (pip install --force-reinstall laughlab)")
@@ -52,8 +57,8 @@ def class_names(path: str | Path | None = None) -> list[str]:
     return names
 
 
-def laugh_indices(names: list[str]) -> list[int]:
-    return [names.index(n) for n in LAUGH_CLASSES]
+def laugh_indices(names: list[str], classes: tuple[str, ...] = LAUGH_CLASSES) -> list[int]:
+    return [names.index(n) for n in classes]
 
 
 @contextlib.contextmanager

@@ -132,12 +132,12 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
 
 
 #: the named sets of real recordings (``laughlab.corpora``): their profile names in the results
-REAL_SETS = ("real", "mixed", "between", "speech")
+REAL_SETS = ("real", "mixed", "between", "speech", "others")
 
 
 def set_folder(name: str, split: str, n: int, duration_s: float) -> str:
     """The folder name of a written set: sets of other sizes live side by side."""
-    return f"{name}-{split}" if name == "real" else f"{name}-{split}-{n}x{duration_s:g}s"
+    return f"{name}-{split}" if name in ("real", "others") else f"{name}-{split}-{n}x{duration_s:g}s"
 
 
 #: what an experiment does when the real corpus is not fetched (``harness.corpus.real.if_missing``)
@@ -153,7 +153,9 @@ def real_items(spec, left_out: list | None = None) -> list[Item]:
       sounds over room noise, SNR cycling through ``snr_db`` (profiles ``mixed-20dB``, ...);
     - ``between``: ``scenes`` scenes like ``mixed`` but with no noise bed (seed ``seed + 1``): laughs spliced
       between real speech (profile ``between``);
-    - ``speech``: ``scenes`` streams of ``duration_s`` of speech only (profile ``speech``).
+    - ``speech``: ``scenes`` streams of ``duration_s`` of speech only (profile ``speech``);
+    - ``others``: every human sound of the split that is neither laughter nor speech (coughs, sneezes,
+      screams, a breath, cries, moans, grunts, shouts), alone, padded with 0.5 s of silence (profile ``others``).
 
     The WAVs and their ``truth.csv`` are written once under the data folder
     (``$LAUGHLAB_DATA/corpus/sets``) and reused; the corpus must be fetched
@@ -195,7 +197,7 @@ def real_items(spec, left_out: list | None = None) -> list[Item]:
             continue
         for wav in wavs:
             profile = s if s != "mixed" else "mixed-" + wav.stem.split("-")[1]
-            items.append(Item(f"{s}-{wav.stem}" if s == "real" else wav.stem,
+            items.append(Item(f"{s}-{wav.stem}" if s in ("real", "others") else wav.stem,
                               ("input=file", f"input.path={wav.resolve()}"), profile, None,
                               str(wav.with_name(wav.stem + ".truth.csv"))))
     return items
