@@ -173,3 +173,16 @@ def test_view_out_says_how_to_open_the_page(run_dir, tmp_path):
     assert r.stdout.strip() == (f"laughlab: viewer of {run_dir} written to {tmp_path / 's'}/: open "
                                 f"{tmp_path / 's' / 'index.html'} in a browser, or put the folder on any web server "
                                 f"(e.g. python -m http.server -d {tmp_path / 's'})")
+
+
+def test_a_closed_browser_leaves_nothing_in_the_temporary_folder(tmp_path, monkeypatch):
+    """Chromium keeps a singleton socket folder (``org.chromium.Chromium.*``) in TMPDIR and leaves it behind when
+    killed: before, every screenshot or viewer test left one in /tmp. It now goes with the profile."""
+    import tempfile
+
+    monkeypatch.setenv("TMPDIR", str(tmp_path))
+    monkeypatch.setattr(tempfile, "tempdir", None)   # tempfile reads TMPDIR again
+    p = Page("about:blank")
+    assert p.eval("1 + 1") == 2
+    p.close()
+    assert list(tmp_path.iterdir()) == []

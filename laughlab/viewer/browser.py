@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import base64
 import json
+import os
 import shutil
 import subprocess
 import tempfile
@@ -89,9 +90,18 @@ class Page:
         return out
 
     def close(self) -> None:
+        """Stop Chromium and remove its profile, and the singleton socket folder it keeps in TMPDIR
+        (``org.chromium.Chromium.*``, which the profile's ``SingletonSocket`` link points into and which
+        Chromium leaves behind whether it is killed or asked to quit)."""
         self.ws.close()
         self.proc.kill()
         self.proc.wait()
+        try:
+            socket_dir = os.path.dirname(os.readlink(os.path.join(self.profile, "SingletonSocket")))
+        except OSError:
+            socket_dir = ""
+        if os.path.basename(socket_dir).startswith("org.chromium.Chromium."):
+            shutil.rmtree(socket_dir, ignore_errors=True)
         shutil.rmtree(self.profile, ignore_errors=True)
 
 
