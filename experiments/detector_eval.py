@@ -86,7 +86,7 @@ def extra(run) -> dict:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    items = [i for i in run.items if i.truth and i.profile != "speech"]
+    items = [i for i in run.items if i.truth and i.profile not in ("speech", "others")]  # frames with laughter
     wanted = {d for d, _, _ in SCORES.values() if d in {o.split("=", 1)[1] for ov in run.conditions.values()
                                                           for o in ov if o.startswith("detector=")}}
     if not items or not wanted:
