@@ -39,6 +39,7 @@ def trials_of(experiment: str, base: list[str]):
     ("smoke", ["experiment=smoke", "harness.corpus.seeds=2", "fps=30"]),
     ("energy_vs_concat", ["experiment=energy_vs_concat", "hydra.run.dir=/tmp/x", "seed=4"]),
     ("detector_eval", ["experiment=detector_eval"]),
+    ("detector_others", ["experiment=detector_others"]),
 ])
 def test_every_trial_composes_as_hydra_composes_it(experiment, base):
     trials = trials_of(experiment, base)
