@@ -317,7 +317,8 @@ class YamnetDetector(Detector):
 
     def _reaches(self, head_at: float, class_at: float) -> bool:
         """Does the newest window's score reach ``head_at`` (the head) or ``class_at`` (the laughter classes),
-        counting the scores the rule uses?  Not where another human sound outscores laughter (``veto``)."""
+        counting the scores the rule uses?  A score the ``veto`` covers does not count in a window where another
+        human sound outscores laughter."""
         head_vetoed = self.vetoed and self.params.veto == "both"
         return ((self.use_head and self.p >= head_at and not head_vetoed)
                 or (self.use_classes and self.q >= class_at and not self.vetoed))

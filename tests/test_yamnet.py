@@ -489,6 +489,8 @@ def test_bad_rule_parameters_are_refused():
         YamnetParams(model_frames=5)
     with pytest.raises(ValueError, match="prefetch must be true or false"):
         YamnetParams(prefetch="yes")
+    with pytest.raises(ValueError, match="veto must be one of none, classes, both"):
+        YamnetParams(veto=True)
 
 
 def test_the_default_rule_is_either_every_quarter_second_with_the_quiet_close():

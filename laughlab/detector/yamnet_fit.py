@@ -172,7 +172,7 @@ def gate_sweep(n_scenes: int = N_SCENES, seed: int = SEED) -> list[dict]:
 
 def gate_windows(p: np.ndarray, q: np.ndarray, rule: str, open_at: float = 0.5, open_windows: int = 2,
                  close_below: float = 0.3, class_open: float = 0.1, class_windows: int = 1,
-                 class_close: float = 0.05, other: np.ndarray | None = None, veto: str = "both") -> np.ndarray:
+                 class_close: float = 0.05, other: np.ndarray | None = None, veto: str = "classes") -> np.ndarray:
     """The live clip gate's state after each window (``plugins/detector_yamnet.py`` without the quiet close):
     ``p`` the head's probabilities, ``q`` the laughter classes' scores, one per window; ``other``: YAMNet's other
     human sounds' score, and a window where it exceeds ``q`` does not count as laughter for the classes' score
@@ -217,9 +217,7 @@ def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) 
     """The rules ``head``, ``classes`` and ``either`` on the train scenes and the synthetic profiles (``--rules``),
     one window every ``hop_s`` as live: bouts found and openings outside laughter (as :func:`gate_sweep`)."""
     from laughlab.detector.fit import synthetic_scenes
-    from laughlab.detector.yamnet import class_names, class_score, laugh_indices
-
-    from laughlab.detector.yamnet_model import OTHER_HUMAN_CLASSES
+    from laughlab.detector.yamnet import OTHER_HUMAN_CLASSES, class_names, class_score, laugh_indices
 
     model, head = Yamnet(), Head.load()
     idx, other_idx = laugh_indices(class_names()), laugh_indices(class_names(), OTHER_HUMAN_CLASSES)
