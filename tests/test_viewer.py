@@ -194,3 +194,25 @@ def test_a_closed_browser_leaves_nothing_in_the_temporary_folder(monkeypatch):
         assert list(tmp.iterdir()) == []
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def test_chromium_that_cannot_start_says_why_in_one_line_and_leaves_nothing(monkeypatch):
+    """A TMPDIR so long that Chromium's singleton socket path passes 108 bytes: Chromium stops at once."""
+    import shutil
+    import tempfile
+
+    from laughlab.core.errors import LaughlabError
+
+    tmp = Path(tempfile.mkdtemp(prefix="ll" + "x" * 90, dir="/tmp"))
+    try:
+        monkeypatch.setenv("TMPDIR", str(tmp))
+        monkeypatch.setattr(tempfile, "tempdir", None)
+        with pytest.raises(LaughlabError) as err:
+            Page("about:blank")
+        msg = str(err.value)
+        assert msg.startswith("chromium did not start its DevTools endpoint: ") and "\n" not in msg
+        assert "Socket path too long" in msg
+        # no profile left (Chromium itself leaves the socket folder it could not use)
+        assert [p.name for p in tmp.iterdir() if not p.name.startswith("org.chromium.")] == []
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)

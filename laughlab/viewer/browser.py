@@ -27,6 +27,14 @@ def chromium() -> str:
     return exe
 
 
+def _why(stderr_lines: list[str]) -> str:
+    """Chromium's reason for not starting: its first FATAL message (``[pid:tid:time:FATAL:file] text``), else its
+    last line of output."""
+    fatal = [ln for ln in stderr_lines if ":FATAL:" in ln]
+    line = (fatal or [ln for ln in stderr_lines if ln] or ["(no output)"])[0 if fatal else -1]
+    return line.split("] ", 1)[1] if line.startswith("[") and "] " in line else line
+
+
 class Page:
     """One page of a headless Chromium (software WebGL), its console problems collected."""
 
@@ -39,13 +47,17 @@ class Page:
              "--autoplay-policy=no-user-gesture-required", f"--window-size={width},{height}",
              f"--user-data-dir={self.profile}", "--remote-debugging-port=0", "about:blank"],
             stderr=subprocess.PIPE, text=True)
-        port = None
+        port, said = None, []
         for line in self.proc.stderr:
             if "DevTools listening on" in line:
                 port = line.strip().rsplit(":", 1)[1].split("/")[0]
                 break
+            said.append(line.strip())
         if port is None:
-            raise LaughlabError("chromium did not start its DevTools endpoint")
+            self.proc.kill()
+            self.proc.wait()
+            shutil.rmtree(self.profile, ignore_errors=True)
+            raise LaughlabError("chromium did not start its DevTools endpoint: " + _why(said))
         targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json"))
         page = next(t for t in targets if t["type"] == "page")
         self.ws = websocket.create_connection(page["webSocketDebuggerUrl"], timeout=60)
