@@ -133,6 +133,12 @@ def _non_laughter(trial):
     return ~heard, max(trial.duration_s - laugh_s, 0.0) / 60.0
 
 
+def _false_start_times(trial) -> np.ndarray:
+    """Times of the clip starts outside every bout (and its 1 s tail)."""
+    false, _ = _non_laughter(trial)
+    return trial.starts().time.to_numpy()[false]
+
+
 @metric("false_starts_per_min", False, "starts/min")
 def false_starts_per_min(trial):
     """Clip starts outside every bout (and its 1 s tail) per minute of non-laughter."""
@@ -167,8 +173,7 @@ def _false_starts_on(kind: str):
         minutes = float((ev.offset_s - ev.onset_s).sum()) / 60.0
         if minutes <= 0:
             return float("nan")
-        false, _ = _non_laughter(trial)
-        starts = trial.starts().time.to_numpy()[false]
+        starts = _false_start_times(trial)
         on = ev.onset_s.to_numpy()
         off = ev.offset_s.to_numpy()
         hit = sum(bool(((on <= t) & (t < off)).any()) for t in starts)
@@ -188,8 +193,7 @@ def human_sounds_starting_a_clip(trial):
     ev = o[o.kind.isin(HUMAN_KINDS)]
     if ev.empty:
         return float("nan")
-    false, _ = _non_laughter(trial)
-    starts = trial.starts().time.to_numpy()[false]
+    starts = _false_start_times(trial)
     return float(np.mean([bool(((starts >= on) & (starts <= off + ANSWER_TAIL_S)).any())
                           for on, off in ev[["onset_s", "offset_s"]].itertuples(index=False)]))
 

@@ -167,7 +167,7 @@ def gated_and_plain(tmp_path_factory):
     out = {}
     for det in ("laugh", "none"):
         r = laughlab(f"hydra.run.dir={d / det}", "input.duration_s=10", "input.profile=intense",
-                      f"detector={det}", "output=trial")
+                     f"detector={det}", "output=trial")
         assert r.returncode == 0, r.stderr
         out[det] = pd.read_csv(d / det / "channels.csv")
     return out

@@ -11,6 +11,7 @@ import pytest
 from inprocess import laughlab as run  # what a run writes and says, in this process (tests/inprocess.py)
 from laughlab.core import rundir
 from laughlab.core.errors import LaughlabError
+from laughlab.harness.runner import journal_records
 
 
 def _as_from_a_terminal():
@@ -118,17 +119,6 @@ SMOKE = ["experiment=smoke", "harness.jobs=1", "harness.showcase=null", "progres
          "harness.corpus.duration_s=4", "harness.plots=false"]
 
 
-def _complete_lines(journal):
-    """The journal's lines a reader can take as records (a kill can cut the last one)."""
-    out = []
-    for line in journal.read_text().splitlines():
-        try:
-            out.append(json.loads(line))
-        except ValueError:
-            pass
-    return out
-
-
 def _results_without_timings(path):
     doc = json.loads(path.read_text())
     return {c: {m: v for m, v in ms.items() if not m.startswith(("frame_ms", "realtime"))}
@@ -140,12 +130,12 @@ def test_an_experiment_killed_after_some_trials_resumes_to_the_same_results(tmp_
     p = laughlab(*SMOKE, f"hydra.run.dir={d}")
     journal = d / "metrics.jsonl"
     deadline = time.time() + 120
-    while not (journal.exists() and len(_complete_lines(journal)) >= 3):
+    while len(journal_records(journal)) < 3:
         assert time.time() < deadline and p.poll() is None, "the experiment did not journal its trials"
         time.sleep(0.05)
     p.kill()
     p.wait()
-    done = len(_complete_lines(journal))  # a line the kill cut is not a trial done
+    done = len(journal_records(journal))  # a line the kill cut is not a trial done
     assert 3 <= done < 8
     # how the rest is run (in parallel, with the figure) is not what the experiment is: it still resumes
     again = run(*SMOKE, "harness.jobs=2", "harness.plots=true", f"hydra.run.dir={d}")

@@ -153,6 +153,20 @@ def run_trials(trials: list[Trial], jobs: int = 1, progress: bool = True, desc: 
     return sorted(records, key=lambda r: (r["condition"], r["input"], r["seed"]))
 
 
+def journal_records(path: Path) -> list[dict]:
+    """The complete records of a ``metrics.jsonl`` (none if there is no file); a line cut by a kill is left out."""
+    path = Path(path)
+    if not path.exists():
+        return []
+    out = []
+    for line in path.read_text().splitlines():
+        try:
+            out.append(json.loads(line))
+        except ValueError:  # the last line of a killed run
+            continue
+    return out
+
+
 class Journal:
     """``metrics.jsonl`` written as trials complete, so a stopped experiment resumes.
 
@@ -167,13 +181,7 @@ class Journal:
     def done(self) -> dict:
         """The complete records already journaled, by trial key; a different experiment refuses to mix."""
         out = {}
-        if not self.path.exists():
-            return out
-        for line in self.path.read_text().splitlines():
-            try:
-                rec = json.loads(line)
-            except ValueError:  # the last line of a killed run
-                continue
+        for rec in journal_records(self.path):
             if rec.get("experiment_hash") != self.experiment_hash:
                 raise LaughlabError(f"{self.path.parent} holds an interrupted experiment with another configuration; "
                                     "run it with its own command, or choose another hydra.run.dir, or add "

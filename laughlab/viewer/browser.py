@@ -30,8 +30,8 @@ def chromium() -> str:
 def _why(stderr_lines: list[str]) -> str:
     """Chromium's reason for not starting: its first FATAL message (``[pid:tid:time:FATAL:file] text``), else its
     last line of output."""
-    fatal = [ln for ln in stderr_lines if ":FATAL:" in ln]
-    line = (fatal or [ln for ln in stderr_lines if ln] or ["(no output)"])[0 if fatal else -1]
+    line = (next((ln for ln in stderr_lines if ":FATAL:" in ln), None)
+            or next((ln for ln in reversed(stderr_lines) if ln), "(no output)"))
     return line.split("] ", 1)[1] if line.startswith("[") and "] " in line else line
 
 
