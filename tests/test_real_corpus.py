@@ -61,7 +61,9 @@ def test_the_others_set_is_every_other_human_sound_of_the_split_alone():
     lock = load_lock()["files"]
     want = sorted(f"{e['kind']}__{iid.replace('/', '__')}" for iid, e in lock.items()
                   if e["kind"] in HUMAN_KINDS and e["split"] == "test")
-    wavs = write_set(corpus_dir() / "sets" / "others-test", "others", "test", 6, 100.0, [], 0)  # as the harness
+    from laughlab.harness.corpus import set_folder
+
+    wavs = write_set(corpus_dir() / "sets" / set_folder("others", "test", 6, 100.0), "others", "test", 6, 100.0, [], 0)
     assert sorted(w.stem for w in wavs) == want and len(want) >= 40
     for w in wavs[:: max(1, len(wavs) // 12)]:
         iid = w.stem.split("__", 1)[1].replace("__", "/")
