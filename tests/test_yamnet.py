@@ -1,5 +1,6 @@
 """The yamnet detector: the bundled model against YAMNet's model card, the 16 kHz conversion, the gate's
 rule frame by frame, bad model files, and ``laughlab detect`` end to end."""
+import re
 import subprocess
 import sys
 
@@ -11,6 +12,7 @@ from hypothesis import given, settings, strategies as st
 from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
 from laughlab.core.bases import Context
 from laughlab.core.frame import Frame
+from laughlab.core.summary import factor_text
 from laughlab.detector import segments as S
 from laughlab.detector import yamnet as Y
 from laughlab.detector.stream16k import _sos_kernel
@@ -550,6 +552,12 @@ def test_detect_writes_three_formats_that_read_back(tmp_path):
     out = tmp_path / "out"
     r = laughlab("detect", str(tmp_path / "in"), "--out", str(out))
     assert r.returncode == 0, r.stderr
+    # one line: files, audio, segments, the time waited and the speed, written as a run's summary writes them
+    # (two significant digits below 10x: a short input is not "0x real time")
+    m = re.fullmatch(r"laughlab: 2 file\(s\), (\d+\.\d) s of audio, (\d+) laughter segment\(s\) in (.+) "
+                     r"\((\S+)x real time\) -> (.+)/", r.stdout.strip())
+    assert m and m[5] == str(out) and m[4] == factor_text(float(m[4])) and re.fullmatch(r"\d+(\.\d+)? s|\d+ min \d\d s", m[3])
+    assert float(m[1]) == round(len(x) / sr + 0.25, 1)
     assert {p.name for p in out.iterdir()} == {"segments.csv", "a.txt", "a.TextGrid", "short8k.txt",
                                                "short8k.TextGrid"}
     segs = S.read_folder(out)

@@ -41,17 +41,17 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
     if vmc is not None and str(vmc.get("realtime", "auto")) in ("auto", "on"):
         return "paced at the frame clock for the vmc stream"
     dur = float(metrics.get("duration_s") or 0.0)
-    parts = [f"{_factor(dur / seconds)}x real time" if seconds > 0 else "instant"]
+    parts = [f"{factor_text(dur / seconds)}x real time" if seconds > 0 else "instant"]
     if metrics.get("video_frames"):
         rate = metrics.get("video_render_fps")
         parts.append(f"video: {int(metrics['video_frames'])} frames rendered at {float(rate):.1f} frames/s"
                      if rate is not None and rate == rate else f"video: {int(metrics['video_frames'])} frames")
     elif metrics.get("realtime_factor"):
-        parts.append(f"frame loop {_factor(float(metrics['realtime_factor']))}x")
+        parts.append(f"frame loop {factor_text(float(metrics['realtime_factor']))}x")
     return "; ".join(parts)
 
 
-def _factor(x: float) -> str:
+def factor_text(x: float) -> str:
     """A speed factor with two significant digits below 10 (0.091, 0.15, 8.8), whole above (219)."""
     return f"{x:.0f}" if x >= 10 else f"{x:.1f}" if x >= 1 else f"{x:.2g}"
 

@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, one_line_parser
+from laughlab.core.summary import duration_text, factor_text
 
 AUDIO_SUFFIXES = {".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif", ".opus"}
 FORMATS = ("csv", "audacity", "textgrid", "elan")
@@ -109,5 +110,5 @@ def main(argv: list[str]) -> None:
     S.write_outputs(out, results, formats)
     wall = time.perf_counter() - t0
     n = sum(len(r[2]) for r in results)
-    print(f"laughlab: {len(files)} file(s), {total_s:.1f} s of audio, {n} laughter segment(s) in {wall:.1f} s "
-          f"({total_s / max(wall, 1e-9):.0f}x real time) -> {out}/")
+    print(f"laughlab: {len(files)} file(s), {total_s:.1f} s of audio, {n} laughter segment(s) in {duration_text(wall)} "
+          f"({factor_text(total_s / max(wall, 1e-9))}x real time) -> {out}/")
