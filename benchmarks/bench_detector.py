@@ -228,7 +228,7 @@ def run_detect(wavs: list[Path], out: Path) -> tuple[dict, float, float]:
     c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-m", "laughlab", "detect", *map(str, wavs), "--out", str(out),
-                        "--progress", "off"], capture_output=True, text=True)
+                        "--progress", "off", "--overwrite"], capture_output=True, text=True)
     wall = time.perf_counter() - t0
     c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:

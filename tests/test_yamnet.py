@@ -594,6 +594,30 @@ def test_elan_file_holds_the_segments_in_milliseconds(tmp_path):
     assert [p.name for p in out.iterdir()] == ["rec.eaf"] and (out / "rec.eaf").read_text() == S.eaf_text(segs)
 
 
+def test_detect_replaces_nothing_without_asking_and_leaves_no_stale_segments(tmp_path):
+    """An --out holding files is refused before any work (the user's edited labels kept); ``--overwrite``
+    writes this run's segment files and removes an earlier run's that this run does not write, other files kept."""
+    (tmp_path / "in").mkdir()
+    for name in ("a", "b"):
+        sf.write(tmp_path / "in" / f"{name}.wav", np.zeros(1600), 16000)
+    out = tmp_path / "out"
+    assert laughlab("detect", str(tmp_path / "in"), "--out", str(out)).returncode == 0
+    (out / "a.txt").write_text("my own labels\n")
+    (out / "notes.md").write_text("mine\n")
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    r = laughlab("detect", str(tmp_path / "in" / "a.wav"), "--out", str(out))
+    assert r.returncode == 2 and r.stderr.strip().splitlines() == [r.stderr.strip()]
+    assert "already holds files" in r.stderr and "--overwrite" in r.stderr
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    r = laughlab("detect", str(tmp_path / "in" / "a.wav"), "--out", str(out), "--overwrite")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["a.TextGrid", "a.txt", "notes.md", "segments.csv"]
+    assert (out / "a.txt").read_text() == "" and (out / "notes.md").read_text() == "mine\n"
+    assert (out / "segments.csv").read_text() == "file,start,end,probability\n"
+    r = laughlab("detect", str(tmp_path / "in"), "--out", str(out / "notes.md"))
+    assert r.returncode == 2 and "is a file, not a folder" in r.stderr
+
+
 @pytest.mark.parametrize("args,message", [
     (["nothing.wav"], "input not found: nothing.wav"),
     (["--threshold", "2", "x"], "--threshold must be in [0, 1]"),

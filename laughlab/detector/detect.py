@@ -41,6 +41,24 @@ def inputs(paths: list[str]) -> list[Path]:
     return out
 
 
+#: the files ``detect`` writes into its --out folder (``segments.write_outputs``)
+SEGMENT_FILES = ("segments.csv", "*.txt", "*.TextGrid", "*.eaf")
+
+
+def out_folder_check(out: Path, overwrite: bool) -> list[Path]:
+    """Refuse an --out that is a file, or a folder already holding files unless ``overwrite``, before any work
+    (nothing the user has is replaced without asking).  With ``overwrite``: the folder's segment files, which an
+    earlier run wrote (removed once this run's are written, unless this run writes them again)."""
+    if out.exists() and not out.is_dir():
+        raise LaughlabError(f"--out {out} is a file, not a folder")
+    held = sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) if out.is_dir() else []
+    if held and not overwrite:
+        shown = ", ".join(held[:4]) + (f" and {len(held) - 4} more" if len(held) > 4 else "")
+        raise LaughlabError(f"{out} already holds files ({shown}); choose another --out or add --overwrite "
+                            f"(replaces its segment files, keeps the rest)")
+    return sorted({p for pat in SEGMENT_FILES for p in out.glob(pat) if p.is_file()}) if held else []
+
+
 def read_mono(path: Path):
     import numpy as np
 
@@ -62,6 +80,9 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--smooth", type=int, default=3, help="centred moving average over this many windows (default 3)")
     ap.add_argument("--formats", default="csv,audacity,textgrid", help="comma-separated: csv, audacity, textgrid, elan (default: the first three)")
     ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto")
+    ap.add_argument("--overwrite", action="store_true",
+                    help="write into an --out folder that already holds files: its segment files (segments.csv, "
+                         "*.txt, *.TextGrid, *.eaf) are replaced by this run's, other files kept")
     ns = ap.parse_args(argv)
     if not 0.0 <= ns.threshold <= 1.0:
         raise LaughlabError(f"--threshold must be in [0, 1] (got {ns.threshold})")
@@ -80,6 +101,7 @@ def main(argv: list[str]) -> None:
     from laughlab.io.audio import probe_file
 
     files = inputs(ns.paths)
+    stale = out_folder_check(Path(ns.out), ns.overwrite)
     total_s = 0.0
     for f in files:  # every input checked before any work or any file written
         info = probe_file(f)
@@ -93,7 +115,8 @@ def main(argv: list[str]) -> None:
     if show:
         from tqdm import tqdm
 
-        bar = tqdm(total=round(total_s, 1), unit="s", desc="detect", file=sys.stderr, leave=False)
+        bar = tqdm(total=total_s, unit="s", desc="detect", file=sys.stderr, leave=False,   # seconds of audio, 0.1 s
+                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s of audio [{elapsed}<{remaining}]")
     t0 = time.perf_counter()
     results = []
     for f in files:
@@ -103,11 +126,13 @@ def main(argv: list[str]) -> None:
         dur = len(x) / sr
         results.append((f.stem, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur)))
         if bar is not None:
-            bar.update(round(dur, 1))
+            bar.update(dur)
     if bar is not None:
         bar.close()
     out = Path(ns.out)
-    S.write_outputs(out, results, formats)
+    written = S.write_outputs(out, results, formats)
+    for f in set(stale) - set(written):   # --overwrite: an earlier run's segment files, not this run's
+        f.unlink(missing_ok=True)
     wall = time.perf_counter() - t0
     n = sum(len(r[2]) for r in results)
     print(f"laughlab: {len(files)} file(s), {total_s:.1f} s of audio, {n} laughter segment(s) in {duration_text(wall)} "
