@@ -179,7 +179,7 @@ def task(cfg) -> dict:
         pipe = pipeline.build(cfg)
         metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
         _CLAIM.finish(cfg_hash)
-        print(summary_line(cfg, metrics, out_dir, time.monotonic() - t0))
+        print(summary_line(cfg, metrics, out_dir, time.monotonic() - t0, skip=_CLAIM.user_files))
         return metrics
     except LaughlabError as exc:
         _remove_new_run_dir(out_dir)

@@ -55,7 +55,8 @@ def test_a_folder_of_the_users_files_is_refused_and_overwrite_keeps_them(tmp_pat
     p = run("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS)
     assert p.returncode == 2 and "not empty and not a laughlab run (notes.txt)" in p.stderr
     assert sorted(x.name for x in d.iterdir()) == [".laughlab.lock", "notes.txt"]
-    assert run("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", "output=gltf", *NO_PLOTS).returncode == 0
+    r = run("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", "output=gltf", *NO_PLOTS)
+    assert r.returncode == 0 and "notes.txt" not in r.stdout     # the summary lists the run's files, not the user's
     assert (d / "character.glb").exists() and (d / "notes.txt").read_text() == "my notes"
     marker = json.loads((d / rundir.MARKER).read_text())
     assert marker["complete"] and "character.glb" in marker["files"] and "notes.txt" not in marker["files"]
@@ -64,6 +65,25 @@ def test_a_folder_of_the_users_files_is_refused_and_overwrite_keeps_them(tmp_pat
     assert not (d / "character.glb").exists() and (d / "notes.txt").read_text() == "my notes"
     p = run("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS)
     assert p.returncode == 2 and "already holds a run" in p.stderr
+
+
+@pytest.mark.parametrize("mine", ["motion.bvh", "video.mp4"])
+def test_a_file_of_the_users_by_an_outputs_name_is_never_replaced(tmp_path, mine):
+    """Neither in a folder of the user's (no marker) nor beside a finished run, even with overwrite=true: one line
+    naming it, the file's bytes kept."""
+    d = tmp_path / "mine"
+    d.mkdir()
+    if mine == "video.mp4":                                   # beside a finished run that wrote no video
+        assert run("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS).returncode == 0
+    (d / mine).write_text("my own")
+    for extra in ([], ["overwrite=true"], ["overwrite=true", "output=video"]):
+        p = run("input.duration_s=2", f"hydra.run.dir={d}", *extra, *NO_PLOTS)
+        if mine == "video.mp4" and not extra:
+            assert p.returncode == 2 and "already holds a run" in p.stderr
+            continue
+        assert p.returncode == 2 and p.stderr.strip().splitlines() == [p.stderr.strip()]
+        assert f"files by the names of a run's outputs that no laughlab run recorded writing ({mine})" in p.stderr
+        assert (d / mine).read_text() == "my own"
 
 
 def test_a_crashed_run_leaves_no_stale_lock(tmp_path):

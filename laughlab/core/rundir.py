@@ -11,7 +11,9 @@
   one of its output files.  A run directory is refused unless ``overwrite=true``; a non-empty
   folder that is not a run (the user's own files) is refused too unless ``overwrite=true``;
 * ``overwrite=true`` deletes only what the marker lists as the earlier run's files, so the
-  folder ends up holding one run's outputs and nothing of the user's is touched;
+  folder ends up holding one run's outputs and nothing of the user's is touched; a folder without the
+  marker that holds a file by the name of a run's output (``OUTPUTS``) is refused even then, as the run
+  would replace it;
 * a run that was interrupted (its marker says ``complete: false``: killed, or stopped by a
   failure the process could not clean up) may be run again into its folder without
   ``overwrite``: an experiment then resumes (:mod:`laughlab.harness.experiment`), a single run
@@ -30,6 +32,10 @@ LOCK = ".laughlab.lock"
 MARKER = ".laughlab-run.json"
 #: outputs that mark a folder as holding a run of laughlab 0.1 (no marker)
 LEGACY = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.json", "manifest.csv")
+#: the names runs and experiments write at the top of their folder: a file of the user's by one of these names
+#: is never replaced, even with ``overwrite=true`` (the run is refused instead)
+OUTPUTS = frozenset(LEGACY + ("face_arkit.csv", "input.wav", "truth.csv", "character.glb", "video.mp4",
+                              "animation.vrma", "metrics.jsonl", "plots", "trials", "report", "showcase"))
 
 
 class Claim:
@@ -95,7 +101,7 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         entries = {p.name for p in path.iterdir()} - {LOCK} - set(ours)
         marker = _read_marker(path)
         earlier = set(marker.get("files", [])) if marker is not None else set()
-        is_run = marker is not None or any(name in entries for name in LEGACY)
+        is_run = marker is not None
         if marker is not None and marker.get("complete") and done_if is not None and not overwrite \
                 and marker.get("config_hash") == done_if:
             return Claim(path, fd, created, set(marker.get("user_files", [])), done=True)
@@ -104,6 +110,11 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
             user = set(marker.get("user_files", entries - {MARKER}))
             _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user)})
             return Claim(path, fd, created, user, resumed=True)
+        if overwrite and (clash := sorted((entries - earlier) & OUTPUTS)) or marker is None and (clash := sorted(entries & OUTPUTS)):
+            # the user's files (or a marker-less 0.1 run's: they cannot be told apart) by a run's output names
+            raise LaughlabError(f"{path} holds files by the names of a run's outputs that no laughlab run recorded "
+                                f"writing ({', '.join(clash)}); move them or choose another hydra.run.dir "
+                                "(overwrite=true never replaces files laughlab did not write)")
         if entries and not overwrite:
             if is_run:
                 raise LaughlabError(f"{path} already holds a run; choose another hydra.run.dir or add overwrite=true")
@@ -115,13 +126,21 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
             shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink(missing_ok=True)
         (path / MARKER).unlink(missing_ok=True)
         user = entries - earlier - {MARKER}
-        if marker is None and is_run:  # a 0.1 run without a marker: its files are not known, keep them
-            user = entries - {MARKER}
         _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user)})
     except BaseException:
         os.close(fd)
         raise
     return Claim(path, fd, created, user)
+
+
+def record(path: str | Path, name: str) -> None:
+    """Count ``name`` (written into the finished run ``path`` by a later command: ``laughlab report``'s
+    ``report/``) among the run's files, so that ``overwrite=true`` removes it with the rest of the run."""
+    marker = _read_marker(Path(path))
+    if marker is not None and marker.get("complete") and name not in marker.get("files", []):
+        marker["files"] = sorted({*marker.get("files", []), name})
+        marker["user_files"] = sorted(set(marker.get("user_files", [])) - {name})
+        _write_marker(Path(path), marker)
 
 
 def _read_marker(path: Path) -> dict | None:

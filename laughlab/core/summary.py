@@ -4,8 +4,9 @@ from __future__ import annotations
 from pathlib import Path
 
 
-def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:
-    """One line on success: what ran on what, how long the command took, its speed, where its files are.
+def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozenset()) -> str:
+    """One line on success: what ran on what, how long the command took, its speed, where its files are
+    (not those named in ``skip``: the user's own files in the run's folder).
 
     ``seconds``: the wall time from the process' start (:mod:`laughlab.core.clock`), the time the user
     waited.  The speed is the one that means something for the run's output (:func:`speed`).
@@ -18,7 +19,7 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float) -> str:
                        if g in cfg and cfg[g] is not None and "name" in cfg[g])
     dur = float(metrics.get("duration_s") or 0.0)
     files = sorted(p.name + ("/" if p.is_dir() else "") for p in Path(out_dir).iterdir()
-                   if not p.name.startswith("."))
+                   if not p.name.startswith(".") and p.name not in skip)
     took = f"in {duration_text(seconds)} ({speed(cfg, metrics, seconds)})"
     return f"laughlab: {dur:.1f} s of {what}, {chain}, {took} -> {out_dir}/: {', '.join(files)}"
 
