@@ -558,7 +558,7 @@ def test_detect_writes_three_formats_that_read_back(tmp_path):
                      r"\((\S+)x real time\) -> (.+)/", r.stdout.strip())
     assert m and m[5] == str(out) and m[4] == factor_text(float(m[4])) and re.fullmatch(r"\d+(\.\d+)? s|\d+ min \d\d s", m[3])
     assert float(m[1]) == round(len(x) / sr + 0.25, 1)
-    assert {p.name for p in out.iterdir()} == {"segments.csv", "a.txt", "a.TextGrid", "short8k.txt",
+    assert {p.name for p in out.iterdir() if p.name[0] != "."} == {"segments.csv", "a.txt", "a.TextGrid", "short8k.txt",
                                                "short8k.TextGrid"}
     segs = S.read_folder(out)
     assert segs["a"] and segs.get("short8k", []) == []
@@ -596,7 +596,8 @@ def test_elan_file_holds_the_segments_in_milliseconds(tmp_path):
 
 def test_detect_replaces_nothing_without_asking_and_leaves_no_stale_segments(tmp_path):
     """An --out holding files is refused before any work (the user's edited labels kept); ``--overwrite``
-    writes this run's segment files and removes an earlier run's that this run does not write, other files kept."""
+    writes this run's segment files and removes those an earlier detect wrote that this run does not write,
+    other files kept (a ``.txt`` of the user's among them)."""
     (tmp_path / "in").mkdir()
     for name in ("a", "b"):
         sf.write(tmp_path / "in" / f"{name}.wav", np.zeros(1600), 16000)
@@ -604,6 +605,7 @@ def test_detect_replaces_nothing_without_asking_and_leaves_no_stale_segments(tmp
     assert laughlab("detect", str(tmp_path / "in"), "--out", str(out)).returncode == 0
     (out / "a.txt").write_text("my own labels\n")
     (out / "notes.md").write_text("mine\n")
+    (out / "notes.txt").write_text("mine too\n")                # named like a label file, but not detect's
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     r = laughlab("detect", str(tmp_path / "in" / "a.wav"), "--out", str(out))
     assert r.returncode == 2 and r.stderr.strip().splitlines() == [r.stderr.strip()]
@@ -611,8 +613,10 @@ def test_detect_replaces_nothing_without_asking_and_leaves_no_stale_segments(tmp
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     r = laughlab("detect", str(tmp_path / "in" / "a.wav"), "--out", str(out), "--overwrite")
     assert r.returncode == 0, r.stderr
-    assert sorted(p.name for p in out.iterdir()) == ["a.TextGrid", "a.txt", "notes.md", "segments.csv"]
+    assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a.TextGrid", "a.txt", "notes.md",
+                                                                          "notes.txt", "segments.csv"]
     assert (out / "a.txt").read_text() == "" and (out / "notes.md").read_text() == "mine\n"
+    assert (out / "notes.txt").read_text() == "mine too\n"
     assert (out / "segments.csv").read_text() == "file,start,end,probability\n"
     r = laughlab("detect", str(tmp_path / "in"), "--out", str(out / "notes.md"))
     assert r.returncode == 2 and "is a file, not a folder" in r.stderr

@@ -7,13 +7,13 @@
   directory and the first run's pid.  The OS releases the lock on any exit, a crash included,
   so a stale lock cannot exist: the next run simply gets it;
 * a directory is "a run" when it holds the marker ``DIR/.laughlab-run.json`` (written by the
-  claim, completed with the list of the run's files at the end) or, for runs of laughlab 0.1,
-  one of its output files.  A run directory is refused unless ``overwrite=true``; a non-empty
-  folder that is not a run (the user's own files) is refused too unless ``overwrite=true``;
+  claim, completed with the list of the run's files at the end).  A run directory is refused unless
+  ``overwrite=true``; a non-empty folder that is not a run (the user's own files) is refused too
+  unless ``overwrite=true``;
 * ``overwrite=true`` deletes only what the marker lists as the earlier run's files, so the
-  folder ends up holding one run's outputs and nothing of the user's is touched; a folder without the
-  marker that holds a file by the name of a run's output (``OUTPUTS``) is refused even then, as the run
-  would replace it;
+  folder ends up holding one run's outputs and nothing of the user's is touched; a file that no run
+  recorded writing but named as a run's output (``OUTPUTS``: ``motion.bvh``, ``video.mp4``...) refuses
+  the run even then, as the run would replace it (so does a run of laughlab 0.1, which wrote no marker);
 * a run that was interrupted (its marker says ``complete: false``: killed, or stopped by a
   failure the process could not clean up) may be run again into its folder without
   ``overwrite``: an experiment then resumes (:mod:`laughlab.harness.experiment`), a single run
@@ -30,7 +30,7 @@ from laughlab.core.errors import LaughlabError
 
 LOCK = ".laughlab.lock"
 MARKER = ".laughlab-run.json"
-#: outputs that mark a folder as holding a run of laughlab 0.1 (no marker)
+#: the outputs of laughlab 0.1's runs (which wrote no marker)
 LEGACY = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.json", "manifest.csv")
 #: the names runs and experiments write at the top of their folder: a file of the user's by one of these names
 #: is never replaced, even with ``overwrite=true`` (the run is refused instead)
@@ -110,8 +110,10 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
             user = set(marker.get("user_files", entries - {MARKER}))
             _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user)})
             return Claim(path, fd, created, user, resumed=True)
-        if overwrite and (clash := sorted((entries - earlier) & OUTPUTS)) or marker is None and (clash := sorted(entries & OUTPUTS)):
-            # the user's files (or a marker-less 0.1 run's: they cannot be told apart) by a run's output names
+        # files no run recorded writing (the user's, or a marker-less 0.1 run's: they cannot be told apart) named
+        # as a run's outputs: a run would replace them, so they refuse it, whether or not overwrite=true
+        clash = sorted((entries - earlier) & OUTPUTS) if overwrite or marker is None else []
+        if clash:
             raise LaughlabError(f"{path} holds files by the names of a run's outputs that no laughlab run recorded "
                                 f"writing ({', '.join(clash)}); move them or choose another hydra.run.dir "
                                 "(overwrite=true never replaces files laughlab did not write)")

@@ -41,22 +41,28 @@ def inputs(paths: list[str]) -> list[Path]:
     return out
 
 
-#: the files ``detect`` writes into its --out folder (``segments.write_outputs``)
-SEGMENT_FILES = ("segments.csv", "*.txt", "*.TextGrid", "*.eaf")
+#: in --out, the names of the files the last ``detect`` wrote there (so that ``--overwrite`` removes only those)
+MANIFEST = ".laughlab-detect.json"
 
 
 def out_folder_check(out: Path, overwrite: bool) -> list[Path]:
     """Refuse an --out that is a file, or a folder already holding files unless ``overwrite``, before any work
-    (nothing the user has is replaced without asking).  With ``overwrite``: the folder's segment files, which an
-    earlier run wrote (removed once this run's are written, unless this run writes them again)."""
+    (nothing the user has is replaced without asking).  With ``overwrite``: the files an earlier ``detect``
+    wrote there (its manifest), to be removed once this run's are written unless this run writes them again."""
+    import json
+
     if out.exists() and not out.is_dir():
         raise LaughlabError(f"--out {out} is a file, not a folder")
     held = sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) if out.is_dir() else []
     if held and not overwrite:
         shown = ", ".join(held[:4]) + (f" and {len(held) - 4} more" if len(held) > 4 else "")
         raise LaughlabError(f"{out} already holds files ({shown}); choose another --out or add --overwrite "
-                            f"(replaces its segment files, keeps the rest)")
-    return sorted({p for pat in SEGMENT_FILES for p in out.glob(pat) if p.is_file()}) if held else []
+                            f"(replaces the segment files an earlier detect wrote there, keeps the rest)")
+    try:
+        names = json.loads((out / MANIFEST).read_text(encoding="utf-8"))["files"]
+    except (OSError, ValueError, KeyError, TypeError):
+        return []
+    return [out / n for n in names if isinstance(n, str) and Path(n).name == n and n in held]
 
 
 def read_mono(path: Path):
@@ -81,8 +87,8 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--formats", default="csv,audacity,textgrid", help="comma-separated: csv, audacity, textgrid, elan (default: the first three)")
     ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto")
     ap.add_argument("--overwrite", action="store_true",
-                    help="write into an --out folder that already holds files: its segment files (segments.csv, "
-                         "*.txt, *.TextGrid, *.eaf) are replaced by this run's, other files kept")
+                    help="write into an --out folder that already holds files: the segment files an earlier detect "
+                         "wrote there are replaced by this run's (or removed), other files kept")
     ns = ap.parse_args(argv)
     if not 0.0 <= ns.threshold <= 1.0:
         raise LaughlabError(f"--threshold must be in [0, 1] (got {ns.threshold})")
@@ -131,8 +137,11 @@ def main(argv: list[str]) -> None:
         bar.close()
     out = Path(ns.out)
     written = S.write_outputs(out, results, formats)
-    for f in set(stale) - set(written):   # --overwrite: an earlier run's segment files, not this run's
+    for f in set(stale) - set(written):   # --overwrite: an earlier detect's files that this one did not write
         f.unlink(missing_ok=True)
+    import json
+
+    (out / MANIFEST).write_text(json.dumps({"files": sorted(p.name for p in written)}) + "\n", encoding="utf-8")
     wall = time.perf_counter() - t0
     n = sum(len(r[2]) for r in results)
     print(f"laughlab: {len(files)} file(s), {total_s:.1f} s of audio, {n} laughter segment(s) in {duration_text(wall)} "
