@@ -25,6 +25,12 @@ def shown_path(path, limit: int = 200) -> str:
     return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-40:]} ({len(text)} characters)"
 
 
+def shown_names(names, most: int = 3) -> str:
+    """The first ``most`` of ``names`` as an error line lists a folder's files: ``a, b, c, ...``."""
+    names = list(names)
+    return ", ".join(names[:most]) + (", ..." if len(names) > most else "")
+
+
 def one_line_parser(**kwargs):
     """An ``argparse.ArgumentParser`` whose usage errors are a :class:`LaughlabError` (one line, exit 2),
     not argparse's usage block; ``--help`` is unchanged."""

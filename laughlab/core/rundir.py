@@ -26,7 +26,7 @@ import os
 import shutil
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, shown_names
 
 LOCK = ".laughlab.lock"
 MARKER = ".laughlab-run.json"
@@ -101,7 +101,6 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         entries = {p.name for p in path.iterdir()} - {LOCK} - set(ours)
         marker = _read_marker(path)
         earlier = set(marker.get("files", [])) if marker is not None else set()
-        is_run = marker is not None
         if marker is not None and marker.get("complete") and done_if is not None and not overwrite \
                 and marker.get("config_hash") == done_if:
             return Claim(path, fd, created, set(marker.get("user_files", [])), done=True)
@@ -118,11 +117,10 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
                                 f"writing ({', '.join(clash)}); move them or choose another hydra.run.dir "
                                 "(overwrite=true never replaces files laughlab did not write)")
         if entries and not overwrite:
-            if is_run:
+            if marker is not None:
                 raise LaughlabError(f"{path} already holds a run; choose another hydra.run.dir or add overwrite=true")
-            shown = ", ".join(sorted(entries)[:3]) + (", ..." if len(entries) > 3 else "")
-            raise LaughlabError(f"{path} is not empty and not a laughlab run ({shown}); choose an empty folder or "
-                                "add overwrite=true (files laughlab did not write are kept)")
+            raise LaughlabError(f"{path} is not empty and not a laughlab run ({shown_names(sorted(entries))}); "
+                                "choose an empty folder or add overwrite=true (files laughlab did not write are kept)")
         for name in sorted(earlier & entries):  # overwrite: the earlier run's own files only
             p = path / name
             shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink(missing_ok=True)

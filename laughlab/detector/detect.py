@@ -9,11 +9,12 @@ when the inputs are longer than a minute in all.
 """
 from __future__ import annotations
 
+import json
 import sys
 import time
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError, one_line_parser
+from laughlab.core.errors import LaughlabError, one_line_parser, shown_names
 from laughlab.core.summary import duration_text, factor_text
 
 AUDIO_SUFFIXES = {".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif", ".opus"}
@@ -49,14 +50,11 @@ def out_folder_check(out: Path, overwrite: bool) -> list[Path]:
     """Refuse an --out that is a file, or a folder already holding files unless ``overwrite``, before any work
     (nothing the user has is replaced without asking).  With ``overwrite``: the files an earlier ``detect``
     wrote there (its manifest), to be removed once this run's are written unless this run writes them again."""
-    import json
-
     if out.exists() and not out.is_dir():
         raise LaughlabError(f"--out {out} is a file, not a folder")
     held = sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) if out.is_dir() else []
     if held and not overwrite:
-        shown = ", ".join(held[:4]) + (f" and {len(held) - 4} more" if len(held) > 4 else "")
-        raise LaughlabError(f"{out} already holds files ({shown}); choose another --out or add --overwrite "
+        raise LaughlabError(f"{out} already holds files ({shown_names(held)}); choose another --out or add --overwrite "
                             f"(replaces the segment files an earlier detect wrote there, keeps the rest)")
     try:
         names = json.loads((out / MANIFEST).read_text(encoding="utf-8"))["files"]
@@ -139,9 +137,7 @@ def main(argv: list[str]) -> None:
     written = S.write_outputs(out, results, formats)
     for f in set(stale) - set(written):   # --overwrite: an earlier detect's files that this one did not write
         f.unlink(missing_ok=True)
-    import json
-
-    (out / MANIFEST).write_text(json.dumps({"files": sorted(p.name for p in written)}) + "\n", encoding="utf-8")
+    S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(p.name for p in written)}) + "\n")
     wall = time.perf_counter() - t0
     n = sum(len(r[2]) for r in results)
     print(f"laughlab: {len(files)} file(s), {total_s:.1f} s of audio, {n} laughter segment(s) in {duration_text(wall)} "

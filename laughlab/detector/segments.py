@@ -86,7 +86,7 @@ def segments(times: np.ndarray, p: np.ndarray, hop_s: float, threshold: float = 
     return out
 
 
-def _atomic_write(path: Path, text: str) -> None:
+def atomic_write(path: Path, text: str) -> None:
     tmp = path.with_name(path.name + ".part")
     tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, path)
@@ -156,18 +156,18 @@ def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]]
     for name, dur, segs in results:
         if "audacity" in formats:
             written.append(out_dir / f"{name}.txt")
-            _atomic_write(written[-1], audacity_text(segs))
+            atomic_write(written[-1], audacity_text(segs))
         if "textgrid" in formats:
             written.append(out_dir / f"{name}.TextGrid")
-            _atomic_write(written[-1], textgrid_text(segs, dur))
+            atomic_write(written[-1], textgrid_text(segs, dur))
         if "elan" in formats:
             written.append(out_dir / f"{name}.eaf")
-            _atomic_write(written[-1], eaf_text(segs))
+            atomic_write(written[-1], eaf_text(segs))
     if "csv" in formats:
         rows = ["file,start,end,probability\n"] + [f"{name},{s.start:.4f},{s.end:.4f},{s.prob:.4f}\n"
                                                    for name, _, segs in results for s in segs]
         written.append(out_dir / "segments.csv")
-        _atomic_write(written[-1], "".join(rows))
+        atomic_write(written[-1], "".join(rows))
     return written
 
 

@@ -20,7 +20,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from laughlab.core.errors import LaughlabError  # noqa: E402
+from laughlab.core.errors import LaughlabError, shown_names  # noqa: E402
 
 #: metrics shown first in tables and heatmaps
 KEY_METRICS = ("intensity_r_clip", "intensity_r_kinetic", "onset_latency_median_s", "miss_rate",
@@ -417,8 +417,8 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
         raise LaughlabError(f"report folder {target} exists and is not a folder")
     held = sorted(p.name for p in target.iterdir() if not p.name.startswith(".")) if target.is_dir() else []
     if held and not _is_a_report(target):
-        shown = ", ".join(held[:3]) + (", ..." if len(held) > 3 else "")
-        raise LaughlabError(f"{target} holds files that are not a laughlab report ({shown}); choose another --out "
+        raise LaughlabError(f"{target} holds files that are not a laughlab report ({shown_names(held)}); choose "
+                            "another --out "
                             "(a report replaces only an earlier report)")
     staging = target.with_name(f".{target.name}.partial-{os.getpid()}")
     shutil.rmtree(staging, ignore_errors=True)
