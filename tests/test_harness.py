@@ -8,25 +8,71 @@ from pathlib import Path
 import numpy as np
 import pytest
 import soundfile as sf
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import stats
 from omegaconf import OmegaConf
 
 from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
 from laughlab.core.errors import LaughlabError
 from laughlab.harness.corpus import build_corpus, folder_items
 from laughlab.harness.experiment import run_experiment
-from laughlab.harness.report import write_report
-from laughlab.harness.results import SCHEMA, mean_ci
+from laughlab.harness.report import _clear_best, write_report
+from laughlab.harness.results import SCHEMA, mean_ci, separated
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_mean_ci_by_hand():
     r = mean_ci([1.0, 2.0, 3.0, float("nan")])
-    # sd = 1, t(0.975, 2) = 4.3027 -> half width 4.3027 / sqrt(3) = 2.4842
     assert r["n"] == 3 and r["mean"] == 2.0 and r["std"] == pytest.approx(1.0)
-    assert r["ci95"] == pytest.approx([2 - 2.48414, 2 + 2.48414], abs=1e-4)
-    assert mean_ci([5.0])["ci95"] == [5.0, 5.0]
+    # a resample's mean is k/3 for k in 3..9: the 2.5th and 97.5th percentiles of 4,999 resamples lie
+    # between 1 and 3; the t interval was 2 +- 4.30 / sqrt(3) = [-0.48, 4.48], outside the values
+    lo, hi = r["ci95"]
+    assert 1.0 <= lo < 2.0 < hi <= 3.0
+    assert mean_ci([5.0])["ci95"] == [5.0, 5.0] and mean_ci([4.0, 4.0, 4.0])["ci95"] == [4.0, 4.0]
     assert mean_ci([])["n"] == 0 and math.isnan(mean_ci([])["mean"])
+    # seeded: the same values give the same interval, in any run
+    assert mean_ci([0.1, 0.7, 0.2, 0.9]) == mean_ci([0.1, 0.7, 0.2, 0.9])
+
+
+def test_mean_ci_of_a_rare_event_stays_a_fraction():
+    """The case a reviewer found in reports/detector_eval: 1 trial in 20 at 0.5, the rest 0, gave a t
+    interval of [-0.027, 0.077] for a fraction; the bootstrap's lower end is 0."""
+    r = mean_ci([0.5] + [0.0] * 19)
+    assert r["mean"] == pytest.approx(0.025)
+    assert r["ci95"][0] == 0.0 and 0.025 < r["ci95"][1] <= 0.5
+
+
+def test_mean_ci_of_many_normal_values_is_near_the_t_interval():
+    x = np.random.default_rng(3).normal(10.0, 2.0, 400)
+    half = stats.t.ppf(0.975, 399) * x.std(ddof=1) / math.sqrt(400)
+    lo, hi = mean_ci(x)["ci95"]
+    assert lo == pytest.approx(x.mean() - half, abs=0.1 * half)
+    assert hi == pytest.approx(x.mean() + half, abs=0.1 * half)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=40))
+def test_mean_ci_lies_within_the_values(values):
+    r = mean_ci(values)
+    lo, hi = r["ci95"]
+    assert min(values) <= lo <= hi <= max(values)
+    assert lo <= r["mean"] + 1e-12 and r["mean"] - 1e-12 <= hi
+
+
+def test_bold_only_where_the_intervals_are_apart():
+    def doc(a, b):
+        return {"metrics": {"m": {"higher_is_better": True}},
+                "results": {"A": {"m": mean_ci(a)}, "B": {"m": mean_ci(b)}}}
+    apart = doc([0.8, 0.9, 0.85, 0.95], [0.1, 0.2, 0.15, 0.12])
+    assert separated(apart["results"]["A"]["m"], apart["results"]["B"]["m"])
+    assert _clear_best(apart, "m", ["A", "B"]) == "A"
+    near = doc([0.5, 0.9, 0.6, 0.8], [0.4, 0.85, 0.55, 0.7])      # A's mean higher, intervals overlap
+    assert _clear_best(near, "m", ["A", "B"]) is None
+    lower = {**apart, "metrics": {"m": {"higher_is_better": False}}}
+    assert _clear_best(lower, "m", ["A", "B"]) == "B"
+    assert _clear_best({**apart, "metrics": {"m": {"higher_is_better": None}}}, "m", ["A", "B"]) is None
 
 
 def test_corpus_profiles_seeds_and_folder(tmp_path):

@@ -21,6 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from laughlab.core.errors import LaughlabError, shown_names  # noqa: E402
+from laughlab.harness.results import separated  # noqa: E402
 
 #: metrics shown first in tables and heatmaps
 KEY_METRICS = ("intensity_r_clip", "intensity_r_kinetic", "onset_latency_median_s", "miss_rate",
@@ -103,7 +104,7 @@ def comparison_figure(doc: dict, path: Path) -> Path:
         ax.spines[["top", "right"]].set_visible(False)
     for ax in axes.flat[len(names):]:
         ax.set_axis_off()
-    fig.suptitle(f"{doc['experiment']}: mean and 95% CI over {doc['n_trials']} trials "
+    fig.suptitle(f"{doc['experiment']}: mean and 95% CI (bootstrap) over {doc['n_trials']} trials "
                  "(↑ higher is better, ↓ lower is better)", fontsize=9)
     if same:
         import textwrap
@@ -118,7 +119,8 @@ def comparison_figure(doc: dict, path: Path) -> Path:
 
 
 def _results_table(doc: dict) -> list[str]:
-    """The metrics that differ between the conditions: one column per condition, the best in bold."""
+    """The metrics that differ between the conditions: one column per condition, the best in bold when
+    its interval is apart from the others' (:func:`_clear_best`)."""
     conds = conditions_of(doc)
     lines = ["| metric | units | " + " | ".join(f"{c} mean [95% CI]" for c in conds) + " |",
              "|---|---|" + "---|" * len(conds)]
@@ -126,17 +128,25 @@ def _results_table(doc: dict) -> list[str]:
         if same_everywhere(doc, m):
             continue
         info = doc["metrics"][m]
-        cells = []
-        means = [doc["results"][c][m]["mean"] for c in conds]
-        finite = [v for v in means if v is not None and math.isfinite(v)]
-        best = None
-        if info["higher_is_better"] is not None and len(finite) > 1:
-            best = max(finite) if info["higher_is_better"] else min(finite)
-        for c in conds:
-            r = doc["results"][c][m]
-            cells.append(f"**{_cell(r)}**" if best is not None and r["mean"] == best else _cell(r))
+        best = _clear_best(doc, m, conds)
+        cells = [f"**{_cell(doc['results'][c][m])}**" if c == best else _cell(doc["results"][c][m]) for c in conds]
         lines.append(f"| {m} {_arrow(info['higher_is_better'])} | {info['units']} | " + " | ".join(cells) + " |")
     return lines
+
+
+def _clear_best(doc: dict, metric: str, conds: list[str]) -> str | None:
+    """The condition with the best mean of ``metric`` when its 95 % interval is apart from every other
+    condition's (:func:`~laughlab.harness.results.separated`); None when the intervals overlap, the
+    metric has no better direction, or fewer than two conditions have a value."""
+    if doc["metrics"][metric]["higher_is_better"] is None:
+        return None
+    rs = {c: doc["results"][c][metric] for c in conds}
+    have = [c for c, r in rs.items() if r["n"] and r["mean"] is not None and math.isfinite(r["mean"])]
+    if len(have) < 2:
+        return None
+    sign = 1 if doc["metrics"][metric]["higher_is_better"] else -1
+    best = max(have, key=lambda c: sign * rs[c]["mean"])
+    return best if all(separated(rs[best], rs[c]) for c in have if c != best) else None
 
 
 def _cell(r: dict) -> str:
@@ -212,8 +222,10 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
                 f"({', '.join(doc['corpus']['not_fetched'])}) were left out; `python -m laughlab corpus fetch` "
                 "adds them"] if doc["corpus"].get("not_fetched") else []),
              "", "## Results", "",
-             "Mean over trials with its 95% confidence interval (t distribution). ↑ higher is better, "
-             "↓ lower is better; the better condition is in bold. "
+             "Mean over trials with its 95% confidence interval (percentile bootstrap of the trials, "
+             "seeded; it stays within the values' range). ↑ higher is better, ↓ lower is better; the best "
+             "condition is in bold only where its interval does not overlap any other condition's (a "
+             "conservative rule: no bold is not evidence of no difference). "
              f"The compute rows (frame_ms_*, realtime_factor) were measured with "
              f"{(doc.get('config', {}).get('harness') or {}).get('jobs', 1)} trial process(es) sharing the "
              "machine; `make bench` measures them alone.", ""]

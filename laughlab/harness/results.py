@@ -21,8 +21,11 @@ Schema of ``results.json``::
       "extra": {...}                      # experiment-specific numbers
     }
 
-Means and 95 % confidence intervals use the trials with a finite value
-(t distribution, ``mean +/- t_{0.975, n-1} * sd / sqrt(n)``); NaN where n = 0.
+Means and 95 % confidence intervals use the trials with a finite value; NaN where n = 0.  The
+interval is a seeded percentile bootstrap (:data:`N_RESAMPLES` resamples of the trials, the 2.5th
+and 97.5th percentiles of their means, ``scipy.stats.bootstrap``): unlike the t interval
+``mean +/- t * sd / sqrt(n)`` it stays inside the range of the values, so a fraction's interval
+never leaves [0, 1] nor a count's goes below 0; and the same values give the same bytes.
 """
 from __future__ import annotations
 
@@ -37,20 +40,45 @@ import numpy as np
 from scipy import stats
 
 SCHEMA = "laughlab.results/1"
+#: resamples of the bootstrap interval (:func:`mean_ci`); its seed is fixed, so it is the same every run
+N_RESAMPLES = 4999
+
+
+def _finite(values) -> np.ndarray:
+    return np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=float)
+
+
+def _mean(values) -> float:
+    x = _finite(values)
+    return float(x.mean()) if len(x) else float("nan")
 
 
 def mean_ci(values) -> dict:
-    """Mean, 95 % CI (t distribution), sd and n of the finite values."""
-    x = np.asarray([v for v in values if v is not None and math.isfinite(v)], dtype=float)
+    """Mean, 95 % CI (seeded percentile bootstrap of the mean), sd and n of the finite values.
+
+    One value, or values all equal: the interval is [mean, mean].  The percentile interval lies
+    within [min, max] of the values, so it respects whatever bounds the metric has.
+    """
+    x = _finite(values)
     n = len(x)
     if n == 0:
         return {"mean": float("nan"), "ci95": [float("nan"), float("nan")], "std": float("nan"), "n": 0}
     m = float(x.mean())
-    if n == 1:
-        return {"mean": m, "ci95": [m, m], "std": 0.0, "n": 1}
-    sd = float(x.std(ddof=1))
-    h = float(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n))
-    return {"mean": m, "ci95": [m - h, m + h], "std": sd, "n": n}
+    if n == 1 or np.all(x == x[0]):
+        return {"mean": m, "ci95": [m, m], "std": 0.0 if n == 1 else float(x.std(ddof=1)), "n": n}
+    ci = stats.bootstrap((x,), np.mean, n_resamples=N_RESAMPLES, method="percentile", vectorized=True,
+                         rng=np.random.default_rng(0)).confidence_interval
+    # a resampled mean can differ from min/max in the last bit: keep the interval inside the values
+    lo, hi = float(max(ci.low, x.min())), float(min(ci.high, x.max()))
+    return {"mean": m, "ci95": [lo, hi], "std": float(x.std(ddof=1)), "n": n}
+
+
+def separated(a: dict, b: dict) -> bool:
+    """True when the 95 % intervals of two :func:`mean_ci` results do not overlap (a conservative test:
+    intervals that overlap a little can still differ at 5 %)."""
+    if any(v is None or not math.isfinite(v) for v in (*a["ci95"], *b["ci95"])):
+        return False
+    return a["ci95"][1] < b["ci95"][0] or b["ci95"][1] < a["ci95"][0]
 
 
 def aggregate(records: list[dict], metric_names: list[str]) -> tuple[dict, dict]:
@@ -62,7 +90,7 @@ def aggregate(records: list[dict], metric_names: list[str]) -> tuple[dict, dict]
         by_profile[cond] = {}
         for prof in sorted({r["profile"] for r in rs}):
             pr = [r for r in rs if r["profile"] == prof]
-            by_profile[cond][prof] = {m: mean_ci([r["metrics"].get(m) for r in pr])["mean"] for m in metric_names}
+            by_profile[cond][prof] = {m: _mean([r["metrics"].get(m) for r in pr]) for m in metric_names}
     return results, by_profile
 
 

@@ -149,15 +149,20 @@ def condition_means(tidy, conditions: list[str], questions: list[str] | None = N
     """
     import pandas as pd
 
-    from laughlab.harness.results import mean_ci
+    from scipy import stats
 
     rows = []
     pm = tidy.groupby(["question", "condition", "participant"], observed=True)["value"].mean().reset_index()
     for (q, c), g in pm.groupby(["question", "condition"], observed=True):
-        s = mean_ci(g["value"].to_numpy(float))
-        # one participant: no spread and no interval (mean_ci would give sd 0 and [m, m])
-        sd, lo, hi = (s["std"], *s["ci95"]) if s["n"] > 1 else (float("nan"),) * 3
-        rows.append({"question": q, "condition": c, "mean": s["mean"], "sd": sd, "n_participants": s["n"],
+        x = g["value"].to_numpy(float)
+        x = x[np.isfinite(x)]
+        n, m = len(x), float(x.mean()) if len(x) else float("nan")
+        # a t interval, not the harness' bootstrap (results.mean_ci): a dozen participants are too few for
+        # a percentile bootstrap, which is too narrow at small n; one participant: no spread, no interval
+        sd = float(x.std(ddof=1)) if n > 1 else float("nan")
+        h = float(stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n)) if n > 1 else float("nan")
+        lo, hi = m - h, m + h
+        rows.append({"question": q, "condition": c, "mean": m, "sd": sd, "n_participants": n,
                      "n_ratings": int((tidy["question"].eq(q) & tidy["condition"].eq(c)).sum()),
                      "ci_low": lo, "ci_high": hi})
     out = pd.DataFrame(rows)
