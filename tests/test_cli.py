@@ -150,6 +150,24 @@ def test_a_parameter_of_another_plugin_says_what_to_add(tmp_path, args, message)
     (["video.fps=10"], "there is no top-level parameter video.fps; output=video has output.video.fps: "
                        "write output=video output.video.fps=10"),
     (["face.bogus=1"], "unknown parameter face.bogus; valid: smile, jaw, blink_mean_s"),   # no plugin has it
+    # an output's parameter without its node (was "unknown parameter output.port", no hint)
+    (["output.port=9000"], "there is no parameter output.port: an output's parameters go under its name, "
+                           "output.vmc.port (with output=vmc)"),
+    (["output=vmc", "output.port=9000"], "there is no parameter output.port: an output's parameters go under "
+                                         "its name, output.vmc.port"),
+    (["output.max_seconds=5"], "there is no parameter output.max_seconds: an output's parameters go under its "
+                               "name, output.plots.max_seconds"),
+    (["output=[files,vmc]", "output.bogus=1"], "unknown parameter output.bogus; valid: output.plots.max_seconds, "
+                                               "output.vmc.blend_case, output.vmc.host,"),
+    # a nested group given one value, or failing its own check (was OmegaConf's "Merge error: str is not a
+    # subclass of UnitParams" and "bad parameter in face.facs: hi must be >= 0", no AU named)
+    (["face=facs", "face.au12=abc"], "bad parameter face.facs.au12: it is a group of parameters (lo, hi, rise, "
+                                     "fall, input), not one value (got 'abc'); set one of them, e.g. face.au12.lo=..."),
+    (["face=facs", "face.au12.hi=-1"], "bad parameter in face.facs.au12: hi must be >= 0 (got -1.0)"),
+    (["face=facs", "face.au6.lo=0.5", "face.au6.hi=0.4"], "bad parameter in face.facs.au6: hi must be > lo"),
+    # a comma without brackets (was Hydra's "Ambiguous value for argument")
+    (["output=gltf,video"], "output=gltf,video: several outputs are a list, write 'output=[gltf,video]'"),
+    (["face=facs,smile"], "face=facs,smile gives several values: to run each, add -m"),
     (["bogus=1"], "unknown parameter bogus"),
 ])
 def test_an_unknown_key_names_the_plugins_that_have_it(args, message):

@@ -88,6 +88,14 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
             except Exception:  # listing the keys is a courtesy
                 valid = ""
         return f"unknown parameter {key}{valid}"
+    m = re.search(r"Ambiguous value for argument '([^=']+)=([^']*)'", text)
+    if m:  # Hydra's three numbered lines, as one: a comma is a sweep (-m), or a list in brackets
+        key, value = m.groups()
+        if key == "output":
+            return (f"output={value}: several outputs are a list, write 'output=[{value}]' (quoted for the shell); "
+                    f"without brackets a comma means a sweep (-m)")
+        return (f"{key}={value} gives several values: to run each, add -m (a sweep: python -m laughlab -m "
+                f"{key}={value}); for a list write '{key}=[{value}]'")
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     return lines[0] if lines else type(exc).__name__
 
@@ -119,7 +127,13 @@ def _misplaced(key: str, overrides: list[str]) -> str | None:
     group, _, rest = key.partition(".")
     if group in GROUP_KINDS and rest:
         explicit = any(o.lstrip("+~").split("=", 1)[0] == group for o in overrides)
-        return misplaced_parameter(group, choices.get(group), rest, explicit)
+        hint = misplaced_parameter(group, choices.get(group), rest, explicit)
+        if hint is None and group == "output":
+            # an output's parameters sit under its name (output.vmc.port): say which outputs have this one
+            options = keyhints.option_keys(conf_dir().joinpath("output"), None)
+            given = next((o.split("=", 1)[1] for o in overrides if o.split("=", 1)[0] == "output"), None)
+            hint = keyhints.under_output(rest, options, choices.get("output") or given)  # a list: not a choice
+        return hint
     if group not in GROUP_KINDS and group not in ("hydra", "harness", "experiment"):
         value = next((o.split("=", 1)[1] for o in overrides if o.lstrip("+~").split("=", 1)[0] == key), None)
         found = [(g, o) for g in keyhints.SEARCHED for o in _owners(g, key)]

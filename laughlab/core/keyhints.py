@@ -86,3 +86,23 @@ def without_group(key: str, value: str | None, current: dict[str, str], found: l
         return f"there is no top-level parameter {key}; did you mean {setting}?"
     return (f"there is no top-level parameter {key}; {group}={option} has {group}.{key}: "
             f"write {group}={option} {setting}")
+
+
+
+def under_output(path: str, options: dict[str, set], current) -> str:
+    """``output.path`` is not a parameter: every output's parameters sit under a node of its own
+    (``output.vmc.port``, ``output.plots.max_seconds``).  ``options``: output option -> its parameter paths
+    (:func:`option_keys`); ``current``: the outputs chosen now (a name or a list of names).  The line names
+    the full keys that end in ``path`` and the output to add, else the parameters of the chosen outputs."""
+    if isinstance(current, str):  # Hydra shows a list of outputs as "[files, vmc]"
+        current = current.strip("[]").split(",")
+    chosen = {c.strip() for c in current or ()}
+    found = sorted((o, k) for o, keys in options.items() for k in keys
+                   if "." in k and k.split(".", 1)[1] == path)
+    if found:
+        keys = " or ".join(f"output.{k}" for k in sorted({k for _, k in found}))
+        owners = sorted({o for o, _ in found})
+        add = "" if chosen & set(owners) else f" (with output={owners[0]})"
+        return f"there is no parameter output.{path}: an output's parameters go under its name, {keys}{add}"
+    valid = sorted(f"output.{k}" for o in chosen for k in options.get(o, ()) if "." in k)
+    return f"unknown parameter output.{path}; valid: {', '.join(valid) or '(none)'}"

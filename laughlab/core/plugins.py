@@ -161,6 +161,14 @@ def make_params(cls: type, values: Any, where: str) -> Any:
     for key in values:
         if key not in valid:
             raise UnknownParameter(f"unknown parameter {where}.{key}; valid: {', '.join(valid) or '(none)'}", key)
+    groups = _nested(params_cls)
+    for key, value in values.items():
+        if key in groups and not isinstance(value, (dict, DictConfig)):
+            sub = [f.name for f in fields(groups[key])]
+            example = f"{where.partition('.')[0]}.{key}.{sub[0]}=..."
+            raise LaughlabError(f"bad parameter {where}.{key}: it is a group of parameters ({', '.join(sub)}), "
+                                f"not one value (got {value!r}); set one of them, e.g. {example}")
+    merged = None
     try:
         merged = OmegaConf.merge(_schema(params_cls), values)
         bad = first_nonfinite(OmegaConf.to_container(merged, resolve=True), nonfinite_ok(params_cls))
@@ -174,7 +182,9 @@ def make_params(cls: type, values: Any, where: str) -> Any:
         raise LaughlabError(f"bad parameter {where}.{key}: {msg}" if key else f"bad parameter in {where}: {msg}") \
             from None
     except (ValueError, TypeError) as exc:
-        raise LaughlabError(f"bad parameter in {where}: {exc}") from None
+        # a nested group's own check (face.au12's hi): name the group, not only the plugin
+        inner = next((k for k in groups if k in values and merged is not None and not _builds(merged[k])), None)
+        raise LaughlabError(f"bad parameter in {where}{'.' + inner if inner else ''}: {exc}") from None
     except OSError as exc:  # a path parameter the system refuses to look at (too long, no permission, ...)
         raise _path_error(exc, where) from None
 
@@ -184,6 +194,23 @@ def _path_error(exc: OSError, where: str) -> LaughlabError:
     the cause."""
     return LaughlabError(f"bad parameter in {where}: cannot use {shown_path(exc.filename, 80)}: "
                          f"{exc.strerror or exc}")
+
+
+@functools.lru_cache(maxsize=None)
+def _nested(params_cls: type) -> dict[str, type]:
+    """The fields of a ``Params`` dataclass that are dataclasses themselves (``face=facs``'s ``au12``): name -> class."""
+    schema = _schema(params_cls)
+    return {f.name: OmegaConf.get_type(schema, f.name) for f in fields(params_cls)
+            if is_dataclass(OmegaConf.get_type(schema, f.name))}
+
+
+def _builds(node) -> bool:
+    """True when a merged nested group makes its dataclass (its own ``__post_init__`` checks pass)."""
+    try:
+        OmegaConf.to_object(node)
+        return True
+    except (ValueError, TypeError):
+        return False
 
 
 @functools.lru_cache(maxsize=None)
