@@ -154,6 +154,10 @@ def test_report_tables_and_figures(tiny_run, tmp_path):
     assert text.startswith("# tiny")
     assert "| metric | units | energy mean [95% CI] | none mean [95% CI] |" in text
     assert "| miss_rate ↓ | fraction | **0 [0, 0]** | 1 [1, 1] |" in text
+    # synthetic laughter holds no cough: no row of n/a, one line naming it
+    results = text.split("## Metrics")[0]
+    assert "| false_starts_cough_per_min" not in results and "n/a | n/a" not in results
+    assert "No value under any condition" in text and "`false_starts_cough_per_min`" in text
     assert (tmp_path / "rep" / "figures" / "metrics.png").exists()
     assert (tmp_path / "rep" / "figures" / "energy_fig4_2_energy.png").exists()
 

@@ -125,13 +125,19 @@ def _results_table(doc: dict) -> list[str]:
     lines = ["| metric | units | " + " | ".join(f"{c} mean [95% CI]" for c in conds) + " |",
              "|---|---|" + "---|" * len(conds)]
     for m in metric_order(doc):
-        if same_everywhere(doc, m):
+        if same_everywhere(doc, m) or m in unmeasured(doc):
             continue
         info = doc["metrics"][m]
         best = _clear_best(doc, m, conds)
         cells = [f"**{_cell(doc['results'][c][m])}**" if c == best else _cell(doc["results"][c][m]) for c in conds]
         lines.append(f"| {m} {_arrow(info['higher_is_better'])} | {info['units']} | " + " | ".join(cells) + " |")
     return lines
+
+
+def unmeasured(doc: dict) -> list[str]:
+    """The metrics with no value under any condition (e.g. false starts on coughs when the corpus holds no
+    cough): the report names them in one line instead of a row of n/a."""
+    return [m for m in metric_order(doc) if not any(doc["results"][c][m]["n"] for c in conditions_of(doc))]
 
 
 def _clear_best(doc: dict, metric: str, conds: list[str]) -> str | None:
@@ -230,6 +236,9 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              f"{(doc.get('config', {}).get('harness') or {}).get('jobs', 1)} trial process(es) sharing the "
              "machine; `make bench` measures them alone.", ""]
     lines += _results_table(doc)
+    if unmeasured(doc):
+        lines += ["", "No value under any condition (nothing in these inputs for them to measure): "
+                  + ", ".join(f"`{m}`" for m in unmeasured(doc)) + "."]
     lines += ["", "![metrics](figures/metrics.png)", ""]
     same = _same_table(doc)
     if same:
