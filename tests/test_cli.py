@@ -215,15 +215,29 @@ def test_existing_run_is_not_overwritten_without_asking(default_run, tmp_path):
     assert len(pd.read_csv(target / "channels.csv")) == 180
 
 
-def test_plugins_command_lists_kind_name_origin():
+def test_plugins_command_lists_kind_name_origin_and_how_to_use_it(tmp_path):
     r = laughlab("plugins")
     assert r.returncode == 0
     lines = r.stdout.splitlines()
-    assert lines[0].split()[:3] == ["kind", "name", "origin"]
+    assert lines[0].split() == ["kind", "name", "origin", "use", "with"]
     rows = {tuple(ln.split()[:2]) for ln in lines[1:]}
     for row in [("source", "synthetic"), ("extractor", "rms"), ("face", "smile"), ("body", "shapes"),
                 ("scheduler", "energy"), ("sink", "bvh")]:
         assert row in rows
+    # the plugin kind "source" is chosen with the group "input"; a sink through the output that has it
+    use = {tuple(ln.split()[:2]): ln.split(")  ", 1)[1].strip() for ln in lines[1:]}
+    assert use["source", "file"] == "input=file"
+    assert use["sink", "video"] == "output=video"
+    assert use["sink", "bvh"] == "output=files (also gltf, video, vrma)"
+    assert use["metric", "miss_rate"] == "every experiment (harness)"
+    # a third-party sink no output option names: added by its own node
+    (tmp_path / "mysink.py").write_text(
+        "import laughlab\nfrom laughlab.core.bases import Sink\n"
+        "class Mine(Sink):\n    name = 'mine'\n"
+        "@laughlab.hookimpl\ndef register_sinks(register):\n    register(Mine)\n")
+    r = laughlab("plugins", f"plugins_dir={tmp_path}")
+    assert r.returncode == 0, r.stderr
+    assert any(ln.split()[:2] == ["sink", "mine"] and ln.endswith("+output.mine={}") for ln in r.stdout.splitlines())
 
 
 def test_a_successful_run_says_what_ran_how_long_and_where(tmp_path):

@@ -429,3 +429,23 @@ def test_the_default_run_writes_no_negative_energy_and_no_eye_jump_at_clip_event
     jump = np.abs(np.diff(ch.eyes_closed.to_numpy()))
     near = np.concatenate([jump[max(0, f - 1):f + 2] for f in frames])
     assert near.max() <= 0.35
+
+
+@pytest.mark.parametrize("extra, shown", [
+    ([], False),                                   # 5 s, plain files: done in a second or two, no bar
+    (["output=video"], True),                      # video: ~30 frames/s drawn, quiet for half a minute without it
+    (["input.duration_s=61"], True),               # over 60 s
+    (["output=video", "progress=off"], False),
+    (["progress=on"], True),
+])
+def test_progress_bar_on_a_terminal_for_long_inputs_and_video(monkeypatch, extra, shown):
+    import sys
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True)
+    pipe = pipeline.build(cfg_for("input.duration_s=5", *extra))
+    bar = pipeline._progress_bar(pipe)
+    try:
+        assert (bar is not None) == shown
+    finally:
+        if bar is not None:
+            bar.close()

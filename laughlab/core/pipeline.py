@@ -266,9 +266,13 @@ def chunk_frames(pipe: Pipeline) -> int:
 
 
 def _progress_bar(pipe: Pipeline):
+    """A bar on the terminal when the run will take a while: ``progress=auto`` shows it for an input over
+    60 s, or of any length when a sink declares ``slow = True`` (``video`` draws and encodes each frame,
+    about 30 frames/s: a 9 s input was quiet for 20-40 s)."""
     n = pipe.source.n_frames
+    slow = any(getattr(s, "slow", False) for s in pipe.sinks)
     show = pipe.run.progress == "on" or (
-        pipe.run.progress == "auto" and sys.stderr.isatty() and (n is None or n > 60 * pipe.ctx.fps))
+        pipe.run.progress == "auto" and sys.stderr.isatty() and (n is None or n > 60 * pipe.ctx.fps or slow))
     if not show:
         return None
     from tqdm import tqdm
