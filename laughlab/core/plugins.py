@@ -198,7 +198,8 @@ def _path_error(exc: OSError, where: str) -> LaughlabError:
 
 @functools.lru_cache(maxsize=None)
 def _nested(params_cls: type) -> dict[str, type]:
-    """The fields of a ``Params`` dataclass that are dataclasses themselves (``face=facs``'s ``au12``): name -> class."""
+    """The fields of a ``Params`` dataclass that are dataclasses themselves (``face=facs``'s ``au12``):
+    name -> class."""
     schema = _schema(params_cls)
     return {f.name: OmegaConf.get_type(schema, f.name) for f in fields(params_cls)
             if is_dataclass(OmegaConf.get_type(schema, f.name))}

@@ -147,9 +147,14 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
 
     metric_info = {n: {"higher_is_better": m.higher_is_better, "units": m.units, "description": m.description}
                    for n, m in registered().items()}
+    module = experiment_module(h.get("module"))
+    if progress:  # the steps below take 5-30 s on 2 cores: say what is going on
+        steps = ["means and bootstrap intervals",
+                 *(["the experiment's own numbers"] if hasattr(module, "extra") else []),
+                 *(["plots/metrics.png"] if h.get("plots", True) else [])]
+        print(f"{name}: summarising {len(run.records)} trials: {', '.join(steps)}", file=sys.stderr)
     results, by_profile = res.aggregate(run.records, list(metric_info))
     extra = {}
-    module = experiment_module(h.get("module"))
     if module is not None and hasattr(module, "extra"):
         extra = module.extra(run) or {}
     doc = {
