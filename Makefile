@@ -12,6 +12,7 @@ UV_VERSION := 0.13.9
 ## the venv: built afresh from the lock whenever the lock or pyproject.toml changes, so it holds exactly
 ## the locked versions (hash-checked) and nothing else; laughlab itself installed editable on top
 $(STAMP): pyproject.toml $(LOCK)
+	@echo "laughlab: building $(VENV) from $(LOCK): $$(grep -c '^[A-Za-z0-9][A-Za-z0-9._-]*==' $(LOCK)) exact versions, hash-checked (1-3 minutes the first time)"
 	rm -rf $(VENV)
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --disable-pip-version-check --require-hashes --no-deps -r $(LOCK)
