@@ -88,7 +88,6 @@ def without_group(key: str, value: str | None, current: dict[str, str], found: l
             f"write {group}={option} {setting}")
 
 
-
 def under_output(path: str, options: dict[str, set], current) -> str:
     """``output.path`` is not a parameter: every output's parameters sit under a node of its own
     (``output.vmc.port``, ``output.plots.max_seconds``).  ``options``: output option -> its parameter paths
