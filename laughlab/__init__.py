@@ -11,7 +11,11 @@ Where things live: ``laughlab.core`` (the framework), ``laughlab.io`` (formats),
 ``synth``, ``render``).  The flat module paths of laughlab 0.1 still import, with a
 DeprecationWarning (``laughlab._compat``).
 """
-from laughlab import _compat
+from laughlab import _kernels
+
+_kernels.pin()  # before numpy is imported: the same bytes on AVX2 and AVX-512 machines (laughlab/_kernels.py)
+
+from laughlab import _compat  # noqa: E402
 
 __version__ = "0.2.0"
 

@@ -125,40 +125,6 @@ def run_composed(cfg) -> None:
     _ = ret.return_value  # re-raises what the job raised
 
 
-def list_plugins() -> None:
-    """Print every plugin: kind, name, where it comes from and how a run chooses it (the plugin kind
-    ``source`` is the config group ``input``; a sink is in the output options whose YAML names it)."""
-    from laughlab.core import plugins
-
-    header = ("kind", "name", "origin", "use with")
-    rows = [(kind, name, info.origin, _chosen_by(kind, name))
-            for kind, named in plugins.registry().items() for name, info in named.items()]
-    width = [max(len(r[i]) for r in rows + [header]) for i in range(3)]
-    for row in [header, *rows]:
-        print("  ".join(f"{v:<{w}}" for v, w in zip(row, width)) + "  " + row[3])
-
-
-def _chosen_by(kind: str, name: str) -> str:
-    """How a run uses plugin ``kind/name``: ``input=file``, ``output=video`` (a sink: the output options
-    that include it, its own first), ``every experiment`` (a metric)."""
-    if kind == "metric":
-        return "every experiment (harness)"
-    group = next((g for g, k in GROUP_KINDS.items() if k == kind), None)
-    if group is None:
-        return ""
-    if group != "output":
-        return f"{group}={name}"
-    options = []
-    for f in sorted(conf_dir().joinpath("output").iterdir(), key=lambda f: f.name):
-        if f.name.endswith(".yaml") and f.name != "trial.yaml" and re.search(rf"^{re.escape(name)}:", f.read_text(),
-                                                                             re.M):   # trial: the harness' own
-            options.append(f.name[:-5])
-    options.sort(key=lambda o: (o != name, o != "files", o))  # its own option, then the default
-    if not options:
-        return f"+output.{name}={{}}"
-    return f"output={options[0]}" + (f" (also {', '.join(options[1:])})" if options[1:] else "")
-
-
 def _run_dir_state(path: Path) -> set[str]:
     return {p.name for p in path.iterdir()} if path.is_dir() else set()
 
@@ -179,7 +145,7 @@ def task(cfg) -> dict:
     try:
         if _CLAIM is None:  # a sweep's job: Hydra made the folder and wrote .hydra/ into it
             _CLAIM = rundir.claim(out_dir, bool(cfg.get("overwrite", False)), ours=frozenset({".hydra"}),
-                                  done_if=cfg_hash)
+                                  done_if=cfg_hash, writes=pipeline.planned_files(cfg))
             if _CLAIM.done:  # the same sweep run again: this job finished before
                 print(f"laughlab: {out_dir} already holds this job's finished run; skipped")
                 return {}
@@ -463,6 +429,8 @@ def _main(argv: list[str]) -> None:
             for a in argv:
                 if a.startswith("plugins_dir="):
                     plugins.load_plugin_dir(a.split("=", 1)[1])
+            from laughlab.core.plugin_table import list_plugins
+
             list_plugins()
         except LaughlabError as exc:
             fail(str(exc))
@@ -495,10 +463,11 @@ def _main(argv: list[str]) -> None:
         fail(os_error_line(exc, ".", verb="cannot use"))
     if not multirun and not hydra_only:
         global _CLAIM
-        from laughlab.core import rundir
+        from laughlab.core import pipeline, rundir
 
         try:  # one writer per run directory, before anything is written into it
-            _CLAIM = rundir.claim(Path(cfg.hydra.run.dir), bool(cfg.get("overwrite", False)))
+            _CLAIM = rundir.claim(Path(cfg.hydra.run.dir), bool(cfg.get("overwrite", False)),
+                                  writes=pipeline.planned_files(cfg))
         except LaughlabError as exc:
             fail(str(exc))
         try:

@@ -44,6 +44,7 @@ class ArkitSink(Sink):
 
     name = "arkit"
     background = True  # only writes files: may run in the helper process
+    files = ("face_arkit.csv",)
     Params = ArkitParams
 
     def open(self, run) -> None:

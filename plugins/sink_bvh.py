@@ -20,6 +20,7 @@ class BvhSink(Sink):
 
     name = "bvh"
     background = True  # only writes files: may run in the helper process
+    files = ("motion.bvh",)
 
     def open(self, run) -> None:
         super().open(run)

@@ -44,6 +44,7 @@ class CsvSink(Sink):
 
     name = "csv"
     background = True  # only writes files: may run in the helper process
+    files = ("channels.csv", "events.csv")
     Params = CsvParams
 
     def open(self, run) -> None:

@@ -57,6 +57,7 @@ class GltfSink(Sink):
         self.breath: list = []
 
     filename = "character.glb"
+    files = (filename,)
 
     def _drives_avatar(self) -> bool:
         return bool(self.params.character)

@@ -55,6 +55,7 @@ class PlotsSink(Sink):
 
     name = "plots"
     background = True  # only writes files: may run in the helper process
+    files = ("plots",)
     Params = PlotsParams
     _keys = ("rms", "amp", "calibrating", "mcs_raw", "mcs", "energy", "smile", "jaw", "eyes_closed")
     _pose_hz = 5.0

@@ -166,6 +166,13 @@ class VideoSink(Sink):
     name = "video"
     Params = VideoParams
     slow = True  # draws and encodes every frame: the progress bar shows on any length (progress=auto)
+    files = ("video.mp4",)
+
+    @classmethod
+    def planned(cls, params: dict) -> tuple[str, ...]:
+        """``output.video.file`` (``video.mp4``), or the first folder of a relative path."""
+        name = Path(str((params or {}).get("file") or cls.files[0]))
+        return () if name.is_absolute() or not name.parts else (name.parts[0],)
 
     def __init__(self, params=None, ctx=None):
         super().__init__(params, ctx)

@@ -26,6 +26,7 @@ class VrmaSink(GltfSink):
     name = "vrma"
     Params = VrmaParams
     filename = "animation.vrma"
+    files = (filename,)
 
     def _drives_avatar(self) -> bool:
         return True

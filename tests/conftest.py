@@ -3,6 +3,8 @@ import sys
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 
+import laughlab  # noqa: E402,F401 - first, before any test module imports numpy: laughlab/_kernels.py pins its kernels
+
 import pytest
 
 

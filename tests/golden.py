@@ -6,6 +6,10 @@ Two strengths of check, chosen by where the test runs:
   ``requirements.lock`` installed at its locked version (what ``make test`` builds), on the Python
   minor version, OS and CPU architecture recorded in ``tests/data/golden.json``.  numpy, scipy, numba
   and libm round differently from release to release, so bytes only hold in the locked environment.
+  Within it, numpy's and OpenBLAS's kernels are pinned to AVX2's (``laughlab/_kernels.py``), so the
+  bytes hold on AVX2 and AVX-512 machines alike; YAMNet's interpreter (XNNPACK) has no such switch, so
+  the runs through it (:data:`YAMNET_RUNS`) have their bytes recorded per CPU family
+  (:func:`cpu_family`), and on a family with none recorded they are not checked, and the test says so.
 - **values within a tolerance** anywhere else (a newer numpy, macOS, ARM): every number of every
   output file equal to the golden file's within ``RTOL``/``ATOL`` below, every word equal.
 
@@ -49,6 +53,26 @@ RUNS = {
     "real_48k": ["input=file", "face=facs", "detector=none"],
     "real_48k_yamnet": ["input=file", "face=facs", "detector=yamnet"],
 }
+
+
+#: the runs through YAMNet (the default detector): XNNPACK's kernels, chosen by CPU, decide their bytes
+YAMNET_RUNS = tuple(n for n, a in RUNS.items() if not any(o.startswith("detector=") for o in a)
+                    or "detector=yamnet" in a)
+#: the CPU flags (Linux's names) behind XNNPACK's x86 kernel families, in the order of :func:`cpu_family`
+_FAMILIES = (("avx", {"avx"}), ("avx2", {"avx2", "fma"}), ("avx512f", {"avx512f"}),
+             ("avx512skx", {"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"}),
+             ("avx512vbmi", {"avx512vbmi"}), ("avx512vnni", {"avx512_vnni"}), ("avxvnni", {"avx_vnni"}),
+             ("amx", {"amx_int8"}))
+
+
+def cpu_family() -> str:
+    """The CPU's kernel families as XNNPACK tells them apart, e.g. ``avx+avx2`` or ``avx+avx2+avx512f+...``
+    (the architecture's name outside x86-64 Linux)."""
+    from laughlab._kernels import cpu_flags
+
+    flags = cpu_flags()
+    names = [name for name, need in _FAMILIES if need <= flags]
+    return "+".join(names) if names else platform.machine()
 
 
 def real_path() -> str:
@@ -149,29 +173,64 @@ def value_differences(got: bytes, want: bytes, rtol: float = RTOL, atol: float =
     return None
 
 
+def expected_hashes(name: str) -> tuple[dict | None, str]:
+    """The recorded digests of run ``name`` on this CPU, and a note; None for a YAMNet run on a CPU family
+    with no bytes recorded (the note names the families that have them)."""
+    doc = json.loads(GOLDEN.read_text())
+    if name not in YAMNET_RUNS:
+        return doc["runs"][name], "exact bytes (the locked environment)"
+    family, recorded = cpu_family(), doc.get("yamnet_cpu", {})
+    if family not in recorded:
+        return None, (f"not checked: YAMNet's XNNPACK kernels round differently by CPU, and its bytes are "
+                      f"recorded for {', '.join(sorted(recorded)) or 'no family'}, not this CPU's ({family}); "
+                      "python tests/golden.py --update-cpu records them")
+    return recorded[family][name], f"exact bytes (the locked environment, CPU family {family})"
+
+
 def golden_file(name: str, file: str) -> bytes:
     return gzip.decompress((GOLDEN_DIR / name / f"{file}.gz").read_bytes())
+
+
+USAGE = """usage: python tests/golden.py --update | --update-cpu
+  --update      rewrite tests/data/golden.json and tests/data/golden/ from the current code (the YAMNet runs'
+                bytes recorded for other CPU families are dropped: they would be stale)
+  --update-cpu  add this CPU family's bytes of the YAMNet runs, once every other run matches its golden bytes"""
 
 
 def main() -> None:
     import tempfile
 
-    if "--update" not in sys.argv:
-        sys.exit("usage: python tests/golden.py --update   (rewrites tests/data/golden.json and tests/data/golden/)")
+    if not {"--update", "--update-cpu"} & set(sys.argv):
+        sys.exit(USAGE)
     off = lock_mismatches()
     if off and "--force" not in sys.argv:
         sys.exit(f"golden.py: this environment is not the lock's ({len(off)} packages differ, e.g. "
                  f"{', '.join(off[:3])}): run `make test` first, or add --force")
-    runs = {}
+    doc = json.loads(GOLDEN.read_text()) if GOLDEN.exists() else {}
+    family = cpu_family()
     with tempfile.TemporaryDirectory() as tmp:
+        if "--update-cpu" in sys.argv:
+            got = {name: {f: sha256(data) for f, data in run(name, Path(tmp) / name).items()} for name in RUNS}
+            off = [n for n in RUNS if n not in YAMNET_RUNS and got[n] != doc["runs"][n]]
+            if off:
+                sys.exit(f"golden.py: {', '.join(off)} differ from their golden bytes: the code changed; use --update")
+            doc.setdefault("yamnet_cpu", {})[family] = {n: got[n] for n in YAMNET_RUNS}
+            GOLDEN.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+            print(f"recorded the YAMNet runs' bytes for CPU family {family} in {GOLDEN}")
+            return
+        runs = {}
         for name in RUNS:
             files = run(name, Path(tmp) / name)
             runs[name] = {f: sha256(data) for f, data in files.items()}
             (GOLDEN_DIR / name).mkdir(parents=True, exist_ok=True)
             for f, data in files.items():  # mtime 0: the same output, the same .gz bytes
                 (GOLDEN_DIR / name / f"{f}.gz").write_bytes(gzip.compress(data, compresslevel=9, mtime=0))
-    GOLDEN.write_text(json.dumps({"environment": platform_tag(), "runs": runs}, indent=1, sort_keys=True) + "\n")
-    print(f"wrote {GOLDEN} and {GOLDEN_DIR}")
+    dropped = sorted(set(doc.get("yamnet_cpu", {})) - {family})
+    yamnet = {family: {n: runs[n] for n in YAMNET_RUNS}}
+    GOLDEN.write_text(json.dumps({"environment": {**platform_tag(), "cpu": family}, "runs": runs,
+                                  "yamnet_cpu": yamnet}, indent=1, sort_keys=True) + "\n")
+    print(f"wrote {GOLDEN} and {GOLDEN_DIR}" + (f"; dropped the YAMNet bytes of {', '.join(dropped)} (record them "
+                                               "there with --update-cpu)" if dropped else ""))
 
 
 if __name__ == "__main__":

@@ -86,6 +86,35 @@ def test_a_file_of_the_users_by_an_outputs_name_is_never_replaced(tmp_path, mine
         assert (d / mine).read_text() == "my own"
 
 
+def test_the_names_a_sink_declares_or_is_given_are_protected_too(tmp_path):
+    """The protected names come from the sinks (their ``files``, ``output.video.file``), not a list kept by hand:
+    a third-party sink's file and a video named by the user are kept like motion.bvh."""
+    from laughlab.core.config import compose_config
+    from laughlab.core.pipeline import planned_files
+
+    names = planned_files(compose_config(["output=video", "output.video.file=take1.mp4"]))
+    assert {"motion.bvh", "channels.csv", "events.csv", "face_arkit.csv", "plots", "character.glb",
+            "animation.vrma", "video.mp4", "take1.mp4"} <= names
+    d = tmp_path / "mine"
+    d.mkdir()
+    (d / "take1.mp4").write_text("my take")
+    p = run("input.duration_s=1", f"hydra.run.dir={d}", "overwrite=true", "output=video", "output.video.file=take1.mp4",
+            *NO_PLOTS)
+    assert p.returncode == 2 and "recorded writing (take1.mp4)" in p.stderr
+    assert (d / "take1.mp4").read_text() == "my take"
+    plug = tmp_path / "plug"
+    plug.mkdir()
+    (plug / "jsonsink.py").write_text(
+        "import laughlab\nfrom laughlab.core.bases import Sink\n"
+        "class Json(Sink):\n    name = 'json'\n    files = ('frames.json',)\n"
+        "@laughlab.hookimpl\ndef register_sinks(register):\n    register(Json)\n")
+    (d / "frames.json").write_text("{}")
+    p = run("input.duration_s=1", f"hydra.run.dir={d}", "overwrite=true", f"plugins_dir={plug}", "+output.json={}",
+            *NO_PLOTS)
+    assert p.returncode == 2 and "recorded writing (frames.json)" in p.stderr   # take1.mp4: not this run's name
+    assert (d / "frames.json").read_text() == "{}"
+
+
 def test_a_crashed_run_leaves_no_stale_lock(tmp_path):
     d = tmp_path / "D"
     code = ("import sys, time\nfrom laughlab.core import rundir\nrundir.claim(sys.argv[1])\n"

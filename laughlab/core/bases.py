@@ -256,6 +256,15 @@ class Sink(Plugin):
     #: only writes files, pickles, and uses nothing of ``run.source`` but ``name``, ``live``,
     #: ``sample_rate``, ``n_frames`` and ``truth``
     background: ClassVar[bool] = False
+    #: the names the sink writes at the top of the run folder (files or folders).  A run refuses a folder
+    #: that holds a file of the user's by one of them, even with ``overwrite=true`` (:mod:`laughlab.core.rundir`)
+    files: ClassVar[tuple[str, ...]] = ()
+
+    @classmethod
+    def planned(cls, params: dict) -> tuple[str, ...]:
+        """The names a run with these parameters (the ``output.<name>`` node) will write: :attr:`files`, or,
+        for a sink whose file name is a parameter, that name."""
+        return cls.files
 
     def open(self, run: RunInfo) -> None:
         self.run = run

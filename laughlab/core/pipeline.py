@@ -265,6 +265,24 @@ def chunk_frames(pipe: Pipeline) -> int:
     return CHUNK_FRAMES
 
 
+def planned_files(cfg) -> frozenset[str]:
+    """The names a run's sinks may write at the top of its folder: every registered sink's ``files``
+    (a user's ``motion.bvh`` is kept whatever the outputs) and the chosen sinks' own, parameters included
+    (``output.video.file``).  :func:`laughlab.core.rundir.claim` refuses a folder that holds one of the
+    user's by these names."""
+    names = {n for info in plugins.registry()["sink"].values() for n in getattr(info.obj, "files", ())}
+    output = cfg.get("output") if hasattr(cfg, "get") else None
+    for name, params in (output or {}).items():
+        info = plugins.registry()["sink"].get(name)
+        if info is not None and hasattr(info.obj, "planned"):
+            try:
+                values = OmegaConf.to_container(params, resolve=True) if isinstance(params, DictConfig) else params
+            except Exception:  # a bad value: build() says so in one line; the class' own names still count
+                values = {}
+            names.update(info.obj.planned(values if isinstance(values, dict) else {}))
+    return frozenset(names)
+
+
 def _progress_bar(pipe: Pipeline):
     """A bar on the terminal when the run will take a while: ``progress=auto`` shows it for an input over
     60 s, or of any length when a sink declares ``slow = True`` (``video`` draws and encodes each frame,

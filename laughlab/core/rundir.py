@@ -32,10 +32,10 @@ LOCK = ".laughlab.lock"
 MARKER = ".laughlab-run.json"
 #: the outputs of laughlab 0.1's runs (which wrote no marker)
 LEGACY = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.json", "manifest.csv")
-#: the names runs and experiments write at the top of their folder: a file of the user's by one of these names
-#: is never replaced, even with ``overwrite=true`` (the run is refused instead)
-OUTPUTS = frozenset(LEGACY + ("face_arkit.csv", "input.wav", "truth.csv", "character.glb", "video.mp4",
-                              "animation.vrma", "metrics.jsonl", "plots", "trials", "report", "showcase"))
+#: the names the pipeline and experiments write at the top of a run folder (a sink's own: its ``files``,
+#: :func:`laughlab.core.pipeline.planned_files`): a file of the user's by one of these names is never replaced,
+#: even with ``overwrite=true`` (the run is refused instead)
+OUTPUTS = frozenset(LEGACY + ("input.wav", "truth.csv", "metrics.jsonl", "plots", "trials", "report", "showcase"))
 
 
 class Claim:
@@ -70,10 +70,12 @@ class Claim:
 
 
 def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset(),
-          done_if: str | None = None) -> Claim:
+          done_if: str | None = None, writes: frozenset = frozenset()) -> Claim:
     """Lock ``path`` for this run (creating it) and check it may be written; see the module notes.
 
     ``ours``: entries this run has already written (a Hydra sweep job's ``.hydra``).
+    ``writes``: the names the run's sinks write (:func:`laughlab.core.pipeline.planned_files`), protected
+    like :data:`OUTPUTS`.
     ``done_if``: a configuration hash; a finished run of that configuration in ``path`` is returned
     as a claim with ``done`` set, untouched (a rerun sweep skips its finished jobs).
     """
@@ -111,7 +113,7 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
             return Claim(path, fd, created, user, resumed=True)
         # files no run recorded writing (the user's, or a marker-less 0.1 run's: they cannot be told apart) named
         # as a run's outputs: a run would replace them, so they refuse it, whether or not overwrite=true
-        clash = sorted((entries - earlier) & OUTPUTS) if overwrite or marker is None else []
+        clash = sorted((entries - earlier) & (OUTPUTS | writes)) if overwrite or marker is None else []
         if clash:
             raise LaughlabError(f"{path} holds files by the names of a run's outputs that no laughlab run recorded "
                                 f"writing ({', '.join(clash)}); move them or choose another hydra.run.dir "

@@ -110,7 +110,9 @@ def git_hash(root: Path | None = None) -> str | None:
 def versions() -> dict:
     from importlib.metadata import PackageNotFoundError, version
 
-    out = {"python": platform.python_version()}
+    from laughlab import _kernels
+
+    out = {"python": platform.python_version(), "cpu_kernels": _kernels.state()}
     for pkg in ("laughlab", "numpy", "scipy", "hydra-core", "pluggy"):
         try:
             out[pkg] = version(pkg)

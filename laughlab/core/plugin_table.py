@@ -1,0 +1,40 @@
+"""``python -m laughlab plugins``: every plugin, where it comes from and how a run uses it."""
+from __future__ import annotations
+
+import re
+
+from laughlab.core.config import GROUP_KINDS, conf_dir
+
+
+def list_plugins() -> None:
+    """Print every plugin: kind, name, where it comes from and how a run chooses it (the plugin kind
+    ``source`` is the config group ``input``; a sink is in the output options whose YAML names it)."""
+    from laughlab.core import plugins
+
+    header = ("kind", "name", "origin", "use with")
+    rows = [(kind, name, info.origin, chosen_by(kind, name))
+            for kind, named in plugins.registry().items() for name, info in named.items()]
+    width = [max(len(r[i]) for r in rows + [header]) for i in range(3)]
+    for row in [header, *rows]:
+        print("  ".join(f"{v:<{w}}" for v, w in zip(row, width)) + "  " + row[3])
+
+
+def chosen_by(kind: str, name: str) -> str:
+    """How a run uses plugin ``kind/name``: ``input=file``, ``output=video`` (a sink: the output options
+    that include it, its own first), ``every experiment`` (a metric)."""
+    if kind == "metric":
+        return "every experiment (harness)"
+    group = next((g for g, k in GROUP_KINDS.items() if k == kind), None)
+    if group is None:
+        return ""
+    if group != "output":
+        return f"{group}={name}"
+    options = []
+    for f in sorted(conf_dir().joinpath("output").iterdir(), key=lambda f: f.name):
+        if f.name.endswith(".yaml") and f.name != "trial.yaml" and re.search(rf"^{re.escape(name)}:", f.read_text(),
+                                                                             re.M):   # trial: the harness' own
+            options.append(f.name[:-5])
+    options.sort(key=lambda o: (o != name, o != "files", o))  # its own option, then the default
+    if not options:
+        return f"+output.{name}={{}}"
+    return f"output={options[0]}" + (f" (also {', '.join(options[1:])})" if options[1:] else "")
