@@ -122,6 +122,27 @@ def test_abort_removes_what_the_helper_wrote(tmp_path):
     assert not (tmp_path / "a.txt").exists()
 
 
+def test_stopping_the_helper_removes_what_no_one_closed_and_keeps_what_was(tmp_path):
+    """A Ctrl-C right after the main process handed its sinks over (before it counted the helper among the
+    sinks to abort) ended in stop() alone: the helper quit and left its staged files (CI: .channels.csv.part
+    and .motion.bvh.part in an interrupted run's folder, which the next run then refused)."""
+    h = background.Helper()
+    try:
+        h.open([FileSink(tmp_path / "a.txt")], info(tmp_path))
+        h.write(chunk(0))
+    finally:
+        h.stop()
+    assert not (tmp_path / "a.txt").exists()
+    h = background.Helper()
+    try:
+        h.open([FileSink(tmp_path / "b.txt")], info(tmp_path))
+        h.write(chunk(0))
+        assert h.close() == [tmp_path / "b.txt"]
+    finally:
+        h.stop()
+    assert (tmp_path / "b.txt").read_text().startswith("4 0.000 T")      # closed: the run's, kept
+
+
 def test_the_helper_cleans_up_when_the_main_process_dies(tmp_path):
     code = (
         "import os, sys, time\n"

@@ -230,15 +230,21 @@ def _serve(conn, parent_end) -> None:
                         written = []
                         for s in sinks:
                             written += s.close() or []
+                        sinks = []  # closed: their files are the run's now
                         conn.send(("ok", written))
                 elif op == "abort":
                     _abort(sinks)
+                    sinks = []
                     conn.send(("aborted",))
                 elif op == "quit":
+                    # sinks still open: the main process was stopped before it could ask (a Ctrl-C while it
+                    # handed them over left .channels.csv.part behind, and the folder could not be removed)
+                    _abort(sinks)
                     break
             except BaseException as exc:  # noqa: BLE001 - every failure goes back to the main process
                 failed = True
                 _abort(sinks)
+                sinks = []
                 conn.send(_error(exc))
     finally:
         conn.close()

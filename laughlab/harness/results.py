@@ -63,9 +63,10 @@ def mean_ci(values) -> dict:
     n = len(x)
     if n == 0:
         return {"mean": float("nan"), "ci95": [float("nan"), float("nan")], "std": float("nan"), "n": 0}
+    if np.all(x == x[0]):  # one value, or all the same (their computed mean can be an ulp off the value)
+        m = float(x[0])
+        return {"mean": m, "ci95": [m, m], "std": 0.0, "n": n}
     m = float(x.mean())
-    if n == 1 or np.all(x == x[0]):
-        return {"mean": m, "ci95": [m, m], "std": 0.0 if n == 1 else float(x.std(ddof=1)), "n": n}
     ci = stats.bootstrap((x,), np.mean, n_resamples=N_RESAMPLES, method="percentile", vectorized=True,
                          rng=np.random.default_rng(0)).confidence_interval
     # a resampled mean can differ from min/max in the last bit: keep the interval inside the values
