@@ -76,9 +76,7 @@ class ArkitSink(Sink):
         return self.staging.commit()
 
     def abort(self) -> None:
-        if self._f is not None and not self._f.closed:
-            self._f.close()
-        self.staging.abort()
+        self.staging.abort(getattr(self, "_f", None))  # closes it (a buffer that cannot be written is dropped) first
 
 
 @hookimpl

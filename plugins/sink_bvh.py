@@ -44,9 +44,7 @@ class BvhSink(Sink):
         return self.staging.commit()
 
     def abort(self) -> None:
-        if not self._f.closed:
-            self._f.close()
-        self.staging.abort()
+        self.staging.abort(getattr(self, "_f", None))  # closes it (a buffer that cannot be written is dropped) first
 
 
 @hookimpl

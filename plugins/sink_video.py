@@ -293,10 +293,12 @@ class VideoSink(Sink):
                 "video_render_fps": self.m / self.render_s if self.render_s > 0 else float("nan")}
 
     def abort(self) -> None:
-        if getattr(self, "encoder", None) is not None:
-            self.encoder.abort()
-        self.staging.abort()
-        shutil.rmtree(self.tmp_dir, ignore_errors=True)
+        try:
+            if getattr(self, "encoder", None) is not None:
+                self.encoder.abort()
+        finally:
+            self.staging.abort()
+            shutil.rmtree(self.tmp_dir, ignore_errors=True)
 
 
 @hookimpl

@@ -229,3 +229,21 @@ def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):
     assert (d / "0" / "channels.csv").read_bytes() == before and (d / "1" / "channels.csv").exists()
     changed = run("-m", "seed=0,1", "input.duration_s=2", f"hydra.sweep.dir={d}")
     assert changed.returncode != 0 and "already holds a run" in changed.stderr
+
+
+def test_an_aborted_writer_leaves_no_staged_file_even_when_its_buffer_cannot_be_flushed(tmp_path):
+    """Past a file size limit (or on a full disk) closing the open file raises: the staged file went with the
+    first abort only because the helper aborted twice (CI: .channels.csv.part left at RLIMIT_FSIZE 40 KiB)."""
+    from laughlab.core.outfiles import Staging
+
+    class Unflushable:
+        closed = False
+
+        def close(self):
+            raise OSError(27, "File too large")
+
+    staging = Staging()
+    tmp = staging.path(tmp_path / "channels.csv")
+    tmp.write_text("partial")
+    staging.abort(Unflushable(), None)
+    assert list(tmp_path.iterdir()) == []

@@ -32,7 +32,15 @@ class Staging:
         self.pending.clear()
         return done
 
-    def abort(self) -> None:
+    def abort(self, *files) -> None:
+        """Close ``files`` (the writer's open files; a buffer that cannot be flushed, on a full disk or
+        past a file size limit, is dropped) and remove the temporary files."""
+        for f in files:
+            if f is not None and not f.closed:
+                try:
+                    f.close()
+                except OSError:  # the failure being cleaned up after: its file goes all the same
+                    pass
         for tmp in self.pending.values():
             tmp.unlink(missing_ok=True)
         self.pending.clear()
