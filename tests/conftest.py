@@ -58,12 +58,14 @@ def pytest_terminal_summary(terminalreporter):
     which check the golden runs made (tests/test_golden.py: exact bytes or values within a tolerance)."""
     ran = {r.nodeid.split("::")[0] for rs in terminalreporter.stats.values() for r in rs if hasattr(r, "nodeid")}
     if "tests/test_golden.py" in ran:
-        from golden import ATOL, RTOL, exact_environment
+        from golden import ATOL, RTOL, YAMNET_RUNS, exact_environment, expected_hashes
 
         exact, why = exact_environment()
+        yamnet = expected_hashes(YAMNET_RUNS[0])[1] if exact else ""
         terminalreporter.write_line("golden: " + ("exact bytes (the locked environment)" if exact else
                                                   f"values within rtol {RTOL:g}, atol {ATOL:g} "
-                                                  f"(not the locked environment: {why})"))
+                                                  f"(not the locked environment: {why})")
+                                    + (f"; the YAMNet runs ({', '.join(YAMNET_RUNS)}): {yamnet}" if yamnet else ""))
     counts = _fuzz_counts()
     for kind, n in _WORKER_FUZZ.items():
         counts[kind] = counts.get(kind, 0) + n
