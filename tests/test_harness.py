@@ -31,6 +31,7 @@ def test_mean_ci_by_hand():
     lo, hi = r["ci95"]
     assert 1.0 <= lo < 2.0 < hi <= 3.0
     assert mean_ci([5.0])["ci95"] == [5.0, 5.0] and mean_ci([4.0, 4.0, 4.0])["ci95"] == [4.0, 4.0]
+    assert math.copysign(1.0, mean_ci([-0.0, -0.0])["mean"]) == 1.0     # an entropy of nothing: 0, not "-0"
     assert mean_ci([])["n"] == 0 and math.isnan(mean_ci([])["mean"])
     # seeded: the same values give the same interval, in any run
     assert mean_ci([0.1, 0.7, 0.2, 0.9]) == mean_ci([0.1, 0.7, 0.2, 0.9])

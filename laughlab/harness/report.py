@@ -31,6 +31,7 @@ KEY_METRICS = ("intensity_r_clip", "intensity_r_kinetic", "onset_latency_median_
 def _fmt(v, digits=3) -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "n/a"
+    v = v + 0.0  # -0.0 (an entropy of nothing) shows as 0
     return f"{v:.{digits}g}" if abs(v) < 1000 else f"{v:.0f}"
 
 

@@ -64,7 +64,7 @@ def mean_ci(values) -> dict:
     if n == 0:
         return {"mean": float("nan"), "ci95": [float("nan"), float("nan")], "std": float("nan"), "n": 0}
     if np.all(x == x[0]):  # one value, or all the same (their computed mean can be an ulp off the value)
-        m = float(x[0])
+        m = float(x[0]) + 0.0  # -0.0 as 0.0
         return {"mean": m, "ci95": [m, m], "std": 0.0, "n": n}
     m = float(x.mean())
     ci = stats.bootstrap((x,), np.mean, n_resamples=N_RESAMPLES, method="percentile", vectorized=True,
