@@ -154,11 +154,12 @@ def test_report_tables_and_figures(tiny_run, tmp_path):
     text = readme.read_text()
     assert text.startswith("# tiny")
     assert "| metric | units | energy mean [95% CI] | none mean [95% CI] |" in text
-    assert "| miss_rate ↓ | fraction | **0 [0, 0]** | 1 [1, 1] |" in text
     # synthetic laughter holds no cough: no row of n/a, one line naming it
     results = text.split("## Metrics")[0]
     assert "| false_starts_cough_per_min" not in results and "n/a | n/a" not in results
     assert "No value under any condition" in text and "`false_starts_cough_per_min`" in text
+    assert "| miss_rate ↓ | fraction | **0 [0, 0] (n=2)** | 1 [1, 1] (n=2) |" in text    # tiny: 2 seeds a condition
+    assert "(n=K): a mean of fewer than 10 trials" in text
     assert (tmp_path / "rep" / "figures" / "metrics.png").exists()
     assert (tmp_path / "rep" / "figures" / "energy_fig4_2_energy.png").exists()
 

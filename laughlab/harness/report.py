@@ -156,8 +156,15 @@ def _clear_best(doc: dict, metric: str, conds: list[str]) -> str | None:
     return best if all(separated(rs[best], rs[c]) for c in have if c != best) else None
 
 
+#: means of fewer trials say how many (``(n=4)``): their bootstrap interval is too narrow to be a 95 % one
+FEW = 10
+
+
 def _cell(r: dict) -> str:
-    return f"{_fmt(r['mean'])} [{_fmt(r['ci95'][0])}, {_fmt(r['ci95'][1])}]" if r["n"] else "n/a"
+    if not r["n"]:
+        return "n/a"
+    few = f" (n={r['n']})" if r["n"] < FEW else ""
+    return f"{_fmt(r['mean'])} [{_fmt(r['ci95'][0])}, {_fmt(r['ci95'][1])}]{few}"
 
 
 def _same_table(doc: dict) -> list[str]:
@@ -236,7 +243,12 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              f"The compute rows (frame_ms_*, realtime_factor) were measured with "
              f"{(doc.get('config', {}).get('harness') or {}).get('jobs', 1)} trial process(es) sharing the "
              "machine; `make bench` measures them alone.", ""]
-    lines += _results_table(doc)
+    table = _results_table(doc)
+    if any(f"(n={k})" in row for row in table for k in range(1, FEW)):  # a bootstrap of a handful covers less
+        lines[-1:-1] = ["", f"(n=K): a mean of fewer than {FEW} trials (e.g. the few inputs holding that kind of "
+                        "sound); its bootstrap interval is narrower than a 95% interval should be: read it as the "
+                        "spread of those trials."]
+    lines += table
     if unmeasured(doc):
         lines += ["", "No value under any condition (nothing in these inputs for them to measure): "
                   + ", ".join(f"`{m}`" for m in unmeasured(doc)) + "."]
