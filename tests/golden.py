@@ -65,6 +65,11 @@ _FAMILIES = (("avx", {"avx"}), ("avx2", {"avx2", "fma"}), ("avx512f", {"avx512f"
              ("amx", {"amx_int8"}))
 
 
+#: the CPU family the bundled YAMNet heads (laughlab/data/yamnet/head.json, fuse.json) were fitted on (2026-11-25/26;
+#: see golden.json's yamnet_cpu_note): ``yamnet_fit --check`` reproduces their bytes there only
+HEADS_FITTED_ON = "avx+avx2"
+
+
 def cpu_family() -> str:
     """The CPU's kernel families as XNNPACK tells them apart, e.g. ``avx+avx2`` or ``avx+avx2+avx512f+...``
     (the architecture's name outside x86-64 Linux)."""

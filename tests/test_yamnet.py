@@ -641,4 +641,8 @@ def test_the_head_is_refitted_byte_for_byte():
     """``python -m laughlab.detector.yamnet_fit --check`` refits on the train split and compares the bytes (~2-5 min)."""
     from laughlab.detector.yamnet_fit import main
 
-    assert main(["--check"]) == 0
+    # byte for byte on the CPU family the bundled heads were fitted on; elsewhere within yamnet_fit.CPU_TOLERANCE
+    # (exit 3): the refit is fitted on YAMNet's scores, which XNNPACK rounds by CPU family
+    from golden import HEADS_FITTED_ON, cpu_family
+
+    assert main(["--check"]) == (0 if cpu_family() == HEADS_FITTED_ON else 3)
