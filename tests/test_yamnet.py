@@ -646,3 +646,12 @@ def test_the_head_is_refitted_byte_for_byte():
     from golden import HEADS_FITTED_ON, cpu_family
 
     assert main(["--check"]) == (0 if cpu_family() == HEADS_FITTED_ON else 3)
+
+
+def test_detect_progress_in_a_log_is_plain_lines(tmp_path):
+    """Not a terminal (a log, CI): a line, not tqdm's carriage-return bar (it left 'detect:   0%|' in the log)."""
+    laugh = corpus_file("hedgewars/Classic-Laugh")
+    r = laughlab("detect", str(laugh), "--out", str(tmp_path / "out"), "--progress", "on")
+    assert r.returncode == 0, r.stderr
+    assert "\r" not in r.stderr and "%|" not in r.stderr
+    assert re.match(r"detect: \d+(\.\d)?/\d+(\.\d)? s of audio, \d+ s$", r.stderr.strip())

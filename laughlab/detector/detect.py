@@ -116,7 +116,11 @@ def main(argv: list[str]) -> None:
         raise LaughlabError(str(exc)) from None
     show = ns.progress == "on" or (ns.progress == "auto" and total_s > 60.0)
     bar = None
-    if show:
+    if show and not sys.stderr.isatty():  # a log: a plain line every 10 s, not a bar's carriage returns
+        from laughlab.harness.runner import LogProgress
+
+        bar = LogProgress(round(total_s, 1), "detect", unit="s of audio")
+    elif show:
         from tqdm import tqdm
 
         bar = tqdm(total=total_s, unit="s", desc="detect", file=sys.stderr, leave=False,   # seconds of audio, 0.1 s
@@ -130,7 +134,7 @@ def main(argv: list[str]) -> None:
         dur = len(x) / sr
         results.append((f.stem, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur)))
         if bar is not None:
-            bar.update(dur)
+            bar.update(round(dur, 1))
     if bar is not None:
         bar.close()
     out = Path(ns.out)
