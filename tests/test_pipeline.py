@@ -449,3 +449,11 @@ def test_progress_bar_on_a_terminal_for_long_inputs_and_video(monkeypatch, extra
     finally:
         if bar is not None:
             bar.close()
+
+
+def test_progress_on_into_a_log_is_plain_lines_that_end_at_every_frame(tmp_path):
+    from inprocess import laughlab
+
+    r = laughlab("input.duration_s=5", "progress=on", "~output.plots", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 0, r.stderr
+    assert "\r" not in r.stderr and r.stderr.strip().splitlines()[-1].startswith("laughlab: 300/300 frames, ")

@@ -293,6 +293,10 @@ def _progress_bar(pipe: Pipeline):
         pipe.run.progress == "auto" and sys.stderr.isatty() and (n is None or n > 60 * pipe.ctx.fps or slow))
     if not show:
         return None
+    if n is not None and not sys.stderr.isatty():  # progress=on into a log: plain lines, not carriage returns
+        from laughlab.harness.runner import LogProgress
+
+        return LogProgress(n, "laughlab", unit="frames")
     from tqdm import tqdm
 
     return tqdm(total=n, unit="frame", desc="laughlab", file=sys.stderr, leave=False)
@@ -375,6 +379,8 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             chunk = rec.take(mixer.take())
             for sink in opened:
                 sink.write(chunk)
+            if bar is not None:
+                bar.update(k % n_chunk)   # the last, partial chunk: the bar ends at every frame
         wall = time.perf_counter() - wall0
         written = []
         for sink in opened:
