@@ -199,3 +199,36 @@ def test_a_run_writes_the_same_bytes_with_and_without_the_helper(tmp_path, extra
         runs[workers] = _digests(out)
     assert "plots/fig4_2_energy.png" in runs["1"] and "motion.bvh" in runs["1"]
     assert runs["1"] == runs["0"]
+
+
+def test_a_stop_signal_waits_for_a_message_to_the_helper_to_be_sent_whole():
+    """A Ctrl-C between a chunk's head and its arrays left the helper waiting for the rest, reading the
+    main process' "abort" as an array, while the main process waited for "aborted": a hang (CI, a run of
+    1,800 s interrupted 0.5 s in).  The handler now holds the interrupt until the message is out."""
+    import signal
+
+    from laughlab.core import interrupts
+
+    old = {s: signal.getsignal(s) for s in interrupts.STOP_SIGNALS}
+    for s in interrupts.STOP_SIGNALS:
+        signal.signal(s, signal.SIG_DFL)
+    interrupts.install()
+    sent = []
+
+    class Pipe:
+        def send_bytes(self, b):
+            if not sent:
+                os.kill(os.getpid(), signal.SIGINT)   # arrives after the head, before the arrays
+                time.sleep(0.05)
+            sent.append(bytes(b))
+
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            background._send_msg(Pipe(), ("write", chunk(0)))
+        assert len(sent) > 1                          # the head and every array went out first
+        n = int.from_bytes(sent[0][:4], "little")
+        assert len(sent) == 1 + n
+    finally:
+        for s, h in old.items():
+            signal.signal(s, h)
+        interrupts.received = None

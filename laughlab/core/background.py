@@ -25,6 +25,7 @@ import traceback
 from dataclasses import dataclass
 from typing import Any, Callable, Sequence
 
+from laughlab.core import interrupts
 from laughlab.core.interrupts import STOP_SIGNALS
 
 #: modules the helper imports while the main process starts up
@@ -172,12 +173,18 @@ class Helper:
 
 def _send_msg(conn, msg) -> None:
     """Send to the helper with pickle protocol 5: arrays go to the pipe from their own memory
-    (out of band), not copied into the pickle first."""
+    (out of band), not copied into the pickle first.
+
+    A message is several sends (its head, then each buffer), so Ctrl-C and SIGTERM wait until the last is
+    out (:func:`laughlab.core.interrupts.deferred`): a KeyboardInterrupt between them left the helper
+    waiting for the rest of a chunk, reading the main process' "abort" as one of its buffers, while the
+    main process waited for "aborted" (a hang, found by the clean-clone CI)."""
     buffers: list = []
     head = pickle.dumps(msg, protocol=5, buffer_callback=buffers.append)
-    conn.send_bytes(len(buffers).to_bytes(4, "little") + head)
-    for b in buffers:
-        conn.send_bytes(b.raw())
+    with interrupts.deferred():
+        conn.send_bytes(len(buffers).to_bytes(4, "little") + head)
+        for b in buffers:
+            conn.send_bytes(b.raw())
 
 
 def _recv_msg(conn):

@@ -7,6 +7,7 @@ command line treats any exception after one as the interrupt (:func:`interrupted
 """
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 
@@ -16,10 +17,34 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 received: int | None = None
 
 
+#: inside :func:`deferred` blocks (their depth), and whether a stop signal came during one
+_defer = 0
+_pending = False
+
+
 def _handler(signum, frame):
-    global received
+    global received, _pending
     received = received or signum
+    if _defer:
+        _pending = True
+        return
     raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def deferred():
+    """A block that a stop signal does not cut in two: its KeyboardInterrupt is raised when the block ends
+    (a message to the sink helper process is sent whole).  Only with :func:`install`'s handler; under
+    another one (a test runner's, Python's default) the signal acts at once, as before."""
+    global _defer, _pending
+    _defer += 1
+    try:
+        yield
+    finally:
+        _defer -= 1
+        if not _defer and _pending:
+            _pending = False
+            raise KeyboardInterrupt
 
 
 def install() -> None:

@@ -294,7 +294,7 @@ def _progress_bar(pipe: Pipeline):
     if not show:
         return None
     if n is not None and not sys.stderr.isatty():  # progress=on into a log: plain lines, not carriage returns
-        from laughlab.harness.runner import LogProgress
+        from laughlab.core.progress import LogProgress
 
         return LogProgress(n, "laughlab", unit="frames")
     from tqdm import tqdm

@@ -117,7 +117,7 @@ def main(argv: list[str]) -> None:
     show = ns.progress == "on" or (ns.progress == "auto" and total_s > 60.0)
     bar = None
     if show and not sys.stderr.isatty():  # a log: a plain line every 10 s, not a bar's carriage returns
-        from laughlab.harness.runner import LogProgress
+        from laughlab.core.progress import LogProgress
 
         bar = LogProgress(round(total_s, 1), "detect", unit="s of audio")
     elif show:

@@ -14,7 +14,6 @@ import json
 import os
 import shutil
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -22,6 +21,7 @@ from omegaconf import OmegaConf
 
 from laughlab.core import pipeline
 from laughlab.core.errors import LaughlabError
+from laughlab.core.progress import LogProgress
 from laughlab.harness.corpus import Item
 
 
@@ -87,31 +87,6 @@ def make_trials(items: list[Item], conditions: dict, seeds_for, base_overrides: 
                                     (*base_overrides, *cond_overrides, *item.overrides, f"seed={int(seed)}"),
                                     str(out_dir / "trials" / cond / f"{item.id}-seed{int(seed)}"), keep))
     return trials
-
-
-class LogProgress:
-    """Progress for a log file (stderr not a terminal): a plain line every ``every_s`` seconds and one at
-    the end, instead of a bar's thousands of carriage-return updates."""
-
-    def __init__(self, total: float, desc: str, every_s: float = 10.0, stream=None, unit: str = "trials"):
-        self.total, self.desc, self.every_s, self.unit = total, desc, every_s, unit
-        self.stream = stream or sys.stderr
-        self.n = 0
-        self.t0 = self.last = time.monotonic()
-
-    def update(self, k: int = 1) -> None:
-        self.n += k
-        now = time.monotonic()
-        if now - self.last >= self.every_s:
-            self.last = now
-            self._line(now)
-
-    def _line(self, now: float) -> None:
-        print(f"{self.desc}: {self.n:.10g}/{self.total:.10g} {self.unit}, {now - self.t0:.0f} s", file=self.stream,
-              flush=True)
-
-    def close(self) -> None:
-        self._line(time.monotonic())
 
 
 def progress_bar(total: int, desc: str, progress: bool):

@@ -1,0 +1,30 @@
+"""Progress for a log (stderr not a terminal): plain lines instead of a bar's carriage returns."""
+from __future__ import annotations
+
+import sys
+import time
+
+
+class LogProgress:
+    """Progress for a log file (stderr not a terminal): a plain line every ``every_s`` seconds and one at
+    the end, instead of a bar's thousands of carriage-return updates."""
+
+    def __init__(self, total: float, desc: str, every_s: float = 10.0, stream=None, unit: str = "trials"):
+        self.total, self.desc, self.every_s, self.unit = total, desc, every_s, unit
+        self.stream = stream or sys.stderr
+        self.n = 0
+        self.t0 = self.last = time.monotonic()
+
+    def update(self, k: int = 1) -> None:
+        self.n += k
+        now = time.monotonic()
+        if now - self.last >= self.every_s:
+            self.last = now
+            self._line(now)
+
+    def _line(self, now: float) -> None:
+        print(f"{self.desc}: {self.n:.10g}/{self.total:.10g} {self.unit}, {now - self.t0:.0f} s", file=self.stream,
+              flush=True)
+
+    def close(self) -> None:
+        self._line(time.monotonic())
