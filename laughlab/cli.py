@@ -17,7 +17,7 @@ from pathlib import Path
 from laughlab.core import clock, interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, compose_config,  # noqa: F401
                                   conf_dir, group_options, register_plugin_configs)
-from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
+from laughlab.core.errors import LaughlabError, one_line_parser, port_number, shown_path
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
 
@@ -145,7 +145,7 @@ def task(cfg) -> dict:
     try:
         if _CLAIM is None:  # a sweep's job: Hydra made the folder and wrote .hydra/ into it
             _CLAIM = rundir.claim(out_dir, bool(cfg.get("overwrite", False)), ours=frozenset({".hydra"}),
-                                  done_if=cfg_hash, writes=pipeline.planned_files(cfg))
+                                  done_if=cfg_hash, writes=pipeline.planned_files(cfg), where="hydra.sweep.dir")
             if _CLAIM.done:  # the same sweep run again: this job finished before
                 print(f"laughlab: {out_dir} already holds this job's finished run; skipped")
                 return {}
@@ -171,7 +171,9 @@ def task(cfg) -> dict:
         print(summary_line(cfg, metrics, out_dir, time.monotonic() - t0, skip=_CLAIM.user_files))
         return metrics
     except LaughlabError as exc:
-        _remove_new_run_dir(out_dir)
+        # a sweep job refused by a finished run: Hydra wrote this job's .hydra/ over that run's; put it back
+        if _CLAIM is not None or not rundir.restore_hydra(out_dir):
+            _remove_new_run_dir(out_dir)
         fail(str(exc))
     except (KeyboardInterrupt, Exception) as exc:
         what, code = _fault(exc, out_dir)
@@ -282,7 +284,7 @@ def view_command(args: list[str]) -> None:
                                      description="Play a run's character in 3D in a browser, in sync with its "
                                                  "audio, the MCS and laughing energy scrolling below.")
     parser.add_argument("run_dir", help="a run directory (motion.bvh, channels.csv, events.csv)")
-    parser.add_argument("--port", type=int, default=V.DEFAULT_PORT, help="port on 127.0.0.1 (a free one if taken)")
+    parser.add_argument("--port", type=port_number, default=V.DEFAULT_PORT, help="port on 127.0.0.1 (a free one if taken)")
     parser.add_argument("--out", help="write the page and its files into this new folder instead of serving; "
                                          "its index.html opens from the disk or on any web server")
     parser.add_argument("--character", help="show the run on this avatar (VRM 0.x/1.0, or a humanoid glTF/GLB; "

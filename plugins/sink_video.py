@@ -132,6 +132,9 @@ class VideoParams:
     def __post_init__(self) -> None:
         if not self.file or "/" in self.file or "\\" in self.file:
             raise ValueError(f"file must be a plain file name (got {self.file!r})")
+        if not self.file.lower().endswith(".mp4") or self.file.startswith("."):
+            # another output's name (input.wav, motion.bvh, plots) replaced the video or was half replaced by it
+            raise ValueError(f"file must be a file name ending in .mp4 (got {self.file!r})")
         for name in ("width", "height"):
             v = getattr(self, name)
             check_range(name, v, 16, 4096)

@@ -442,3 +442,34 @@ def test_a_mixamo_named_gltf_json_is_recognised_and_retargets_exactly(tmp_path, 
     for k, f in enumerate(FRAMES):
         got = np.array([world[k, av.bones[JOINT_TO_VRM[n]], :3, 3] for n in HUMANOID.names])
         np.testing.assert_allclose(got, want[f], atol=1e-9)
+
+
+def _robot_as_gltf(folder: Path, uri: str = "robot.bin", cut: int | None = None) -> Path:
+    """The robot VRM as a .gltf with its buffer in a file named by ``uri`` (relative to the .gltf), cut to
+    ``cut`` bytes if given."""
+    doc, binary = parse_glb(ROBOT.read_bytes())
+    folder.mkdir(parents=True, exist_ok=True)
+    target = (folder / uri)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_bytes(binary[:cut] if cut is not None else binary)
+    doc["buffers"] = [{"uri": uri, "byteLength": len(binary)}]
+    path = folder / "robot.gltf"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_a_gltf_reads_only_files_beside_it_and_whole(tmp_path):
+    """Found by a new-user review: a buffer URI '../../etc/passwd' copied that file into character.glb and the
+    viewer page, and a .bin cut to 1,500 bytes passed output=gltf (and crashed output=video)."""
+    assert load_avatar(_robot_as_gltf(tmp_path / "ok")).path.name == "robot.gltf"      # beside it: fine
+    outside = _robot_as_gltf(tmp_path / "a" / "b", uri="../../secret.bin")
+    with pytest.raises(AvatarError, match=r"robot.gltf: its file '../../secret.bin' lies outside the avatar's folder"):
+        load_avatar(outside)
+    cut = _robot_as_gltf(tmp_path / "cut", cut=1500)
+    with pytest.raises(AvatarError, match=r"robot.gltf: its buffer holds 1,500 bytes where the file declares "):
+        load_avatar(cut)
+    for path in (outside, cut):
+        for output in ("output=gltf", "output=video"):
+            out = _cli(tmp_path, output, "input.duration_s=1", f"character={path}")
+            assert out.returncode == 2 and out.stderr.strip().count("\n") == 0, out.stderr
+            assert not (tmp_path / "run").exists()

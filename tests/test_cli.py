@@ -113,6 +113,9 @@ def bad_files(tmp_path_factory):
     (["fps=0"], "fps must be a positive number"),
     (["fps=-30"], "fps must be a positive number"),
     (["experiment=nope"], "unknown experiment 'nope'"),
+    (["input=file", "input.path=rire_é.wav"], "a value with spaces or characters other than ASCII letters, digits "
+                                              "and - _ . / must be quoted: \"input.path='rire_é.wav'\""),
+    (["output=video", "output.video.file=input.wav"], "file must be a file name ending in .mp4 (got 'input.wav')"),
     (["detekt"], "unknown command 'detekt': the commands are detect, report, corpus, study, view, plugins;"),   # was Hydra's 'Error parsing override'
 ])
 def test_bad_input_one_line_no_output(bad_files, args, message):
@@ -360,3 +363,13 @@ def test_a_sweep_of_experiments_prints_one_report_hint_at_its_end(tmp_path):
     assert [line for line in lines if "report" in line] == [f"report: python -m laughlab report {tmp_path / 'sweep'}"]
     assert lines[-1].startswith("report: ")
     assert sum(line.startswith("smoke: 2 trials in ") for line in lines) == 2
+
+
+@pytest.mark.parametrize("args, message", [
+    (["view", "runs/demo", "--port", "70000"], "argument --port: a port is 0 to 65535 (got 70000)"),   # was a traceback
+    (["study", "serve", "x", "--port", "-5"], "argument --port: a port is 0 to 65535 (got -5)"),
+    (["study", "power", "x", "--contrast", "a:b", "--effect", "nan"], "argument --effect: must be a finite number"),
+])
+def test_out_of_range_command_options_are_one_line(tmp_path, args, message):
+    r = laughlab(*args, cwd=tmp_path)
+    assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr

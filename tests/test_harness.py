@@ -342,3 +342,17 @@ def test_an_experiment_says_what_it_does_after_its_trials(tmp_path):
                  "harness.corpus.profiles=[intense]", "harness.corpus.duration_s=3", "harness.showcase=null",
                  "harness.plots=false", "progress=off")
     assert r.returncode == 0 and "summarising" not in r.stderr
+
+
+def test_a_folder_of_two_experiments_sweeps_is_one_line_not_a_traceback(tmp_path):
+    """Found by a new-user review: energy_ablation and concat_ablation sweeps in one folder ended in
+    "TypeError: '<' not supported between instances of 'float' and 'str'"."""
+    from laughlab.harness.report import _order, sweep_report
+
+    for name, job in (("energy_ablation", "a/0"), ("concat_ablation", "b/0")):
+        (tmp_path / job).mkdir(parents=True)
+        (tmp_path / job / "results.json").write_text(json.dumps({"experiment": name}))
+    with pytest.raises(LaughlabError, match=r"holds the results of 2 experiments \(concat_ablation, "
+                                            r"energy_ablation\); report each sweep's folder on its own"):
+        sweep_report(tmp_path, tmp_path / "rep", "cmd")
+    assert sorted(["12", "", "3", "fast"], key=_order) == ["3", "12", "", "fast"]   # numbers, then words

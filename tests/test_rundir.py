@@ -227,8 +227,14 @@ def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):
     out = again.stdout
     assert out.count("already holds this job's finished run; skipped") == 1 and f"{d / '1'}/:" in out
     assert (d / "0" / "channels.csv").read_bytes() == before and (d / "1" / "channels.csv").exists()
+    hydra = {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")}
+    assert "input.duration_s=1" in hydra["overrides.yaml"]
     changed = run("-m", "seed=0,1", "input.duration_s=2", f"hydra.sweep.dir={d}")
-    assert changed.returncode != 0 and "already holds a run" in changed.stderr
+    assert changed.returncode != 0 and "already holds a run; choose another hydra.sweep.dir" in changed.stderr
+    # found by a new-user review: the refusal deleted the finished job's .hydra/ (Hydra had already written the
+    # new job's over it); it is put back, so the folder still describes its results
+    assert {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")} == hydra
+    assert (d / "0" / "channels.csv").read_bytes() == before
 
 
 def test_an_aborted_writer_leaves_no_staged_file_even_when_its_buffer_cannot_be_flushed(tmp_path):

@@ -13,6 +13,7 @@ import json
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
+from urllib.parse import unquote
 
 import numpy as np
 
@@ -110,8 +111,28 @@ def _fail(path: Path, what: str) -> AvatarError:
 
 
 def read_gltf(path: str | Path) -> tuple[dict, bytes]:
-    """The JSON document and buffer 0 of a ``.glb``/``.vrm`` (binary) or ``.gltf`` (JSON) file."""
+    """The JSON document and buffer 0 of a ``.glb``/``.vrm`` (binary) or ``.gltf`` (JSON) file; a buffer
+    shorter than its declared ``byteLength`` (a file cut short) is refused in one line."""
     path = Path(path)
+    doc, binary = _read_gltf(path)
+    declared = ((doc.get("buffers") or [{}])[0] or {}).get("byteLength")
+    if isinstance(declared, int) and len(binary) < declared:
+        raise _fail(path, f"its buffer holds {len(binary):,} bytes where the file declares {declared:,}: "
+                          "it is cut short")
+    return doc, binary
+
+
+def beside(path: Path, uri: str) -> Path:
+    """The file a glTF's relative ``uri`` names, which must lie in the avatar's folder or below it: a URI such as
+    ``../../etc/passwd`` would copy any readable file into the exported character and its web page."""
+    target = (path.parent / unquote(uri)).resolve()
+    if not target.is_relative_to(path.parent.resolve()):
+        raise _fail(path, f"its file {uri!r} lies outside the avatar's folder; laughlab reads only files beside "
+                          "the avatar")
+    return target
+
+
+def _read_gltf(path: Path) -> tuple[dict, bytes]:
     try:
         size = path.stat().st_size
     except OSError as exc:
@@ -154,7 +175,7 @@ def read_gltf(path: str | Path) -> tuple[dict, bytes]:
         if uri.startswith("data:"):
             binary = base64.b64decode(uri.split(",", 1)[1])
         elif uri:
-            bin_path = path.parent / uri
+            bin_path = beside(path, uri)
             try:
                 bin_size = bin_path.stat().st_size
                 if size + bin_size > MAX_BYTES:

@@ -80,7 +80,9 @@ def _texture(avatar: Avatar, tex_index: int, cache: dict) -> np.ndarray | None:
             data = avatar.binary[view.get("byteOffset", 0):view.get("byteOffset", 0) + view["byteLength"]]
             img = np.asarray(Image.open(io.BytesIO(data)).convert("RGBA").convert("RGB"), dtype=np.float64)
         elif image.get("uri") and not image["uri"].startswith("data:"):
-            p = avatar.path.parent / image["uri"]
+            from laughlab.avatar.load import beside
+
+            p = beside(avatar.path, image["uri"])   # outside the avatar's folder: refused in one line
             if p.is_file():
                 img = np.asarray(Image.open(p).convert("RGBA").convert("RGB"), dtype=np.float64)
     cache[tex_index] = img

@@ -88,6 +88,11 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
             except Exception:  # listing the keys is a courtesy
                 valid = ""
         return f"unknown parameter {key}{valid}"
+    m = re.search(r"(?:LexerNoViableAltException|mismatched input [^:]*): ([\w.+~/-]+)=([^\n]*)", text)
+    if m:  # Hydra's override grammar reads only plain ASCII values unquoted (a path with é or a space)
+        key, value = m.group(1), m.group(2).strip()
+        return (f"cannot read the setting {key}={value}: a value with spaces or characters other than ASCII "
+                f"letters, digits and - _ . / must be quoted: \"{key}='{value}'\" (the double quotes for the shell)")
     m = re.search(r"Ambiguous value for argument '([^=']+)=([^']*)'", text)
     if m:  # Hydra's three numbered lines, as one: a comma is a sweep (-m), or a list in brackets
         key, value = m.groups()

@@ -41,3 +41,30 @@ def one_line_parser(**kwargs):
             raise LaughlabError(f"{self.prog}: {message} (see --help)")
 
     return _Parser(**kwargs)
+
+
+def port_number(text: str) -> int:
+    """An argparse type: a TCP port, 0-65535 (0: any free one); a bad one is argparse's one-line error."""
+    import argparse
+
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a port number: {text!r}") from None
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"a port is 0 to 65535 (got {port})")
+    return port
+
+
+def finite_number(text: str) -> float:
+    """An argparse type: a finite float (``nan`` and ``inf`` refused in one line)."""
+    import argparse
+    import math
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number (got {text})")
+    return value

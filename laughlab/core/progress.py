@@ -9,8 +9,10 @@ class LogProgress:
     """Progress for a log file (stderr not a terminal): a plain line every ``every_s`` seconds and one at
     the end, instead of a bar's thousands of carriage-return updates."""
 
-    def __init__(self, total: float, desc: str, every_s: float = 10.0, stream=None, unit: str = "trials"):
+    def __init__(self, total: float, desc: str, every_s: float = 10.0, stream=None, unit: str = "trials",
+                 digits: int | None = None):
         self.total, self.desc, self.every_s, self.unit = total, desc, every_s, unit
+        self.fmt = f".{digits}f" if digits is not None else ".10g"   # seconds of audio: 0.1 s
         self.stream = stream or sys.stderr
         self.n = 0
         self.t0 = self.last = time.monotonic()
@@ -23,8 +25,8 @@ class LogProgress:
             self._line(now)
 
     def _line(self, now: float) -> None:
-        print(f"{self.desc}: {self.n:.10g}/{self.total:.10g} {self.unit}, {now - self.t0:.0f} s", file=self.stream,
-              flush=True)
+        print(f"{self.desc}: {self.n:{self.fmt}}/{self.total:{self.fmt}} {self.unit}, {now - self.t0:.0f} s",
+              file=self.stream, flush=True)
 
     def close(self) -> None:
         self._line(time.monotonic())

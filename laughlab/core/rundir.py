@@ -49,8 +49,10 @@ class Claim:
     def finish(self, config_hash: str | None = None) -> None:
         """Record the run's files (every entry but the user's and ours) and its configuration's hash."""
         files = sorted(p.name for p in self.path.iterdir() if p.name not in self.user_files | {LOCK, MARKER})
+        hydra = self.path / ".hydra"   # kept, so that a refused sweep job can put back what Hydra overwrote
+        saved = {p.name: p.read_text() for p in sorted(hydra.glob("*.yaml"))} if hydra.is_dir() else {}
         _write_marker(self.path, {"pid": os.getpid(), "complete": True, "files": files, "config_hash": config_hash,
-                                  "user_files": sorted(self.user_files)})
+                                  "user_files": sorted(self.user_files), "hydra": saved})
 
     def abandon(self) -> None:
         """After a failure: remove the marker, and the folder if this run created it and it is empty."""
@@ -70,12 +72,13 @@ class Claim:
 
 
 def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset(),
-          done_if: str | None = None, writes: frozenset = frozenset()) -> Claim:
+          done_if: str | None = None, writes: frozenset = frozenset(), where: str = "hydra.run.dir") -> Claim:
     """Lock ``path`` for this run (creating it) and check it may be written; see the module notes.
 
     ``ours``: entries this run has already written (a Hydra sweep job's ``.hydra``).
     ``writes``: the names the run's sinks write (:func:`laughlab.core.pipeline.planned_files`), protected
     like :data:`OUTPUTS`.
+    ``where``: the setting the error lines tell to change (``hydra.sweep.dir`` for a sweep's job).
     ``done_if``: a configuration hash; a finished run of that configuration in ``path`` is returned
     as a claim with ``done`` set, untouched (a rerun sweep skips its finished jobs).
     """
@@ -96,7 +99,7 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         other = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
         os.close(fd)
         raise LaughlabError(f"{path} is in use by another laughlab run (pid {other}); wait for it to finish or "
-                            "choose another hydra.run.dir") from None
+                            f"choose another {where}") from None
     os.ftruncate(fd, 0)
     os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
     try:
@@ -116,11 +119,11 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         clash = sorted((entries - earlier) & (OUTPUTS | writes)) if overwrite or marker is None else []
         if clash:
             raise LaughlabError(f"{path} holds files by the names of a run's outputs that no laughlab run recorded "
-                                f"writing ({', '.join(clash)}); move them or choose another hydra.run.dir "
+                                f"writing ({', '.join(clash)}); move them or choose another {where} "
                                 "(overwrite=true never replaces files laughlab did not write)")
         if entries and not overwrite:
             if marker is not None:
-                raise LaughlabError(f"{path} already holds a run; choose another hydra.run.dir or add overwrite=true")
+                raise LaughlabError(f"{path} already holds a run; choose another {where} or add overwrite=true")
             raise LaughlabError(f"{path} is not empty and not a laughlab run ({shown_names(sorted(entries))}); "
                                 "choose an empty folder or add overwrite=true (files laughlab did not write are kept)")
         for name in sorted(earlier & entries):  # overwrite: the earlier run's own files only
@@ -133,6 +136,23 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         os.close(fd)
         raise
     return Claim(path, fd, created, user)
+
+
+def restore_hydra(path: str | Path) -> bool:
+    """A sweep job refused by a finished run in its folder: Hydra has already written the new job's ``.hydra/``
+    over the finished run's; put the finished run's back from its marker (True), or do nothing (False: no
+    finished run, or one recorded before its ``.hydra`` was)."""
+    marker = _read_marker(Path(path))
+    if not (marker and marker.get("complete") and marker.get("hydra")):
+        return False
+    hydra = Path(path) / ".hydra"
+    hydra.mkdir(exist_ok=True)
+    for p in hydra.glob("*.yaml"):
+        if p.name not in marker["hydra"]:
+            p.unlink()
+    for name, text in marker["hydra"].items():
+        (hydra / name).write_text(text)
+    return True
 
 
 def record(path: str | Path, name: str) -> None:

@@ -119,7 +119,7 @@ def main(argv: list[str]) -> None:
     if show and not sys.stderr.isatty():  # a log: a plain line every 10 s, not a bar's carriage returns
         from laughlab.core.progress import LogProgress
 
-        bar = LogProgress(round(total_s, 1), "detect", unit="s of audio")
+        bar = LogProgress(total_s, "detect", unit="s of audio", digits=1)
     elif show:
         from tqdm import tqdm
 
@@ -134,7 +134,7 @@ def main(argv: list[str]) -> None:
         dur = len(x) / sr
         results.append((f.stem, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur)))
         if bar is not None:
-            bar.update(round(dur, 1))
+            bar.update(dur)
     if bar is not None:
         bar.close()
     out = Path(ns.out)

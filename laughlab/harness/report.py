@@ -307,8 +307,18 @@ def _num(v: str):
         return v
 
 
+def _order(v: str):
+    """A sort key for a swept value: numbers by value, then words (a point without the parameter: "")."""
+    x = _num(v)
+    return (0, x, "") if isinstance(x, float) else (1, 0.0, x)
+
+
 def sweep_report(root: Path, out: Path, command: str) -> Path:
     points = _sweep_points(root)
+    experiments = sorted({p["doc"]["experiment"] for p in points})
+    if len(experiments) > 1:
+        raise LaughlabError(f"{root} holds the results of {len(experiments)} experiments ({', '.join(experiments)}); "
+                            "report each sweep's folder on its own")
     keys = sorted({k for p in points for k in p["params"]})
     varying = [k for k in keys if len({p["params"].get(k) for p in points}) > 1]
     doc0 = points[0]["doc"]
@@ -330,7 +340,7 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
         r = p["doc"]["results"][cond][m]
         return r["mean"] if r["mean"] is not None else float("nan")
 
-    for p in sorted(points, key=lambda p: [_num(p["params"].get(k, "")) for k in varying]):
+    for p in sorted(points, key=lambda p: [_order(p["params"].get(k, "")) for k in varying]):
         lines.append("| " + " | ".join(p["params"].get(k, "") for k in varying) + " | "
                      + " | ".join(_fmt(val(p, m)) for m in metrics) + " |")
     lines.append("")
@@ -380,14 +390,14 @@ def _panel_grid(n: int, w: float, h: float, cols: int = 3):
 
 def _heatmaps(points, a, b, metrics, val, path, info) -> None:
     """One heatmap per metric over parameters ``a`` (x) and ``b`` (y); bright is better in each."""
-    xs = sorted({p["params"][a] for p in points}, key=_num)
-    ys = sorted({p["params"][b] for p in points}, key=_num)
+    xs = sorted({p["params"].get(a, "") for p in points}, key=_order)
+    ys = sorted({p["params"].get(b, "") for p in points}, key=_order)
     fig, axes = _panel_grid(len(metrics), 3.4, 2.7)
     for ax, m in zip(axes, metrics):
         grid = np.full((len(ys), len(xs)), np.nan)
         for i, y in enumerate(ys):
             for j, x in enumerate(xs):
-                v = [val(p, m) for p in points if p["params"][a] == x and p["params"][b] == y]
+                v = [val(p, m) for p in points if p["params"].get(a, "") == x and p["params"].get(b, "") == y]
                 v = [u for u in v if math.isfinite(u)]
                 grid[i, j] = np.mean(v) if v else np.nan
         hib = info[m]["higher_is_better"]
@@ -413,10 +423,10 @@ def _heatmaps(points, a, b, metrics, val, path, info) -> None:
 
 def _lines(points, a, metrics, val, path, info) -> None:
     """One panel per metric against the one swept parameter ``a``."""
-    xs = sorted({p["params"][a] for p in points}, key=_num)
+    xs = sorted({p["params"].get(a, "") for p in points}, key=_order)
     fig, axes = _panel_grid(len(metrics), 3.0, 2.3)
     for ax, m in zip(axes, metrics):
-        ys = [np.nanmean([val(p, m) for p in points if p["params"][a] == x]) for x in xs]
+        ys = [np.nanmean([val(p, m) for p in points if p["params"].get(a, "") == x]) for x in xs]
         ax.plot([_num(x) for x in xs], ys, "o-")
         ax.set_xlabel(a, fontsize=7)
         hib = info[m]["higher_is_better"]

@@ -5,7 +5,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError, one_line_parser
+from laughlab.core.errors import LaughlabError, finite_number, one_line_parser, port_number
 
 EPILOG = """\
 from stimuli to a report:
@@ -44,7 +44,7 @@ def parser() -> argparse.ArgumentParser:
     s = sub.add_parser("serve", help="serve the page and store every answer in SQLite as it arrives")
     s.add_argument("study_dir")
     s.add_argument("--db", help="the database (default: STUDY_DIR/responses.sqlite)")
-    s.add_argument("--port", type=int, default=DEFAULT_PORT, help="port (a free one if it is taken)")
+    s.add_argument("--port", type=port_number, default=DEFAULT_PORT, help="port (a free one if it is taken)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (0.0.0.0: the lab's other computers)")
     m = sub.add_parser("simulate", help="simulated participants in headless Chromium do the whole study, "
                                         "answers drawn from a planted effect (a demo, and the tests)")
@@ -61,7 +61,7 @@ def parser() -> argparse.ArgumentParser:
     w = sub.add_parser("power", help="participants needed to detect an effect (simulation, the same model)")
     w.add_argument("study_dir", help="a study folder (its design: conditions, stimuli, orders, scale)")
     w.add_argument("--contrast", required=True, help="A:B, e.g. laugh_energy:smile_only")
-    w.add_argument("--effect", type=float, required=True, help="A's rating above B's, in scale points")
+    w.add_argument("--effect", type=finite_number, required=True, help="A's rating above B's, in scale points")
     w.add_argument("--participants", type=_ints, default=[8, 12, 16, 24, 32], help="numbers to try (8,12,16,24,32)")
     w.add_argument("--sims", type=int, default=200, help="simulated studies per number (200)")
     w.add_argument("--alpha", type=float, default=0.05)
