@@ -284,7 +284,8 @@ def view_command(args: list[str]) -> None:
                                      description="Play a run's character in 3D in a browser, in sync with its "
                                                  "audio, the MCS and laughing energy scrolling below.")
     parser.add_argument("run_dir", help="a run directory (motion.bvh, channels.csv, events.csv)")
-    parser.add_argument("--port", type=port_number, default=V.DEFAULT_PORT, help="port on 127.0.0.1 (a free one if taken)")
+    parser.add_argument("--port", type=port_number, default=V.DEFAULT_PORT,
+                        help="port on 127.0.0.1 (a free one if taken)")
     parser.add_argument("--out", help="write the page and its files into this new folder instead of serving; "
                                          "its index.html opens from the disk or on any web server")
     parser.add_argument("--character", help="show the run on this avatar (VRM 0.x/1.0, or a humanoid glTF/GLB; "
