@@ -119,15 +119,19 @@ def comparison_figure(doc: dict, path: Path) -> Path:
     return path
 
 
+def table_metrics(doc: dict) -> list[str]:
+    """The metrics the results table shows: measured under some condition and not the same under all."""
+    gone = set(unmeasured(doc))
+    return [m for m in metric_order(doc) if m not in gone and not same_everywhere(doc, m)]
+
+
 def _results_table(doc: dict) -> list[str]:
     """The metrics that differ between the conditions: one column per condition, the best in bold when
     its interval is apart from the others' (:func:`_clear_best`)."""
     conds = conditions_of(doc)
     lines = ["| metric | units | " + " | ".join(f"{c} mean [95% CI]" for c in conds) + " |",
              "|---|---|" + "---|" * len(conds)]
-    for m in metric_order(doc):
-        if same_everywhere(doc, m) or m in unmeasured(doc):
-            continue
+    for m in table_metrics(doc):
         info = doc["metrics"][m]
         best = _clear_best(doc, m, conds)
         cells = [f"**{_cell(doc['results'][c][m])}**" if c == best else _cell(doc["results"][c][m]) for c in conds]
@@ -243,15 +247,16 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              f"The compute rows (frame_ms_*, realtime_factor) were measured with "
              f"{(doc.get('config', {}).get('harness') or {}).get('jobs', 1)} trial process(es) sharing the "
              "machine; `make bench` measures them alone.", ""]
-    table = _results_table(doc)
-    if any(f"(n={k})" in row for row in table for k in range(1, FEW)):  # a bootstrap of a handful covers less
+    if any(0 < doc["results"][c][m]["n"] < FEW for m in table_metrics(doc) for c in conditions_of(doc)):
+        # a bootstrap of a handful covers less
         lines[-1:-1] = ["", f"(n=K): a mean of fewer than {FEW} trials (e.g. the few inputs holding that kind of "
                         "sound); its bootstrap interval is narrower than a 95% interval should be: read it as the "
                         "spread of those trials."]
-    lines += table
-    if unmeasured(doc):
+    lines += _results_table(doc)
+    gone = unmeasured(doc)
+    if gone:
         lines += ["", "No value under any condition (nothing in these inputs for them to measure): "
-                  + ", ".join(f"`{m}`" for m in unmeasured(doc)) + "."]
+                  + ", ".join(f"`{m}`" for m in gone) + "."]
     lines += ["", "![metrics](figures/metrics.png)", ""]
     same = _same_table(doc)
     if same:
