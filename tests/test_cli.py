@@ -259,7 +259,7 @@ def test_a_successful_run_says_what_ran_how_long_and_where(tmp_path):
 def test_progress_in_a_log_is_a_line_every_few_seconds_not_a_bar():
     import io
 
-    from laughlab.harness.runner import LogProgress
+    from laughlab.core.progress import LogProgress
 
     buf = io.StringIO()
     p = LogProgress(5, "smoke", every_s=3600.0, stream=buf)

@@ -293,13 +293,9 @@ def _progress_bar(pipe: Pipeline):
         pipe.run.progress == "auto" and sys.stderr.isatty() and (n is None or n > 60 * pipe.ctx.fps or slow))
     if not show:
         return None
-    if n is not None and not sys.stderr.isatty():  # progress=on into a log: plain lines, not carriage returns
-        from laughlab.core.progress import LogProgress
+    from laughlab.core.progress import bar   # progress=on into a log: plain lines, not carriage returns
 
-        return LogProgress(n, "laughlab", unit="frames")
-    from tqdm import tqdm
-
-    return tqdm(total=n, unit="frame", desc="laughlab", file=sys.stderr, leave=False)
+    return bar(n, "laughlab", "frames", unit="frame", leave=False)
 
 
 def plugin_config(pipe: Pipeline) -> dict:

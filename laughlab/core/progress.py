@@ -30,3 +30,13 @@ class LogProgress:
 
     def close(self) -> None:
         self._line(time.monotonic())
+
+
+def bar(total, desc: str, log_unit: str, digits: int | None = None, **tqdm_kwargs):
+    """Progress on stderr: a tqdm bar on a terminal (``tqdm_kwargs``: its unit, format...), or
+    :class:`LogProgress` lines in ``log_unit`` when stderr is not one (a log, CI) and the total is known."""
+    if total is not None and not sys.stderr.isatty():
+        return LogProgress(total, desc, unit=log_unit, digits=digits)
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, file=sys.stderr, **tqdm_kwargs)

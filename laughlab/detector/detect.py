@@ -10,7 +10,6 @@ when the inputs are longer than a minute in all.
 from __future__ import annotations
 
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -116,15 +115,12 @@ def main(argv: list[str]) -> None:
         raise LaughlabError(str(exc)) from None
     show = ns.progress == "on" or (ns.progress == "auto" and total_s > 60.0)
     bar = None
-    if show and not sys.stderr.isatty():  # a log: a plain line every 10 s, not a bar's carriage returns
-        from laughlab.core.progress import LogProgress
+    if show:  # seconds of audio, to 0.1 s
+        from laughlab.core.progress import bar as progress_bar
 
-        bar = LogProgress(total_s, "detect", unit="s of audio", digits=1)
-    elif show:
-        from tqdm import tqdm
-
-        bar = tqdm(total=total_s, unit="s", desc="detect", file=sys.stderr, leave=False,   # seconds of audio, 0.1 s
-                   bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s of audio [{elapsed}<{remaining}]")
+        bar = progress_bar(total_s, "detect", "s of audio", digits=1, unit="s", leave=False,
+                           bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s of audio "
+                                      "[{elapsed}<{remaining}]")
     t0 = time.perf_counter()
     results = []
     for f in files:

@@ -13,7 +13,6 @@ import hashlib
 import json
 import os
 import shutil
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,7 +20,7 @@ from omegaconf import OmegaConf
 
 from laughlab.core import pipeline
 from laughlab.core.errors import LaughlabError
-from laughlab.core.progress import LogProgress
+from laughlab.core.progress import bar
 from laughlab.harness.corpus import Item
 
 
@@ -91,11 +90,7 @@ def make_trials(items: list[Item], conditions: dict, seeds_for, base_overrides: 
 
 def progress_bar(total: int, desc: str, progress: bool):
     """A tqdm bar on a terminal; :class:`LogProgress` lines when stderr is not one; silence without ``progress``."""
-    from tqdm import tqdm
-
-    if progress and not sys.stderr.isatty():
-        return LogProgress(total, desc)
-    return tqdm(total=total, desc=desc, unit="trial", file=sys.stderr, disable=not progress)
+    return bar(total if progress else None, desc, "trials", unit="trial", disable=not progress)
 
 
 def run_trials(trials: list[Trial], jobs: int = 1, progress: bool = True, desc: str = "trials",
