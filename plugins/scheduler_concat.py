@@ -11,7 +11,10 @@ are in :mod:`laughlab.concat.costs`.
 Labels.  Each frame reads ``frame.label`` (a pseudo-phoneme from the
 extractor).  When it is None the scheduler derives a coarse label from the
 motion control signal: ``silence`` if ``control['mcs'] < mcs_silence``, else
-``vowel`` (0 when there is no ``mcs``).  A new pseudo-phoneme starts whenever
+``vowel`` (0 when there is no ``mcs``).  While a detector holds full-body clips
+back (``clip_gate`` below 0.5, ``detector=yamnet`` before the model hears
+laughter) every frame is ``silence``, whatever the extractor says: talk is not
+concatenated into laughter.  A new pseudo-phoneme starts whenever
 the label differs from the previous frame's.
 
 Silence is a pseudo-phoneme too.  Ding et al.'s input is the whole pseudo-phoneme
@@ -81,7 +84,7 @@ from laughlab.concat.costs import Concatenation, c_cont, c_dur, choose, label_ru
 from laughlab.core.errors import LaughlabError
 from laughlab.core.frame import ClipEvent
 from laughlab.core.plugins import check_range
-from laughlab.detector.model import clip_drive
+from laughlab.detector.model import clip_allowed, clip_drive
 from laughlab.concat.segments import PSEUDO_PHONEMES, segment_db
 
 ENERGY_SCALE = 40.0
@@ -190,7 +193,11 @@ class ConcatScheduler(Scheduler):
         return self.params.mode == "optimal"
 
     def label_of(self, frame) -> str:
-        """The frame's pseudo-phoneme: ``frame.label``, else derived from MCS."""
+        """The frame's pseudo-phoneme: ``silence`` while a detector holds full-body clips back
+        (``clip_allowed`` false: ``detector=yamnet`` has not yet heard laughter; departure from Ding et al.,
+        whose input is always laughter), else ``frame.label``, else derived from MCS."""
+        if not clip_allowed(frame.control):
+            return "silence"
         if frame.label is not None:
             return frame.label
         return "silence" if _drive(frame) < self.params.mcs_silence else "vowel"
@@ -271,8 +278,8 @@ class ConcatScheduler(Scheduler):
         while self._unit + 1 < len(self._plan) and self._plan[self._unit + 1][0] <= k:
             self._unit += 1
         start, n, label, _ = self._plan[self._unit]
-        if frame.label is not None and frame.label != label:
-            raise LaughlabError(f"frame {k} has label {frame.label!r} but the plan has {label!r}")
+        if frame.label is not None and self.label_of(frame) != label:
+            raise LaughlabError(f"frame {k} has label {self.label_of(frame)!r} but the plan has {label!r}")
         return label, n * frame.dt
 
     def _observe(self, label: str, duration_s: float) -> None:

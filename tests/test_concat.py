@@ -341,6 +341,33 @@ def test_labels_from_mcs_when_the_extractor_gives_none(lib):
     assert labels == ["silence", "silence", "vowel", "vowel"]
 
 
+def test_a_closed_clip_gate_plays_silence_whatever_the_extractor_says(lib, db):
+    """Under a detector that holds clips back (clip_gate < 0.5: detector=yamnet before the model hears
+    laughter), talk's pseudo-phonemes play ``silence`` segments, greedy and optimal alike; with the gate
+    open the labels pass as before.  Before, talk under the default detector started laugh segments."""
+    gate = [0.0] * 40 + [1.0] * 40 + [0.49] * 20
+    labels = ["a"] * 20 + ["e"] * 20 + ["a"] * 20 + ["ic"] * 20 + ["cackle"] * 20
+
+    def frames():
+        return [Frame(k, k * DT, DT, {"mcs": 0.5, "mcs_ungated": 0.8, "clip_gate": g}, lab)
+                for k, (lab, g) in enumerate(zip(labels, gate))]
+
+    s = make(lib)
+    got = [s.label_of(f) for f in frames()]
+    assert got == ["silence"] * 40 + ["a"] * 20 + ["ic"] * 20 + ["silence"] * 20
+    for f in frames():
+        s.step(f)
+        for e in f.events:
+            if e.kind == "start":   # every segment started is of the frame's gated class
+                idx = [i for i in db.candidates(got[f.index]) if db[i].clip == e.clip and db[i].start_s == e.offset_s]
+                assert idx, (f.index, e.clip)
+    o = make(lib, mode="optimal")
+    o.plan([o.label_of(f) for f in frames()])
+    for f in frames():
+        o.step(f)   # the plan is of the gated labels: no 'plan has' refusal
+    assert o.planned.indices[0] in db.candidates("silence")
+
+
 def test_energy_channel_is_smoothed_mcs_times_40(lib):
     s = make(lib)
     frames, _ = drive(s, ["a"] * 300, mcs=[1.0] * 300)
