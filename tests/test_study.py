@@ -315,6 +315,80 @@ def test_exclusions_name_each_participant_and_the_reason(study, tmp_path):
     assert f"straight-lining: all {2 * len(d['stimuli'])} ratings were 4" in text[4]
     with open(tmp_path / "rep" / "means.csv") as f:
         assert {r["n_participants"] for r in csv.DictReader(f)} == {"2"}  # only the good ones are in the means
+    # again into the same folder: the earlier report is replaced; a folder with the user's own files is refused
+    # whole (before, it was deleted with them)
+    assert fuzz.run_cli(["study", "analyze", str(folder), "--design", str(study), "--out", str(tmp_path / "rep")]).code == 0
+    (tmp_path / "rep" / "notes.txt").write_text("mine")
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "README.md").write_text("# My thesis\n")
+    for target in (tmp_path / "rep", mine):
+        out = fuzz.run_cli(["study", "analyze", str(folder), "--design", str(study), "--out", str(target)])
+        assert out.code == 2 and "not a study report" in out.stderr and out.stderr.count("\n") == 1, out.stderr
+    assert (tmp_path / "rep" / "notes.txt").read_text() == "mine" and (tmp_path / "rep" / "means.csv").exists()
+    assert (mine / "README.md").read_text() == "# My thesis\n" and sorted(p.name for p in mine.iterdir()) == ["README.md"]
+
+
+def test_simulated_answers_never_mix_with_peoples(study, tmp_path):
+    """``study simulate`` writes into a database of its own (simulated.sqlite), marked as such: serve refuses
+    it and simulate refuses people's; a database from before the mark is told apart by its sessions'
+    browsers (all headless Chromium: simulated)."""
+    from laughlab.core.errors import LaughlabError
+    from laughlab.study import db as DB
+    from laughlab.study.cli import _handler
+    from laughlab.study.server import server
+
+    d = design_of(study)
+    people = DB.open_db(tmp_path / "responses.sqlite", d)
+    sim = DB.open_db(tmp_path / "simulated.sqlite", d, "simulated")
+    assert DB.participants_kind(people) == "people" and DB.participants_kind(sim) == "simulated"
+    with pytest.raises(LaughlabError, match="holds simulated participants' answers"):
+        DB.open_db(sim, d, "people")
+    with pytest.raises(LaughlabError, match="holds the answers of people.*simulated.sqlite"):
+        DB.open_db(people, d, "simulated")
+    for kind, name in (("people", "responses.sqlite"), ("simulated", "simulated.sqlite")):  # the defaults
+        fresh = not (study / name).exists()
+        httpd = server(study, None, 0, quiet=True, participants=kind)
+        try:
+            assert _handler(httpd).db == study / name
+        finally:
+            httpd.server_close()
+            for f in study.glob(name + "*"):
+                if fresh:   # the module's study folder is shared: leave it as it was
+                    f.unlink()
+    old = tmp_path / "old.sqlite"   # written before the mark: no 'participants' row
+    DB.open_db(old, d)
+    with sqlite3.connect(old) as con:
+        con.execute("DELETE FROM study WHERE key = 'participants'")
+    assert DB.participants_kind(old) == "people"   # no sessions yet: people's (serve's default)
+    DB.session_event(old, "s1", 1, "start", "Mozilla/5.0 (X11; Linux x86_64) HeadlessChrome/120.0 Safari/537.36")
+    assert DB.participants_kind(old) == "simulated"
+    DB.session_event(old, "s2", 2, "start", "Mozilla/5.0 (Windows NT 10.0) Chrome/120.0 Safari/537.36")
+    assert DB.participants_kind(old) == "people"
+    out = fuzz.run_cli(["study", "simulate", str(study), "--db", str(people), "--participants", "1"])
+    assert out.code == 2 and "holds the answers of people" in out.stderr and out.stderr.count("\n") == 1
+    (tmp_path / "junk.sqlite").write_text("not a database at all, just text")
+    out = fuzz.run_cli(["study", "serve", str(study), "--db", str(tmp_path / "junk.sqlite"), "--port", "0"])
+    assert out.code == 2 and "is not a study database" in out.stderr and out.stderr.count("\n") == 1, out.stderr
+
+
+def test_power_replaces_only_its_own_results(study, tmp_path):
+    """``study power --out`` refuses a folder whose power.csv or power.png it did not write, before the
+    simulations; its own earlier results are replaced; other files are left alone."""
+    args = ["study", "power", str(study), "--contrast", "laugh_energy:smile_only", "--effect", "1",
+            "--participants", "2", "--sims", "1", "--out"]
+    out = fuzz.run_cli(args + [str(tmp_path / "p")])
+    assert out.code == 0, out.stderr
+    (tmp_path / "p" / "mine.txt").write_text("mine")
+    assert fuzz.run_cli(args + [str(tmp_path / "p")]).code == 0   # its own results: replaced
+    assert (tmp_path / "p" / "power.csv").read_text().startswith("n,detected,sims,power,ci_low,ci_high\n")
+    assert sorted(p.name for p in (tmp_path / "p").iterdir()) == ["mine.txt", "power.csv", "power.png"]
+    theirs = tmp_path / "theirs"
+    theirs.mkdir()
+    (theirs / "power.csv").write_text("subject,power\n1,0.9\n")
+    out = fuzz.run_cli(args + [str(theirs)])
+    assert out.code == 2 and "is not an earlier study power's result" in out.stderr, out.stderr
+    assert (theirs / "power.csv").read_text() == "subject,power\n1,0.9\n" and not (theirs / "power.png").exists()
 
 
 def test_every_bundled_preset_loads_with_the_questions_of_its_paper(tmp_path):

@@ -326,6 +326,8 @@ def analyze(source, out=None, design_dir=None) -> Path:
     df, design = load(source, design_dir)
     source = Path(source).expanduser()
     out = Path(out).expanduser() if out else source.with_name(source.stem + "-report")
+    _check_out(out)
+    kind = DB.participants_kind(source) if source.is_file() and source.suffix.lower() != ".csv" else None
     rules = {**DEFAULT_RULES, **((design or {}).get("exclusions") or {})}
     slider = design["slider"]["max"] - design["slider"]["min"] if design and design.get("scale") == "slider" else None
     seen = [c for c in dict.fromkeys(df.loc[df["kind"] == "rating", "condition"]) if c]
@@ -384,6 +386,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
     participant_lines(tmp / "fig_participants.png", tidy, means, questions, conditions, design)
     n_all = int(df["participant"].nunique())
     doc = {"source": str(source), "design_id": (design or {}).get("id"), "participants": n_all,
+           "simulated": kind == "simulated",
            "excluded": {str(p): r for p, r in excluded.items()}, "included": n_all - len(excluded),
            "conditions": conditions, "questions": questions, "model_notes": notes,
            "model_warnings": {q: w for q, w in warned.items() if w},
@@ -391,15 +394,43 @@ def analyze(source, out=None, design_dir=None) -> Path:
            "contrasts": contrast_df.to_dict("records")}
     (tmp / "report.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
     (tmp / "README.md").write_text(_markdown(doc, source))
+    _check_out(out)  # again: the fit takes a while, and the folder may have been filled meanwhile
     if out.exists():
         shutil.rmtree(out)
     tmp.rename(out)
     return out
 
 
+REPORT_FILES = {"README.md", "report.json", "tidy.csv", "exclusions.csv", "means.csv", "model.csv", "variance.csv",
+                "contrasts.csv", "fig_means.png", "fig_participants.png"}
+
+
+def _check_out(out: Path) -> None:
+    """Refuse a report folder that holds anything but an earlier study report (which it replaces)."""
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise LaughlabError(f"{out} exists and is not a folder; choose another --out")
+    held = {p.name for p in out.iterdir()}
+    if not held:
+        return
+    try:
+        ours = (out / "README.md").read_text(encoding="utf-8").startswith("# Study report: ")
+    except (OSError, UnicodeDecodeError):
+        ours = False
+    if not ours or held - REPORT_FILES:
+        others = sorted(held - REPORT_FILES) or sorted(held)
+        raise LaughlabError(f"{out} holds files that are not a study report ({', '.join(others[:3])}"
+                            f"{', ...' if len(others) > 3 else ''}); choose another --out "
+                            "(a report replaces only an earlier report)")
+
+
 def _markdown(doc: dict, source: Path) -> str:
     lines = [f"# Study report: {source.name}", "",
-             f"`python -m laughlab study analyze {source}`", "",
+             f"`python -m laughlab study analyze {source}`", ""]
+    if doc.get("simulated"):
+        lines += ["**Simulated participants** (`study simulate`, answers drawn from a planted effect), not people.", ""]
+    lines += [
              f"{doc['participants']} participants, {doc['included']} included, "
              f"{doc['participants'] - doc['included']} excluded (`exclusions.csv`).", ""]
     for p, reasons in doc["excluded"].items():

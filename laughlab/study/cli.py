@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -52,7 +53,8 @@ def parser() -> argparse.ArgumentParser:
     m.add_argument("--participants", type=int, default=8, help="how many, all at once (8)")
     m.add_argument("--effects", default="", help="CONDITION=POINTS,... planted above the base rating "
                                                  "(e.g. laugh_energy=1)")
-    m.add_argument("--db", help="the database (default: STUDY_DIR/responses.sqlite, as serve)")
+    m.add_argument("--db", help="the database (default: STUDY_DIR/simulated.sqlite; never serve's, so simulated "
+                                "answers never mix with people's)")
     m.add_argument("--seed", type=int, default=0, help="seed of the simulated answers (0)")
     a = sub.add_parser("analyze", help="exclusions, means with CIs, mixed model, contrasts, figures")
     a.add_argument("source", help="responses.sqlite, or a CSV of answers, or a folder of them")
@@ -135,7 +137,7 @@ def simulate(ns) -> None:
     if not 1 <= ns.participants <= len(design["participants"]):
         raise LaughlabError(f"--participants must be 1..{len(design['participants'])} (the design's rows)")
     effects = S.parse_effects(ns.effects, design)
-    httpd = server(study, ns.db, 0, quiet=True)
+    httpd = server(study, ns.db, 0, quiet=True, participants="simulated")
     threading.Thread(target=httpd.serve_forever, daemon=True).start()
     try:
         url = f"http://127.0.0.1:{httpd.server_address[1]}"
@@ -160,20 +162,29 @@ def run_power(ns) -> None:
     if not sep:
         raise LaughlabError(f"--contrast must be A:B (got {ns.contrast!r})")
     design = load_design(Path(ns.study_dir).expanduser())
+    out = Path(ns.out).expanduser() if ns.out else Path(ns.study_dir).expanduser() / "power"
+    W.check_out(out)   # before the simulations: they take minutes
     var, icpt, source = None, (design["points"] + 1) / 2 if design["scale"] == "likert" else 4.0, "defaults"
     if ns.pilot:
         var, icpt, q = W.pilot_variance(ns.pilot, ns.question)
         source = f"pilot {ns.pilot} ({q})"
     rows = W.power(design, (a, b), ns.effect, ns.participants, ns.sims, ns.alpha, var, icpt, ns.seed,
                    progress=lambda m: print(m, file=sys.stderr, flush=True))
-    out = Path(ns.out).expanduser() if ns.out else Path(ns.study_dir).expanduser() / "power"
+    W.check_out(out)
     out.mkdir(parents=True, exist_ok=True)
-    with open(out / "power.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
-        w.writeheader()
-        w.writerows(rows)
     title = f"{a} - {b} = {ns.effect:g} points; variances: {source}"
-    W.plot(out / "power.png", rows, ns.target, title)
+    parts = [out / ".power.csv.part", out / ".power.png.part"]
+    try:
+        with open(parts[0], "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
+            w.writeheader()
+            w.writerows(rows)
+        W.plot(parts[1], rows, ns.target, title)
+        os.replace(parts[0], out / "power.csv")
+        os.replace(parts[1], out / "power.png")
+    finally:
+        for part in parts:
+            part.unlink(missing_ok=True)
     print(f"laughlab: {W.verdict(rows, ns.target)} for {a} - {b} = {ns.effect:g} (alpha {ns.alpha:g}, Holm); "
           f"{out}/power.csv, power.png")
     hint = W.advice(rows, ns.target, ns.effect)

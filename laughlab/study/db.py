@@ -15,7 +15,8 @@ Tables (``responses.sqlite`` in the study folder unless ``--db`` says otherwise)
     ``finished_at``, ``user_agent``.
 ``study``
     ``design_id`` and the design itself (``design``, JSON), so the database alone can be analysed and
-    is never mixed with another study's.
+    is never mixed with another study's; ``participants``: ``people`` (``study serve``) or
+    ``simulated`` (``study simulate``), so simulated answers never mix with people's.
 
 The database runs in WAL mode; every write is one ``BEGIN IMMEDIATE`` transaction, so two
 participants posting at once are serialised and a trial is stored whole or not at all.
@@ -65,24 +66,62 @@ def connect(path: Path) -> sqlite3.Connection:
     return conn
 
 
-def open_db(path: Path, design: dict) -> Path:
-    """Create the database (or check that it belongs to ``design``); its path."""
+KINDS = ("people", "simulated")
+DEFAULT_NAMES = {"people": "responses.sqlite", "simulated": "simulated.sqlite"}
+
+
+def open_db(path: Path, design: dict, participants: str = "people") -> Path:
+    """Create the database (or check that it belongs to ``design`` and holds ``participants``:
+    ``people`` or ``simulated``); its path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    conn = connect(path)
+    if path.exists() and path.is_dir():
+        raise LaughlabError(f"{path} is a folder, not a database; give --db a file")
     try:
+        conn = connect(path)
         conn.executescript(SCHEMA)
+    except sqlite3.DatabaseError as exc:
+        raise LaughlabError(f"{path} is not a study database ({exc}); give another --db") from None
+    try:
         row = conn.execute("SELECT value FROM study WHERE key = 'design_id'").fetchone()
         if row is None:
             with _transaction(conn):
-                conn.execute("INSERT INTO study VALUES ('design_id', ?), ('design', ?)",
-                             (design["id"], json.dumps(design, sort_keys=True)))
-        elif row[0] != design["id"]:
+                conn.execute("INSERT INTO study VALUES ('design_id', ?), ('design', ?), ('participants', ?)",
+                             (design["id"], json.dumps(design, sort_keys=True), participants))
+            return path
+        if row[0] != design["id"]:
             raise LaughlabError(f"{path} holds the responses of another study (design {row[0]}, this one is "
                                 f"{design['id']}); give another --db")
+        held = _participants(conn)
+        if held != participants:
+            other = DEFAULT_NAMES[participants]
+            what = "simulated participants' answers" if held == "simulated" else "the answers of people"
+            raise LaughlabError(f"{path} holds {what}; {participants} go into a database of their own "
+                                f"(give another --db, e.g. {path.with_name(other)})")
     finally:
         conn.close()
     return path
+
+
+def _participants(conn: sqlite3.Connection) -> str:
+    """``people`` or ``simulated``.  A database written before the key existed is ``simulated`` when
+    every session came from headless Chromium (``study simulate``), else ``people``."""
+    row = conn.execute("SELECT value FROM study WHERE key = 'participants'").fetchone()
+    if row:
+        return row[0]
+    agents = [r[0] or "" for r in conn.execute("SELECT user_agent FROM sessions")]
+    return "simulated" if agents and all("HeadlessChrome" in a for a in agents) else "people"
+
+
+def participants_kind(path: Path) -> str | None:
+    """``people`` or ``simulated`` for a study database (None if it is not one)."""
+    conn = sqlite3.connect(f"file:{Path(path)}?mode=ro", uri=True)
+    try:
+        return _participants(conn)
+    except sqlite3.DatabaseError:
+        return None
+    finally:
+        conn.close()
 
 
 class _transaction:

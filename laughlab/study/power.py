@@ -26,6 +26,7 @@ import numpy as np
 
 from laughlab.core.errors import LaughlabError
 
+HEADER = "n,detected,sims,power,ci_low,ci_high"   # the first line of power.csv
 DEFAULT_VAR = {"participant": 0.8 ** 2, "stimulus": 0.3 ** 2, "residual": 1.2 ** 2}
 
 
@@ -139,6 +140,23 @@ def power(design: dict, contrast: tuple[str, str], effect: float, ns: list[int],
     return out
 
 
+def check_out(out: Path) -> None:
+    """Refuse an output folder whose ``power.csv`` or ``power.png`` is not an earlier ``study power``'s
+    (which it replaces); other files in it are left alone."""
+    if out.exists() and not out.is_dir():
+        raise LaughlabError(f"{out} exists and is not a folder; choose another --out")
+    csv_, png = out / "power.csv", out / "power.png"
+    try:
+        head = csv_.open(encoding="utf-8").readline() if csv_.exists() else ""
+    except (OSError, UnicodeDecodeError):
+        head = "?"
+    ours = head.startswith(HEADER)
+    if (csv_.exists() and not ours) or (png.exists() and not ours):
+        name = csv_.name if csv_.exists() else png.name
+        raise LaughlabError(f"{out / name} is not an earlier study power's result; choose another --out "
+                            "(power replaces only its own power.csv and power.png)")
+
+
 def plot(path: Path, rows: list[dict], target: float, title: str) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -158,4 +176,4 @@ def plot(path: Path, rows: list[dict], target: float, title: str) -> None:
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right", fontsize=8, frameon=False)
-    fig.savefig(path)
+    fig.savefig(path, format="png")

@@ -250,15 +250,17 @@ def files_of(study_dir: Path) -> dict[str, Path]:
     return out
 
 
-DB_PREFIXES = ("responses.sqlite",)
+DB_PREFIXES = ("responses.sqlite", "simulated.sqlite")
 
 
 def server(study_dir, db: str | Path | None = None, port: int = DEFAULT_PORT, host: str = "127.0.0.1",
-           quiet: bool = False):
-    """The study's server (not yet serving): the page's files and the endpoints above."""
+           quiet: bool = False, participants: str = "people"):
+    """The study's server (not yet serving): the page's files and the endpoints above.  ``participants``
+    (``people`` or ``simulated``) chooses the default database and is checked against a given one."""
     study_dir = Path(study_dir).expanduser()
     design = load_design(study_dir)
-    db_path = DB.open_db(Path(db).expanduser() if db else study_dir / "responses.sqlite", design)
+    db_path = DB.open_db(Path(db).expanduser() if db else study_dir / DB.DEFAULT_NAMES[participants], design,
+                         participants)
     files = files_of(study_dir)
     files.pop(db_path.name, None)
     return http_server(files, port, base=StudyHandler, host=host, design=design, db=db_path,
