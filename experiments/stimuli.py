@@ -77,6 +77,10 @@ plugins take) and ``orders/jspsych_all.json`` (participant -> array).
 Keep the folder as it is and put the PsychoPy experiment (or the jsPsych
 page) in it: the paths are relative to it.
 
+Resume: each video, once rendered, is journaled in ``stimuli/.rendered.jsonl``
+(:class:`Rendered`, keyed by :func:`render_key`).  A run stopped by Ctrl-C or a
+file-system fault keeps those videos; the same command renders only the others.
+
 Orders
 ------
 Participant ``p`` (1-based) takes row ``(p - 1) mod R`` of a balanced Latin
@@ -216,6 +220,67 @@ def _csv_text(columns, rows) -> str:
     return buf.getvalue()
 
 
+JOURNAL = ".rendered.jsonl"
+"""In ``stimuli/``: one line per video rendered (its id, render key and manifest row), so an interrupted
+run resumes; removed when the manifest is written."""
+
+
+def render_key(overrides: list[str], spec: dict, keep_runs: bool) -> str:
+    """What a video is made of: the run's overrides, the video settings and the bytes of the audio muxed in
+    (its path is a temporary one: its sha256 instead)."""
+    video = {k: v for k, v in spec.items() if k != "audio_path"}
+    doc = {"overrides": list(overrides), "video": video, "audio_sha256": _sha256(Path(spec["audio_path"])),
+           "keep_runs": keep_runs}
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+class Rendered:
+    """The journal of rendered videos (:data:`JOURNAL`); a line cut by a kill is ignored."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        self._lines: dict[str, dict] = {}
+        if path.is_file():
+            for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+                try:
+                    rec = json.loads(line)
+                    self._lines[rec["sid"]] = rec
+                except (ValueError, KeyError, TypeError):
+                    continue
+
+    def finished(self, sid: str, key: str, video: Path, run_dir: Path | None) -> list | None:
+        """The manifest row of ``sid`` if a run of the same ``key`` rendered it and its file is intact."""
+        rec = self._lines.get(sid)
+        if rec is None or rec.get("key") != key or not video.is_file() or _sha256(video) != rec["row"][2]:
+            return None
+        if run_dir is not None and not run_dir.is_dir():
+            return None
+        return list(rec["row"])
+
+    def keep(self, sids: set[str]) -> None:
+        """Drop the lines of videos that will be rendered again (and their files)."""
+        for sid in [s for s in self._lines if s not in sids]:
+            (self.path.parent / f"{sid}.mp4").unlink(missing_ok=True)
+            del self._lines[sid]
+        if self._lines or self.path.exists():
+            self.path.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in self._lines.values()))
+
+    def add(self, sid: str, key: str, row: list) -> None:
+        import os
+
+        self._lines[sid] = {"sid": sid, "key": key, "row": row}
+        with open(self.path, "a", encoding="utf-8") as f:
+            f.write(json.dumps(self._lines[sid], sort_keys=True) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+
+    def sids(self) -> list[str]:
+        return list(self._lines)
+
+    def videos(self) -> list[Path]:
+        return [self.path.parent / f"{sid}.mp4" for sid in self._lines]
+
+
 def _register_sink() -> None:
     """Make sure the ``video`` sink is registered (before its entry point exists)."""
     from laughlab.core import plugins
@@ -306,6 +371,7 @@ def run(cfg, out_dir) -> dict:
 
     stim_dir, audio_dir = out_dir / "stimuli", out_dir / "audio"
     stim_dir.mkdir(parents=True, exist_ok=True)
+    journal = Rendered(stim_dir / JOURNAL)
     audio_rows, manifest, done = [], [], []
     work = Path(tempfile.mkdtemp(prefix="laughlab-stimuli-", dir=out_dir))
     try:
@@ -335,41 +401,68 @@ def run(cfg, out_dir) -> dict:
                                    f"{info['loudness_in_lufs']:.3f}", f"{info['gain_db']:.3f}",
                                    f"{info['loudness_out_lufs']:.3f}", f"{info['peak_out_dbfs']:.3f}",
                                    str(info["limited"]).lower()])
-        # 2. every stimulus
+        # 2. every stimulus (those an interrupted run of the same configuration finished are kept)
         total = len(units) * len(conditions)
-        k = 0
+        keep_runs = bool(h.get("keep_runs"))
+        jobs = []
         for cond, cond_overrides in conditions.items():
             for audio_id, item, s in units:
-                k += 1
                 sid = f"{cond}-{audio_id}"
                 wav, silent = audio_files[(item.id, s)]
                 spec = {**video, "file": f"{sid}.mp4", "audio": True,
                         "audio_path": str(silent if cond in muted else wav)}
-                run_dir = work / "runs" / sid
-                if progress:
-                    print(f"stimuli: [{k}/{total}] {sid}", file=sys.stderr, flush=True)
-                metrics = _render([*base, *cond_overrides, *item.overrides, f"seed={s}"], spec, run_dir,
-                                  bool(h.get("keep_runs")))
-                final = stim_dir / f"{sid}.mp4"
-                (run_dir / f"{sid}.mp4").replace(final)
-                done.append(final)
-                if h.get("keep_runs"):
-                    keep = out_dir / "runs" / sid
-                    shutil.rmtree(keep, ignore_errors=True)
-                    keep.parent.mkdir(parents=True, exist_ok=True)
-                    shutil.move(str(run_dir), keep)
-                vfps = float(metrics["video_fps"])
-                manifest.append([sid, f"stimuli/{sid}.mp4", _sha256(final), cond, audio_id,
-                                 f"{metrics['video_frames'] / vfps:.6f}", s, f"{vfps:g}"])
-    except BaseException:  # a failed run leaves none of its files
+                overrides = [*base, *cond_overrides, *item.overrides, f"seed={s}"]
+                key = render_key(overrides, spec, keep_runs)
+                row = journal.finished(sid, key, stim_dir / f"{sid}.mp4",
+                                       out_dir / "runs" / sid if keep_runs else None)
+                jobs.append((sid, cond, audio_id, s, spec, overrides, key, row))
+        kept = sum(1 for j in jobs if j[-1] is not None)
+        if kept:
+            print(f"stimuli: resuming: {kept} of {total} videos were rendered, rendering {total - kept}",
+                  file=sys.stderr, flush=True)
+        journal.keep({j[0] for j in jobs if j[-1] is not None})
+        for k, (sid, cond, audio_id, s, spec, overrides, key, row) in enumerate(jobs, start=1):
+            final = stim_dir / f"{sid}.mp4"
+            if row is not None:
+                manifest.append(row)
+                continue
+            run_dir = work / "runs" / sid
+            if progress:
+                print(f"stimuli: [{k}/{total}] {sid}", file=sys.stderr, flush=True)
+            metrics = _render(overrides, spec, run_dir, keep_runs)
+            (run_dir / f"{sid}.mp4").replace(final)
+            done.append(final)
+            if keep_runs:
+                keep = out_dir / "runs" / sid
+                shutil.rmtree(keep, ignore_errors=True)
+                keep.parent.mkdir(parents=True, exist_ok=True)
+                shutil.move(str(run_dir), keep)
+            vfps = float(metrics["video_fps"])
+            row = [sid, f"stimuli/{sid}.mp4", _sha256(final), cond, audio_id,
+                   f"{metrics['video_frames'] / vfps:.6f}", s, f"{vfps:g}"]
+            journal.add(sid, key, row)
+            manifest.append(row)
+    except BaseException as exc:
+        # stopped (Ctrl-C, a full disk): the videos already rendered and journaled stay, so the same command
+        # resumes; any other failure (a bad setting) leaves none of the run's files
+        from laughlab.core import interrupts
+
+        keep = interrupts.interrupted(exc) or isinstance(exc, OSError)
+        kept = set(journal.sids()) if keep else set()
         for f in done:
-            f.unlink(missing_ok=True)
+            if f.parent != stim_dir or f.stem not in kept:
+                f.unlink(missing_ok=True)
+        if not kept:
+            journal.path.unlink(missing_ok=True)
+            for f in journal.videos():   # a resumed run's earlier videos: the same rule
+                f.unlink(missing_ok=True)
         for d in (stim_dir, audio_dir):
             if d.is_dir() and not any(d.iterdir()):
                 d.rmdir()
         raise
     finally:
         shutil.rmtree(work, ignore_errors=True)
+    journal.path.unlink(missing_ok=True)   # every video is in the manifest now
 
     _write_text(out_dir / "manifest.csv", _csv_text(MANIFEST_COLUMNS, manifest))
     _write_text(out_dir / "audio.csv", _csv_text(AUDIO_COLUMNS, audio_rows))

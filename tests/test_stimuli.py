@@ -145,3 +145,50 @@ def test_a_failed_run_leaves_no_files(tmp_path, monkeypatch):
     with pytest.raises(LaughlabError, match="boom"):
         run(compose_config(["experiment=stimuli", *SMALL]), tmp_path)
     assert not list(tmp_path.iterdir())
+
+
+def test_an_interrupted_run_resumes_and_renders_only_what_is_missing(tmp_path, monkeypatch, rendered):
+    """Ctrl-C during the third video: the two rendered videos and their journal stay; the same command then
+    renders only the missing ones, and the folder ends as a whole run's (same manifest bytes, no journal).
+    A changed setting renders again what it changes (every video here: the video width)."""
+    import laughlab_experiments.stimuli as stimuli
+
+    real, calls, stop = stimuli._render, [], [True]
+
+    def render(*args, **kw):
+        calls.append(args[2].name)
+        if len(calls) == 3 and stop[0]:
+            stop[0] = False
+            raise KeyboardInterrupt
+        return real(*args, **kw)
+
+    monkeypatch.setattr(stimuli, "_render", render)
+    with pytest.raises(KeyboardInterrupt):
+        run(compose_config(["experiment=stimuli", *SMALL]), tmp_path)
+    first = calls[:2]
+    assert sorted(p.stem for p in (tmp_path / "stimuli").glob("*.mp4")) == sorted(first)
+    assert (tmp_path / "stimuli" / stimuli.JOURNAL).is_file() and not (tmp_path / "manifest.csv").exists()
+    calls.clear()
+    run(compose_config(["experiment=stimuli", *SMALL]), tmp_path)
+    n = len(read_csv(rendered[0] / "manifest.csv"))
+    assert len(calls) == n - 2 and not set(calls) & set(first)   # only the missing ones
+    assert (tmp_path / "manifest.csv").read_bytes() == (rendered[0] / "manifest.csv").read_bytes()
+    assert not (tmp_path / "stimuli" / stimuli.JOURNAL).exists()
+    # a damaged video is rendered again; a changed setting renders again what it changes (the width: every video)
+    other = [*SMALL, "harness.video.width=64"]
+    calls.clear()
+    stop[0] = True
+    with pytest.raises(KeyboardInterrupt):
+        run(compose_config(["experiment=stimuli", *other]), tmp_path / "w")
+    kept = calls[:2]
+    (tmp_path / "w" / "stimuli" / f"{kept[0]}.mp4").write_bytes(b"damaged")
+    calls.clear()
+    stop[0] = True
+    with pytest.raises(KeyboardInterrupt):
+        run(compose_config(["experiment=stimuli", *other]), tmp_path / "w")
+    assert calls[0] == kept[0] and kept[1] not in calls
+    calls.clear()
+    run(compose_config(["experiment=stimuli", *SMALL, "harness.video.width=48"]), tmp_path / "w")
+    assert len(calls) == n
+    assert {r["sha256"] for r in read_csv(tmp_path / "w" / "manifest.csv")} == \
+        {hashlib.sha256(p.read_bytes()).hexdigest() for p in (tmp_path / "w" / "stimuli").glob("*.mp4")}
