@@ -170,6 +170,9 @@ def task(cfg) -> dict:
         _CLAIM.finish(cfg_hash)
         print(summary_line(cfg, metrics, out_dir, time.monotonic() - t0, skip=_CLAIM.user_files))
         return metrics
+    except rundir.InUse as exc:  # another process' run: touch nothing of it but what Hydra wrote over
+        rundir.restore_hydra(out_dir, running=True)
+        fail(str(exc))
     except LaughlabError as exc:
         # a sweep job refused by a finished run: Hydra wrote this job's .hydra/ over that run's; put it back
         if _CLAIM is not None or not rundir.restore_hydra(out_dir):
@@ -235,8 +238,12 @@ def _stopped(cfg, out_dir: Path, what: str) -> str:
     so the same command resumes it.
     """
     if cfg.get("harness"):
+        from laughlab.core import rundir
+
         (out_dir / "results.json").unlink(missing_ok=True)
-        return f"{what}; the finished trials are kept: run the same command again to resume"
+        aside = out_dir / rundir.PREVIOUS
+        kept = f" (the run it replaces is kept in {aside} until it finishes)" if aside.is_dir() else ""
+        return f"{what}; the finished trials are kept: run the same command again to resume{kept}"
     _remove_new_run_dir(out_dir)
     return f"{what}; the run's partial output was removed"
 

@@ -56,7 +56,7 @@ def test_a_folder_of_the_users_files_is_refused_and_overwrite_keeps_them(tmp_pat
     (d / "notes.txt").write_text("my notes")
     p = run("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS)
     assert p.returncode == 2 and "not empty and not a laughlab run (notes.txt)" in p.stderr
-    assert sorted(x.name for x in d.iterdir()) == [".laughlab.lock", "notes.txt"]
+    assert sorted(x.name for x in d.iterdir()) == ["notes.txt"]   # the refusal left no lock file behind
     r = run("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", "output=gltf", *NO_PLOTS)
     assert r.returncode == 0 and "notes.txt" not in r.stdout     # the summary lists the run's files, not the user's
     assert (d / "character.glb").exists() and (d / "notes.txt").read_text() == "my notes"
@@ -235,6 +235,69 @@ def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):
     # new job's over it); it is put back, so the folder still describes its results
     assert {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")} == hydra
     assert (d / "0" / "channels.csv").read_bytes() == before
+
+
+def _tree(d):
+    return {p.relative_to(d).as_posix(): p.read_bytes() for p in sorted(d.rglob("*"))
+            if p.is_file() and p.name != rundir.LOCK}
+
+
+def test_overwrite_puts_the_earlier_run_back_when_the_new_one_is_stopped(tmp_path):
+    """overwrite=true deleted the earlier run before the new one started, so a Ctrl-C lost both.  Now the
+    earlier run waits aside and comes back byte for byte (its marker too: the folder is still a finished run)."""
+    d = tmp_path / "D"
+    assert run("input.duration_s=2", f"hydra.run.dir={d}", "output=gltf", *NO_PLOTS).returncode == 0
+    (d / "notes.txt").write_text("mine")
+    before = _tree(d)
+    p = laughlab("input.duration_s=1800", f"hydra.run.dir={d}", "overwrite=true", start_new_session=True)
+    deadline = time.time() + 60
+    while not (d / rundir.PREVIOUS).exists() and time.time() < deadline:
+        time.sleep(0.05)
+    assert (d / rundir.PREVIOUS / "character.glb").exists()   # aside while the new run runs
+    time.sleep(1.0)
+    os.killpg(p.pid, signal.SIGINT)
+    assert p.wait(timeout=60) == 130
+    assert _tree(d) == before and not (d / rundir.PREVIOUS).exists()
+    p = run("input.duration_s=2", f"hydra.run.dir={d}", *NO_PLOTS)
+    assert p.returncode == 2 and "already holds a run" in p.stderr
+    # a new run that finishes replaces it and leaves nothing aside
+    assert run("input.duration_s=1", f"hydra.run.dir={d}", "overwrite=true", *NO_PLOTS).returncode == 0
+    assert not (d / rundir.PREVIOUS).exists() and not (d / "character.glb").exists()
+    assert (d / "notes.txt").read_text() == "mine"
+
+
+def test_overwrite_of_an_interrupted_experiment_starts_it_over(tmp_path):
+    """An interrupted experiment's own files (its journal) were taken for the user's by overwrite=true, which
+    then refused the folder; they are the run's, and go."""
+    d = tmp_path / "D"
+    p = laughlab(*SMOKE, f"hydra.run.dir={d}")
+    journal = d / "metrics.jsonl"
+    deadline = time.time() + 120
+    while len(journal_records(journal)) < 2:
+        assert time.time() < deadline and p.poll() is None
+        time.sleep(0.05)
+    p.kill()
+    p.wait()
+    again = run(*SMOKE, "harness.corpus.duration_s=3", "overwrite=true", f"hydra.run.dir={d}")
+    assert again.returncode == 0, again.stderr
+    assert "resuming" not in again.stderr and len(journal_records(journal)) == 8
+
+
+def test_a_sweep_job_refused_by_a_running_job_leaves_its_hydra_alone(tmp_path):
+    """Hydra writes a sweep job's .hydra/ before laughlab can claim the folder: a second sweep into the folder
+    of a job still running used to delete that job's .hydra/ when it was refused; now it puts it back."""
+    d = tmp_path / "sweep"
+    first = laughlab("-m", "seed=3", "input.duration_s=600", f"hydra.sweep.dir={d}", *NO_PLOTS)
+    deadline = time.time() + 60
+    while not (d / "0" / rundir.MARKER).exists() and time.time() < deadline:
+        time.sleep(0.05)
+    mine = {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")}
+    assert "seed=3" in mine["overrides.yaml"]
+    second = run("-m", "seed=4", "input.duration_s=1", f"hydra.sweep.dir={d}", *NO_PLOTS)
+    assert second.returncode != 0 and "in use by another laughlab run" in second.stderr
+    assert {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")} == mine
+    first.send_signal(signal.SIGTERM)
+    first.wait(timeout=60)
 
 
 def test_an_aborted_writer_leaves_no_staged_file_even_when_its_buffer_cannot_be_flushed(tmp_path):

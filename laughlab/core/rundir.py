@@ -10,8 +10,11 @@
   claim, completed with the list of the run's files at the end).  A run directory is refused unless
   ``overwrite=true``; a non-empty folder that is not a run (the user's own files) is refused too
   unless ``overwrite=true``;
-* ``overwrite=true`` deletes only what the marker lists as the earlier run's files, so the
-  folder ends up holding one run's outputs and nothing of the user's is touched; a file that no run
+* ``overwrite=true`` replaces only what the marker lists as the earlier run's files, so the
+  folder ends up holding one run's outputs and nothing of the user's is touched.  The earlier run is
+  moved aside into ``DIR/.laughlab-previous/`` when the new one starts and deleted when it finishes; a
+  run that fails or is stopped puts it back (an interrupted experiment, which can resume, keeps it
+  aside until it finishes).  A file that no run
   recorded writing but named as a run's output (``OUTPUTS``: ``motion.bvh``, ``video.mp4``...) refuses
   the run even then, as the run would replace it (so does a run of laughlab 0.1, which wrote no marker);
 * a run that was interrupted (its marker says ``complete: false``: killed, or stopped by a
@@ -30,6 +33,13 @@ from laughlab.core.errors import LaughlabError, shown_names
 
 LOCK = ".laughlab.lock"
 MARKER = ".laughlab-run.json"
+PREVIOUS = ".laughlab-previous"
+"""The earlier run that ``overwrite=true`` replaces, kept aside until the new run finishes."""
+OWN = frozenset({LOCK, MARKER, PREVIOUS})
+
+
+class InUse(LaughlabError):
+    """The run directory is held by another laughlab process."""
 #: the outputs of laughlab 0.1's runs (which wrote no marker)
 LEGACY = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.json", "manifest.csv")
 #: the names the pipeline and experiments write at the top of a run folder (a sink's own: its ``files``,
@@ -47,16 +57,19 @@ class Claim:
         self.resumed, self.done = resumed, done
 
     def finish(self, config_hash: str | None = None) -> None:
-        """Record the run's files (every entry but the user's and ours) and its configuration's hash."""
-        files = sorted(p.name for p in self.path.iterdir() if p.name not in self.user_files | {LOCK, MARKER})
-        hydra = self.path / ".hydra"   # kept, so that a refused sweep job can put back what Hydra overwrote
-        saved = {p.name: p.read_text() for p in sorted(hydra.glob("*.yaml"))} if hydra.is_dir() else {}
+        """Record the run's files (every entry but the user's and ours) and its configuration's hash; delete
+        the earlier run it replaced."""
+        files = sorted(p.name for p in self.path.iterdir() if p.name not in self.user_files | OWN)
         _write_marker(self.path, {"pid": os.getpid(), "complete": True, "files": files, "config_hash": config_hash,
-                                  "user_files": sorted(self.user_files), "hydra": saved})
+                                  "user_files": sorted(self.user_files), "hydra": _hydra_files(self.path)})
+        _remove(self.path / PREVIOUS)
 
     def abandon(self) -> None:
-        """After a failure: remove the marker, and the folder if this run created it and it is empty."""
+        """After a failure: remove the marker and put back the earlier run this one was replacing (or remove
+        the folder if this run created it and it is empty)."""
         (self.path / MARKER).unlink(missing_ok=True)
+        if _put_back(self.path):
+            return
         if self.created and {p.name for p in self.path.iterdir()} <= {LOCK}:
             (self.path / LOCK).unlink(missing_ok=True)
             try:
@@ -88,6 +101,7 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
     if path.exists() and not path.is_dir():
         raise LaughlabError(f"hydra.run.dir {path} exists and is not a folder")
     created = not path.exists()
+    lock_made = not (path / LOCK).exists()
     try:
         path.mkdir(parents=True, exist_ok=True)
         fd = os.open(path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
@@ -98,21 +112,28 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
     except BlockingIOError:
         other = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
         os.close(fd)
-        raise LaughlabError(f"{path} is in use by another laughlab run (pid {other}); wait for it to finish or "
-                            f"choose another {where}") from None
+        raise InUse(f"{path} is in use by another laughlab run (pid {other}); wait for it to finish or "
+                    f"choose another {where}") from None
     os.ftruncate(fd, 0)
     os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
     try:
-        entries = {p.name for p in path.iterdir()} - {LOCK} - set(ours)
+        entries = {p.name for p in path.iterdir()} - OWN - set(ours)
         marker = _read_marker(path)
-        earlier = set(marker.get("files", [])) if marker is not None else set()
+        complete = marker is not None and marker.get("complete", False)
+        if marker is None:
+            earlier = set()
+        elif complete:
+            earlier = set(marker.get("files", []))
+        else:   # an interrupted run lists no files yet: all but the user's are its own
+            earlier = entries - set(marker.get("user_files", [])) - {MARKER}
         if marker is not None and marker.get("complete") and done_if is not None and not overwrite \
                 and marker.get("config_hash") == done_if:
             return Claim(path, fd, created, set(marker.get("user_files", [])), done=True)
-        if marker is not None and not marker.get("complete", False) and not overwrite:
+        if marker is not None and not complete and not overwrite:
             # an interrupted run: the same command may take it up again (an experiment resumes)
             user = set(marker.get("user_files", entries - {MARKER}))
-            _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user)})
+            _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user),
+                                 "hydra": _hydra_files(path) if ".hydra" in ours else {}})
             return Claim(path, fd, created, user, resumed=True)
         # files no run recorded writing (the user's, or a marker-less 0.1 run's: they cannot be told apart) named
         # as a run's outputs: a run would replace them, so they refuse it, whether or not overwrite=true
@@ -126,24 +147,71 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
                 raise LaughlabError(f"{path} already holds a run; choose another {where} or add overwrite=true")
             raise LaughlabError(f"{path} is not empty and not a laughlab run ({shown_names(sorted(entries))}); "
                                 "choose an empty folder or add overwrite=true (files laughlab did not write are kept)")
-        for name in sorted(earlier & entries):  # overwrite: the earlier run's own files only
-            p = path / name
-            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink(missing_ok=True)
+        # overwrite: the earlier run's own files only.  A finished run goes aside (back if this one fails); an
+        # interrupted one is partial and goes, and the finished run an earlier overwrite put aside stays there
+        aside = path / PREVIOUS
+        if complete and earlier & entries:
+            _remove(aside)
+            aside.mkdir()
+            for name in sorted(earlier & entries):
+                os.replace(path / name, aside / name)
+            os.replace(path / MARKER, aside / MARKER)
+        for name in sorted(earlier & entries):
+            _remove(path / name)
         (path / MARKER).unlink(missing_ok=True)
         user = entries - earlier - {MARKER}
-        _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user)})
+        _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user),
+                             "hydra": _hydra_files(path) if ".hydra" in ours else {}})
     except BaseException:
         os.close(fd)
+        if lock_made and _read_marker(path) is None:   # refused: leave the user's folder as it was
+            (path / LOCK).unlink(missing_ok=True)
+            if created:
+                try:
+                    path.rmdir()
+                except OSError:
+                    pass
         raise
     return Claim(path, fd, created, user)
 
 
-def restore_hydra(path: str | Path) -> bool:
+def _remove(p: Path) -> None:
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p)
+    else:
+        p.unlink(missing_ok=True)
+
+
+def _hydra_files(path: Path) -> dict:
+    """The run's ``.hydra/*.yaml`` texts (kept in the marker, so that a refused sweep job can put back what
+    Hydra wrote over them)."""
+    hydra = path / ".hydra"
+    return {p.name: p.read_text() for p in sorted(hydra.glob("*.yaml"))} if hydra.is_dir() else {}
+
+
+def _put_back(path: Path) -> bool:
+    """Move the run that ``overwrite=true`` put aside back into ``path`` (over what a failed run left); True
+    if there was one."""
+    aside = path / PREVIOUS
+    if not (aside / MARKER).is_file():
+        return False
+    for item in sorted(aside.iterdir()):
+        if item.name != MARKER:
+            _remove(path / item.name)
+            os.replace(item, path / item.name)
+    os.replace(aside / MARKER, path / MARKER)
+    aside.rmdir()
+    restore_hydra(path)
+    return True
+
+
+def restore_hydra(path: str | Path, running: bool = False) -> bool:
     """A sweep job refused by a finished run in its folder: Hydra has already written the new job's ``.hydra/``
     over the finished run's; put the finished run's back from its marker (True), or do nothing (False: no
-    finished run, or one recorded before its ``.hydra`` was)."""
+    finished run, or one recorded before its ``.hydra`` was).  ``running``: refused by a run in progress
+    (:class:`InUse`), whose marker holds its ``.hydra`` from its start."""
     marker = _read_marker(Path(path))
-    if not (marker and marker.get("complete") and marker.get("hydra")):
+    if not (marker and (marker.get("complete") or running) and marker.get("hydra")):
         return False
     hydra = Path(path) / ".hydra"
     hydra.mkdir(exist_ok=True)
