@@ -204,12 +204,16 @@ def test_every_study_command_fails_in_one_line(study, tmp_path):
              ["study", "power", str(study), "--contrast", "laugh_energy:nope", "--effect", "1"],
              ["study", "power", str(study), "--contrast", "laugh_energy", "--effect", "1"],
              ["study", "simulate", str(study), "--participants", "0"],
+             ["study", "serve", str(study), "--db", str(tmp_path / "h.sqlite"), "--host", "999.1.1.1"],   # was
+             ["study", "serve", str(study), "--db", str(tmp_path / "h.sqlite"), "--host", "10.99.99.99"],  # "cannot write"
              ["study", "build", str(study.with_name("stim")), "--out", str(study)]]  # would overwrite answers
     for argv in cases:
         out = fuzz.run_cli(argv)
         assert out.code == 2, (argv, out)
         assert out.stderr.count("\n") == 1 and out.stderr.startswith("laughlab: error: "), (argv, out.stderr)
         assert "Traceback" not in out.stderr
+        if "--host" in argv:
+            assert "cannot listen on --host" in out.stderr, out.stderr
 
 
 def test_power_by_simulation_repeats_from_its_seed_and_wilsons_interval_by_hand(study):

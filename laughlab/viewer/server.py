@@ -239,10 +239,25 @@ def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: 
     handler.extensions_map = {**SimpleHTTPRequestHandler.extensions_map, ".js": "text/javascript",
                               ".glb": "model/gltf-binary", ".json": "application/json", ".wav": "audio/wav",
                               ".mp4": "video/mp4", ".css": "text/css"}
+    import errno
+    import socket
+
+    from laughlab.core.errors import LaughlabError
+
     try:
-        return ThreadingHTTPServer((host, port), partial(handler))
-    except OSError:  # the port is in use: the system picks a free one
-        return ThreadingHTTPServer((host, 0), partial(handler))
+        try:
+            return ThreadingHTTPServer((host, port), partial(handler))
+        except OSError as exc:
+            if isinstance(exc, socket.gaierror) or exc.errno == errno.EADDRNOTAVAIL:
+                raise
+            return ThreadingHTTPServer((host, 0), partial(handler))  # the port is taken: the system picks one
+    except (socket.gaierror, OverflowError) as exc:
+        raise LaughlabError(f"cannot listen on --host {host}: it is not an address ({exc.args[-1]}); use 127.0.0.1 "
+                            "(this computer), 0.0.0.0 (every network) or one of this computer's addresses") from None
+    except OSError as exc:
+        raise LaughlabError(f"cannot listen on --host {host}: {exc.strerror or exc} (not an address of this "
+                            "computer?); use 127.0.0.1 (this computer), 0.0.0.0 (every network) or one of "
+                            "this computer's addresses") from None
 
 
 def serve_until_interrupted(httpd: ThreadingHTTPServer) -> None:
