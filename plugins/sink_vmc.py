@@ -100,7 +100,7 @@ class VmcSink(Sink):
             raise LaughlabError(f"output.vmc: cannot reach host {p.host!r}: {exc}") from None
         self.bones = BoneMap(run.skeleton, upper_chest=p.upper_chest)
         self.encoder = VmcEncoder(self.bones.bones, p.max_packet_bytes)
-        live = bool(getattr(run.source, "live", False))
+        live = self.live = bool(getattr(run.source, "live", False))
         self.paced = p.realtime == "on" or (p.realtime == "auto" and not live)
         self.clock = BlockClock(run.source) if run.source is not None else None
         self.dt_ns = int(round(1e9 / run.fps))
@@ -173,7 +173,8 @@ class VmcSink(Sink):
         self._summary = latency_summary(np.array(self.lat_ms))
         if self.params.report:
             s = self._summary
-            how = "paced at the frame clock" if self.paced else "live"
+            how = "paced at the frame clock" if self.paced else \
+                ("live" if self.live else "not paced: as fast as computed")
             print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}); latency audio block -> "
                   f"OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max {s['max']:.2f} ms",
                   file=sys.stdout, flush=True)

@@ -223,7 +223,7 @@ def test_offline_stream_every_frame_and_message(tmp_path, capsys):
     assert np.allclose(jaw, ch["jaw"].clip(0, 1), atol=1e-6)
     assert max(jaw) > 0.05
     out = capsys.readouterr().out
-    assert f"vmc: 30 frames to 127.0.0.1:{rx.port}" in out and "latency" in out
+    assert f"vmc: 30 frames to 127.0.0.1:{rx.port} (not paced: as fast as computed)" in out and "latency" in out
     sink = next(s for s in pipe.sinks if s.name == "vmc")
     m = sink.metrics()
     assert m["vmc_frames"] == 30 and np.isfinite(m["vmc_latency_ms_p50"])

@@ -35,7 +35,9 @@ class ClipEvent:
         Where in the clip playback ends (s of clip time); None = the clip's end.
         With ``offset_s`` this plays a segment of a clip (segment concatenation).
     reason : str
-        For stops: ``"finished"``, ``"overruled"`` or ``"end"`` (end of input).
+        For stops: ``"finished"``, ``"overruled"`` (``energy``) or ``"next"`` (``concat``: a new
+        pseudo-phoneme); ``"end"`` is what the harness' clip plays (``TrialData.plays``) give a
+        clip still playing when the input ends (no event is written for it).
     """
 
     time_s: float
