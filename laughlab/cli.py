@@ -493,4 +493,29 @@ def _main(argv: list[str]) -> None:
     import hydra
 
     sys.argv = [sys.argv[0], *argv]
-    hydra.main(config_path=f"pkg://{CONFIG_MODULE}", config_name="config", version_base="1.3")(task)()
+    before = _sweep_state(argv) if multirun else None
+    try:
+        hydra.main(config_path=f"pkg://{CONFIG_MODULE}", config_name="config", version_base="1.3")(task)()
+    finally:
+        after = _sweep_state(argv) if before is not None else None
+        if after is not None and after[2] == before[2]:
+            # no job ran (each was refused, or had finished before): the sweep folder still describes the
+            # earlier sweep, so its multirun.yaml, which Hydra wrote at the start, is put back
+            before[0].write_bytes(before[1])
+
+
+def _sweep_state(argv: list[str]) -> tuple[Path, bytes, dict] | None:
+    """A sweep into a folder given on the command line that already holds one: its ``multirun.yaml`` and
+    its jobs' markers (a job that runs rewrites its marker)."""
+    from laughlab.core.rundir import MARKER
+
+    given = next((a.split("=", 1)[1] for a in argv if a.startswith("hydra.sweep.dir=")), None)
+    if not given:
+        return None
+    root = Path(given).expanduser()
+    try:
+        text = (root / "multirun.yaml").read_bytes()
+        markers = {p.parent.name: p.read_bytes() for p in sorted(root.glob(f"*/{MARKER}"))}
+    except OSError:
+        return None
+    return root / "multirun.yaml", text, markers

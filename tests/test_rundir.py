@@ -229,8 +229,10 @@ def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):
     assert (d / "0" / "channels.csv").read_bytes() == before and (d / "1" / "channels.csv").exists()
     hydra = {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")}
     assert "input.duration_s=1" in hydra["overrides.yaml"]
+    root = (d / "multirun.yaml").read_bytes()
     changed = run("-m", "seed=0,1", "input.duration_s=2", f"hydra.sweep.dir={d}")
     assert changed.returncode != 0 and "already holds a run; choose another hydra.sweep.dir" in changed.stderr
+    assert (d / "multirun.yaml").read_bytes() == root   # Hydra rewrote it for the refused sweep; put back
     # found by a new-user review: the refusal deleted the finished job's .hydra/ (Hydra had already written the
     # new job's over it); it is put back, so the folder still describes its results
     assert {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")} == hydra
