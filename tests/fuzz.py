@@ -84,10 +84,21 @@ def _capture(fn) -> Outcome:
 
 
 def run_cli(argv: list[str]) -> Outcome:
-    """``python -m laughlab ARGV`` in this process."""
-    from laughlab import cli
+    """``python -m laughlab ARGV`` in this process.  Plugins it loads from a ``plugins_dir`` are unloaded after
+    it, as a process' end would (another test's ``laughlab plugins`` must not list them)."""
+    import sys
 
-    return _capture(lambda: cli.main(list(argv)))
+    from laughlab import cli
+    from laughlab.core.plugins import pm
+
+    before = {name for name, _ in pm.list_name_plugin()}
+    try:
+        return _capture(lambda: cli.main(list(argv)))
+    finally:
+        for name, plugin in pm.list_name_plugin():
+            if name not in before and name.startswith("laughlab_local_plugins."):
+                pm.unregister(plugin)
+                sys.modules.pop(name, None)
 
 
 def run_fast(overrides: list[str], run_dir: Path) -> Outcome:
