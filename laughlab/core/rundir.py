@@ -40,6 +40,8 @@ OWN = frozenset({LOCK, MARKER, PREVIOUS})
 
 class InUse(LaughlabError):
     """The run directory is held by another laughlab process."""
+
+
 #: the outputs of laughlab 0.1's runs (which wrote no marker)
 LEGACY = ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "results.json", "manifest.csv")
 #: the names the pipeline and experiments write at the top of a run folder (a sink's own: its ``files``,

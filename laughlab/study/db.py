@@ -66,7 +66,6 @@ def connect(path: Path) -> sqlite3.Connection:
     return conn
 
 
-KINDS = ("people", "simulated")
 DEFAULT_NAMES = {"people": "responses.sqlite", "simulated": "simulated.sqlite"}
 
 
@@ -96,7 +95,8 @@ def open_db(path: Path, design: dict, participants: str = "people") -> Path:
         if held != participants:
             other = DEFAULT_NAMES[participants]
             what = "simulated participants' answers" if held == "simulated" else "the answers of people"
-            raise LaughlabError(f"{path} holds {what}; {participants} go into a database of their own "
+            mine = "people's answers" if participants == "people" else "simulated answers"
+            raise LaughlabError(f"{path} holds {what}; {mine} go into a database of their own "
                                 f"(give another --db, e.g. {path.with_name(other)})")
     finally:
         conn.close()
