@@ -379,6 +379,8 @@ def _main(argv: list[str]) -> None:
                 command(argv[1:])
             except LaughlabError as exc:
                 fail(str(exc))
+            except BrokenPipeError:  # e.g. piped into head: stop quietly
+                _quiet_stdout()
             except OSError as exc:
                 fail(os_error_line(exc, argv[1] if len(argv) > 1 else "."))
             return
@@ -395,9 +397,7 @@ def _main(argv: list[str]) -> None:
         except LaughlabError as exc:
             fail(str(exc))
         except BrokenPipeError:  # e.g. piped into head: stop quietly
-            import os
-
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            _quiet_stdout()
         return
     if argv and "=" not in argv[0] and not argv[0].startswith(("~", "-")):   # e.g. a mistyped command
         fail(f"unknown command {argv[0]!r}: the commands are {', '.join(n for n, _ in commands)}, plugins; a run "
@@ -452,6 +452,13 @@ def _main(argv: list[str]) -> None:
             # no job ran (each was refused, or had finished before): the sweep folder still describes the
             # earlier sweep, so its multirun.yaml, which Hydra wrote at the start, is put back
             before[0].write_bytes(before[1])
+
+
+def _quiet_stdout() -> None:
+    """After a broken pipe (``... | head``): what is still buffered for stdout goes nowhere, silently."""
+    import os
+
+    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
 
 
 def _sweep_state(argv: list[str]) -> tuple[Path, bytes, dict] | None:

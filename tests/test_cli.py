@@ -373,3 +373,14 @@ def test_a_sweep_of_experiments_prints_one_report_hint_at_its_end(tmp_path):
 def test_out_of_range_command_options_are_one_line(tmp_path, args, message):
     r = laughlab(*args, cwd=tmp_path)
     assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+
+
+@pytest.mark.parametrize("argv", [["corpus", "list"], ["plugins"]])
+def test_output_piped_into_a_reader_that_stops_ends_quietly(argv):
+    """``python -m laughlab corpus list | head -1``: the reader goes away before the command writes; the command
+    ends quietly (it said 'cannot write list: Broken pipe')."""
+    p = subprocess.Popen([sys.executable, "-m", "laughlab", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True)
+    p.stdout.close()   # long before the command has imported what it needs and printed
+    err = p.stderr.read()
+    assert p.wait(timeout=120) == 0 and err == "", err
