@@ -11,6 +11,7 @@ import base64
 import json
 import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import threading
@@ -46,7 +47,7 @@ class Page:
             [chromium(), "--headless=new", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
              "--autoplay-policy=no-user-gesture-required", f"--window-size={width},{height}",
              f"--user-data-dir={self.profile}", "--remote-debugging-port=0", "about:blank"],
-            stderr=subprocess.PIPE, text=True)
+            stderr=subprocess.PIPE, text=True, start_new_session=True)   # its own group: closed with its children
         port, said = None, []
         for line in self.proc.stderr:
             if "DevTools listening on" in line:
@@ -54,8 +55,7 @@ class Page:
                 break
             said.append(line.strip())
         if port is None:
-            self.proc.kill()
-            self.proc.wait()
+            self._stop()
             shutil.rmtree(self.profile, ignore_errors=True)
             raise LaughlabError("chromium did not start its DevTools endpoint: " + _why(said))
         targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json"))
@@ -106,15 +106,26 @@ class Page:
         (``org.chromium.Chromium.*``, which the profile's ``SingletonSocket`` link points into and which
         Chromium leaves behind whether it is killed or asked to quit)."""
         self.ws.close()
-        self.proc.kill()
-        self.proc.wait()
+        self._stop()
         try:
             socket_dir = os.path.dirname(os.readlink(os.path.join(self.profile, "SingletonSocket")))
         except OSError:
             socket_dir = ""
         if os.path.basename(socket_dir).startswith("org.chromium.Chromium."):
             shutil.rmtree(socket_dir, ignore_errors=True)
-        shutil.rmtree(self.profile, ignore_errors=True)
+        for _ in range(50):   # a child that was still writing into the profile may add a file while it goes
+            shutil.rmtree(self.profile, ignore_errors=True)
+            if not os.path.exists(self.profile):
+                break
+            time.sleep(0.02)
+
+    def _stop(self) -> None:
+        """Kill Chromium and every process it started (renderer, GPU, zygote: its process group)."""
+        try:
+            os.killpg(self.proc.pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            self.proc.kill()
+        self.proc.wait()
 
 
 def main(argv: list[str] | None = None) -> None:
