@@ -371,6 +371,22 @@ def test_simulated_answers_never_mix_with_peoples(study, tmp_path):
     assert DB.participants_kind(old) == "people"
     out = fuzz.run_cli(["study", "simulate", str(study), "--db", str(people), "--participants", "1"])
     assert out.code == 2 and "holds the answers of people" in out.stderr and out.stderr.count("\n") == 1
+    foreign = tmp_path / "foreign.sqlite"   # someone else's SQLite file: refused and left as it was
+    with sqlite3.connect(foreign) as con:
+        con.execute("CREATE TABLE t (x)")
+    con.close()
+    out = fuzz.run_cli(["study", "simulate", str(study), "--db", str(foreign), "--participants", "1"])
+    assert out.code == 2 and "a database of something else (tables t)" in out.stderr, out.stderr
+    with sqlite3.connect(foreign) as con:
+        assert [r[0] for r in con.execute("SELECT name FROM sqlite_master")] == ["t"]
+    con.close()
+    # a second simulation into a database that holds one would add to it with other plants or seeds: refused
+    e = d["participants"]["1"]
+    DB.insert_answers(sim, [{"participant": 1, "order_row": e["order_row"], "trial": 0, "stimulus": "", "condition": "",
+                             "audio_id": "", "kind": "audio_check", "question": "audio_check", "value": 1.0, "text": "",
+                             "received_at": DB.utc_now(), "session": "s"}])
+    out = fuzz.run_cli(["study", "simulate", str(study), "--db", str(sim), "--participants", "2"])
+    assert out.code == 2 and "already holds 1 simulated participants' answers" in out.stderr, out.stderr
     (tmp_path / "junk.sqlite").write_text("not a database at all, just text")
     out = fuzz.run_cli(["study", "serve", str(study), "--db", str(tmp_path / "junk.sqlite"), "--port", "0"])
     assert out.code == 2 and "is not a study database" in out.stderr and out.stderr.count("\n") == 1, out.stderr
@@ -423,3 +439,54 @@ def test_power_says_what_to_change_when_no_size_reaches_the_target():
     assert advice(short, 0.8, 0.5) == ("to reach 80%: more participants (--participants 32,48,64), more stimuli per "
                                        "condition (more audio items: experiment=stimuli harness.corpus.seeds=N), "
                                        "or a larger effect than 0.5")
+
+
+def test_build_overwrite_replaces_only_an_earlier_builds_files(study, tmp_path):
+    """``study build --overwrite`` deleted the whole folder: a pilot's database under another name, a report, the
+    user's notes.  Now it refuses a folder holding people's answers (any name) or one that is not a study, and
+    otherwise replaces only its own files."""
+    import shutil
+
+    from laughlab.study import db as DB
+
+    stim = study.with_name("stim")
+    out = tmp_path / "s"
+    assert fuzz.run_cli(["study", "build", str(stim), "--out", str(out)]).code == 0
+    (out / "notes.txt").write_text("mine")
+    DB.open_db(out / "simulated.sqlite", design_of(out), "simulated")
+    res = fuzz.run_cli(["study", "build", str(stim), "--out", str(out), "--overwrite"])
+    assert res.code == 0, res.stderr
+    assert (out / "notes.txt").read_text() == "mine" and (out / "simulated.sqlite").exists()
+    assert (out / "design.json").exists() and not list(tmp_path.glob(".s*"))
+    DB.open_db(out / "pilot.sqlite", design_of(out))   # people's answers, under a name of the user's
+    before = sorted(p.name for p in out.iterdir())
+    res = fuzz.run_cli(["study", "build", str(stim), "--out", str(out), "--overwrite"])
+    assert res.code == 2 and "holds responses (pilot.sqlite)" in res.stderr, res.stderr
+    assert sorted(p.name for p in out.iterdir()) == before
+    mine = tmp_path / "mine"
+    shutil.copytree(out / "vendor", mine / "vendor")
+    (mine / "thesis.tex").write_text("x")
+    res = fuzz.run_cli(["study", "build", str(stim), "--out", str(mine), "--overwrite"])
+    assert res.code == 2 and "is not a study folder" in res.stderr, res.stderr
+    assert (mine / "thesis.tex").exists() and (mine / "vendor").is_dir()
+
+
+def test_serve_on_ipv6_and_says_where_to_open_it(study, tmp_path):
+    """``--host ::1`` was refused as 'not an address'; ``--host ''`` (every network) was announced as 127.0.0.1 only."""
+    from laughlab.study.server import server
+    from laughlab.viewer.server import shown_url
+
+    httpd = server(study, tmp_path / "r.sqlite", 0, host="::1", quiet=True)
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    try:
+        assert shown_url(httpd).startswith("http://[::1]:")
+        with urllib.request.urlopen(shown_url(httpd) + "/index.html", timeout=10) as r:
+            assert r.status == 200 and b"<html" in r.read().lower()
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+    httpd = server(study, tmp_path / "r.sqlite", 0, host="", quiet=True)
+    try:
+        assert shown_url(httpd).startswith("http://127.0.0.1:")
+    finally:
+        httpd.server_close()

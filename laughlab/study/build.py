@@ -15,8 +15,9 @@ What the folder holds (it runs offline, from ``study serve`` or any static host)
 ``vendor/jspsych/``    jsPsych and its plugins from the npm registry (``laughlab.study.vendor``)
 =====================  ==========================================================================
 
-The folder is written whole or not at all (built beside it, then renamed).  A folder holding
-responses (``responses.sqlite``) is never replaced.
+The folder is written whole or not at all (built beside it, then moved in).  ``--overwrite``
+replaces only these entries of an earlier study folder; a folder holding a database of people's
+answers (any name), or a folder that is not a study, is never replaced.
 """
 from __future__ import annotations
 
@@ -34,6 +35,33 @@ from laughlab.study import vendor
 
 PAGE_FILES = ("index.html", "study.js", "study.css")
 DB_NAME = "responses.sqlite"
+#: what ``build`` writes at the top of the study folder (``--overwrite`` replaces these and nothing else)
+OWN = (*PAGE_FILES, "design.js", "design.json", "stimuli", "audio_check", "vendor")
+
+
+def check_out(out: Path, overwrite: bool) -> None:
+    """Refuse a study folder that may not be (re)built: one that holds people's answers, or, without
+    ``overwrite``, anything; with it, anything but an earlier study."""
+    from laughlab.study.db import participants_kind
+
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise LaughlabError(f"{out} exists and is not a folder; choose another --out")
+    held = sorted(p.name for p in out.iterdir())
+    for name in held:
+        f = out / name
+        try:
+            sqlite = f.is_file() and f.open("rb").read(16) == b"SQLite format 3\x00"
+        except OSError:
+            sqlite = False
+        if sqlite and participants_kind(f) != "simulated":
+            raise LaughlabError(f"{out} holds responses ({name}); build the study into another folder")
+    if held and not overwrite:
+        raise LaughlabError(f"{out} exists and is not empty; choose another --out or add --overwrite")
+    if held and "design.json" not in held:
+        raise LaughlabError(f"{out} is not a study folder (no design.json); --overwrite replaces only an earlier "
+                            "study: choose an empty or new --out")
 
 
 def default_out(run_dir: Path) -> Path:
@@ -96,10 +124,7 @@ def build(run_dir, out=None, questions: str | None = None, overwrite: bool = Fal
         preset_name = "laughlab"
     preset = D.load_preset(preset_name)
     out = Path(out).expanduser() if out else default_out(run_dir)
-    if (out / DB_NAME).exists():
-        raise LaughlabError(f"{out} holds responses ({DB_NAME}); build the study into another folder")
-    if out.exists() and (not out.is_dir() or any(out.iterdir())) and not overwrite:
-        raise LaughlabError(f"{out} exists and is not empty; choose another --out or add --overwrite")
+    check_out(out, overwrite)
     from laughlab_experiments.stimuli import _sha256 as file_sha256  # the manifest's own hashing
 
     mods = vendor.install()
@@ -129,7 +154,17 @@ def build(run_dir, out=None, questions: str | None = None, overwrite: bool = Fal
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    if out.exists():
-        shutil.rmtree(out) if out.is_dir() else out.unlink()
-    tmp.rename(out)
+    check_out(out, overwrite)   # again: vendoring and copying took a while
+    if not out.exists():
+        tmp.rename(out)
+        return out
+    for name in OWN:   # an earlier study: its own entries only; the user's files, reports, databases stay
+        old = out / name
+        if old.is_dir() and not old.is_symlink():
+            shutil.rmtree(old)
+        else:
+            old.unlink(missing_ok=True)
+        if (tmp / name).exists():
+            (tmp / name).rename(old)
+    shutil.rmtree(tmp, ignore_errors=True)
     return out

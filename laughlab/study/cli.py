@@ -41,7 +41,7 @@ def parser() -> argparse.ArgumentParser:
     b.add_argument("--out", help="the study folder (default: STIMULI_DIR-study beside it)")
     b.add_argument("--questions", help="a preset name (laughlab, riddle) or a YAML file of questions and checks "
                                        "(default: the stimuli's preset; see laughlab/study/presets/)")
-    b.add_argument("--overwrite", action="store_true", help="replace a study folder that holds no responses")
+    b.add_argument("--overwrite", action="store_true", help="replace the files of an earlier study build (never a folder holding people's answers)")
     s = sub.add_parser("serve", help="serve the page and store every answer in SQLite as it arrives")
     s.add_argument("study_dir")
     s.add_argument("--db", help="the database (default: STUDY_DIR/responses.sqlite)")
@@ -113,13 +113,14 @@ def serve(ns) -> None:
     from laughlab.study.server import server
 
     httpd = server(ns.study_dir, ns.db, ns.port, ns.host)
-    host, port = httpd.server_address[:2]
-    shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
+    from laughlab.viewer.server import serve_until_interrupted, shown_url
+
+    everywhere = httpd.server_address[0] in ("0.0.0.0", "", "::")
     handler = _handler(httpd)
     n = len(handler.design["participants"])
-    print(f"laughlab: serving {ns.study_dir} at http://{shown}:{port}/?participant=1 (participants 1..{n}; "
-          f"answers into {handler.db}; Ctrl-C to stop)", flush=True)
-    from laughlab.viewer.server import serve_until_interrupted
+    wide = "listening on every network: other computers open it at this computer's address; " if everywhere else ""
+    print(f"laughlab: serving {ns.study_dir} at {shown_url(httpd)}/?participant=1 (participants 1..{n}; "
+          f"{wide}answers into {handler.db}; Ctrl-C to stop)", flush=True)
 
     serve_until_interrupted(httpd)
 
@@ -138,6 +139,14 @@ def simulate(ns) -> None:
         raise LaughlabError(f"--participants must be 1..{len(design['participants'])} (the design's rows)")
     effects = S.parse_effects(ns.effects, design)
     httpd = server(study, ns.db, 0, quiet=True, participants="simulated")
+    from laughlab.study.db import participants_stored
+
+    db = _handler(httpd).db
+    done = participants_stored(db)
+    if done:   # a second simulation would add to (or skip) the first one's participants, of another plant or seed
+        httpd.server_close()
+        raise LaughlabError(f"{db} already holds {len(done)} simulated participants' answers; give another --db, or "
+                            "delete it to simulate again")
     threading.Thread(target=httpd.serve_forever, daemon=True).start()
     try:
         url = f"http://127.0.0.1:{httpd.server_address[1]}"

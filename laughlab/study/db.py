@@ -78,6 +78,11 @@ def open_db(path: Path, design: dict, participants: str = "people") -> Path:
         raise LaughlabError(f"{path} is a folder, not a database; give --db a file")
     try:
         conn = connect(path)
+        tables = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        if tables and "study" not in tables:
+            conn.close()
+            raise LaughlabError(f"{path} is a database of something else (tables {', '.join(sorted(tables)[:3])}); "
+                                "give another --db")
         conn.executescript(SCHEMA)
     except sqlite3.DatabaseError as exc:
         raise LaughlabError(f"{path} is not a study database ({exc}); give another --db") from None
@@ -103,6 +108,15 @@ def open_db(path: Path, design: dict, participants: str = "people") -> Path:
     return path
 
 
+def participants_stored(path: Path) -> list[int]:
+    """The participants with at least one stored answer."""
+    conn = _reader(path)
+    try:
+        return [r[0] for r in conn.execute("SELECT DISTINCT participant FROM answers ORDER BY participant")]
+    finally:
+        conn.close()
+
+
 def _participants(conn: sqlite3.Connection) -> str:
     """``people`` or ``simulated``.  A database written before the key existed is ``simulated`` when
     every session came from headless Chromium (``study simulate``), else ``people``."""
@@ -115,13 +129,22 @@ def _participants(conn: sqlite3.Connection) -> str:
 
 def participants_kind(path: Path) -> str | None:
     """``people`` or ``simulated`` for a study database (None if it is not one)."""
-    conn = sqlite3.connect(f"file:{Path(path)}?mode=ro", uri=True)
+    if not Path(path).is_file():
+        return None
+    conn = _reader(path)
     try:
         return _participants(conn)
     except sqlite3.DatabaseError:
         return None
     finally:
         conn.close()
+
+
+def _reader(path: Path) -> sqlite3.Connection:
+    """A connection for reading an existing database.  Not ``mode=ro``: a read-only connection to a database in
+    WAL mode leaves its ``-wal`` and ``-shm`` files beside it; this one removes them when it closes (it writes
+    nothing)."""
+    return sqlite3.connect(str(path), timeout=30)
 
 
 class _transaction:
@@ -185,7 +208,7 @@ def rows(path: Path) -> list[dict]:
     path = Path(path)
     if not path.is_file():
         raise LaughlabError(f"no database at {path}")
-    conn = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    conn = _reader(path)
     try:
         cur = conn.execute(f"SELECT {', '.join(COLUMNS)} FROM answers ORDER BY participant, trial, question")
         return [dict(zip(COLUMNS, r)) for r in cur]
@@ -196,7 +219,9 @@ def rows(path: Path) -> list[dict]:
 
 
 def stored_design(path: Path) -> dict | None:
-    conn = sqlite3.connect(f"file:{Path(path)}?mode=ro", uri=True)
+    if not Path(path).is_file():
+        return None
+    conn = _reader(path)
     try:
         row = conn.execute("SELECT value FROM study WHERE key = 'design'").fetchone()
     except sqlite3.DatabaseError:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import csv
 import json
 import shutil
+import socket
 from functools import partial
 from http.server import SimpleHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
@@ -240,17 +241,17 @@ def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: 
                               ".glb": "model/gltf-binary", ".json": "application/json", ".wav": "audio/wav",
                               ".mp4": "video/mp4", ".css": "text/css"}
     import errno
-    import socket
 
     from laughlab.core.errors import LaughlabError
 
+    cls = _Server6 if ":" in host else ThreadingHTTPServer   # an IPv6 address (::1, ::)
     try:
         try:
-            return ThreadingHTTPServer((host, port), partial(handler))
+            return cls((host, port), partial(handler))
         except OSError as exc:
             if isinstance(exc, socket.gaierror) or exc.errno == errno.EADDRNOTAVAIL:
                 raise
-            return ThreadingHTTPServer((host, 0), partial(handler))  # the port is taken: the system picks one
+            return cls((host, 0), partial(handler))  # the port is taken: the system picks one
     except (socket.gaierror, OverflowError) as exc:
         raise LaughlabError(f"cannot listen on --host {host}: it is not an address ({exc.args[-1]}); use 127.0.0.1 "
                             "(this computer), 0.0.0.0 (every network) or one of this computer's addresses") from None
@@ -258,6 +259,18 @@ def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: 
         raise LaughlabError(f"cannot listen on --host {host}: {exc.strerror or exc} (not an address of this "
                             "computer?); use 127.0.0.1 (this computer), 0.0.0.0 (every network) or one of "
                             "this computer's addresses") from None
+
+
+class _Server6(ThreadingHTTPServer):
+    address_family = socket.AF_INET6
+
+
+def shown_url(httpd) -> str:
+    """``http://HOST:PORT`` to open the server at: 127.0.0.1 (or ::1) when it listens on every network."""
+    host, port = httpd.server_address[:2]
+    if host in ("0.0.0.0", "", "::"):
+        host = "::1" if host == "::" else "127.0.0.1"
+    return f"http://[{host}]:{port}" if ":" in host else f"http://{host}:{port}"
 
 
 def serve_until_interrupted(httpd: ThreadingHTTPServer) -> None:
