@@ -145,7 +145,8 @@ def task(cfg) -> dict:
     try:
         if _CLAIM is None:  # a sweep's job: Hydra made the folder and wrote .hydra/ into it
             _CLAIM = rundir.claim(out_dir, bool(cfg.get("overwrite", False)), ours=frozenset({".hydra"}),
-                                  done_if=cfg_hash, writes=pipeline.planned_files(cfg), where="hydra.sweep.dir")
+                                  done_if=cfg_hash, writes=pipeline.planned_files(cfg), where="hydra.sweep.dir",
+                                  resumable=bool(cfg.get("harness")))
             if _CLAIM.done:  # the same sweep run again: this job finished before
                 print(f"laughlab: {out_dir} already holds this job's finished run; skipped")
                 return {}
@@ -179,7 +180,12 @@ def task(cfg) -> dict:
             _remove_new_run_dir(out_dir)
         fail(str(exc))
     except (KeyboardInterrupt, Exception) as exc:
-        what, code = _fault(exc, out_dir)
+        try:
+            what, code = _fault(exc, out_dir)
+        except BaseException:   # a bug: its traceback goes on, but the folder is left as a failed run leaves it
+            if _CLAIM is not None and not cfg.get("harness"):
+                _remove_new_run_dir(out_dir)
+            raise
         fail(_stopped(cfg, out_dir, what), code=code)
     finally:
         if _CLAIM is not None:
@@ -427,13 +433,18 @@ def _main(argv: list[str]) -> None:
 
         try:  # one writer per run directory, before anything is written into it
             _CLAIM = rundir.claim(Path(cfg.hydra.run.dir), bool(cfg.get("overwrite", False)),
-                                  writes=pipeline.planned_files(cfg))
+                                  writes=pipeline.planned_files(cfg), resumable=bool(cfg.get("harness")))
         except LaughlabError as exc:
             fail(str(exc))
         try:
             run_composed(cfg)
         except (KeyboardInterrupt, Exception) as exc:  # outside the task: Hydra writing .hydra/, say
-            what, code = _fault(exc, cfg.hydra.run.dir)
+            try:
+                what, code = _fault(exc, cfg.hydra.run.dir)
+            except BaseException:   # a bug (traceback follows): the folder as a failed run leaves it
+                if _CLAIM is not None and not cfg.get("harness"):
+                    _remove_new_run_dir(Path(cfg.hydra.run.dir))
+                raise
             if _CLAIM is not None:  # the task had not finished: clean up as it would have
                 what = _stopped(cfg, Path(cfg.hydra.run.dir), what)
                 _CLAIM.release()

@@ -268,6 +268,71 @@ def test_overwrite_puts_the_earlier_run_back_when_the_new_one_is_stopped(tmp_pat
     assert (d / "notes.txt").read_text() == "mine"
 
 
+def test_overwrite_puts_the_earlier_run_back_after_a_crash_or_a_kill(tmp_path):
+    """Found by a new-user review: a run that crashed (a bug's traceback) or was killed (SIGKILL) during
+    overwrite=true left the earlier run in .laughlab-previous/, and the next run deleted it.  A crash now puts it
+    back at once; after a kill, the next run puts it back first (and, without overwrite=true, is refused)."""
+    d = tmp_path / "D"
+    assert run("input.duration_s=2", f"hydra.run.dir={d}", "output=gltf", *NO_PLOTS).returncode == 0
+    before = _tree(d)
+    plug = tmp_path / "plug"
+    plug.mkdir()
+    (plug / "buggy.py").write_text(
+        "import laughlab\nfrom laughlab.core.bases import Sink\n"
+        "class Buggy(Sink):\n    name = 'buggy'\n    def write(self, chunk):\n        raise ValueError('a bug')\n"
+        "@laughlab.hookimpl\ndef register_sinks(register):\n    register(Buggy)\n")
+    p = run("input.duration_s=2", f"hydra.run.dir={d}", "overwrite=true", f"plugins_dir={plug}", "+output.buggy={}",
+            *NO_PLOTS)
+    assert p.returncode != 0 and "ValueError: a bug" in p.stderr
+    assert _tree(d) == before and not (d / rundir.PREVIOUS).exists()
+    p = laughlab("input.duration_s=1800", f"hydra.run.dir={d}", "overwrite=true", "output=video")
+    deadline = time.time() + 60
+    while not list(d.glob(".*.part")) and time.time() < deadline:
+        time.sleep(0.05)
+    p.kill()
+    p.wait()
+    assert (d / rundir.PREVIOUS).is_dir()
+    again = run("input.duration_s=1", f"hydra.run.dir={d}", *NO_PLOTS)
+    assert again.returncode == 2 and "already holds a run" in again.stderr, again.stderr
+    assert _tree(d) == before and not (d / rundir.PREVIOUS).exists()
+
+
+def test_an_interrupted_overwrite_of_an_experiment_resumes_by_the_same_command(tmp_path):
+    d = tmp_path / "D"
+    assert run(*SMOKE, "harness.corpus.duration_s=3", f"hydra.run.dir={d}").returncode == 0
+    longer = [*SMOKE, "harness.corpus.duration_s=30", "overwrite=true"]   # long enough to be killed part way
+    p = laughlab(*longer, f"hydra.run.dir={d}")
+    journal = d / "metrics.jsonl"
+    deadline = time.time() + 120
+    while not (d / rundir.PREVIOUS).exists():   # the finished run's journal goes aside first
+        assert time.time() < deadline and p.poll() is None
+        time.sleep(0.02)
+    while len(journal_records(journal)) < 2:
+        assert time.time() < deadline and p.poll() is None
+        time.sleep(0.05)
+    p.kill()
+    p.wait()
+    done = len(journal_records(journal))
+    assert 2 <= done < 8
+    again = run(*longer, f"hydra.run.dir={d}")
+    assert again.returncode == 0, again.stderr
+    assert f"resuming: {done} of 8 trials were done" in again.stderr and not (d / rundir.PREVIOUS).exists()
+
+
+def test_a_stopped_run_leaves_a_folder_of_the_users_files_as_it_was(tmp_path):
+    d = tmp_path / "mine"
+    d.mkdir()
+    (d / "notes.txt").write_text("mine")
+    p = laughlab("input.duration_s=1800", f"hydra.run.dir={d}", "overwrite=true")
+    deadline = time.time() + 60
+    while not (d / ".hydra").exists() and time.time() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    p.send_signal(signal.SIGTERM)
+    assert p.wait(timeout=60) == 130
+    assert sorted(x.name for x in d.iterdir()) == ["notes.txt"]   # its .laughlab.lock stayed
+
+
 def test_overwrite_of_an_interrupted_experiment_starts_it_over(tmp_path):
     """An interrupted experiment's own files (its journal) were taken for the user's by overwrite=true, which
     then refused the folder; they are the run's, and go."""

@@ -172,3 +172,34 @@ def test_the_calibration_can_be_switched_off_for_the_microphone(monkeypatch):
         cfg = compose_config(["input=mic", "input.duration_s=0.5", *off])
         pipe = pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
         assert pipe.ctx.calibration_s == 0.0 and pipe.extractor._cal_frames == 0
+
+
+def test_a_file_cut_short_is_one_line_before_any_work(tmp_path):
+    """A WAV cut short ran silently on what was left ('0.1 s of trunc.wav'); a FLAC cut short ended in a
+    libsndfile traceback and a half-written run folder.  Now the WAV is refused when it is checked (its header
+    promises more than it holds) and the FLAC when its decoder loses sync, each in one line."""
+    from inprocess import laughlab
+
+    sr = 44100
+    x = (0.3 * np.sin(2 * np.pi * 220 * np.arange(3 * sr) / sr)).astype(np.float32)
+    for ext, subtype in (("wav", "PCM_16"), ("wav", "FLOAT"), ("flac", "PCM_16")):
+        whole = tmp_path / f"whole_{subtype}.{ext}"
+        sf.write(whole, x, sr, subtype=subtype)
+        cut = tmp_path / f"cut_{subtype}.{ext}"
+        cut.write_bytes(whole.read_bytes()[: whole.stat().st_size // 3])
+        probe_file(whole)
+        if ext == "wav":   # the header says 3 s, the file holds about 1 s
+            with pytest.raises(LaughlabError, match=r"is cut short: its header promises 3\.00 s of audio, the file "
+                                                    r"holds 1\.00 s"):
+                probe_file(cut)
+            from laughlab.harness.corpus import check_audio   # an experiment's corpus check, before any trial
+
+            with pytest.raises(LaughlabError, match="the file is cut short"):
+                check_audio(cut)
+        run = tmp_path / f"run_{subtype}_{ext}"
+        p = laughlab("input=file", f"input.path={cut}", f"hydra.run.dir={run}")
+        assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+        assert "cut short" in p.stderr or "cannot decode" in p.stderr, p.stderr
+        assert not run.exists()
+        p = laughlab("detect", str(cut), "--out", str(tmp_path / f"det_{subtype}_{ext}"))
+        assert p.returncode == 2 and p.stderr.count("\n") == 1 and "Traceback" not in p.stderr, p.stderr

@@ -54,9 +54,9 @@ class Claim:
     """A run directory held by this process."""
 
     def __init__(self, path: Path, fd: int, created: bool, user_files: set[str], resumed: bool = False,
-                 done: bool = False):
+                 done: bool = False, lock_made: bool = False):
         self.path, self.fd, self.created, self.user_files = path, fd, created, user_files
-        self.resumed, self.done = resumed, done
+        self.resumed, self.done, self.lock_made = resumed, done, lock_made
 
     def finish(self, config_hash: str | None = None) -> None:
         """Record the run's files (every entry but the user's and ours) and its configuration's hash; delete
@@ -72,6 +72,8 @@ class Claim:
         (self.path / MARKER).unlink(missing_ok=True)
         if _put_back(self.path):
             return
+        if self.lock_made and not self.created:   # a folder of the user's: left as it was
+            (self.path / LOCK).unlink(missing_ok=True)
         if self.created and {p.name for p in self.path.iterdir()} <= {LOCK}:
             (self.path / LOCK).unlink(missing_ok=True)
             try:
@@ -87,7 +89,8 @@ class Claim:
 
 
 def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset(),
-          done_if: str | None = None, writes: frozenset = frozenset(), where: str = "hydra.run.dir") -> Claim:
+          done_if: str | None = None, writes: frozenset = frozenset(), where: str = "hydra.run.dir",
+          resumable: bool = False) -> Claim:
     """Lock ``path`` for this run (creating it) and check it may be written; see the module notes.
 
     ``ours``: entries this run has already written (a Hydra sweep job's ``.hydra``).
@@ -96,6 +99,10 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
     ``where``: the setting the error lines tell to change (``hydra.sweep.dir`` for a sweep's job).
     ``done_if``: a configuration hash; a finished run of that configuration in ``path`` is returned
     as a claim with ``done`` set, untouched (a rerun sweep skips its finished jobs).
+    ``resumable``: the run can take up an interrupted one (an experiment).  An ``overwrite=true`` run that was
+    killed left the run it replaced aside: a run that cannot resume first puts that one back (and is then
+    refused without ``overwrite=true``); one that can resumes, with or without ``overwrite=true`` (the same
+    command), and the run aside goes when it finishes.
     """
     import fcntl
 
@@ -122,6 +129,15 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         entries = {p.name for p in path.iterdir()} - OWN - set(ours)
         marker = _read_marker(path)
         complete = marker is not None and marker.get("complete", False)
+        aside = (path / PREVIOUS / MARKER).is_file()
+        if marker is not None and not complete and aside and not resumable:
+            # a killed (or crashed) overwrite: its partial files go, the run it was replacing comes back
+            for name in entries - set(marker.get("user_files", [])) - {MARKER}:
+                _remove(path / name)
+            (path / MARKER).unlink(missing_ok=True)
+            _put_back(path)
+            entries = {p.name for p in path.iterdir()} - OWN - set(ours)
+            marker, complete, aside = _read_marker(path), True, False
         if marker is None:
             earlier = set()
         elif complete:
@@ -131,12 +147,12 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         if marker is not None and marker.get("complete") and done_if is not None and not overwrite \
                 and marker.get("config_hash") == done_if:
             return Claim(path, fd, created, set(marker.get("user_files", [])), done=True)
-        if marker is not None and not complete and not overwrite:
+        if marker is not None and not complete and (not overwrite or aside):
             # an interrupted run: the same command may take it up again (an experiment resumes)
             user = set(marker.get("user_files", entries - {MARKER}))
             _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user),
                                  "hydra": _hydra_files(path) if ".hydra" in ours else {}})
-            return Claim(path, fd, created, user, resumed=True)
+            return Claim(path, fd, created, user, resumed=True, lock_made=lock_made)
         # files no run recorded writing (the user's, or a marker-less 0.1 run's: they cannot be told apart) named
         # as a run's outputs: a run would replace them, so they refuse it, whether or not overwrite=true
         clash = sorted((entries - earlier) & (OUTPUTS | writes)) if overwrite or marker is None else []
@@ -174,7 +190,7 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
                 except OSError:
                     pass
         raise
-    return Claim(path, fd, created, user)
+    return Claim(path, fd, created, user, lock_made=lock_made)
 
 
 def _remove(p: Path) -> None:

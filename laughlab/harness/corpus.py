@@ -76,6 +76,10 @@ def check_audio(f: Path) -> float:
         raise LaughlabError(f"cannot read audio: {reason}") from None
     if info.frames <= 0:
         raise LaughlabError("no audio samples")
+    if info.format == "WAV":   # a WAV cut short reads without error: its header says how long it should be
+        from laughlab.io.audio import check_wav_length
+
+        check_wav_length(f, info, "the file")
     return info.frames / info.samplerate
 
 

@@ -82,9 +82,40 @@ def probe_file(path: str | Path):
         raise LaughlabError(f"cannot read audio from {path}: {reason}") from None
     if info.frames <= 0:
         raise LaughlabError(f"input file has no audio samples: {path}")
+    if info.format == "WAV":
+        check_wav_length(p, info, path)
     if not MIN_RATE <= info.samplerate <= MAX_RATE:
         raise LaughlabError(f"sample rate {info.samplerate} Hz of {path} is outside {MIN_RATE}-{MAX_RATE} Hz")
     return info
+
+
+def check_wav_length(p: Path, info, shown) -> None:
+    """A WAV file whose ``data`` chunk is more than 0.1 s shorter than its header says (a copy or a recording cut
+    short): one line instead of a run on what is left.  A size of 0 or 0xFFFFFFFF (a stream's) is not checked."""
+    import struct
+
+    size = p.stat().st_size
+    with open(p, "rb") as f:
+        head = f.read(12)
+        if len(head) < 12 or head[:4] != b"RIFF" or head[8:12] != b"WAVE":
+            return
+        while True:
+            chunk = f.read(8)
+            if len(chunk) < 8:
+                return
+            cid, n = chunk[:4], struct.unpack("<I", chunk[4:])[0]
+            if cid == b"data":
+                start = f.tell()
+                break
+            f.seek(n + (n & 1), 1)
+    held = size - start
+    if n in (0, 0xFFFFFFFF) or n <= held or info.frames <= 0:
+        return
+    per_s = held / info.frames * info.samplerate   # bytes per second of audio
+    if (n - held) / per_s < 0.1:   # a few bytes or frames short (a copy cut in its last frame): read what is whole
+        return
+    raise LaughlabError(f"{shown} is cut short: its header promises {n / per_s:.2f} s of audio, the file holds "
+                        f"{held / per_s:.2f} s (copy it again, or rewrite its header: sox IN.wav OUT.wav)")
 
 
 def read_blocks(path: str | Path, block_s: float = 1.0) -> Iterator[np.ndarray]:
@@ -104,10 +135,17 @@ def read_blocks(path: str | Path, block_s: float = 1.0) -> Iterator[np.ndarray]:
         return
     with sf.SoundFile(p) as f:
         n = max(1, int(f.samplerate * block_s))
+        done = 0
         while True:
-            data = f.read(n, dtype="float32", always_2d=True)
+            try:
+                data = f.read(n, dtype="float32", always_2d=True)
+            except (sf.LibsndfileError, RuntimeError) as exc:   # e.g. a FLAC cut short: 'decoder lost sync'
+                reason = (str(exc).splitlines()[0] if str(exc) else type(exc).__name__).removeprefix("Error : ")
+                raise LaughlabError(f"cannot decode {path} after {done / f.samplerate:.1f} s: {reason} (the file is "
+                                    "damaged or cut short)") from None
             if len(data) == 0:
                 break
+            done += len(data)
             yield to_mono(data)
 
 
