@@ -30,6 +30,14 @@ def laughlab(*args, **kw):
                             stderr=subprocess.PIPE, text=True, preexec_fn=_as_from_a_terminal, **kw)
 
 
+def _started(d, settle_s=0.5):
+    """Wait until a run's child has written its .hydra/ into ``d``, then a little longer (it is in its frames)."""
+    deadline = time.time() + 60
+    while not (d / ".hydra").exists() and time.time() < deadline:
+        time.sleep(0.05)
+    time.sleep(settle_s)
+
+
 def test_two_runs_into_one_directory_one_wins_and_the_other_says_why(tmp_path):
     d = tmp_path / "D"
     # 90 s of input: the winner must still hold the folder when the loser, started with it, gets there (20 s
@@ -140,10 +148,7 @@ def test_a_failed_run_leaves_no_folder_behind(tmp_path):
 def test_interrupting_a_run_leaves_no_visible_partial_file(tmp_path):
     d = tmp_path / "D"
     p = laughlab("input.duration_s=1800", f"hydra.run.dir={d}", start_new_session=True)
-    deadline = time.time() + 60
-    while not (d / ".hydra").exists() and time.time() < deadline:
-        time.sleep(0.05)
-    time.sleep(0.5)
+    _started(d)
     os.killpg(p.pid, signal.SIGINT)
     assert p.wait(timeout=60) == 130
     visible = [x.name for x in d.iterdir() if not x.name.startswith(".")] if d.exists() else []
@@ -154,10 +159,7 @@ def test_interrupting_a_run_leaves_no_visible_partial_file(tmp_path):
 def test_sigterm_to_a_run_leaves_no_visible_partial_file(tmp_path):
     d = tmp_path / "D"
     p = laughlab("input.duration_s=1800", f"hydra.run.dir={d}")
-    deadline = time.time() + 60
-    while not (d / ".hydra").exists() and time.time() < deadline:
-        time.sleep(0.05)
-    time.sleep(0.5)
+    _started(d)
     p.send_signal(signal.SIGTERM)
     assert p.wait(timeout=60) == 130
     visible = [x.name for x in d.iterdir() if not x.name.startswith(".")] if d.exists() else []
@@ -324,10 +326,7 @@ def test_a_stopped_run_leaves_a_folder_of_the_users_files_as_it_was(tmp_path):
     d.mkdir()
     (d / "notes.txt").write_text("mine")
     p = laughlab("input.duration_s=1800", f"hydra.run.dir={d}", "overwrite=true")
-    deadline = time.time() + 60
-    while not (d / ".hydra").exists() and time.time() < deadline:
-        time.sleep(0.05)
-    time.sleep(0.5)
+    _started(d)
     p.send_signal(signal.SIGTERM)
     assert p.wait(timeout=60) == 130
     assert sorted(x.name for x in d.iterdir()) == ["notes.txt"]   # its .laughlab.lock stayed
