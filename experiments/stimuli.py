@@ -220,6 +220,9 @@ def _csv_text(columns, rows) -> str:
     return buf.getvalue()
 
 
+SCRATCH = "laughlab-stimuli-"
+"""The prefix of the run's scratch folder in its output folder (renders in progress)."""
+
 JOURNAL = ".rendered.jsonl"
 """In ``stimuli/``: one line per video rendered (its id, render key and manifest row), so an interrupted
 run resumes; removed when the manifest is written."""
@@ -373,7 +376,9 @@ def run(cfg, out_dir) -> dict:
     stim_dir.mkdir(parents=True, exist_ok=True)
     journal = Rendered(stim_dir / JOURNAL)
     audio_rows, manifest, done = [], [], []
-    work = Path(tempfile.mkdtemp(prefix="laughlab-stimuli-", dir=out_dir))
+    for stale in out_dir.glob(f"{SCRATCH}*"):   # a killed run's scratch folder (it could not remove it)
+        shutil.rmtree(stale, ignore_errors=True)
+    work = Path(tempfile.mkdtemp(prefix=SCRATCH, dir=out_dir))
     try:
         # 1. every audio item, normalised once
         audio_files: dict[tuple[str, int], tuple[Path, Path]] = {}

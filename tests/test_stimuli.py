@@ -169,7 +169,9 @@ def test_an_interrupted_run_resumes_and_renders_only_what_is_missing(tmp_path, m
     assert sorted(p.stem for p in (tmp_path / "stimuli").glob("*.mp4")) == sorted(first)
     assert (tmp_path / "stimuli" / stimuli.JOURNAL).is_file() and not (tmp_path / "manifest.csv").exists()
     calls.clear()
+    (tmp_path / f"{stimuli.SCRATCH}killed").mkdir()   # what a SIGKILL leaves: the scratch folder goes on resume
     run(compose_config(["experiment=stimuli", *SMALL]), tmp_path)
+    assert not list(tmp_path.glob(f"{stimuli.SCRATCH}*"))
     n = len(read_csv(rendered[0] / "manifest.csv"))
     assert len(calls) == n - 2 and not set(calls) & set(first)   # only the missing ones
     assert (tmp_path / "manifest.csv").read_bytes() == (rendered[0] / "manifest.csv").read_bytes()
