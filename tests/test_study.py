@@ -490,3 +490,24 @@ def test_serve_on_ipv6_and_says_where_to_open_it(study, tmp_path):
         assert shown_url(httpd).startswith("http://127.0.0.1:")
     finally:
         httpd.server_close()
+
+
+@pytest.mark.browser
+def test_ctrl_c_during_simulate_is_one_line(study, tmp_path):
+    """Found by a new-user review: Ctrl-C while simulated participants worked printed 371 lines of asyncio and
+    Playwright tracebacks before laughlab's line."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    p = subprocess.Popen([sys.executable, "-m", "laughlab", "study", "simulate", str(study), "--participants", "3",
+                          "--db", str(tmp_path / "s.sqlite")], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.time() + 60
+    while not (tmp_path / "s.sqlite").exists() and time.time() < deadline:   # the pages are opening
+        time.sleep(0.05)
+    time.sleep(2.0)
+    p.send_signal(signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 130 and err == "laughlab: error: interrupted\n", err[-2000:]

@@ -200,7 +200,17 @@ async def run(url: str, design: dict, participants: list[int], answer, behaviour
 
 
 def run_sync(*args, **kwargs) -> dict[int, Given]:
-    return asyncio.run(run(*args, **kwargs))
+    """:func:`run` to its end.  After Ctrl-C the pages' pending calls fail as the browser closes; asyncio would
+    print each of them (hundreds of lines) before laughlab's one line, so they are let go quietly then."""
+    from laughlab.core import interrupts
+
+    def quiet_after_interrupt(loop, context):
+        if interrupts.received is None:
+            loop.default_exception_handler(context)
+
+    with asyncio.Runner() as runner:
+        runner.get_loop().set_exception_handler(quiet_after_interrupt)
+        return runner.run(run(*args, **kwargs))
 
 
 def parse_effects(text: str, design: dict) -> dict[str, float]:
