@@ -21,6 +21,7 @@ from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
 
+_STARTED_AS_PROCESS = False   # python -m laughlab, not a call from another program (tests)
 #: the run directory this process holds (laughlab.core.rundir), from before Hydra writes into it to the end
 _CLAIM = None
 #: when the command started (time.monotonic()): the process' start for ``python -m laughlab``; None in a sweep
@@ -159,9 +160,11 @@ def task(cfg) -> dict:
             if module is not None and hasattr(module, "run"):  # an experiment with its own procedure
                 doc = module.run(cfg, out_dir)
                 _CLAIM.finish(cfg_hash)
+                _finished()
                 return doc
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
             _CLAIM.finish(cfg_hash)
+            _finished()
             hint = "" if _in_sweep() else f"; report: python -m laughlab report {out_dir}"   # a sweep: one at its end
             print(f"{doc['experiment']}: {doc['n_trials']} trials in {duration_text(time.monotonic() - t0)} -> "
                   f"{out_dir / 'results.json'}{hint}")
@@ -169,6 +172,7 @@ def task(cfg) -> dict:
         pipe = pipeline.build(cfg)
         metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
         _CLAIM.finish(cfg_hash)
+        _finished()
         print(summary_line(cfg, metrics, out_dir, time.monotonic() - t0, skip=_CLAIM.user_files))
         return metrics
     except rundir.InUse as exc:  # another process' run: touch nothing of it but what Hydra wrote over
@@ -191,6 +195,12 @@ def task(cfg) -> dict:
         if _CLAIM is not None:
             _CLAIM.release()
             _CLAIM = None
+
+
+def _finished() -> None:
+    """A single run is done (marker complete): a stop signal is let go from now on (not in a sweep)."""
+    if not _in_sweep():
+        interrupts.finish(whole_process=_STARTED_AS_PROCESS)
 
 
 def _in_sweep() -> bool:
@@ -360,8 +370,10 @@ def help_text() -> str:
 
 def main(argv: list[str] | None = None) -> None:
     """The command line; a Ctrl-C or SIGTERM at any moment ends in one line and exit 130."""
-    global _STARTED
+    global _STARTED, _STARTED_AS_PROCESS
     interrupts.install()  # SIGTERM cleans up as Ctrl-C does
+    interrupts.reset()
+    _STARTED_AS_PROCESS = argv is None
     _STARTED = clock.process_start() if argv is None else time.monotonic()  # argv given: called in-process
     try:
         _main(list(sys.argv[1:] if argv is None else argv))
@@ -454,11 +466,13 @@ def _main(argv: list[str]) -> None:
     import hydra
 
     sys.argv = [sys.argv[0], *argv]
-    before = _sweep_state(argv) if multirun else None
+    from laughlab.core import rundir
+
+    before = rundir.sweep_state(argv) if multirun else None
     try:
         hydra.main(config_path=f"pkg://{CONFIG_MODULE}", config_name="config", version_base="1.3")(task)()
     finally:
-        after = _sweep_state(argv) if before is not None else None
+        after = rundir.sweep_state(argv) if before is not None else None
         if after is not None and after[2] == before[2]:
             # no job ran (each was refused, or had finished before): the sweep folder still describes the
             # earlier sweep, so its multirun.yaml, which Hydra wrote at the start, is put back
@@ -470,20 +484,3 @@ def _quiet_stdout() -> None:
     import os
 
     os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-
-
-def _sweep_state(argv: list[str]) -> tuple[Path, bytes, dict] | None:
-    """A sweep into a folder given on the command line that already holds one: its ``multirun.yaml`` and
-    its jobs' markers (a job that runs rewrites its marker)."""
-    from laughlab.core.rundir import MARKER
-
-    given = next((a.split("=", 1)[1] for a in argv if a.startswith("hydra.sweep.dir=")), None)
-    if not given:
-        return None
-    root = Path(given).expanduser()
-    try:
-        text = (root / "multirun.yaml").read_bytes()
-        markers = {p.parent.name: p.read_bytes() for p in sorted(root.glob(f"*/{MARKER}"))}
-    except OSError:
-        return None
-    return root / "multirun.yaml", text, markers

@@ -382,3 +382,25 @@ def test_an_aborted_writer_leaves_no_staged_file_even_when_its_buffer_cannot_be_
     tmp.write_text("partial")
     staging.abort(Unflushable(), None)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_stop_signal_after_the_summary_line_prints_nothing_more(tmp_path):
+    """Found by the clean clone's fuzz (SIGTERM at a random moment): a signal that came after a run's summary
+    line, while the interpreter shut down, printed a KeyboardInterrupt traceback.  Once a single run's work is
+    done and said, a stop signal is let go; a new command handles them again."""
+    from laughlab.core import interrupts
+
+    interrupts.finish(whole_process=False)
+    try:
+        interrupts._handler(signal.SIGTERM, None)   # let go: no KeyboardInterrupt
+    finally:
+        interrupts.reset()
+    with pytest.raises(KeyboardInterrupt):
+        interrupts._handler(signal.SIGTERM, None)
+    interrupts.received = None
+    for k in range(3):   # the real thing: SIGTERM as soon as the summary line is out (4 of 8 tracebacks before)
+        p = laughlab("input.duration_s=5", f"hydra.run.dir={tmp_path / str(k)}", *NO_PLOTS, start_new_session=True)
+        assert p.stdout.readline().startswith("laughlab: 5.0 s of synthetic input")
+        os.killpg(p.pid, signal.SIGTERM)
+        _, err = p.communicate(timeout=60)
+        assert p.returncode == 0 and err == "", err

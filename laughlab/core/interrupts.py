@@ -22,8 +22,28 @@ _defer = 0
 _pending = False
 
 
+#: the command's work is done (:func:`finish`); :func:`reset` when a command starts
+finished = False
+
+
+_ignored = False
+
+
+def reset() -> None:
+    """A new command (in the same process: the tests) handles stop signals again."""
+    global finished, _ignored
+    finished = False
+    if _ignored:
+        for sig in STOP_SIGNALS:
+            if signal.getsignal(sig) == signal.SIG_IGN:
+                signal.signal(sig, _handler)
+        _ignored = False
+
+
 def _handler(signum, frame):
     global received, _pending
+    if finished:
+        return
     received = received or signum
     if _defer:
         _pending = True
@@ -45,6 +65,23 @@ def deferred():
         if not _defer and _pending:
             _pending = False
             raise KeyboardInterrupt
+
+
+def finish(whole_process: bool = True) -> None:
+    """The command's work is done and said (its summary line is out): a stop signal from now on has nothing
+    to stop, and is let go (its KeyboardInterrupt, during the interpreter's shutdown, printed a traceback
+    after the summary)."""
+    global finished, _ignored
+    finished = True
+    if not whole_process:   # a command run inside another program (the tests): its handlers stay as they are
+        return
+    try:   # and ignored outright: Python puts the default handlers back while it shuts down (exit by SIGTERM)
+        for sig in STOP_SIGNALS:
+            if signal.getsignal(sig) is _handler:
+                signal.signal(sig, signal.SIG_IGN)
+                _ignored = True
+    except ValueError:   # not the main thread
+        pass
 
 
 def install() -> None:

@@ -262,3 +262,18 @@ def _write_marker(path: Path, doc: dict) -> None:
     tmp = path / f".{MARKER}.part"
     tmp.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
     os.replace(tmp, path / MARKER)
+
+
+def sweep_state(argv: list[str]) -> tuple[Path, bytes, dict] | None:
+    """A sweep into a folder given on the command line that already holds one: its ``multirun.yaml`` and
+    its jobs' markers (a job that runs rewrites its marker)."""
+    given = next((a.split("=", 1)[1] for a in argv if a.startswith("hydra.sweep.dir=")), None)
+    if not given:
+        return None
+    root = Path(given).expanduser()
+    try:
+        text = (root / "multirun.yaml").read_bytes()
+        markers = {p.parent.name: p.read_bytes() for p in sorted(root.glob(f"*/{MARKER}"))}
+    except OSError:
+        return None
+    return root / "multirun.yaml", text, markers
