@@ -72,9 +72,9 @@ def finish(whole_process: bool = True) -> None:
     to stop, and is let go (its KeyboardInterrupt, during the interpreter's shutdown, printed a traceback
     after the summary)."""
     global finished, _ignored
-    finished = True
-    if not whole_process:   # a command run inside another program (the tests): its handlers stay as they are
+    if not whole_process:   # a command run inside another program (the tests): its handling stays as it is
         return
+    finished = True
     try:   # and ignored outright: Python puts the default handlers back while it shuts down (exit by SIGTERM)
         for sig in STOP_SIGNALS:
             if signal.getsignal(sig) is _handler:
