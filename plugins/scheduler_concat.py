@@ -13,8 +13,9 @@ extractor).  When it is None the scheduler derives a coarse label from the
 motion control signal: ``silence`` if ``control['mcs'] < mcs_silence``, else
 ``vowel`` (0 when there is no ``mcs``).  While a detector holds full-body clips
 back (``clip_gate`` below 0.5, ``detector=yamnet`` before the model hears
-laughter) every frame is ``silence``, whatever the extractor says: talk is not
-concatenated into laughter.  A new pseudo-phoneme starts whenever
+laughter) every frame is ``held``, whatever the extractor says: the idle pieces
+of the ``silence`` class play (``laughlab.concat.segments.HELD``), so talk is
+not concatenated into laughter, nor answered by a laugh clip's pause.  A new pseudo-phoneme starts whenever
 the label differs from the previous frame's.
 
 Silence is a pseudo-phoneme too.  Ding et al.'s input is the whole pseudo-phoneme
@@ -85,7 +86,7 @@ from laughlab.core.errors import LaughlabError
 from laughlab.core.frame import ClipEvent
 from laughlab.core.plugins import check_range
 from laughlab.detector.model import clip_allowed, clip_drive
-from laughlab.concat.segments import PSEUDO_PHONEMES, segment_db
+from laughlab.concat.segments import HELD, PSEUDO_PHONEMES, segment_db
 
 ENERGY_SCALE = 40.0
 """Scale of the ``energy`` channel: MCS 1 reads as the energy of rofl, the largest clip energy."""
@@ -94,6 +95,9 @@ ENERGY_TAU_S = 0.5
 """Time constant of the one-pole low-pass smoothing the ``energy`` channel (s)."""
 
 MODES = ("greedy", "optimal")
+
+LABELS = (*PSEUDO_PHONEMES, HELD)
+"""What a frame may be: a pseudo-phoneme, or ``held`` while a detector holds clips back."""
 
 
 def _drive(frame) -> float:
@@ -171,8 +175,8 @@ class ConcatScheduler(Scheduler):
 
     def reset(self) -> None:
         db = self.db
-        self._mean = {c: db.mean_duration(c) for c in PSEUDO_PHONEMES}  # running mean duration per class
-        self._count = dict.fromkeys(PSEUDO_PHONEMES, 1)                   # the DB mean counts as one
+        self._mean = {c: db.mean_duration(c) for c in LABELS}   # running mean duration per class
+        self._count = dict.fromkeys(LABELS, 1)                     # the DB mean counts as one
         self.label: str | None = None
         self._run_start = 0          # first frame of the current pseudo-phoneme
         self.segment: int | None = None
@@ -193,11 +197,12 @@ class ConcatScheduler(Scheduler):
         return self.params.mode == "optimal"
 
     def label_of(self, frame) -> str:
-        """The frame's pseudo-phoneme: ``silence`` while a detector holds full-body clips back
-        (``clip_allowed`` false: ``detector=yamnet`` has not yet heard laughter; departure from Ding et al.,
-        whose input is always laughter), else ``frame.label``, else derived from MCS."""
+        """The frame's pseudo-phoneme: ``held`` while a detector holds full-body clips back (``clip_allowed``
+        false: ``detector=yamnet`` has not yet heard laughter; the idle pieces of the ``silence`` class,
+        ``laughlab.concat.segments.HELD``; departure from Ding et al., whose input is always laughter), else
+        ``frame.label``, else derived from MCS."""
         if not clip_allowed(frame.control):
-            return "silence"
+            return HELD
         if frame.label is not None:
             return frame.label
         return "silence" if _drive(frame) < self.params.mcs_silence else "vowel"
@@ -217,7 +222,7 @@ class ConcatScheduler(Scheduler):
             minimum cost.
         """
         labels = list(labels)
-        bad = [x for x in labels if x not in PSEUDO_PHONEMES]
+        bad = [x for x in labels if x not in LABELS]
         if bad:
             raise LaughlabError(f"cannot plan label {bad[0]!r}; choose from: {', '.join(PSEUDO_PHONEMES)}")
         dt = self.ctx.dt

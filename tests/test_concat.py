@@ -341,10 +341,16 @@ def test_labels_from_mcs_when_the_extractor_gives_none(lib):
     assert labels == ["silence", "silence", "vowel", "vowel"]
 
 
-def test_a_closed_clip_gate_plays_silence_whatever_the_extractor_says(lib, db):
+def test_a_closed_clip_gate_plays_idle_pieces_whatever_the_extractor_says(lib, db):
     """Under a detector that holds clips back (clip_gate < 0.5: detector=yamnet before the model hears
-    laughter), talk's pseudo-phonemes play ``silence`` segments, greedy and optimal alike; with the gate
-    open the labels pass as before.  Before, talk under the default detector started laugh segments."""
+    laughter), talk's pseudo-phonemes play ``held``: the ``silence`` segments of clips without laughing energy,
+    greedy and optimal alike; with the gate open the labels pass as before.  Before, talk under the default
+    detector started laugh segments, and then the ``silence`` class's pause of point1 (its arm raised)."""
+    from laughlab.concat.segments import HELD
+
+    held = db.candidates(HELD)
+    assert held.size and set(held) <= set(db.candidates("silence")) and (db.energies[held] == 0).all()
+    assert {db[i].clip for i in db.candidates("silence")} - {db[i].clip for i in held}   # laugh clips' pauses left out
     gate = [0.0] * 40 + [1.0] * 40 + [0.49] * 20
     labels = ["a"] * 20 + ["e"] * 20 + ["a"] * 20 + ["ic"] * 20 + ["cackle"] * 20
 
@@ -354,18 +360,18 @@ def test_a_closed_clip_gate_plays_silence_whatever_the_extractor_says(lib, db):
 
     s = make(lib)
     got = [s.label_of(f) for f in frames()]
-    assert got == ["silence"] * 40 + ["a"] * 20 + ["ic"] * 20 + ["silence"] * 20
+    assert got == [HELD] * 40 + ["a"] * 20 + ["ic"] * 20 + [HELD] * 20
     for f in frames():
         s.step(f)
         for e in f.events:
-            if e.kind == "start":   # every segment started is of the frame's gated class
+            if e.kind == "start":   # every segment started is of the frame's class
                 idx = [i for i in db.candidates(got[f.index]) if db[i].clip == e.clip and db[i].start_s == e.offset_s]
                 assert idx, (f.index, e.clip)
     o = make(lib, mode="optimal")
     o.plan([o.label_of(f) for f in frames()])
     for f in frames():
         o.step(f)   # the plan is of the gated labels: no 'plan has' refusal
-    assert o.planned.indices[0] in db.candidates("silence")
+    assert o.planned.indices[0] in held
 
 
 def test_energy_channel_is_smoothed_mcs_times_40(lib):

@@ -114,6 +114,12 @@ GROUPS: dict[str, tuple[str, ...]] = {
 """Motion groups and their classes, each from the least to the most energetic."""
 
 GROUP_OF: dict[str, str] = {c: g for g, cs in GROUPS.items() for c in cs}
+
+HELD = "held"
+"""Not a pseudo-phoneme: what the ``concat`` scheduler plays while a detector holds full-body clips back
+(``detector=yamnet`` before the model hears laughter).  Its candidates are the ``silence`` segments of clips
+with no laughing energy (``idle``): the ``silence`` class also holds pauses cut from laugh clips (``point1``'s
+raised arm), which would answer talk with a laugh's gesture."""
 """Pseudo-phoneme class -> its motion group."""
 
 GROUP_SCALE: tuple[str, ...] = ("silence", "inbreath", "grunt", "vowel", "sharp", "cackle")
@@ -265,7 +271,9 @@ class SegmentDB:
         labels = np.array([s.label for s in self.segments])
         self._members = {c: np.flatnonzero(labels == c) for c in PSEUDO_PHONEMES}
         self._candidates = {c: self._fallback(c) for c in PSEUDO_PHONEMES}
-        self._mean = {c: float(self.durations[self._candidates[c]].mean()) for c in PSEUDO_PHONEMES}
+        still = self._candidates["silence"][self.energies[self._candidates["silence"]] == 0]
+        self._candidates[HELD] = still if still.size else self._candidates["silence"]
+        self._mean = {c: float(self.durations[self._candidates[c]].mean()) for c in (*PSEUDO_PHONEMES, HELD)}
 
     def _fallback(self, label: str) -> np.ndarray:
         own = self._members[label]
@@ -300,7 +308,7 @@ class SegmentDB:
 
     @staticmethod
     def _check(label: str) -> str:
-        if label not in GROUP_OF:
+        if label not in GROUP_OF and label != HELD:
             raise KeyError(f"unknown pseudo-phoneme {label!r}; choose from: {', '.join(PSEUDO_PHONEMES)}")
         return label
 
