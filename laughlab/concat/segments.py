@@ -114,13 +114,13 @@ GROUPS: dict[str, tuple[str, ...]] = {
 """Motion groups and their classes, each from the least to the most energetic."""
 
 GROUP_OF: dict[str, str] = {c: g for g, cs in GROUPS.items() for c in cs}
+"""Pseudo-phoneme class -> its motion group."""
 
 HELD = "held"
 """Not a pseudo-phoneme: what the ``concat`` scheduler plays while a detector holds full-body clips back
 (``detector=yamnet`` before the model hears laughter).  Its candidates are the ``silence`` segments of clips
 with no laughing energy (``idle``): the ``silence`` class also holds pauses cut from laugh clips (``point1``'s
 raised arm), which would answer talk with a laugh's gesture."""
-"""Pseudo-phoneme class -> its motion group."""
 
 GROUP_SCALE: tuple[str, ...] = ("silence", "inbreath", "grunt", "vowel", "sharp", "cackle")
 """Groups from still to violent: an empty group falls back to its nearest non-empty neighbour here."""
