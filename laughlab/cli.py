@@ -184,12 +184,7 @@ def task(cfg) -> dict:
             _remove_new_run_dir(out_dir)
         fail(str(exc))
     except (KeyboardInterrupt, Exception) as exc:
-        try:
-            what, code = _fault(exc, out_dir)
-        except BaseException:   # a bug: its traceback goes on, but the folder is left as a failed run leaves it
-            if _CLAIM is not None and not cfg.get("harness"):
-                _remove_new_run_dir(out_dir)
-            raise
+        what, code = _fault(exc, out_dir, cfg)
         fail(_stopped(cfg, out_dir, what), code=code)
     finally:
         if _CLAIM is not None:
@@ -210,14 +205,17 @@ def _in_sweep() -> bool:
     return HydraConfig.get().mode == RunMode.MULTIRUN
 
 
-def _fault(exc: BaseException, where: Path | str) -> tuple[str, int]:
+def _fault(exc: BaseException, where: Path | str, cfg) -> tuple[str, int]:
     """What a run stopped by ``exc`` says, and its exit status: an interrupt (or anything after one) 130, a
     file-system fault (a full disk, a file size limit, a folder that went away) 2.  Anything else is a bug,
-    re-raised: its traceback is what a report needs."""
+    re-raised: its traceback is what a report needs, but a single run's folder is first left as a failed run
+    leaves it (an earlier run it was replacing put back)."""
     if interrupts.interrupted(exc):
         return "interrupted", 130
     if isinstance(exc, OSError):
         return os_error_line(exc, where), 2
+    if _CLAIM is not None and not cfg.get("harness"):
+        _remove_new_run_dir(Path(where))
     raise exc
 
 
@@ -451,12 +449,7 @@ def _main(argv: list[str]) -> None:
         try:
             run_composed(cfg)
         except (KeyboardInterrupt, Exception) as exc:  # outside the task: Hydra writing .hydra/, say
-            try:
-                what, code = _fault(exc, cfg.hydra.run.dir)
-            except BaseException:   # a bug (traceback follows): the folder as a failed run leaves it
-                if _CLAIM is not None and not cfg.get("harness"):
-                    _remove_new_run_dir(Path(cfg.hydra.run.dir))
-                raise
+            what, code = _fault(exc, cfg.hydra.run.dir, cfg)
             if _CLAIM is not None:  # the task had not finished: clean up as it would have
                 what = _stopped(cfg, Path(cfg.hydra.run.dir), what)
                 _CLAIM.release()
