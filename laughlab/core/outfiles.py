@@ -7,7 +7,16 @@ removes the temporary files.
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
+
+
+def remove(p: Path) -> None:
+    """Remove a file, a link (not what it points to) or a folder with its contents, if it is there."""
+    if p.is_dir() and not p.is_symlink():
+        shutil.rmtree(p)
+    else:
+        p.unlink(missing_ok=True)
 
 
 class Staging:

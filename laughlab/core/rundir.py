@@ -26,10 +26,10 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, shown_names
+from laughlab.core.outfiles import remove as _remove
 
 LOCK = ".laughlab.lock"
 MARKER = ".laughlab-run.json"
@@ -150,8 +150,7 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         if marker is not None and not complete and (not overwrite or aside):
             # an interrupted run: the same command may take it up again (an experiment resumes)
             user = set(marker.get("user_files", entries - {MARKER}))
-            _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user),
-                                 "hydra": _hydra_files(path) if ".hydra" in ours else {}})
+            _mark_running(path, user, ours)
             return Claim(path, fd, created, user, resumed=True, lock_made=lock_made)
         # files no run recorded writing (the user's, or a marker-less 0.1 run's: they cannot be told apart) named
         # as a run's outputs: a run would replace them, so they refuse it, whether or not overwrite=true
@@ -174,12 +173,12 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
             for name in sorted(earlier & entries):
                 os.replace(path / name, aside / name)
             os.replace(path / MARKER, aside / MARKER)
-        for name in sorted(earlier & entries):
-            _remove(path / name)
-        (path / MARKER).unlink(missing_ok=True)
+        else:
+            for name in sorted(earlier & entries):
+                _remove(path / name)
+            (path / MARKER).unlink(missing_ok=True)
         user = entries - earlier - {MARKER}
-        _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user),
-                             "hydra": _hydra_files(path) if ".hydra" in ours else {}})
+        _mark_running(path, user, ours)
     except BaseException:
         os.close(fd)
         if lock_made and _read_marker(path) is None:   # refused: leave the user's folder as it was
@@ -193,11 +192,11 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
     return Claim(path, fd, created, user, lock_made=lock_made)
 
 
-def _remove(p: Path) -> None:
-    if p.is_dir() and not p.is_symlink():
-        shutil.rmtree(p)
-    else:
-        p.unlink(missing_ok=True)
+def _mark_running(path: Path, user: set[str], ours: frozenset) -> None:
+    """The marker of a run that has begun: not complete, the user's files, and a sweep job's ``.hydra`` (which
+    Hydra wrote before the claim; kept so that a job refused by this one can put it back)."""
+    _write_marker(path, {"pid": os.getpid(), "complete": False, "files": [], "user_files": sorted(user),
+                         "hydra": _hydra_files(path) if ".hydra" in ours else {}})
 
 
 def _hydra_files(path: Path) -> dict:

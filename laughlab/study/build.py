@@ -52,8 +52,9 @@ def check_out(out: Path, overwrite: bool) -> None:
     for name in held:
         f = out / name
         try:
-            sqlite = f.is_file() and f.open("rb").read(16) == b"SQLite format 3\x00"
-        except OSError:
+            with open(f, "rb") as fh:
+                sqlite = fh.read(16) == b"SQLite format 3\x00"
+        except OSError:   # a folder, or unreadable
             sqlite = False
         if sqlite and participants_kind(f) != "simulated":
             raise LaughlabError(f"{out} holds responses ({name}); build the study into another folder")
@@ -158,13 +159,11 @@ def build(run_dir, out=None, questions: str | None = None, overwrite: bool = Fal
     if not out.exists():
         tmp.rename(out)
         return out
+    from laughlab.core.outfiles import remove
+
     for name in OWN:   # an earlier study: its own entries only; the user's files, reports, databases stay
-        old = out / name
-        if old.is_dir() and not old.is_symlink():
-            shutil.rmtree(old)
-        else:
-            old.unlink(missing_ok=True)
+        remove(out / name)
         if (tmp / name).exists():
-            (tmp / name).rename(old)
+            (tmp / name).rename(out / name)
     shutil.rmtree(tmp, ignore_errors=True)
     return out
