@@ -68,3 +68,8 @@ def finite_number(text: str) -> float:
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"must be a finite number (got {text})")
     return value
+
+
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's message (a library's reason), or its type's name if it has none."""
+    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__

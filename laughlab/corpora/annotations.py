@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, first_line
 
 LABELS = ("laugh", "call", "inhale", "speech", "other")
 #: tolerance of the checks (s): labels are placed by hand to about 20 ms
@@ -101,8 +101,7 @@ def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) 
     except FileNotFoundError:
         raise LaughlabError(f"annotation not found: {path}") from None
     except Exception as exc:  # praatio raises many kinds on a malformed file
-        raise LaughlabError(f"bad TextGrid {path}: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") \
-            from None
+        raise LaughlabError(f"bad TextGrid {path}: {first_line(exc)}") from None
     if "bouts" not in tg.tierNames:
         raise LaughlabError(f"bad TextGrid {path}: it has no tier 'bouts' (tiers: {', '.join(tg.tierNames)})")
     labels = []

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, first_line
 
 AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif")
 
@@ -72,7 +72,7 @@ def check_audio(f: Path) -> float:
                 fh.seek(max(0, info.frames - 4096))
                 fh.read(4096, dtype="float32")
     except Exception as exc:  # libsndfile's errors carry the reason
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        reason = first_line(exc)
         raise LaughlabError(f"cannot read audio: {reason}") from None
     if info.frames <= 0:
         raise LaughlabError("no audio samples")

@@ -7,7 +7,7 @@ from typing import Iterable, Iterator
 
 import numpy as np
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, first_line
 
 #: sample rates the ``file`` source accepts (Hz)
 MIN_RATE, MAX_RATE = 8000, 192000
@@ -78,7 +78,7 @@ def probe_file(path: str | Path):
     try:
         info = sf.info(str(p))
     except Exception as exc:
-        reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        reason = first_line(exc)
         raise LaughlabError(f"cannot read audio from {path}: {reason}") from None
     if info.frames <= 0:
         raise LaughlabError(f"input file has no audio samples: {path}")
@@ -140,7 +140,7 @@ def read_blocks(path: str | Path, block_s: float = 1.0) -> Iterator[np.ndarray]:
             try:
                 data = f.read(n, dtype="float32", always_2d=True)
             except (sf.LibsndfileError, RuntimeError) as exc:   # e.g. a FLAC cut short: 'decoder lost sync'
-                reason = (str(exc).splitlines()[0] if str(exc) else type(exc).__name__).removeprefix("Error : ")
+                reason = first_line(exc).removeprefix("Error : ")
                 raise LaughlabError(f"cannot decode {path} after {done / f.samplerate:.1f} s: {reason} (the file is "
                                     "damaged or cut short)") from None
             if len(data) == 0:

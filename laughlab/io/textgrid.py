@@ -48,7 +48,7 @@ import re
 from pathlib import Path
 from typing import Iterable, Sequence
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, first_line
 
 __all__ = ["PHONEMES", "ALIASES", "normalize_label", "read_textgrid", "write_textgrid", "labels_to_intervals"]
 
@@ -257,7 +257,7 @@ def read_textgrid(path: str | os.PathLike, tier: str | None = None) -> list[tupl
     try:
         parsed = textgrid_io.parseTextgridStr(text, includeEmptyIntervals=True)
     except Exception as exc:  # praatio raises many kinds; any of them means a file it cannot read
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        msg = first_line(exc)
         raise LaughlabError(f"bad TextGrid {where}: praatio cannot read it ({msg})") from None
 
     tiers = parsed.get("tiers", [])
