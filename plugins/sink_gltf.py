@@ -55,6 +55,7 @@ class GltfSink(Sink):
         self.weights: list = []
         self.arkit: list = []
         self.breath: list = []
+        self.audio_s = None   # seconds of audio read by the last chunk: the input's own length at the end
 
     filename = "character.glb"
     files = (filename,)
@@ -68,6 +69,7 @@ class GltfSink(Sink):
 
         self.times.append(np.asarray(chunk.times, dtype=np.float64))
         self.poses.append(np.asarray(chunk.poses, dtype=np.float64))
+        self.audio_s = getattr(chunk, "audio_s", None)
         if self._drives_avatar():
             arkit, breath = face_and_breath(chunk.channels)
             self.arkit.append(arkit)
@@ -82,6 +84,10 @@ class GltfSink(Sink):
         path.write_bytes(self.data(sum(len(t) for t in self.times)))
         return self.staging.commit()
 
+    def audio_duration_s(self, n: int) -> float:
+        """The input's length (s): what the last chunk read, or the ``n`` frames' span when unknown."""
+        return float(self.audio_s) if self.audio_s is not None else n / self.run.fps
+
     def data(self, n: int) -> bytes:
         """The file's bytes for the ``n`` frames recorded."""
         if self.params.character:
@@ -91,12 +97,12 @@ class GltfSink(Sink):
 
             return baked_glb(load_avatar(self.params.character), self.run.skeleton, np.concatenate(self.times),
                              np.concatenate(self.poses), joined(self.arkit), joined(self.breath),
-                             audio_duration_s=n / self.run.fps, fps=self.run.fps)
+                             audio_duration_s=self.audio_duration_s(n), fps=self.run.fps)
         from laughlab.character.body import build
         from laughlab.io.gltf import character_glb
 
         return character_glb(build(self.run.skeleton), np.concatenate(self.times), np.concatenate(self.poses),
-                             np.concatenate(self.weights), audio_duration_s=n / self.run.fps, fps=self.run.fps,
+                             np.concatenate(self.weights), audio_duration_s=self.audio_duration_s(n), fps=self.run.fps,
                              generator="laughlab")
 
     def abort(self) -> None:

@@ -36,7 +36,7 @@ class VrmaSink(GltfSink):
         from laughlab.avatar.vrma import vrma_bytes
 
         return vrma_bytes(self.run.skeleton, np.concatenate(self.times), np.concatenate(self.poses),
-                          joined(self.arkit), joined(self.breath), audio_duration_s=n / self.run.fps,
+                          joined(self.arkit), joined(self.breath), audio_duration_s=self.audio_duration_s(n),
                           fps=self.run.fps)
 
 

@@ -139,3 +139,25 @@ def test_the_khronos_validator_finds_nothing(facs_run, tmp_path):
     issues = validator_issues(facs_run / "character.glb", tmp_path)
     assert (issues["numErrors"], issues["numWarnings"], issues["numInfos"], issues["numHints"]) == (0, 0, 0, 0), \
         issues["messages"]
+
+
+def test_a_file_that_ends_inside_a_frame_gives_its_own_length(tmp_path):
+    """duration_s (metrics.json) and audio_duration_s (character.glb, animation.vrma) are the input's own
+    length, samples / rate, not the frames' span: 1.0071 s at 44.1 kHz (44,413 samples) is 61 frames at
+    60 fps (1.0167 s), the last one short."""
+    import soundfile as sf
+
+    n = 44_413
+    wav = tmp_path / "in.wav"
+    sf.write(wav, 0.1 * np.sin(np.arange(n) * 2 * np.pi * 220 / 44100), 44100, subtype="PCM_16")
+    out = tmp_path / "run"
+    out.mkdir()
+    run(out, "input=file", f"input.path={wav}", "output=[gltf,vrma]", "detector=none")
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["n_frames"] == 61 and m["duration_s"] == pytest.approx(n / 44100, abs=1e-9)
+    for name in ("character.glb", "animation.vrma"):
+        doc, binary = read_glb(out / name)
+        assert doc["scenes"][0]["extras"]["laughlab"]["audio_duration_s"] == pytest.approx(n / 44100, abs=1e-9)
+    doc, binary = read_glb(out / "animation.vrma")   # the VRMA holds the last frame (1.0 s) to the audio's end
+    ends = [doc["accessors"][s["input"]]["max"][0] for s in doc["animations"][0]["samplers"]]
+    assert ends == pytest.approx([n / 44100] * len(ends), abs=1e-6)

@@ -234,6 +234,10 @@ class Chunk:
     capture_ns : ndarray (N,) of int64 or None
         ``time.perf_counter_ns()`` when each frame's audio block reached the
         pipeline (for latency measurements; None when unknown).
+    audio_s : float or None
+        Seconds of audio the run has read up to the end of these frames (samples / sample rate):
+        on the last chunk, the input's own length, which the frames' span (frames / fps) exceeds
+        by up to a frame. None when unknown.
     """
 
     times: np.ndarray
@@ -242,6 +246,7 @@ class Chunk:
     events: list
     labels: list
     capture_ns: np.ndarray | None = None
+    audio_s: float | None = None
 
 
 class Sink(Plugin):

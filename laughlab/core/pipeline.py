@@ -346,7 +346,8 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             _plan_offline(pipe)
         clock = time.perf_counter_ns
         wall0 = time.perf_counter()
-        k = 0
+        k = samples = 0
+        rate = float(ctx.sample_rate)
         # bound methods in locals: the loop runs once per frame
         ext_step, det_step, sch_step, body_step, face_step = ext.step, det.step, sch.step, body.step, face.step
         advance, note, add, record_ns = mixer.advance, mixer.note, rec.add, times_ns.append
@@ -363,8 +364,10 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             add(frame, t0)
             record_ns(clock() - t0)
             k += 1
+            samples += len(block)
             if k % n_chunk == 0:
                 chunk = rec.take(mixer.take())
+                chunk.audio_s = samples / rate
                 for sink in opened:
                     sink.write(chunk)
                 if bar is not None:
@@ -373,6 +376,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             raise LaughlabError("the input holds no audio frames")
         if rec.i:
             chunk = rec.take(mixer.take())
+            chunk.audio_s = samples / rate
             for sink in opened:
                 sink.write(chunk)
             if bar is not None:
@@ -383,7 +387,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             written += sink.close() or []
         if hasattr(src, "save_artifacts"):
             artifacts = src.save_artifacts(out_dir)
-        metrics = _metrics(pipe, np.frombuffer(times_ns, dtype=np.int64), k, wall)
+        metrics = _metrics(pipe, np.frombuffer(times_ns, dtype=np.int64), k, samples / rate, wall)
         for sink in opened:  # a sink's own numbers (e.g. vmc latency), keys prefixed with its name
             more = getattr(sink, "metrics", None)
             if callable(more):
@@ -451,8 +455,11 @@ def _plan_offline(pipe: Pipeline) -> None:
     det.reset()
 
 
-def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, wall_s: float) -> dict:
+def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, audio_s: float, wall_s: float) -> dict:
     """Compute metrics: per-frame compute time (ms) and real-time factor.
+
+    ``duration_s``: the input's own length, ``audio_s`` (samples read / sample rate, s); the frames span
+    ``n_frames / fps``, up to one frame more (the last frame covers the audio's end).
 
     ``frame_ms_p50``/``frame_ms_p99``: percentiles of the time spent in the
     plugins and the mixer per frame (ms), excluding reading audio and writing
@@ -461,7 +468,7 @@ def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, wall_s: float)
     frame loop including reading and writing (higher is faster).
     """
     ms = times_ns / 1e6
-    duration = n_frames / pipe.ctx.fps
+    duration = audio_s
     return {
         "n_frames": int(n_frames),
         "fps": pipe.ctx.fps,

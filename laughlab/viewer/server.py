@@ -78,7 +78,8 @@ def _audio(run_dir: Path) -> Path | None:
     return None
 
 
-def _avatar_glb(run_dir: Path, character: str | Path, skeleton, motion: np.ndarray, ch: dict, fps: float):
+def _avatar_glb(run_dir: Path, character: str | Path, skeleton, motion: np.ndarray, ch: dict, fps: float,
+                duration: float):
     """The avatar and its ``.glb`` with the run baked in (the face from ``face_arkit.csv`` if the run wrote it)."""
     from laughlab.avatar.bake import baked_glb
     from laughlab.avatar.channels import face_and_breath
@@ -93,7 +94,7 @@ def _avatar_glb(run_dir: Path, character: str | Path, skeleton, motion: np.ndarr
         arkit = {k: v for k, v in _channels_file(run_dir / "face_arkit.csv").items() if k != "time"}
     n = len(motion)
     return avatar, baked_glb(avatar, skeleton, np.arange(n) / fps, motion, arkit, breath,
-                             audio_duration_s=n / fps, fps=fps)
+                             audio_duration_s=duration, fps=fps)
 
 
 def _view_of(avatar) -> dict:
@@ -117,15 +118,17 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
 
     skeleton, motion, frame_time = read_bvh(run_dir / "motion.bvh")
     fps = 1.0 / frame_time  # the BVH's frame time is rounded: metrics.json has the run's own fps
-    if (run_dir / "metrics.json").exists():
-        fps = float(json.loads((run_dir / "metrics.json").read_text()).get("fps", fps))
-    ch = _channels(run_dir)
     n = len(motion)
     duration = n / fps
+    if (run_dir / "metrics.json").exists():   # and the input's own length (the frames span up to a frame more)
+        m = json.loads((run_dir / "metrics.json").read_text())
+        fps = float(m.get("fps", fps))
+        duration = float(m.get("duration_s") or n / fps)
+    ch = _channels(run_dir)
     files: dict[str, bytes | Path] = {}
     avatar = None
     if character is not None:
-        avatar, files["character.glb"] = _avatar_glb(run_dir, character, skeleton, motion, ch, fps)
+        avatar, files["character.glb"] = _avatar_glb(run_dir, character, skeleton, motion, ch, fps, duration)
     elif (run_dir / "character.glb").exists():
         files["character.glb"] = run_dir / "character.glb"
     else:
