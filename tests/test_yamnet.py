@@ -622,6 +622,26 @@ def test_detect_replaces_nothing_without_asking_and_leaves_no_stale_segments(tmp
     assert r.returncode == 2 and "is a file, not a folder" in r.stderr
 
 
+def test_detect_overwrite_refuses_files_no_detect_wrote(tmp_path):
+    """``--overwrite`` replaces only files an earlier detect wrote: a hand-made ``NAME.TextGrid`` beside
+    ``NAME.wav`` (the harness' annotation layout) or a ``segments.csv`` of the user's is refused, before any
+    work, and kept byte for byte."""
+    sf.write(tmp_path / "rec.wav", np.zeros(1600), 16000)
+    mine = {"rec.TextGrid": 'File type = "ooTextFile"\nmine\n', "segments.csv": "file,start,end\nmine,0,1\n"}
+    for name, text in mine.items():
+        (tmp_path / name).write_text(text)
+    for name in mine:
+        r = laughlab("detect", str(tmp_path / "rec.wav"), "--out", str(tmp_path), "--overwrite",
+                     "--formats", "textgrid" if name.endswith("TextGrid") else "csv")
+        assert r.returncode == 2 and r.stderr.strip().splitlines() == [r.stderr.strip()]
+        assert name in r.stderr and "no earlier detect wrote" in r.stderr
+    assert {n: (tmp_path / n).read_text() for n in mine} == mine
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.TextGrid", "rec.wav", "segments.csv"]
+    r = laughlab("detect", str(tmp_path / "rec.wav"), "--out", str(tmp_path), "--overwrite", "--formats", "audacity")
+    assert r.returncode == 0, r.stderr   # a name of detect's that is not there: written, the user's files kept
+    assert {n: (tmp_path / n).read_text() for n in mine} == mine and (tmp_path / "rec.txt").read_text() == ""
+
+
 @pytest.mark.parametrize("args,message", [
     (["nothing.wav"], "input not found: nothing.wav"),
     (["--threshold", "2", "x"], "--threshold must be in [0, 1]"),

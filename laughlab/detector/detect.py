@@ -45,10 +45,12 @@ def inputs(paths: list[str]) -> list[Path]:
 MANIFEST = ".laughlab-detect.json"
 
 
-def out_folder_check(out: Path, overwrite: bool) -> list[Path]:
+def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Path]:
     """Refuse an --out that is a file, or a folder already holding files unless ``overwrite``, before any work
-    (nothing the user has is replaced without asking).  With ``overwrite``: the files an earlier ``detect``
-    wrote there (its manifest), to be removed once this run's are written unless this run writes them again."""
+    (nothing the user has is replaced without asking).  With ``overwrite``: refuse when a file this run would
+    write (``planned`` names) is there and an earlier ``detect`` did not write it (its manifest): a hand-made
+    ``NAME.TextGrid`` beside ``NAME.wav`` is the user's.  Returns the files an earlier ``detect`` wrote there,
+    to be removed once this run's are written unless this run writes them again."""
     if out.exists() and not out.is_dir():
         raise LaughlabError(f"--out {out} is a file, not a folder")
     held = sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) if out.is_dir() else []
@@ -57,9 +59,14 @@ def out_folder_check(out: Path, overwrite: bool) -> list[Path]:
                             f"(replaces the segment files an earlier detect wrote there, keeps the rest)")
     try:
         names = json.loads((out / MANIFEST).read_text(encoding="utf-8"))["files"]
+        names = {n for n in names if isinstance(n, str) and Path(n).name == n}
     except (OSError, ValueError, KeyError, TypeError):
-        return []
-    return [out / n for n in names if isinstance(n, str) and Path(n).name == n and n in held]
+        names = set()
+    theirs = sorted(set(planned) & set(held) - names)
+    if theirs:
+        raise LaughlabError(f"{out} holds {shown_names(theirs)}, which no earlier detect wrote there and this run "
+                            f"would replace; choose another --out (--overwrite replaces only detect's own files)")
+    return [out / n for n in sorted(names) if n in held]
 
 
 def read_mono(path: Path):
@@ -85,7 +92,8 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto")
     ap.add_argument("--overwrite", action="store_true",
                     help="write into an --out folder that already holds files: the segment files an earlier detect "
-                         "wrote there are replaced by this run's (or removed), other files kept")
+                         "wrote there are replaced by this run's (or removed), other files kept; a file of yours by "
+                         "a name this run writes (NAME.TextGrid beside NAME.wav) is refused")
     ns = ap.parse_args(argv)
     if not 0.0 <= ns.threshold <= 1.0:
         raise LaughlabError(f"--threshold must be in [0, 1] (got {ns.threshold})")
@@ -104,7 +112,7 @@ def main(argv: list[str]) -> None:
     from laughlab.io.audio import probe_file
 
     files = inputs(ns.paths)
-    stale = out_folder_check(Path(ns.out), ns.overwrite)
+    stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([f.stem for f in files], formats))
     total_s = 0.0
     for f in files:  # every input checked before any work or any file written
         info = probe_file(f)

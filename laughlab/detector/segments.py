@@ -148,21 +148,28 @@ def eaf_text(segs: list[Segment]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: the per-input file of each format (``NAME`` + suffix); ``csv`` is one ``segments.csv`` for every input
+SUFFIXES = {"audacity": ".txt", "textgrid": ".TextGrid", "elan": ".eaf"}
+
+
+def output_names(stems: list[str], formats: tuple[str, ...]) -> list[str]:
+    """The names ``write_outputs`` writes for inputs ``stems`` in ``formats``, in its order."""
+    names = [stem + SUFFIXES[f] for stem in stems for f in ("audacity", "textgrid", "elan") if f in formats]
+    return names + (["segments.csv"] if "csv" in formats else [])
+
+
 def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...]) -> list[Path]:
     """Write ``segments.csv`` and per-input ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf``; each file whole or not
     at all."""
     out_dir.mkdir(parents=True, exist_ok=True)
+    text = {"audacity": lambda segs, dur: audacity_text(segs), "textgrid": textgrid_text,
+            "elan": lambda segs, dur: eaf_text(segs)}
     written = []
     for name, dur, segs in results:
-        if "audacity" in formats:
-            written.append(out_dir / f"{name}.txt")
-            atomic_write(written[-1], audacity_text(segs))
-        if "textgrid" in formats:
-            written.append(out_dir / f"{name}.TextGrid")
-            atomic_write(written[-1], textgrid_text(segs, dur))
-        if "elan" in formats:
-            written.append(out_dir / f"{name}.eaf")
-            atomic_write(written[-1], eaf_text(segs))
+        for f in ("audacity", "textgrid", "elan"):
+            if f in formats:
+                written.append(out_dir / (name + SUFFIXES[f]))
+                atomic_write(written[-1], text[f](segs, dur))
     if "csv" in formats:
         rows = ["file,start,end,probability\n"] + [f"{name},{s.start:.4f},{s.end:.4f},{s.prob:.4f}\n"
                                                    for name, _, segs in results for s in segs]
