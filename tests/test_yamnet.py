@@ -676,3 +676,27 @@ def test_detect_progress_in_a_log_is_plain_lines(tmp_path):
     assert "\r" not in r.stderr and "%|" not in r.stderr
     m = re.match(r"detect: (\d+\.\d)/(\d+\.\d) s of audio, \d+ s$", r.stderr.strip())
     assert m and m[1] == m[2]                                    # it ends at the total (it said 108/107.8 s)
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=60), st.floats(0.05, 1.0), st.floats(0.0, 0.5),
+       st.floats(0.0, 1.0))
+def test_detect_textgrids_read_back_in_praatio_and_laughlab(tmp_path_factory, p, hop, min_length, tail):
+    """Whatever the segments and the duration (here up to a hop past the last window, as a file's end falls),
+    the TextGrid is one Praat reads: praatio and laughlab's own check take it, its laugh intervals are the
+    segments; a segment that ends with the recording leaves no zero-length interval after it (a 10.88743 s file
+    whose last segment ended at 10.8874 was refused by both before)."""
+    from praatio import textgrid
+
+    from laughlab.io.textgrid import _scan_textgrid
+
+    p = np.array(p)
+    times = (np.arange(len(p)) + 0.5) * hop
+    duration = float(times[-1] + tail * hop) + 1.2345e-5
+    segs = S.segments(times, p, hop, 0.5, min_length, duration)
+    path = tmp_path_factory.mktemp("tg") / "x.TextGrid"
+    path.write_text(S.textgrid_text(segs, duration))
+    tg = textgrid.openTextgrid(str(path), includeEmptyIntervals=True)
+    laughs = [(e.start, e.end) for e in tg.getTier("laughter").entries if e.label == "laugh"]
+    assert laughs == [(s.start, s.end) for s in segs]
+    _scan_textgrid(path.read_text(), str(path))   # laughlab's own check, as Praat reads a TextGrid

@@ -97,7 +97,11 @@ def audacity_text(segs: list[Segment]) -> str:
 
 
 def textgrid_text(segs: list[Segment], duration_s: float) -> str:
-    """A Praat TextGrid (long text format), one interval tier ``laughter``: ``laugh`` or empty."""
+    """A Praat TextGrid (long text format), one interval tier ``laughter``: ``laugh`` or empty.
+
+    Times are written to 0.1 ms, as the segments are: the duration too is rounded first, so a segment that
+    ends with the recording leaves no empty interval of zero length after it (Praat and praatio refuse one)."""
+    duration_s = round(float(duration_s), 4)
     iv = []
     t = 0.0
     for s in segs:
