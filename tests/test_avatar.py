@@ -342,11 +342,50 @@ def _no_humanoid(path: Path) -> Path:
     return path
 
 
+def _robot_edited(edit, path: Path) -> Path:
+    """The debug robot (VRM 1.0) with ``edit(doc)`` applied to its document, its buffer as it is."""
+    doc, binary = parse_glb(ROBOT.read_bytes())
+    edit(doc)
+    path.write_bytes(_glb(doc, binary))
+    return path
+
+
+def _glb(doc: dict, binary: bytes) -> bytes:
+    import json
+    import struct
+
+    js = json.dumps(doc).encode()
+    js += b" " * (-len(js) % 4)
+    binary += b"\0" * (-len(binary) % 4)
+    body = struct.pack("<I4s", len(js), b"JSON") + js + struct.pack("<I4s", len(binary), b"BIN\0") + binary
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+
+def _hips(doc: dict) -> dict:
+    return doc["nodes"][doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["hips"]["node"]]
+
+
+def _bone_node(doc: dict, bone: str) -> int:
+    return doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"][bone]["node"]
+
+
 @pytest.mark.parametrize("make, says", [
     (lambda p: p.write_bytes(b"RIFF\0\0\0\0WAVEfmt ") and p, "is not a glTF file"),
     (lambda p: _no_humanoid(p), "has no humanoid: no VRM humanoid bone map and no node named as a Mixamo"),
     (lambda p: _robot_without("leftHand", p), "the VRM humanoid lacks the required bone leftHand"),
-], ids=["not-gltf", "no-humanoid", "vrm-missing-bone"])
+    # damaged files (new-user review, 2026-11-27): each wrote a broken character.glb or ended in a traceback
+    (lambda p: _robot_edited(lambda d: _hips(d).update(scale=[0, 0, 0]), p),
+     "the hips bone (node"),
+    (lambda p: _robot_edited(lambda d: d["bufferViews"][0].update(byteOffset=10 ** 9), p),
+     "bufferView 0 ends at byte 1,000,"),
+    (lambda p: _robot_edited(lambda d: d["meshes"][0]["primitives"][0]["attributes"].update(POSITION=9999), p),
+     "mesh 0 refers to 9999"),
+    (lambda p: _robot_edited(lambda d: d["nodes"][_bone_node(d, "head")].setdefault("children", []).append(
+        _bone_node(d, "hips")), p), "has two parents"),
+    (lambda p: _robot_edited(lambda d: d["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["leftHand"].update(
+        node=_bone_node(d, "hips")), p), "maps hips and leftHand to the same node"),
+], ids=["not-gltf", "no-humanoid", "vrm-missing-bone", "zero-scale", "view-past-buffer", "accessor-out-of-range",
+        "node-cycle", "two-bones-one-node"])
 def test_a_bad_avatar_is_one_line_exit_2_and_nothing_written(tmp_path, make, says):
     path = make(tmp_path / "avatar.glb") or tmp_path / "avatar.glb"
     out = _cli(tmp_path, "output=gltf", "input.duration_s=1", f"character={path}")

@@ -263,11 +263,14 @@ def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> dict
 
 def load_avatar(path: str | Path) -> Avatar:
     """Read and check an avatar file (see the module's docstring)."""
+    from laughlab.avatar.check import check_bones, check_structure
+
     path = Path(path)
     doc, binary = read_gltf(path)
     nodes = doc.get("nodes") or []
     if not nodes:
         raise _fail(path, "has no nodes, so no skeleton")
+    check_structure(path, doc, binary)
     kind, bones = _humanoid(path, doc)
     n = len(nodes)
     parents = np.full(n, -1, int)
@@ -277,8 +280,10 @@ def load_avatar(path: str | Path) -> Avatar:
                 parents[c] = i
     rest_local = np.array([local_matrix(nd) for nd in nodes])
     av = Avatar(path, kind, doc, binary, bones, parents, rest_local, np.zeros_like(rest_local), 1)
-    for i in av.order:
+    order = av.order
+    for i in order:
         av.rest_world[i] = rest_local[i] if parents[i] < 0 else av.rest_world[parents[i]] @ rest_local[i]
+    check_bones(path, bones, av.rest_world, order)
     lx = av.rest_world[bones["leftUpperArm"], 0, 3] - av.rest_world[bones["rightUpperArm"], 0, 3]
     av.facing = 1 if lx > 0 else -1
     if kind == "gltf" and not doc.get("skins") and not any("mesh" in nd for nd in nodes):
