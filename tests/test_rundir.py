@@ -299,6 +299,25 @@ def test_overwrite_puts_the_earlier_run_back_after_a_crash_or_a_kill(tmp_path):
     assert _tree(d) == before and not (d / rundir.PREVIOUS).exists()
 
 
+@pytest.mark.parametrize("background", [True, False], ids=["in-the-helper", "in-process"])
+def test_a_sink_that_fails_as_it_closes_leaves_no_half_written_run(tmp_path, background):
+    """Found by a new-user review: a sink whose close raised (an avatar with a zero scale, in the gltf sink) left
+    channels.csv, events.csv, motion.bvh, plots/ and the lock of the sinks that had closed before it, which the
+    next run refused as files no run recorded writing.  Their files now go too, in the helper process or not."""
+    plug = tmp_path / "plug"
+    plug.mkdir()
+    (plug / "late_bug.py").write_text(
+        "import laughlab\nfrom laughlab.core.bases import Sink\n"
+        f"class LateBug(Sink):\n    name = 'late_bug'\n    background = {background}\n"
+        "    def write(self, chunk):\n        pass\n"
+        "    def close(self):\n        raise ValueError('a bug as it closes')\n"
+        "@laughlab.hookimpl\ndef register_sinks(register):\n    register(LateBug)\n")
+    d = tmp_path / "D"
+    p = run("input.duration_s=2", f"hydra.run.dir={d}", f"plugins_dir={plug}", "+output.late_bug={}")
+    assert p.returncode != 0 and "ValueError: a bug as it closes" in p.stderr
+    assert not d.exists(), sorted(x.name for x in d.iterdir())
+
+
 def test_an_interrupted_overwrite_of_an_experiment_resumes_by_the_same_command(tmp_path):
     d = tmp_path / "D"
     assert run(*SMOKE, "harness.corpus.duration_s=3", f"hydra.run.dir={d}").returncode == 0

@@ -27,6 +27,7 @@ from typing import Any, Callable, Sequence
 
 from laughlab.core import interrupts
 from laughlab.core.interrupts import STOP_SIGNALS
+from laughlab.core.outfiles import unwrite
 
 #: modules the helper imports while the main process starts up
 WARM = ("numpy",)
@@ -212,6 +213,7 @@ def _serve(conn, parent_end) -> None:
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
     _import(WARM)
     sinks: list = []
+    out_dir = None
     failed = False
     try:
         while True:
@@ -229,14 +231,18 @@ def _serve(conn, parent_end) -> None:
                         for s in sinks:
                             s.write(msg[1])
                 elif op == "open":
-                    sinks = msg[1]
+                    sinks, out_dir = msg[1], msg[2].out_dir
                     for s in sinks:
                         s.open(msg[2])
                 elif op == "close":
                     if not failed:
                         written = []
-                        for s in sinks:
-                            written += s.close() or []
+                        try:
+                            for s in sinks:
+                                written += s.close() or []
+                        except BaseException:   # a later sink failed: the earlier ones' files go too
+                            unwrite(written, out_dir)
+                            raise
                         sinks = []  # closed: their files are the run's now
                         conn.send(("ok", written))
                 elif op == "abort":

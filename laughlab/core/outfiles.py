@@ -19,6 +19,18 @@ def remove(p: Path) -> None:
         p.unlink(missing_ok=True)
 
 
+def unwrite(paths, out_dir: Path | None = None) -> None:
+    """Remove files a failed run had already put in place (``paths``), then their folders below ``out_dir``
+    (``plots/``) if that leaves them empty."""
+    for p in paths:
+        Path(p).unlink(missing_ok=True)
+    for folder in {Path(p).parent for p in paths} - {Path(out_dir) if out_dir is not None else None}:
+        try:
+            folder.rmdir()
+        except OSError:   # not empty: another file is there
+            pass
+
+
 class Staging:
     """Temporary output files of one writer, committed or removed together."""
 

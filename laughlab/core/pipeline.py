@@ -24,6 +24,7 @@ from laughlab.core.bases import Chunk, Context, RunInfo
 from laughlab.core.errors import LaughlabError, UnknownParameter
 from laughlab.core.frame import Frame
 from laughlab.core.mixer import Mixer
+from laughlab.core.outfiles import unwrite
 
 #: config group -> plugin kind
 GROUPS = {"input": "source", "extractor": "extractor", "detector": "detector", "scheduler": "scheduler",
@@ -313,7 +314,8 @@ def plugin_config(pipe: Pipeline) -> dict:
 def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
     """Run the pipeline to the end of the input, write every output, return the metrics.
 
-    On any failure the sinks remove what they wrote and the exception propagates.
+    On any failure the sinks remove what they wrote (also the files of those that had closed) and the
+    exception propagates.
     """
     out_dir = Path(out_dir)
     ctx, src = pipe.ctx, pipe.source
@@ -325,6 +327,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
     times_ns = array("q")  # per-frame compute time (ns), 8 bytes a frame
     bar = _progress_bar(pipe)
     artifacts: list[Path] = []
+    written: list[Path] = []
     helper, behind = _helper_for(pipe, n_chunk)
     try:
         if helper is not None:
@@ -382,7 +385,6 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             if bar is not None:
                 bar.update(k % n_chunk)   # the last, partial chunk: the bar ends at every frame
         wall = time.perf_counter() - wall0
-        written = []
         for sink in opened:
             written += sink.close() or []
         if hasattr(src, "save_artifacts"):
@@ -402,8 +404,8 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
                 sink.abort()
             except Exception:  # cleanup must not hide the original error
                 pass
-        for path in artifacts:
-            Path(path).unlink(missing_ok=True)
+        # and the files of the sinks that had closed before the failure, with their folders (plots/) if empty
+        unwrite(list(artifacts) + written, out_dir)
         raise
     finally:
         if helper is not None:
