@@ -192,6 +192,13 @@ def task(cfg) -> dict:
             _CLAIM = None
 
 
+def _read_paths(cfg) -> tuple:
+    """The files a run reads that the user named: the input file, the avatar, the TextGrid, the plugins."""
+    found = [cfg.get("input", {}).get("path"), cfg.get("character"), cfg.get("extractor", {}).get("textgrid"),
+             cfg.get("plugins_dir")]
+    return tuple(str(p) for p in found if isinstance(p, str) and p)
+
+
 def _finished() -> None:
     """A single run is done (marker complete): a stop signal is let go from now on (not in a sweep)."""
     if not _in_sweep():
@@ -443,7 +450,8 @@ def _main(argv: list[str]) -> None:
 
         try:  # one writer per run directory, before anything is written into it
             _CLAIM = rundir.claim(Path(cfg.hydra.run.dir), bool(cfg.get("overwrite", False)),
-                                  writes=pipeline.planned_files(cfg), resumable=bool(cfg.get("harness")))
+                                  writes=pipeline.planned_files(cfg), resumable=bool(cfg.get("harness")),
+                                  reads=_read_paths(cfg))
         except LaughlabError as exc:
             fail(str(exc))
         try:

@@ -318,6 +318,21 @@ def test_a_sink_that_fails_as_it_closes_leaves_no_half_written_run(tmp_path, bac
     assert not d.exists(), sorted(x.name for x in d.iterdir())
 
 
+def test_overwrite_refuses_an_input_that_is_a_file_of_the_run_it_replaces(tmp_path):
+    """Found by a new-user review: input.path=D/input.wav with overwrite=true into D said "input file not found"
+    (the earlier run, its input.wav with it, had been moved aside).  It is refused in one line; D is kept."""
+    d = tmp_path / "D"
+    assert run("input.duration_s=1", f"hydra.run.dir={d}", *NO_PLOTS).returncode == 0
+    before = _tree(d)
+    p = run("input=file", f"input.path={d / 'input.wav'}", f"hydra.run.dir={d}", "overwrite=true", *NO_PLOTS)
+    assert p.returncode == 2 and p.stderr.strip().splitlines() == [p.stderr.strip()], p.stderr
+    assert "is a file of the earlier run" in p.stderr and "copy it out" in p.stderr
+    assert _tree(d) == before
+    (tmp_path / "mine.wav").write_bytes((d / "input.wav").read_bytes())   # a copy outside: replaced as asked
+    assert run("input=file", f"input.path={tmp_path / 'mine.wav'}", f"hydra.run.dir={d}", "overwrite=true",
+               *NO_PLOTS).returncode == 0
+
+
 def test_an_interrupted_overwrite_of_an_experiment_resumes_by_the_same_command(tmp_path):
     d = tmp_path / "D"
     assert run(*SMOKE, "harness.corpus.duration_s=3", f"hydra.run.dir={d}").returncode == 0

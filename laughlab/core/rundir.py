@@ -90,8 +90,11 @@ class Claim:
 
 def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset(),
           done_if: str | None = None, writes: frozenset = frozenset(), where: str = "hydra.run.dir",
-          resumable: bool = False) -> Claim:
+          resumable: bool = False, reads: tuple = ()) -> Claim:
     """Lock ``path`` for this run (creating it) and check it may be written; see the module notes.
+
+    ``reads``: the files the run reads (``input.path``, ``character``...); one that is among the earlier run's
+    files, which ``overwrite=true`` moves aside, refuses the run (it would not find its input).
 
     ``ours``: entries this run has already written (a Hydra sweep job's ``.hydra``).
     ``writes``: the names the run's sinks write (:func:`laughlab.core.pipeline.planned_files`), protected
@@ -164,6 +167,14 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
                 raise LaughlabError(f"{path} already holds a run; choose another {where} or add overwrite=true")
             raise LaughlabError(f"{path} is not empty and not a laughlab run ({shown_names(sorted(entries))}); "
                                 "choose an empty folder or add overwrite=true (files laughlab did not write are kept)")
+        for read in reads:   # e.g. input.path=D/input.wav with overwrite=true into D
+            try:
+                inside = Path(read).expanduser().resolve().relative_to(path.resolve()).parts
+            except (ValueError, OSError):
+                continue
+            if inside and inside[0] in earlier & entries:
+                raise LaughlabError(f"{read} is a file of the earlier run in {path}, which overwrite=true replaces; "
+                                    f"copy it out of that folder first or choose another {where}")
         # overwrite: the earlier run's own files only.  A finished run goes aside (back if this one fails); an
         # interrupted one is partial and goes, and the finished run an earlier overwrite put aside stays there
         aside = path / PREVIOUS
