@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from laughlab.avatar.load import AvatarError
+from laughlab.avatar.errors import AvatarError
 
 #: bytes of one component (glTF 2.0, 3.6.2.2) and components of one element (3.6.2.3)
 COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}

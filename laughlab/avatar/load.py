@@ -17,14 +17,12 @@ from urllib.parse import unquote
 
 import numpy as np
 
+from laughlab.avatar.check import check_bones, check_structure
+from laughlab.avatar.errors import AvatarError
 from laughlab.avatar.names import REQUIRED, bones_by_name
 
 MAX_BYTES = 100 * 1024 * 1024
 """The largest avatar file laughlab loads (100 MB)."""
-
-
-class AvatarError(ValueError):
-    """A file that is not a usable humanoid avatar."""
 
 
 @dataclass
@@ -263,8 +261,6 @@ def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> dict
 
 def load_avatar(path: str | Path) -> Avatar:
     """Read and check an avatar file (see the module's docstring)."""
-    from laughlab.avatar.check import check_bones, check_structure
-
     path = Path(path)
     doc, binary = read_gltf(path)
     nodes = doc.get("nodes") or []
