@@ -491,3 +491,90 @@ def test_one_force_unit_of_the_table_is_force_unit_cmh2o_on_the_wall_it_moves():
     double = Torso(TorsoParams(force_unit_cmh2o=12.0))
     np.testing.assert_allclose(double.gain[:8], 2 * t.gain[:8])                      # every table muscle scales
     np.testing.assert_allclose(double.gain[8:], t.gain[8:])                          # the clavicles' torque does not
+
+
+# --- the torso's offsets and clip changes ------------------------------------------------------------------
+
+from laughlab.core.frame import ClipEvent  # noqa: E402
+from laughlab.core.mixer import Mixer  # noqa: E402
+
+#: the channels the hill body moves: spine, spine1, spine2 x and the clavicles' z (BVH channel columns)
+TRUNK = [3 + 3 * HUMANOID.index(j) + 1 for j in ("spine", "spine1", "spine2")] + \
+        [3 + 3 * HUMANOID.index(j) for j in ("left_clavicle", "right_clavicle")]
+
+
+def offsets_row(offsets):
+    """A frame's joint offsets as a BVH channel vector (zeros elsewhere)."""
+    row = np.zeros(HUMANOID.n_channels)
+    for joint, zxy in offsets.items():
+        c = 3 + 3 * HUMANOID.index(joint)
+        row[c:c + 3] += zxy
+    return row
+
+
+def test_torso_offsets_are_added_once_across_clip_starts_and_stops(lib):
+    """A clip change blends from the pose the clips made, and the hill offsets go on top once: the shown trunk
+    is the offset-free mixer's pose plus this frame's offsets at every frame.  The mixer blended from the shown
+    pose, offsets included, and added them again: the trunk stepped to 2x, then 3x the torso's flexion at a
+    stop followed by a start (spine x 5.9 -> 11.8 -> 17.7 in the reviewer's run)."""
+    dt, blend = 1 / 60, 10 / 24
+    script = {40: [ClipEvent(40 * dt, "start", "lean_front2", 10, 1.0, blend_s=blend)],
+              100: [ClipEvent(100 * dt, "stop", "lean_front2", 10, 1.0, reason="finished")],
+              101: [ClipEvent(101 * dt, "start", "point2", 20, 1.0, blend_s=blend)],
+              110: [ClipEvent(110 * dt, "stop", "point2", 20, 1.0, reason="overruled"),       # mid-blend
+                    ClipEvent(110 * dt, "start", "slap_leg", 30, 1.0, blend_s=blend)]}
+    body = HillBody(HillParams(control="preset", preset="deep_laugh"), Context(fps=60))
+    shown, plain = Mixer(lib), Mixer(lib)
+    got, want, off = [], [], []
+    for k in range(160):
+        f = Frame(k, k * dt, dt, {"mcs": 0.0}, events=list(script.get(k, [])))
+        g = Frame(k, k * dt, dt, events=list(script.get(k, [])))
+        shown.advance(f)
+        plain.advance(g)
+        body.step(f)
+        off.append(offsets_row(f.offsets))
+        got.append(shown.pose(f))
+        want.append(plain.pose(g) + off[-1])
+    got, want, off = np.array(got), np.array(want), np.array(off)
+    assert (off[[100, 101, 110]][:, TRUNK[0]] > 1.5).all()            # the laugh bends the trunk at each change
+    np.testing.assert_allclose(got, want, atol=1e-9)
+    # and so the trunk moves no faster at a change than the clips and the torso do between changes
+    step = np.abs(np.diff(got[:, TRUNK], axis=0))
+    assert step[[39, 99, 100, 109]].max() < 1.0                        # degrees per frame (was 5)
+
+
+def test_pipeline_trunk_is_the_clip_pose_plus_the_hill_offsets(hill_plugins, tmp_path):
+    """The reviewer's run (extractor=pressure body=hill on synthetic laughter; 11 s here: a clip stops and the next
+    starts one frame later while the torso is flexed): the pose is body=shapes' pose (same events, no offsets)
+    plus the hill offsets of each frame, and the trunk does not pop where clips start or stop."""
+    def run(body):
+        c = compose_config(["extractor=pressure", f"body={body}", "input.duration_s=11", "input.save_audio=false"])
+        pipe = pipeline.build(OmegaConf.masked_copy(c, [k for k in c if k != "hydra"]))
+        offsets, poses, events = [], [], []
+        step, take = pipe.body.step, pipe.mixer.take
+
+        def body_step(frame):
+            step(frame)
+            offsets.append(offsets_row(frame.offsets))
+            events.extend((frame.index, ev.kind, ev.clip) for ev in frame.events)
+
+        def mixer_take():
+            out = take()
+            poses.append(out.copy())
+            return out
+
+        pipe.body.step, pipe.mixer.take, pipe.sinks = body_step, mixer_take, []
+        (tmp_path / body).mkdir()
+        pipeline.execute(pipe, tmp_path / body)
+        return np.concatenate(poses), np.array(offsets), events
+
+    hill, off, events = run("hill")
+    shapes, none, same = run("shapes")
+    assert events == same and not none.any()
+    changes = sorted({k for k, _, _ in events})
+    flexed = [k for k in changes if abs(off[k, TRUNK[0]]) > 2.0]
+    assert flexed                                                       # a change while the trunk is bent
+    np.testing.assert_allclose(hill, shapes + off, atol=1e-9)
+    for k in changes:
+        jump = np.abs(hill[k:k + 3, TRUNK] - hill[k - 1:k + 2, TRUNK]).max()
+        assert jump < 1.0, (k, jump)                                    # degrees per frame (was 3 to 6)

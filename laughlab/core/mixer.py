@@ -17,7 +17,9 @@ class Mixer:
     While no clip plays, the looping idle motion plays (thesis 5.5, last
     paragraph).  A start blends linearly over the event's ``blend_s`` from the
     pose shown at that moment to the new clip; a clip that finishes or is
-    stopped hands over to idle with the same blend.  The clip's eye key
+    stopped hands over to idle with the same blend.  The body driver's joint
+    offsets go on top of the clips' (blended) pose, so a blend starts from that
+    pose without them: they are added once, never carried into the blend.  The clip's eye key
     (``frame.clip_eyes``, thesis 3.3.3) blends over the same time from the
     value shown at the switch, so the eyes do not snap when a clip starts, is
     overruled or ends (Blender's blend-in mixes shape keys of the action too).
@@ -146,6 +148,7 @@ class Mixer:
             bf = np.array([recipes[i][2] for i in blend])
             w = np.array([recipes[i][3] for i in blend])[:, None]
             out[blend] = bf + w * (out[blend] - bf)
+        self.last_pose = out[-1].copy()  # a blend starts from the clips' pose: the offsets go on top once, below
         col = self._col
         for i, r in enumerate(recipes):
             if r[4]:
@@ -155,5 +158,4 @@ class Mixer:
                     row[c] += z
                     row[c + 1] += x
                     row[c + 2] += y
-        self.last_pose = out[-1]
         return out
