@@ -220,6 +220,19 @@ def test_an_a_pose_avatar_is_turned_into_the_t_pose_first(avatars, godette_run):
             np.testing.assert_allclose(d, o, atol=1e-9)  # same bone lengths: same positions
 
 
+def test_the_baked_laugh_lasts_as_long_as_the_audio(godette_run):
+    """A key per frame and one at the audio's end (4.0 s; the last frame is at 239/60 s) holding the last frame, on
+    every track of the 'laugh' animation, as in laughlab's own character.glb and the VRMA."""
+    doc, binary = read_glb(godette_run / "character.glb")
+    anim = doc["animations"][0]
+    assert anim["name"] == "laugh" and doc["scenes"][0]["extras"]["laughlab"]["frames"] == 240
+    for s in anim["samplers"]:
+        t = accessor_array(doc, binary, s["input"])
+        v = accessor_array(doc, binary, s["output"]).reshape(len(t), -1)
+        assert len(t) == 241 and t[-2] == pytest.approx(239 / 60) and t[-1] == pytest.approx(4.0)
+        np.testing.assert_array_equal(v[-1], v[-2])
+
+
 def test_expressions_follow_the_face_channels(godette_run):
     """Godette has no ARKit morph: her VRM 0.x presets take the documented table, and each morph the sum of
     the expressions bound to it.  Her 'ah' morph is bound by A (weight 1) and Angry (0.25)."""

@@ -64,7 +64,9 @@ def test_the_glb_holds_the_animation_the_bvh_holds(facs_run):
     assert info["fps"] == 60.0 and info["frames"] == 240 and info["audio_duration_s"] == pytest.approx(4.0)
     anim = doc["animations"][0]
     t = accessor_array(doc, binary, anim["samplers"][0]["input"])
-    assert len(t) == 240 and t[0] == 0.0 and t[-1] == pytest.approx(239 / 60)
+    # a key per frame, and one at the audio's end (4.0 s) holding the last frame (239/60 s): the clip lasts as
+    # long as the audio, as the VRMA's does
+    assert len(t) == 241 and t[0] == 0.0 and t[-2] == pytest.approx(239 / 60) and t[-1] == pytest.approx(4.0)
     # compose the joints' world positions from the glb's node translations and animated rotations
     from laughlab.io.vmc import quat_to_matrix
     from laughlab.io.bvh import read_bvh
@@ -90,9 +92,12 @@ def test_the_glb_holds_the_animation_the_bvh_holds(facs_run):
     # the morph weights are the face's ARKit weights
     arkit = np.genfromtxt(facs_run / "face_arkit.csv", delimiter=",", names=True)
     w = [c for c in anim["channels"] if c["target"]["path"] == "weights"][0]
-    weights = accessor_array(doc, binary, anim["samplers"][w["sampler"]]["output"]).reshape(240, len(MORPHS))
+    weights = accessor_array(doc, binary, anim["samplers"][w["sampler"]]["output"]).reshape(241, len(MORPHS))
     k = MORPHS.index("jawOpen")
-    np.testing.assert_allclose(weights[:, k], arkit["jawOpen"], atol=1e-5)
+    np.testing.assert_allclose(weights[:240, k], arkit["jawOpen"], atol=1e-5)
+    np.testing.assert_array_equal(weights[240], weights[239])
+    for f in range(HUMANOID.n_joints):   # the held key repeats the last frame's rotation
+        np.testing.assert_array_equal(rot[f][240], rot[f][239])
     assert weights[:, k].max() > 0.3  # the synthetic laugh opens the jaw
 
 
@@ -158,6 +163,7 @@ def test_a_file_that_ends_inside_a_frame_gives_its_own_length(tmp_path):
     for name in ("character.glb", "animation.vrma"):
         doc, binary = read_glb(out / name)
         assert doc["scenes"][0]["extras"]["laughlab"]["audio_duration_s"] == pytest.approx(n / 44100, abs=1e-9)
-    doc, binary = read_glb(out / "animation.vrma")   # the VRMA holds the last frame (1.0 s) to the audio's end
-    ends = [doc["accessors"][s["input"]]["max"][0] for s in doc["animations"][0]["samplers"]]
-    assert ends == pytest.approx([n / 44100] * len(ends), abs=1e-6)
+    for name in ("character.glb", "animation.vrma"):   # both hold the last frame (1.0 s) to the audio's end
+        doc, binary = read_glb(out / name)
+        ends = [doc["accessors"][s["input"]]["max"][0] for s in doc["animations"][0]["samplers"]]
+        assert ends == pytest.approx([n / 44100] * len(ends), abs=1e-6)

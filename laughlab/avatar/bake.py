@@ -16,7 +16,7 @@ import numpy as np
 from laughlab.avatar.expressions import breath_on_bones, breathing_pose, morph_weights
 from laughlab.avatar.load import Avatar
 from laughlab.avatar.retarget import retarget
-from laughlab.io.gltf import Buffer, glb_bytes
+from laughlab.io.gltf import Buffer, glb_bytes, hold_to_end
 from laughlab.motion.skeleton import Skeleton
 
 
@@ -30,6 +30,10 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
     if f == 0 or poses.shape != (f, skeleton.n_channels):
         raise ValueError(f"the baked avatar needs F times and (F, {skeleton.n_channels}) poses; got {f}, "
                          f"{poses.shape}")
+    times, poses, held = hold_to_end(times, audio_duration_s, poses, {**{"a." + k: v for k, v in arkit.items()},
+                                                                     **{"b." + k: v for k, v in breath.items()}})
+    arkit = {k[2:]: v for k, v in held.items() if k.startswith("a.")}
+    breath = {k[2:]: v for k, v in held.items() if k.startswith("b.")}
     poses = breathing_pose(poses, breath_on_bones(avatar, breath), skeleton)
     moved = retarget(avatar, poses, skeleton)
     doc = copy.deepcopy(avatar.doc)
@@ -45,7 +49,7 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
     track(avatar.bones["hips"], "translation", moved.hips_translation)
     for k, node in enumerate(moved.nodes):
         track(node, "rotation", moved.rotations[:, k])
-    for node, w in sorted(morph_weights(avatar, arkit, breath, f).items()):
+    for node, w in sorted(morph_weights(avatar, arkit, breath, len(times)).items()):
         track(node, "weights", w.reshape(-1))
     doc.setdefault("animations", []).insert(0, {"name": "laugh", "samplers": samplers, "channels": channels})
     scene = doc.get("scene", 0)

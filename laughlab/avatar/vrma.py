@@ -25,7 +25,7 @@ import numpy as np
 
 from laughlab.avatar.expressions import breathing_pose, expression_weights
 from laughlab.avatar.names import JOINT_TO_VRM
-from laughlab.io.gltf import Buffer, glb_bytes
+from laughlab.io.gltf import Buffer, glb_bytes, hold_to_end
 from laughlab.io.vmc import euler_zxy_to_quat
 from laughlab.motion.skeleton import HIPS_HEIGHT_CM, Skeleton
 
@@ -85,14 +85,3 @@ def vrma_bytes(skeleton: Skeleton, times_s: np.ndarray, poses: np.ndarray, arkit
         "animations": [{"name": "laugh", "samplers": samplers, "channels": channels}],
     }
     return glb_bytes(doc, buf)
-
-
-def hold_to_end(times: np.ndarray, end_s: float, poses: np.ndarray, arkit: Mapping[str, np.ndarray]):
-    """``times`` (float32, s), ``poses`` and the ``arkit`` weights with one more key at ``end_s`` holding the
-    last frame, when ``end_s`` (the audio's duration) lies after the last frame's time; else unchanged."""
-    end = np.float32(end_s)
-    if not (np.isfinite(end) and end > times[-1]):
-        return times, poses, arkit
-    return (np.append(times, end), np.concatenate([poses, poses[-1:]]),
-            {k: np.append(np.asarray(v, dtype=np.float64), np.asarray(v, dtype=np.float64)[-1:])
-             for k, v in arkit.items()})

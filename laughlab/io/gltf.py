@@ -20,6 +20,7 @@ from __future__ import annotations
 import json
 import struct
 from pathlib import Path
+from typing import Mapping
 
 import numpy as np
 
@@ -58,6 +59,21 @@ class Buffer:
         return len(self.accessors) - 1
 
 
+def hold_to_end(times: np.ndarray, end_s: float, poses: np.ndarray, values: Mapping[str, np.ndarray]):
+    """``times`` (float32, s), ``poses`` and each of ``values`` (arrays with a row per frame) with one more key at
+    ``end_s`` holding the last frame, when ``end_s`` (the audio's duration) lies after the last frame's time;
+    else unchanged.  So an animation lasts as long as its audio: a player that loops or ends the two together
+    keeps them in step (the last frame starts up to a frame before the audio ends)."""
+    end = np.float32(end_s)
+    if not (np.isfinite(end) and end > times[-1]):
+        return times, poses, values
+    held = {}
+    for k, v in values.items():
+        v = np.asarray(v, dtype=np.float64)
+        held[k] = np.concatenate([v, v[-1:]])
+    return np.append(times, end), np.concatenate([poses, poses[-1:]]), held
+
+
 def character_glb(character, times_s: np.ndarray, poses: np.ndarray, morph_weights: np.ndarray,
                   audio_duration_s: float, fps: float, generator: str = "laughlab") -> bytes:
     """The ``.glb`` bytes of ``character`` animated by ``poses`` (BVH channel vectors, cm and degrees).
@@ -83,6 +99,9 @@ def character_glb(character, times_s: np.ndarray, poses: np.ndarray, morph_weigh
         raise ValueError(f"glTF export needs F times, (F, {sk.n_channels}) poses and (F, "
                          f"{len(character.morph_names)}) morph weights; got {len(times)}, {poses.shape}, "
                          f"{weights.shape}")
+    frames = len(times)
+    times, poses, held = hold_to_end(times, audio_duration_s, poses, {"weights": weights})
+    weights = held["weights"].astype(np.float32)
     buf = Buffer()
     # the mesh
     attrs = {
@@ -127,7 +146,7 @@ def character_glb(character, times_s: np.ndarray, poses: np.ndarray, morph_weigh
         "asset": {"version": "2.0", "generator": generator},
         "scene": 0,
         "scenes": [{"name": "laugh", "nodes": [0, jn], "extras": {"laughlab": {
-            "fps": float(fps), "frames": int(len(times)), "audio_duration_s": float(audio_duration_s)}}}],
+            "fps": float(fps), "frames": int(frames), "audio_duration_s": float(audio_duration_s)}}}],
         "nodes": nodes,
         "skins": [skin],
         "meshes": [{"name": "character", "weights": [0.0] * len(targets),
