@@ -65,9 +65,10 @@ _FAMILIES = (("avx", {"avx"}), ("avx2", {"avx2", "fma"}), ("avx512f", {"avx512f"
              ("amx", {"amx_int8"}))
 
 
-#: the CPU family the bundled YAMNet heads (laughlab/data/yamnet/head.json, fuse.json) were fitted on (2026-11-25/26;
-#: see golden.json's yamnet_cpu_note): ``yamnet_fit --check`` reproduces their bytes there only
-HEADS_FITTED_ON = "avx+avx2"
+#: the CPU family the bundled YAMNet heads (laughlab/data/yamnet/head.json, fuse.json) were fitted on (refitted
+#: 2026-11-27 with the monotone speech streams, on an AMD EPYC with AVX-512; first fitted 2026-11-25/26 on AVX2):
+#: ``yamnet_fit --check`` reproduces their bytes there only
+HEADS_FITTED_ON = "avx+avx2+avx512f+avx512skx+avx512vbmi+avx512vnni"
 
 
 def cpu_family() -> str:
