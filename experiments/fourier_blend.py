@@ -103,8 +103,8 @@ def figure_3(path: Path, body, s_values, panels) -> Path:
         pos = forward_kinematics(sk, np.array(poses), end_sites=True)
         for p in pos:
             draw_skeleton(ax, sk, p[:sk.n_joints], p[sk.n_joints:], 90.0, 5.0, lw=1.0, alpha=0.35, floor=False)
-        ax.set_xlim(-38, 38)
-        ax.set_ylim(95, 192)
+        ax.set_xlim(-45, 45)
+        ax.set_ylim(-2, 192)   # the whole figure: cropped at the hips, the legs looked cut off
         ax.set_title(f"s = {s:g}: 8 stills over\none {slow} period (side view)", fontsize=8, color=col)
     fig.suptitle("Eq. 3 between calm (s = 0) and intense (s = 1) laughter; s < 0 and s > 1 extrapolate "
                  "(cf. Unuma et al. 1995, Fig. 3)", fontsize=10)
@@ -190,7 +190,9 @@ def render_runs(cfg, out_dir: Path, base_overrides: list[str]) -> dict:
     for cond, ov in conditions.items():
         run_dir = out_dir if len(conditions) == 1 else out_dir / "runs" / cond
         run_dir.mkdir(parents=True, exist_ok=True)
-        run_cfg = _compose([*base_overrides, *ov, *item.overrides, f"seed={seed}", "output=files"])
+        # the synthetic input's audio is kept (the trials drop it): the run folder is one to watch (``view``)
+        keep = ["input.save_audio=true" if o == "input.save_audio=false" else o for o in item.overrides]
+        run_cfg = _compose([*base_overrides, *ov, *keep, f"seed={seed}", "output=files"])
         pipe = pipeline.build(run_cfg)
         out[cond] = pipeline.execute(pipe, run_dir, OmegaConf.to_container(run_cfg, resolve=True))
     return out

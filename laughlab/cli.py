@@ -46,8 +46,13 @@ def _overrides(argv: list[str]) -> list[str]:
 
 
 def _check_overrides(overrides: list[str]) -> None:
-    """Unknown group options fail with the list of valid ones."""
+    """Unknown group options fail with the list of valid ones; so does ``+KEY=...`` for a key no part of
+    laughlab reads (``+fsp=30``, a typo of ``fps``, was added and ignored)."""
     for ov in overrides:
+        key = ov.split("=")[0].lstrip("+")
+        if ov.startswith("+") and not ov.startswith("++") and key.split(".")[0] not in (*GROUP_KINDS, "experiment", "hydra", "harness"):
+            fail(f"unknown setting {key!r}: + adds a key that nothing reads; python -m laughlab --help lists the "
+                 "settings")
         m = re.fullmatch(r"\+?([a-z_]+)=(.*)", ov)
         if not m or m.group(1) not in (*GROUP_KINDS, "experiment"):
             continue

@@ -384,3 +384,28 @@ def test_output_piped_into_a_reader_that_stops_ends_quietly(argv):
     p.stdout.close()   # long before the command has imported what it needs and printed
     err = p.stderr.read()
     assert p.wait(timeout=120) == 0 and err == "", err
+
+
+@pytest.mark.parametrize("args, says", [
+    (["+fsp=30"], "unknown setting 'fsp': + adds a key that nothing reads"),        # a typo of fps, was ignored
+    (["+foo.bar=1"], "unknown setting 'foo.bar'"),
+])
+def test_a_key_added_with_plus_that_nothing_reads_is_refused(tmp_path, args, says):
+    from inprocess import laughlab
+
+    r = laughlab(*args, "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 2 and r.stderr.strip().splitlines() == [r.stderr.strip()] and says in r.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_missing_report_folder_says_not_found_and_a_short_file_its_own_length(tmp_path):
+    from inprocess import laughlab
+
+    r = laughlab("report", str(tmp_path / "nothing"))
+    assert r.returncode == 2 and f"{tmp_path / 'nothing'} not found" in r.stderr
+    import soundfile as sf
+
+    sf.write(tmp_path / "short.wav", 0.1 * np.sin(np.arange(2205) * 0.05), 44100)   # 0.05 s
+    r = laughlab("input=file", f"input.path={tmp_path / 'short.wav'}", f"hydra.run.dir={tmp_path / 'run'}",
+                 "detector=none", "~output.plots")
+    assert r.returncode == 0 and "laughlab: 0.05 s of short.wav" in r.stdout, r.stdout

@@ -21,7 +21,8 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     files = sorted(p.name + ("/" if p.is_dir() else "") for p in Path(out_dir).iterdir()
                    if not p.name.startswith(".") and p.name not in skip)
     took = f"in {duration_text(seconds)} ({speed(cfg, metrics, seconds)})"
-    return f"laughlab: {dur:.1f} s of {what}, {chain}, {took} -> {out_dir}/: {', '.join(files)}"
+    length = f"{dur:.1f}" if dur >= 1.0 or dur == 0.0 else f"{dur:.2g}"   # a 0.05 s file is not "0.1 s"
+    return f"laughlab: {length} s of {what}, {chain}, {took} -> {out_dir}/: {', '.join(files)}"
 
 
 def speed(cfg, metrics: dict, seconds: float) -> str:

@@ -454,6 +454,8 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     earlier report as it was, or no report.
     """
     root = Path(run_dir)
+    if not root.exists():
+        raise LaughlabError(f"{run_dir} not found")
     if (root / "results.json").exists():
         results, write = root / "results.json", experiment_report
     elif root.is_dir() and any(root.rglob("results.json")):
