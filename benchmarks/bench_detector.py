@@ -25,7 +25,11 @@ model never saw (``laughlab.corpora.sources``).
      (median over the bouts where it does) and the share of bouts where it does within 0.3 s (issue 27's
      target: the median laugh crosses within 0.3 s, i.e. a share of at least 0.5);
    - the spoken sentence of issue 10 read by espeak-ng at 44.1 kHz, when
-     ``espeak-ng`` is installed.
+     ``espeak-ng`` is installed;
+   - synthetic voices (text-to-speech, as a virtual agent speaks): ``tts_espeak``, the four sentences of
+     :data:`TTS_SENTENCES` in espeak-ng's ten voices of :data:`ESPEAK_VOICES` (2.7 min), and ``tts_flite``,
+     five sentences in CMU Flite's five voices (1.9 min), each joined into one file at 44.1 kHz, when the
+     program is installed (Debian: ``apt-get install espeak-ng flite``): clip starts and ``rofl`` starts.
 
 3. **offline segments**: ``python -m laughlab detect`` on the same sets, scored by
    ``laughlab.detector.segments.score`` (frame F1 at 10 ms, bouts found, segments outside
@@ -238,6 +242,40 @@ def run_detect(wavs: list[Path], out: Path) -> tuple[dict, float, float]:
     return SEG.read_folder(out), audio_s / wall, audio_s / cpu
 
 
+#: what the synthetic voices say (``tts_espeak``: the first four; ``tts_flite``: all five)
+TTS_SENTENCES = ("Hello there, this is a short sentence to test the detector, and now a joke.",
+                 "That was very funny, thank you all for listening to this test.",
+                 "The quick brown fox jumps over the lazy dog near the river bank.",
+                 "Please remember to save your work before the meeting starts at noon.",
+                 "Our next stop is the central station, please mind the gap between the train and the platform.")
+ESPEAK_VOICES = ("en", "en-us", "de", "es", "fr", "ru", "it", "pt", "nl", "pl")
+FLITE_VOICES = ("kal", "awb", "rms", "slt", "kal16")
+
+
+def tts_sets(work: Path) -> dict[str, Path]:
+    """``tts_espeak`` and ``tts_flite`` (one 44.1 kHz WAV each) for the engines installed; none found: none."""
+    import soundfile as sf
+    from scipy.signal import resample_poly
+
+    jobs = {"tts_espeak": ("espeak-ng", [(v, t) for v in ESPEAK_VOICES for t in TTS_SENTENCES[:4]]),
+            "tts_flite": ("flite", [(v, t) for v in FLITE_VOICES for t in TTS_SENTENCES])}
+    out = {}
+    for name, (prog, items) in jobs.items():
+        if not shutil.which(prog):
+            continue
+        parts = []
+        for i, (voice, text) in enumerate(items):
+            raw = work / f"{name}-{i}.wav"
+            cmd = ([prog, "-v", voice, "-w", str(raw), text] if prog == "espeak-ng"
+                   else [prog, "-voice", voice, "-t", text, "-o", str(raw)])
+            subprocess.run(cmd, check=True, capture_output=True)
+            x, sr = sf.read(raw)
+            parts.append(resample_poly(x, 44100, sr))
+        out[name] = work / f"{name}.wav"
+        sf.write(out[name], np.clip(np.concatenate(parts), -1.0, 1.0), 44100)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--scenes", type=int, default=6)
@@ -278,6 +316,11 @@ def main() -> None:
             out[f"{name}/{det}"]["frame_ms_p50"] = float(np.median([r["frame_ms_p50_run"] for r in rows]))
             if name == "others":
                 out[f"{name}/{det}"]["by_kind"] = by_kind(wavs, [r["human_sounds_starting_a_clip"] > 0 for r in rows])
+    for name, wav in tts_sets(work).items():
+        for det in dets:
+            m = run_pipeline(wav, work / f"{name}-{det}", det)
+            out[f"{name}/{det}"] = {"clip_starts": m["clip_starts"], "rofl_starts": m["rofl_starts"],
+                                    "minutes": m["duration_s"] / 60}
     if shutil.which("espeak-ng"):
         wav = work / "sentence.wav"
         subprocess.run(["espeak-ng", "-w", str(work / "s22.wav"), SENTENCE], check=True)
@@ -307,7 +350,7 @@ def main() -> None:
           f"{'p.5 by 0.3s':>11s}")
     for k, v in out.items():
         fs = v.get("false_starts_per_min", float("nan")) * 10
-        if k.startswith(("speech", "espeak")):
+        if k.startswith(("speech", "espeak", "tts")):
             fs = v["clip_starts"] / max(v["minutes"], 1e-9) * 10
         print(f"{k:22s} {v.get('detector_f1', np.nan):6.3f} {v.get('detector_precision', np.nan):6.3f} "
               f"{v.get('detector_recall', np.nan):6.3f} {v.get('bouts_answered', np.nan):8.3f} "
