@@ -147,20 +147,22 @@ def figure_10(path: Path, res, truth=None) -> dict:
         ax.plot(t, res.target[f0:f1], color="tab:blue", lw=1.8, label="target (from audio)")
         ax.plot(t, res.simulated[f0:f1], color="tab:red", lw=1.8, label="simulated (fitted activations)")
         top = max(float(res.target[f0:f1].max()), float(res.simulated[f0:f1].max()), 1e-6)
-        for i in bout:
+        for k, i in enumerate(bout):
             cf = res.calls[i]
             ax.axvline(cf.call.start / res.fps, color="0.75", lw=0.8, zorder=0)
-            ax.text((cf.call.start + cf.call.end) / 2 / res.fps, 1.04 * top, f"{cf.error:.2f}", ha="center",
-                    fontsize=7, color="0.3")
+            # every other label a row higher: neighbouring short calls' labels would run into each other
+            ax.text((cf.call.start + cf.call.end) / 2 / res.fps, (1.04 + 0.07 * (k % 2)) * top, f"{cf.error:.2f}",
+                    ha="center", fontsize=6.5, color="0.3")
         ax.axvline(res.calls[bout[-1]].call.end / res.fps, color="0.75", lw=0.8, zorder=0)
         errs = [res.calls[i].error for i in bout]
         ax.set_title(f"Fig. 10 style: a {len(bout)}-call bout; per-call normalised RMS error above "
                      f"(mean {np.nanmean(errs):.2f})", fontsize=10)
-        ax.set_ylim(min(float(res.simulated[f0:f1].min()), 0.0) * 1.1, 1.15 * top)
+        ax.set_ylim(min(float(res.simulated[f0:f1].min()), 0.0) * 1.1, 1.2 * top)
     ax.axhline(0, color="k", lw=0.5)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("lung pressure (cm H$_2$O, gauge)")
-    ax.legend(loc="upper right", fontsize=8)
+    # below the axes, not over the error labels along the top
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)

@@ -76,6 +76,17 @@ def test_bold_only_where_the_intervals_are_apart():
     assert _clear_best({**apart, "metrics": {"m": {"higher_is_better": None}}}, "m", ["A", "B"]) is None
 
 
+def test_a_condition_that_played_no_clip_is_not_the_best_at_a_trivial_0():
+    """The smoke report bolded scheduler=none's offset tail of 0 s: it never played a clip."""
+    def doc(tail_b, cut_b):
+        return {"metrics": {"offset_tail_s": {"higher_is_better": False}, "cutoff_rate": {"higher_is_better": False}},
+                "results": {"A": {"offset_tail_s": mean_ci([0.5, 0.7, 0.6, 0.8]), "cutoff_rate": mean_ci([0.0] * 4)},
+                            "B": {"offset_tail_s": mean_ci(tail_b), "cutoff_rate": mean_ci(cut_b)}}}
+    assert _clear_best(doc([0.0] * 4, []), "offset_tail_s", ["A", "B"]) is None       # B played no clip
+    assert _clear_best(doc([0.0] * 4, [0.0] * 4), "offset_tail_s", ["A", "B"]) == "B"  # B played clips
+    assert _clear_best(doc([0.1, 0.2, 0.1, 0.15], []), "offset_tail_s", ["A", "B"]) == "B"  # not the trivial 0
+
+
 def test_corpus_profiles_seeds_and_folder(tmp_path):
     items = build_corpus({"profiles": ["mild", "giggle"], "seeds": 3, "duration_s": 10})
     assert [i.id for i in items] == ["mild-s00", "mild-s01", "mild-s02", "giggle-s00", "giggle-s01", "giggle-s02"]

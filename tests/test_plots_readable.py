@@ -42,6 +42,7 @@ class Saved:
         self.bars = [(cb.ax.get_ylabel(), cb.cmap.name, not cb.ax.yaxis_inverted()) for cb in colorbars(fig)]
         self.titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
         self.xticks = [[t.get_text() for t in ax.get_xticklabels()] for ax in fig.axes if ax.get_visible()]
+        self.ylims = [ax.get_ylim() for ax in fig.axes if ax.get_visible()]
 
 
 @pytest.fixture
@@ -171,6 +172,11 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
         _sweep_point(tmp_path / "sweep" / str(k), [f"scheduler.overrule_c={c}", "scheduler.decrease_per_s=20"],
                      doc, 1.2)
     readme = write_report(tmp_path / "sweep", tmp_path / "rep", "cmd").read_text()
+    # the table's metric columns carry the better direction and the units, as the experiment report's rows
+    units = docs[0]["metrics"]
+    header = next(line for line in readme.splitlines() if line.startswith("| scheduler."))
+    assert all(f"| {m} {'↑' if units[m]['higher_is_better'] else '↓'} ({units[m]['units']}) |" in header
+               for m in KEY_METRICS), header
     (heat,) = [f for f in saved if f.name.startswith("heatmap_")]
     flat = re.findall(r"`(\w+)` \(", readme.split("No figure for")[1].split("\n")[0]) if "No figure for" in readme \
         else []
@@ -178,11 +184,14 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
     assert sorted(t.split(" ")[0] for t in heat.titles if t) == sorted(m for m in KEY_METRICS if m not in flat)
     assert heat.n_colorbars == len(KEY_METRICS) - len(flat) > 0
     assert all(f"`{m}` (" in readme for m in flat) and ("the sweep did not change it" in readme or not flat)
-    # bright (the top of viridis) is better in every heatmap, and every bar's top is its better end
-    for label, cmap, rising in heat.bars:
-        assert (label, cmap, rising) in {("better ↑ (higher is better)", "viridis", True),
-                                         ("better ↑ (lower is better)", "viridis_r", False)}
-    assert {b[0] for b in heat.bars} == {"better ↑ (higher is better)", "better ↑ (lower is better)"}
+    # bright (the top of viridis) is better in every heatmap, and every bar's top is its better end; each bar
+    # names its units above that
+    for (label, cmap, rising), title in zip(heat.bars, [t for t in heat.titles if t]):
+        metric_units, way = label.split("\n")
+        assert metric_units == units[title.split(" ")[0]]["units"]
+        assert (way, cmap, rising) in {("better ↑ (higher is better)", "viridis", True),
+                                       ("better ↑ (lower is better)", "viridis_r", False)}
+    assert {b[0].split("\n")[1] for b in heat.bars} == {"better ↑ (higher is better)", "better ↑ (lower is better)"}
     assert_readable(saved)
 
 
@@ -293,3 +302,44 @@ def test_the_comparison_figure_keeps_long_condition_names_apart(tmp_path, saved,
     comparison_figure(doc, tmp_path / "metrics.png")
     assert_readable(saved)
     assert saved[-1].xticks[0] == names
+
+
+def test_an_all_zero_metric_starts_at_0_and_a_metric_that_does_not_apply_says_n_a(tmp_path, saved):
+    """A new-user review: cutoff_rate (0 under energy, no clip under none) got an empty panel running
+    -0.04..0.04, and the missing bar of none read as a 0."""
+    from laughlab.harness.report import comparison_figure
+
+    metrics = {"cutoff_rate": {"higher_is_better": False, "units": "fraction"},
+               "miss_rate": {"higher_is_better": False, "units": "fraction"}}
+    results = {"energy": {"cutoff_rate": {"n": 4, "mean": 0.0, "ci95": [0.0, 0.0]},
+                          "miss_rate": {"n": 4, "mean": 0.25, "ci95": [0.0, 0.5]}},
+               "none": {"cutoff_rate": {"n": 0, "mean": None, "ci95": [None, None]},
+                        "miss_rate": {"n": 4, "mean": 1.0, "ci95": [1.0, 1.0]}}}
+    doc = {"experiment": "smoke", "n_trials": 8, "conditions": {"energy": [], "none": []},
+           "results": results, "metrics": metrics}
+    comparison_figure(doc, tmp_path / "metrics.png")
+    assert_readable(saved)
+    (fig,) = saved
+    cutoff = fig.titles.index("cutoff_rate ↓")
+    lo, hi = fig.ylims[cutoff]
+    assert lo == 0 and hi >= 1                      # an axis from 0, not matplotlib's -0.04..0.04
+    assert fig.texts.count("n/a") == 1 and fig.texts.count("0") == 1   # none's missing bar, energy's bar at 0
+    assert fig.ylims[fig.titles.index("miss_rate ↓")][0] == 0
+
+
+def test_figure_10_error_labels_stay_apart_and_clear_of_the_legend(tmp_path, saved):
+    """A new-user review: per-call errors of short neighbouring calls ran together ("0.340.09") and the
+    legend covered some."""
+    from types import SimpleNamespace
+
+    from laughlab_experiments.hill_fit import figure_10
+
+    fps, n = 60, 25
+    calls = [SimpleNamespace(call=SimpleNamespace(start=30 + 10 * k, end=37 + 10 * k), error=0.3 - 0.01 * k)
+             for k in range(n)]
+    t = np.arange(30 + 10 * n + 60)
+    target = np.maximum(np.sin(2 * np.pi * t / 10), 0) * 0.1
+    res = SimpleNamespace(calls=calls, fps=fps, target=target, simulated=target * 1.1)
+    figure_10(tmp_path / "fig10_pressure.png", res)
+    assert_readable(saved)
+    assert sum(t.startswith("0.") for t in saved[-1].texts) >= n

@@ -39,6 +39,11 @@ def _arrow(hib) -> str:
     return {True: "↑", False: "↓"}.get(hib, "")
 
 
+def _heading(metric: str, info: dict) -> str:
+    """A metric's name with its better direction, as in the tables' first column: ``miss_rate ↓``."""
+    return f"{metric} {_arrow(info['higher_is_better'])}".rstrip()
+
+
 def conditions_of(doc: dict) -> list[str]:
     """The conditions of a results document in the experiment's order (its config), not alphabetical."""
     have = list(doc["results"])
@@ -89,12 +94,20 @@ def comparison_figure(doc: dict, path: Path) -> Path:
     slot_in = 2.3 / max(len(conds), 1)
     upright = max(len(c) for c in conds) * 0.55 * 7 / 72 > 0.9 * slot_in
     for ax, name in zip(axes.flat, names):
+        drawn = []
         for i, c in enumerate(conds):
             r = doc["results"][c][name]
             m = r["mean"] if r["mean"] is not None else np.nan
             lo, hi = (r["ci95"] if r["ci95"][0] is not None else (m, m))
             ax.bar(i, m, color=colors(i), width=0.7)
             ax.errorbar(i, m, yerr=[[m - lo], [hi - m]], color="k", capsize=3, lw=0.8)
+            # a bar of 0 and no bar (the metric does not apply, e.g. no clip played) look alike: say which
+            if not math.isfinite(m) or m == 0:
+                ax.annotate("n/a" if not math.isfinite(m) else "0", (i, 0), xytext=(0, 2), textcoords="offset points",
+                            ha="center", va="bottom", fontsize=6, color="0.35")
+            drawn += [v for v in (m, lo, hi) if math.isfinite(v)]
+        if drawn and not any(drawn):
+            ax.set_ylim(0, 1)  # all 0: an axis from 0 (matplotlib's default for nothing is -0.04..0.04)
         info = doc["metrics"][name]
         ax.set_title(f"{name} {_arrow(info['higher_is_better'])}", fontsize=7)
         ax.set_xticks(range(len(conds)), conds, fontsize=7)
@@ -135,7 +148,7 @@ def _results_table(doc: dict) -> list[str]:
         info = doc["metrics"][m]
         best = _clear_best(doc, m, conds)
         cells = [f"**{_cell(doc['results'][c][m])}**" if c == best else _cell(doc["results"][c][m]) for c in conds]
-        lines.append(f"| {m} {_arrow(info['higher_is_better'])} | {info['units']} | " + " | ".join(cells) + " |")
+        lines.append(f"| {_heading(m, info)} | {info['units']} | " + " | ".join(cells) + " |")
     return lines
 
 
@@ -152,12 +165,27 @@ def _clear_best(doc: dict, metric: str, conds: list[str]) -> str | None:
     if doc["metrics"][metric]["higher_is_better"] is None:
         return None
     rs = {c: doc["results"][c][metric] for c in conds}
-    have = [c for c, r in rs.items() if r["n"] and r["mean"] is not None and math.isfinite(r["mean"])]
+    have = [c for c, r in rs.items() if r["n"] and r["mean"] is not None and math.isfinite(r["mean"])
+            and not _vacuous(doc, metric, c)]
     if len(have) < 2:
         return None
     sign = 1 if doc["metrics"][metric]["higher_is_better"] else -1
     best = max(have, key=lambda c: sign * rs[c]["mean"])
     return best if all(separated(rs[best], rs[c]) for c in have if c != best) else None
+
+
+def played_no_clip(doc: dict, cond: str) -> bool:
+    """True when no trial of ``cond`` played a clip (e.g. ``scheduler=none``): ``cutoff_rate``, a fraction
+    of the played clips, has no value in any of its trials although other metrics have."""
+    rs = doc["results"][cond]
+    return "cutoff_rate" in rs and not rs["cutoff_rate"]["n"] and any(r["n"] for r in rs.values())
+
+
+def _vacuous(doc: dict, metric: str, cond: str) -> bool:
+    """A lower-is-better value of 0 under a condition that played no clip (an offset tail of no clip): not a
+    best, so :func:`_clear_best` leaves it out."""
+    r = doc["results"][cond][metric]
+    return doc["metrics"][metric]["higher_is_better"] is False and r["mean"] == 0 and played_no_clip(doc, cond)
 
 
 #: means of fewer trials say how many (``(n=4)``): their bootstrap interval is too narrow to be a 95 % one
@@ -182,8 +210,7 @@ def _same_table(doc: dict) -> list[str]:
              "| metric | units | every condition: mean [95% CI] |", "|---|---|---|"]
     for m in same:
         info = doc["metrics"][m]
-        lines.append(f"| {m} {_arrow(info['higher_is_better'])} | {info['units']} | "
-                     f"{_cell(doc['results'][first][m])} |")
+        lines.append(f"| {_heading(m, info)} | {info['units']} | {_cell(doc['results'][first][m])} |")
     return lines
 
 
@@ -337,8 +364,11 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
              f"- sweep points: {len(points)}; swept: {', '.join(varying) or '(nothing)'}",
              f"- each point: {doc0['n_trials']} trials of condition **{cond}** "
              f"(profiles {', '.join(doc0['corpus']['profiles'])})", f"- laughlab commit: `{doc0['git_hash']}`", "",
-             "## Every point", ""]
-    lines.append("| " + " | ".join(varying) + " | " + " | ".join(metrics) + " |")
+             "## Every point", "", "One column per metric: its name, ↑ higher is better or ↓ lower is better, and "
+             "(its units).", ""]
+    info = doc0["metrics"]
+    lines.append("| " + " | ".join(varying) + " | "
+                 + " | ".join(f"{_heading(m, info[m])} ({info[m]['units']})" for m in metrics) + " |")
     lines.append("|" + "---|" * (len(varying) + len(metrics)))
 
     def val(p, m):
@@ -378,10 +408,11 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
     return out / "README.md"
 
 
-def better_label(higher_is_better) -> str:
-    """A colour bar's or value axis' label saying which way is better."""
-    return {True: "better ↑ (higher is better)", False: "better ↑ (lower is better)"}.get(
+def better_label(higher_is_better, units: str = "") -> str:
+    """A colour bar's or value axis' label saying which way is better, under the values' ``units`` if given."""
+    way = {True: "better ↑ (higher is better)", False: "better ↑ (lower is better)"}.get(
         higher_is_better, "neither end is better")
+    return f"{units}\n{way}" if units else way
 
 
 def _panel_grid(n: int, w: float, h: float, cols: int = 3):
@@ -420,7 +451,7 @@ def _heatmaps(points, a, b, metrics, val, path, info) -> None:
         cb = fig.colorbar(im, ax=ax, shrink=0.9)
         if hib is False:
             cb.ax.invert_yaxis()  # the better (lower) end at the top, as on every other bar
-        cb.set_label(better_label(hib), fontsize=6.5)
+        cb.set_label(better_label(hib, info[m]["units"]), fontsize=6.5)
         cb.ax.tick_params(labelsize=6)
     fig.savefig(path)
     plt.close(fig)
