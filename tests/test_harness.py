@@ -358,7 +358,7 @@ def test_an_experiment_says_what_it_does_after_its_trials(tmp_path):
 def test_a_folder_of_two_experiments_sweeps_is_one_line_not_a_traceback(tmp_path):
     """Found by a new-user review: energy_ablation and concat_ablation sweeps in one folder ended in
     "TypeError: '<' not supported between instances of 'float' and 'str'"."""
-    from laughlab.harness.report import _order, sweep_report
+    from laughlab.harness.sweep_report import _order, sweep_report
 
     for name, job in (("energy_ablation", "a/0"), ("concat_ablation", "b/0")):
         (tmp_path / job).mkdir(parents=True)

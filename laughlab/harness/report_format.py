@@ -1,0 +1,45 @@
+"""How reports write numbers and metric names: shared by the experiment report and the sweep report."""
+from __future__ import annotations
+
+import math
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+#: metrics shown first in tables and heatmaps
+KEY_METRICS = ("intensity_r_clip", "intensity_r_kinetic", "onset_latency_median_s", "miss_rate",
+               "silent_start_rate", "offset_tail_s", "cutoff_rate", "repetition_rate", "clip_entropy")
+
+
+def fmt(v, digits=3) -> str:
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "n/a"
+    v = v + 0.0  # -0.0 (an entropy of nothing) shows as 0
+    return f"{v:.{digits}g}" if abs(v) < 1000 else f"{v:.0f}"
+
+
+def arrow(hib) -> str:
+    return {True: "↑", False: "↓"}.get(hib, "")
+
+
+def heading(metric: str, info: dict) -> str:
+    """A metric's name with its better direction, as in the tables' first column: ``miss_rate ↓``."""
+    return f"{metric} {arrow(info['higher_is_better'])}".rstrip()
+
+
+def better_label(higher_is_better, units: str = "") -> str:
+    """A colour bar's or value axis' label saying which way is better, under the values' ``units`` if given."""
+    way = {True: "better ↑ (higher is better)", False: "better ↑ (lower is better)"}.get(
+        higher_is_better, "neither end is better")
+    return f"{units}\n{way}" if units else way
+
+
+def panel_grid(n: int, w: float, h: float, cols: int = 3):
+    cols = max(1, min(cols, n))
+    rows = max(1, math.ceil(n / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(w * cols, h * rows), dpi=130, squeeze=False, layout="constrained")
+    for ax in axes.flat[n:]:
+        ax.set_visible(False)
+    return fig, list(axes.flat[:n])
