@@ -700,3 +700,25 @@ def test_detect_textgrids_read_back_in_praatio_and_laughlab(tmp_path_factory, p,
     laughs = [(e.start, e.end) for e in tg.getTier("laughter").entries if e.label == "laugh"]
     assert laughs == [(s.start, s.end) for s in segs]
     _scan_textgrid(path.read_text(), str(path))   # laughlab's own check, as Praat reads a TextGrid
+
+
+def test_a_detect_stopped_while_writing_leaves_nothing_a_later_overwrite_refuses(tmp_path, monkeypatch):
+    """A Ctrl-C while detect wrote its files left the written ones out of its manifest, and the next
+    --overwrite refused them as the user's: the manifest now lists them before they are written."""
+    for name in ("a", "b"):
+        sf.write(tmp_path / f"{name}.wav", np.zeros(1600), 16000)
+    out = tmp_path / "out"
+    real = S.write_outputs
+
+    def stopped(out_dir, results, formats):
+        real(out_dir, results[:1], formats)   # the first input's files are written, then the user stops it
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(S, "write_outputs", stopped)
+    r = laughlab("detect", str(tmp_path / "a.wav"), str(tmp_path / "b.wav"), "--out", str(out))
+    assert r.returncode != 0 and (out / "a.txt").exists() and not (out / "b.txt").exists()
+    monkeypatch.setattr(S, "write_outputs", real)
+    r = laughlab("detect", str(tmp_path / "a.wav"), str(tmp_path / "b.wav"), "--out", str(out), "--overwrite")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a.TextGrid", "a.txt", "b.TextGrid",
+                                                                          "b.txt", "segments.csv"]

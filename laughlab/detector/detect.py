@@ -142,6 +142,11 @@ def main(argv: list[str]) -> None:
     if bar is not None:
         bar.close()
     out = Path(ns.out)
+    # the manifest first lists every name this run may leave (the earlier run's and this one's): a run stopped
+    # while writing leaves no file that a later --overwrite would take for the user's
+    planned = S.output_names([r[0] for r in results], formats)
+    out.mkdir(parents=True, exist_ok=True)
+    S.atomic_write(out / MANIFEST, json.dumps({"files": sorted({p.name for p in stale} | set(planned))}) + "\n")
     written = S.write_outputs(out, results, formats)
     for f in set(stale) - set(written):   # --overwrite: an earlier detect's files that this one did not write
         f.unlink(missing_ok=True)
