@@ -67,16 +67,20 @@ class SyntheticSource(Source):
         return cut_frames(self._chunks(), self.sample_rate, self.ctx.fps)
 
     def save_artifacts(self, out_dir: Path) -> list[Path]:
-        """Write ``truth.csv`` (bouts and calls) and, if asked, ``input.wav``."""
-        out = [Path(out_dir) / "truth.csv"]
-        self.truth.write_truth(out[0])
-        if self.params.save_audio:
-            wav = Path(out_dir) / "input.wav"
-            with FloatWavWriter(wav, self.sample_rate) as f:
-                for chunk in self._chunks():
-                    f.write(chunk)
-            out.append(wav)
-        return out
+        """Write ``truth.csv`` (bouts and calls) and, if asked, ``input.wav``; each whole or not at all."""
+        from laughlab.core.outfiles import Staging
+
+        staging = Staging()
+        try:
+            self.truth.write_truth(staging.path(Path(out_dir) / "truth.csv"))
+            if self.params.save_audio:
+                with FloatWavWriter(staging.path(Path(out_dir) / "input.wav"), self.sample_rate) as f:
+                    for chunk in self._chunks():
+                        f.write(chunk)
+        except BaseException:
+            staging.abort()
+            raise
+        return staging.commit()
 
     def audio_path(self):
         return None

@@ -438,3 +438,20 @@ def test_a_stop_signal_after_the_summary_line_prints_nothing_more(tmp_path):
         os.killpg(p.pid, signal.SIGTERM)
         _, err = p.communicate(timeout=60)
         assert p.returncode == 0 and err == "", err
+
+
+def test_a_writer_that_aborts_removes_the_folders_it_made_and_only_those(tmp_path):
+    """A sink that failed in its own close left the plots/ folder its staging had made, and the next run took
+    it for a file of the user's (session review): abort removes the folders the writer created, if empty."""
+    from laughlab.core.outfiles import Staging
+
+    (tmp_path / "kept").mkdir()
+    st = Staging()
+    st.path(tmp_path / "plots" / "deep" / "fig.png").write_text("part")
+    st.path(tmp_path / "kept" / "a.csv").write_text("part")
+    st.path(tmp_path / "b.csv").write_text("part")
+    st.abort()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept"] and not list((tmp_path / "kept").iterdir())
+    st = Staging()
+    st.path(tmp_path / "plots" / "fig.png").write_text("done")
+    assert [p.name for p in st.commit()] == ["fig.png"] and (tmp_path / "plots" / "fig.png").read_text() == "done"

@@ -23,7 +23,10 @@ def unwrite(paths, out_dir: Path | None = None) -> None:
     """Remove files a failed run had already put in place (``paths``), then their folders below ``out_dir``
     (``plots/``) if that leaves them empty."""
     for p in paths:
-        Path(p).unlink(missing_ok=True)
+        try:
+            Path(p).unlink(missing_ok=True)
+        except OSError:   # cleanup must not hide the failure it cleans up after
+            pass
     for folder in {Path(p).parent for p in paths} - {Path(out_dir) if out_dir is not None else None}:
         try:
             folder.rmdir()
@@ -36,11 +39,14 @@ class Staging:
 
     def __init__(self) -> None:
         self.pending: dict[Path, Path] = {}
+        self.made: list[Path] = []   # folders this writer created (plots/), removed by abort if left empty
 
     def path(self, final: Path) -> Path:
         """The temporary path to write in place of ``final``."""
         final = Path(final)
+        missing = [d for d in (final.parent, *final.parent.parents) if not d.exists()]
         final.parent.mkdir(parents=True, exist_ok=True)
+        self.made += [d for d in reversed(missing) if d not in self.made]
         tmp = final.with_name(f".{final.name}.part")
         self.pending[final] = tmp
         return tmp
@@ -65,3 +71,9 @@ class Staging:
         for tmp in self.pending.values():
             tmp.unlink(missing_ok=True)
         self.pending.clear()
+        for d in reversed(self.made):   # deepest first; a folder with anything else in it stays
+            try:
+                d.rmdir()
+            except OSError:
+                pass
+        self.made.clear()
