@@ -15,8 +15,8 @@ import time
 from pathlib import Path
 
 from laughlab.core import clock, interrupts
-from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, compose_config,  # noqa: F401
-                                  conf_dir, group_options, register_plugin_configs)
+from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, check_overrides,  # noqa: F401
+                                  compose_config, conf_dir, group_options, register_plugin_configs)
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
@@ -45,25 +45,6 @@ def _overrides(argv: list[str]) -> list[str]:
     return [a for a in argv if not a.startswith("-")]
 
 
-def _check_overrides(overrides: list[str]) -> None:
-    """Unknown group options fail with the list of valid ones; so does ``+KEY=...`` for a key no part of
-    laughlab reads (``+fsp=30``, a typo of ``fps``, was added and ignored)."""
-    for ov in overrides:
-        key = ov.split("=")[0].lstrip("+")
-        if ov.startswith("+") and not ov.startswith("++") and key.split(".")[0] not in (*GROUP_KINDS, "experiment", "hydra", "harness"):
-            fail(f"unknown setting {key!r}: + adds a key that nothing reads; python -m laughlab --help lists the "
-                 "settings")
-        m = re.fullmatch(r"\+?([a-z_]+)=(.*)", ov)
-        if not m or m.group(1) not in (*GROUP_KINDS, "experiment"):
-            continue
-        group, value = m.groups()
-        choices = [v.strip() for v in value.strip("[]").split(",")] if value not in ("null", "") else []
-        options = group_options(group)
-        for choice in choices:
-            if choice not in options:
-                fail(f"unknown {group} {choice!r}; choose one of: {', '.join(options) or '(none)'}")
-
-
 def preflight(argv: list[str]):
     """Check everything a run needs before Hydra writes anything; the composed configuration."""
     from omegaconf import OmegaConf
@@ -76,7 +57,7 @@ def preflight(argv: list[str]):
         if ov.startswith("plugins_dir="):
             plugins.load_plugin_dir(ov.split("=", 1)[1])
     register_plugin_configs()
-    _check_overrides(overrides)
+    check_overrides(overrides)
     cfg = compose_config(overrides, job_name="cli")
     if "plots" in (cfg.get("output") or {}):
         from laughlab.core import background
@@ -444,7 +425,7 @@ def _main(argv: list[str]) -> None:
             cfg = preflight(argv)
         else:
             register_plugin_configs()
-            _check_overrides(_overrides(argv))
+            check_overrides(_overrides(argv))
     except LaughlabError as exc:
         fail(str(exc))
     except OSError as exc:  # a path the user gave that the system refuses (too long, no permission, ...)

@@ -389,6 +389,8 @@ def test_output_piped_into_a_reader_that_stops_ends_quietly(argv):
 @pytest.mark.parametrize("args, says", [
     (["+fsp=30"], "unknown setting 'fsp': + adds a key that nothing reads"),        # a typo of fps, was ignored
     (["+foo.bar=1"], "unknown setting 'foo.bar'"),
+    (["++fsp=30"], "unknown setting 'fsp'"),
+    (["+fps=30"], "fps is already a setting: write fps=30 (without +)"),
 ])
 def test_a_key_added_with_plus_that_nothing_reads_is_refused(tmp_path, args, says):
     from inprocess import laughlab

@@ -248,3 +248,37 @@ def compose_app(overrides) -> "DictConfig":  # noqa: F821
         raise LaughlabError(composition_error(exc, overrides)) from None
     OmegaConf.set_struct(cfg, flag)      # then as the masked copy of Hydra's result has it
     return cfg
+
+
+def _top_level_keys() -> set[str]:
+    """The settings at the top of ``config.yaml`` (``seed``, ``fps``, ``character``...)."""
+    from importlib import resources
+
+    from omegaconf import OmegaConf
+
+    doc = OmegaConf.to_container(OmegaConf.create(resources.files(CONFIG_MODULE).joinpath("config.yaml").read_text()))
+    return {k for k in doc if k != "defaults"}
+
+
+def check_overrides(overrides: list[str]) -> None:
+    """Unknown group options raise :class:`LaughlabError` with the list of valid ones; so does ``+KEY=...`` for a
+    key no part of laughlab reads (``+fsp=30``, a typo of ``fps``, was added and ignored)."""
+    for ov in overrides:
+        key = ov.split("=")[0].lstrip("+")
+        root = re.split(r"[./]", key)[0]
+        if ov.startswith("+") and root not in (*GROUP_KINDS, "experiment", "hydra", "harness"):
+            if root in _top_level_keys():
+                if not ov.startswith("++"):
+                    raise LaughlabError(f"{root} is already a setting: write {ov.lstrip('+')} (without +)")
+            else:
+                raise LaughlabError(f"unknown setting {key!r}: + adds a key that nothing reads; python -m laughlab "
+                                    "--help lists the settings")
+        m = re.fullmatch(r"\+?([a-z_]+)=(.*)", ov)
+        if not m or m.group(1) not in (*GROUP_KINDS, "experiment"):
+            continue
+        group, value = m.groups()
+        choices = [v.strip() for v in value.strip("[]").split(",")] if value not in ("null", "") else []
+        options = group_options(group)
+        for choice in choices:
+            if choice not in options:
+                raise LaughlabError(f"unknown {group} {choice!r}; choose one of: {', '.join(options) or '(none)'}")
