@@ -378,6 +378,29 @@ def _hips(doc: dict) -> dict:
     return doc["nodes"][doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["hips"]["node"]]
 
 
+def _root_of(doc: dict, node: int) -> int:
+    """The scene root above ``node``."""
+    parent = {c: i for i, n in enumerate(doc["nodes"]) for c in n.get("children", [])}
+    while node in parent:
+        node = parent[node]
+    return node
+
+
+def test_bones_laughlab_does_not_drive_are_not_checked_and_a_tiny_scale_is_fine(tmp_path):
+    """The checks are for the bones laughlab poses: an eye bone on the head's node (some exporters do that) and
+    an avatar scaled by 1e-5 overall still load (review: the absolute test refused the second)."""
+    def eye_on_head(d):
+        d["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["leftEye"] = {"node": _bone_node(d, "head")}
+
+    assert load_avatar(_robot_edited(eye_on_head, tmp_path / "eye.vrm")).bones["leftEye"] == \
+        load_avatar(ROBOT).bones["head"]
+
+    def tiny(d):
+        d["nodes"][_root_of(d, _bone_node(d, "hips"))]["scale"] = [1e-5] * 3
+
+    load_avatar(_robot_edited(tiny, tmp_path / "tiny.vrm"))
+
+
 def _bone_node(doc: dict, bone: str) -> int:
     return doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"][bone]["node"]
 
@@ -395,10 +418,12 @@ def _bone_node(doc: dict, bone: str) -> int:
      "mesh 0 refers to 9999"),
     (lambda p: _robot_edited(lambda d: d["nodes"][_bone_node(d, "head")].setdefault("children", []).append(
         _bone_node(d, "hips")), p), "has two parents"),
+    (lambda p: _robot_edited(lambda d: d["nodes"][_bone_node(d, "head")].setdefault("children", []).append(
+        _root_of(d, _bone_node(d, "head"))), p), "is its own ancestor (a cycle of children)"),
     (lambda p: _robot_edited(lambda d: d["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["leftHand"].update(
         node=_bone_node(d, "hips")), p), "maps hips and leftHand to the same node"),
 ], ids=["not-gltf", "no-humanoid", "vrm-missing-bone", "zero-scale", "view-past-buffer", "accessor-out-of-range",
-        "node-cycle", "two-bones-one-node"])
+        "two-parents", "node-cycle", "two-bones-one-node"])
 def test_a_bad_avatar_is_one_line_exit_2_and_nothing_written(tmp_path, make, says):
     path = make(tmp_path / "avatar.glb") or tmp_path / "avatar.glb"
     out = _cli(tmp_path, "output=gltf", "input.duration_s=1", f"character={path}")

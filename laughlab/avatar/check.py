@@ -116,28 +116,33 @@ def _check_nodes(path: Path, nodes: list, n_meshes: int, n_skins: int) -> None:
             finite = False
         if not finite:
             raise AvatarError(f"{path}: node {i} has a transform that is not finite numbers; the file is damaged")
-    for i in range(len(nodes)):   # a cycle: walking up the parents comes back to where it started
-        p, steps = parent[i], 0
-        while p >= 0:
-            steps += 1
-            if p == i or steps > len(nodes):
-                raise AvatarError(f"{path}: node {i} is its own ancestor (a cycle of children); glTF nodes form "
-                                  "trees, and the file is damaged")
-            p = parent[p]
+    for i in range(len(nodes)):   # a cycle: walking up the parents never reaches a root
+        p, steps = i, 0
+        while p >= 0 and steps <= len(nodes):
+            p, steps = parent[p], steps + 1
+        if p >= 0:   # after more steps than there are nodes, the walk is going round the cycle: p is on it
+            raise AvatarError(f"{path}: node {p} is its own ancestor (a cycle of children); glTF nodes form "
+                              "trees, and the file is damaged")
 
 
 def check_bones(path: Path, bones: dict, rest_world: np.ndarray, order: list[int]) -> None:
-    """Refuse two humanoid bones on one node, and a bone whose rest transform cannot be inverted (a zero
-    scale on it or an ancestor): the body's rotations are solved in each bone's own frame.  Bones are taken
-    parent first (``order``), so the line names the highest bone the zero scale reaches."""
+    """Refuse two of the bones laughlab drives (:data:`laughlab.avatar.names.JOINT_TO_VRM`) on one node, and such
+    a bone whose rest transform cannot be inverted (a zero scale on it or an ancestor; tested relative to its
+    largest scale, so an avatar in centimetres or scaled by 0.01 is fine): the body's rotations are solved in
+    each bone's own frame.  Bones laughlab does not drive (eyes, jaw, fingers) are not checked.  Bones are taken
+    parent first (``order``), so the line names the highest bone a zero scale reaches."""
+    from laughlab.avatar.names import JOINT_TO_VRM
+
+    driven = set(JOINT_TO_VRM.values())
     rank = {node: k for k, node in enumerate(order)}
     seen: dict[int, str] = {}
-    for bone, node in sorted(bones.items(), key=lambda b: (rank.get(b[1], 0), b[0])):
+    for bone, node in sorted(((b, n) for b, n in bones.items() if b in driven),
+                             key=lambda b: (rank.get(b[1], 0), b[0])):
         if node in seen:
             raise AvatarError(f"{path}: the humanoid maps {seen[node]} and {bone} to the same node {node}; "
                               "each bone needs its own node")
         seen[node] = bone
-        det = float(np.linalg.det(rest_world[node][:3, :3]))
-        if not np.isfinite(det) or abs(det) < 1e-12:
+        scales = np.linalg.svd(rest_world[node][:3, :3], compute_uv=False)
+        if not np.isfinite(scales).all() or scales[-1] <= 1e-9 * scales[0]:
             raise AvatarError(f"{path}: the {bone} bone (node {node}) has a zero scale in its rest pose (or an "
                               "ancestor has), so it cannot be posed; give it a non-zero scale")
