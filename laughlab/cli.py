@@ -182,6 +182,8 @@ def _read_paths(cfg) -> tuple:
     """The files a run reads that the user named: the input file, the avatar, the TextGrid, the plugins."""
     found = [cfg.get("input", {}).get("path"), cfg.get("character"), cfg.get("extractor", {}).get("textgrid"),
              cfg.get("plugins_dir")]
+    found += [(sink or {}).get("character") for sink in (cfg.get("output") or {}).values()   # a sink's own avatar
+              if hasattr(sink, "get")]
     return tuple(str(p) for p in found if isinstance(p, str) and p)
 
 

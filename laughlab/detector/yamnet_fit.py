@@ -88,9 +88,9 @@ def monotone_speech(n: int = N_MONOTONE, seed: int = SEED, duration_s: float = S
     (overlap-add)``; ``f0`` drawn from 90-220 Hz per stream): ``(audio, sample rate, no truth rows)``, no laughter.
 
     Synthetic voices (text-to-speech) are not in the corpus, and the head, fitted to hear the synthetic laughter
-    and acted laughs, took them for laughter: on 2.7 minutes of espeak-ng speech the default detector started 25
-    clips, 14 of them ``rofl`` (2026-11-27).  These streams teach it that a steady synthetic-sounding voice that
-    articulates is speech.  Their number was chosen on the train split (``docs/detector.md``)."""
+    and acted laughs, took them for laughter: on 2.7 minutes of espeak-ng speech the default detector started 27
+    clips, 15 of them ``rofl`` (2026-11-27, ``benchmarks/bench_detector.py``'s ``tts_espeak``).  These streams
+    teach it that a steady synthetic-sounding voice that articulates is speech.  Their number was chosen on the train split (``docs/detector.md``)."""
     import parselmouth
     from parselmouth.praat import call
 
@@ -227,7 +227,7 @@ def gate_windows(p: np.ndarray, q: np.ndarray, rule: str, open_at: float = 0.5, 
     ``p`` the head's probabilities, ``q`` the laughter classes' scores, one per window; ``other``: YAMNet's other
     human sounds' score, and a window where it exceeds ``q`` does not count as laughter for the classes' score
     (``veto="classes"``) or for both scores (``"both"``); ``head_floor``: the head's probability counts only in
-    a window whose ``q`` reaches it (``detector.head_floor``)."""
+    a window whose ``q`` reaches it (an experiment of ``--rules`` only, not kept: ``docs/detector.md``)."""
     head, classes = rule in ("head", "either"), rule in ("classes", "either")
     p = np.where(np.asarray(q) >= head_floor, p, 0.0)
     out = np.zeros(len(p), bool)
@@ -299,7 +299,7 @@ def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) 
     rules += [(f"either, class_open 0.1 x1 or head 0.5 x3, veto {v}",
                {"rule": "either", "class_open": 0.1, "class_windows": 1, "class_close": 0.05, "open_windows": 3,
                 "veto": v}) for v in ("classes", "both")]
-    # the head counting only where YAMNet's own laughter classes reach a floor (detector.head_floor)
+    # the head counting only where YAMNet's own laughter classes reach a floor (tried on 2026-11-27, not kept)
     rules += [(f"either, class_open 0.1 x1 or head 0.5 x3, head_floor {f:g}",
                {"rule": "either", "class_open": 0.1, "class_windows": 1, "class_close": 0.05, "open_windows": 3,
                 "veto": "classes", "head_floor": f}) for f in HEAD_FLOORS]
@@ -393,7 +393,9 @@ def fit_fuse(scenes: list[dict]) -> dict:
 
 def fuse_rules(train: list[dict], synth: list[dict], fusion) -> list[dict]:
     """The clip gain's opening rule with the fused probability (``rule=either``: the classes' score at 0.1 in one
-    window, or the fused probability at ``open_at`` in ``open_windows`` windows in a row) on the train scenes."""
+    window, or the fused probability at ``open_at`` in ``open_windows`` windows in a row) on the train scenes; since
+    2026-11-27 the monotone speech streams are among them (:func:`fuse_scenes`), so the openings outside laughter
+    per 10 minutes count their minutes too, unlike ``--rules`` for the head."""
     out = []
     for open_at in (0.4, 0.5, 0.6, 0.7):
         for n in (1, 2, 3):

@@ -21,7 +21,6 @@ import numpy as np  # noqa: E402
 
 from laughlab.core.errors import LaughlabError, shown_names  # noqa: E402
 from laughlab.harness.report_format import KEY_METRICS  # noqa: E402
-from laughlab.harness.report_format import arrow as _arrow  # noqa: E402
 from laughlab.harness.report_format import fmt as _fmt  # noqa: E402
 from laughlab.harness.report_format import heading as _heading  # noqa: E402
 from laughlab.harness.results import separated  # noqa: E402
@@ -92,7 +91,7 @@ def comparison_figure(doc: dict, path: Path) -> Path:
         if drawn and not any(drawn):
             ax.set_ylim(0, 1)  # all 0: an axis from 0 (matplotlib's default for nothing is -0.04..0.04)
         info = doc["metrics"][name]
-        ax.set_title(f"{name} {_arrow(info['higher_is_better'])}", fontsize=7)
+        ax.set_title(_heading(name, info), fontsize=7)
         ax.set_xticks(range(len(conds)), conds, fontsize=7)
         if upright:
             ax.set_xticklabels(conds, rotation=90, fontsize=7)
@@ -200,7 +199,7 @@ def _same_table(doc: dict) -> list[str]:
 def _profile_table(doc: dict, metric: str) -> list[str]:
     conds = [c for c in conditions_of(doc) if c in doc["by_profile"]]
     profiles = sorted({p for c in conds for p in doc["by_profile"][c]})
-    lines = [f"| profile | " + " | ".join(conds) + " |", "|---|" + "---|" * len(conds)]
+    lines = ["| profile | " + " | ".join(conds) + " |", "|---|" + "---|" * len(conds)]
     for p in profiles:
         lines.append(f"| {p} | " + " | ".join(_fmt(doc["by_profile"][c].get(p, {}).get(metric)) for c in conds) + " |")
     return lines

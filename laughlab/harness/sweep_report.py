@@ -12,7 +12,6 @@ import numpy as np
 
 from laughlab.core.errors import LaughlabError
 from laughlab.harness.report_format import KEY_METRICS, better_label
-from laughlab.harness.report_format import arrow as _arrow
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
 from laughlab.harness.report_format import panel_grid as _panel_grid
@@ -131,7 +130,7 @@ def _heatmaps(points, a, b, metrics, val, path, info) -> None:
         ax.set_yticks(range(len(ys)), ys, fontsize=7)
         ax.set_xlabel(a, fontsize=7)
         ax.set_ylabel(b, fontsize=7)
-        ax.set_title(f"{m} {_arrow(hib)}", fontsize=8)
+        ax.set_title(_heading(m, info[m]), fontsize=8)
         cb = fig.colorbar(im, ax=ax, shrink=0.9)
         if hib is False:
             cb.ax.invert_yaxis()  # the better (lower) end at the top, as on every other bar
@@ -153,7 +152,7 @@ def _lines(points, a, metrics, val, path, info) -> None:
         way = {True: " (higher is better)", False: " (lower is better)"}.get(hib, "")
         ax.set_ylabel(info[m]["units"] + way, fontsize=6)
         ax.tick_params(labelsize=6)
-        ax.set_title(f"{m} {_arrow(hib)}", fontsize=8)
+        ax.set_title(_heading(m, info[m]), fontsize=8)
         ax.spines[["top", "right"]].set_visible(False)
     fig.savefig(path)
     plt.close(fig)
