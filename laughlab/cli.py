@@ -462,6 +462,10 @@ def _main(argv: list[str]) -> None:
         hydra.main(config_path=f"pkg://{CONFIG_MODULE}", config_name="config", version_base="1.3")(task)()
     finally:
         after = rundir.sweep_state(argv) if before is not None else None
+        for job in [j for j, m in (after[2] if after else {}).items() if before[2].get(j) == m]:
+            # no run finished there, but Hydra may have written this sweep's .hydra/ over the finished run's (a
+            # job stopped when another was refused): the point's own configuration is put back
+            rundir.restore_hydra(before[0].parent / job)
         if after is not None and after[2] == before[2]:
             # no job ran (each was refused, or had finished before): the sweep folder still describes the
             # earlier sweep, so its multirun.yaml, which Hydra wrote at the start, is put back

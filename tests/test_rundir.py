@@ -239,6 +239,14 @@ def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):
     # new job's over it); it is put back, so the folder still describes its results
     assert {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")} == hydra
     assert (d / "0" / "channels.csv").read_bytes() == before
+    # found by a second review: with the joblib launcher the jobs run at once, and a job stopped when another was
+    # refused had already had this sweep's .hydra/ written over its finished point (report then showed the
+    # point's results under a value never run). Every point where no run finished gets its own .hydra/ back
+    one = {f.name: f.read_text() for f in (d / "1" / ".hydra").glob("*.yaml")}
+    (d / "1" / ".hydra" / "overrides.yaml").write_text("- seed=1\n- input.duration_s=2\n")   # as the stopped job left it
+    changed = run("-m", "seed=0,1", "input.duration_s=2", f"hydra.sweep.dir={d}")
+    assert changed.returncode != 0
+    assert {f.name: f.read_text() for f in (d / "1" / ".hydra").glob("*.yaml")} == one
 
 
 def _tree(d):
