@@ -216,3 +216,29 @@ def test_chromium_that_cannot_start_says_why_in_one_line_and_leaves_nothing(monk
         assert [p.name for p in tmp.iterdir() if not p.name.startswith("org.chromium.")] == []
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+
+
+def test_a_file_runs_audio_is_found_from_any_folder_and_dropped_when_it_changed(tmp_path, monkeypatch, capsys):
+    """Found by a second new-user review: a run given a relative input.path had no audio when viewed from another
+    folder (the path was taken from the viewer's folder), and a file replaced after the run was served out of
+    step with the animation. The path is taken from the run's own folder; a changed or missing file is left out,
+    in one line."""
+    import soundfile as sf
+
+    from inprocess import laughlab
+    from laughlab.viewer.server import assets
+
+    (tmp_path / "work").mkdir()
+    sf.write(tmp_path / "work" / "take.wav", 0.1 * np.sin(np.arange(44100) * 0.05), 44100)
+    run_dir = tmp_path / "run"
+    r = laughlab("input=file", "input.path=take.wav", f"hydra.run.dir={run_dir}", "detector=none", "~output.plots",
+                 cwd=tmp_path / "work")
+    assert r.returncode == 0, r.stderr
+    monkeypatch.chdir(tmp_path)
+    assert assets(run_dir)["audio.wav"] == tmp_path / "work" / "take.wav"
+    sf.write(tmp_path / "work" / "take.wav", np.zeros(3 * 44100), 44100)   # replaced by a 3 s file
+    capsys.readouterr()
+    assert "audio.wav" not in assets(run_dir)
+    assert "is not the run's audio any more (3.00 s, the run 1.00 s)" in capsys.readouterr().err
+    (tmp_path / "work" / "take.wav").unlink()
+    assert "audio.wav" not in assets(run_dir) and "is gone" in capsys.readouterr().err

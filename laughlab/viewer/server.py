@@ -64,18 +64,43 @@ def _clips(run_dir: Path, duration: float) -> list[dict]:
             for c, t0, t1, e in clip_blocks(events, duration)]
 
 
-def _audio(run_dir: Path) -> Path | None:
+def _audio(run_dir: Path, duration: float | None = None) -> Path | None:
+    """The run's audio: its ``input.wav``, or the file of an ``input=file`` run (a relative path is taken from the
+    folder the run was started in, Hydra's ``runtime.cwd``).  A file that is gone, or whose length is no longer
+    the run's (``duration``, s; it was replaced since), is not used: one line on stderr says so, and the page
+    plays without sound on the wall clock rather than out of step."""
     if (run_dir / "input.wav").exists():
         return run_dir / "input.wav"
     cfg = run_dir / ".hydra" / "config.yaml"
-    if cfg.exists():
-        from omegaconf import OmegaConf
+    if not cfg.exists():
+        return None
+    import sys
 
-        inp = OmegaConf.load(cfg).get("input") or {}
-        path = inp.get("path") if inp.get("name") == "file" else None
-        if path and Path(str(path)).expanduser().exists():
-            return Path(str(path)).expanduser()
-    return None
+    from omegaconf import OmegaConf
+
+    inp = OmegaConf.load(cfg).get("input") or {}
+    path = Path(str(inp.get("path"))).expanduser() if inp.get("name") == "file" and inp.get("path") else None
+    if path is None:
+        return None
+    if not path.is_absolute() and (run_dir / ".hydra" / "hydra.yaml").exists():
+        cwd = OmegaConf.load(run_dir / ".hydra" / "hydra.yaml").get("hydra", {}).get("runtime", {}).get("cwd")
+        path = Path(str(cwd)) / path if cwd else path
+    if not path.is_file():
+        print(f"laughlab: the run's audio {path} is gone; the page plays without sound", file=sys.stderr)
+        return None
+    if duration is not None:
+        import soundfile as sf
+
+        try:
+            info = sf.info(str(path))
+            length = info.frames / info.samplerate
+        except Exception:   # not readable as audio any more: as if it had changed
+            length = float("nan")
+        if not abs(length - duration) <= 0.05:
+            print(f"laughlab: {path} is not the run's audio any more ({length:.2f} s, the run {duration:.2f} s); "
+                  "the page plays without sound", file=sys.stderr)
+            return None
+    return path
 
 
 def _avatar_glb(run_dir: Path, character: str | Path, skeleton, motion: np.ndarray, ch: dict, fps: float,
@@ -137,7 +162,7 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
 
         files["character.glb"] = character_glb(build(skeleton), np.arange(n) / fps, motion,
                                                morph_weights(ch, n), audio_duration_s=duration, fps=fps)
-    audio = _audio(run_dir)
+    audio = _audio(run_dir, duration)
     if audio is not None:
         files["audio" + audio.suffix.lower()] = audio
     pick = {k: [round(float(x), 4) if np.isfinite(x) else 0.0 for x in ch[k]] for k in ("mcs", "energy") if k in ch}
