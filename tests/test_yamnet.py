@@ -592,6 +592,19 @@ def test_elan_file_holds_the_segments_in_milliseconds(tmp_path):
     out = tmp_path / "o"
     S.write_outputs(out, [("rec", 3.0, segs)], ("elan",))
     assert [p.name for p in out.iterdir()] == ["rec.eaf"] and (out / "rec.eaf").read_text() == S.eaf_text(segs)
+    # with the recording (a second review: ELAN opened the files with no audio): linked by its absolute file URL
+    # and by its path from the EAF's folder, both of which lead to it
+    from pathlib import Path
+    from urllib.parse import unquote, urlparse
+
+    rec = tmp_path / "takes" / "day 1" / "rec é.wav"
+    rec.parent.mkdir(parents=True)
+    rec.write_bytes(b"")
+    S.write_outputs(out, [("rec", 3.0, segs, rec)], ("elan",))
+    media = ET.fromstring((out / "rec.eaf").read_text()).find("HEADER").find("MEDIA_DESCRIPTOR")
+    assert media.get("MIME_TYPE") == "audio/x-wav"
+    assert Path(unquote(urlparse(media.get("MEDIA_URL")).path)) == rec.resolve()
+    assert (out / unquote(media.get("RELATIVE_MEDIA_URL"))).resolve() == rec.resolve()
 
 
 def test_detect_replaces_nothing_without_asking_and_leaves_no_stale_segments(tmp_path):

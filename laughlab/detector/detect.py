@@ -136,7 +136,7 @@ def main(argv: list[str]) -> None:
         t, p = S.laughter_prob(x, sr, ns.hop, model, score)
         p = S.smooth(p, ns.smooth)
         dur = len(x) / sr
-        results.append((f.stem, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur)))
+        results.append((f.stem, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f))
         if bar is not None:
             bar.update(dur)
     if bar is not None:

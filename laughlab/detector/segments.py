@@ -121,12 +121,31 @@ def textgrid_text(segs: list[Segment], duration_s: float) -> str:
     return "\n".join(lines) + "\n"
 
 
-def eaf_text(segs: list[Segment]) -> str:
+#: ELAN's MIME types of the recordings it links (any other audio: ``audio/*``)
+MIME_TYPES = {".wav": "audio/x-wav", ".mp3": "audio/mpeg"}
+
+
+def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None = None) -> str:
     """An ELAN annotation document (EAF 3.0): one time-alignable tier ``laughter``, ``laugh`` per segment.
 
-    Times in whole milliseconds (ELAN's unit); no media link (ELAN asks for the recording when the file is
-    opened) and a fixed DATE, so the same input gives the same bytes."""
+    Times in whole milliseconds (ELAN's unit) and a fixed DATE, so the same input gives the same bytes.
+    ``media``: the recording, linked in the header (its absolute ``file:`` URL, and its path relative to
+    ``beside``, the EAF's folder, which ELAN tries when the folders have moved together); None: no link, and
+    ELAN asks for the recording when the file is opened."""
+    import os
+    from urllib.parse import quote
     from xml.sax.saxutils import quoteattr
+
+    header = ['    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds"/>']
+    if media is not None:
+        media = Path(media).resolve()
+        rel = Path(os.path.relpath(media, Path(beside).resolve())).as_posix() if beside is not None else media.name
+        rel = rel if rel.startswith("..") else f"./{rel}"
+        header = ['    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds">',
+                  f"        <MEDIA_DESCRIPTOR MEDIA_URL={quoteattr(media.as_uri())} "
+                  f"MIME_TYPE={quoteattr(MIME_TYPES.get(media.suffix.lower(), 'audio/*'))} "
+                  f"RELATIVE_MEDIA_URL={quoteattr(quote(rel))}/>",
+                  "    </HEADER>"]
 
     slots, anns = [], []
     for i, seg in enumerate(segs):
@@ -142,7 +161,7 @@ def eaf_text(segs: list[Segment]) -> str:
              '<ANNOTATION_DOCUMENT AUTHOR=' + quoteattr("laughlab detect") + ' DATE="1970-01-01T00:00:00Z" '
              'FORMAT="3.0" VERSION="3.0" xmlns:xsi="http://www.w3.org/2001/XMLSchema-instance" '
              'xsi:noNamespaceSchemaLocation="http://www.mpi.nl/tools/elan/EAFv3.0.xsd">',
-             '    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds"/>',
+             *header,
              "    <TIME_ORDER>" if slots else "    <TIME_ORDER/>", *slots, *(["    </TIME_ORDER>"] if slots else []),
              '    <TIER LINGUISTIC_TYPE_REF="default-lt" TIER_ID="laughter">' if anns else
              '    <TIER LINGUISTIC_TYPE_REF="default-lt" TIER_ID="laughter"/>',
@@ -166,17 +185,17 @@ def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]]
     """Write ``segments.csv`` and per-input ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf``; each file whole or not
     at all."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    text = {"audacity": lambda segs, dur: audacity_text(segs), "textgrid": textgrid_text,
-            "elan": lambda segs, dur: eaf_text(segs)}
     written = []
-    for name, dur, segs in results:
+    for name, dur, segs, *media in results:   # (stem, duration, segments[, the recording's path])
+        text = {"audacity": lambda: audacity_text(segs), "textgrid": lambda: textgrid_text(segs, dur),
+                "elan": lambda: eaf_text(segs, media[0] if media else None, out_dir)}
         for f in ("audacity", "textgrid", "elan"):
             if f in formats:
                 written.append(out_dir / (name + SUFFIXES[f]))
-                atomic_write(written[-1], text[f](segs, dur))
+                atomic_write(written[-1], text[f]())
     if "csv" in formats:
         rows = ["file,start,end,probability\n"] + [f"{name},{s.start:.4f},{s.end:.4f},{s.prob:.4f}\n"
-                                                   for name, _, segs in results for s in segs]
+                                                   for name, _, segs, *_ in results for s in segs]
         written.append(out_dir / "segments.csv")
         atomic_write(written[-1], "".join(rows))
     return written
