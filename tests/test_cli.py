@@ -233,6 +233,9 @@ def test_plugins_command_lists_kind_name_origin_and_how_to_use_it(tmp_path):
     assert use["sink", "video"] == "output=video"
     assert use["sink", "bvh"] == "output=files (also gltf, video, vrma)"
     assert use["metric", "miss_rate"] == "every experiment (harness)"
+    # a preset of another name that runs the plugin (a second review: detector=yamnet_fused was not listed)
+    assert use["detector", "yamnet"] == "detector=yamnet (also detector=yamnet_fused)"
+    assert use["detector", "none"] == "detector=none"
     # a third-party sink no output option names: added by its own node
     (tmp_path / "mysink.py").write_text(
         "import laughlab\nfrom laughlab.core.bases import Sink\n"

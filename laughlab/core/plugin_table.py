@@ -27,8 +27,11 @@ def chosen_by(kind: str, name: str) -> str:
     group = next((g for g, k in GROUP_KINDS.items() if k == kind), None)
     if group is None:
         return ""
-    if group != "output":
-        return f"{group}={name}"
+    if group != "output":   # its own option, and the presets of other names that run it (detector=yamnet_fused)
+        presets = sorted(f.name[:-5] for f in conf_dir().joinpath(group).iterdir()
+                         if f.name.endswith(".yaml") and f.name[:-5] != name
+                         and re.search(rf"^(name: *{re.escape(name)}|  - {re.escape(name)}) *$", f.read_text(), re.M))
+        return f"{group}={name}" + (f" (also {', '.join(f'{group}={p}' for p in presets)})" if presets else "")
     options = []
     for f in sorted(conf_dir().joinpath("output").iterdir(), key=lambda f: f.name):
         if f.name.endswith(".yaml") and f.name != "trial.yaml" and re.search(rf"^{re.escape(name)}:", f.read_text(),

@@ -30,6 +30,7 @@ def main(args: list[str]) -> None:
               f"(e.g. {serve}) and open http://127.0.0.1:8000/")
         return
     httpd = V.server(ns.run_dir, ns.port, ns.character)
-    print(f"laughlab: viewing {ns.run_dir} at http://127.0.0.1:{httpd.server_address[1]}/ (Ctrl-C to stop)",
+    taken = f"port {ns.port} is taken; " if httpd.server_address[1] != ns.port else ""
+    print(f"laughlab: {taken}viewing {ns.run_dir} at http://127.0.0.1:{httpd.server_address[1]}/ (Ctrl-C to stop)",
           flush=True)
     V.serve_until_interrupted(httpd)
