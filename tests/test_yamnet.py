@@ -735,3 +735,32 @@ def test_a_detect_stopped_while_writing_leaves_nothing_a_later_overwrite_refuses
     assert r.returncode == 0, r.stderr
     assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a.TextGrid", "a.txt", "b.TextGrid",
                                                                           "b.txt", "segments.csv"]
+
+
+def test_detect_keeps_a_trees_layout_and_its_repeated_take_names(tmp_path):
+    """A second review: detect flattened a tree of recordings into one folder and refused two folders' take1.wav.
+    A file found in a given folder now names its outputs by its path from that folder (``day1/take1``): the tree's
+    layout in --out and in segments.csv's file column; --overwrite replaces them and removes a stale nested one."""
+    import csv
+    import xml.etree.ElementTree as ET
+    from urllib.parse import unquote
+
+    rec = tmp_path / "rec"
+    for day in ("day1", "day2"):
+        (rec / day).mkdir(parents=True)
+        sf.write(rec / day / "take1.wav", np.zeros(1600), 16000)
+    sf.write(rec / "solo.wav", np.zeros(1600), 16000)
+    out = tmp_path / "out"
+    r = laughlab("detect", str(rec), "--out", str(out), "--formats", "csv,textgrid,elan")
+    assert r.returncode == 0, r.stderr
+    got = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file() and p.name[0] != ".")
+    assert got == ["day1/take1.TextGrid", "day1/take1.eaf", "day2/take1.TextGrid", "day2/take1.eaf", "segments.csv",
+                   "solo.TextGrid", "solo.eaf"]
+    eaf = out / "day2" / "take1.eaf"   # its link to the recording works from its own folder
+    media = ET.fromstring(eaf.read_text()).find("HEADER").find("MEDIA_DESCRIPTOR")
+    assert (eaf.parent / unquote(media.get("RELATIVE_MEDIA_URL"))).resolve() == (rec / "day2" / "take1.wav").resolve()
+    assert list(csv.DictReader((out / "segments.csv").open())) == []   # silence: no segment
+    (rec / "day1" / "take1.wav").unlink()
+    r = laughlab("detect", str(rec), "--out", str(out), "--formats", "csv,textgrid,elan", "--overwrite")
+    assert r.returncode == 0, r.stderr
+    assert not (out / "day1").exists() and (out / "day2" / "take1.TextGrid").exists()

@@ -4,7 +4,8 @@ Files and folders (searched recursively for audio files soundfile reads) go thro
 :func:`laughlab.detector.segments.laughter_prob` (YAMNet and the head, centred windows,
 smoothed both ways), then a threshold and a minimum length.  Writes into ``--out``
 (default ``laughter_segments``): ``segments.csv`` for all inputs, and per input
-``NAME.txt`` (Audacity labels) and ``NAME.TextGrid`` (Praat).  A progress bar on stderr
+``NAME.txt`` (Audacity labels) and ``NAME.TextGrid`` (Praat); ``NAME`` is a file's stem, or for a file found in
+a given folder its path from that folder (:func:`inputs`).  A progress bar on stderr
 when the inputs are longer than a minute in all.
 """
 from __future__ import annotations
@@ -14,13 +15,17 @@ import time
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_names
+from laughlab.core.outfiles import unwrite
 from laughlab.core.summary import duration_text, factor_text
 
 AUDIO_SUFFIXES = {".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif", ".opus"}
 FORMATS = ("csv", "audacity", "textgrid", "elan")
 
 
-def inputs(paths: list[str]) -> list[Path]:
+def inputs(paths: list[str]) -> list[tuple[Path, str]]:
+    """The audio files of ``paths`` with the name each one's outputs take: a file given by itself, its stem; a
+    file found in a given folder, its path from that folder without the suffix (``day1/take1``), so a tree of
+    recordings keeps its layout in ``--out`` and repeated take names in different folders do not collide."""
     out = []
     for p in paths:
         q = Path(p).expanduser()
@@ -28,12 +33,12 @@ def inputs(paths: list[str]) -> list[Path]:
             found = sorted(f for f in q.rglob("*") if f.suffix.lower() in AUDIO_SUFFIXES and f.is_file())
             if not found:
                 raise LaughlabError(f"no audio files in folder {p}")
-            out += found
+            out += [(f, f.relative_to(q).with_suffix("").as_posix()) for f in found]
         elif q.exists():
-            out.append(q)
+            out.append((q, q.stem))
         else:
             raise LaughlabError(f"input not found: {p}")
-    names = [f.stem for f in out]
+    names = [n for _, n in out]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise LaughlabError(f"two inputs share the name {dup[0]!r}: their label files would collide; "
@@ -59,14 +64,21 @@ def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Pat
                             f"(replaces the segment files an earlier detect wrote there, keeps the rest)")
     try:
         names = json.loads((out / MANIFEST).read_text(encoding="utf-8"))["files"]
-        names = {n for n in names if isinstance(n, str) and Path(n).name == n}
+        names = {n for n in names if isinstance(n, str) and _inside(n)}
     except (OSError, ValueError, KeyError, TypeError):
         names = set()
-    theirs = sorted(set(planned) & set(held) - names)
+    there = {n for n in set(planned) | names if (out / n).is_file()}
+    theirs = sorted(set(planned) & there - names)
     if theirs:
         raise LaughlabError(f"{out} holds {shown_names(theirs)}, which no earlier detect wrote there and this run "
                             f"would replace; choose another --out (--overwrite replaces only detect's own files)")
-    return [out / n for n in sorted(names) if n in held]
+    return [out / n for n in sorted(names & there)]
+
+
+def _inside(name: str) -> bool:
+    """A manifest's name that stays inside ``--out`` (relative, no ``..``): no other file is ever removed."""
+    p = Path(name)
+    return bool(name) and not p.is_absolute() and ".." not in p.parts
 
 
 def read_mono(path: Path):
@@ -111,8 +123,9 @@ def main(argv: list[str]) -> None:
     from laughlab.detector.yamnet import LaughterScore, ModelFileError, Yamnet
     from laughlab.io.audio import probe_file
 
-    files = inputs(ns.paths)
-    stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([f.stem for f in files], formats))
+    named = inputs(ns.paths)
+    files = [f for f, _ in named]
+    stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n in named], formats))
     total_s = 0.0
     for f in files:  # every input checked before any work or any file written
         info = probe_file(f)
@@ -131,12 +144,12 @@ def main(argv: list[str]) -> None:
                                       "[{elapsed}<{remaining}]")
     t0 = time.perf_counter()
     results = []
-    for f in files:
+    for f, name in named:
         x, sr = read_mono(f)
         t, p = S.laughter_prob(x, sr, ns.hop, model, score)
         p = S.smooth(p, ns.smooth)
         dur = len(x) / sr
-        results.append((f.stem, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f))
+        results.append((name, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f))
         if bar is not None:
             bar.update(dur)
     if bar is not None:
@@ -146,11 +159,13 @@ def main(argv: list[str]) -> None:
     # while writing leaves no file that a later --overwrite would take for the user's
     planned = S.output_names([r[0] for r in results], formats)
     out.mkdir(parents=True, exist_ok=True)
-    S.atomic_write(out / MANIFEST, json.dumps({"files": sorted({p.name for p in stale} | set(planned))}) + "\n")
+    def rel(paths):
+        return {p.relative_to(out).as_posix() for p in paths}
+
+    S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(rel(stale) | set(planned))}) + "\n")
     written = S.write_outputs(out, results, formats)
-    for f in set(stale) - set(written):   # --overwrite: an earlier detect's files that this one did not write
-        f.unlink(missing_ok=True)
-    S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(p.name for p in written)}) + "\n")
+    unwrite(sorted(set(stale) - set(written)), out)   # --overwrite: an earlier detect's files this one did not write
+    S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(rel(written))}) + "\n")
     wall = time.perf_counter() - t0
     n = sum(len(r[2]) for r in results)
     print(f"laughlab: {len(files)} file(s), {total_s:.1f} s of audio, {n} laughter segment(s) in {duration_text(wall)} "

@@ -87,6 +87,7 @@ def segments(times: np.ndarray, p: np.ndarray, hop_s: float, threshold: float = 
 
 
 def atomic_write(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)   # a name with folders (a tree of recordings)
     tmp = path.with_name(path.name + ".part")
     tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, path)
@@ -188,7 +189,7 @@ def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]]
     written = []
     for name, dur, segs, *media in results:   # (stem, duration, segments[, the recording's path])
         text = {"audacity": lambda: audacity_text(segs), "textgrid": lambda: textgrid_text(segs, dur),
-                "elan": lambda: eaf_text(segs, media[0] if media else None, out_dir)}
+                "elan": lambda: eaf_text(segs, media[0] if media else None, (out_dir / name).parent)}
         for f in ("audacity", "textgrid", "elan"):
             if f in formats:
                 written.append(out_dir / (name + SUFFIXES[f]))
