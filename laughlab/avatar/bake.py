@@ -30,10 +30,7 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
     if f == 0 or poses.shape != (f, skeleton.n_channels):
         raise ValueError(f"the baked avatar needs F times and (F, {skeleton.n_channels}) poses; got {f}, "
                          f"{poses.shape}")
-    times, poses, held = hold_to_end(times, audio_duration_s, poses, {**{"a." + k: v for k, v in arkit.items()},
-                                                                     **{"b." + k: v for k, v in breath.items()}})
-    arkit = {k[2:]: v for k, v in held.items() if k.startswith("a.")}
-    breath = {k[2:]: v for k, v in held.items() if k.startswith("b.")}
+    times, poses, arkit, breath = hold_to_end(times, audio_duration_s, poses, arkit, breath)
     poses = breathing_pose(poses, breath_on_bones(avatar, breath), skeleton)
     moved = retarget(avatar, poses, skeleton)
     doc = copy.deepcopy(avatar.doc)

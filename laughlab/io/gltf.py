@@ -59,19 +59,17 @@ class Buffer:
         return len(self.accessors) - 1
 
 
-def hold_to_end(times: np.ndarray, end_s: float, poses: np.ndarray, values: Mapping[str, np.ndarray]):
-    """``times`` (float32, s), ``poses`` and each of ``values`` (arrays with a row per frame) with one more key at
-    ``end_s`` holding the last frame, when ``end_s`` (the audio's duration) lies after the last frame's time;
-    else unchanged.  So an animation lasts as long as its audio: a player that loops or ends the two together
-    keeps them in step (the last frame starts up to a frame before the audio ends)."""
+def hold_to_end(times: np.ndarray, end_s: float, poses: np.ndarray, *tables: Mapping[str, np.ndarray]):
+    """``(times, poses, *tables)``: ``times`` (float32, s), ``poses`` and each table's arrays (a row per frame) with
+    one more key at ``end_s`` holding the last frame, when ``end_s`` (the audio's duration) lies after the last
+    frame's time; else unchanged.  So an animation lasts as long as its audio: a player that loops or ends the two
+    together keeps them in step (the last frame starts up to a frame before the audio ends)."""
     end = np.float32(end_s)
     if not (np.isfinite(end) and end > times[-1]):
-        return times, poses, values
-    held = {}
-    for k, v in values.items():
-        v = np.asarray(v, dtype=np.float64)
-        held[k] = np.concatenate([v, v[-1:]])
-    return np.append(times, end), np.concatenate([poses, poses[-1:]]), held
+        return (times, poses, *tables)
+    held = [{k: np.concatenate([np.asarray(v, dtype=np.float64), np.asarray(v, dtype=np.float64)[-1:]])
+             for k, v in table.items()} for table in tables]
+    return (np.append(times, end), np.concatenate([poses, poses[-1:]]), *held)
 
 
 def character_glb(character, times_s: np.ndarray, poses: np.ndarray, morph_weights: np.ndarray,
@@ -101,7 +99,7 @@ def character_glb(character, times_s: np.ndarray, poses: np.ndarray, morph_weigh
                          f"{weights.shape}")
     frames = len(times)
     times, poses, held = hold_to_end(times, audio_duration_s, poses, {"weights": weights})
-    weights = held["weights"].astype(np.float32)
+    weights = np.asarray(held["weights"], dtype=np.float32)
     buf = Buffer()
     # the mesh
     attrs = {
