@@ -69,7 +69,7 @@ class GltfSink(Sink):
 
         self.times.append(np.asarray(chunk.times, dtype=np.float64))
         self.poses.append(np.asarray(chunk.poses, dtype=np.float64))
-        self.audio_s = getattr(chunk, "audio_s", None)
+        self.audio_s = chunk.audio_s
         if self._drives_avatar():
             arkit, breath = face_and_breath(chunk.channels)
             self.arkit.append(arkit)

@@ -351,6 +351,13 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
         wall0 = time.perf_counter()
         k = samples = 0
         rate = float(ctx.sample_rate)
+
+        def hand_over() -> None:   # the frames recorded since the last chunk, to every sink
+            chunk = rec.take(mixer.take())
+            chunk.audio_s = samples / rate
+            for sink in opened:
+                sink.write(chunk)
+
         # bound methods in locals: the loop runs once per frame
         ext_step, det_step, sch_step, body_step, face_step = ext.step, det.step, sch.step, body.step, face.step
         advance, note, add, record_ns = mixer.advance, mixer.note, rec.add, times_ns.append
@@ -369,19 +376,13 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             k += 1
             samples += len(block)
             if k % n_chunk == 0:
-                chunk = rec.take(mixer.take())
-                chunk.audio_s = samples / rate
-                for sink in opened:
-                    sink.write(chunk)
+                hand_over()
                 if bar is not None:
                     bar.update(n_chunk)
         if k == 0:
             raise LaughlabError("the input holds no audio frames")
         if rec.i:
-            chunk = rec.take(mixer.take())
-            chunk.audio_s = samples / rate
-            for sink in opened:
-                sink.write(chunk)
+            hand_over()
             if bar is not None:
                 bar.update(k % n_chunk)   # the last, partial chunk: the bar ends at every frame
         wall = time.perf_counter() - wall0
@@ -470,16 +471,15 @@ def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, audio_s: float
     frame loop including reading and writing (higher is faster).
     """
     ms = times_ns / 1e6
-    duration = audio_s
     return {
         "n_frames": int(n_frames),
         "fps": pipe.ctx.fps,
-        "duration_s": duration,
+        "duration_s": audio_s,
         "seed": pipe.run.seed,
         "frame_ms_p50": float(np.percentile(ms, 50)),
         "frame_ms_p99": float(np.percentile(ms, 99)),
         "frame_ms_max": float(ms.max()),
         "wall_s": wall_s,
-        "realtime_factor": duration / wall_s if wall_s > 0 else float("inf"),
+        "realtime_factor": audio_s / wall_s if wall_s > 0 else float("inf"),
         "nonfinite_samples": int(getattr(pipe.extractor, "nonfinite_samples", 0)),
     }
