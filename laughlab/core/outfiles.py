@@ -44,7 +44,10 @@ class Staging:
     def path(self, final: Path) -> Path:
         """The temporary path to write in place of ``final``."""
         final = Path(final)
-        missing = [d for d in (final.parent, *final.parent.parents) if not d.exists()]
+        missing, d = [], final.parent
+        while not d.exists():   # up to the first folder that is there
+            missing.append(d)
+            d = d.parent
         final.parent.mkdir(parents=True, exist_ok=True)
         self.made += [d for d in reversed(missing) if d not in self.made]
         tmp = final.with_name(f".{final.name}.part")
