@@ -252,11 +252,9 @@ def compose_app(overrides) -> "DictConfig":  # noqa: F821
 
 def _top_level_keys() -> set[str]:
     """The settings at the top of ``config.yaml`` (``seed``, ``fps``, ``character``...)."""
-    from importlib import resources
-
     from omegaconf import OmegaConf
 
-    doc = OmegaConf.to_container(OmegaConf.create(resources.files(CONFIG_MODULE).joinpath("config.yaml").read_text()))
+    doc = OmegaConf.to_container(OmegaConf.create(conf_dir().joinpath("config.yaml").read_text()))
     return {k for k in doc if k != "defaults"}
 
 

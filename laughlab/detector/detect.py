@@ -158,7 +158,7 @@ def main(argv: list[str]) -> None:
     # the manifest first lists every name this run may leave (the earlier run's and this one's): a run stopped
     # while writing leaves no file that a later --overwrite would take for the user's
     planned = S.output_names([r[0] for r in results], formats)
-    out.mkdir(parents=True, exist_ok=True)
+
     def rel(paths):
         return {p.relative_to(out).as_posix() for p in paths}
 

@@ -178,21 +178,20 @@ SUFFIXES = {"audacity": ".txt", "textgrid": ".TextGrid", "elan": ".eaf"}
 
 def output_names(stems: list[str], formats: tuple[str, ...]) -> list[str]:
     """The names ``write_outputs`` writes for inputs ``stems`` in ``formats``, in its order."""
-    names = [stem + SUFFIXES[f] for stem in stems for f in ("audacity", "textgrid", "elan") if f in formats]
+    names = [stem + suffix for stem in stems for f, suffix in SUFFIXES.items() if f in formats]
     return names + (["segments.csv"] if "csv" in formats else [])
 
 
 def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...]) -> list[Path]:
     """Write ``segments.csv`` and per-input ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf``; each file whole or not
     at all."""
-    out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for name, dur, segs, *media in results:   # (stem, duration, segments[, the recording's path])
         text = {"audacity": lambda: audacity_text(segs), "textgrid": lambda: textgrid_text(segs, dur),
                 "elan": lambda: eaf_text(segs, media[0] if media else None, (out_dir / name).parent)}
-        for f in ("audacity", "textgrid", "elan"):
+        for f, suffix in SUFFIXES.items():
             if f in formats:
-                written.append(out_dir / (name + SUFFIXES[f]))
+                written.append(out_dir / (name + suffix))
                 atomic_write(written[-1], text[f]())
     if "csv" in formats:
         rows = ["file,start,end,probability\n"] + [f"{name},{s.start:.4f},{s.end:.4f},{s.prob:.4f}\n"
