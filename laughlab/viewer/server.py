@@ -89,12 +89,12 @@ def _audio(run_dir: Path, duration: float | None = None) -> Path | None:
         print(f"laughlab: the run's audio {path} is gone; the page plays without sound", file=sys.stderr)
         return None
     if duration is not None:
-        import soundfile as sf
+        from laughlab.io.audio import probe_file
 
         try:
-            info = sf.info(str(path))
+            info = probe_file(path)
             length = info.frames / info.samplerate
-        except Exception:   # not readable as audio any more: as if it had changed
+        except LaughlabError:   # not readable as audio any more: as if it had changed
             length = float("nan")
         if not abs(length - duration) <= 0.05:
             print(f"laughlab: {path} is not the run's audio any more ({length:.2f} s, the run {duration:.2f} s); "
