@@ -6,7 +6,8 @@ smoothed both ways), then a threshold and a minimum length.  Writes into ``--out
 (default ``laughter_segments``): ``segments.csv`` for all inputs, and per input
 ``NAME.txt`` (Audacity labels) and ``NAME.TextGrid`` (Praat); ``NAME`` is a file's stem, or for a file found in
 a given folder its path from that folder (:func:`inputs`).  A progress bar on stderr
-when the inputs are longer than a minute in all.
+when the inputs are longer than a minute in all.  An unreadable input stops the batch before anything is
+written, or with ``--skip-unreadable`` is left out in one line on stderr.
 """
 from __future__ import annotations
 
@@ -106,6 +107,9 @@ def main(argv: list[str]) -> None:
                     help="write into an --out folder that already holds files: the segment files an earlier detect "
                          "wrote there are replaced by this run's (or removed), other files kept; a file of yours by "
                          "a name this run writes (NAME.TextGrid beside NAME.wav) is refused")
+    ap.add_argument("--skip-unreadable", action="store_true",
+                    help="leave out an input that cannot be read (one line on stderr each) instead of stopping "
+                         "the batch before any work")
     ns = ap.parse_args(argv)
     if not 0.0 <= ns.threshold <= 1.0:
         raise LaughlabError(f"--threshold must be in [0, 1] (got {ns.threshold})")
@@ -124,12 +128,21 @@ def main(argv: list[str]) -> None:
     from laughlab.io.audio import probe_file
 
     named = inputs(ns.paths)
-    files = [f for f, _ in named]
     stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n in named], formats))
-    total_s = 0.0
-    for f in files:  # every input checked before any work or any file written
-        info = probe_file(f)
+    total_s, kept, skipped = 0.0, [], []
+    for f, name in named:  # every input checked before any work or any file written
+        try:
+            info = probe_file(f)
+        except LaughlabError as exc:
+            if not ns.skip_unreadable:
+                raise LaughlabError(f"{exc} (--skip-unreadable leaves such files out)") from None
+            skip(skipped, exc)
+            continue
+        kept.append((f, name))
         total_s += info.frames / info.samplerate
+    if not kept:
+        raise LaughlabError("no readable audio among the inputs")
+    named = kept
     try:
         model, score = Yamnet(), LaughterScore()
     except ModelFileError as exc:
@@ -145,7 +158,13 @@ def main(argv: list[str]) -> None:
     t0 = time.perf_counter()
     results = []
     for f, name in named:
-        x, sr = read_mono(f)
+        try:
+            x, sr = read_mono(f)
+        except LaughlabError as exc:  # damaged past its header: found only when read
+            if not ns.skip_unreadable:
+                raise LaughlabError(f"{exc} (--skip-unreadable leaves such files out)") from None
+            skip(skipped, exc)
+            continue
         t, p = S.laughter_prob(x, sr, ns.hop, model, score)
         p = S.smooth(p, ns.smooth)
         dur = len(x) / sr
@@ -154,6 +173,8 @@ def main(argv: list[str]) -> None:
             bar.update(dur)
     if bar is not None:
         bar.close()
+    if not results:
+        raise LaughlabError("no readable audio among the inputs")
     out = Path(ns.out)
     # the manifest first lists every name this run may leave (the earlier run's and this one's): a run stopped
     # while writing leaves no file that a later --overwrite would take for the user's
@@ -167,6 +188,23 @@ def main(argv: list[str]) -> None:
     unwrite(sorted(set(stale) - set(written)), out)   # --overwrite: an earlier detect's files this one did not write
     S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(rel(written))}) + "\n")
     wall = time.perf_counter() - t0
+    print(summary_line(results, skipped, wall, out))
+
+
+def skip(skipped: list[str], exc: LaughlabError) -> None:
+    """--skip-unreadable: say which input is left out and why, in one line on stderr."""
+    import sys
+
+    skipped.append(str(exc))
+    print(f"laughlab: skipped: {exc}", file=sys.stderr)
+
+
+def summary_line(results: list, skipped: list[str], wall: float, out: Path) -> str:
+    """The closing line: files, audio, segments, how many files had none (they have no row in segments.csv, and an
+    empty TextGrid tier), how many were skipped, and the speed."""
     n = sum(len(r[2]) for r in results)
-    print(f"laughlab: {len(files)} file(s), {total_s:.1f} s of audio, {n} laughter segment(s) in {duration_text(wall)} "
-          f"({factor_text(total_s / max(wall, 1e-9))}x real time) -> {out}/")
+    audio_s = sum(r[1] for r in results)
+    none = sum(1 for r in results if not r[2])
+    extra = "".join([f", {none} without laughter" if none else "", f", {len(skipped)} skipped" if skipped else ""])
+    return (f"laughlab: {len(results)} file(s){extra}, {audio_s:.1f} s of audio, {n} laughter segment(s) in "
+            f"{duration_text(wall)} ({factor_text(audio_s / max(wall, 1e-9))}x real time) -> {out}/")

@@ -1,0 +1,52 @@
+"""``laughlab detect`` on a batch with damaged files: by default one line naming the file, before any work and with
+nothing written; with ``--skip-unreadable`` each damaged file is left out in one line on stderr and the rest is
+written, and the closing line says how many were skipped and how many had no laughter."""
+import csv
+
+import numpy as np
+import soundfile as sf
+
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
+
+
+def batch(tmp_path):
+    """A folder of three recordings: a tone (no laughter), a text file named .wav, and a FLAC cut in the middle of
+    its audio (its header reads; decoding fails 1 s in)."""
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    t = np.arange(32000) / 16000
+    sf.write(rec / "a_tone.wav", 0.1 * np.sin(2 * np.pi * 220 * t), 16000)
+    (rec / "b_notes.wav").write_text("not audio\n")
+    noise = np.random.default_rng(0).normal(0, 0.1, 16000 * 4)
+    sf.write(rec / "c_cut.flac", noise, 16000)
+    data = (rec / "c_cut.flac").read_bytes()
+    (rec / "c_cut.flac").write_bytes(data[: len(data) // 2])
+    return rec
+
+
+def test_a_damaged_file_stops_the_batch_in_one_line_before_any_work(tmp_path):
+    rec, out = batch(tmp_path), tmp_path / "out"
+    r = laughlab("detect", str(rec), "--out", str(out))
+    assert r.returncode == 2 and r.stderr.strip().splitlines() == [r.stderr.strip()]
+    assert "b_notes.wav" in r.stderr and "--skip-unreadable" in r.stderr
+    assert not out.exists()
+    (rec / "b_notes.wav").unlink()   # the cut FLAC is found only when read: still nothing written
+    r = laughlab("detect", str(rec), "--out", str(out))
+    assert r.returncode == 2 and r.stderr.strip().splitlines() == [r.stderr.strip()]
+    assert "c_cut.flac" in r.stderr and "cut short" in r.stderr and not out.exists()
+
+
+def test_skip_unreadable_leaves_out_each_damaged_file_and_says_so(tmp_path):
+    rec, out = batch(tmp_path), tmp_path / "out"
+    r = laughlab("detect", str(rec), "--out", str(out), "--skip-unreadable")
+    assert r.returncode == 0, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 2 and all(line.startswith("laughlab: skipped: ") for line in lines)
+    assert "b_notes.wav" in lines[0] and "c_cut.flac" in lines[1]
+    assert r.stdout.startswith("laughlab: 1 file(s), 1 without laughter, 2 skipped, 2.0 s of audio, 0 laughter segment(s)")
+    assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a_tone.TextGrid", "a_tone.txt", "segments.csv"]
+    assert list(csv.DictReader((out / "segments.csv").open())) == []
+    (rec / "a_tone.wav").unlink()
+    r = laughlab("detect", str(rec), "--out", str(tmp_path / "out2"), "--skip-unreadable")
+    assert r.returncode == 2 and "no readable audio among the inputs" in r.stderr.strip().splitlines()[-1]
+    assert not (tmp_path / "out2").exists()
