@@ -50,3 +50,27 @@ def test_skip_unreadable_leaves_out_each_damaged_file_and_says_so(tmp_path):
     r = laughlab("detect", str(rec), "--out", str(tmp_path / "out2"), "--skip-unreadable")
     assert r.returncode == 2 and "no readable audio among the inputs" in r.stderr.strip().splitlines()[-1]
     assert not (tmp_path / "out2").exists()
+
+
+def test_read_mono_fills_in_place_whatever_the_header_says(tmp_path, monkeypatch):
+    """detect reads a file into one array sized by its header (half the memory of a list of blocks and its
+    copy); a file with more or fewer samples than its header says (a compressed format's estimate, a WAV cut
+    short by less than 0.1 s) is read whole all the same, sample for sample."""
+    from laughlab.detector.detect import read_mono
+    from laughlab.io import audio
+
+    x = np.random.default_rng(1).normal(0, 0.1, 44100 * 3 + 7).astype(np.float32)
+    sf.write(tmp_path / "x.flac", x, 44100, subtype="PCM_24")
+    want = sf.read(tmp_path / "x.flac", dtype="float32")[0]
+    got, sr = read_mono(tmp_path / "x.flac")
+    assert sr == 44100 and got.dtype == np.float32 and np.array_equal(got, want)
+    real = audio.read_blocks
+    for more, keep in ((want[:5000], None), (want[:1], None), (want[:0], -100)):   # more than the header says, or fewer
+        def blocks(path, block_s, more=more, keep=keep):
+            for b in real(path, block_s):
+                yield b[:keep]
+            yield more
+
+        monkeypatch.setattr(audio, "read_blocks", blocks)
+        got, _ = read_mono(tmp_path / "x.flac")
+        assert np.array_equal(got, np.concatenate([want[:keep], more]))

@@ -244,7 +244,7 @@ def pieces_16k(audio: np.ndarray, sample_rate: int):
     """A whole signal at 16 kHz in pieces, ``CONVERT_CHUNK`` input samples at a time (the live conversion's
     bytes, :class:`Resampler16k`); at least one piece."""
     rs = Resampler16k(sample_rate)
-    x = np.asarray(audio, dtype=np.float64).ravel()
+    x = np.asarray(audio).ravel()   # each piece made float64 by push: no float64 copy of the whole signal
     for i in range(0, max(len(x), 1), CONVERT_CHUNK):
         yield rs.push(x[i:i + CONVERT_CHUNK])
 
