@@ -428,6 +428,10 @@ def _main(argv: list[str]) -> None:
         else:
             register_plugin_configs()
             check_overrides(_overrides(argv))
+            if multirun and not hydra_only:   # every swept value, before the launcher starts a job
+                from laughlab.core.sweepcheck import check_sweep
+
+                check_sweep(_overrides(argv), preflight)
     except LaughlabError as exc:
         fail(str(exc))
     except OSError as exc:  # a path the user gave that the system refuses (too long, no permission, ...)

@@ -1,0 +1,77 @@
+"""A sweep (``python -m laughlab -m ...``) checked before any job starts.
+
+Each value of each swept key, from the command line or the experiment's ``hydra.sweeper.params``, is checked
+as a single run checks its configuration (:func:`laughlab.cli.preflight`: the keys exist, every plugin takes
+its parameters, the experiment's corpus and conditions), with the other swept keys at their first values.
+A mistyped key or a bad value then stops the sweep in one line before the launcher starts a job, instead of
+Hydra's own multi-line error, or a job failing part way through the sweep after others had begun (with the
+joblib launcher the other points were stopped mid-run, leaving empty results behind).
+
+Values are checked one key at a time, not every combination: the checks are of single parameters, and a
+sweep of thousands of points on a cluster costs a check per value (about 0.1 s each), not per point.  A
+sweep the parser cannot list (``interval(...)`` for an optimising sweeper, ``glob(...)`` over groups) keeps
+its first value in the checks of the others and is left to its jobs.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from laughlab.core.errors import LaughlabError
+
+
+def sweep_values(overrides: list[str]) -> tuple[list[str], dict[str, list[str]]]:
+    """(the overrides with every sweep at its first value, {key: its sweep's values as overrides ``key=value``})
+    for the sweeps the parser can list; the others stay as given in the first list."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(overrides)
+    except HydraException as exc:
+        raise LaughlabError(f"cannot read the overrides: {str(exc).splitlines()[0]}") from None
+    base, sweeps = [], {}
+    for ov in parsed:
+        key = ov.get_key_element()
+        values = None
+        if ov.is_sweep_override():
+            try:
+                values = [f"{key}={v}" for v in ov.sweep_string_iterator()]
+            except HydraException:
+                values = None
+        if values:
+            sweeps[key] = values
+            base.append(values[0])
+        else:
+            base.append(ov.input_line)
+    return base, sweeps
+
+
+def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) -> int:
+    """Check every value of every swept key with ``preflight`` (which raises LaughlabError); the number of
+    configurations checked.  The experiment's own ``hydra.sweeper.params`` are read from the configuration
+    the first values compose; a key swept on the command line replaces the experiment's sweep of it, as
+    Hydra's basic sweeper does."""
+    from omegaconf import OmegaConf
+
+    base, sweeps = sweep_values(overrides)
+    cfg = preflight(base)
+    params = cfg.hydra.get("sweeper", {}).get("params")
+    params = OmegaConf.to_container(params, resolve=False) if OmegaConf.is_config(params) else dict(params or {})
+    given = {k.lstrip("+~") for k in sweeps} | {o.split("=", 1)[0].lstrip("+~") for o in base}
+    extra = [f"{k}={v}" for k, v in (params or {}).items() if k.lstrip("+~") not in given]
+    more_base, more = sweep_values(extra)
+    base, sweeps = base + more_base, {**sweeps, **more}
+    checked = 1
+    if more_base:
+        preflight(base)
+        checked += 1
+    for key, values in sweeps.items():
+        first = base.index(values[0])
+        for value in values[1:]:
+            point = base[:first] + [value] + base[first + 1:]
+            try:
+                preflight(point)
+            except LaughlabError as exc:
+                raise LaughlabError(f"sweep value {value}: {exc}") from None
+            checked += 1
+    return checked

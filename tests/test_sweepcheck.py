@@ -1,0 +1,52 @@
+"""A sweep is checked before any job starts (a new-user review: a mistyped key in ``-m`` printed Hydra's six-line
+error, and a bad value was found only when its job ran, after the joblib launcher had started the others, which
+were stopped part way and left empty results)."""
+import pytest
+from omegaconf import OmegaConf
+
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
+from laughlab.core.errors import LaughlabError
+from laughlab.core.sweepcheck import check_sweep, sweep_values
+
+
+def test_sweep_values_by_hand():
+    base, sweeps = sweep_values(["experiment=x", "a=1,2", "+b=range(0,3)", "c=[1,2]", "d=interval(0,1)"])
+    assert base == ["experiment=x", "a=1", "+b=0", "c=[1,2]", "d=interval(0,1)"]
+    assert sweeps == {"a": ["a=1", "a=2"], "+b": ["+b=0", "+b=1", "+b=2"]}
+
+
+def test_each_value_of_each_key_is_checked_with_the_others_at_their_first_values():
+    """The command line's sweeps and the experiment's ``hydra.sweeper.params`` (a key swept on the command line
+    replaces the experiment's sweep of it): one check per value, the others at their first values."""
+    calls = []
+
+    def preflight(overrides):
+        calls.append(list(overrides))
+        if "p=-1" in overrides:
+            raise LaughlabError("p must be >= 0")
+        return OmegaConf.create({"hydra": {"sweeper": {"params": {"p": "0,1", "q": "5,6,7", "a": "8,9"}}}})
+
+    assert check_sweep(["experiment=x", "a=1,2"], preflight) == 1 + 1 + 1 + 1 + 2
+    assert calls == [["experiment=x", "a=1"],                      # the first values compose; params read
+                     ["experiment=x", "a=1", "p=0", "q=5"],        # ... with the experiment's sweeps
+                     ["experiment=x", "a=2", "p=0", "q=5"],
+                     ["experiment=x", "a=1", "p=1", "q=5"],
+                     ["experiment=x", "a=1", "p=0", "q=6"],
+                     ["experiment=x", "a=1", "p=0", "q=7"]]
+    with pytest.raises(LaughlabError, match=r"^sweep value p=-1: p must be >= 0$"):
+        check_sweep(["experiment=x", "p=0,-1"], preflight)
+
+
+@pytest.mark.parametrize("swept, message", [
+    ("scheduler.overule_c=1.5,3", "unknown parameter scheduler.overule_c; valid: "),
+    ("nosuchkey=1", "unknown parameter nosuchkey"),
+    ("scheduler.overrule_c=1.5,-2", "sweep value scheduler.overrule_c=-2: bad parameter in scheduler.energy: "
+                                    "overrule_c must be >= 0 (got -2.0)"),
+    ("scheduler.overrule_c=1.5,abc", "sweep value scheduler.overrule_c=abc: bad parameter scheduler.energy.overrule_c"),
+])
+def test_a_bad_sweep_is_one_line_before_any_job(tmp_path, swept, message):
+    sweep = tmp_path / "sweep"
+    r = laughlab("-m", "experiment=energy_ablation", swept, f"hydra.sweep.dir={sweep}")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr
+    assert "Traceback" not in r.stderr and "HYDRA_FULL_ERROR" not in r.stderr
+    assert not sweep.exists()                                      # no job started, no folder made
