@@ -151,9 +151,17 @@ def transition_figure(path: Path, body, times, values, fps: float, channels) -> 
             fontsize=7, ha="left", va="top")
     ax2 = ax.twinx()
     for name, tr in body.layers.items():
-        ax2.plot(t, [tr.period(v) for v in s], lw=1.0, ls="--", label=f"T {name} (s)")
-    ax2.set_ylim(0.0, 1.15 * max(tr.period(v) for tr in body.layers.values() for v in s))
-    ax2.set_ylabel("period T(s) (s)")
+        ax2.plot(t, [tr.period(v) for v in s], lw=1.0, ls="--", label=f"period of {name}")
+    periods = [tr.period(v) for tr in body.layers.values() for v in s]
+    # a log scale: the layers' periods differ tenfold (sway about 1-4 s, shake a fraction of a second), and on
+    # a linear one from 0 the shake's line lay on the axis and on s = 0 (a review)
+    ax2.set_yscale("log")
+    lo, hi = min(periods) / 1.6, max(periods) * 1.6
+    ax2.set_ylim(lo, hi)
+    ax2.set_yticks([v for v in (0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10, 20) if lo <= v <= hi], minor=False)
+    ax2.set_yticks([], minor=True)
+    ax2.yaxis.set_major_formatter("{x:g}")
+    ax2.set_ylabel("blended period T (s, log scale)")
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="center left", frameon=False)

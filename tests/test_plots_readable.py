@@ -189,9 +189,11 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
     for (label, cmap, rising), title in zip(heat.bars, [t for t in heat.titles if t]):
         metric_units, way = label.split("\n")
         assert metric_units == units[title.split(" ")[0]]["units"]
-        assert (way, cmap, rising) in {("better ↑ (higher is better)", "viridis", True),
-                                       ("better ↑ (lower is better)", "viridis_r", False)}
-    assert {b[0].split("\n")[1] for b in heat.bars} == {"better ↑ (higher is better)", "better ↑ (lower is better)"}
+        assert (way, cmap, rising) in {("↑ better (higher values)", "viridis", True),
+                                       ("↑ better (lower values; scale reversed)", "viridis_r", False)}
+    assert {b[0].split("\n")[1] for b in heat.bars} == {"↑ better (higher values)", "↑ better (lower values; scale reversed)"}
+    # the axes name the swept parameters with their units where the name says one (a review: raw keys, no units)
+    assert {"scheduler.decrease_per_s (1/s)", "scheduler.overrule_c"} <= set(heat.texts)
     assert_readable(saved)
 
 
@@ -324,6 +326,8 @@ def test_an_all_zero_metric_starts_at_0_and_a_metric_that_does_not_apply_says_n_
     lo, hi = fig.ylims[cutoff]
     assert lo == 0 and hi >= 1                      # an axis from 0, not matplotlib's -0.04..0.04
     assert fig.texts.count("n/a") == 1 and fig.texts.count("0") == 1   # none's missing bar, energy's bar at 0
+    # means of fewer than 10 trials say so over their bars, as the table's "(n=4)" (a review: the figure did not)
+    assert fig.texts.count("n=4") == 2
     assert fig.ylims[fig.titles.index("miss_rate ↓")][0] == 0
 
 

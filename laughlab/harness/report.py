@@ -11,6 +11,7 @@ import json
 import os
 import math
 import shutil
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -69,8 +70,14 @@ def comparison_figure(doc: dict, path: Path) -> Path:
         return path
     cols = min(5, len(names))
     rows = math.ceil(len(names) / cols)
-    fig, axes = plt.subplots(rows, cols, figsize=(2.3 * cols, 1.9 * rows + (0.4 if same else 0)), dpi=130,
-                             squeeze=False, layout="constrained")
+    few = any(0 < doc["results"][c][m]["n"] < FEW for c in conds for m in names)
+    # the title wrapped to the figure's width (about 11 characters an inch at 9 pt; two panels cut it off at both
+    # ends), each line of it given its height
+    title = textwrap.wrap(f"{doc['experiment']}: mean and 95% CI (bootstrap) over {doc['n_trials']} trials"
+                          + (f"; n=k over a bar: a mean of fewer than {FEW} trials" if few else "")
+                          + " (↑ higher is better, ↓ lower is better)", int(2.3 * cols * 11))
+    fig, axes = plt.subplots(rows, cols, figsize=(2.3 * cols, 1.9 * rows + (0.4 if same else 0) + 0.17 * (len(title) - 1)),
+                             dpi=130, squeeze=False, layout="constrained")
     colors = plt.get_cmap("tab10")
     # condition names wider than their slot under a panel (about 0.55 em a character at 7 pt) stand upright
     slot_in = 2.3 / max(len(conds), 1)
@@ -87,9 +94,15 @@ def comparison_figure(doc: dict, path: Path) -> Path:
             if not math.isfinite(m) or m == 0:
                 ax.annotate("n/a" if not math.isfinite(m) else "0", (i, 0), xytext=(0, 2), textcoords="offset points",
                             ha="center", va="bottom", fontsize=6, color="0.35")
+            elif 0 < r["n"] < FEW:   # as the table's "(n=2)": its interval is too narrow to be a 95 % one
+                ax.annotate(f"n={r['n']}", (i, max(v for v in (m, hi) if math.isfinite(v))), xytext=(0, 1.5),
+                            textcoords="offset points", ha="center", va="bottom", fontsize=5.5, color="0.35")
             drawn += [v for v in (m, lo, hi) if math.isfinite(v)]
         if drawn and not any(drawn):
             ax.set_ylim(0, 1)  # all 0: an axis from 0 (matplotlib's default for nothing is -0.04..0.04)
+        elif few:   # room above the highest bar for its n=k, under the panel's title
+            lo_y, hi_y = ax.get_ylim()
+            ax.set_ylim(lo_y, hi_y + 0.15 * (hi_y - lo_y))
         info = doc["metrics"][name]
         ax.set_title(_heading(name, info), fontsize=7)
         ax.set_xticks(range(len(conds)), conds, fontsize=7)
@@ -100,11 +113,8 @@ def comparison_figure(doc: dict, path: Path) -> Path:
         ax.spines[["top", "right"]].set_visible(False)
     for ax in axes.flat[len(names):]:
         ax.set_axis_off()
-    fig.suptitle(f"{doc['experiment']}: mean and 95% CI (bootstrap) over {doc['n_trials']} trials "
-                 "(↑ higher is better, ↓ lower is better)", fontsize=9)
+    fig.suptitle("\n".join(title), fontsize=9)
     if same:
-        import textwrap
-
         fig.supxlabel("\n".join(textwrap.wrap(
             f"Not shown, the same under every condition: {', '.join(same)} (values in the report's table).",
             int(2.3 * cols * 15))), fontsize=7, color="0.3")

@@ -31,9 +31,20 @@ def heading(metric: str, info: dict) -> str:
 
 def better_label(higher_is_better, units: str = "") -> str:
     """A colour bar's or value axis' label saying which way is better, under the values' ``units`` if given."""
-    way = {True: "better ↑ (higher is better)", False: "better ↑ (lower is better)"}.get(
+    way = {True: "↑ better (higher values)", False: "↑ better (lower values; scale reversed)"}.get(
         higher_is_better, "neither end is better")
     return f"{units}\n{way}" if units else way
+
+
+#: a swept parameter's unit by the end of its name, the configs' naming convention (``min_inactive_s``)
+PARAM_UNITS = (("_per_s", "1/s"), ("_ms", "ms"), ("_s", "s"), ("_hz", "Hz"), ("_db", "dB"), ("_deg", "deg"))
+
+
+def param_label(key: str) -> str:
+    """An axis label for a swept parameter: its key and, when its name says it, its unit
+    (``scheduler.decrease_per_s (1/s)``); a key without a unit suffix is shown as it is."""
+    unit = next((u for end, u in PARAM_UNITS if key.lower().endswith(end)), None)
+    return f"{key} ({unit})" if unit else key
 
 
 def panel_grid(n: int, w: float, h: float, cols: int = 3):

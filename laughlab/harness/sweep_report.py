@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from laughlab.core.errors import LaughlabError
-from laughlab.harness.report_format import KEY_METRICS, better_label
+from laughlab.harness.report_format import KEY_METRICS, better_label, param_label
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
 from laughlab.harness.report_format import panel_grid as _panel_grid
@@ -128,8 +128,8 @@ def _heatmaps(points, a, b, metrics, val, path, info) -> None:
                 ax.text(j, i, _fmt(grid[i, j], 2), ha="center", va="center", fontsize=6, color="k" if bright else "w")
         ax.set_xticks(range(len(xs)), xs, fontsize=7)
         ax.set_yticks(range(len(ys)), ys, fontsize=7)
-        ax.set_xlabel(a, fontsize=7)
-        ax.set_ylabel(b, fontsize=7)
+        ax.set_xlabel(param_label(a), fontsize=7)
+        ax.set_ylabel(param_label(b), fontsize=7)
         ax.set_title(_heading(m, info[m]), fontsize=8)
         cb = fig.colorbar(im, ax=ax, shrink=0.9)
         if hib is False:
@@ -147,7 +147,7 @@ def _lines(points, a, metrics, val, path, info) -> None:
     for ax, m in zip(axes, metrics):
         ys = [np.nanmean([val(p, m) for p in points if p["params"].get(a, "") == x]) for x in xs]
         ax.plot([_num(x) for x in xs], ys, "o-")
-        ax.set_xlabel(a, fontsize=7)
+        ax.set_xlabel(param_label(a), fontsize=7)
         hib = info[m]["higher_is_better"]
         way = {True: " (higher is better)", False: " (lower is better)"}.get(hib, "")
         ax.set_ylabel(info[m]["units"] + way, fontsize=6)
