@@ -276,6 +276,29 @@ def test_on_a_static_host_the_page_keeps_the_answers_and_its_csv_is_analysed(stu
     assert out.code == 0, out.stderr
     with open(tmp_path / "rep" / "tidy.csv") as f:
         assert {r["participant"] for r in csv.DictReader(f)} == {"6", "7"}
+    # the report's first line is the command that made it, every option in it (a review: --design and --out were
+    # left out, and that command gave another report); without a design the report says what that changes
+    from laughlab.study.analyze import NO_DESIGN
+
+    text = (tmp_path / "rep" / "README.md").read_text()
+    assert text.splitlines()[2] == f"`python -m laughlab study analyze {folder} --design {study} --out {tmp_path / 'rep'}`"
+    assert NO_DESIGN not in text
+    out = fuzz.run_cli(["study", "analyze", str(folder), "--out", str(tmp_path / "rep2")])
+    assert out.code == 0, out.stderr
+    text = (tmp_path / "rep2" / "README.md").read_text()
+    assert text.splitlines()[2:5] == [f"`python -m laughlab study analyze {folder} --out {tmp_path / 'rep2'}`", "",
+                                      NO_DESIGN]
+
+
+def test_the_reasons_of_the_exclusions_are_counted_once_each():
+    """A review: with every participant excluded the error listed one reason per participant, cut mid-word."""
+    from laughlab.study.analyze import reason_counts
+
+    excluded = {p: ["no audio check stored"] for p in range(12)}
+    excluded[12] = ["audio check failed (typed 'nope')", "failed 2 of 2 attention items"]
+    excluded[13] = ["audio check failed (typed 'x')"]
+    assert reason_counts(excluded) == ("no audio check stored: 12; audio check failed: 2; "
+                                       "failed 2 of 2 attention items: 1")
 
 
 def test_exclusions_name_each_participant_and_the_reason(study, tmp_path):
@@ -461,7 +484,7 @@ def test_build_overwrite_replaces_only_an_earlier_builds_files(study, tmp_path):
     DB.open_db(out / "pilot.sqlite", design_of(out))   # people's answers, under a name of the user's
     before = sorted(p.name for p in out.iterdir())
     res = fuzz.run_cli(["study", "build", str(stim), "--out", str(out), "--overwrite"])
-    assert res.code == 2 and "holds responses (pilot.sqlite)" in res.stderr, res.stderr
+    assert res.code == 2 and "holds a study's response database (pilot.sqlite)" in res.stderr, res.stderr
     assert sorted(p.name for p in out.iterdir()) == before
     mine = tmp_path / "mine"
     shutil.copytree(out / "vendor", mine / "vendor")

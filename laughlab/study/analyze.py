@@ -323,6 +323,13 @@ def analyze(source, out=None, design_dir=None) -> Path:
     """Write the report folder (module doc); its path."""
     import pandas as pd
 
+    import shlex
+
+    # the report's first line: the command that makes it again, every option given (a review: --design and --out
+    # were left out, and the command as printed gave another report)
+    command = " ".join(["python -m laughlab study analyze", shlex.quote(str(source)),
+                        *(["--design", shlex.quote(str(design_dir))] if design_dir is not None else []),
+                        *(["--out", shlex.quote(str(out))] if out else [])])
     df, design = load(source, design_dir)
     source = Path(source).expanduser()
     out = Path(out).expanduser() if out else source.with_name(source.stem + "-report")
@@ -340,7 +347,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
     tidy = ratings[~ratings["participant"].astype(int).isin(excluded)].reset_index(drop=True)
     if tidy.empty:
         raise LaughlabError(f"no ratings are left after the exclusions ({len(excluded)} participants excluded: "
-                            f"{'; '.join(r[0] for r in excluded.values())[:200]})")
+                            f"{reason_counts(excluded)})")
     questions = [q for q in questions if q in set(tidy["question"])]
     means = condition_means(tidy, conditions, questions)
     fixed, variances, cons, notes, warned = [], [], [], {}, {}
@@ -393,7 +400,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
            "means": means.to_dict("records"), "fixed": fixed, "variance": variances,
            "contrasts": contrast_df.to_dict("records")}
     (tmp / "report.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
-    (tmp / "README.md").write_text(_markdown(doc, source))
+    (tmp / "README.md").write_text(_markdown(doc, source, command, design is not None))
     _check_out(out)  # again: the fit takes a while, and the folder may have been filled meanwhile
     if out.exists():
         shutil.rmtree(out)
@@ -425,9 +432,24 @@ def _check_out(out: Path) -> None:
                             "(a report replaces only an earlier report)")
 
 
-def _markdown(doc: dict, source: Path) -> str:
-    lines = [f"# Study report: {source.name}", "",
-             f"`python -m laughlab study analyze {source}`", ""]
+def reason_counts(excluded: dict) -> str:
+    """The exclusions' reasons, each once with how many participants it excluded (the reasons' words before any
+    detail in brackets): ``no audio check stored: 12; failed 2 of 4 attention items: 1``."""
+    from collections import Counter
+
+    counts = Counter(r.split(" (")[0] for reasons in excluded.values() for r in reasons)
+    return "; ".join(f"{r}: {n}" for r, n in counts.most_common())
+
+
+#: the report's line when no design was found or given (CSV answers without --design)
+NO_DESIGN = ("No study design was found or given (`--design STUDY_DIR`): the conditions are in alphabetical "
+             "order, and the default exclusion rules apply.")
+
+
+def _markdown(doc: dict, source: Path, command: str, has_design: bool = True) -> str:
+    lines = [f"# Study report: {source.name}", "", f"`{command}`", ""]
+    if not has_design:
+        lines += [NO_DESIGN, ""]
     if doc.get("simulated"):
         lines += ["**Simulated participants** (`study simulate`, answers drawn from a planted effect), not people.", ""]
     lines += [

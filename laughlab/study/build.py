@@ -57,7 +57,8 @@ def check_out(out: Path, overwrite: bool) -> None:
         except OSError:   # a folder, or unreadable
             sqlite = False
         if sqlite and participants_kind(f) != "simulated":
-            raise LaughlabError(f"{out} holds responses ({name}); build the study into another folder")
+            raise LaughlabError(f"{out} holds a study's response database ({name}); build the study into another "
+                                "folder")
     if held and not overwrite:
         raise LaughlabError(f"{out} exists and is not empty; choose another --out or add --overwrite")
     if held and "design.json" not in held:
