@@ -163,13 +163,11 @@ function drawStrip(t) {
   sctx.clearRect(0, 0, w, h);
   const x = (s) => (s - (t - span / 2)) / span * w;
   const eMax = Math.max(1, ...run.clips.map((c) => c.energy), run.energy_max || 1);
-  for (const c of run.clips) {
-    if (c.stop < t - span / 2 || c.start > t + span / 2) continue;
+  const shown = run.clips.filter((c) => !(c.stop < t - span / 2 || c.start > t + span / 2));
+  const topOf = (c) => h - 18 - (h - 36) * c.energy / eMax;
+  for (const c of shown) {
     sctx.fillStyle = colours[c.index % colours.length] + '88';
-    const top = h - 18 - (h - 36) * c.energy / eMax;
-    sctx.fillRect(x(c.start), top, x(c.stop) - x(c.start), h - 18 - top);
-    sctx.fillStyle = '#ccd';
-    sctx.fillText(c.clip, x(c.start) + 3, top - 3);
+    sctx.fillRect(x(c.start), topOf(c), x(c.stop) - x(c.start), h - 18 - topOf(c));
   }
   const line = (values, colour, scale) => {
     if (!values) return;
@@ -183,6 +181,14 @@ function drawStrip(t) {
   };
   line(run.channels.energy, '#6aa84f', eMax);
   line(run.channels.mcs, '#e06666', 1);
+  // the clips' names over the lines, each on a dark patch, so the MCS and energy lines do not run through them
+  for (const c of shown) {
+    const wText = sctx.measureText(c.clip).width, y = topOf(c) - 3;
+    sctx.fillStyle = 'rgba(20, 20, 28, 0.8)';
+    sctx.fillRect(x(c.start) + 1, y - 11, wText + 4, 14);
+    sctx.fillStyle = '#ccd';
+    sctx.fillText(c.clip, x(c.start) + 3, y);
+  }
   sctx.strokeStyle = '#fff'; sctx.beginPath(); sctx.moveTo(w / 2, 0); sctx.lineTo(w / 2, h); sctx.stroke();
   sctx.fillStyle = '#aab';
   sctx.fillText('MCS (red), laughing energy (green), clips (blocks of height e)', 8, 14);
