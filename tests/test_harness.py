@@ -367,3 +367,30 @@ def test_a_folder_of_two_experiments_sweeps_is_one_line_not_a_traceback(tmp_path
                                             r"energy_ablation\); report each sweep's folder on its own"):
         sweep_report(tmp_path, tmp_path / "rep", "cmd")
     assert sorted(["12", "", "3", "fast"], key=_order) == ["3", "12", "", "fast"]   # numbers, then words
+
+
+def test_the_commit_stamp_is_dirty_only_when_code_differs(tmp_path):
+    """A review: regenerating the committed reports one after another stamped every report but the first
+    '+dirty' (the reports written before it were changes); reports, docs and Markdown do not change a run."""
+    import subprocess
+
+    from laughlab.harness.results import git_hash
+
+    def git(*args):
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    git("init", "-q")
+    for f in ("reports/x/README.md", "docs/a.md", "README.md", "laughlab/m.py"):
+        (tmp_path / f).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / f).write_text("1\n")
+    git("add", ".")
+    git("-c", "user.email=a@b", "-c", "user.name=a", "commit", "-qm", "x")
+    clean = git_hash(tmp_path)
+    assert clean and not clean.endswith("+dirty")
+    for f in ("reports/x/README.md", "docs/a.md", "README.md"):
+        (tmp_path / f).write_text("2\n")
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "runs" / "new.txt").write_text("untracked\n")
+    assert git_hash(tmp_path) == clean
+    (tmp_path / "laughlab" / "m.py").write_text("2\n")
+    assert git_hash(tmp_path) == clean + "+dirty"

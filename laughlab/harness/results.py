@@ -95,14 +95,21 @@ def aggregate(records: list[dict], metric_names: list[str]) -> tuple[dict, dict]
     return results, by_profile
 
 
+#: tracked files whose changes do not change what a run computes: the committed reports (regenerating them one
+#: after another made every report but the first say "+dirty") and the documentation
+NOT_CODE = (":(exclude)reports", ":(exclude)docs", ":(exclude)*.md")
+
+
 def git_hash(root: Path | None = None) -> str | None:
+    """The laughlab checkout's commit, with ``+dirty`` when a tracked file other than :data:`NOT_CODE` differs
+    from it; None outside a git checkout."""
     root = root or Path(__file__).resolve().parents[2]
     try:
         h = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
         if h.returncode != 0:
             return None
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
-                               capture_output=True, text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", *NOT_CODE],
+                               cwd=root, capture_output=True, text=True, timeout=10).stdout.strip()
         return h.stdout.strip() + ("+dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return None
