@@ -16,7 +16,8 @@ from pathlib import Path
 
 from laughlab.core import clock, interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, check_overrides,  # noqa: F401
-                                  compose_config, conf_dir, group_options, register_plugin_configs)
+                                  compose_config, conf_dir, group_options, load_plugin_dirs,
+                                  register_plugin_configs)
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
@@ -50,12 +51,9 @@ def preflight(argv: list[str]):
     from omegaconf import OmegaConf
 
     from laughlab.core import pipeline
-    from laughlab.core import plugins
 
     overrides = _overrides(argv)
-    for ov in overrides:
-        if ov.startswith("plugins_dir="):
-            plugins.load_plugin_dir(ov.split("=", 1)[1])
+    load_plugin_dirs(overrides)
     register_plugin_configs()
     check_overrides(overrides)
     cfg = compose_config(overrides, job_name="cli")
@@ -397,11 +395,7 @@ def _main(argv: list[str]) -> None:
             return
     if "plugins" in argv:
         try:
-            from laughlab.core import plugins
-
-            for a in argv:
-                if a.startswith("plugins_dir="):
-                    plugins.load_plugin_dir(a.split("=", 1)[1])
+            load_plugin_dirs(argv)
             from laughlab.core.plugin_table import list_plugins
 
             list_plugins()
@@ -425,7 +419,8 @@ def _main(argv: list[str]) -> None:
     try:
         if not multirun and not hydra_only:
             cfg = preflight(argv)
-        else:
+        else:   # a sweep, or Hydra's own flags (--cfg job): its plugins_dir's plugins before Hydra composes
+            load_plugin_dirs(_overrides(argv))
             register_plugin_configs()
             check_overrides(_overrides(argv))
             if multirun and not hydra_only:   # every swept value, before the launcher starts a job

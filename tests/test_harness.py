@@ -394,3 +394,29 @@ def test_the_commit_stamp_is_dirty_only_when_code_differs(tmp_path):
     assert git_hash(tmp_path) == clean
     (tmp_path / "laughlab" / "m.py").write_text("2\n")
     assert git_hash(tmp_path) == clean + "+dirty"
+
+
+@pytest.mark.parametrize("text, message", [
+    ("garbage\n", "tank.truth.csv: no column kind, onset_s, offset_s"),
+    ("kind,bout,onset_s,offset_s,intensity\nbout,0,0.5,99,1\n", "tank.truth.csv, line 2: offset_s 99 is past the "
+                                                                 "recording's end (3.000 s)"),
+    ("kind,bout,onset_s,offset_s,intensity\nbout,0,0.5,2,1\nbout,1,1.5,2.5,1\n",
+     "tank.truth.csv, line 3: the bout at 1.5-2.5 s overlaps the one at 0.5-2 s"),
+    ("kind,bout,onset_s,offset_s,intensity\ncall,0,1,0.5,1\n", "tank.truth.csv, line 2: need 0 <= onset_s < offset_s"),
+    ("kind,bout,onset_s,offset_s,intensity\ncall,0,x,0.5,1\n", "tank.truth.csv, line 2: onset_s and offset_s must be"),
+])
+def test_a_corpus_folders_truth_csv_is_checked_before_any_trial(tmp_path, text, message):
+    """A review: a malformed NAME.truth.csv failed in the trial workers after the trials had run; one whose bout
+    ended past the recording or overlapped another was taken silently. Checked now as the annotations are."""
+    import soundfile as sf
+
+    from laughlab.harness.corpus import folder_items
+
+    sf.write(tmp_path / "tank.wav", np.zeros(48000), 16000)
+    (tmp_path / "tank.truth.csv").write_text(text)
+    with pytest.raises(LaughlabError, match="^corpus folder .*1 of 1 files are bad") as err:
+        folder_items(tmp_path)
+    assert message in str(err.value)
+    (tmp_path / "tank.truth.csv").write_text("kind,bout,onset_s,offset_s,intensity\nbout,0,0.5,2,1\ncall,0,0.5,0.7,1\n"
+                                             "bout,1,2,3.01,0.5\n")   # touching bouts, an end within rounding
+    assert folder_items(tmp_path)[0].truth == str(tmp_path / "tank.truth.csv")

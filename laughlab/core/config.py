@@ -43,6 +43,18 @@ def group_options(group: str) -> list[str]:
     return sorted(names)
 
 
+def load_plugin_dirs(overrides) -> None:
+    """Load the plugins of every ``plugins_dir=PATH`` among ``overrides`` (before their configs can compose):
+    the command line's single runs, sweeps and ``--cfg``, and an experiment's trial workers, which compose their
+    own configuration in processes of their own (a review: ``face=NAME`` of a plugins_dir plugin was unknown there)."""
+    from laughlab.core import plugins
+
+    for ov in overrides:
+        key, _, value = str(ov).partition("=")
+        if key.lstrip("+~") == "plugins_dir" and value and value != "null":
+            plugins.load_plugin_dir(value)
+
+
 def register_plugin_configs() -> None:
     """Give every registered plugin without a YAML file a config group option.
 
@@ -224,8 +236,9 @@ def compose_app(overrides) -> "DictConfig":  # noqa: F821
 
     from laughlab.core import plugins
 
-    register_plugin_configs()
     overrides = list(overrides)
+    load_plugin_dirs(overrides)
+    register_plugin_configs()
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
     except Exception as exc:
@@ -261,6 +274,8 @@ def _top_level_keys() -> set[str]:
 def check_overrides(overrides: list[str]) -> None:
     """Unknown group options raise :class:`LaughlabError` with the list of valid ones; so does ``+KEY=...`` for a
     key no part of laughlab reads (``+fsp=30``, a typo of ``fps``, was added and ignored)."""
+    from laughlab.core import plugins
+
     for ov in overrides:
         key = ov.split("=")[0].lstrip("+")
         root = re.split(r"[./]", key)[0]
@@ -279,4 +294,5 @@ def check_overrides(overrides: list[str]) -> None:
         options = group_options(group)
         for choice in choices:
             if choice not in options:
-                raise LaughlabError(f"unknown {group} {choice!r}; choose one of: {', '.join(options) or '(none)'}")
+                raise LaughlabError(f"unknown {group} {choice!r}; choose one of: {', '.join(options) or '(none)'}"
+                                    f"{plugins.other_kind_hint(choice)}")

@@ -96,9 +96,32 @@ def load_plugin_dir(path: str | Path) -> list[str]:
         except Exception as exc:  # a broken user plugin is a user error
             del sys.modules[mod_name]
             raise LaughlabError(f"plugin {file} failed to import: {type(exc).__name__}: {exc}") from exc
-        pm.register(module, name=mod_name)
+        try:
+            _check_hooks(module, file)
+            pm.register(module, name=mod_name)
+        except pluggy.PluginValidationError as exc:   # e.g. register_faces(reg): a hook argument not named as specified
+            del sys.modules[mod_name]
+            raise LaughlabError(f"plugin {file}: {' '.join(str(exc).split())}") from None
+        except LaughlabError:
+            del sys.modules[mod_name]
+            raise
         loaded.append(mod_name)
     return loaded
+
+
+def _check_hooks(module, file: Path) -> None:
+    """Refuse, in one line, a plugin module whose hooks laughlab would never call: a ``@hookimpl`` of no hook of
+    laughlab's (``register_face``), or a ``register_*`` function left without ``@hookimpl`` (a review: both left
+    the plugin silently unregistered, and the run said only that its name was unknown)."""
+    specs = sorted(n for n in dir(pm.hook) if n.startswith("register_"))
+    for attr in sorted(vars(module)):
+        if attr.startswith("_") or not callable(getattr(module, attr)):
+            continue
+        marked = pm.parse_hookimpl_opts(module, attr) is not None
+        if marked and attr not in specs:
+            raise LaughlabError(f"plugin {file}: {attr} is not a laughlab hook; the hooks are {', '.join(specs)}")
+        if not marked and attr in specs and getattr(getattr(module, attr), "__module__", None) == module.__name__:
+            raise LaughlabError(f"plugin {file}: {attr} is not marked @laughlab.hookimpl, so laughlab never calls it")
 
 
 def _origin(plugin: Any) -> str:
@@ -123,6 +146,9 @@ def registry() -> dict[str, dict[str, PluginInfo]]:
                 name = getattr(obj, "name", None) or getattr(obj, "__name__", None)
                 if not name:
                     raise LaughlabError(f"a {kind} plugin from {_origin(impl.plugin)} has no name")
+                if kind == "metric" and not all(hasattr(obj, a) for a in ("fn", "higher_is_better", "units")):
+                    raise LaughlabError(f"metric {name!r} from {_origin(impl.plugin)} is not a Metric: decorate its "
+                                        "function with @laughlab.harness.metrics.metric(name, higher_is_better, units)")
                 if name in out[kind]:
                     prev = out[kind][name]
                     raise LaughlabError(
@@ -133,11 +159,20 @@ def registry() -> dict[str, dict[str, PluginInfo]]:
     return out
 
 
+def other_kind_hint(name: str) -> str:
+    """`` ('gape' is registered as a body, plugins dir: ...)`` when a plugin of that name is of another kind (a
+    review: a face registered through register_bodies was only an unknown face); else empty."""
+    reg = registry()
+    other = [k for k, found in reg.items() if name in found]
+    return f" ({name!r} is registered as a {other[0]}, {reg[other[0]][name].origin})" if other else ""
+
+
 def get(kind: str, name: str) -> PluginInfo:
     """Look up one plugin; unknown names fail with the list of known ones."""
     known = registry()[kind]
     if name not in known:
-        raise LaughlabError(f"unknown {kind} {name!r}; choose one of: {', '.join(known) or '(none)'}")
+        raise LaughlabError(f"unknown {kind} {name!r}; choose one of: {', '.join(known) or '(none)'}"
+                            f"{other_kind_hint(name)}")
     return known[name]
 
 

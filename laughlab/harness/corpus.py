@@ -83,11 +83,48 @@ def check_audio(f: Path) -> float:
     return info.frames / info.samplerate
 
 
+#: how far past the recording's end a truth time may reach (s): the rounding of times written to 3-6 decimals
+END_TOLERANCE_S = 0.05
+
+
+def check_truth_csv(path: Path, duration: float | None) -> None:
+    """A ``NAME.truth.csv`` checked as the annotations are, before any trial (a review: a malformed one failed
+    after the trials had run, and bouts past the recording's end or overlapping were taken silently): the
+    columns ``kind``, ``onset_s``, ``offset_s``; times numbers with ``0 <= onset < offset``, not past the end;
+    bouts apart.  Raises LaughlabError naming the file and the row (its line in the file)."""
+    import pandas as pd
+
+    try:
+        t = pd.read_csv(path)
+    except (ValueError, OSError, UnicodeDecodeError) as exc:
+        raise LaughlabError(f"{path.name}: not a truth CSV ({str(exc).splitlines()[0]})") from None
+    missing = [c for c in ("kind", "onset_s", "offset_s") if c not in t.columns]
+    if missing:
+        raise LaughlabError(f"{path.name}: no column {', '.join(missing)} (truth.csv columns: kind, bout, onset_s, "
+                            "offset_s, intensity)")
+    on, off = (pd.to_numeric(t[c], errors="coerce") for c in ("onset_s", "offset_s"))
+    for i in range(len(t)):
+        line = i + 2   # the header is line 1
+        if not (pd.notna(on[i]) and pd.notna(off[i])):
+            raise LaughlabError(f"{path.name}, line {line}: onset_s and offset_s must be numbers")
+        if not 0.0 <= on[i] < off[i]:
+            raise LaughlabError(f"{path.name}, line {line}: need 0 <= onset_s < offset_s (got {on[i]:g}, {off[i]:g})")
+        if duration is not None and off[i] > duration + END_TOLERANCE_S:
+            raise LaughlabError(f"{path.name}, line {line}: offset_s {off[i]:g} is past the recording's end "
+                                f"({duration:.3f} s)")
+    bouts = sorted((on[i], off[i], i + 2) for i in range(len(t)) if t["kind"][i] == "bout")
+    for (a0, a1, _), (b0, b1, line) in zip(bouts, bouts[1:]):
+        if b0 < a1:
+            raise LaughlabError(f"{path.name}, line {line}: the bout at {b0:g}-{b1:g} s overlaps the one at "
+                                f"{a0:g}-{a1:g} s")
+
+
 def _truth_beside(f: Path, duration: float | None) -> str | None:
     """``NAME.truth.csv``, else an annotation ``NAME.txt`` (Audacity labels) or ``NAME.TextGrid``,
     parsed now (overlaps, labels, times past the end raise LaughlabError)."""
     truth = f.with_name(f.stem + ".truth.csv")
     if truth.exists():
+        check_truth_csv(truth, duration)
         return str(truth)
     for ext in (".txt", ".TextGrid"):
         ann = f.with_name(f.stem + ext)

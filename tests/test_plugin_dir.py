@@ -1,0 +1,97 @@
+"""A plugin in a ``plugins_dir=`` folder works wherever a built-in one does (a review of writing a plugin: its
+``face=NAME`` was unknown to an experiment's trial workers, to sweeps and to ``--cfg job``, though a single run
+used it).  Each case is a real ``python -m laughlab`` child: the plugin registry is per process."""
+import csv
+import json
+import subprocess
+import sys
+
+PLUGIN = '''
+from dataclasses import dataclass
+
+import laughlab
+from laughlab import Face
+
+
+@dataclass
+class GapeParams:
+    gain: float = 1.0
+
+
+class Gape(Face):
+    """The jaw opens in proportion to the motion control signal."""
+    name = "gape"
+    Params = GapeParams
+
+    def step(self, frame):
+        frame.channels["jaw"] = min(1.0, frame.control["mcs"] * self.params.gain)
+
+
+@laughlab.hookimpl
+def register_faces(register):
+    register(Gape)
+'''
+
+
+def run(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "laughlab", *args], capture_output=True, text=True, cwd=cwd,
+                          timeout=300)
+
+
+def test_a_plugins_dir_face_in_an_experiment_a_sweep_and_cfg_job(tmp_path):
+    (tmp_path / "myplugins").mkdir()
+    (tmp_path / "myplugins" / "gape.py").write_text(PLUGIN)
+    # an experiment with its trials in two worker processes, the folder given relative to the working directory
+    r = run("plugins_dir=myplugins", "experiment=smoke", "face=gape", "face.gain=2", "harness.corpus.seeds=1",
+            "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild,intense]", "harness.jobs=2",
+            "harness.showcase=null", "harness.plots=false", "hydra.run.dir=exp", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "exp" / "results.json").read_text())
+    assert doc["config"]["face"] == {"name": "gape", "gain": 2.0} and doc["n_trials"] == 4
+    # a sweep: each point's run used the plugin with its own gain
+    r = run("-m", "plugins_dir=myplugins", "face=gape", "face.gain=0.5,3", "input.duration_s=1",
+            "~output.plots", "hydra.sweep.dir=sweep", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    peaks = []
+    for point in ("0", "1"):
+        with open(tmp_path / "sweep" / point / "channels.csv") as f:
+            peaks.append(max(float(row["jaw"]) for row in csv.DictReader(f)))
+    assert 0 < peaks[0] < peaks[1] <= 1.0
+    # Hydra's --cfg job composes the configuration with it
+    r = run("plugins_dir=myplugins", "face=gape", "--cfg", "job", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "face:\n  name: gape\n  gain: 1.0" in r.stdout
+
+
+BAD = {
+    # a hook name of no laughlab hook
+    "typo": (PLUGIN.replace("def register_faces", "def register_face"),
+             "register_face is not a laughlab hook; the hooks are register_bodies, "),
+    # the hook without its marker
+    "no_marker": (PLUGIN.replace("@laughlab.hookimpl\n", ""),
+                  "register_faces is not marked @laughlab.hookimpl, so laughlab never calls it"),
+    # the hook's argument not named as the hookspec names it
+    "argument": (PLUGIN.replace("register_faces(register):\n    register(Gape)", "register_faces(reg):\n    reg(Gape)"),
+                 "Argument(s) {'reg'} are declared in the hookimpl but can not be found in the hookspec"),
+    # a face registered as a body
+    "kind": (PLUGIN.replace("register_faces", "register_bodies"),
+             "unknown face 'gape'; choose one of: cgm, facs, smile ('gape' is registered as a body, plugins dir: "),
+    # a plain function as a metric
+    "metric": ("import laughlab\n\ndef gape_mean(trial):\n    return 0.0\n\n@laughlab.hookimpl\n"
+               "def register_metrics(register):\n    register(gape_mean)\n",
+               "metric 'gape_mean' from plugins dir: "),
+}
+
+
+def test_a_plugin_laughlab_would_never_call_is_one_line(tmp_path):
+    """A review: a mistyped hook, a hook without @hookimpl and a face registered as a body each left the plugin
+    unregistered with only "unknown face 'gape'"; a hook argument named otherwise was a pluggy traceback, and a
+    plain function as a metric failed only after every trial had run."""
+    for case, (text, message) in BAD.items():
+        folder = tmp_path / case
+        folder.mkdir()
+        (folder / "p.py").write_text(text)
+        r = run(f"plugins_dir={folder}", "face=gape", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}",
+                cwd=tmp_path)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr, (case, r.stderr)
+        assert "Traceback" not in r.stderr and not (tmp_path / "run").exists()
