@@ -74,3 +74,22 @@ def test_read_mono_fills_in_place_whatever_the_header_says(tmp_path, monkeypatch
         monkeypatch.setattr(audio, "read_blocks", blocks)
         got, _ = read_mono(tmp_path / "x.flac")
         assert np.array_equal(got, np.concatenate([want[:keep], more]))
+
+
+def test_overwrite_keeps_the_earlier_labels_of_a_file_skipped_now(tmp_path):
+    """A re-read: with --overwrite --skip-unreadable, the labels an earlier detect wrote for a file that cannot be
+    read now were removed as stale; they stay (and stay in the manifest), the others' are replaced."""
+    rec, out = batch(tmp_path), tmp_path / "out"
+    (rec / "b_notes.wav").unlink()
+    (rec / "c_cut.flac").unlink()
+    t = np.arange(16000) / 16000
+    sf.write(rec / "d_tone.wav", 0.1 * np.sin(2 * np.pi * 330 * t), 16000)
+    assert laughlab("detect", str(rec), "--out", str(out)).returncode == 0
+    (rec / "d_tone.wav").write_text("damaged since\n")
+    r = laughlab("detect", str(rec), "--out", str(out), "--overwrite", "--skip-unreadable")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a_tone.TextGrid", "a_tone.txt",
+                                                                          "d_tone.TextGrid", "d_tone.txt", "segments.csv"]
+    (rec / "d_tone.wav").unlink()   # gone for good: the next --overwrite removes its labels as stale
+    assert laughlab("detect", str(rec), "--out", str(out), "--overwrite").returncode == 0
+    assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a_tone.TextGrid", "a_tone.txt", "segments.csv"]

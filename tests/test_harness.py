@@ -404,6 +404,7 @@ def test_the_commit_stamp_is_dirty_only_when_code_differs(tmp_path):
      "tank.truth.csv, line 3: the bout at 1.5-2.5 s overlaps the one at 0.5-2 s"),
     ("kind,bout,onset_s,offset_s,intensity\ncall,0,1,0.5,1\n", "tank.truth.csv, line 2: need 0 <= onset_s < offset_s"),
     ("kind,bout,onset_s,offset_s,intensity\ncall,0,x,0.5,1\n", "tank.truth.csv, line 2: onset_s and offset_s must be"),
+    ("kind,bout,onset_s,offset_s\nbout,0,0.5,2\n", "tank.truth.csv: no column intensity (0..1) for its bouts"),
 ])
 def test_a_corpus_folders_truth_csv_is_checked_before_any_trial(tmp_path, text, message):
     """A review: a malformed NAME.truth.csv failed in the trial workers after the trials had run; one whose bout
@@ -418,5 +419,5 @@ def test_a_corpus_folders_truth_csv_is_checked_before_any_trial(tmp_path, text, 
         folder_items(tmp_path)
     assert message in str(err.value)
     (tmp_path / "tank.truth.csv").write_text("kind,bout,onset_s,offset_s,intensity\nbout,0,0.5,2,1\ncall,0,0.5,0.7,1\n"
-                                             "bout,1,2,3.01,0.5\n")   # touching bouts, an end within rounding
+                                             "bout,1,2,3.0005,0.5\n")   # touching bouts, an end within rounding
     assert folder_items(tmp_path)[0].truth == str(tmp_path / "tank.truth.csv")

@@ -40,7 +40,10 @@ def run(*args, cwd):
 
 def test_a_plugins_dir_face_in_an_experiment_a_sweep_and_cfg_job(tmp_path):
     (tmp_path / "myplugins").mkdir()
-    (tmp_path / "myplugins" / "gape.py").write_text(PLUGIN)
+    # the hook under a name of its own, pluggy's specname (a re-read: the hook check refused it)
+    (tmp_path / "myplugins" / "gape.py").write_text(PLUGIN.replace(
+        "@laughlab.hookimpl\ndef register_faces(", '@laughlab.hookimpl(specname="register_faces")\ndef my_faces('))
+    assert "def my_faces(" in (tmp_path / "myplugins" / "gape.py").read_text()
     # an experiment with its trials in two worker processes, the folder given relative to the working directory
     r = run("plugins_dir=myplugins", "experiment=smoke", "face=gape", "face.gain=2", "harness.corpus.seeds=1",
             "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild,intense]", "harness.jobs=2",

@@ -296,9 +296,11 @@ def test_the_reasons_of_the_exclusions_are_counted_once_each():
 
     excluded = {p: ["no audio check stored"] for p in range(12)}
     excluded[12] = ["audio check failed (typed 'nope')", "failed 2 of 2 attention items"]
-    excluded[13] = ["audio check failed (typed 'x')"]
+    excluded[13] = ["audio check failed (typed 'x')", "failed 1 of 2 attention items"]
+    excluded[14] = ["straight-lining: all 12 ratings were 3"]
+    excluded[15] = ["straight-lining: all 12 ratings were 5"]
     assert reason_counts(excluded) == ("no audio check stored: 12; audio check failed: 2; "
-                                       "failed 2 of 2 attention items: 1")
+                                       "failed N of N attention items: 2; straight-lining: all N ratings were N: 2")
 
 
 def test_exclusions_name_each_participant_and_the_reason(study, tmp_path):

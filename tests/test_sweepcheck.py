@@ -11,7 +11,7 @@ from laughlab.core.sweepcheck import check_sweep, sweep_values
 
 def test_sweep_values_by_hand():
     base, sweeps = sweep_values(["experiment=x", "a=1,2", "+b=range(0,3)", "c=[1,2]", "d=interval(0,1)"])
-    assert base == ["experiment=x", "a=1", "+b=0", "c=[1,2]", "d=interval(0,1)"]
+    assert base == ["experiment=x", "a=1", "+b=0", "c=[1,2]"]          # interval(...): left to the jobs
     assert sweeps == {"a": ["a=1", "a=2"], "+b": ["+b=0", "+b=1", "+b=2"]}
 
 
@@ -50,3 +50,22 @@ def test_a_bad_sweep_is_one_line_before_any_job(tmp_path, swept, message):
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr
     assert "Traceback" not in r.stderr and "HYDRA_FULL_ERROR" not in r.stderr
     assert not sweep.exists()                                      # no job started, no folder made
+
+
+def test_a_sweep_over_experiments_does_not_read_their_sweeper_params():
+    """Hydra composes the sweeper's configuration without swept groups, so ``experiment=a,b`` runs each experiment
+    once and their own params are not swept (a re-read: the check applied a's params to b and refused it)."""
+    calls = []
+
+    def preflight(overrides):
+        calls.append(list(overrides))
+        return OmegaConf.create({"hydra": {"sweeper": {"params": {"p": "0,-1"}}}})
+
+    assert check_sweep(["experiment=a,b", "seed=1"], preflight) == 2
+    assert calls == [["experiment=a", "seed=1"], ["experiment=b", "seed=1"]]
+
+
+def test_the_committed_experiments_sweep_together(tmp_path):
+    from laughlab import cli
+
+    assert check_sweep(["experiment=energy_ablation,concat_ablation"], cli.preflight) == 2

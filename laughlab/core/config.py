@@ -204,7 +204,7 @@ def reaches_run(key: str) -> bool:
     return key.lstrip("+~").split(".")[0] not in NOT_IN_A_RUN
 
 
-def _is_group(key: str) -> bool:
+def is_group(key: str) -> bool:
     """Does an override's key name a config group (``detector``, ``hydra/launcher``), not a value
     (``seed``, ``input.path``)?  Groups are the config module's folders and the ConfigStore's groups."""
     if "." in key:
@@ -243,9 +243,9 @@ def compose_app(overrides) -> "DictConfig":  # noqa: F821
         parsed = OverridesParser.create().parse_overrides(overrides)
     except Exception as exc:
         raise LaughlabError(composition_error(exc, overrides)) from None
-    is_group = [_is_group(p.key_or_group) for p in parsed]
-    groups = [p.input_line for p, g in zip(parsed, is_group) if g]
-    values = [p for p, g in zip(parsed, is_group) if not g and reaches_run(p.key_or_group)]
+    grouped = [is_group(p.key_or_group) for p in parsed]
+    groups = [p.input_line for p, g in zip(parsed, grouped) if g]
+    values = [p for p, g in zip(parsed, grouped) if not g and reaches_run(p.key_or_group)]
     key = (tuple(groups), tuple((kind, tuple(sorted(reg))) for kind, reg in sorted(plugins.registry().items())))
     base = _COMPOSED.get(key)
     if base is None:

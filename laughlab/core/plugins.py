@@ -113,13 +113,15 @@ def _check_hooks(module, file: Path) -> None:
     """Refuse, in one line, a plugin module whose hooks laughlab would never call: a ``@hookimpl`` of no hook of
     laughlab's (``register_face``), or a ``register_*`` function left without ``@hookimpl`` (a review: both left
     the plugin silently unregistered, and the run said only that its name was unknown)."""
-    specs = sorted(n for n in dir(pm.hook) if n.startswith("register_"))
+    specs = sorted(n for n in dir(hookspecs) if n.startswith("register_"))
     for attr in sorted(vars(module)):
         if attr.startswith("_") or not callable(getattr(module, attr)):
             continue
-        marked = pm.parse_hookimpl_opts(module, attr) is not None
-        if marked and attr not in specs:
-            raise LaughlabError(f"plugin {file}: {attr} is not a laughlab hook; the hooks are {', '.join(specs)}")
+        opts = pm.parse_hookimpl_opts(module, attr)
+        marked = opts is not None
+        hook = (opts or {}).get("specname") or attr   # @hookimpl(specname="register_faces") def my_faces(...)
+        if marked and hook not in specs:
+            raise LaughlabError(f"plugin {file}: {hook} is not a laughlab hook; the hooks are {', '.join(specs)}")
         if not marked and attr in specs and getattr(getattr(module, attr), "__module__", None) == module.__name__:
             raise LaughlabError(f"plugin {file}: {attr} is not marked @laughlab.hookimpl, so laughlab never calls it")
 

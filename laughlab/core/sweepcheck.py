@@ -9,8 +9,9 @@ joblib launcher the other points were stopped mid-run, leaving empty results beh
 
 Values are checked one key at a time, not every combination: the checks are of single parameters, and a
 sweep of thousands of points on a cluster costs a check per value (about 0.1 s each), not per point.  A
-sweep the parser cannot list (``interval(...)`` for an optimising sweeper, ``glob(...)`` over groups) keeps
-its first value in the checks of the others and is left to its jobs.
+sweep the parser cannot list (``interval(...)`` for an optimising sweeper) is left out of the checks and to
+its jobs.  A sweep over a config group (``experiment=a,b``) leaves the experiments' ``hydra.sweeper.params``
+unswept, as Hydra does (it composes the sweeper's configuration without swept groups), so they are not read.
 """
 from __future__ import annotations
 
@@ -21,7 +22,7 @@ from laughlab.core.errors import LaughlabError
 
 def sweep_values(overrides: list[str]) -> tuple[list[str], dict[str, list[str]]]:
     """(the overrides with every sweep at its first value, {key: its sweep's values as overrides ``key=value``})
-    for the sweeps the parser can list; the others stay as given in the first list."""
+    for the sweeps the parser can list; a sweep it cannot list is left out of both."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.errors import HydraException
 
@@ -36,8 +37,8 @@ def sweep_values(overrides: list[str]) -> tuple[list[str], dict[str, list[str]]]
         if ov.is_sweep_override():
             try:
                 values = [f"{key}={v}" for v in ov.sweep_string_iterator()]
-            except HydraException:
-                values = None
+            except HydraException:   # interval(...): for an optimising sweeper, left to the jobs
+                continue
         if values:
             sweeps[key] = values
             base.append(values[0])
@@ -53,9 +54,11 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
     Hydra's basic sweeper does."""
     from omegaconf import OmegaConf
 
+    from laughlab.core.config import is_group
+
     base, sweeps = sweep_values(overrides)
     cfg = preflight(base)
-    params = cfg.hydra.get("sweeper", {}).get("params")
+    params = None if any(is_group(k.lstrip("+~")) for k in sweeps) else cfg.hydra.get("sweeper", {}).get("params")
     params = OmegaConf.to_container(params, resolve=False) if OmegaConf.is_config(params) else dict(params or {})
     given = {k.lstrip("+~") for k in sweeps} | {o.split("=", 1)[0].lstrip("+~") for o in base}
     extra = [f"{k}={v}" for k, v in (params or {}).items() if k.lstrip("+~") not in given]

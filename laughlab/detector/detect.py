@@ -94,7 +94,7 @@ def read_mono(path: Path):
             x = np.concatenate([x[:n], np.empty(max(len(b), len(x) // 4), np.float32)])
         x[n:n + len(b)] = b
         n += len(b)
-    return x[:n], int(info.samplerate)
+    return (x[:n].copy() if n < len(x) else x), int(info.samplerate)   # a view would keep the larger buffer
 
 
 def main(argv: list[str]) -> None:
@@ -135,7 +135,7 @@ def main(argv: list[str]) -> None:
 
     named = inputs(ns.paths)
     stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n in named], formats))
-    total_s, kept, skipped = 0.0, [], []
+    total_s, kept, skipped, gone = 0.0, [], [], []   # gone: the names of the inputs skipped
     for f, name in named:  # every input checked before any work or any file written
         try:
             info = probe_file(f)
@@ -143,6 +143,7 @@ def main(argv: list[str]) -> None:
             if not ns.skip_unreadable:
                 raise LaughlabError(f"{exc} (--skip-unreadable leaves such files out)") from None
             skip(skipped, exc)
+            gone.append(name)
             continue
         kept.append((f, name))
         total_s += info.frames / info.samplerate
@@ -170,6 +171,7 @@ def main(argv: list[str]) -> None:
             if not ns.skip_unreadable:
                 raise LaughlabError(f"{exc} (--skip-unreadable leaves such files out)") from None
             skip(skipped, exc)
+            gone.append(name)
             continue
         t, p = S.laughter_prob(x, sr, ns.hop, model, score)
         p = S.smooth(p, ns.smooth)
@@ -191,8 +193,11 @@ def main(argv: list[str]) -> None:
 
     S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(rel(stale) | set(planned))}) + "\n")
     written = S.write_outputs(out, results, formats)
-    unwrite(sorted(set(stale) - set(written)), out)   # --overwrite: an earlier detect's files this one did not write
-    S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(rel(written))}) + "\n")
+    # an earlier detect's files of an input skipped now stay (it could not be read again: its labels are not stale)
+    theirs = set(S.output_names(gone, formats)) - rel(written)
+    kept_old = {p for p in stale if p.relative_to(out).as_posix() in theirs}
+    unwrite(sorted(set(stale) - set(written) - kept_old), out)   # --overwrite: an earlier detect's files not written now
+    S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(rel(written) | rel(kept_old))}) + "\n")
     wall = time.perf_counter() - t0
     print(summary_line(results, skipped, wall, out))
 

@@ -83,16 +83,14 @@ def check_audio(f: Path) -> float:
     return info.frames / info.samplerate
 
 
-#: how far past the recording's end a truth time may reach (s): the rounding of times written to 3-6 decimals
-END_TOLERANCE_S = 0.05
-
-
 def check_truth_csv(path: Path, duration: float | None) -> None:
     """A ``NAME.truth.csv`` checked as the annotations are, before any trial (a review: a malformed one failed
     after the trials had run, and bouts past the recording's end or overlapping were taken silently): the
-    columns ``kind``, ``onset_s``, ``offset_s``; times numbers with ``0 <= onset < offset``, not past the end;
+    columns ``kind``, ``onset_s``, ``offset_s`` (and ``intensity`` with bouts or calls); times numbers with ``0 <= onset < offset``, not past the end;
     bouts apart.  Raises LaughlabError naming the file and the row (its line in the file)."""
     import pandas as pd
+
+    from laughlab.corpora.annotations import TOL_S
 
     try:
         t = pd.read_csv(path)
@@ -102,6 +100,8 @@ def check_truth_csv(path: Path, duration: float | None) -> None:
     if missing:
         raise LaughlabError(f"{path.name}: no column {', '.join(missing)} (truth.csv columns: kind, bout, onset_s, "
                             "offset_s, intensity)")
+    if t["kind"].isin(["bout", "call"]).any() and "intensity" not in t.columns:   # Truth.intensity reads it
+        raise LaughlabError(f"{path.name}: no column intensity (0..1) for its bouts and calls")
     on, off = (pd.to_numeric(t[c], errors="coerce") for c in ("onset_s", "offset_s"))
     for i in range(len(t)):
         line = i + 2   # the header is line 1
@@ -109,7 +109,7 @@ def check_truth_csv(path: Path, duration: float | None) -> None:
             raise LaughlabError(f"{path.name}, line {line}: onset_s and offset_s must be numbers")
         if not 0.0 <= on[i] < off[i]:
             raise LaughlabError(f"{path.name}, line {line}: need 0 <= onset_s < offset_s (got {on[i]:g}, {off[i]:g})")
-        if duration is not None and off[i] > duration + END_TOLERANCE_S:
+        if duration is not None and off[i] > duration + TOL_S:
             raise LaughlabError(f"{path.name}, line {line}: offset_s {off[i]:g} is past the recording's end "
                                 f"({duration:.3f} s)")
     bouts = sorted((on[i], off[i], i + 2) for i in range(len(t)) if t["kind"][i] == "bout")

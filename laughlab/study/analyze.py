@@ -433,11 +433,14 @@ def _check_out(out: Path) -> None:
 
 
 def reason_counts(excluded: dict) -> str:
-    """The exclusions' reasons, each once with how many participants it excluded (the reasons' words before any
-    detail in brackets): ``no audio check stored: 12; failed 2 of 4 attention items: 1``."""
+    """The exclusions' reasons, each kind once with how many participants it excluded (the reasons' words before
+    any detail in brackets, numbers as N): ``no audio check stored: 12; failed N of N attention items: 2``."""
     from collections import Counter
 
-    counts = Counter(r.split(" (")[0] for reasons in excluded.values() for r in reasons)
+    import re
+
+    # the reason's kind: its words before any bracketed detail, its numbers as N ("failed N of N attention items")
+    counts = Counter(re.sub(r"\d+(\.\d+)?", "N", r.split(" (")[0]) for reasons in excluded.values() for r in reasons)
     return "; ".join(f"{r}: {n}" for r, n in counts.most_common())
 
 
