@@ -98,3 +98,18 @@ def test_a_plugin_laughlab_would_never_call_is_one_line(tmp_path):
                 cwd=tmp_path)
         assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr, (case, r.stderr)
         assert "Traceback" not in r.stderr and not (tmp_path / "run").exists()
+
+
+def test_a_metric_that_fails_is_one_line_naming_it(tmp_path):
+    """The plugin review: a metric returning None ended an experiment in a traceback that named neither the metric
+    nor its plugin. (A KeyError or ValueError stays NaN: the built-in metrics use it for 'does not apply'.)"""
+    (tmp_path / "m").mkdir()
+    (tmp_path / "m" / "p.py").write_text(
+        "import laughlab\nfrom laughlab.harness.metrics import metric\n\n@metric('jaw_none', True, 'x')\n"
+        "def jaw_none(trial):\n    trial.channels['jaw'].mean()\n\n@laughlab.hookimpl\n"
+        "def register_metrics(register):\n    register(jaw_none)\n")
+    r = run("plugins_dir=m", "experiment=smoke", "harness.corpus.seeds=1", "harness.corpus.duration_s=1",
+            "harness.corpus.profiles=[mild]", "harness.showcase=null", "harness.plots=false", "hydra.run.dir=exp",
+            cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert r.stderr.strip().splitlines()[-1].startswith("laughlab: error: metric 'jaw_none' failed: TypeError: ")

@@ -71,6 +71,11 @@ def compute(trial: TrialData, names: list[str] | None = None) -> dict[str, float
             v = float(m(trial))
         except (KeyError, ValueError, ZeroDivisionError):
             v = float("nan")
+        except Exception as exc:   # e.g. a plugin's metric returning None: one line naming it, not a traceback
+            from laughlab.core.errors import LaughlabError
+
+            raise LaughlabError(f"metric {name!r} failed: {type(exc).__name__}: {exc} (a metric returns a number, "
+                                "or NaN where it does not apply)") from None
         out[name] = v if math.isfinite(v) else float("nan")
     return out
 
