@@ -340,7 +340,8 @@ def help_text() -> str:
     """``--help``: the groups and their options, examples, where the docs are (no Hydra, no plugins import)."""
     lines = ["usage: python -m laughlab [group=option ...] [key.path=value ...] [-m for a sweep]", "",
              "Audio-driven laughter animation: pick one plugin per group, set any parameter by its path.", "",
-             "groups (default first; third-party plugins add options: python -m laughlab plugins):"]
+             "groups (default first; third-party plugins add options: python -m laughlab plugins; a folder of",
+             "your own plugin modules: plugins_dir=PATH, docs/architecture.md 'Writing a plugin'):"]
     defaults = {}
     for line in conf_dir().joinpath("config.yaml").read_text().splitlines():
         m = re.match(r"\s+- (\w+): (\w+)", line)
@@ -393,7 +394,8 @@ def _main(argv: list[str]) -> None:
             except OSError as exc:
                 fail(os_error_line(exc, argv[1] if len(argv) > 1 else "."))
             return
-    if "plugins" in argv:
+    if argv[:1] == ["plugins"] or ("plugins" in argv and all(a == "plugins" or a.startswith("plugins_dir=")
+                                                            for a in argv)):   # not 'face=x plugins': a run's typo
         try:
             load_plugin_dirs(argv)
             from laughlab.core.plugin_table import list_plugins

@@ -244,6 +244,11 @@ def test_plugins_command_lists_kind_name_origin_and_how_to_use_it(tmp_path):
     r = laughlab("plugins", f"plugins_dir={tmp_path}")
     assert r.returncode == 0, r.stderr
     assert any(ln.split()[:2] == ["sink", "mine"] and ln.endswith("+output.mine={}") for ln in r.stdout.splitlines())
+    # the command is 'plugins' first (or with plugins_dir= only): 'plugins' among a run's overrides is a typo of that
+    # run, not the table (a review: 'face=facs plugins' printed the table and exit 0)
+    r = laughlab("face=facs", "plugins", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "plugins" in r.stderr and not r.stdout
+    assert not (tmp_path / "run").exists()
 
 
 def test_a_successful_run_says_what_ran_how_long_and_where(tmp_path):
