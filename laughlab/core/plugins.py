@@ -113,7 +113,7 @@ def _check_hooks(module, file: Path) -> None:
     """Refuse, in one line, a plugin module whose hooks laughlab would never call: a ``@hookimpl`` of no hook of
     laughlab's (``register_face``), or a ``register_*`` function left without ``@hookimpl`` (a review: both left
     the plugin silently unregistered, and the run said only that its name was unknown)."""
-    specs = sorted(n for n in dir(hookspecs) if n.startswith("register_"))
+    specs = sorted(KINDS.values())
     for attr in sorted(vars(module)):
         if attr.startswith("_") or not callable(getattr(module, attr)):
             continue

@@ -61,7 +61,7 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
     params = None if any(is_group(k.lstrip("+~")) for k in sweeps) else cfg.hydra.get("sweeper", {}).get("params")
     params = OmegaConf.to_container(params, resolve=False) if OmegaConf.is_config(params) else dict(params or {})
     given = {k.lstrip("+~") for k in sweeps} | {o.split("=", 1)[0].lstrip("+~") for o in base}
-    extra = [f"{k}={v}" for k, v in (params or {}).items() if k.lstrip("+~") not in given]
+    extra = [f"{k}={v}" for k, v in params.items() if k.lstrip("+~") not in given]
     more_base, more = sweep_values(extra)
     base, sweeps = base + more_base, {**sweeps, **more}
     checked = 1

@@ -12,6 +12,7 @@ written, or with ``--skip-unreadable`` is left out in one line on stderr.
 from __future__ import annotations
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -135,15 +136,20 @@ def main(argv: list[str]) -> None:
 
     named = inputs(ns.paths)
     stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n in named], formats))
-    total_s, kept, skipped, gone = 0.0, [], [], []   # gone: the names of the inputs skipped
+    total_s, kept, gone = 0.0, [], []   # gone: the names of the inputs left out (--skip-unreadable)
+
+    def unreadable(name: str, exc: LaughlabError) -> None:
+        """An input that cannot be read stops the batch, or with --skip-unreadable is left out in one stderr line."""
+        if not ns.skip_unreadable:
+            raise LaughlabError(f"{exc} (--skip-unreadable leaves such files out)") from None
+        print(f"laughlab: skipped: {exc}", file=sys.stderr)
+        gone.append(name)
+
     for f, name in named:  # every input checked before any work or any file written
         try:
             info = probe_file(f)
         except LaughlabError as exc:
-            if not ns.skip_unreadable:
-                raise LaughlabError(f"{exc} (--skip-unreadable leaves such files out)") from None
-            skip(skipped, exc)
-            gone.append(name)
+            unreadable(name, exc)
             continue
         kept.append((f, name))
         total_s += info.frames / info.samplerate
@@ -168,10 +174,7 @@ def main(argv: list[str]) -> None:
         try:
             x, sr = read_mono(f)
         except LaughlabError as exc:  # damaged past its header: found only when read
-            if not ns.skip_unreadable:
-                raise LaughlabError(f"{exc} (--skip-unreadable leaves such files out)") from None
-            skip(skipped, exc)
-            gone.append(name)
+            unreadable(name, exc)
             continue
         t, p = S.laughter_prob(x, sr, ns.hop, model, score)
         p = S.smooth(p, ns.smooth)
@@ -199,18 +202,10 @@ def main(argv: list[str]) -> None:
     unwrite(sorted(set(stale) - set(written) - kept_old), out)   # --overwrite: an earlier detect's files not written now
     S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(rel(written) | rel(kept_old))}) + "\n")
     wall = time.perf_counter() - t0
-    print(summary_line(results, skipped, wall, out))
+    print(summary_line(results, gone, wall, out))
 
 
-def skip(skipped: list[str], exc: LaughlabError) -> None:
-    """--skip-unreadable: say which input is left out and why, in one line on stderr."""
-    import sys
-
-    skipped.append(str(exc))
-    print(f"laughlab: skipped: {exc}", file=sys.stderr)
-
-
-def summary_line(results: list, skipped: list[str], wall: float, out: Path) -> str:
+def summary_line(results: list, skipped: list[str], wall: float, out: Path) -> str:   # skipped: their names
     """The closing line: files, audio, segments, how many files had none (they have no row in segments.csv, and an
     empty TextGrid tier), how many were skipped, and the speed."""
     n = sum(len(r[2]) for r in results)
