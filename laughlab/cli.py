@@ -14,7 +14,7 @@ import sys
 import time
 from pathlib import Path
 
-from laughlab.core import clock, interrupts
+from laughlab.core import blame, clock, interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, check_overrides,  # noqa: F401
                                   compose_config, conf_dir, group_options, load_plugin_dirs,
                                   register_plugin_configs)
@@ -200,13 +200,17 @@ def _in_sweep() -> bool:
 
 def _fault(exc: BaseException, where: Path | str, cfg) -> tuple[str, int]:
     """What a run stopped by ``exc`` says, and its exit status: an interrupt (or anything after one) 130, a
-    file-system fault (a full disk, a file size limit, a folder that went away) 2.  Anything else is a bug,
+    file-system fault (a full disk, a file size limit, a folder that went away) 2, a plugin's exception
+    (:mod:`laughlab.core.blame`) 1 after the plugin's lines of the traceback.  Anything else is a bug,
     re-raised: its traceback is what a report needs, but a single run's folder is first left as a failed run
     leaves it (an earlier run it was replacing put back)."""
     if interrupts.interrupted(exc):
         return "interrupted", 130
     if isinstance(exc, OSError):
         return os_error_line(exc, where), 2
+    if blame.line(exc):   # a plugin's bug: its own lines of the traceback, then the line naming it
+        print(blame.trace(exc), file=sys.stderr)
+        return blame.line(exc), 1
     if _CLAIM is not None and not cfg.get("harness"):
         _remove_new_run_dir(Path(where))
     raise exc

@@ -113,3 +113,46 @@ def test_a_metric_that_fails_is_one_line_naming_it(tmp_path):
             cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     assert r.stderr.strip().splitlines()[-1].startswith("laughlab: error: metric 'jaw_none' failed: TypeError: ")
+
+
+def test_a_plugin_that_raises_is_named_with_its_frame_and_its_own_lines(tmp_path):
+    """The plugin review: an exception in a plugin's step() was a 40-line traceback through Hydra and the command
+    line, without the plugin's name or the frame.  Now: the plugin's own lines of the traceback, then one line
+    naming the plugin, its file and class, the frame and its time; the run's folder removed.  In an experiment
+    (trials in two worker processes) the line names the trial too, and the finished trials are kept."""
+    (tmp_path / "p").mkdir()
+    plugin = tmp_path / "p" / "gape.py"
+    plugin.write_text(PLUGIN.replace('        frame.channels["jaw"]', '        if frame.index == 30:\n'
+                                     '            raise ValueError("no jaw today")\n        frame.channels["jaw"]'))
+    r = run("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 1 and not (tmp_path / "run").exists(), r.stderr
+    assert lines[-1] == (f"laughlab: error: face 'gape' ({plugin}, Gape.step) at frame 30 (0.50 s) raised "
+                         "ValueError: no jaw today (the lines above are from the plugin's code); the run's partial "
+                         "output was removed")
+    # the traceback starts at the plugin's step: none of laughlab's, Hydra's or pluggy's lines
+    assert lines[0] == "Traceback (most recent call last):" and f'File "{plugin}", line ' in lines[1]
+    assert "laughlab/" not in r.stderr.replace(str(tmp_path), "") and "hydra" not in r.stderr
+    r = run("plugins_dir=p", "experiment=smoke", "face=gape", "harness.corpus.seeds=1", "harness.corpus.duration_s=1",
+            "harness.corpus.profiles=[mild,intense]", "harness.jobs=2", "harness.showcase=null",
+            "harness.plots=false", "hydra.run.dir=exp", cwd=tmp_path)
+    last = r.stderr.strip().splitlines()[-1]
+    assert r.returncode == 1 and "Traceback (most recent call last):" in r.stderr, r.stderr
+    assert last.startswith(f"laughlab: error: face 'gape' ({plugin}, Gape.step) at frame 30 (0.50 s) in trial ")
+    assert last.endswith("raised ValueError: no jaw today (the lines above are from the plugin's code); the "
+                         "finished trials are kept: run the same command again to resume")
+    assert not (tmp_path / "exp" / "results.json").exists()
+
+
+def test_a_channel_that_is_not_a_number_is_one_line_naming_it(tmp_path):
+    """The plugin review: a face writing a string into a channel failed in numpy's conversion, a traceback that
+    named neither the channel nor the frame."""
+    (tmp_path / "p").mkdir()
+    (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace(
+        'frame.channels["jaw"] = min(1.0, frame.control["mcs"] * self.params.gain)',
+        'frame.channels["jaw"] = "wide" if frame.index == 7 else 0.5'))
+    r = run("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr == (
+        "laughlab: error: channel 'jaw' is 'wide' (str) at frame 7: channel values are numbers; the plugin that "
+        "writes it has a bug, so nothing was written\n")
+    assert not (tmp_path / "run").exists()

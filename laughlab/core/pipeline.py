@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from laughlab.core import plugins
+from laughlab.core import blame, plugins
 from laughlab.core.bases import Chunk, Context, RunInfo
 from laughlab.core.errors import LaughlabError, UnknownParameter
 from laughlab.core.frame import Frame
@@ -229,29 +229,14 @@ class _Recorder:
                     vals[k] = np.fromiter([d[k] for d in dicts], dtype=np.float64, count=i)
                 except KeyError:
                     raise LaughlabError(f"channel {k!r} is not written every frame") from None
-        _check_finite(vals, poses, self.done)
+                except (TypeError, ValueError):   # a value that is not a number: say which and where
+                    raise LaughlabError(blame.not_a_number(k, [d[k] for d in dicts], self.done)) from None
+        blame.check_finite(vals, poses, self.done)
         chunk = Chunk(np.array(self.times, dtype=np.float64), vals, poses, self.events, self.labels,
                       np.array(self.capture, dtype=np.int64))
         self.done += i
         self._reset()
         return chunk
-
-
-def _check_finite(vals: dict, poses: np.ndarray, first_frame: int) -> None:
-    """The guard before every writer: a NaN or infinite channel or pose value is a plugin's bug, never output.
-
-    Raises LaughlabError naming the channel (or pose column) and the first frame
-    where it happens; the run then removes what it wrote.
-    """
-    for k, arr in vals.items():
-        if not np.isfinite(arr).all():
-            j = int(np.argmin(np.isfinite(arr)))
-            raise LaughlabError(f"channel {k!r} is {arr[j]} at frame {first_frame + j}: a plugin computed a "
-                                f"non-finite value, so nothing was written (please report it)")
-    if len(poses) and not np.isfinite(poses).all():
-        j, c = (int(x[0]) for x in np.nonzero(~np.isfinite(poses)))
-        raise LaughlabError(f"pose column {c} is {poses[j, c]} at frame {first_frame + j}: a non-finite joint "
-                            f"value, so nothing was written (please report it)")
 
 
 def chunk_frames(pipe: Pipeline) -> int:
@@ -329,6 +314,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
     artifacts: list[Path] = []
     written: list[Path] = []
     helper, behind = _helper_for(pipe, n_chunk)
+    k = None   # the frame being stepped, for the line naming a plugin that raises (core.blame)
     try:
         if helper is not None:
             helper.open(behind, RunInfo(out_dir, ctx.fps, ctx.skeleton, src.n_frames, _source_view(src), config))
@@ -399,7 +385,9 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
         tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
         os.replace(tmp, out_dir / "metrics.json")
         return metrics
-    except BaseException:
+    except BaseException as exc:
+        blame.mark(exc, [src, pipe.extractor, pipe.detector, pipe.scheduler, pipe.body, pipe.face, *pipe.sinks],
+                   k, ctx.fps)
         for sink in opened:
             try:
                 sink.abort()

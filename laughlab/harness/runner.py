@@ -18,7 +18,7 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from laughlab.core import pipeline
+from laughlab.core import blame, pipeline
 from laughlab.core.errors import LaughlabError
 from laughlab.core.progress import bar
 from laughlab.harness.corpus import Item
@@ -59,7 +59,13 @@ def run_trial(trial: Trial) -> dict:
         shutil.rmtree(out)
     out.mkdir(parents=True)
     pipe = pipeline.build(cfg)
-    pipeline.execute(pipe, out, OmegaConf.to_container(cfg, resolve=True))
+    try:
+        pipeline.execute(pipe, out, OmegaConf.to_container(cfg, resolve=True))
+    except Exception as exc:   # a plugin's exception: which trial (the line names the plugin and frame)
+        where = getattr(exc, blame.WHERE, None)
+        if where:
+            setattr(exc, blame.WHERE, f"{where} in trial {trial.condition}/{trial.item.id} seed {trial.seed}")
+        raise
     data = TrialData.load(out, trial.item.truth)
     metrics = compute(data)
     record = {"condition": trial.condition, "input": trial.item.id, "profile": trial.item.profile,

@@ -1,0 +1,103 @@
+"""A plugin's bug, said so the user reads it first: which plugin an unexpected exception came from, and a
+channel value that is not a finite number.
+
+An exception a plugin raises while a run steps it (a bug, not bad input: bad input is a
+:class:`~laughlab.core.errors.LaughlabError`) used to end in a 40-line traceback through Hydra and the
+command line, the plugin's own lines at the bottom, without its name or the frame.  :func:`mark` names the
+plugin, its file and the frame on the exception (attributes that survive pickling, so a trial run in a worker
+process keeps them); the command line then prints the traceback from the plugin's own call on, and one line.
+"""
+from __future__ import annotations
+
+import inspect
+import traceback
+
+from laughlab.core.errors import LaughlabError
+
+#: attribute set on an exception by :func:`mark`: the plugin and where (str)
+WHERE = "laughlab_plugin"
+#: the traceback from the plugin's own call on (str; a traceback object does not pickle)
+TRACE = "laughlab_trace"
+#: True when the plugin is one of laughlab's own (a bug to report), False for a third-party one
+BUILT_IN = "laughlab_built_in"
+
+
+def _source_file(cls: type) -> str:
+    try:
+        return inspect.getsourcefile(cls) or cls.__module__
+    except TypeError:
+        return cls.__module__
+
+
+def mark(exc: BaseException, stages: list, frame: int | None, fps: float) -> None:
+    """Name on ``exc`` the outermost call, in its traceback, of a method of one of ``stages`` (the run's plugin
+    objects); ``frame`` is the frame being stepped (None: before the first, or while writing).  Exceptions
+    with no such call (the pipeline's own) are left as they are."""
+    if getattr(exc, WHERE, None) or not isinstance(exc, Exception) or isinstance(exc, (LaughlabError, OSError)):
+        return   # already named, an interrupt, or one line already (bad input, a file-system fault)
+    ids = {id(s): s for s in stages if s is not None}
+    tb = exc.__traceback__
+    while tb is not None:
+        plugin = ids.get(id(tb.tb_frame.f_locals.get("self")))
+        if plugin is not None:
+            break
+        tb = tb.tb_next
+    if tb is None:
+        return
+    cls = type(plugin)
+    kind = getattr(plugin, "kind", "") or "plugin"
+    kind = {"source": "input", "sink": "output"}.get(kind, kind)
+    method = tb.tb_frame.f_code.co_name
+    when = f" at frame {frame} ({frame / fps:.2f} s)" if frame is not None and method == "step" else ""
+    name = getattr(plugin, "name", "") or cls.__name__
+    setattr(exc, WHERE, f"{kind} '{name}' ({_source_file(cls)}, {cls.__name__}.{method}){when}")
+    setattr(exc, TRACE, "".join(traceback.format_exception(type(exc), exc, tb)).rstrip())
+    setattr(exc, BUILT_IN, cls.__module__.split(".")[0] in ("laughlab", "laughlab_plugins"))
+
+
+def line(exc: BaseException) -> str | None:
+    """The one line for an exception :func:`mark` named (None if it did not)."""
+    where = getattr(exc, WHERE, None)
+    if not where:
+        return None
+    text = str(exc).strip().splitlines()
+    cause = f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+    who = ("a bug in laughlab: please report it with the lines above" if getattr(exc, BUILT_IN, False)
+           else "the lines above are from the plugin's code")
+    return f"{where} raised {cause} ({who})"
+
+
+def trace(exc: BaseException) -> str:
+    """The traceback from the plugin's own call on ('' if :func:`mark` did not name one)."""
+    return getattr(exc, TRACE, "") or ""
+
+
+def not_a_number(key: str, values: list, first_frame: int) -> str:
+    """The line for a channel value that is not a number (a plugin's bug): the channel, the value, the frame."""
+    for j, v in enumerate(values):
+        try:
+            float(v)
+        except (TypeError, ValueError):
+            break
+    else:
+        j, v = 0, values[0]
+    return (f"channel {key!r} is {str(v)[:40]!r} ({type(v).__name__}) at frame {first_frame + j}: channel values "
+            f"are numbers; the plugin that writes it has a bug, so nothing was written")
+
+
+def check_finite(vals: dict, poses, first_frame: int) -> None:
+    """The guard before every writer: a NaN or infinite channel or pose value is a plugin's bug, never output.
+
+    Raises LaughlabError naming the channel (or pose column) and the first frame
+    where it happens; the run then removes what it wrote.
+    """
+    import numpy as np   # not at import: the command line starts without numpy
+    for k, arr in vals.items():
+        if not np.isfinite(arr).all():
+            j = int(np.argmin(np.isfinite(arr)))
+            raise LaughlabError(f"channel {k!r} is {arr[j]} at frame {first_frame + j}: a plugin computed a "
+                                f"non-finite value, so nothing was written (please report it)")
+    if len(poses) and not np.isfinite(poses).all():
+        j, c = (int(x[0]) for x in np.nonzero(~np.isfinite(poses)))
+        raise LaughlabError(f"pose column {c} is {poses[j, c]} at frame {first_frame + j}: a non-finite joint "
+                            f"value, so nothing was written (please report it)")
