@@ -33,6 +33,28 @@ _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "
                 "--config-name", "-cn", "--config-dir", "-cd", "--experimental-rerun"}
 
 
+#: top-level keys a user may write as a --flag out of habit (--seed 3): the line says to write KEY=VALUE
+_RUN_KEYS = ("seed", "fps", "overwrite", "progress", "character", "plugins_dir", "experiment")
+
+
+def _check_flags(argv: list[str]) -> None:
+    """An argument starting with '-' that is neither Hydra's flag nor -m: one line (it was dropped without a
+    word and the default run started: --overwrite, --hlep)."""
+    for a in argv:
+        flag = a.split("=", 1)[0]
+        if not a.startswith("-") or flag in _HYDRA_FLAGS or flag in ("-m", "--multirun", "-r", "--run"):
+            continue
+        key = flag.lstrip("-").replace("-", "_")
+        if key in _RUN_KEYS:
+            hint = f"write {key}=" + {"overwrite": "true", "seed": "N", "character": "PATH", "plugins_dir": "PATH",
+                                      "experiment": "NAME"}.get(key, "VALUE")
+        elif key in ("out", "outdir", "output_dir", "run_dir"):
+            hint = "a run's folder is hydra.run.dir=PATH (--out is an option of view, detect and report)"
+        else:
+            hint = "a run takes overrides key=value (python -m laughlab --help)"
+        fail(f"unknown option {flag!r}: {hint}")
+
+
 def fail(message: str, code: int = 2) -> "None":
     if interrupts.received:  # whatever failed after a Ctrl-C or SIGTERM failed because of it
         message, code = ("interrupted" if code != 130 else message), 130
@@ -66,15 +88,20 @@ def preflight(argv: list[str]):
         raise LaughlabError(f"hydra.run.dir {run_dir} exists and is not a folder")
     if cfg.get("harness"):
         from laughlab.harness.corpus import build_corpus
-        from laughlab.harness.experiment import experiment_module
+        from laughlab.harness.experiment import experiment_module, showcase_item
         from laughlab.harness.runner import check_conditions
         from laughlab.harness.settings import check_harness
 
         check_harness(OmegaConf.to_container(cfg.harness, resolve=True))
         module = experiment_module(cfg.harness.get("module"))
+        if any(o.lstrip("+").split("=", 1)[0] == "seed" for o in overrides):
+            raise LaughlabError("seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds "
+                                "(synthetic inputs: how many, or a list such as [10,11]) and harness.run_seeds "
+                                "(each recording's runs, e.g. [0,1,2])")
         if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
             check_conditions(cfg.harness.get("conditions"))
-            build_corpus(OmegaConf.to_container(cfg.harness.get("corpus") or {}, resolve=True))
+            harness = OmegaConf.to_container(cfg.harness, resolve=True)
+            showcase_item(harness, build_corpus(harness.get("corpus") or {}))
         if cfg.get("character") is not None:   # e.g. experiment=stimuli: its trials' sinks load it later
             from laughlab.avatar.load import load_character
 
@@ -163,6 +190,8 @@ def task(cfg) -> dict:
         rundir.restore_hydra(out_dir, running=True)
         fail(str(exc))
     except LaughlabError as exc:
+        if cfg.get("harness") and _CLAIM is not None and (out_dir / "metrics.jsonl").exists():
+            fail(_stopped(cfg, out_dir, str(exc)))   # after trials (a metric that fails): they are kept, resumable
         # a sweep job refused by a finished run: Hydra wrote this job's .hydra/ over that run's; put it back
         if _CLAIM is not None or not rundir.restore_hydra(out_dir):
             _remove_new_run_dir(out_dir)
@@ -413,6 +442,12 @@ def _main(argv: list[str]) -> None:
     if argv and "=" not in argv[0] and not argv[0].startswith(("~", "-")):   # e.g. a mistyped command
         fail(f"unknown command {argv[0]!r}: the commands are {', '.join(n for n, _ in commands)}, plugins; a run "
              "takes overrides key=value (python -m laughlab --help)")
+    if argv == ["--version"]:
+        from laughlab import __version__
+
+        print(f"laughlab {__version__}")
+        return
+    _check_flags(argv)
     multirun = any(a in ("-m", "--multirun") for a in argv)
     if multirun:
         global _STARTED

@@ -117,6 +117,20 @@ def bad_files(tmp_path_factory):
                                               "and - _ . / must be quoted: \"input.path='rire_é.wav'\""),
     (["output=video", "output.video.file=input.wav"], "file must be a file name ending in .mp4 (got 'input.wav')"),
     (["detekt"], "unknown command 'detekt': the commands are detect, report, corpus, study, view, plugins;"),   # was Hydra's 'Error parsing override'
+    # a flag was dropped without a word and the default run started (a review: --hlep, --overwrite)
+    (["--hlep"], "unknown option '--hlep': a run takes overrides key=value (python -m laughlab --help)"),
+    (["-x", "face=facs"], "unknown option '-x': a run takes overrides key=value"),
+    (["--overwrite"], "unknown option '--overwrite': write overwrite=true"),
+    (["--seed=3"], "unknown option '--seed': write seed=N"),
+    (["--character", "my.vrm"], "unknown option '--character': write character=PATH"),
+    (["--out", "runs/x"], "unknown option '--out': a run's folder is hydra.run.dir=PATH (--out is an option of view"),
+    (["-m", "seed=1,2", "--foo"], "unknown option '--foo'"),
+    # a review: a mistyped showcase was found after every trial; seed= was recorded but changed nothing
+    (["experiment=smoke", "harness.showcase=rec-laugh_x"], "harness.showcase 'rec-laugh_x' is not an input of the "
+     "corpus (mild-s00, mild-s01, intense-s00, ...) nor a synthetic one (PROFILE-sSEED: mixed, mild, "),
+    (["experiment=smoke", "harness.showcase=mild-sx"], "harness.showcase 'mild-sx' is not an input of the corpus"),
+    (["experiment=smoke", "seed=5"], "seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds"),
+    (["-m", "experiment=smoke", "seed=5,6"], "seed= does not apply to an experiment"),
 ])
 def test_bad_input_one_line_no_output(bad_files, args, message):
     out = bad_files / "run"
@@ -164,10 +178,10 @@ def test_a_parameter_of_another_plugin_says_what_to_add(tmp_path, args, message)
                                                "output.vmc.blend_case, output.vmc.host,"),
     # a nested group given one value, or failing its own check (was OmegaConf's "Merge error: str is not a
     # subclass of UnitParams" and "bad parameter in face.facs: hi must be >= 0", no AU named)
-    (["face=facs", "face.au12=abc"], "bad parameter face.facs.au12: it is a group of parameters (lo, hi, rise, "
+    (["face=facs", "face.au12=abc"], "bad parameter face.au12 (face=facs): it is a group of parameters (lo, hi, rise, "
                                      "fall, input), not one value (got 'abc'); set one of them, e.g. face.au12.lo=..."),
-    (["face=facs", "face.au12.hi=-1"], "bad parameter in face.facs.au12: hi must be >= 0 (got -1.0)"),
-    (["face=facs", "face.au6.lo=0.5", "face.au6.hi=0.4"], "bad parameter in face.facs.au6: hi must be > lo"),
+    (["face=facs", "face.au12.hi=-1"], "bad parameter in face.au12 (face=facs): hi must be >= 0 (got -1.0)"),
+    (["face=facs", "face.au6.lo=0.5", "face.au6.hi=0.4"], "bad parameter in face.au6 (face=facs): hi must be > lo"),
     # a comma without brackets (was Hydra's "Ambiguous value for argument")
     (["output=gltf,video"], "output=gltf,video: several outputs are a list, write 'output=[gltf,video]'"),
     (["face=facs,smile"], "face=facs,smile gives several values: to run each, add -m"),
@@ -419,3 +433,11 @@ def test_a_missing_report_folder_says_not_found_and_a_short_file_its_own_length(
     r = laughlab("input=file", f"input.path={tmp_path / 'short.wav'}", f"hydra.run.dir={tmp_path / 'run'}",
                  "detector=none", "~output.plots")
     assert r.returncode == 0 and "laughlab: 0.05 s of short.wav" in r.stdout, r.stdout
+
+
+def test_version_is_laughlabs():
+    """--version printed Hydra's version (a review)."""
+    from laughlab import __version__
+
+    r = laughlab("--version")
+    assert r.returncode == 0 and r.stdout == f"laughlab {__version__}\n" and r.stderr == ""

@@ -183,9 +183,9 @@ def test_the_gate_scales_the_drive_and_none_passes_it(gated_and_plain):
 
 
 @pytest.mark.parametrize("args,msg", [
-    (["detector=laugh", "detector.open_at=2"], "bad parameter in detector.laugh: need 0 <= close_below <= open_at <= 1"),
+    (["detector=laugh", "detector.open_at=2"], "bad parameter in detector=laugh: need 0 <= close_below <= open_at <= 1"),
     (["detector=laugh", "detector.model=/no/such.json"],
-     "bad parameter in detector.laugh: model file not found: /no/such.json"),
+     "bad parameter in detector=laugh: model file not found: /no/such.json"),
     (["detector=nope"], "unknown detector 'nope'"),
     (["detector=none", "detector.open_at=0.5"], "detector.open_at is a parameter of detector=laugh, "
                                                 "detector=yamnet and detector=yamnet_fused, not of detector=none: "

@@ -113,6 +113,11 @@ def test_a_metric_that_fails_is_one_line_naming_it(tmp_path):
             cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     assert r.stderr.strip().splitlines()[-1].startswith("laughlab: error: metric 'jaw_none' failed: TypeError: ")
+    # the folder is an unfinished experiment, not a stranger's files: a review found it refused by the next run
+    assert r.stderr.strip().endswith("; the finished trials are kept: run the same command again to resume")
+    r = run("experiment=smoke", "harness.corpus.seeds=1", "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild]",
+            "harness.showcase=null", "harness.plots=false", "hydra.run.dir=exp", cwd=tmp_path)
+    assert r.returncode == 0 and (tmp_path / "exp" / "results.json").exists(), r.stderr
 
 
 def test_a_plugin_that_raises_is_named_with_its_frame_and_its_own_lines(tmp_path):

@@ -40,9 +40,9 @@ def test_each_value_of_each_key_is_checked_with_the_others_at_their_first_values
 @pytest.mark.parametrize("swept, message", [
     ("scheduler.overule_c=1.5,3", "unknown parameter scheduler.overule_c; valid: "),
     ("nosuchkey=1", "unknown parameter nosuchkey"),
-    ("scheduler.overrule_c=1.5,-2", "sweep value scheduler.overrule_c=-2: bad parameter in scheduler.energy: "
+    ("scheduler.overrule_c=1.5,-2", "sweep value scheduler.overrule_c=-2: bad parameter in scheduler=energy: "
                                     "overrule_c must be >= 0 (got -2.0)"),
-    ("scheduler.overrule_c=1.5,abc", "sweep value scheduler.overrule_c=abc: bad parameter scheduler.energy.overrule_c"),
+    ("scheduler.overrule_c=1.5,abc", "sweep value scheduler.overrule_c=abc: bad parameter scheduler.overrule_c (scheduler=energy)"),
 ])
 def test_a_bad_sweep_is_one_line_before_any_job(tmp_path, swept, message):
     sweep = tmp_path / "sweep"

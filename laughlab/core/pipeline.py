@@ -129,7 +129,7 @@ def build(cfg: DictConfig) -> Pipeline:
             built[group] = _create(group, kind, name, values, ctx)
             built[group].open()
         except ValueError as exc:
-            raise LaughlabError(f"bad parameter in {group}.{name}: {exc}") from None
+            raise LaughlabError(f"bad parameter in {plugins.typed(f'{group}.{name}')}: {exc}") from None
         ctx.sample_rate = built[group].sample_rate
         ctx.calibration_s = float(built[group].calibration_s)
     for group, kind in GROUPS.items():
@@ -139,7 +139,8 @@ def build(cfg: DictConfig) -> Pipeline:
         try:
             built[group] = _create(group, kind, values["name"], values, ctx)
         except ValueError as exc:
-            raise LaughlabError(f"bad parameter in {group}.{values['name']}: {exc}") from None
+            where = plugins.typed(f"{group}.{values['name']}")
+            raise LaughlabError(f"bad parameter in {where}: {exc}") from None
         if group == "extractor" and not getattr(built[group], "calibrates", False):
             ctx.calibration_s = 0.0  # no min/max to calibrate: input=mic skips its calibration phase
     outputs = _section(cfg, "output") or {}

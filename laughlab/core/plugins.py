@@ -178,6 +178,24 @@ def get(kind: str, name: str) -> PluginInfo:
     return known[name]
 
 
+#: the groups whose plugin is chosen by name (``face=facs``): their parameters are typed without that name
+_GROUPS = ("input", "extractor", "detector", "scheduler", "body", "face")
+
+
+def typed(where: str, key: str | None = None) -> str:
+    """A parameter as the user types it, with the plugin it belongs to: ``where`` is ``GROUP.NAME[.SUB]``
+    (``face.facs.au12``) for a plugin group, shown as ``face.au12.hi (face=facs)`` (with no key and no sub-group
+    ``face=facs``), or ``output.NAME`` for a
+    sink, whose name is part of the key (``output.video.fps``)."""
+    group, _, rest = where.partition(".")
+    name, _, sub = rest.partition(".")
+    if group not in _GROUPS or not name:
+        return ".".join(p for p in (where, key) if p)
+    if not (sub or key):
+        return f"{group}={name}"   # "bad parameter in face=smile: blink_mean_s must be > 0"
+    return f"{'.'.join(p for p in (group, sub, key) if p)} ({group}={name})"
+
+
 def make_params(cls: type, values: Any, where: str) -> Any:
     """Validate ``values`` against the plugin's ``Params`` dataclass.
 
@@ -197,31 +215,31 @@ def make_params(cls: type, values: Any, where: str) -> Any:
     valid = [f.name for f in fields(params_cls)]
     for key in values:
         if key not in valid:
-            raise UnknownParameter(f"unknown parameter {where}.{key}; valid: {', '.join(valid) or '(none)'}", key)
+            raise UnknownParameter(f"unknown parameter {typed(where, key)}; valid: {', '.join(valid) or '(none)'}", key)
     groups = _nested(params_cls)
     for key, value in values.items():
         if key in groups and not isinstance(value, (dict, DictConfig)):
             sub = [f.name for f in fields(groups[key])]
             example = f"{where.partition('.')[0]}.{key}.{sub[0]}=..."
-            raise LaughlabError(f"bad parameter {where}.{key}: it is a group of parameters ({', '.join(sub)}), "
+            raise LaughlabError(f"bad parameter {typed(where, key)}: it is a group of parameters ({', '.join(sub)}), "
                                 f"not one value (got {value!r}); set one of them, e.g. {example}")
     merged = None
     try:
         merged = OmegaConf.merge(_schema(params_cls), values)
         bad = first_nonfinite(OmegaConf.to_container(merged, resolve=True), nonfinite_ok(params_cls))
         if bad is not None:
-            raise LaughlabError(f"bad parameter in {where}: {bad[0]} must be a finite number of magnitude at most "
-                                f"{MAX_MAGNITUDE:g} (got {bad[1]})")
+            raise LaughlabError(f"bad parameter {typed(where, bad[0])}: it must be a finite number of magnitude at "
+                                f"most {MAX_MAGNITUDE:g} (got {bad[1]})")
         return OmegaConf.to_object(merged)
     except OmegaConfBaseException as exc:
         msg = str(exc).splitlines()[0]
         key = getattr(exc, "full_key", None)
-        raise LaughlabError(f"bad parameter {where}.{key}: {msg}" if key else f"bad parameter in {where}: {msg}") \
-            from None
+        raise LaughlabError(f"bad parameter {typed(where, key)}: {msg}" if key else
+                            f"bad parameter in {typed(where)}: {msg}") from None
     except (ValueError, TypeError) as exc:
         # a nested group's own check (face.au12's hi): name the group, not only the plugin
         inner = next((k for k in groups if k in values and merged is not None and not _builds(merged[k])), None)
-        raise LaughlabError(f"bad parameter in {where}{'.' + inner if inner else ''}: {exc}") from None
+        raise LaughlabError(f"bad parameter in {typed(where, inner)}: {exc}") from None
     except OSError as exc:  # a path parameter the system refuses to look at (too long, no permission, ...)
         raise _path_error(exc, where) from None
 
@@ -229,7 +247,7 @@ def make_params(cls: type, values: Any, where: str) -> Any:
 def _path_error(exc: OSError, where: str) -> LaughlabError:
     """One line for a path parameter the system refuses: the path (:func:`shown_path`, 80 characters) and
     the cause."""
-    return LaughlabError(f"bad parameter in {where}: cannot use {shown_path(exc.filename, 80)}: "
+    return LaughlabError(f"bad parameter in {typed(where)}: cannot use {shown_path(exc.filename, 80)}: "
                          f"{exc.strerror or exc}")
 
 
@@ -292,7 +310,7 @@ def first_nonfinite(values: Any, allowed: frozenset = frozenset(), path: str = "
 def create(kind: str, name: str, values: Any, ctx: Any, where: str | None = None) -> Any:
     """Build a plugin instance from its name and parameter values."""
     info = get(kind, name)
-    params = make_params(info.obj, values, where or f"{kind}.{name}")
+    params = make_params(info.obj, values, where or f"{ {'source': 'input', 'sink': 'output'}.get(kind, kind)}.{name}")
     try:
         return info.obj(params, ctx)
     except OSError as exc:  # a file the plugin opens as it starts (a model, a BVH)

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.harness import results as res
 from laughlab.harness.corpus import Item, build_corpus, synthetic_items
 from laughlab.harness.metrics import registered
@@ -85,6 +85,27 @@ def not_fetched_line(name: str, sets: list, n_inputs: int) -> str:
             "run this command again into a new hydra.run.dir")
 
 
+def showcase_item(h: dict, items: list[Item]) -> Item | None:
+    """The input ``harness.showcase`` names (None if it names none): one of the corpus' items, or a synthetic
+    input ``PROFILE-sSEED`` outside it.  The command line calls it before any trial (a mistyped name was
+    found only after every trial had run)."""
+    from laughlab.synth.laughter import PROFILES
+
+    show = h.get("showcase")
+    if not show:
+        return None
+    item = next((i for i in items if i.id == show), None)
+    if item is None and "-s" in show:  # a synthetic input outside the corpus
+        prof, _, seed = show.rpartition("-s")
+        if seed.isdigit() and prof in PROFILES:
+            item = synthetic_items([prof], [int(seed)], float((h.get("corpus") or {}).get("duration_s", 30.0)))[0]
+    if item is None:
+        ids = [i.id for i in items]
+        raise LaughlabError(f"harness.showcase {show!r} is not an input of the corpus ({shown_names(ids)}) nor a "
+                            f"synthetic one (PROFILE-sSEED: {', '.join(PROFILES)}); set one, or harness.showcase=null")
+    return item
+
+
 def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, progress: bool = True) -> dict:
     """Run the experiment described by ``cfg.harness`` into ``out_dir``; return results.json's content."""
     h = OmegaConf.to_container(cfg.harness, resolve=True)
@@ -128,14 +149,8 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     write_records(out_dir / "metrics.jsonl", run.records)
     _remove_empty_dirs(out_dir / "trials")
 
-    show = h.get("showcase")
-    if show:
-        item = next((i for i in items if i.id == show), None)
-        if item is None and "-s" in show:  # a synthetic input outside the corpus
-            prof, seed = show.rsplit("-s", 1)
-            item = synthetic_items([prof], [int(seed)], float((h.get("corpus") or {}).get("duration_s", 30.0)))[0]
-        if item is None:
-            raise LaughlabError(f"showcase input {show!r} is not in the corpus")
+    item = showcase_item(h, items)
+    if item is not None:
         plots = out_dir / "plots"
         plots.mkdir(parents=True, exist_ok=True)
         shows = [Trial(c, item, seeds_for(item)[0], (*base, *ov, *item.overrides, f"seed={seeds_for(item)[0]}"),
