@@ -18,9 +18,61 @@ class FileParams:
     ----------
     path : str
         Audio file (WAV, FLAC, OGG, MP3, ... as soundfile reads; 8-192 kHz; channels mixed to mono).
+    truth : str
+        Optional ground truth of the recording: a ``truth.csv`` (laughlab's columns) or an annotation
+        (Audacity labels ``.txt``, Praat ``.TextGrid``; ``laughlab.corpora.annotations``), checked when the
+        run starts.  Its bouts shade the figures as a synthetic input's do, and the run writes it as
+        ``truth.csv`` (an experiment's showcase of a recording passes its annotation here).
     """
 
     path: str = ""
+    truth: str = ""
+
+
+@dataclass(frozen=True)
+class Bout:
+    """A laughter bout of the truth, in seconds."""
+
+    onset_s: float
+    offset_s: float
+
+
+@dataclass
+class RecordingTruth:
+    """A recording's ground truth from ``input.truth``: its ``bouts`` (what the figures shade) and the
+    ``rows`` of its ``truth.csv``."""
+
+    bouts: list
+    rows: list
+
+    @classmethod
+    def read(cls, path: str, duration_s: float) -> "RecordingTruth":
+        import csv
+
+        from laughlab.harness.corpus import check_truth_csv
+
+        p = Path(path).expanduser()
+        if not p.is_file():
+            raise LaughlabError(f"input.truth not found: {path}")
+        if p.suffix.lower() in (".txt", ".textgrid"):
+            from laughlab.corpora.annotations import read
+
+            rows = read(p, duration_s).truth_rows()
+        else:
+            check_truth_csv(p, duration_s)
+            with p.open(newline="", encoding="utf-8") as fh:
+                rows = [dict(r) for r in csv.DictReader(fh)]
+        bouts = [Bout(float(r["onset_s"]), float(r["offset_s"])) for r in rows if r["kind"] == "bout"]
+        return cls(bouts, rows)
+
+    def write(self, path: Path) -> None:
+        import csv
+
+        columns = list(dict.fromkeys(k for r in self.rows for k in r))
+        with open(path, "w", newline="", encoding="utf-8") as fh:
+            w = csv.DictWriter(fh, columns, lineterminator="\n")
+            w.writeheader()
+            w.writerows(self.rows)
 
 
 class FileSource(Source):
@@ -37,6 +89,21 @@ class FileSource(Source):
         self.sample_rate = int(info.samplerate)
         self.n_frames = n_frames_for(info.frames, self.sample_rate, self.ctx.fps)
         self.duration_s = info.frames / info.samplerate
+        self.truth = RecordingTruth.read(self.params.truth, self.duration_s) if self.params.truth else None
+
+    def save_artifacts(self, out_dir: Path) -> list[Path]:
+        """``truth.csv`` from ``input.truth``, whole or not at all (nothing without it)."""
+        if self.truth is None:
+            return []
+        from laughlab.core.outfiles import Staging
+
+        staging = Staging()
+        try:
+            self.truth.write(staging.path(Path(out_dir) / "truth.csv"))
+        except BaseException:
+            staging.abort()
+            raise
+        return staging.commit()
 
     def blocks(self):
         return cut_frames(read_blocks(self.params.path), self.sample_rate, self.ctx.fps)

@@ -304,3 +304,47 @@ def test_a_bad_label_stops_the_experiment_with_one_line(tmp_path):
     (tmp_path / "l.txt").write_text("0.100\t2.800\tlaugh\n")
     with pytest.raises(LaughlabError, match=r"l\.txt:1: interval 0\.100-2\.800 s is outside the recording \[0, 1\.000\] s"):
         folder_items(tmp_path)
+
+
+def test_a_recordings_showcase_shows_its_annotated_bouts(tmp_path):
+    """A review: with one's own corpus as the showcase, the figures had no truth shading (the trials' metrics used
+    the annotation; the showcase's run did not know it), and the report did not say which input it showed."""
+    from inprocess import laughlab
+
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    t = np.arange(2 * 16000) / 16000
+    sf.write(rec / "ha.wav", 0.3 * np.sin(2 * np.pi * 300 * t) * (np.sin(2 * np.pi * 4 * t) > 0), 16000)
+    (rec / "ha.txt").write_text("0.200\t1.400\tlaugh\n0.200\t0.400\tcall\n")
+    r = laughlab("experiment=smoke", f"harness.corpus.folder={rec}", "harness.corpus.profiles=[]",
+                 "harness.showcase=rec-ha", "harness.jobs=1", f"hydra.run.dir={tmp_path / 'exp'}")
+    assert r.returncode == 0, r.stderr
+    for cond in ("energy", "none"):
+        rows = list(csv.DictReader((tmp_path / "exp" / "showcase" / cond / "truth.csv").open()))
+        assert [(x["kind"], float(x["onset_s"]), float(x["offset_s"])) for x in rows] == [
+            ("bout", 0.2, 1.4), ("call", 0.2, 0.4)]
+    assert json.loads((tmp_path / "exp" / "results.json").read_text())["showcase"] == "rec-ha"
+    r = laughlab("report", str(tmp_path / "exp"))
+    assert r.returncode == 0, r.stderr
+    assert "## The same input under each condition (`rec-ha`, `harness.showcase`)" in (
+        tmp_path / "exp" / "report" / "README.md").read_text()
+
+
+def test_input_truth_is_checked_and_written_into_the_run(tmp_path):
+    """input.truth: a truth.csv or an annotation, checked when the run starts (one line), written as truth.csv."""
+    from inprocess import laughlab
+
+    sf.write(tmp_path / "l.wav", np.zeros(16000), 16000)
+    (tmp_path / "l.txt").write_text("0.100\t2.800\tlaugh\n")
+    r = laughlab("input=file", f"input.path={tmp_path / 'l.wav'}", f"input.truth={tmp_path / 'l.txt'}",
+                 f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 2 and "l.txt:1: interval 0.100-2.800 s is outside the recording [0, 1.000] s" in r.stderr
+    assert not (tmp_path / "run").exists()
+    r = laughlab("input=file", f"input.path={tmp_path / 'l.wav'}", f"input.truth={tmp_path / 'none.txt'}",
+                 f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 2 and r.stderr == f"laughlab: error: input.truth not found: {tmp_path / 'none.txt'}\n"
+    (tmp_path / "l.truth.csv").write_text("kind,bout,onset_s,offset_s,intensity\nbout,0,0.1,0.9,0.7\n")
+    r = laughlab("input=file", f"input.path={tmp_path / 'l.wav'}", f"input.truth={tmp_path / 'l.truth.csv'}",
+                 "~output.plots", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "run" / "truth.csv").read_text() == (tmp_path / "l.truth.csv").read_text()

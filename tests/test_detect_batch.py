@@ -93,3 +93,30 @@ def test_overwrite_keeps_the_earlier_labels_of_a_file_skipped_now(tmp_path):
     (rec / "d_tone.wav").unlink()   # gone for good: the next --overwrite removes its labels as stale
     assert laughlab("detect", str(rec), "--out", str(out), "--overwrite").returncode == 0
     assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a_tone.TextGrid", "a_tone.txt", "segments.csv"]
+
+
+def test_detect_writes_annotations_a_corpus_folder_reads(tmp_path):
+    """A review: detect's Audacity labels said 'laughter' (the corpus' label is 'laugh') and its TextGrid's tier is
+    'laughter' (the corpus reads 'bouts'), so its output, corrected by hand, could not give a recording its truth.
+    Now a detect -> correct -> evaluate loop: the files it writes are read as the recording's annotation."""
+    from laughlab.corpora import annotations, fetch
+    from laughlab.harness.corpus import build_corpus
+
+    src = fetch.require(kinds=["laugh"])["btanks/laugh01"]
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    x, sr = sf.read(src)
+    sf.write(rec / "laugh.wav", x, sr)
+    r = laughlab("detect", str(rec), "--out", str(tmp_path / "out"))
+    assert r.returncode == 0, r.stderr
+    segs = [(float(row["start"]), float(row["end"])) for row in csv.DictReader((tmp_path / "out" / "segments.csv").open())]
+    assert segs, "the laugh was found"
+    assert (tmp_path / "out" / "laugh.txt").read_text().split("\n")[0].endswith("\tlaugh")
+    for ext in ("txt", "TextGrid"):
+        ann = annotations.read(tmp_path / "out" / f"laugh.{ext}", len(x) / sr)
+        assert [(round(b.start, 3), round(b.end, 3)) for b in ann.labels] == [(round(a, 3), round(b, 3)) for a, b in segs]
+        assert {b.text for b in ann.labels} == {"laugh"}
+    # beside its recording in a corpus folder, the TextGrid is its truth (bouts, no calls)
+    (rec / "laugh.TextGrid").write_bytes((tmp_path / "out" / "laugh.TextGrid").read_bytes())
+    (item,) = build_corpus({"folder": str(rec), "profiles": []})
+    assert item.id == "rec-laugh" and item.truth == str(rec / "laugh.TextGrid")

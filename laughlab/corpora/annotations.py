@@ -9,7 +9,10 @@ starting with ``\\``, are skipped).  Labels:
 - ``inhale``, ``speech``, ``other``: non-laughter sounds in the file.
 
 A Praat TextGrid with tiers ``bouts`` and ``calls`` (interval texts ``laugh``
-and ``call``) is read the same way.  The bundled annotations live in
+and ``call``) is read the same way.  What ``laughlab detect`` writes is an annotation too, so its segments,
+corrected in Praat or Audacity, give a recording its truth: the TextGrid's tier ``laughter`` stands for
+``bouts`` when there is no ``bouts``, and the label ``laughter`` (its Audacity files until 2026-11-27) for
+``laugh``.  The bundled annotations live in
 ``laughlab/data/annotations/<id with / as __>.txt``.
 
 A label outside [0, duration], with end <= start, with an unknown text, a bout
@@ -85,7 +88,7 @@ def read_audacity(path: str | Path, duration_s: float | None = None) -> Annotati
         except ValueError:
             raise LaughlabError(f"{p}:{n}: start and end must be numbers (seconds)") from None
         lab = parts[2].strip().lower() if len(parts) > 2 else ""
-        labels.append(Label(start, end, lab, n))
+        labels.append(Label(start, end, "laugh" if lab == "laughter" else lab, n))   # (detect's labels until 11-27)
     return check(Annotation(str(p), labels), duration_s)
 
 
@@ -102,10 +105,12 @@ def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) 
         raise LaughlabError(f"annotation not found: {path}") from None
     except Exception as exc:  # praatio raises many kinds on a malformed file
         raise LaughlabError(f"bad TextGrid {path}: {first_line(exc)}") from None
-    if "bouts" not in tg.tierNames:
-        raise LaughlabError(f"bad TextGrid {path}: it has no tier 'bouts' (tiers: {', '.join(tg.tierNames)})")
+    bouts = "bouts" if "bouts" in tg.tierNames else "laughter" if "laughter" in tg.tierNames else None
+    if bouts is None:   # a tier 'laughter' alone: what `laughlab detect` writes, corrected in Praat
+        raise LaughlabError(f"bad TextGrid {path}: it has no tier 'bouts' (nor 'laughter', as laughlab detect "
+                            f"writes) (tiers: {', '.join(tg.tierNames)})")
     labels = []
-    for tier, want in (("bouts", "laugh"), ("calls", "call")):
+    for tier, want in ((bouts, "laugh"), ("calls", "call")):
         if tier not in tg.tierNames:
             continue
         for i, (a, b, t) in enumerate(tg.getTier(tier).entries, 1):

@@ -10,7 +10,7 @@ threshold, and runs shorter than ``min_length_s`` dropped (as Gillick et al.'s
 than a window is padded with zeros (silence) either side.
 
 Files: one CSV for a whole command (``file,start,end,probability``), and per input an
-Audacity label file (``NAME.txt``: ``start<TAB>end<TAB>laughter``) and a Praat TextGrid
+Audacity label file (``NAME.txt``: ``start<TAB>end<TAB>laugh``) and a Praat TextGrid
 (``NAME.TextGrid``, tier ``laughter``).  :func:`read_folder` reads such a folder back
 (Audacity labels, or a CSV with ``file,start,end``), ours or a peer detector's, and
 :func:`score` compares segments with a truth file, so both are scored by the same code
@@ -94,7 +94,7 @@ def atomic_write(path: Path, text: str) -> None:
 
 
 def audacity_text(segs: list[Segment]) -> str:
-    return "".join(f"{s.start:.4f}\t{s.end:.4f}\tlaughter\n" for s in segs)
+    return "".join(f"{s.start:.4f}\t{s.end:.4f}\tlaugh\n" for s in segs)   # the corpus' label: a folder's annotation
 
 
 def textgrid_text(segs: list[Segment], duration_s: float) -> str:

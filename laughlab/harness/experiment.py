@@ -153,7 +153,9 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     if item is not None:
         plots = out_dir / "plots"
         plots.mkdir(parents=True, exist_ok=True)
-        shows = [Trial(c, item, seeds_for(item)[0], (*base, *ov, *item.overrides, f"seed={seeds_for(item)[0]}"),
+        # a recording's annotation to its run, so that its figures shade the bouts as a synthetic input's do
+        truth = (f"input.truth={item.truth}",) if item.truth and "input=file" in item.overrides else ()
+        shows = [Trial(c, item, seeds_for(item)[0], (*base, *ov, *item.overrides, *truth, f"seed={seeds_for(item)[0]}"),
                        str(out_dir / "showcase" / c), keep=True, plots=True) for c, ov in conditions.items()]
         for rec in run_trials(shows, jobs, progress, desc="showcase"):
             run.showcase[rec["condition"]] = rec["run_dir"]
@@ -184,6 +186,7 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
                    "seeds": sorted({r["seed"] for r in run.records}), "skipped": skipped,
                    "not_fetched": not_fetched},
         "conditions": conditions,
+        "showcase": item.id if item is not None else None,
         "n_trials": len(run.records),
         "metrics": metric_info,
         "results": results,

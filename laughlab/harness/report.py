@@ -282,7 +282,8 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
         lines += same + [""]
     shows = sorted(p.name for p in figs.glob("*_fig4_2_energy.png"))
     if shows:
-        lines += ["## The same input under each condition", ""]
+        shown = f" (`{doc['showcase']}`, `harness.showcase`)" if doc.get("showcase") else ""
+        lines += [f"## The same input under each condition{shown}", ""]
         for name in shows:
             lines += [f"**{name.split('_fig4_2')[0]}**", "", f"![{name}](figures/{name})", ""]
     thesis = sorted(p.name for p in figs.glob("*.png") if "_fig4_1" in p.name or "_fig3_1" in p.name)
