@@ -113,6 +113,24 @@ def test_view_with_a_bad_character_is_one_line(run_dir, tmp_path):
     assert not (tmp_path / "page").exists()
 
 
+def test_a_run_baked_on_a_vrm_is_viewed_as_that_avatar(tmp_path):
+    """A review: `output=gltf character=godette.vrm`, then `view RUN` showed her from behind in plain materials: the
+    page took the run's character.glb for laughlab's mannequin (no VRM, facing +Z).  It is now read as the avatar it
+    was baked on, as `view RUN --character` reads it; the mannequin's own glTF stays the mannequin."""
+    import json
+
+    from test_avatar import run
+
+    godette = ASSETS / "Godette_vrm_v4.vrm"
+    baked = run(tmp_path / "baked", "face=facs", "input.duration_s=2", "output=gltf", f"character={godette}")
+    plain = run(tmp_path / "plain", "face=facs", "input.duration_s=2", "output=gltf")
+    want = json.loads(V.assets(plain, godette)["run.json"])["avatar"]
+    assert want["vrm"] and want["facing"] == -1 and want["file"] == godette.name
+    got = json.loads(V.assets(baked)["run.json"])["avatar"]
+    assert {**got, "file": None} == {**want, "file": None} and got["file"] == "character.glb"
+    assert json.loads(V.assets(plain)["run.json"])["avatar"] == {"vrm": False, "facing": 1, "bones": {}}
+
+
 def shows_godette(png: bytes, at: dict) -> None:
     """The upper half of where the page says the avatar is drawn holds her: blue hair and dress, pink skin."""
     import io

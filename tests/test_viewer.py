@@ -242,3 +242,17 @@ def test_a_file_runs_audio_is_found_from_any_folder_and_dropped_when_it_changed(
     assert "is not the run's audio any more (3.00 s, the run 1.00 s)" in capsys.readouterr().err
     (tmp_path / "work" / "take.wav").unlink()
     assert "audio.wav" not in assets(run_dir) and "is gone" in capsys.readouterr().err
+
+
+def test_viewing_a_run_without_animation_files_says_why(tmp_path):
+    """A review: `output=vmc` (a live stream) writes only metrics.json, and `view` called the run unfinished."""
+    (tmp_path / "live").mkdir()
+    (tmp_path / "live" / "metrics.json").write_text("{}")
+    r = laughlab("view", str(tmp_path / "live"), "--out", str(tmp_path / "s"))
+    assert r.returncode == 2 and r.stderr == (
+        f"laughlab: error: {tmp_path / 'live'} holds no motion.bvh, channels.csv, events.csv: its run wrote no "
+        "animation files (output=vmc alone streams only); run it with output=[files,vmc] to keep them\n")
+    (tmp_path / "half").mkdir()
+    r = laughlab("view", str(tmp_path / "half"), "--out", str(tmp_path / "s"))
+    assert r.returncode == 2 and "is not a finished run: it has no motion.bvh" in r.stderr
+    assert not (tmp_path / "s").exists()

@@ -122,6 +122,22 @@ def _avatar_glb(run_dir: Path, character: str | Path, skeleton, motion: np.ndarr
                              audio_duration_s=duration, fps=fps)
 
 
+def _baked_avatar(path: Path):
+    """The avatar a run's ``character.glb`` was baked on (``output=gltf character=my.vrm``), so that the page
+    shows it as ``view --character`` does (a VRM 0.x faces -Z: it was shown from behind, a review), or None for
+    laughlab's mannequin."""
+    from laughlab.avatar.load import AvatarError, load_avatar
+    from laughlab.io.gltf import read_glb
+
+    try:
+        doc, _ = read_glb(path)
+        if not str(doc.get("asset", {}).get("generator", "")).startswith("laughlab (avatar:"):
+            return None
+        return load_avatar(path)
+    except (AvatarError, ValueError, KeyError, OSError) as exc:
+        raise LaughlabError(f"{path}: cannot read the character baked into the run ({exc})") from None
+
+
 def _view_of(avatar) -> dict:
     """What the page needs to know of an avatar: VRM or not, its facing, its humanoid bones' nodes."""
     if avatar is None:
@@ -137,6 +153,9 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
     if not run_dir.is_dir():
         raise LaughlabError(f"no run directory at {run_dir}")
     missing = [n for n in NEEDED if not (run_dir / n).exists()]
+    if missing and (run_dir / "metrics.json").exists():   # a finished run whose outputs wrote no animation files
+        raise LaughlabError(f"{run_dir} holds no {', '.join(missing)}: its run wrote no animation files (output=vmc "
+                            f"alone streams only); run it with output=[files,vmc] to keep them")
     if missing:
         raise LaughlabError(f"{run_dir} is not a finished run: it has no {', '.join(missing)}")
     from laughlab.io.bvh import read_bvh
@@ -156,6 +175,7 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
         avatar, files["character.glb"] = _avatar_glb(run_dir, character, skeleton, motion, ch, fps, duration)
     elif (run_dir / "character.glb").exists():
         files["character.glb"] = run_dir / "character.glb"
+        avatar = _baked_avatar(run_dir / "character.glb")
     else:
         from laughlab.character.body import build, morph_weights
         from laughlab.io.gltf import character_glb
