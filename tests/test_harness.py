@@ -207,6 +207,20 @@ def test_a_report_replaces_only_a_report_and_goes_with_its_run(tiny_run, tmp_pat
     rep = tmp_path / "rep"
     assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0
     assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0        # an earlier report: replaced
+    # another experiment's report is not replaced without --overwrite (a review: a sweep's report was silently
+    # replaced by another run's)
+    other = tmp_path / "other"
+    shutil.copytree(tiny_run[0], other)
+    doc = json.loads((other / "results.json").read_text())
+    (other / "results.json").write_text(json.dumps({**doc, "experiment": "other"}))
+    before = (rep / "README.md").read_text()
+    r = laughlab("report", other, "--out", rep)
+    assert r.returncode == 2 and r.stderr == (f"laughlab: error: {rep} holds the report of another experiment "
+                                              f"('{doc['experiment']}', not 'other'); choose another --out, or add "
+                                              "--overwrite to replace it\n")
+    assert (rep / "README.md").read_text() == before
+    r = laughlab("report", other, "--out", rep, "--overwrite")
+    assert r.returncode == 0 and (rep / "README.md").read_text().startswith("# other\n")
     run = tmp_path / "run"
     claim = rundir.claim(run)                                  # a finished run, as the command line leaves one
     for item in tiny_run[0].iterdir():
@@ -272,6 +286,17 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     text = readme.read_text()
     assert "swept: scheduler.decrease_per_s, scheduler.overrule_c" in text
     assert len(list((tmp_path / "rep" / "figures").glob("heatmap_*.png"))) == 1
+    # what a reader needs to run it again (a review: only the swept keys were named; the fixed ones, the seeds and
+    # the command were only in multirun.yaml)
+    assert ("- the sweep: `python -m laughlab -m experiment=energy_ablation extractor.rise_per_s=24 "
+            "scheduler.min_inactive_s=2 scheduler.overrule_c=1.5,3 scheduler.decrease_per_s=6,20 "
+            "harness.corpus.seeds=1 'harness.corpus.profiles=[intense]' harness.corpus.duration_s=5`\n") in text
+    assert "swept by the experiment's" not in text          # every swept key was given on the command line
+    assert ("- fixed at every point: extractor.rise_per_s=24, harness.corpus.duration_s=5, harness.corpus.profiles="
+            "[intense], harness.corpus.seeds=1, scheduler.min_inactive_s=2\n") in text
+    assert "(profiles intense; seeds 0)" in text
+    n = len(json.loads(docs[0].read_text())["metrics"])
+    assert f"Each cell is the mean of the point's 1 trial; the table shows 9 key metrics of the {n} each" in text
 
 
 def _bad_corpus(folder):

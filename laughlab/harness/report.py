@@ -312,7 +312,8 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
     return out / "README.md"
 
 
-def write_report(run_dir: str | Path, out: str | Path | None = None, command: str = "") -> Path:
+def write_report(run_dir: str | Path, out: str | Path | None = None, command: str = "", overwrite: bool = False) \
+        -> Path:
     """Write the report of an experiment run or a sweep; return the README path.
 
     The report goes into ``out``, by default ``run_dir/report`` (beside the results it is made
@@ -330,7 +331,7 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
         results, write = next(root.rglob("results.json")), sweep_report
     else:
         raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)")
-    json.loads(results.read_text())["experiment"]  # a results.json of an experiment, else a clear KeyError
+    name = json.loads(results.read_text())["experiment"]  # a results.json of an experiment, else a clear KeyError
     target = Path(out) if out else root / "report"
     if target.exists() and not target.is_dir():
         raise LaughlabError(f"report folder {target} exists and is not a folder")
@@ -339,6 +340,10 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
         raise LaughlabError(f"{target} holds files that are not a laughlab report ({shown_names(held)}); choose "
                             "another --out "
                             "(a report replaces only an earlier report)")
+    title = f"# {name} (sweep)" if write is sweep_report else f"# {name}"
+    if held and not overwrite and _report_title(target) != title:   # another experiment's report (a review)
+        raise LaughlabError(f"{target} holds the report of another experiment ({_report_title(target)[2:]!r}, "
+                            f"not {title[2:]!r}); choose another --out, or add --overwrite to replace it")
     staging = target.with_name(f".{target.name}.partial-{os.getpid()}")
     shutil.rmtree(staging, ignore_errors=True)
     staging.mkdir(parents=True)
@@ -357,6 +362,12 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
 
         rundir.record(root, "report")   # the run's own now: overwriting the run removes it with the rest
     return target / "README.md"
+
+
+def _report_title(folder: Path) -> str:
+    """The first line of the report in ``folder`` (``# NAME`` or ``# NAME (sweep)``)."""
+    with open(folder / "README.md", encoding="utf-8") as f:
+        return f.readline().rstrip("\n")
 
 
 def _is_a_report(folder: Path) -> bool:

@@ -1,0 +1,72 @@
+"""The command line's words to the user before a run: ``--help``'s text and the line for an unknown ``--flag``."""
+from __future__ import annotations
+
+import re
+
+from laughlab.core.config import conf_dir
+from laughlab.core.errors import LaughlabError
+
+HELP_GROUPS = ("input", "extractor", "detector", "face", "body", "scheduler", "output", "experiment")
+HELP_EXAMPLES = """\
+examples:
+  python -m laughlab                                        synthetic laughter, the thesis' pipeline
+  python -m laughlab input=file input.path=LAUGH.wav face=facs body=hill extractor=pressure
+  python -m laughlab input=mic output=vmc face=facs         live: an avatar over OSC (VMC)
+  python -m laughlab output=video face=facs                 + video.mp4 of the character
+  python -m laughlab output=gltf face=facs                  + character.glb (Blender, three.js, Unity)
+  python -m laughlab view runs/demo                         the run on the character in a browser
+  python -m laughlab view runs/demo --character my.vrm      ... on your VRM or humanoid glTF avatar
+  python -m laughlab study build runs/stimuli               the stimuli's perception study (study --help)
+  python -m laughlab experiment=energy_vs_concat hydra.run.dir=runs/evc; python -m laughlab report runs/evc
+  python -m laughlab -m experiment=energy_ablation          a parameter sweep
+  python -m laughlab corpus fetch                           the real corpus (openly licensed, by package)
+  python -m laughlab detect talk.wav recordings/ --out laughs   laughter segments (TextGrid, Audacity, CSV)
+  python -m laughlab plugins                                every plugin: where it comes from, how to use it
+  python -m laughlab face=facs --cfg job                    print the composed config, run nothing
+"""
+
+
+def help_text() -> str:
+    """``--help``: the groups and their options, examples, where the docs are (no Hydra, no plugins import)."""
+    lines = ["usage: python -m laughlab [group=option ...] [key.path=value ...] [-m for a sweep]", "",
+             "Audio-driven laughter animation: pick one plugin per group, set any parameter by its path.", "",
+             "groups (default first; third-party plugins add options: python -m laughlab plugins; a folder of",
+             "your own plugin modules: plugins_dir=PATH, docs/architecture.md 'Writing a plugin'):"]
+    defaults = {}
+    for line in conf_dir().joinpath("config.yaml").read_text().splitlines():
+        m = re.match(r"\s+- (\w+): (\w+)", line)
+        if m:
+            defaults[m.group(1)] = m.group(2)
+    for g in HELP_GROUPS:
+        d = conf_dir().joinpath(g)
+        names = sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".yaml")) if d.is_dir() else []
+        first = defaults.get(g)
+        names = ([first] if first in names else []) + [n for n in names if n != first]
+        lines.append(f"  {g + ':':<12} {', '.join(names)}")
+    lines += ["", HELP_EXAMPLES.rstrip(), "",
+              "docs: README.md and the docs/ pages it links (pipeline.md: outputs; experiments.md; papers.md:",
+              "what each plugin implements; benchmarks.md); each conf/<group>/<option>.yaml explains its parameters.",
+              "Hydra's own flags: python -m laughlab --hydra-help"]
+    return "\n".join(lines)
+
+
+#: top-level keys a user may write as a --flag out of habit (--seed 3): the line says to write KEY=VALUE
+_RUN_KEYS = ("seed", "fps", "overwrite", "progress", "character", "plugins_dir", "experiment")
+
+
+def check_flags(argv: list[str], known: set[str]) -> None:
+    """An argument starting with '-' that is not one of the ``known`` flags (Hydra's, -m) is refused in one line
+    (it was dropped without a word and the default run started: --overwrite, --hlep)."""
+    for a in argv:
+        flag = a.split("=", 1)[0]
+        if not a.startswith("-") or flag in known:
+            continue
+        key = flag.lstrip("-").replace("-", "_")
+        if key in _RUN_KEYS:
+            hint = f"write {key}=" + {"overwrite": "true", "seed": "N", "character": "PATH", "plugins_dir": "PATH",
+                                      "experiment": "NAME"}.get(key, "VALUE")
+        elif key in ("out", "outdir", "output_dir", "run_dir"):
+            hint = "a run's folder is hydra.run.dir=PATH (--out is an option of view, detect and report)"
+        else:
+            hint = "a run takes overrides key=value (python -m laughlab --help)"
+        raise LaughlabError(f"unknown option {flag!r}: {hint}")
