@@ -159,7 +159,10 @@ def task(cfg) -> dict:
                   f"{out_dir / 'results.json'}{hint}")
             return doc
         pipe = pipeline.build(cfg)
-        metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
+        from laughlab.harness.results import provenance
+
+        made = provenance(pipe.source.params.path if pipe.source.name == "file" else None)
+        metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True), {"provenance": made})
         _CLAIM.finish(cfg_hash)
         _finished()
         print(summary_line(cfg, metrics, out_dir, time.monotonic() - t0, skip=_CLAIM.user_files))

@@ -441,3 +441,21 @@ def test_version_is_laughlabs():
 
     r = laughlab("--version")
     assert r.returncode == 0 and r.stdout == f"laughlab {__version__}\n" and r.stderr == ""
+
+
+def test_a_single_run_records_what_made_it(tmp_path):
+    """A review: an experiment's results.json names laughlab's commit and versions, a single run's folder did not
+    (nor the input file's bytes).  metrics.json's provenance: the commit, the versions, the input's sha256."""
+    import hashlib
+
+    from laughlab.harness.results import git_hash, versions
+
+    wav = tmp_path / "in.wav"
+    sf.write(wav, 0.1 * np.sin(np.arange(16000) / 7), 16000)
+    r = laughlab("input=file", f"input.path={wav}", "~output.plots", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 0, r.stderr
+    made = json.loads((tmp_path / "run" / "metrics.json").read_text())["provenance"]
+    assert made == {"git_hash": git_hash(), "versions": versions(),
+                    "input_sha256": hashlib.sha256(wav.read_bytes()).hexdigest()}
+    r = laughlab("input.duration_s=1", "~output.plots", f"hydra.run.dir={tmp_path / 'synth'}")
+    assert json.loads((tmp_path / "synth" / "metrics.json").read_text())["provenance"]["input_sha256"] is None

@@ -297,8 +297,9 @@ def plugin_config(pipe: Pipeline) -> dict:
     return out
 
 
-def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
-    """Run the pipeline to the end of the input, write every output, return the metrics.
+def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: dict | None = None) -> dict:
+    """Run the pipeline to the end of the input, write every output, return the metrics (``extra``'s keys
+    added to ``metrics.json``: the command line's provenance of a single run).
 
     On any failure the sinks remove what they wrote (also the files of those that had closed) and the
     exception propagates.
@@ -382,6 +383,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None) -> dict:
             more = getattr(sink, "metrics", None)
             if callable(more):
                 metrics.update(more() or {})
+        metrics.update(extra or {})
         tmp = out_dir / ".metrics.json.part"
         tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
         os.replace(tmp, out_dir / "metrics.json")
