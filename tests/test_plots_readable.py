@@ -99,6 +99,19 @@ def test_the_figures_of_a_run(tmp_path, saved, monkeypatch, scheduler):
     assert np.all(np.diff(times) > 0) and times[-1] - times[0] > 5.0
 
 
+def test_fig4_2_of_a_run_without_energy_says_so(tmp_path, saved):
+    """A review: with scheduler=none the lower panel was empty, its legend naming a line one could not see."""
+    from laughlab.render import plots
+
+    t = np.arange(120) / 60
+    plots.figure_4_2(tmp_path / "a.png", t, np.abs(np.sin(t * 9)), np.zeros_like(t), [])
+    plots.figure_4_2(tmp_path / "b.png", t, np.abs(np.sin(t * 9)), t * 10, [])      # energy: no such line
+    (empty, full) = saved
+    assert "no laughing energy and no clip in this run" in empty.texts
+    assert "no laughing energy and no clip in this run" not in full.texts
+    assert_readable(saved)
+
+
 def _tiny_experiment(out: Path, name: str, overrides: list[str], conditions: dict, showcase=None) -> dict:
     from laughlab.harness.experiment import run_experiment
 
