@@ -32,7 +32,9 @@ MLP's cues of the window's last frame (``laughlab.detector.fuse``; its opening r
 
 Look-ahead: the frame's own audio block.  Live and offline see the same blocks, so the
 same bytes.  ``laughter`` holds the head's probability, ``laughter_classes`` the classes'
-score, ``laugh_gate`` the clip gain, ``face_gate`` the face gain.
+score, ``laugh_gate`` the clip gain, ``face_gate`` the face gain, ``face_provisional`` 1 while the face answers a
+new sound the model has not yet judged, ``face_retract`` 1 on the frame the model takes that answer back (the
+faces then undo what their slow states built on it: ``laughlab.face.provisional``).
 """
 from __future__ import annotations
 
@@ -235,6 +237,8 @@ class YamnetDetector(Detector):
         self.face_gain = 0.0
         self.quiet = math.inf
         self.pending = None  # time of the new sound the face follows before the model has heard it
+        self.answer = None   # the face's answer to that sound: "provisional", then "confirmed" or taken back (None)
+        self.taken_back = False   # this frame a window took the provisional answer back (face_retract)
         self.job = None      # [window end time, next part, network state or ("ahead", samples), cues]: a window in progress
         self.raw = []        # the input's blocks since the last window, while a helper converts them (``prefetch``)
         self._drain()        # self.queue: (frame the scores take effect, window end time, future of its scores, cues)
@@ -314,6 +318,8 @@ class YamnetDetector(Detector):
         if (self.pending is not None and t_end - self.pending >= p.decide_s - 1e-9
                 and not self._reaches(p.close_below, p.class_close)):
             self.pending = None   # the window keeps no gain open: the face's provisional answer ends
+            if self.answer == "provisional":   # ... and what it built is taken back (laughlab.face.provisional)
+                self.answer, self.taken_back = None, True
 
     def _reaches(self, head_at: float, class_at: float) -> bool:
         """Does the newest window's score reach ``head_at`` (the head) or ``class_at`` (the laughter classes),
@@ -343,6 +349,7 @@ class YamnetDetector(Detector):
         if mcs >= p.onset_mcs:
             if self.quiet >= p.quiet_s and p.decide_s > 0:
                 self.pending = t_end
+                self.answer = "provisional"
             self.quiet = 0.0
         else:
             self.quiet += dt
@@ -379,13 +386,18 @@ class YamnetDetector(Detector):
             else:
                 self.below_s = 0.0
         self.clip_gain = self._ramp(self.clip_gain, self.open, dt)
-        face_open = self.open or self.pending is not None or (sound and self._reaches(p.open_at, p.class_open))
-        self.face_gain = self._ramp(self.face_gain, face_open, dt)
+        sure = self.open or (sound and self._reaches(p.open_at, p.class_open))
+        if sure and self.answer == "provisional":
+            self.answer = "confirmed"
+        self.face_gain = self._ramp(self.face_gain, sure or self.pending is not None, dt)
         face = max(self.face_gain, self.clip_gain)
         c["laughter"] = self.p
         c["laughter_classes"] = self.q
         c["laugh_gate"] = self.clip_gain
         c["face_gate"] = face
+        c["face_provisional"] = 1.0 if self.answer == "provisional" else 0.0
+        c["face_retract"] = 1.0 if self.taken_back else 0.0
+        self.taken_back = False
         apply_gate(frame, face)
         c["clip_gate"] = self.clip_gain
 

@@ -15,6 +15,7 @@ from laughlab.core.bases import Face
 from laughlab.face.facs import ACTION_UNITS, ArkitMap, Blinker, DelayLine, Envelope, Unit, UnitParams, draw_sides
 from laughlab.concat.head_motion import HeadMotion, HeadMotionParams
 from laughlab.core.plugins import check_range
+from laughlab.face.provisional import Retraction
 
 #: units with per-side variation: the seven driven ones plus the brows of the head motion (AU1, AU2)
 _SIDED = (*ACTION_UNITS, "au1", "au2")
@@ -68,6 +69,10 @@ class FacsParams:
         Blinks (AU45) as the ``smile`` face: interval ~ N(4 s, 2 s) (thesis 3.3.3).
     head : HeadMotionParams
         Head and eyebrow motion by segment concatenation (Ding et al. 2014, 4.2).
+    retract_s : float or None
+        With ``detector=yamnet``: how long the envelope and the units (all but AU43, which the clips' eyes drive)
+        take to come back to where they were when the model takes back the face's provisional answer to a new
+        sound (``laughlab.face.provisional``; s); None keeps what it built.  Without a detector: nothing.
     """
 
     au6: UnitParams = field(default_factory=lambda: UnitParams(0.05, 0.4, 2.0, 0.25, "envelope"))
@@ -86,8 +91,11 @@ class FacsParams:
     blink_close_s: float = 0.08
     blink_open_s: float = 0.12
     head: HeadMotionParams = field(default_factory=HeadMotionParams)
+    retract_s: float | None = 0.3
 
     def __post_init__(self) -> None:
+        if self.retract_s is not None:
+            check_range("retract_s", self.retract_s, 0)
         check_range("envelope_release_s", self.envelope_release_s, 0)
         check_range("asymmetry", self.asymmetry, 0, 1)
         check_range("desync_s", self.desync_s, 0, 1)
@@ -140,6 +148,8 @@ class FacsFace(Face):
         self._jaw = [(ACTION_UNITS.index(u), w) for u, w in _JAW_WEIGHTS.items()]
         self._i43 = ACTION_UNITS.index("au43")
         self._i12 = ACTION_UNITS.index("au12")
+        slow = [(self.envelope, "e")] + [(u, "a") for k, u in enumerate(self.units) if k != self._i43]
+        self.retraction = None if p.retract_s is None else Retraction(slow, p.retract_s, dt)
         self.reset()
 
     def reset(self) -> None:
@@ -151,9 +161,14 @@ class FacsFace(Face):
         self.blinker.reset()
         if self.head is not None:
             self.head.reset()
+        if self.retraction is not None:
+            self.retraction.reset()
 
     def step(self, frame) -> None:
         i = frame.control.get("mcs", 0.0)
+        back = self.retraction
+        if back is not None:
+            back.begin(frame.control)
         env = self.envelope.step(i)
         ch = frame.channels
         acts = []
@@ -164,6 +179,10 @@ class FacsFace(Face):
             a = unit.follow(target)
             ch[name] = a
             acts.append(a)
+        if back is not None and back.clamp():   # a provisional answer taken back (detector=yamnet)
+            acts = [u.a for u in self.units]
+            for name, a in zip(ACTION_UNITS, acts):
+                ch[name] = a
         blink = self.blinker.step(frame.time_s, target43 > 0.0)
         ch["blink"] = blink
         ch["smile"] = acts[self._i12]

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from laughlab import hookimpl
 from laughlab.core.bases import Face
 from laughlab.face.blink import Blinker
+from laughlab.face.provisional import Retraction
 from laughlab.core.plugins import check_range
 from laughlab.signals.smoothing import JAW, SMILE, Smoother, SmootherParams
 
@@ -25,6 +26,11 @@ class SmileParams:
         Shortest interval; draws below it (the normal can go negative) are raised to it.
     blink_close_s, blink_open_s : float
         Duration of the closing and the opening half of a blink (s).
+    retract_s : float or None
+        With ``detector=yamnet``: how long the smile and the jaw take to come back to where they were when the
+        model takes back the face's provisional answer to a new sound (``laughlab.face.provisional``; s); None
+        keeps what the answer built (the smile then lingers 5 s after each phrase of talk).  Not in the thesis,
+        which has no detector; without one it does nothing.
     """
 
     smile: SmootherParams = field(default_factory=lambda: SmootherParams(**vars(SMILE)))
@@ -34,8 +40,11 @@ class SmileParams:
     blink_min_interval_s: float = 0.5
     blink_close_s: float = 0.08
     blink_open_s: float = 0.12
+    retract_s: float | None = 0.3
 
     def __post_init__(self) -> None:
+        if self.retract_s is not None:
+            check_range("retract_s", self.retract_s, 0)
         check_range("blink_mean_s", self.blink_mean_s, 0, lo_open=True)
         check_range("blink_sd_s", self.blink_sd_s, 0)
         check_range("blink_min_interval_s", self.blink_min_interval_s, 0, lo_open=True)
@@ -63,18 +72,27 @@ class SmileFace(Face):
         self.jaw = Smoother(p.jaw, self.ctx.dt)
         self.blinker = Blinker(self.ctx.rng, p.blink_mean_s, p.blink_sd_s, p.blink_min_interval_s,
                                p.blink_close_s, p.blink_open_s)
+        self.retraction = (None if p.retract_s is None else
+                           Retraction([(self.smile, "e"), (self.jaw, "e")], p.retract_s, self.ctx.dt))
         self.reset()
 
     def reset(self) -> None:
         self.smile.reset()
         self.jaw.reset()
         self.blinker.reset()
+        if self.retraction is not None:
+            self.retraction.reset()
 
     def step(self, frame) -> None:
         mcs = frame.control["mcs"]
         ch = frame.channels
+        back = self.retraction
+        if back is not None:
+            back.begin(frame.control)
         ch["smile"] = self.smile.smooth(mcs)
         ch["jaw"] = self.jaw.smooth(mcs)
+        if back is not None and back.clamp():   # a provisional answer taken back (detector=yamnet)
+            ch["smile"], ch["jaw"] = self.smile.value(), self.jaw.value()
         blink = self.blinker.step(frame.time_s, frame.clip_eyes > 0.0)  # skipped while the clip closes the eyes
         ch["blink"] = blink
         ch["eyes_closed"] = max(frame.clip_eyes, blink)

@@ -124,3 +124,8 @@ class Smoother:
         if e > self.max_e:
             return 1.0
         return (e - self.min_e) / self.range
+
+    def value(self) -> float:
+        """The re-scaled value of the current state, without a step (after a face took some of it back)."""
+        e = self.e
+        return 0.0 if e < self.min_e else 1.0 if e > self.max_e else (e - self.min_e) / self.range
