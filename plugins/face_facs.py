@@ -70,8 +70,8 @@ class FacsParams:
     head : HeadMotionParams
         Head and eyebrow motion by segment concatenation (Ding et al. 2014, 4.2).
     retract_s : float or None
-        With ``detector=yamnet``: how long the envelope and the units (all but AU43, which the clips' eyes drive)
-        take to come back to where they were when the model takes back the face's provisional answer to a new
+        With ``detector=yamnet``: how long the envelope and the units it drives (AU6, AU12, AU4; not AU43, which
+        the clips' eyes drive, nor the mouth's units, which follow each call) take to come back to where they were when the model takes back the face's provisional answer to a new
         sound (``laughlab.face.provisional``; s); None keeps what it built.  Without a detector: nothing.
     """
 
@@ -148,7 +148,10 @@ class FacsFace(Face):
         self._jaw = [(ACTION_UNITS.index(u), w) for u, w in _JAW_WEIGHTS.items()]
         self._i43 = ACTION_UNITS.index("au43")
         self._i12 = ACTION_UNITS.index("au12")
-        slow = [(self.envelope, "e")] + [(u, "a") for k, u in enumerate(self.units) if k != self._i43]
+        # the slow states: the envelope and the units it drives but AU43 (the clips' eyes); the mouth's units follow
+        # each call (15-20 /s) and let go with the face gain by themselves
+        slow = [(self.envelope, "e")] + [(u, "a") for k, u in enumerate(self.units)
+                                         if self._use_env[k] and k != self._i43]
         self.retraction = None if p.retract_s is None else Retraction(slow, p.retract_s, dt)
         self.reset()
 
