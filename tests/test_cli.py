@@ -131,6 +131,9 @@ def bad_files(tmp_path_factory):
     (["experiment=smoke", "harness.showcase=mild-sx"], "harness.showcase 'mild-sx' is not an input of the corpus"),
     (["experiment=smoke", "seed=5"], "seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds"),
     (["-m", "experiment=smoke", "seed=5,6"], "seed= does not apply to an experiment"),
+    # a mistyped top-level key: the nearest one (a review: 'unknown parameter sed')
+    (["sed=3"], "unknown parameter sed; did you mean seed?"),
+    (["facee=facs"], "unknown parameter facee; did you mean face?"),
 ])
 def test_bad_input_one_line_no_output(bad_files, args, message):
     out = bad_files / "run"

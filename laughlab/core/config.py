@@ -99,6 +99,10 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
                 valid = "; valid: " + ", ".join(keys) if keys else f"; this {group} takes no parameters"
             except Exception:  # listing the keys is a courtesy
                 valid = ""
+        if "." not in key and group not in GROUP_KINDS:   # a top-level key mistyped: the nearest one (sed=3)
+            near = _nearest_top_level(key)
+            if near:
+                return f"unknown parameter {key}; did you mean {near}?"
         return f"unknown parameter {key}{valid}"
     m = re.search(r"(?:LexerNoViableAltException|mismatched input [^:]*): ([\w.+~/-]+)=([^\n]*)", text)
     if m:  # Hydra's override grammar reads only plain ASCII values unquoted (a path with é or a space)
@@ -130,6 +134,18 @@ def misplaced_parameter(group: str, current: str, key: str, explicit: bool = Fal
     from laughlab.core import keyhints
 
     return keyhints.elsewhere(group, key, current, _owners(group, key), explicit)
+
+
+def _nearest_top_level(key: str) -> str | None:
+    """The configuration's top-level key or group nearest ``key`` (difflib; None if none is close)."""
+    import difflib
+
+    import yaml
+
+    doc = yaml.safe_load(conf_dir().joinpath("config.yaml").read_text()) or {}
+    names = [k for k in doc if k not in ("defaults", "hydra")] + [g for g in GROUP_KINDS]
+    found = difflib.get_close_matches(key, names, n=1, cutoff=0.6)
+    return found[0] if found else None
 
 
 def _misplaced(key: str, overrides: list[str]) -> str | None:
