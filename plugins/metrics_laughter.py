@@ -57,7 +57,7 @@ def intensity_rho_clip(trial):
     return _tracking(trial, _clip_energy(trial))[1]
 
 
-@metric("intensity_lag_clip_s", False, "s")
+@metric("intensity_lag_clip_s", False, "s", search=(0.0, MAX_LAG_S))
 def intensity_lag_clip_s(trial):
     """The lag in [0, 2] s maximising Pearson r between I(t) and e(t + lag)."""
     return _tracking(trial, _clip_energy(trial))[2]
@@ -78,7 +78,7 @@ def intensity_rho_kinetic(trial):
     return _tracking(trial, _kinetic(trial))[1]
 
 
-@metric("intensity_lag_kinetic_s", False, "s")
+@metric("intensity_lag_kinetic_s", False, "s", search=(0.0, MAX_LAG_S))
 def intensity_lag_kinetic_s(trial):
     """The lag in [0, 2] s maximising Pearson r between I(t) and K(t + lag)."""
     return _tracking(trial, _kinetic(trial))[2]

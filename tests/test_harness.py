@@ -265,6 +265,32 @@ def test_without_the_real_corpus_an_experiment_runs_the_synthetic_half_and_says_
     assert "**without the real recordings**: the real corpus was not fetched, so its sets (real, mixed)" in text
 
 
+def test_a_best_lag_at_the_edge_of_its_search_is_marked_and_definitions_are_whole(tiny_run):
+    """A review: a lag of 2.0 [2.0, 2.0] s (the end of the [0, 2] s search) went unflagged, so its correlation read
+    as a finding; and the Metrics table cut each definition at its docstring's first line."""
+    import copy
+
+    from laughlab.harness.report import _results_table
+
+    _, doc = tiny_run
+    info = doc["metrics"]["intensity_lag_clip_s"]
+    assert info["search"] == [0.0, 2.0] and "search" not in doc["metrics"]["miss_rate"]
+    d = copy.deepcopy(doc)
+    conds = list(d["results"])
+    for c, mean in zip(conds, (2.0, 0.4)):
+        d["results"][c]["intensity_lag_clip_s"].update(mean=mean, n=2, ci95=[mean, mean])
+    text = "\n".join(_results_table(d))
+    row = next(line for line in text.splitlines() if line.startswith("| intensity_lag_clip_s"))
+    assert row.count("‡") == 1 and "2 [2, 2] (n=2) ‡" in row
+    assert text.endswith("‡ every trial's best was found at the edge of the search (`intensity_lag_clip_s` [0, 2] "
+                         "s): the value that goes with it (the correlation at that lag) was measured at the edge, and "
+                         "the best may lie beyond it.")
+    d["results"][conds[0]]["intensity_lag_clip_s"].update(mean=1.999, ci95=[1.99, 2.0])
+    assert "‡" not in "\n".join(_results_table(d))
+    # the definition is the docstring's whole first paragraph, on one line
+    assert doc["metrics"]["human_sounds_starting_a_clip"]["description"].endswith("(issue 27: at most 1 in 10).")
+
+
 def test_report_of_nothing_is_one_line(tmp_path):
     r = laughlab("report", tmp_path)
     assert r.returncode == 2 and r.stderr.strip().count("\n") == 0 and "no results.json" in r.stderr
@@ -295,6 +321,8 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     assert ("- fixed at every point: extractor.rise_per_s=24, harness.corpus.duration_s=5, harness.corpus.profiles="
             "[intense], harness.corpus.seeds=1, scheduler.min_inactive_s=2\n") in text
     assert "(profiles intense; seeds 0)" in text
+    # a best lag at the end of its [0, 2] s search in every trial is said (a review)
+    assert "- ‡ `intensity_lag_kinetic_s` sat at the edge of its search, [0, 2] s, in every trial of " in text
     n = len(json.loads(docs[0].read_text())["metrics"])
     assert f"Each cell is the mean of the point's 1 trial; the table shows 9 key metrics of the {n} each" in text
 

@@ -162,7 +162,8 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
             for png in Path(rec["run_dir"], "plots").glob("*.png"):
                 shutil.copyfile(png, plots / f"{rec['condition']}_{png.name}")
 
-    metric_info = {n: {"higher_is_better": m.higher_is_better, "units": m.units, "description": m.description}
+    metric_info = {n: {"higher_is_better": m.higher_is_better, "units": m.units, "description": m.description,
+                       **({"search": list(m.search)} if getattr(m, "search", None) else {})}
                    for n, m in registered().items()}
     module = experiment_module(h.get("module"))
     if progress:  # the steps below take 5-30 s on 2 cores: say what is going on

@@ -29,27 +29,33 @@ class Metric:
         ``fn(trial) -> float``.
     higher_is_better : bool or None
     units : str
+    search : tuple of two floats, or None
+        For a metric that is the best of a bounded search (a lag in [0, 2] s): the search's range, so that a
+        report can say when a value sits at its edge (the best may lie beyond it).
     """
 
     name: str
     fn: Callable[[TrialData], float]
     higher_is_better: bool | None
     units: str
+    search: tuple | None = None
 
     @property
     def description(self) -> str:
-        doc = (self.fn.__doc__ or "").strip()
-        return doc.splitlines()[0] if doc else ""
+        """The docstring's first paragraph, on one line (a report's definition column; its first line alone
+        stopped mid-sentence)."""
+        doc = (self.fn.__doc__ or "").strip().split("\n\n")[0]
+        return " ".join(doc.split())
 
     def __call__(self, trial: TrialData) -> float:
         return self.fn(trial)
 
 
-def metric(name: str, higher_is_better: bool | None, units: str):
-    """Decorator turning ``fn(trial) -> float`` into a :class:`Metric`."""
+def metric(name: str, higher_is_better: bool | None, units: str, search: tuple | None = None):
+    """Decorator turning ``fn(trial) -> float`` into a :class:`Metric` (``search``: see :class:`Metric`)."""
 
     def wrap(fn):
-        return Metric(name, fn, higher_is_better, units)
+        return Metric(name, fn, higher_is_better, units, tuple(search) if search is not None else None)
 
     return wrap
 

@@ -21,7 +21,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from laughlab.core.errors import LaughlabError, shown_names  # noqa: E402
-from laughlab.harness.report_format import KEY_METRICS  # noqa: E402
+from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, edge_note  # noqa: E402
 from laughlab.harness.report_format import fmt as _fmt  # noqa: E402
 from laughlab.harness.report_format import heading as _heading  # noqa: E402
 from laughlab.harness.results import separated  # noqa: E402
@@ -136,12 +136,16 @@ def _results_table(doc: dict) -> list[str]:
     conds = conditions_of(doc)
     lines = ["| metric | units | " + " | ".join(f"{c} mean [95% CI]" for c in conds) + " |",
              "|---|---|" + "---|" * len(conds)]
+    edge = []
     for m in table_metrics(doc):
         info = doc["metrics"][m]
         best = _clear_best(doc, m, conds)
         cells = [f"**{_cell(doc['results'][c][m])}**" if c == best else _cell(doc["results"][c][m]) for c in conds]
+        marks = [at_search_edge(info, doc["results"][c][m]) for c in conds]
+        cells = [f"{cell} {EDGE}" if mark else cell for cell, mark in zip(cells, marks)]
+        edge += [m] if any(marks) else []
         lines.append(f"| {_heading(m, info)} | {info['units']} | " + " | ".join(cells) + " |")
-    return lines
+    return lines + (["", edge_note(edge, doc["metrics"])] if edge else [])
 
 
 def unmeasured(doc: dict) -> list[str]:

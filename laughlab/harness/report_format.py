@@ -40,6 +40,26 @@ def better_label(higher_is_better, units: str = "") -> str:
 PARAM_UNITS = (("_per_s", "1/s"), ("_ms", "ms"), ("_s", "s"), ("_hz", "Hz"), ("_db", "dB"), ("_deg", "deg"))
 
 
+#: the mark of a mean at the edge of its metric's search range, and the note that explains it
+EDGE = "‡"
+
+
+def at_search_edge(info: dict, r: dict) -> bool:
+    """Does the mean ``r`` of a bounded-search metric (``info['search']``, e.g. a best lag in [0, 2] s) sit at an
+    end of the range, as it does when every trial's best was found there?"""
+    lo_hi = info.get("search")
+    m = r.get("mean") if r.get("n") else None
+    return bool(lo_hi) and m is not None and math.isfinite(m) and any(abs(m - b) <= 1e-9 for b in lo_hi)
+
+
+def edge_note(metrics: list[str], infos: dict) -> str:
+    """The footnote for :data:`EDGE`: which metrics, their ranges, what it means."""
+    ranges = ", ".join(f"`{m}` [{fmt(infos[m]['search'][0])}, {fmt(infos[m]['search'][1])}] {infos[m]['units']}"
+                       for m in metrics)
+    return (f"{EDGE} every trial's best was found at the edge of the search ({ranges}): the value that goes with it "
+            "(the correlation at that lag) was measured at the edge, and the best may lie beyond it.")
+
+
 def param_label(key: str) -> str:
     """An axis label for a swept parameter: its key and, when its name says it, its unit
     (``scheduler.decrease_per_s (1/s)``); a key without a unit suffix is shown as it is."""

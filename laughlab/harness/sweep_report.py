@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from laughlab.core.errors import LaughlabError
-from laughlab.harness.report_format import KEY_METRICS, better_label, param_label
+from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, better_label, param_label
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
 from laughlab.harness.report_format import panel_grid as _panel_grid
@@ -65,6 +65,22 @@ def _sweep_command(root: Path) -> list[str]:
     return out
 
 
+def _edge_lines(points: list[dict], cond: str, varying: list[str]) -> list[str]:
+    """The points where a bounded search's best (a lag) sat at the edge of its range in every trial, so that the
+    correlation in the table was measured there (a review found r at a lag of 2.0 [2.0, 2.0] s unflagged)."""
+    out = []
+    infos = points[0]["doc"]["metrics"]
+    for m, info in infos.items():
+        at = [p for p in points if at_search_edge(info, p["doc"]["results"][cond][m])]
+        if at:
+            where = "; ".join(", ".join(f"{k}={p['params'].get(k, '')}" for k in varying) for p in at[:6])
+            more = f" and {len(at) - 6} more" if len(at) > 6 else ""
+            out.append(f"- {EDGE} `{m}` sat at the edge of its search, [{_fmt(info['search'][0])}, "
+                       f"{_fmt(info['search'][1])}] {info['units']}, in every trial of {len(at)} point(s) ({where}"
+                       f"{more}): the correlation that goes with it was measured there, and the best may lie beyond.")
+    return out + [""] if out else []
+
+
 def sweep_report(root: Path, out: Path, command: str) -> Path:
     points = _sweep_points(root)
     experiments = sorted({p["doc"]["experiment"] for p in points})
@@ -108,6 +124,7 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
         lines.append("| " + " | ".join(p["params"].get(k, "") for k in varying) + " | "
                      + " | ".join(_fmt(val(p, m)) for m in metrics) + " |")
     lines.append("")
+    lines += _edge_lines(points, cond, varying)
     heat_metrics, flat = [], []
     for m in metrics:
         values = [v for v in (val(p, m) for p in points) if math.isfinite(v)]
