@@ -77,7 +77,9 @@ class MicSource(Source):
             sd.check_input_settings(device=device, channels=1, samplerate=self.params.sample_rate,
                                     dtype="float32")
         except Exception as exc:
-            raise LaughlabError(f"no usable microphone: {str(exc).splitlines()[0]}") from None
+            which = "no default audio input device" if device is None else f"input.device={device!r} cannot record"
+            raise LaughlabError(f"no usable microphone: {which} ({str(exc).splitlines()[0]}); connect one, or name "
+                                "it with input.device=NAME_OR_INDEX (python -m sounddevice lists them)") from None
         self._sd, self._device = sd, device
         self.sample_rate = self.params.sample_rate
         d = self.params.duration_s

@@ -82,13 +82,13 @@ def test_microphone_without_a_device_is_one_clear_line(tmp_path):
     assert not (tmp_path / "run").exists()
 
 
-def _build_mic():
+def _build_mic(*overrides):
     from omegaconf import OmegaConf
 
     from laughlab.core import pipeline
     from laughlab.core.config import compose_config
 
-    cfg = compose_config(["input=mic"])
+    cfg = compose_config(["input=mic", *overrides])
     pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")]))
 
 
@@ -106,6 +106,23 @@ def test_microphone_without_sounddevice_says_the_install_command_for_this_instal
     with pytest.raises(LaughlabError, match=r"^input=mic needs the sounddevice package: "
                                             r"pip install 'laughlab\[mic\]'$"):
         _build_mic()
+
+
+def test_microphone_without_an_input_device_says_how_to_choose_one(monkeypatch):
+    """A review: 'no usable microphone: Error querying device -1' (PortAudio's words) said neither what was wrong
+    nor what to do."""
+    class NoDevice:
+        def check_input_settings(self, **kw):
+            raise Exception("Error querying device -1")
+
+    monkeypatch.setitem(sys.modules, "sounddevice", NoDevice())
+    with pytest.raises(LaughlabError) as e:
+        _build_mic()
+    assert str(e.value) == ("no usable microphone: no default audio input device (Error querying device -1); "
+                            "connect one, or name it with input.device=NAME_OR_INDEX (python -m sounddevice lists "
+                            "them)")
+    with pytest.raises(LaughlabError, match=r"^no usable microphone: input.device=3 cannot record \(Error "):
+        _build_mic("input.device=3")
 
 
 class FakeSoundDevice:

@@ -256,3 +256,19 @@ def test_viewing_a_run_without_animation_files_says_why(tmp_path):
     r = laughlab("view", str(tmp_path / "half"), "--out", str(tmp_path / "s"))
     assert r.returncode == 2 and "is not a finished run: it has no motion.bvh" in r.stderr
     assert not (tmp_path / "s").exists()
+
+
+def test_view_out_overwrite_replaces_only_an_earlier_page(run_dir, tmp_path):
+    """A review: re-exporting a site into its own folder was refused with no way round it but deleting it."""
+    out = tmp_path / "site"
+    assert laughlab("view", str(run_dir), "--out", str(out)).returncode == 0
+    r = laughlab("view", str(run_dir), "--out", str(out))
+    assert r.returncode == 2 and r.stderr.endswith("or add --overwrite to replace the viewer page in it\n")
+    (out / "index.html").write_text("stale")
+    r = laughlab("view", str(run_dir), "--out", str(out), "--overwrite")
+    assert r.returncode == 0 and (out / "index.html").read_text() != "stale"
+    (out / "notes.txt").write_text("mine")                          # a file of the user's: never replaced
+    r = laughlab("view", str(run_dir), "--out", str(out), "--overwrite")
+    assert r.returncode == 2 and (out / "notes.txt").read_text() == "mine" and "--overwrite" not in r.stderr
+    r = laughlab("view", str(run_dir), "--overwrite")
+    assert r.returncode == 2 and r.stderr == "laughlab: error: view: --overwrite goes with --out FOLDER (see --help)\n"

@@ -1,7 +1,7 @@
 """``python -m laughlab view RUN_DIR [--port N] [--out DIR] [--character PATH]``: the run in a browser."""
 from __future__ import annotations
 
-from laughlab.core.errors import one_line_parser, port_number
+from laughlab.core.errors import LaughlabError, one_line_parser, port_number
 
 
 def main(args: list[str]) -> None:
@@ -20,9 +20,13 @@ def main(args: list[str]) -> None:
                                          "its index.html opens from the disk or on any web server")
     parser.add_argument("--character", help="show the run on this avatar (VRM 0.x/1.0, or a humanoid glTF/GLB; "
                                             "docs/avatars.md) instead of the mannequin")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="with --out: replace an earlier viewer page in that folder (never other files)")
     ns = parser.parse_args(args)
+    if ns.overwrite and not ns.out:
+        raise LaughlabError("view: --overwrite goes with --out FOLDER (see --help)")
     if ns.out:
-        out, opens = V.write(ns.run_dir, ns.out, ns.character)
+        out, opens = V.write(ns.run_dir, ns.out, ns.character, overwrite=ns.overwrite)
         serve = f"python -m http.server -d {out}"
         print(f"laughlab: viewer of {ns.run_dir} written to {out}/: open {out / 'index.html'} in a browser, or put "
               f"the folder on any web server (e.g. {serve})" if opens else

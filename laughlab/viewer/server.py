@@ -201,7 +201,12 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
     return files
 
 
-def write(run_dir: str | Path, out: str | Path, character: str | Path | None = None) -> tuple[Path, bool]:
+#: the files every viewer page written by :func:`write` holds (``--overwrite`` replaces only such a folder)
+PAGE_FILES = ("index.html", "run.json", "viewer.js", "character.glb")
+
+
+def write(run_dir: str | Path, out: str | Path, character: str | Path | None = None, overwrite: bool = False) \
+        -> tuple[Path, bool]:
     """Write the viewer's files into ``out`` (a new or empty folder); return it, and whether its page opens
     as a file.  ``character``: a user's avatar to show instead of the mannequin (as :func:`assets`).
 
@@ -212,8 +217,11 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
     too, for any static web server.
     """
     out = Path(out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise LaughlabError(f"{out} exists and is not an empty folder; choose another --out")
+    earlier = (out.is_dir() and all((out / f).is_file() for f in PAGE_FILES)   # a page, and nothing of the user's
+               and all(p.name in (*PAGE_FILES, "vendor") or p.name.startswith("audio.") for p in out.iterdir()))
+    if out.exists() and (not out.is_dir() or any(out.iterdir())) and not (overwrite and earlier):
+        again = " or add --overwrite to replace the viewer page in it" if earlier else ""
+        raise LaughlabError(f"{out} exists and is not an empty folder; choose another --out{again}")
     files = assets(run_dir, character)
     run = json.loads(files["run.json"])
     glb = files["character.glb"]
@@ -229,8 +237,8 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
             shutil.copyfile(data, dest)
         else:
             dest.write_bytes(data)
-    if out.exists():
-        out.rmdir()
+    if out.exists():   # empty, or an earlier page (--overwrite): replaced whole once the new one is written
+        shutil.rmtree(out)
     tmp.rename(out)
     return out, page.fits_inline(files["run.json"], glb)
 
