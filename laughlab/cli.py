@@ -187,9 +187,10 @@ def task(cfg) -> dict:
 
 
 def _read_paths(cfg) -> tuple:
-    """The files a run reads that the user named: the input file, the avatar, the TextGrid, the plugins."""
-    found = [cfg.get("input", {}).get("path"), cfg.get("input", {}).get("truth"), cfg.get("character"), cfg.get("extractor", {}).get("textgrid"),
-             cfg.get("plugins_dir")]
+    """The files a run reads that the user named: the input file and its truth, the avatar, the TextGrid, the
+    plugins."""
+    found = [cfg.get("input", {}).get("path"), cfg.get("input", {}).get("truth"), cfg.get("character"),
+             cfg.get("extractor", {}).get("textgrid"), cfg.get("plugins_dir")]
     found += [(sink or {}).get("character") for sink in (cfg.get("output") or {}).values()   # a sink's own avatar
               if hasattr(sink, "get")]
     return tuple(str(p) for p in found if isinstance(p, str) and p)

@@ -9,8 +9,8 @@ phrase of talk kept the smile above 0.5 through 99% of a minute of speech (a rev
 :class:`Retraction` snapshots a face's slow states when a provisional answer starts
 (``control['face_provisional']`` rising to 1) and, on the frame the detector takes it back
 (``control['face_retract']`` = 1), holds each state under a ceiling that comes down linearly from its value
-then to its snapshot over ``retract_s`` (a state already lower stays as the face leaves it).  An answer the model confirms is kept
-whole; without these channels (``detector=none``, the papers) nothing changes.
+then to its snapshot over ``retract_s`` (a state already lower stays as the face leaves it).  An answer the
+model confirms is kept whole; without these channels (``detector=none``, the papers) nothing changes.
 """
 from __future__ import annotations
 
