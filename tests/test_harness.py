@@ -173,6 +173,10 @@ def test_report_tables_and_figures(tiny_run, tmp_path):
     assert "(n=K): a mean of fewer than 10 trials" in text
     assert (tmp_path / "rep" / "figures" / "metrics.png").exists()
     assert (tmp_path / "rep" / "figures" / "energy_fig4_2_energy.png").exists()
+    # every figure in figures/ is shown or linked (a review found Fig. 3.2 and the filmstrips there unmentioned)
+    for png in (tmp_path / "rep" / "figures").glob("*.png"):
+        assert f"(figures/{png.name})" in text, png.name
+    assert "[energy_filmstrip.png](figures/energy_filmstrip.png)" in text
 
 
 def test_report_goes_next_to_the_run_unless_out_is_given(tiny_run, tmp_path):

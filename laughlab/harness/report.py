@@ -301,6 +301,11 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
                     and p.name not in thesis and "fig3_2" not in p.name and "filmstrip" not in p.name)
     for name in others:
         lines += [f"![{name}](figures/{name})", ""]
+    linked = sorted(p.name for p in figs.glob("*.png") if "fig3_2" in p.name or "filmstrip" in p.name)
+    if linked:   # in figures/ but not inline (a review found them there unmentioned)
+        lines += ["More figures of the same input, per condition (not shown inline): " + ", ".join(
+            f"[{name}](figures/{name})" for name in linked) + " (Fig. 3.2: the MCS with a zoom on one bout; "
+            "the filmstrip: the character at telling moments).", ""]
     lines += ["## By profile", ""]
     for m in ("intensity_r_clip", "miss_rate", "silent_start_rate", "bouts_answered", "false_starts_per_min"):
         if m in doc["metrics"]:
