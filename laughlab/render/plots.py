@@ -225,7 +225,7 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
     drift = replay(amp, replace(params, **cal), fps)
     fig, axes = plt.subplots(2, 2, figsize=(8.0, 4.4), dpi=150, sharex=True, sharey="row", layout="constrained",
                              height_ratios=(1.2, 1))
-    unit = "amplitude (dB, 10 log10 RMS)" if params.scale == "loudness" else "amplitude (RMS, full scale)"
+    unit = "amplitude\n(dB, 10 log10 RMS)" if params.scale == "loudness" else "amplitude\n(RMS, full scale)"
     fixed_label = "min/max fixed after calibration (no falloff)" if calibration_s > 0 else "min/max fixed (no falloff)"
     for col, (run, label) in enumerate(((fixed, fixed_label),
                                         (drift, f"min/max drifting (falloff {params.falloff_per_s:g} /s)"))):
@@ -245,7 +245,7 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
         top.set_title(label, fontsize=8)
     lo = float(np.min(amp)) if len(amp) else 0.0
     axes[0, 0].set_ylim(max(lo, float(np.percentile(amp, 1)) - 3) if len(amp) else 0, None)
-    axes[0, 0].set_ylabel(unit, fontsize=7)
+    axes[0, 0].set_ylabel(unit)   # two lines at the axes' size (a review: one line at 7 pt read as a footnote)
     axes[1, 0].set_ylabel("MCS")
     fig.suptitle(_titled(title or "Calibration and min/max falloff (cf. van Duijn 2014, Fig. 3.1)", note),
                  fontsize=9)
