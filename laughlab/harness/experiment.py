@@ -149,13 +149,14 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     write_records(out_dir / "metrics.jsonl", run.records)
     _remove_empty_dirs(out_dir / "trials")
 
-    item = showcase_item(h, items)
-    if item is not None:
+    shown = showcase_item(h, items)
+    if shown is not None:
         plots = out_dir / "plots"
         plots.mkdir(parents=True, exist_ok=True)
         # a recording's annotation to its run, so that its figures shade the bouts as a synthetic input's do
-        truth = (f"input.truth={item.truth}",) if item.truth and "input=file" in item.overrides else ()
-        shows = [Trial(c, item, seeds_for(item)[0], (*base, *ov, *item.overrides, *truth, f"seed={seeds_for(item)[0]}"),
+        truth = (f"input.truth={shown.truth}",) if shown.truth and "input=file" in shown.overrides else ()
+        seed = seeds_for(shown)[0]
+        shows = [Trial(c, shown, seed, (*base, *ov, *shown.overrides, *truth, f"seed={seed}"),
                        str(out_dir / "showcase" / c), keep=True, plots=True) for c, ov in conditions.items()]
         for rec in run_trials(shows, jobs, progress, desc="showcase"):
             run.showcase[rec["condition"]] = rec["run_dir"]
@@ -187,7 +188,7 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
                    "seeds": sorted({r["seed"] for r in run.records}), "skipped": skipped,
                    "not_fetched": not_fetched},
         "conditions": conditions,
-        "showcase": item.id if item is not None else None,
+        "showcase": shown.id if shown is not None else None,
         "n_trials": len(run.records),
         "metrics": metric_info,
         "results": results,
