@@ -43,6 +43,7 @@ class Saved:
         self.titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
         self.xticks = [[t.get_text() for t in ax.get_xticklabels()] for ax in fig.axes if ax.get_visible()]
         self.ylims = [ax.get_ylim() for ax in fig.axes if ax.get_visible()]
+        self.xlims = [ax.get_xlim() for ax in fig.axes if ax.get_visible()]
 
 
 @pytest.fixture
@@ -110,6 +111,21 @@ def test_fig4_2_of_a_run_without_energy_says_so(tmp_path, saved):
     assert "no laughing energy and no clip in this run" in empty.texts
     assert "no laughing energy and no clip in this run" not in full.texts
     assert_readable(saved)
+
+
+def test_truth_past_the_plotted_stretch_does_not_widen_the_figures(tmp_path, saved):
+    """A recording's truth reaches past the first output.plots.max_seconds the figures draw: Fig. 3.1 spread its
+    60 s of data over the 90 s of the truth's last bout (seen in reports/detector_eval)."""
+    from laughlab.render import plots
+    from laughlab.signals.mcs import RmsParams
+
+    t = np.arange(600) / 60                                          # 10 s drawn
+    amp = -30 + 10 * np.abs(np.sin(t * 3))
+    bouts = [(1.0, 2.0), (30.0, 31.0)]                               # the second one past the stretch
+    plots.figure_3_1(tmp_path / "a.png", t, amp, RmsParams(), 60.0, bouts=bouts)
+    plots.figure_4_2(tmp_path / "b.png", t, np.abs(np.sin(t)), t, [], bouts)
+    for f in saved:
+        assert all(hi <= t[-1] + 1e-9 for _, hi in f.xlims), (f.name, f.xlims)
 
 
 def _tiny_experiment(out: Path, name: str, overrides: list[str], conditions: dict, showcase=None) -> dict:

@@ -243,6 +243,8 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
         bottom.set_ylim(-0.02, 1.05)
         bottom.set_xlabel("time (s)")
         top.set_title(label, fontsize=8)
+    # the plotted stretch, not the truth's bouts past it (a recording longer than output.plots.max_seconds)
+    _set_xlim(axes[1, 0], times[0] if len(times) else 0.0, times[-1] if len(times) else 1.0)
     lo = float(np.min(amp)) if len(amp) else 0.0
     axes[0, 0].set_ylim(max(lo, float(np.percentile(amp, 1)) - 3) if len(amp) else 0, None)
     axes[0, 0].set_ylabel(unit)   # two lines at the axes' size (a review: one line at 7 pt read as a footnote)
