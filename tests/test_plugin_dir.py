@@ -161,3 +161,27 @@ def test_a_channel_that_is_not_a_number_is_one_line_naming_it(tmp_path):
         "laughlab: error: channel 'jaw' is 'wide' (str) at frame 7: channel values are numbers; the plugin that "
         "writes it has a bug, so nothing was written\n")
     assert not (tmp_path / "run").exists()
+
+
+def test_a_resumed_experiment_does_not_mix_two_codes_numbers(tmp_path):
+    """A review: an experiment stopped, a plugin's code changed, the same command resumed: one results.json held
+    17 trials of the old code and 1 of the new.  The journal records the plugins' code (plugin_code_hash); trials
+    of other code run again."""
+    from laughlab.harness.runner import Journal, Trial
+    from laughlab.harness.corpus import Item
+
+    (tmp_path / "p").mkdir()
+    (tmp_path / "p" / "gape.py").write_text(PLUGIN)
+    code = "from laughlab.core.plugins import load_plugin_dir; from laughlab.harness.runner import plugin_code_hash; " \
+           "load_plugin_dir('p'); print(plugin_code_hash())"
+    before = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path).stdout
+    (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace("* self.params.gain", "* self.params.gain * 0.5"))
+    after = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path).stdout
+    assert len(before.strip()) == 16 and before != after
+    journal = Journal(tmp_path / "metrics.jsonl", "exp", before.strip())
+    item = Item("mild-s00", ("input=synthetic",), "mild", 0)
+    for cond in ("energy", "none"):
+        journal.add(Trial(cond, item, 0, (), str(tmp_path / cond)), {"condition": cond, "input": item.id, "seed": 0})
+    assert len(Journal(tmp_path / "metrics.jsonl", "exp", before.strip()).done()) == 2
+    resumed = Journal(tmp_path / "metrics.jsonl", "exp", after.strip())
+    assert resumed.done() == {} and resumed.stale == 2

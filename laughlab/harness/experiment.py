@@ -32,8 +32,8 @@ from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.harness import results as res
 from laughlab.harness.corpus import Item, build_corpus, synthetic_items
 from laughlab.harness.metrics import registered
-from laughlab.harness.runner import (Journal, Trial, check_conditions, input_hash, make_trials, run_overrides,
-                                     run_trials, trial_hash, write_records)
+from laughlab.harness.runner import (Journal, Trial, check_conditions, input_hash, make_trials, plugin_code_hash,
+                                     run_overrides, run_trials, trial_hash, write_records)
 from laughlab.harness.settings import check_harness
 
 
@@ -131,9 +131,13 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     same = {k: v for k, v in h.items() if k not in ("jobs", "plots")}  # how a run is carried out, not what it is
     key = {"harness": same, "base": run_overrides(base)}
     journal = Journal(out_dir / "metrics.jsonl",
-                      hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16])
+                      hashlib.sha256(json.dumps(key, sort_keys=True, default=str).encode()).hexdigest()[:16],
+                      plugin_code_hash())
     out_dir.mkdir(parents=True, exist_ok=True)
     done = journal.done()
+    if journal.stale:
+        print(f"{name}: {journal.stale} finished trial(s) were made by other plugin code (a plugin changed since): "
+              "running them again", file=sys.stderr)
 
     def finished(t: Trial) -> bool:
         rec = done.get(t.key)

@@ -152,17 +152,24 @@ class Journal:
     ``experiment_hash``; a line cut by a kill is ignored when the journal is read back.
     """
 
-    def __init__(self, path: Path, experiment_hash: str):
-        self.path, self.experiment_hash = Path(path), experiment_hash
+    def __init__(self, path: Path, experiment_hash: str, code: str = ""):
+        self.path, self.experiment_hash, self.code = Path(path), experiment_hash, code
+        self.stale = 0   # records of :meth:`done` left out: made by other plugin code
 
     def done(self) -> dict:
-        """The complete records already journaled, by trial key; a different experiment refuses to mix."""
+        """The complete records already journaled, by trial key; a different experiment refuses to mix.  Records
+        made by other plugin code (``code``, :func:`plugin_code_hash`: a plugin fixed after a crash) are left out
+        and counted in ``stale``, so their trials run again rather than mixing old and new code's numbers."""
         out = {}
+        self.stale = 0
         for rec in journal_records(self.path):
             if rec.get("experiment_hash") != self.experiment_hash:
                 raise LaughlabError(f"{self.path.parent} holds an interrupted experiment with another configuration; "
                                     "run it with its own command, or choose another hydra.run.dir, or add "
                                     "overwrite=true")
+            if rec.get("code_hash", "") != self.code:
+                self.stale += 1
+                continue
             out[(rec["condition"], rec["input"], rec["seed"])] = rec
         return out
 
@@ -170,11 +177,33 @@ class Journal:
         from laughlab.harness.results import json_clean
 
         record.update(trial_hash=trial_hash(trial), input_sha256=input_hash(trial.item),
-                      experiment_hash=self.experiment_hash)
+                      experiment_hash=self.experiment_hash, code_hash=self.code)
         with open(self.path, "a") as f:
             f.write(json.dumps(json_clean(record), sort_keys=True) + "\n")
             f.flush()
             os.fsync(f.fileno())
+
+
+def plugin_code_hash() -> str:
+    """A short hash of the source files of every registered plugin (built-in, installed or from plugins_dir):
+    a resumed experiment keeps only the trials this code made (a review resumed after editing a plugin and got
+    one results.json of two codes' numbers)."""
+    import inspect
+
+    from laughlab.core import plugins
+
+    files = set()
+    for named in plugins.registry().values():
+        for info in named.values():
+            obj = getattr(info.obj, "fn", info.obj)   # a Metric's function
+            try:
+                files.add(inspect.getsourcefile(obj) or "")
+            except TypeError:
+                continue
+    h = hashlib.sha256()
+    for f in sorted(f for f in files if f):
+        h.update(f.encode() + b"\0" + Path(f).read_bytes())
+    return h.hexdigest()[:16]
 
 
 def run_overrides(overrides) -> list[str]:
