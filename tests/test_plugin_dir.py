@@ -76,6 +76,11 @@ BAD = {
     # the hook's argument not named as the hookspec names it
     "argument": (PLUGIN.replace("register_faces(register):\n    register(Gape)", "register_faces(reg):\n    reg(Gape)"),
                  "Argument(s) {'reg'} are declared in the hookimpl but can not be found in the hookspec"),
+    # a class that could not run, refused when it registers (a review: found only when chosen, in a traceback)
+    "no_step": (PLUGIN.replace("    def step(self, frame):", "    def stp(self, frame):"), "p.py) does not define step()"),
+    "params": (PLUGIN.replace("@dataclass\nclass GapeParams", "class GapeParams"),
+               "p.py): its Params must be a @dataclass (got 'GapeParams')"),
+    "no_name": (PLUGIN.replace('    name = "gape"\n', ""), "p.py has no name: give its class name = '...', the name "),
     # a face registered as a body
     "kind": (PLUGIN.replace("register_faces", "register_bodies"),
              "unknown face 'gape'; choose one of: cgm, facs, smile ('gape' is registered as a body, plugins dir: "),
@@ -185,3 +190,26 @@ def test_a_resumed_experiment_does_not_mix_two_codes_numbers(tmp_path):
     assert len(Journal(tmp_path / "metrics.jsonl", "exp", before.strip()).done()) == 2
     resumed = Journal(tmp_path / "metrics.jsonl", "exp", after.strip())
     assert resumed.done() == {} and resumed.stale == 2
+
+
+def test_a_scheduler_or_body_writing_what_the_character_lacks_is_one_line(tmp_path):
+    """A review: a scheduler starting a clip the library lacks, or a body offsetting a joint the skeleton lacks, ended
+    in a Hydra traceback from the mixer (KeyError), the plugin unnamed."""
+    (tmp_path / "p").mkdir()
+    (tmp_path / "p" / "s.py").write_text(
+        "import laughlab\nfrom laughlab import Body, Scheduler\nfrom laughlab.core.frame import ClipEvent\n\n"
+        "class Bad(Scheduler):\n    name = 'badsched'\n\n    def step(self, frame):\n        if frame.index == 30:\n"
+        "            frame.events.append(ClipEvent(frame.time_s, 'start', 'nosuchclip', 5, 1.0))\n\n"
+        "class BadBody(Body):\n    name = 'badbody'\n\n    def step(self, frame):\n"
+        "        frame.offsets['nosuchjoint'] = (1.0, 0.0, 0.0)\n        frame.channels['chest'] = 0.0\n"
+        "        frame.channels['belly'] = 0.0\n\n@laughlab.hookimpl\ndef register_schedulers(register):\n"
+        "    register(Bad)\n\n@laughlab.hookimpl\ndef register_bodies(register):\n    register(BadBody)\n")
+    r = run("plugins_dir=p", "scheduler=badsched", "input.duration_s=2", "hydra.run.dir=run", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.startswith(
+        "laughlab: error: the scheduler started clip 'nosuchclip' at 0.50 s (frame 30), which the clip library does not "
+        "hold (no clip 'nosuchclip'; have lean_front1, ") and r.stderr.count("\n") == 1
+    r = run("plugins_dir=p", "body=badbody", "input.duration_s=2", "hydra.run.dir=run", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.startswith(
+        "laughlab: error: the body wrote an offset for joint 'nosuchjoint', which the skeleton does not have (its "
+        "joints: hips, spine, ") and r.stderr.count("\n") == 1
+    assert not (tmp_path / "run").exists()

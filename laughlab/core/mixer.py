@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from laughlab.core.errors import LaughlabError
 from laughlab.core.frame import Frame
 
 
@@ -76,7 +77,11 @@ class Mixer:
         for ev in frame.events:
             if ev.kind == "start":
                 self._switch(t, ev.blend_s)
-                self.clip = self.library[ev.clip]
+                try:
+                    self.clip = self.library[ev.clip]
+                except KeyError as exc:   # a scheduler's bug: one line, not a traceback through the pipeline
+                    raise LaughlabError(f"the scheduler started clip {ev.clip!r} at {t:.2f} s (frame {frame.index}), "
+                                        f"which the clip library does not hold ({exc.args[0]})") from None
                 self.clip_start, self.speed, self.offset = t, ev.speed, ev.offset_s
                 self.end = self.clip.duration_s if ev.end_s is None else ev.end_s
             elif ev.kind == "stop" and self.clip is not None and ev.clip == self.clip.name:
@@ -154,7 +159,10 @@ class Mixer:
             if r[4]:
                 row = out[i]
                 for joint, (z, x, y) in r[4].items():
-                    c = col[joint]
+                    c = col.get(joint)
+                    if c is None:   # a body's bug: one line naming the joint, not a KeyError through the pipeline
+                        raise LaughlabError(f"the body wrote an offset for joint {joint!r}, which the skeleton does not "
+                                            f"have (its joints: {', '.join(col)})")
                     row[c] += z
                     row[c + 1] += x
                     row[c + 2] += y

@@ -145,9 +145,13 @@ def registry() -> dict[str, dict[str, PluginInfo]]:
             found: list = []
             impl.function(found.append)
             for obj in found:
-                name = getattr(obj, "name", None) or getattr(obj, "__name__", None)
+                name = getattr(obj, "name", None) or (None if isinstance(obj, type) else getattr(obj, "__name__", None))
                 if not name:
-                    raise LaughlabError(f"a {kind} plugin from {_origin(impl.plugin)} has no name")
+                    what = f" ({obj.__name__})" if isinstance(obj, type) else ""
+                    raise LaughlabError(f"a {kind} plugin{what} from {_origin(impl.plugin)} has no name: give its class "
+                                        "name = '...', the name configurations choose it by")
+                if isinstance(obj, type):
+                    _check_class(kind, name, obj, _origin(impl.plugin))
                 if kind == "metric" and not all(hasattr(obj, a) for a in ("fn", "higher_is_better", "units")):
                     raise LaughlabError(f"metric {name!r} from {_origin(impl.plugin)} is not a Metric: decorate its "
                                         "function with @laughlab.harness.metrics.metric(name, higher_is_better, units)")
@@ -159,6 +163,21 @@ def registry() -> dict[str, dict[str, PluginInfo]]:
                 out[kind][name] = PluginInfo(kind, name, obj, _origin(impl.plugin))
         out[kind] = dict(sorted(out[kind].items()))
     return out
+
+
+def _check_class(kind: str, name: str, cls: type, origin: str) -> None:
+    """A plugin class that could not run is refused when it registers, in one line (a review: a body without
+    step() failed only when chosen, in a 23-line traceback; a Params that is not a dataclass was taken, and its
+    parameters were then called another plugin's)."""
+    import inspect
+
+    if inspect.isabstract(cls):
+        missing = ", ".join(f"{m}()" for m in sorted(cls.__abstractmethods__))
+        raise LaughlabError(f"{kind} plugin {name!r} ({cls.__name__}, {origin}) does not define {missing}")
+    params = getattr(cls, "Params", None)
+    if params is not None and not is_dataclass(params):
+        raise LaughlabError(f"{kind} plugin {name!r} ({cls.__name__}, {origin}): its Params must be a @dataclass "
+                            f"(got {getattr(params, '__name__', params)!r})")
 
 
 def other_kind_hint(name: str) -> str:
