@@ -77,9 +77,10 @@ def preflight(argv: list[str]):
                                 "(synthetic inputs: how many, or a list such as [10,11]) and harness.run_seeds "
                                 "(each recording's runs, e.g. [0,1,2])")
         if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
-            check_conditions(cfg.harness.get("conditions"))
+            conditions = check_conditions(cfg.harness.get("conditions"))
             harness = OmegaConf.to_container(cfg.harness, resolve=True)
             showcase_item(harness, build_corpus(harness.get("corpus") or {}))
+            _check_condition_runs(overrides, conditions)
         if cfg.get("character") is not None:   # e.g. experiment=stimuli: its trials' sinks load it later
             from laughlab.avatar.load import load_character
 
@@ -184,6 +185,25 @@ def task(cfg) -> dict:
         if _CLAIM is not None:
             _CLAIM.release()
             _CLAIM = None
+
+
+def _check_condition_runs(overrides: list[str], conditions: dict) -> None:
+    """Each condition's run built as its trials compose it (the command line's overrides, then the condition's),
+    before any trial: a key the condition's plugin lacks (``scheduler.overrule_c`` under a ``scheduler=none``
+    condition) stopped the experiment after its first trials, and under a parallel sweep silently (a review)."""
+    from omegaconf import OmegaConf
+
+    from laughlab.core import pipeline
+    from laughlab.core.config import NOT_IN_A_RUN, compose_app
+
+    base = [o for o in overrides if not o.split("=")[0].lstrip("+~").startswith(("hydra", "overwrite", "progress"))]
+    for name, cond in conditions.items():
+        try:
+            cfg = compose_app([*base, *cond])
+            pipe = pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k not in NOT_IN_A_RUN]))
+            pipe.source.close()
+        except LaughlabError as exc:
+            raise LaughlabError(f"condition {name!r} ({' '.join(cond)}): {exc}") from None
 
 
 def _read_paths(cfg) -> tuple:

@@ -131,6 +131,11 @@ def bad_files(tmp_path_factory):
     (["experiment=smoke", "harness.showcase=mild-sx"], "harness.showcase 'mild-sx' is not an input of the corpus"),
     (["experiment=smoke", "seed=5"], "seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds"),
     (["-m", "experiment=smoke", "seed=5,6"], "seed= does not apply to an experiment"),
+    # a key a condition's plugin lacks: found before any trial (a review: after the first trials; silently in a
+    # parallel sweep)
+    (["experiment=smoke", "scheduler.overrule_c=2"],
+     "condition 'none' (scheduler=none): unknown parameter scheduler.overrule_c"),
+    (["-m", "experiment=smoke", "scheduler.overrule_c=2,3"], "condition 'none' (scheduler=none): unknown parameter "),
     # a mistyped top-level key: the nearest one (a review: 'unknown parameter sed')
     (["sed=3"], "unknown parameter sed; did you mean seed?"),
     (["facee=facs"], "unknown parameter facee; did you mean face?"),
