@@ -536,3 +536,18 @@ def test_ctrl_c_during_simulate_is_one_line(study, tmp_path):
     p.send_signal(signal.SIGINT)
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130 and err == "laughlab: error: interrupted\n", err[-2000:]
+
+
+def test_a_simulation_records_what_it_planted(study, tmp_path):
+    """A review: the simulated study's report did not say what was planted, the thing it should recover.  simulate
+    stores it in the database's study table; analyze prints it (reports/study_demo shows the line)."""
+    from laughlab.study import db as DB
+    from laughlab.study import simulate as S
+
+    d = design_of(study)
+    db = DB.open_db(tmp_path / "sim.sqlite", d, "simulated")
+    assert DB.stored(db, "simulation") is None
+    DB.store(db, "simulation", {"effects": {"laugh_energy": 1.0}, "seed": 3, "participants": 4, **S.PLANTED_SPREAD})
+    assert DB.stored(db, "simulation") == {"effects": {"laugh_energy": 1.0}, "seed": 3, "participants": 4,
+                                           "base": 4.0, "sd_participant": 0.5, "sd_noise": 0.6}
+    assert DB.stored_design(db) == d and DB.participants_kind(db) == "simulated"

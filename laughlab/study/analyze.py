@@ -394,6 +394,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
     n_all = int(df["participant"].nunique())
     doc = {"source": str(source), "design_id": (design or {}).get("id"), "participants": n_all,
            "simulated": kind == "simulated",
+           "planted": DB.stored(source, "simulation") if kind == "simulated" else None,
            "excluded": {str(p): r for p, r in excluded.items()}, "included": n_all - len(excluded),
            "conditions": conditions, "questions": questions, "model_notes": notes,
            "model_warnings": {q: w for q, w in warned.items() if w},
@@ -455,6 +456,12 @@ def _markdown(doc: dict, source: Path, command: str, has_design: bool = True) ->
         lines += [NO_DESIGN, ""]
     if doc.get("simulated"):
         lines += ["**Simulated participants** (`study simulate`, answers drawn from a planted effect), not people.", ""]
+        sim = doc.get("planted")
+        if sim:   # what the analysis should recover (a review: the report did not say)
+            eff = ", ".join(f"`{c}` {v:+g}" for c, v in sim["effects"].items()) or "none"
+            lines += [f"Planted: {eff} rating points on every question, over a base of {sim['base']:g}; participant "
+                      f"offsets SD {sim['sd_participant']:g}, answer noise SD {sim['sd_noise']:g}; seed {sim['seed']}, "
+                      f"{sim['participants']} participants.", ""]
     lines += [
              f"{doc['participants']} participants, {doc['included']} included, "
              f"{doc['participants'] - doc['included']} excluded (`exclusions.csv`).", ""]

@@ -155,6 +155,10 @@ def simulate(ns) -> None:
         httpd.shutdown()
         httpd.server_close()
     n = sum(len(g.answers) for g in given.values())
+    from laughlab.study.db import store   # what was planted, so that the analysis can say what it should recover
+
+    store(_handler(httpd).db, "simulation", {"effects": effects, "seed": ns.seed, "participants": len(given),
+                                             **S.PLANTED_SPREAD})
     print(f"laughlab: {len(given)} simulated participants finished ({n} answers, planted {ns.effects or 'no effect'})"
           f" -> {_handler(httpd).db}; analyze it with: python -m laughlab study analyze {_handler(httpd).db}")
 

@@ -219,16 +219,31 @@ def rows(path: Path) -> list[dict]:
 
 
 def stored_design(path: Path) -> dict | None:
+    return stored(path, "design")
+
+
+def stored(path: Path, key: str):
+    """The JSON value stored under ``key`` in the study table (``design``, ``simulation``), or None."""
     if not Path(path).is_file():
         return None
     conn = _reader(path)
     try:
-        row = conn.execute("SELECT value FROM study WHERE key = 'design'").fetchone()
+        row = conn.execute("SELECT value FROM study WHERE key = ?", (key,)).fetchone()
     except sqlite3.DatabaseError:
         row = None
     finally:
         conn.close()
     return json.loads(row[0]) if row else None
+
+
+def store(path: Path, key: str, value) -> None:
+    """Store ``value`` (JSON) under ``key`` in the study table (``simulation``: what ``study simulate`` planted)."""
+    conn = connect(Path(path))
+    try:
+        with _transaction(conn):
+            conn.execute("INSERT OR REPLACE INTO study VALUES (?, ?)", (key, json.dumps(value, sort_keys=True)))
+    finally:
+        conn.close()
 
 
 def to_csv(rows_: list[dict]) -> str:

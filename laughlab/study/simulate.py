@@ -35,8 +35,13 @@ class Given:
     csv: str = ""  # the page's own record of the answers (its "Download my answers" CSV)
 
 
-def planted(design: dict, effects: dict[str, float], base: float = 4.0, sd_participant: float = 0.5,
-            sd_noise: float = 0.6, seed: int = 0):
+#: the planted model's base rating and spreads (points of the rating scale), recorded with each simulation
+PLANTED_SPREAD = {"base": 4.0, "sd_participant": 0.5, "sd_noise": 0.6}
+
+
+def planted(design: dict, effects: dict[str, float], base: float = PLANTED_SPREAD["base"],
+            sd_participant: float = PLANTED_SPREAD["sd_participant"], sd_noise: float = PLANTED_SPREAD["sd_noise"],
+            seed: int = 0):
     """answer(p, trial, question) from ``base + effects[condition] + u_p + e`` rounded and clipped to the scale."""
     from laughlab.study.design import scale_range
 
