@@ -64,6 +64,7 @@ def preflight(argv: list[str]):
     run_dir = Path(cfg.hydra.run.dir)
     if run_dir.exists() and not run_dir.is_dir():
         raise LaughlabError(f"hydra.run.dir {run_dir} exists and is not a folder")
+    conditions = None
     if cfg.get("harness"):
         from laughlab.harness.corpus import build_corpus
         from laughlab.harness.experiment import experiment_module, showcase_item
@@ -80,7 +81,6 @@ def preflight(argv: list[str]):
             conditions = check_conditions(cfg.harness.get("conditions"))
             harness = OmegaConf.to_container(cfg.harness, resolve=True)
             showcase_item(harness, build_corpus(harness.get("corpus") or {}))
-            _check_condition_runs(overrides, conditions)
         if cfg.get("character") is not None:   # e.g. experiment=stimuli: its trials' sinks load it later
             from laughlab.avatar.load import load_character
 
@@ -91,6 +91,8 @@ def preflight(argv: list[str]):
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in NOT_IN_A_RUN])
     pipe = pipeline.build(cfg)
     pipe.source.close()
+    if conditions:   # then each condition's run (a key its plugin lacks): the base run's errors come first
+        _check_condition_runs(overrides, conditions)
     return full
 
 
