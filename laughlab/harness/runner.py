@@ -192,17 +192,19 @@ def plugin_code_hash() -> str:
 
     from laughlab.core import plugins
 
-    files = set()
+    files = {}   # module name -> its file: the names, not the paths, so a moved checkout resumes its runs
     for named in plugins.registry().values():
         for info in named.values():
             obj = getattr(info.obj, "fn", info.obj)   # a Metric's function
             try:
-                files.add(inspect.getsourcefile(obj) or "")
+                path = inspect.getsourcefile(obj)
             except TypeError:
                 continue
+            if path:
+                files[obj.__module__] = path
     h = hashlib.sha256()
-    for f in sorted(f for f in files if f):
-        h.update(f.encode() + b"\0" + Path(f).read_bytes())
+    for module, path in sorted(files.items()):
+        h.update(module.encode() + b"\0" + Path(path).read_bytes())
     return h.hexdigest()[:16]
 
 
