@@ -339,6 +339,26 @@ def _render(overrides: list[str], video: dict, run_dir: Path, csv_too: bool = Fa
     return sink.metrics()
 
 
+def check(h: dict) -> None:
+    """The keys this experiment adds to the harness, checked before anything is written (the command line calls
+    it in its preflight; a review found a word for the loudness target failing after Hydra wrote the folder):
+    the preset, the design, the participants, the loudness target and peak."""
+    import math
+
+    from laughlab.core.errors import LaughlabError
+
+    preset_name = h.get("preset") or "laughlab"
+    if preset_name not in (h.get("presets") or {}):
+        raise LaughlabError(f"unknown stimuli preset {preset_name!r}; choose one of: {', '.join(h.get('presets') or {})}")
+    for key, default in (("target_lufs", -23.0), ("max_peak_dbfs", -1.0)):
+        v = (h.get("loudness") or {}).get(key, default)
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise LaughlabError(f"harness.loudness.{key} must be a number (dB; got {v!r})")
+    n = h.get("participants", 0)
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise LaughlabError(f"harness.participants must be a whole number >= 1 (got {n!r})")
+
+
 def run(cfg, out_dir) -> dict:
     """Render every stimulus, write the manifest, the audio and the participants' orders into ``out_dir``."""
     from laughlab.core.errors import LaughlabError
@@ -349,11 +369,9 @@ def run(cfg, out_dir) -> dict:
     _register_sink()
     out_dir = Path(out_dir)
     h = OmegaConf.to_container(cfg.harness, resolve=True)
+    check(h)
     preset_name = h.get("preset") or "laughlab"
     preset = (h.get("presets") or {}).get(preset_name)
-    if preset is None:
-        raise LaughlabError(f"unknown stimuli preset {preset_name!r}; choose one of: "
-                            f"{', '.join(h.get('presets') or {})}")
     conditions = check_conditions(h.get("conditions") or preset.get("conditions"))
     muted = set(preset.get("muted") or [])
     columns = preset.get("columns") or {}
@@ -362,12 +380,9 @@ def run(cfg, out_dir) -> dict:
         raise LaughlabError(f"harness.design must be all or one_per_condition (got {design!r})")
     items = build_corpus(h.get("corpus") or {})
     run_seeds = [int(s) for s in h.get("run_seeds") or [0]]
-    n_participants = int(h.get("participants", 0))
-    if n_participants < 1:
-        raise LaughlabError(f"harness.participants must be >= 1 (got {n_participants})")
+    n_participants = int(h["participants"])   # check()ed
     loud = h.get("loudness") or {}
-    target = float(loud.get("target_lufs", -23.0))
-    max_peak = float(loud.get("max_peak_dbfs", -1.0))
+    target, max_peak = float(loud.get("target_lufs", -23.0)), float(loud.get("max_peak_dbfs", -1.0))   # check()ed
     video = {k: v for k, v in (h.get("video") or {}).items()}
     base = _task_overrides()
     progress = str(cfg.get("progress", "auto")) != "off"

@@ -68,11 +68,15 @@ def preflight(argv: list[str]):
     if cfg.get("harness"):
         from laughlab.harness.corpus import build_corpus
         from laughlab.harness.experiment import experiment_module, showcase_item
+        from laughlab.harness.preflight import check_condition_runs, resolved_harness
         from laughlab.harness.runner import check_conditions
         from laughlab.harness.settings import check_harness
 
-        check_harness(OmegaConf.to_container(cfg.harness, resolve=True))
+        harness = resolved_harness(cfg)
+        check_harness(harness)
         module = experiment_module(cfg.harness.get("module"))
+        if hasattr(module, "check"):   # the keys the experiment adds (experiments/stimuli.py: preset, loudness...)
+            module.check(harness)
         if any(o.lstrip("+").split("=", 1)[0] == "seed" for o in overrides):
             raise LaughlabError("seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds "
                                 "(synthetic inputs: how many, or a list such as [10,11]) and harness.run_seeds "
@@ -92,7 +96,7 @@ def preflight(argv: list[str]):
     pipe = pipeline.build(cfg)
     pipe.source.close()
     if conditions:   # then each condition's run (a key its plugin lacks): the base run's errors come first
-        _check_condition_runs(overrides, conditions)
+        check_condition_runs(overrides, conditions)
     return full
 
 
@@ -187,25 +191,6 @@ def task(cfg) -> dict:
         if _CLAIM is not None:
             _CLAIM.release()
             _CLAIM = None
-
-
-def _check_condition_runs(overrides: list[str], conditions: dict) -> None:
-    """Each condition's run built as its trials compose it (the command line's overrides, then the condition's),
-    before any trial: a key the condition's plugin lacks (``scheduler.overrule_c`` under a ``scheduler=none``
-    condition) stopped the experiment after its first trials, and under a parallel sweep silently (a review)."""
-    from omegaconf import OmegaConf
-
-    from laughlab.core import pipeline
-    from laughlab.core.config import NOT_IN_A_RUN, compose_app
-
-    base = [o for o in overrides if not o.split("=")[0].lstrip("+~").startswith(("hydra", "overwrite", "progress"))]
-    for name, cond in conditions.items():
-        try:
-            cfg = compose_app([*base, *cond])
-            pipe = pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k not in NOT_IN_A_RUN]))
-            pipe.source.close()
-        except LaughlabError as exc:
-            raise LaughlabError(f"condition {name!r} ({' '.join(cond)}): {exc}") from None
 
 
 def _read_paths(cfg) -> tuple:

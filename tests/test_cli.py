@@ -136,6 +136,11 @@ def bad_files(tmp_path_factory):
     (["experiment=smoke", "scheduler.overrule_c=2"],
      "condition 'none' (scheduler=none): unknown parameter scheduler.overrule_c"),
     (["-m", "experiment=smoke", "scheduler.overrule_c=2,3"], "condition 'none' (scheduler=none): unknown parameter "),
+    # the stimuli experiment's own keys, checked before anything is written (a review: tracebacks, a folder left)
+    (["experiment=stimuli", "harness.preset=nope"], "unknown harness.preset 'nope'; choose one of: laughlab, riddle"),
+    (["experiment=stimuli", "harness.loudness.target_lufs=loud"],
+     "harness.loudness.target_lufs must be a number (dB; got 'loud')"),
+    (["experiment=stimuli", "harness.participants=0"], "harness.participants must be a whole number >= 1 (got 0)"),
     # a mistyped top-level key: the nearest one (a review: 'unknown parameter sed')
     (["sed=3"], "unknown parameter sed; did you mean seed?"),
     (["facee=facs"], "unknown parameter facee; did you mean face?"),
