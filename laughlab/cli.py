@@ -93,10 +93,10 @@ def preflight(argv: list[str]):
         pipeline.check_character_used(cfg)
     full = cfg
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in NOT_IN_A_RUN])
-    pipe = pipeline.build(cfg)
-    pipe.source.close()
-    if conditions:   # then each condition's run (a key its plugin lacks): the base run's errors come first
-        check_condition_runs(overrides, conditions)
+    if conditions:   # trials run only the conditions' runs: build those (the base run: only to word an error)
+        check_condition_runs(overrides, conditions, lambda: pipeline.build(cfg).source.close())
+    else:
+        pipeline.build(cfg).source.close()
     return full
 
 

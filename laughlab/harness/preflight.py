@@ -22,10 +22,13 @@ def resolved_harness(cfg) -> dict:
         raise LaughlabError(f"harness: {str(exc).splitlines()[0]}") from None
 
 
-def check_condition_runs(overrides: list[str], conditions: dict) -> None:
+def check_condition_runs(overrides: list[str], conditions: dict, build_base) -> None:
     """Each condition's run built as its trials compose it (the command line's overrides, then the condition's),
     before any trial: a key the condition's plugin lacks (``scheduler.overrule_c`` under a ``scheduler=none``
-    condition) stopped the experiment after its first trials, and under a parallel sweep silently (a review)."""
+    condition) stopped the experiment after its first trials, and under a parallel sweep silently (a review).
+    When one fails, ``build_base()`` builds the run without the condition: an error of the command line's own
+    values is said as a single run says it, others name the condition.  (The base run, which no trial runs, is
+    not built otherwise: under energy_ablation it loaded YAMNet for each value a sweep's check tried.)"""
     from omegaconf import OmegaConf
 
     from laughlab.core import pipeline
@@ -35,7 +38,7 @@ def check_condition_runs(overrides: list[str], conditions: dict) -> None:
     for name, cond in conditions.items():
         try:
             cfg = compose_app([*base, *cond])
-            pipe = pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k not in NOT_IN_A_RUN]))
-            pipe.source.close()
+            pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k not in NOT_IN_A_RUN])).source.close()
         except LaughlabError as exc:
+            build_base()   # the command line's own error, unprefixed, if it is one
             raise LaughlabError(f"condition {name!r} ({' '.join(cond)}): {exc}") from None
