@@ -45,8 +45,9 @@ def mark(exc: BaseException, stages: list, frame: int | None, fps: float) -> Non
     if tb is None:
         return
     cls = type(plugin)
-    kind = getattr(plugin, "kind", "") or "plugin"
-    kind = {"source": "input", "sink": "output"}.get(kind, kind)
+    from laughlab.core.plugins import group_of   # not at import: the command line starts without pluggy
+
+    kind = group_of(getattr(plugin, "kind", "") or "plugin")
     method = tb.tb_frame.f_code.co_name
     when = f" at frame {frame} ({frame / fps:.2f} s)" if frame is not None and method == "step" else ""
     name = getattr(plugin, "name", "") or cls.__name__

@@ -201,6 +201,12 @@ def get(kind: str, name: str) -> PluginInfo:
 _GROUPS = ("input", "extractor", "detector", "scheduler", "body", "face")
 
 
+def group_of(kind: str) -> str:
+    """The config group that chooses a plugin of ``kind``: ``input`` for a source, ``output`` for a sink, else the
+    kind itself (``face``)."""
+    return {"source": "input", "sink": "output"}.get(kind, kind)
+
+
 def typed(where: str, key: str | None = None) -> str:
     """A parameter as the user types it, with the plugin it belongs to: ``where`` is ``GROUP.NAME[.SUB]``
     (``face.facs.au12``) for a plugin group, shown as ``face.au12.hi (face=facs)`` (with no key and no sub-group
@@ -329,7 +335,7 @@ def first_nonfinite(values: Any, allowed: frozenset = frozenset(), path: str = "
 def create(kind: str, name: str, values: Any, ctx: Any, where: str | None = None) -> Any:
     """Build a plugin instance from its name and parameter values."""
     info = get(kind, name)
-    params = make_params(info.obj, values, where or f"{ {'source': 'input', 'sink': 'output'}.get(kind, kind)}.{name}")
+    params = make_params(info.obj, values, where or f"{group_of(kind)}.{name}")
     try:
         return info.obj(params, ctx)
     except OSError as exc:  # a file the plugin opens as it starts (a model, a BVH)
