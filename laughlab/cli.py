@@ -17,7 +17,7 @@ from laughlab.core import blame, clock, interrupts
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, check_overrides,  # noqa: F401
                                   compose_config, conf_dir, group_options, load_plugin_dirs,
                                   register_plugin_configs)
-from laughlab.cli_help import check_flags, help_text
+from laughlab.cli_help import check_flags, check_sweep_flags, help_text
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
@@ -396,6 +396,7 @@ def _main(argv: list[str]) -> None:
         return
     try:
         check_flags(argv, _HYDRA_FLAGS | {"-m", "--multirun", "-r", "--run"})
+        check_sweep_flags(argv)
     except LaughlabError as exc:
         fail(str(exc))
     multirun = any(a in ("-m", "--multirun") for a in argv)

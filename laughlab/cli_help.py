@@ -70,3 +70,19 @@ def check_flags(argv: list[str], known: set[str]) -> None:
         else:
             hint = "a run takes overrides key=value (python -m laughlab --help)"
         raise LaughlabError(f"unknown option {flag!r}: {hint}")
+
+
+#: Hydra's flags that show something instead of running (one configuration): Hydra refuses them beside -m with a
+#: ValueError traceback ("Only one of --run, --multirun, --cfg, --info and --shell_completion can be specified")
+_SHOW_FLAGS = ("--cfg", "-c", "--info", "-i", "--shell-completion", "-sc")
+
+
+def check_sweep_flags(argv: list[str]) -> None:
+    """``-m`` with a flag that shows one configuration (``--cfg hydra``) is refused in one line saying how to see
+    a sweep's settings."""
+    if not any(a in ("-m", "--multirun") for a in argv):
+        return
+    shown = next((a for a in argv if a.split("=", 1)[0] in _SHOW_FLAGS), None)
+    if shown:
+        raise LaughlabError(f"{shown} shows one configuration and does not combine with -m: drop -m to see the "
+                            "first point's (--cfg hydra shows the sweep's hydra.sweeper.params and launcher)")

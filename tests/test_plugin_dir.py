@@ -213,3 +213,54 @@ def test_a_scheduler_or_body_writing_what_the_character_lacks_is_one_line(tmp_pa
         "laughlab: error: the body wrote an offset for joint 'nosuchjoint', which the skeleton does not have (its "
         "joints: hips, spine, ") and r.stderr.count("\n") == 1
     assert not (tmp_path / "run").exists()
+
+
+EXPERIMENT = """# @package _global_
+defaults:
+  - override /extractor: phoneme
+
+harness:
+  name: gape_vs_smile
+  conditions:
+    smile: [face=smile, detector=none]
+    gape: [face=gape, face.gain=3, detector=none]
+  corpus:
+    profiles: [mild]
+    seeds: 2
+    duration_s: 1.0
+  showcase: null
+  plots: false
+"""
+
+
+def test_an_experiment_of_ones_own_in_the_plugins_dir(tmp_path):
+    """A review: one's own conditions could only be added to an experiment (``+harness.conditions.NAME=``), and
+    nothing said how to write an experiment without editing laughlab's configs.  ``DIR/experiment/NAME.yaml`` is
+    ``experiment=NAME`` with ``plugins_dir=DIR``, in its trial workers too, with its ``defaults`` overrides."""
+    (tmp_path / "mine" / "experiment").mkdir(parents=True)
+    (tmp_path / "mine" / "gape.py").write_text(PLUGIN)
+    (tmp_path / "mine" / "experiment" / "gape_vs_smile.yaml").write_text(EXPERIMENT)
+    r = run("plugins_dir=mine", "experiment=gape_vs_smile", "harness.jobs=2", "hydra.run.dir=exp", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads((tmp_path / "exp" / "results.json").read_text())
+    assert doc["experiment"] == "gape_vs_smile" and doc["n_trials"] == 4
+    assert doc["config"]["extractor"]["name"] == "phoneme"            # its defaults list applied
+    assert doc["conditions"] == {"smile": ["face=smile", "detector=none"],
+                                 "gape": ["face=gape", "face.gain=3", "detector=none"]}
+    smiles = {}   # the gape face writes no smile channel: its smile onset is n/a, the smile face's a latency
+    for line in (tmp_path / "exp" / "metrics.jsonl").read_text().splitlines():
+        rec = json.loads(line)
+        smiles.setdefault(rec["condition"], []).append(rec["metrics"]["smile_onset_latency_s"])
+    assert all(v is not None and v == v for v in smiles["smile"]) and len(smiles["smile"]) == 2
+    assert all(v is None or v != v for v in smiles["gape"]) and len(smiles["gape"]) == 2
+    # without the folder the name is unknown, and the line says where one's own experiments go
+    r = run("experiment=gape_vs_smile", cwd=tmp_path)
+    assert r.returncode == 2 and "plugins_dir=DIR with DIR/experiment/gape_vs_smile.yaml" in r.stderr, r.stderr
+    # a built-in experiment's name, or a file that is not YAML: one line naming the file
+    (tmp_path / "mine" / "experiment" / "smoke.yaml").write_text(EXPERIMENT)
+    r = run("plugins_dir=mine", "experiment=gape_vs_smile", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "laughlab has an experiment named 'smoke'" in r.stderr
+    (tmp_path / "mine" / "experiment" / "smoke.yaml").write_text("harness: [unclosed\n")
+    (tmp_path / "mine" / "experiment" / "smoke.yaml").rename(tmp_path / "mine" / "experiment" / "bad.yaml")
+    r = run("plugins_dir=mine", "experiment=gape_vs_smile", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "bad.yaml is not a readable experiment" in r.stderr

@@ -43,6 +43,13 @@ def test_each_value_of_each_key_is_checked_with_the_others_at_their_first_values
     ("scheduler.overrule_c=1.5,-2", "sweep value scheduler.overrule_c=-2: bad parameter in scheduler=energy: "
                                     "overrule_c must be >= 0 (got -2.0)"),
     ("scheduler.overrule_c=1.5,abc", "sweep value scheduler.overrule_c=abc: bad parameter scheduler.overrule_c (scheduler=energy)"),
+    # the launcher's own settings (a review: joblib's and Hydra's tracebacks after the sweep had started)
+    ("hydra.launcher.n_jobs=0", "hydra.launcher.n_jobs=0: the joblib launcher runs that many points at once, a whole "
+                                "number other than 0 (-1: one per core)"),
+    ("hydra.launcher.n_jobs=two", "bad setting hydra.launcher.n_jobs=two: Value 'two' of type 'str' could not be "
+                                  "converted to Integer"),
+    ("hydra/launcher=nope", "unknown launcher hydra/launcher=nope; launchers here: basic, joblib"),
+    ("--cfg=hydra", "--cfg=hydra shows one configuration and does not combine with -m: drop -m"),
 ])
 def test_a_bad_sweep_is_one_line_before_any_job(tmp_path, swept, message):
     sweep = tmp_path / "sweep"
@@ -69,3 +76,26 @@ def test_the_committed_experiments_sweep_together(tmp_path):
     from laughlab import cli
 
     assert check_sweep(["experiment=energy_ablation,concat_ablation"], cli.preflight) == 2
+
+
+def test_the_slurm_launcher_names_what_it_needs(tmp_path, monkeypatch):
+    """Without the cluster extra, Hydra's "Could not find 'hydra/launcher/submitit_slurm'" said nothing of how to
+    install it; with it, off a cluster, submitit's traceback came after Hydra had written the sweep's folder."""
+    import importlib.util
+
+    sweep = tmp_path / "sweep"
+    r = laughlab("-m", "experiment=energy_ablation", "hydra/launcher=submitit_slurm", f"hydra.sweep.dir={sweep}")
+    installed = importlib.util.find_spec("hydra_plugins.hydra_submitit_launcher") is not None
+    want = "sbatch, which this machine does not have" if installed else "pip install -e '.[cluster]'"
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and want in r.stderr, r.stderr
+    assert not sweep.exists()
+    from laughlab.core import sweepcheck
+
+    slurm = {"_target_": "hydra_plugins.hydra_submitit_launcher.submitit_launcher.SlurmLauncher"}
+    monkeypatch.setattr("shutil.which", lambda name: None)
+    with pytest.raises(LaughlabError, match="submitit_slurm submits every point with Slurm's sbatch"):
+        sweepcheck.check_launcher(slurm)
+    monkeypatch.setattr("shutil.which", lambda name: f"/usr/bin/{name}")
+    sweepcheck.check_launcher(slurm)                                # on a login node: left to the launcher
+    sweepcheck.check_launcher({"_target_": "hydra_plugins.hydra_joblib_launcher.joblib_launcher.JoblibLauncher",
+                               "n_jobs": -1})                       # -1: one per core

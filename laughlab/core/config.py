@@ -6,6 +6,7 @@ harness never imports the command line.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
 
@@ -40,6 +41,8 @@ def group_options(group: str) -> list[str]:
         from laughlab.core import plugins
 
         names |= set(plugins.registry()[GROUP_KINDS[group]])
+    if group == "experiment":
+        names |= set(_LOCAL_EXPERIMENTS)
     return sorted(names)
 
 
@@ -53,6 +56,48 @@ def load_plugin_dirs(overrides) -> None:
         key, _, value = str(ov).partition("=")
         if key.lstrip("+~") == "plugins_dir" and value and value != "null":
             plugins.load_plugin_dir(value)
+            _load_experiments(Path(value).expanduser() / "experiment")
+
+
+#: experiments of a plugins_dir (``PLUGINS_DIR/experiment/NAME.yaml``): name -> file
+_LOCAL_EXPERIMENTS: dict[str, Path] = {}
+
+#: the shared ``harness`` settings an experiment of one's own starts from (``conf/experiment/smoke.yaml``'s, with
+#: no showcase): its YAML gives what differs, and the command line can set every one of them
+#: (``harness.jobs=4``), as for a built-in experiment, which spells them all out
+OWN_EXPERIMENT_BASE = {
+    "name": None, "module": None, "conditions": None, "run_seeds": [0], "showcase": None, "jobs": 2,
+    "keep_trials": False, "plots": True,
+    "corpus": {"profiles": ["mild", "intense"], "seeds": 2, "duration_s": 10.0, "folder": None, "on_bad": "stop",
+               "real": {"sets": [], "split": "test", "scenes": 2, "duration_s": 30.0, "snr_db": [10], "seed": 0,
+                        "if_missing": "skip"}}}
+
+
+def _load_experiments(folder: Path) -> None:
+    """Give each ``NAME.yaml`` in a plugins_dir's ``experiment/`` folder the option ``experiment=NAME``: a YAML
+    written as ``conf/experiment/``'s are (``# @package _global_``, a ``defaults`` list, a ``harness`` node), so
+    one's own experiment needs no copy of laughlab's configs (docs/experiments.md)."""
+    if not folder.is_dir():
+        return
+    from hydra.core.config_store import ConfigStore
+    from omegaconf import OmegaConf
+
+    for file in sorted(folder.glob("*.yaml")):
+        name = file.stem
+        if _LOCAL_EXPERIMENTS.get(name) == file.resolve():
+            continue
+        if conf_dir().joinpath("experiment", file.name).is_file():
+            raise LaughlabError(f"{file}: laughlab has an experiment named {name!r}; give yours another name")
+        try:
+            node = OmegaConf.load(file)
+        except Exception as exc:   # a YAML error: its first line says where
+            raise LaughlabError(f"{file} is not a readable experiment: {str(exc).splitlines()[0]}") from None
+        if not OmegaConf.is_dict(node) or not OmegaConf.is_dict(node.get("harness")):
+            raise LaughlabError(f"{file} is not an experiment: it needs a harness: mapping of settings "
+                                "(docs/experiments.md, 'An experiment of your own')")
+        node = OmegaConf.merge({"harness": {**OWN_EXPERIMENT_BASE, "name": name}}, node)
+        ConfigStore.instance().store(group="experiment", name=name, node=node, package="_global_")
+        _LOCAL_EXPERIMENTS[name] = file.resolve()
 
 
 def register_plugin_configs() -> None:
@@ -117,8 +162,31 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
                     f"without brackets a comma means a sweep (-m)")
         return (f"{key}={value} gives several values: to run each, add -m (a sweep: python -m laughlab -m "
                 f"{key}={value}); for a list write '{key}=[{value}]'")
+    m = re.match(r"Error merging override (\S+)", text)
+    if m and exc.__cause__ is not None:   # Hydra's line names the override, its cause says what is wrong with it
+        cause = str(exc.__cause__).strip().splitlines()
+        return f"bad setting {m.group(1)}: {cause[0]}" if cause else text
+    m = re.search(r"Could not find 'hydra/launcher/([^']+)'", text)
+    if m:  # Hydra's line says nothing of where a launcher comes from
+        return launcher_missing(m.group(1))
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     return lines[0] if lines else type(exc).__name__
+
+
+def launcher_missing(name: str) -> str:
+    """The line for ``hydra/launcher=NAME`` that Hydra cannot find: the launchers this installation has, and for
+    Hydra's submitit launchers (Slurm) the extra that installs them."""
+    try:
+        from hydra.core.global_hydra import GlobalHydra
+
+        found = sorted(GlobalHydra.instance().config_loader().get_group_options("hydra/launcher"))
+    except Exception:  # listing them is a courtesy
+        found = []
+    here = f"; launchers here: {', '.join(found)}" if found else ""
+    if name.startswith("submitit"):
+        return (f"hydra/launcher={name} is Hydra's submitit launcher, which is not installed: pip install -e "
+                f"'.[cluster]' in laughlab's checkout (or pip install hydra-submitit-launcher){here}")
+    return f"unknown launcher hydra/launcher={name}{here}"
 
 
 def _owners(group: str, path: str) -> list[str]:
@@ -310,5 +378,7 @@ def check_overrides(overrides: list[str]) -> None:
         options = group_options(group)
         for choice in choices:
             if choice not in options:
+                own = (f" (an experiment of your own: plugins_dir=DIR with DIR/experiment/{choice}.yaml)"
+                       if group == "experiment" else "")
                 raise LaughlabError(f"unknown {group} {choice!r}; choose one of: {', '.join(options) or '(none)'}"
-                                    f"{plugins.other_kind_hint(choice)}")
+                                    f"{plugins.other_kind_hint(choice)}{own}")

@@ -58,6 +58,7 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
 
     base, sweeps = sweep_values(overrides)
     cfg = preflight(base)
+    check_launcher(cfg.hydra.get("launcher") or {})
     params = None if any(is_group(k.lstrip("+~")) for k in sweeps) else cfg.hydra.get("sweeper", {}).get("params")
     params = OmegaConf.to_container(params, resolve=False) if OmegaConf.is_config(params) else dict(params or {})
     given = {k.lstrip("+~") for k in sweeps} | {o.split("=", 1)[0].lstrip("+~") for o in base}
@@ -78,3 +79,21 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
                 raise LaughlabError(f"sweep value {value}: {exc}") from None
             checked += 1
     return checked
+
+
+def check_launcher(launcher) -> None:
+    """The launcher's settings that would otherwise fail in its own traceback once the sweep starts: the joblib
+    launcher's ``n_jobs`` (0 is joblib's ValueError), and the Slurm launcher off a cluster (submitit's "Could not
+    detect srun" after Hydra had written the sweep's folder)."""
+    import shutil
+
+    target = str(launcher.get("_target_", ""))
+    if "joblib" in target.lower():
+        n = launcher.get("n_jobs")
+        if n is not None and (isinstance(n, bool) or not isinstance(n, int) or n == 0):
+            raise LaughlabError(f"hydra.launcher.n_jobs={n}: the joblib launcher runs that many points at once, a "
+                                "whole number other than 0 (-1: one per core)")
+    if "SlurmLauncher" in target and shutil.which("sbatch") is None:
+        raise LaughlabError("hydra/launcher=submitit_slurm submits every point with Slurm's sbatch, which this machine "
+                            "does not have: run the command on the cluster's login node, or hydra/launcher="
+                            "submitit_local to run the same jobs here")
