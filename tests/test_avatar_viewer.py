@@ -142,7 +142,9 @@ def shows_godette(png: bytes, at: dict) -> None:
     figure = np.abs(band - np.array([0x2a, 0x30, 0x40])).sum(axis=2) > 60
     r, g, b = band[..., 0], band[..., 1], band[..., 2]
     assert figure.mean() > 0.03 and (figure & (b > r + 25)).sum() > 1500
-    assert (figure & (r > g + 20) & (g > b) & (r > 150)).sum() > 200
+    # pink skin: red well above green and blue, these two about equal (her lit face is about (249, 207, 211); a
+    # test of g > b passed or failed with the pose)
+    assert (figure & (r > g + 20) & (r > b + 20) & (np.abs(g - b) < 25) & (r > 150)).sum() > 200
 
 
 @pytest.fixture(scope="module")

@@ -457,3 +457,31 @@ def test_progress_on_into_a_log_is_plain_lines_that_end_at_every_frame(tmp_path)
     r = laughlab("input.duration_s=5", "progress=on", "~output.plots", f"hydra.run.dir={tmp_path / 'run'}")
     assert r.returncode == 0, r.stderr
     assert "\r" not in r.stderr and r.stderr.strip().splitlines()[-1].startswith("laughlab: 300/300 frames, ")
+
+
+def test_each_plugin_draws_from_its_own_stream(tmp_path):
+    """A face's blinks moved the energy scheduler's random clip choices and speeds (one generator for the run), so
+    two faces compared on one seed had different bodies.  Each group now has its own stream (Context.for_plugin):
+    the face changes nothing of the clips and the body's joints below the head; the seed still changes them."""
+    import pickle
+
+    from inprocess import laughlab
+
+    runs = {}
+    for name, args in {"smile": ["face=smile"], "facs": ["face=facs"], "seed1": ["face=smile", "seed=1"]}.items():
+        r = laughlab("detector=none", "input.profile=intense", "input.duration_s=12", "~output.plots", *args,
+                     f"hydra.run.dir={tmp_path / name}")
+        assert r.returncode == 0, r.stderr
+        runs[name] = (tmp_path / name / "events.csv").read_text()
+    assert runs["smile"] == runs["facs"] and runs["smile"].count("start") >= 3
+    assert runs["seed1"] != runs["smile"]
+    # the streams: a function of the seed and the group, not of the order plugins are built in
+    ctx = Context(seed=7)
+    a, b = ctx.for_plugin("face"), ctx.for_plugin("scheduler")
+    assert a.rng.random() == Context(seed=7).for_plugin("face").rng.random() != b.rng.random()
+    # everything else is the shared context's, read and written through (the extractor sets calibration_s)
+    a.calibration_s = 2.5
+    assert ctx.calibration_s == 2.5 == b.calibration_s and a.fps == ctx.fps
+    # a sink crosses to its helper process pickled, its context with it
+    c = pickle.loads(pickle.dumps(ctx.for_plugin("output.files")))
+    assert c.rng.random() == ctx.for_plugin("output.files").rng.random() and c.fps == ctx.fps

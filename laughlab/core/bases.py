@@ -39,7 +39,9 @@ class Context:
     sample_rate : int
         Audio sample rate of the source (Hz).
     rng : numpy.random.Generator
-        The run's one seeded generator: all randomness comes from it.
+        The seeded generator all randomness comes from.  A plugin built by the pipeline sees its own
+        (:meth:`for_plugin`): one stream per group, so changing the face leaves the scheduler's and the
+        body's random draws as they were, and the conditions of an experiment are paired.
     seed : int
         The run's seed.
     calibration_s : float
@@ -59,6 +61,17 @@ class Context:
     def dt(self) -> float:
         return 1.0 / self.fps
 
+    def for_plugin(self, key: str) -> "PluginContext":
+        """This context as the plugin of ``key`` (its group: ``face``, ``scheduler``...; a sink's
+        ``output.NAME``) sees it: everything shared, but its own generator, seeded from the run's seed and the
+        key (``numpy.random.default_rng([seed, crc32(key)])``).
+
+        Until 2026-11-27 every plugin drew from one generator, so a face's blinks moved the energy scheduler's
+        random clip choices and speeds: two faces compared on one seed had different bodies."""
+        import zlib
+
+        return PluginContext(self, np.random.default_rng([self.seed, zlib.crc32(key.encode())]))
+
     @property
     def clips(self) -> "ClipLibrary":
         """The clip library (loaded on first use)."""
@@ -71,6 +84,29 @@ class Context:
     @property
     def skeleton(self) -> "Skeleton":
         return self.clips.skeleton
+
+
+class PluginContext:
+    """A plugin's view of the run's :class:`Context`: every attribute is the shared context's (read and
+    written through), except ``rng``, the plugin's own generator (:meth:`Context.for_plugin`)."""
+
+    __slots__ = ("_shared", "rng")
+
+    def __init__(self, shared: Context, rng: np.random.Generator):
+        object.__setattr__(self, "_shared", shared)
+        object.__setattr__(self, "rng", rng)
+
+    def __getattr__(self, name: str):
+        return getattr(object.__getattribute__(self, "_shared"), name)
+
+    def __reduce__(self):   # sinks cross to their helper process pickled (laughlab.core.background)
+        return PluginContext, (object.__getattribute__(self, "_shared"), self.rng)
+
+    def __setattr__(self, name: str, value) -> None:
+        if name == "rng":
+            object.__setattr__(self, name, value)
+        else:
+            setattr(object.__getattribute__(self, "_shared"), name, value)
 
 
 class Plugin(ABC):

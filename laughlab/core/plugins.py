@@ -334,8 +334,12 @@ def first_nonfinite(values: Any, allowed: frozenset = frozenset(), path: str = "
 
 def create(kind: str, name: str, values: Any, ctx: Any, where: str | None = None) -> Any:
     """Build a plugin instance from its name and parameter values."""
+    from laughlab.core.bases import Context
+
     info = get(kind, name)
     params = make_params(info.obj, values, where or f"{group_of(kind)}.{name}")
+    if isinstance(ctx, Context):   # its own random stream: one per group, a sink's per output (Context.for_plugin)
+        ctx = ctx.for_plugin(f"output.{name}" if kind == "sink" else group_of(kind))
     try:
         return info.obj(params, ctx)
     except OSError as exc:  # a file the plugin opens as it starts (a model, a BVH)
