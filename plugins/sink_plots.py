@@ -105,9 +105,11 @@ class PlotsSink(Sink):
                                                  bouts, note=note))
         if "mcs" in data and "energy" in data:
             path42 = self.staging.path(out / "fig4_2_energy.png")
-            jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts,
-                                                 note=note))
             scheduler = (self.run.config or {}).get("scheduler") or {}
+            label = {"energy": "laughing energy L", "concat": "energy (40 MCS, 0.5 s low-pass)"}.get(
+                scheduler.get("name"), "energy channel")
+            jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts,
+                                                 note=note, energy_label=label))
             if scheduler.get("name") == "energy":
                 path41 = self.staging.path(out / "fig4_1_energy.png")
                 jobs.append(lambda: plots.figure_4_1(path41, t, data["mcs"], data["energy"], self.events,

@@ -117,6 +117,9 @@ def test_eq_f3_delay_line_by_hand():
     assert d.get(0.01) == pytest.approx(3.0)
     assert d.get(0.025) == pytest.approx(1.5)  # halfway between 2 and 1
     assert d.get(0.04) == 0.0                  # before the first frame: rest
+    # between frames where the two neighbours differ and w != 0.5 (a mutation swapping them survived w = 0.5)
+    assert d.get(0.013) == pytest.approx(2.7)  # 3 + 0.3 (2 - 3)
+    assert d.get(0.037) == pytest.approx(0.3)  # 1 + 0.7 (0 - 1): towards rest
 
 
 def test_draw_sides_bounds_and_seed():
@@ -125,6 +128,12 @@ def test_draw_sides_bounds_and_seed():
     assert a == b
     for v in a.values():
         assert all(0.9 <= g <= 1.0 for g in v.gain) and all(0.0 <= d <= 0.05 for d in v.delay_s)
+    # the documented draw: 4 uniforms a unit (left gain, right gain, left delay, right delay), gain 1 - asymmetry u,
+    # delay desync u (a mutation halving the gain's range stayed inside the bounds above)
+    u = np.random.default_rng(1).random(4 * len(ACTION_UNITS)).reshape(-1, 4)
+    for row, unit in zip(u, ACTION_UNITS):
+        assert a[unit].gain == pytest.approx((1 - 0.1 * row[0], 1 - 0.1 * row[1]))
+        assert a[unit].delay_s == pytest.approx((0.05 * row[2], 0.05 * row[3]))
     assert len({v.gain for v in a.values()}) == len(ACTION_UNITS)
 
 
@@ -137,6 +146,23 @@ def test_blinker_is_the_smile_face_blink_rule():
         fr.clip_eyes = float(eyes[k])
         sm.step(fr)
         assert bl.step(k * DT, bool(eyes[k])) == fr.channels["blink"]
+
+
+def test_a_blink_by_hand():
+    """Thesis 3.3.3's blink: due after N(mean, sd) s, the lid closes linearly over close_s and opens over open_s,
+    then the next interval is drawn from the blink's end.  sd = 0 makes every interval the mean.  (The test
+    above compares the smile face with Blinker itself; a mutation opening over close_s survived it.)"""
+    bl = Blinker(np.random.default_rng(0), mean_s=1.0, sd_s=0.0, min_interval_s=0.5, close_s=0.08, open_s=0.12)
+    got = {t: bl.step(t, busy=False) for t in (0.0, 0.5, 1.0, 1.04, 1.08, 1.14, 1.21, 1.7, 2.22, 2.26)}
+    assert got == pytest.approx({0.0: 0.0, 0.5: 0.0, 1.0: 0.0, 1.04: 0.5, 1.08: 1.0, 1.14: 0.5, 1.21: 0.0,
+                                 1.7: 0.0, 2.22: 0.0, 2.26: 0.5})   # ended at 1.21: the next starts at 2.22
+    bl = Blinker(np.random.default_rng(0), mean_s=1.0, sd_s=0.0)
+    assert bl.step(0.0, busy=False) == 0.0 and bl.step(1.0, busy=True) == 0.0   # due while busy: skipped
+    assert bl.step(1.5, busy=False) == 0.0 and bl.step(2.0, busy=False) == 0.0   # the next one drawn at 1.0
+    assert bl.step(2.04, busy=False) == pytest.approx(0.5)
+    bl = Blinker(np.random.default_rng(0), mean_s=-3.0, sd_s=0.0, min_interval_s=0.5)
+    assert bl.step(0.0, busy=False) == 0.0 and bl.step(0.49, busy=False) == 0.0   # a negative draw: 0.5 s
+    assert bl.step(0.5, busy=False) == 0.0 and bl.step(0.54, busy=False) == pytest.approx(0.5)
 
 
 # --- the face ---------------------------------------------------------------------------------

@@ -252,6 +252,13 @@ def test_the_study_figures_keep_the_design_order_and_the_fit_says_what_its_warni
     assert_readable(saved)
     for f in saved:
         assert all([t.replace("\n", "") for t in ticks] == design_order for ticks in f.xticks), f.name
+    # people's answers: the titles do not say "simulated"; simulated ones do (below)
+    assert not any("simulated" in t for f in saved for t in f.texts)
+    from laughlab.study.plots import means_plot
+
+    means_plot(tmp_path / "sim.png", pd.read_csv(out / "means.csv"), pd.read_csv(out / "tidy.csv"), ["naturalness"],
+               design_order, simulated=True)
+    assert any("simulated participants" in t for t in saved[-1].texts)
     means = pd.read_csv(out / "means.csv")
     assert list(means["condition"][:4]) == design_order and list(means["question"][:4]) == ["naturalness"] * 4
     report = json.loads((out / "report.json").read_text())
@@ -354,9 +361,10 @@ def test_an_all_zero_metric_starts_at_0_and_a_metric_that_does_not_apply_says_n_
     cutoff = fig.titles.index("cutoff_rate ↓")
     lo, hi = fig.ylims[cutoff]
     assert lo == 0 and hi >= 1                      # an axis from 0, not matplotlib's -0.04..0.04
-    assert fig.texts.count("n/a") == 1 and fig.texts.count("0") == 1   # none's missing bar, energy's bar at 0
-    # means of fewer than 10 trials say so over their bars, as the table's "(n=4)" (a review: the figure did not)
-    assert fig.texts.count("n=4") == 2
+    assert fig.texts.count("n/a") == 1                 # none's missing bar
+    # means of fewer than 10 trials say so over their bars, as the table's "(n=4)" (a review: the figure did not),
+    # a bar at 0 too (a review: its n was lost under the "0")
+    assert fig.texts.count("0 (n=4)") == 1 and fig.texts.count("n=4") == 2
     assert fig.ylims[fig.titles.index("miss_rate ↓")][0] == 0
 
 
@@ -376,3 +384,18 @@ def test_figure_10_error_labels_stay_apart_and_clear_of_the_legend(tmp_path, sav
     figure_10(tmp_path / "fig10_pressure.png", res)
     assert_readable(saved)
     assert sum(t.startswith("0.") for t in saved[-1].texts) >= n
+
+
+def test_fig3_2_zooms_on_laughter_and_fig4_2_names_its_energy(tmp_path, saved):
+    """A review: on a scene of talk and laughter Fig. 3.2's zoom showed the busiest talk before the first bout, and
+    the concat run's Fig. 4.2 called its energy channel (40 MCS, low-passed) the thesis' laughing energy L."""
+    from laughlab.render import plots
+
+    t = np.arange(0, 20, 1 / 60)
+    raw = np.where(t < 5, 0.9, 0.0) + np.where((t > 12) & (t < 15), 0.5 * np.abs(np.sin(t * 30)), 0.0)
+    plots.figure_3_2(tmp_path / "z.png", t, raw, 1 / 60, bouts=[(12.0, 15.0)])
+    plots.figure_3_2(tmp_path / "n.png", t, raw, 1 / 60)
+    with_bouts, without = saved
+    assert "zoom: 11.5-15.5 s" in with_bouts.titles and "zoom: 0.5-4.5 s" in without.titles   # the middle of equal windows
+    plots.figure_4_2(tmp_path / "c.png", t, raw, 40 * raw, [], energy_label="energy (40 MCS, 0.5 s low-pass)")
+    assert "energy (40 MCS, 0.5 s low-pass)" in saved[-1].texts and "laughing energy L" not in saved[-1].texts

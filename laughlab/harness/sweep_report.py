@@ -56,6 +56,8 @@ def _sweep_command(root: Path) -> list[str]:
         return []
     hydra = (yaml.safe_load(path.read_text()) or {}).get("hydra") or {}
     task = list((hydra.get("overrides") or {}).get("task") or [])
+    if not any(str(o).startswith("hydra.sweep.dir=") for o in task):   # the folder this report was made from
+        task.append(f"hydra.sweep.dir={root}")
     out = [f"- the sweep: `python -m laughlab -m {' '.join(shlex.quote(str(o)) for o in task)}`"]
     given = {str(o).split("=", 1)[0] for o in task}
     params = {k: v for k, v in ((hydra.get("sweeper") or {}).get("params") or {}).items() if k not in given}

@@ -43,7 +43,8 @@ def busiest_window(times: np.ndarray, signal: np.ndarray, window_s: float) -> tu
     dt = times[1] - times[0]
     n = max(1, int(round(window_s / dt)))
     mass = np.convolve(np.asarray(signal, float), np.ones(n), mode="valid")
-    i = int(np.argmax(mass))
+    tied = np.flatnonzero(mass >= mass.max() - 1e-9 * max(abs(mass.max()), 1.0))
+    i = int(tied[len(tied) // 2])   # the middle of equal windows: a bout shorter than the window sits centred
     return float(times[i]), float(times[i] + window_s)
 
 
@@ -70,11 +71,18 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
         curves.append((y, color, 1.1, f"rise {rise}, fall {fall} per tick"))
     fig, (ax_all, ax_zoom) = plt.subplots(1, 2, figsize=(8.0, 2.9), dpi=150, layout="constrained",
                                           width_ratios=(1, 1.6), sharey=True)
-    t0, t1 = busiest_window(times, raw, window_s)
+    # the zoom: the most laughter inside the truth's bouts when there are any (a review: on a scene of speech and
+    # laughter the busiest signal was talk before the first bout), else the most signal anywhere
+    inside = np.zeros(len(times), bool)
+    for b in bouts or ():
+        inside |= (times >= b[0]) & (times <= b[1])
+    t0, t1 = busiest_window(times, raw * inside if np.any(raw * inside > 0) else raw, window_s)
     for ax, lo, hi in ((ax_all, times[0] if len(times) else 0, times[-1] if len(times) else 1), (ax_zoom, t0, t1)):
         _shade_bouts(ax, bouts)
-        for y, color, lw, label in (curves if ax is ax_zoom else curves[:1]):
-            ax.plot(times, y, color=color, lw=lw, label=label)
+        for k, (y, color, lw, label) in enumerate(curves if ax is ax_zoom else curves[:1]):
+            # the unfiltered signal over the filtered ones, which otherwise hide it where they agree
+            ax.plot(times, y, color=color, lw=lw, label=label, zorder=3 if k == 0 else 2,
+                    alpha=0.75 if k == 0 and ax is ax_zoom else 1.0)
         _set_xlim(ax, lo, hi)
         ax.set_xlabel("time (s)")
         _setup_axis(ax)
@@ -325,8 +333,12 @@ def _legend_with_clip_key(fig, axes, blocks, max_cols: int = 7) -> None:
 
 
 def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
-               bouts: Sequence | None = None, title: str = "", note: str = "") -> Path:
-    """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom)."""
+               bouts: Sequence | None = None, title: str = "", note: str = "",
+               energy_label: str = "laughing energy L") -> Path:
+    """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom).
+
+    ``energy_label`` names the green line: the thesis' L under the energy scheduler; another scheduler's
+    ``energy`` channel is another quantity (the concat scheduler's: 40 x MCS smoothed over 0.5 s)."""
     fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.0, 4.2), dpi=150, sharex=True, layout="constrained",
                                    height_ratios=(1, 2))
     _shade_bouts(ax1, bouts)
@@ -337,8 +349,8 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     end = float(times[-1]) if len(times) else 0.0
     top = max([e for _, _, _, e in clip_blocks(events, end)] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
     blocks = _draw_clip_blocks(ax2, events, end, top)
-    (line,) = ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L")
-    ax2.set_ylabel("laughing energy L /\nclip energy e(a)")
+    (line,) = ax2.plot(times, energy, color="tab:green", lw=1.0, label=energy_label)
+    ax2.set_ylabel(f"{energy_label} /\nclip energy e(a)")
     ax2.set_xlabel("time (s)")
     ax2.set_ylim(_energy_floor(energy, top), top * 1.15)
     _set_xlim(ax2, times[0] if len(times) else 0, end or 1)

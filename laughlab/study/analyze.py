@@ -389,8 +389,9 @@ def analyze(source, out=None, design_dir=None) -> Path:
     contrast_df.to_csv(tmp / "contrasts.csv", index=False, float_format="%.6g")
     from laughlab.study.plots import participant_lines, means_plot
 
-    means_plot(tmp / "fig_means.png", means, tidy, questions, conditions, design)
-    participant_lines(tmp / "fig_participants.png", tidy, means, questions, conditions, design)
+    simulated = kind == "simulated"   # said in the figures' titles too: a figure travels without its README
+    means_plot(tmp / "fig_means.png", means, tidy, questions, conditions, design, simulated=simulated)
+    participant_lines(tmp / "fig_participants.png", tidy, means, questions, conditions, design, simulated=simulated)
     n_all = int(df["participant"].nunique())
     doc = {"source": str(source), "design_id": (design or {}).get("id"), "participants": n_all,
            "simulated": kind == "simulated",

@@ -52,8 +52,10 @@ def _tick(condition: str, width: int = 12) -> str:
     return condition[:i + 1] + "\n" + condition[i + 1:]
 
 
-def means_plot(path: Path, means, tidy, questions: list[str], conditions: list[str], design=None) -> None:
-    """Condition means with 95 % CIs per question; each participant's mean as a faint dot."""
+def means_plot(path: Path, means, tidy, questions: list[str], conditions: list[str], design=None,
+               simulated: bool = False) -> None:
+    """Condition means with 95 % CIs per question; each participant's mean as a faint dot (``simulated``: the
+    title says the participants were simulated)."""
     fig, axes = _panels(len(questions))
     rng = np.random.default_rng(0)
     for ax, q in zip(axes, questions):
@@ -71,12 +73,14 @@ def means_plot(path: Path, means, tidy, questions: list[str], conditions: list[s
         ax.set_ylabel("rating (mean, 95 % CI)")
         ax.grid(axis="y", alpha=0.3)
         _ylim(ax, design, tidy)
-    fig.suptitle(f"Condition means, {tidy['participant'].nunique()} participants (dots: each participant's mean)",
+    who = "simulated participants" if simulated else "participants"
+    fig.suptitle(f"Condition means, {tidy['participant'].nunique()} {who} (dots: each participant's mean)",
                  fontsize=10)
     fig.savefig(path)
 
 
-def participant_lines(path: Path, tidy, means, questions: list[str], conditions: list[str], design=None) -> None:
+def participant_lines(path: Path, tidy, means, questions: list[str], conditions: list[str], design=None,
+                      simulated: bool = False) -> None:
     """One line per participant (their mean per condition), the condition means in bold."""
     fig, axes = _panels(len(questions))
     x = np.arange(len(conditions))
@@ -93,5 +97,6 @@ def participant_lines(path: Path, tidy, means, questions: list[str], conditions:
         ax.grid(axis="y", alpha=0.3)
         ax.legend(loc="lower right", fontsize=8, frameon=False)
         _ylim(ax, design, tidy)
-    fig.suptitle("Each participant's ratings across the conditions", fontsize=10)
+    fig.suptitle("Each simulated participant's ratings across the conditions" if simulated
+                 else "Each participant's ratings across the conditions", fontsize=10)
     fig.savefig(path)
