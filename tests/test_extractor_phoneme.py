@@ -114,7 +114,12 @@ def test_white_noise_is_unvoiced_high_zcr_fricative():
     x = 0.05 * np.random.default_rng(0).standard_normal(SR)
     labels, controls, feats = run(x)
     assert all(c["f0"] == 0.0 for c in controls[3:])
-    assert np.median([f["zcr_hz"] for f in feats[3:]]) > 3000.0  # white noise: ~sr/4
+    # the zero-crossing rate in Hz of an equivalent sine (half the crossings a second): white noise changes sign on
+    # half its samples, so sr/4; a sine at f crosses 2f times a second, so f
+    assert np.median([f["zcr_hz"] for f in feats[3:]]) == pytest.approx(SR / 4, rel=0.1)
+    t = np.arange(SR) / SR
+    _, _, sine = run(0.3 * np.sin(2 * np.pi * 1500.0 * t + 0.1))
+    assert np.median([f["zcr_hz"] for f in sine[3:]]) == pytest.approx(1500.0, rel=0.05)
     assert majority(labels) == "fricative"
 
 

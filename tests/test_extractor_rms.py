@@ -140,6 +140,19 @@ def test_calibration_phase_sets_min_and_max_from_the_burst_by_hand():
     assert ext._cal_left == 3
 
 
+def test_a_burst_quieter_than_max_floor_leaves_max_at_the_floor():
+    """Ours (listing 5.2 lines 11-13): maxAmp >= max_floor, at the calibration's end too, so a quiet burst does not
+    map room noise to full-scale MCS (a mutation dropping the floor there survived every test).  Levels 0.002 and
+    0.005 under a floor of 0.01: max 0.01, min 0.002; the next frame at 0.006 maps to (0.006 - 0.002) / 0.008 = 0.5,
+    then the falloff (0.001 a tick at 60 fps) moves min to 0.003 and would move max to 0.009, but the floor holds
+    it at 0.01."""
+    p = RmsParams(scale="linear", max_floor=0.01, calibration_s=2 / 60)
+    ext, out = run([np.full(10, a) for a in (0.002, 0.005, 0.006)], p)
+    assert [o["calibrating"] for o in out] == [1.0, 1.0, 0.0]
+    assert out[2]["mcs_raw"] == pytest.approx(0.5)
+    assert ext.max_amp == 0.01 and ext.min_amp == pytest.approx(0.002 + 0.001)
+
+
 def test_without_calibration_there_is_no_calibrating_channel():
     _, out = run([np.full(10, 0.05)] * 3)
     assert "calibrating" not in out[0]

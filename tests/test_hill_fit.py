@@ -262,6 +262,7 @@ def test_compare_methods_records_running_best():
         h = r["history"]
         assert len(h) >= 30 and all(a >= b for a, b in zip(h, h[1:]))
         assert r["error"] == pytest.approx(h[-1]) and 0 <= r["error"] <= 1.0 + 1e-9
+        assert h[-1] < h[0]                 # each method improved on its first guess (a flat history passed above)
 
 
 def test_fit_params_validate():

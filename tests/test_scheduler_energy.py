@@ -98,6 +98,25 @@ def test_constraint_3_minimum_inactive_time():
         assert nxt - stop > 30
 
 
+def test_constraint_3_by_hand_at_a_binary_frame_rate():
+    """Thesis 4.3, constraint 3: a clip restarts only after it has been inactive *more than* I seconds.  At 4 fps
+    (dt = 0.25 s, exact in binary) with I = 0.5 s: inactive 0 on the frame the clip stops, then 0.25, 0.5 (not
+    more than I) and 0.75 on the frames after it, so the restart is on the 4th frame after the stop (>= would
+    restart on the 3rd: a mutation the 60 fps test above let through)."""
+    ctx = Context(fps=4.0, rng=np.random.default_rng(0))
+    ctx._clips = FakeLibrary(FakeClip("a", 1.0, 0.5))
+    s = EnergyScheduler(EnergyParams(decrease_per_s=0.0, min_inactive_s=0.5), ctx)
+    frames = []
+    for k in range(24):
+        f = Frame(k, k * 0.25, 0.25, {"mcs": 1.0})
+        s.step(f)
+        frames.append(f)
+    ev = events(frames)
+    stops = [x[0] for x in ev if x[1] == "stop"]
+    starts = [x[0] for x in ev if x[1] == "start"]
+    assert len(stops) >= 2 and [b - a for a, b in zip(stops, starts[1:])] == [4] * len(starts[1:])
+
+
 def test_highest_energy_candidate_wins():
     clips = [FakeClip("small", 2.0, 1.0), FakeClip("mid", 4.0, 1.0), FakeClip("large", 50.0, 1.0)]
     s = make(clips)

@@ -54,3 +54,17 @@ def test_rate_limit_never_exceeds_rates(xs, rise, fall):
     y = rate_limit_series(np.array(xs), rise, fall, dt)
     d = np.diff(np.r_[0.0, y])
     assert np.all(d <= rise * dt + 1e-12) and np.all(d >= -fall * dt - 1e-12)
+    # and it is the signal itself whenever one step can reach it, else one whole step towards it (an output stuck
+    # at 0 passed the bounds above)
+    prev = np.r_[0.0, y[:-1]]
+    want = np.clip(np.array(xs), prev - fall * dt, prev + rise * dt)
+    assert y == pytest.approx(want, abs=1e-9)
+
+
+def test_value_rescales_the_state_without_a_step():
+    """``Smoother.value()``: the state re-scaled as a step would (a face reads it after taking some back)."""
+    s = Smoother(SmootherParams(60.0, 60.0, 0.2, 0.6), 1 / 60)
+    for e, want in ((0.4, 0.5), (0.1, 0.0), (0.7, 1.0), (0.2, 0.0), (0.5, 0.75)):
+        s.e = e
+        assert s.value() == pytest.approx(want)
+    assert s.e == 0.5                               # no step taken

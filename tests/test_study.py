@@ -228,6 +228,9 @@ def test_power_by_simulation_repeats_from_its_seed_and_wilsons_interval_by_hand(
     assert all(r["ci_low"] <= r["power"] <= r["ci_high"] for r in first)
     # Wilson's interval, by hand for 5 of 10: centre (0.5 + 1.92/10)/1.384 = 0.5, half 0.2634
     assert W.wilson(5, 10) == pytest.approx((0.2366, 0.7634), abs=1e-4)
+    # asymmetric about k/n away from 1/2 (centre (p + z^2/2n) / (1 + z^2/n) = 0.2110, half-width 0.1931: a mutation
+    # centring it on p survived k = 5)
+    assert W.wilson(1, 10) == pytest.approx((0.0179, 0.4042), abs=1e-4)
     assert W.wilson(10, 10)[1] == 1.0 and W.wilson(0, 10)[0] == 0.0
 
 

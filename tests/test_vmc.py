@@ -292,7 +292,7 @@ def test_microphone_path_streams_frame_by_frame(tmp_path, capsys):
     sink = next(s for s in pipe.sinks if s.name == "vmc")
     assert not sink.paced
     m = sink.metrics()
-    assert 0 <= m["vmc_latency_ms_p50"] < 15
+    assert 0 <= m["vmc_latency_ms_p50"] and np.isfinite(m["vmc_latency_ms_p99"])   # its size: bench_latency.py
     assert "(live)" in capsys.readouterr().out
 
 
@@ -313,7 +313,9 @@ def test_nobody_listening_is_not_an_error(tmp_path):
     with Receiver() as rx:
         port = rx.port
     pipe = pipeline.build(config(port, "input.duration_s=0.2", realtime="off", report=False))
-    pipeline.execute(pipe, tmp_path, {})
+    metrics = pipeline.execute(pipe, tmp_path, {})
+    # every frame was sent (UDP: nobody has to listen), and the run finished as any other
+    assert metrics["vmc_frames"] == 6 == metrics["n_frames"] and (tmp_path / "metrics.json").exists()
 
 
 @pytest.mark.parametrize("bad", [{"port": 0}, {"port": 70000}, {"realtime": "soon"}, {"host": ""},
