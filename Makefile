@@ -124,9 +124,9 @@ docs: $(STAMP) browser
 	$(PY) -m laughlab hydra.run.dir=runs/docs-calibration input=file input.path=runs/docs-calibration.wav \
 	   extractor.calibration_s=1.0 output=files
 	cp runs/docs-calibration/plots/fig3_1_calibration.png docs/img/
-	$(PY) -m laughlab.viewer.browser runs/docs docs/img/viewer.png --at 9
-	$(PY) -m laughlab.viewer.browser runs/docs docs/img/avatar_godette.png --at 9 --character tests/assets/avatars/Godette_vrm_v4.vrm
-	$(PY) -m laughlab.viewer.browser runs/docs docs/img/avatar_robot.png --at 9 --character tests/assets/avatars/debug_robot.vrm
+	$(PY) -m laughlab.viewer.browser runs/docs docs/img/viewer.png --at 10
+	$(PY) -m laughlab.viewer.browser runs/docs docs/img/avatar_godette.png --at 10 --character tests/assets/avatars/Godette_vrm_v4.vrm
+	$(PY) -m laughlab.viewer.browser runs/docs docs/img/avatar_robot.png --at 10 --character tests/assets/avatars/debug_robot.vrm
 	rm -rf runs/docs-avatar-video
 	$(PY) -m laughlab hydra.run.dir=runs/docs-avatar-video seed=0 input.duration_s=4 output=video face=facs \
 	   character=tests/assets/avatars/Godette_vrm_v4.vrm
