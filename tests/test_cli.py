@@ -379,6 +379,9 @@ def test_every_output_group_states_a_meaningful_speed(output):
     (["output=video"], 21.7, {"duration_s": 2.0, "realtime_factor": 0.1, "video_frames": 60,
                               "video_render_fps": 9.17}, "in 21.7 s (0.092x real time; video: 60 frames rendered at 9.2 frames/s)"),
     ([], 1925.0, {"duration_s": 1800.0, "realtime_factor": 716.0}, "in 32 min 05 s (0.94x real time; frame loop 716x)"),
+    # the fused head says so (a review: its line read as plain yamnet's)
+    (["detector=yamnet_fused"], 3.4, {"duration_s": 30.0, "realtime_factor": 219.4},
+     "rms > yamnet (fused) > smile > shapes > energy, in 3.4 s"),
 ])
 def test_the_speed_by_hand(args, seconds, metrics, said):
     from laughlab.cli import summary_line

@@ -234,6 +234,16 @@ def test_power_by_simulation_repeats_from_its_seed_and_wilsons_interval_by_hand(
     assert W.wilson(10, 10)[1] == 1.0 and W.wilson(0, 10)[0] == 0.0
 
 
+def test_power_with_few_simulations_says_how_rough_it_is(study, tmp_path):
+    """A review: ``study power --sims 5`` printed powers with no word that each is known to about +-0.3."""
+    r = fuzz.run_cli(["study", "power", str(study), "--contrast", "laugh_energy:smile_only", "--effect", "1",
+                      "--participants", "4", "--sims", "3", "--out", str(tmp_path / "pw")])
+    assert r.code == 0, r.stderr
+    assert ("power: note: with --sims 3 each power is only known roughly (0.8 would be 0.21-0.94, 95 % Wilson; "
+            "ci_low and ci_high in power.csv)") in r.stderr   # Wilson(2, 3), as wilson(round(0.8 * 3), 3)
+    assert (tmp_path / "pw" / "power.csv").read_text().startswith("n,detected,sims,power,ci_low,ci_high\n4,")
+
+
 @pytest.mark.slow
 def test_power_by_simulation_grows_with_participants(study):
     """With 2 stimuli per condition and the default variances (participant SD 0.8, stimulus 0.3, residual
@@ -277,6 +287,11 @@ def test_on_a_static_host_the_page_keeps_the_answers_and_its_csv_is_analysed(stu
         assert ratings == g.answers
     out = fuzz.run_cli(["study", "analyze", str(folder), "--design", str(study), "--out", str(tmp_path / "rep")])
     assert out.code == 0, out.stderr
+    from laughlab.study.analyze import REPORT_FILES
+
+    assert out.stdout.startswith(f"laughlab: report written to {tmp_path / 'rep'}/: README.md (read it first), ")
+    assert all(name in out.stdout for name in REPORT_FILES)       # every file it wrote (it named 3 of the 10)
+    assert {f.name for f in (tmp_path / "rep").iterdir()} == REPORT_FILES
     with open(tmp_path / "rep" / "tidy.csv") as f:
         assert {r["participant"] for r in csv.DictReader(f)} == {"6", "7"}
     # the report's first line is the command that made it, every option in it (a review: --design and --out were

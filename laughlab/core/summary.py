@@ -15,8 +15,9 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     """
     src = cfg.input.name
     what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
-    chain = " > ".join(str(cfg[g].name) for g in ("extractor", "detector", "face", "body", "scheduler")
-                       if g in cfg and cfg[g] is not None and "name" in cfg[g])
+    chain = " > ".join(str(cfg[g].name) + (" (fused)" if g == "detector" and cfg[g].get("fuse") else "")
+                       for g in ("extractor", "detector", "face", "body", "scheduler")
+                       if g in cfg and cfg[g] is not None and "name" in cfg[g])   # fused: detector=yamnet_fused
     dur = float(metrics.get("duration_s") or 0.0)
     files = sorted(p.name + ("/" if p.is_dir() else "") for p in Path(out_dir).iterdir()
                    if not p.name.startswith(".") and p.name not in skip)

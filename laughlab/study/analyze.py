@@ -486,6 +486,9 @@ def _markdown(doc: dict, source: Path, command: str, has_design: bool = True) ->
     for q, note in doc["model_notes"].items():
         lines.append(f"- {q}: {note}")
     lines += ["", "## Pairwise contrasts (Holm over each question's pairs)", "",
+              "Estimates in rating points from the mixed model; d is the estimate over the square root of the summed "
+              "variance components (participant + stimulus + residual; Westfall, Kenny & Judd 2014), its interval "
+              "the estimate's scaled alike.", "",
               "| question | a - b | estimate | 95 % CI | z | p | p (Holm) | d [95 % CI] |",
               "|---|---|---|---|---|---|---|---|"]
     for c in doc["contrasts"]:

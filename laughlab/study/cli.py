@@ -99,7 +99,9 @@ def _run(ns) -> None:
         from laughlab.study.analyze import analyze
 
         out = analyze(ns.source, ns.out, ns.design)
-        print(f"laughlab: report written to {out}/ (README.md, fig_means.png, contrasts.csv)")
+        written = sorted(f.name for f in out.iterdir())   # every file (a review: it named 3 of the 10)
+        print(f"laughlab: report written to {out}/: README.md (read it first), "
+              f"{', '.join(n for n in written if n != 'README.md')}")
     else:
         run_power(ns)
 
@@ -183,6 +185,11 @@ def run_power(ns) -> None:
         source = f"pilot {ns.pilot} ({q})"
     rows = W.power(design, (a, b), ns.effect, ns.participants, ns.sims, ns.alpha, var, icpt, ns.seed,
                    progress=lambda m: print(m, file=sys.stderr, flush=True))
+    if ns.sims < 100:   # a power of 0.8 from 5 simulations is 0.38-0.96 (Wilson): say so, not only in the CSV
+        lo, hi = W.wilson(round(0.8 * ns.sims), ns.sims)
+        print(f"power: note: with --sims {ns.sims} each power is only known roughly (0.8 would be {lo:.2f}-{hi:.2f}, "
+              "95 % Wilson; ci_low and ci_high in power.csv); 200, the default, narrows that to about +-0.06",
+              file=sys.stderr)
     W.check_out(out)
     out.mkdir(parents=True, exist_ok=True)
     title = f"{a} - {b} = {ns.effect:g} points; variances: {source}"
