@@ -178,7 +178,7 @@ def figure_7(path: Path, comparison: dict) -> None:
     import matplotlib.pyplot as plt
 
     n = len(comparison)
-    fig, axes = plt.subplots(1, max(n, 1), figsize=(5.2 * max(n, 1), 4), squeeze=False)
+    fig, axes = plt.subplots(1, max(n, 1), figsize=(5.2 * max(n, 1), 5.2), squeeze=False, layout="constrained")
     colors = {"nelder-mead": "tab:green", "annealing": "tab:orange", "pds": "tab:blue", "cma": "tab:purple"}
     names = {"nelder-mead": "simplex (Nelder-Mead)", "annealing": "simulated annealing (dual_annealing)",
              "pds": "parallel direct search (batched)", "cma": "CMA-ES (batched)"}
@@ -197,9 +197,9 @@ def figure_7(path: Path, comparison: dict) -> None:
         ax.set_title(label, fontsize=10)
         ax.set_ylim(0, 1.2)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="upper right")
+        # under the panel: in its corner it hid the start of the descents (a review)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
     fig.suptitle("Fig. 7 style: running best error of one call's optimisation", fontsize=11)
-    fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     plt.close(fig)

@@ -167,13 +167,15 @@ def plot(path: Path, rows: list[dict], target: float, title: str) -> None:
     n = [r["n"] for r in rows]
     p = np.array([r["power"] for r in rows])
     err = np.vstack([p - [r["ci_low"] for r in rows], [r["ci_high"] for r in rows] - p])
-    ax.errorbar(n, p, yerr=err, fmt="o-", capsize=4, color="tab:blue")
+    ax.errorbar(n, p, yerr=err, fmt="o-", capsize=4, color="tab:blue",
+                label=f"power, {rows[0]['sims']} simulated studies each (95 % Wilson CI)")
     ax.axhline(target, color="tab:red", ls="--", lw=1, label=f"target {target:.0%}")
     ax.set_xticks(sorted(set(n)))           # whole participants, not 8.5
     ax.set_xlabel("participants")
     ax.set_ylabel("power (95 % CI)")
-    ax.set_ylim(0, 1.02)
+    ax.set_ylim(-0.04, 1.04)                # a power of 0 or 1 shows whole, not cut at the axis
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8, frameon=False)
+    # under the axes, where it covers no point (a review: in the corner it sat on the 12-participant point)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncols=2, fontsize=8, frameon=False)
     fig.savefig(path, format="png")
