@@ -61,6 +61,10 @@ def test_without_truth_or_gate_the_metrics_are_nan():
     assert np.isnan(m["detector_f1"]) and np.isnan(m["false_starts_per_min"])
     m = compute(trial(tr=truth([(2.0, 6.0, 1.0)])))
     assert np.isnan(m["detector_f1"])
+    # without laughter in the truth: frame F1, precision and recall do not apply, whether the gate opened or not
+    for gate in (np.zeros(200), np.ones(200)):
+        m = compute(trial(tr=truth([]), laugh_gate=gate))
+        assert np.isnan(m["detector_f1"]) and np.isnan(m["detector_recall"])
 
 
 def test_false_starts_per_kind_by_hand():
