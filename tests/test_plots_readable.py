@@ -399,3 +399,16 @@ def test_fig3_2_zooms_on_laughter_and_fig4_2_names_its_energy(tmp_path, saved):
     assert "zoom: 11.5-15.5 s" in with_bouts.titles and "zoom: 0.5-4.5 s" in without.titles   # the middle of equal windows
     plots.figure_4_2(tmp_path / "c.png", t, raw, 40 * raw, [], energy_label="energy (40 MCS, 0.5 s low-pass)")
     assert "energy (40 MCS, 0.5 s low-pass)" in saved[-1].texts and "laughing energy L" not in saved[-1].texts
+
+
+def test_the_baseline_condition_is_grey_in_every_report():
+    """A review: colours went by position, so `none` was red in one report and purple in the next."""
+    from matplotlib.colors import to_hex
+
+    from laughlab.harness.report import condition_colors
+
+    a = condition_colors(["yamnet", "yamnet_fused", "laugh", "none"])
+    b = condition_colors(["none", "energy"])
+    assert to_hex(a["none"]) == to_hex(b["none"]) == "#999999"
+    assert [to_hex(a[c]) for c in ("yamnet", "yamnet_fused", "laugh")] == ["#1f77b4", "#ff7f0e", "#2ca02c"]
+    assert to_hex(b["energy"]) == "#1f77b4"

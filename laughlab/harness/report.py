@@ -56,6 +56,14 @@ def same_everywhere(doc: dict, metric: str) -> bool:
                and all(_same(x, y) for x, y in zip(r["ci95"], first["ci95"])) for r in rs[1:])
 
 
+def condition_colors(conds: list[str]) -> dict:
+    """A colour per condition: ``none`` (no detector, no scheduler: the baseline) always grey, the others tab10's
+    colours in their order, so the baseline reads alike in every report (a review: colours went by position)."""
+    cmap = plt.get_cmap("tab10")
+    others = [c for c in conds if c != "none"]
+    return {c: ("0.6" if c == "none" else cmap(others.index(c) % 10)) for c in conds}
+
+
 def comparison_figure(doc: dict, path: Path) -> Path:
     """One panel per metric that differs between the conditions: each condition's mean with its 95 % CI.
 
@@ -79,7 +87,7 @@ def comparison_figure(doc: dict, path: Path) -> Path:
                           + " (↑ higher is better, ↓ lower is better)", int(2.3 * cols * 11))
     fig, axes = plt.subplots(rows, cols, figsize=(2.3 * cols, 1.9 * rows + (0.4 if same else 0) + 0.17 * (len(title) - 1)),
                              dpi=130, squeeze=False, layout="constrained")
-    colors = plt.get_cmap("tab10")
+    colors = condition_colors(conds)
     # condition names wider than their slot under a panel (about 0.55 em a character at 7 pt) stand upright
     slot_in = 2.3 / max(len(conds), 1)
     upright = max(len(c) for c in conds) * 0.55 * 7 / 72 > 0.9 * slot_in
@@ -89,7 +97,7 @@ def comparison_figure(doc: dict, path: Path) -> Path:
             r = doc["results"][c][name]
             m = r["mean"] if r["mean"] is not None else np.nan
             lo, hi = (r["ci95"] if r["ci95"][0] is not None else (m, m))
-            ax.bar(i, m, color=colors(i), width=0.7)
+            ax.bar(i, m, color=colors[c], width=0.7)
             ax.errorbar(i, m, yerr=[[m - lo], [hi - m]], color="k", capsize=3, lw=0.8)
             # a bar of 0 and no bar (the metric does not apply, e.g. no clip played) look alike: say which
             if not math.isfinite(m) or m == 0:
