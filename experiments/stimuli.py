@@ -145,6 +145,25 @@ def williams(n: int) -> list[list[int]]:
     return rows
 
 
+def design_notes(n_conditions: int, n_items: int, n_participants: int, design: str) -> list[str]:
+    """What a design leaves unbalanced, said before the stimuli are rendered (a review: both were accepted without
+    a word): participants not a multiple of the Williams square's rows, and ``one_per_condition`` with fewer audio
+    items than conditions, where a participant hears one item under several conditions."""
+    rows = len(williams(n_conditions))
+    out = []
+    if n_participants % rows:
+        more = n_participants % rows
+        which = "row 1 serves" if more == 1 else f"rows 1-{more} serve"
+        out.append(f"{n_participants} participants on a Williams square of {rows} rows: {which} one "
+                   f"participant more than the others, so the orders are not balanced; "
+                   f"{n_participants - more or rows} or {n_participants - more + rows} participants balance them")
+    if design == "one_per_condition" and n_items < n_conditions:
+        out.append(f"one_per_condition with {n_items} audio item(s) for {n_conditions} conditions: each participant "
+                   "hears an item under more than one condition; more seeds (harness.corpus.seeds) or profiles "
+                   "give each condition its own")
+    return out
+
+
 def participant_trials(conditions: list[str], items: list[str], n_participants: int,
                        design: str = "all") -> list[list[tuple[str, str]]]:
     """Each participant's trials as (condition, audio_id) pairs (see the module doc, Orders)."""
@@ -386,6 +405,9 @@ def run(cfg, out_dir) -> dict:
     video = {k: v for k, v in (h.get("video") or {}).items()}
     base = _task_overrides()
     progress = str(cfg.get("progress", "auto")) != "off"
+    for line in design_notes(len(conditions), sum(1 if i.seed is not None else len(run_seeds) for i in items),
+                             n_participants, design):
+        print(f"stimuli: note: {line}", file=sys.stderr)
 
     stim_dir, audio_dir = out_dir / "stimuli", out_dir / "audio"
     stim_dir.mkdir(parents=True, exist_ok=True)

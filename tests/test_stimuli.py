@@ -194,3 +194,18 @@ def test_an_interrupted_run_resumes_and_renders_only_what_is_missing(tmp_path, m
     assert len(calls) == n
     assert {r["sha256"] for r in read_csv(tmp_path / "w" / "manifest.csv")} == \
         {hashlib.sha256(p.read_bytes()).hexdigest() for p in (tmp_path / "w" / "stimuli").glob("*.mp4")}
+
+
+def test_an_unbalanced_design_is_said_before_rendering():
+    """A review: 25 participants on a square of 4 rows, and one_per_condition with one audio item for four
+    conditions, were accepted without a word."""
+    from laughlab_experiments.stimuli import design_notes
+
+    assert design_notes(4, 2, 24, "all") == [] and design_notes(3, 6, 12, "one_per_condition") == []   # 3: 6 rows
+    (note,) = design_notes(4, 2, 25, "all")
+    assert note.startswith("25 participants on a Williams square of 4 rows: row 1 serves one participant more")
+    assert note.endswith("24 or 28 participants balance them")
+    (note,) = design_notes(3, 6, 8, "all")
+    assert "rows 1-2 serve one participant more" in note and note.endswith("6 or 12 participants balance them")
+    (note,) = design_notes(4, 1, 4, "one_per_condition")
+    assert note.startswith("one_per_condition with 1 audio item(s) for 4 conditions: each participant hears an item")
