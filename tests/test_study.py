@@ -501,10 +501,18 @@ def test_build_overwrite_replaces_only_an_earlier_builds_files(study, tmp_path):
     assert res.code == 0, res.stderr
     assert (out / "notes.txt").read_text() == "mine" and (out / "simulated.sqlite").exists()
     assert (out / "design.json").exists() and not list(tmp_path.glob(".s*"))
-    DB.open_db(out / "pilot.sqlite", design_of(out))   # people's answers, under a name of the user's
+    DB.open_db(out / "pilot.sqlite", design_of(out))   # people's database, under a name of the user's
+    # no answer in it yet (the page was served and opened, nobody answered: it blocked the rebuild): rebuilt, kept
+    res = fuzz.run_cli(["study", "build", str(stim), "--out", str(out), "--overwrite"])
+    assert res.code == 0, res.stderr
+    assert DB.participants_kind(out / "pilot.sqlite") == "people"
+    with sqlite3.connect(out / "pilot.sqlite") as conn:             # one answer: never replaced
+        conn.execute("INSERT INTO answers (participant, order_row, trial, stimulus, condition, audio_id, kind, "
+                     "question, value, received_at, session) VALUES (1, 0, 0, 's', 'c', 'a', 'rating', 'q', 4, "
+                     "'now', 'x')")
     before = sorted(p.name for p in out.iterdir())
     res = fuzz.run_cli(["study", "build", str(stim), "--out", str(out), "--overwrite"])
-    assert res.code == 2 and "holds a study's response database (pilot.sqlite)" in res.stderr, res.stderr
+    assert res.code == 2 and "holds a study's response database with answers (pilot.sqlite)" in res.stderr, res.stderr
     assert sorted(p.name for p in out.iterdir()) == before
     mine = tmp_path / "mine"
     shutil.copytree(out / "vendor", mine / "vendor")

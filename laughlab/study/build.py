@@ -42,7 +42,7 @@ OWN = (*PAGE_FILES, "design.js", "design.json", "stimuli", "audio_check", "vendo
 def check_out(out: Path, overwrite: bool) -> None:
     """Refuse a study folder that may not be (re)built: one that holds people's answers, or, without
     ``overwrite``, anything; with it, anything but an earlier study."""
-    from laughlab.study.db import participants_kind
+    from laughlab.study.db import participants_kind, participants_stored
 
     if not out.exists():
         return
@@ -56,14 +56,26 @@ def check_out(out: Path, overwrite: bool) -> None:
                 sqlite = fh.read(16) == b"SQLite format 3\x00"
         except OSError:   # a folder, or unreadable
             sqlite = False
-        if sqlite and participants_kind(f) != "simulated":
-            raise LaughlabError(f"{out} holds a study's response database ({name}); build the study into another "
-                                "folder")
+        # a database of people's answers is never replaced; one without any answer (the page served and opened,
+        # nobody answered: a review found it blocked the rebuild) goes with the study's other files
+        if sqlite and participants_kind(f) != "simulated" and _answered(f, participants_stored):
+            raise LaughlabError(f"{out} holds a study's response database with answers ({name}); build the study "
+                                "into another folder")
     if held and not overwrite:
         raise LaughlabError(f"{out} exists and is not empty; choose another --out or add --overwrite")
     if held and "design.json" not in held:
         raise LaughlabError(f"{out} is not a study folder (no design.json); --overwrite replaces only an earlier "
                             "study: choose an empty or new --out")
+
+
+def _answered(db: Path, participants_stored) -> bool:
+    """Does the study database ``db`` hold an answer?  (Unreadable: assume it does.)"""
+    import sqlite3
+
+    try:
+        return bool(participants_stored(db))
+    except sqlite3.DatabaseError:
+        return True
 
 
 def default_out(run_dir: Path) -> Path:
