@@ -62,15 +62,15 @@ def load_plugin_dirs(overrides) -> None:
 #: experiments of a plugins_dir (``PLUGINS_DIR/experiment/NAME.yaml``): name -> file
 _LOCAL_EXPERIMENTS: dict[str, Path] = {}
 
-#: the shared ``harness`` settings an experiment of one's own starts from (``conf/experiment/smoke.yaml``'s, with
-#: no showcase): its YAML gives what differs, and the command line can set every one of them
-#: (``harness.jobs=4``), as for a built-in experiment, which spells them all out
-OWN_EXPERIMENT_BASE = {
-    "name": None, "module": None, "conditions": None, "run_seeds": [0], "showcase": None, "jobs": 2,
-    "keep_trials": False, "plots": True,
-    "corpus": {"profiles": ["mild", "intense"], "seeds": 2, "duration_s": 10.0, "folder": None, "on_bad": "stop",
-               "real": {"sets": [], "split": "test", "scenes": 2, "duration_s": 30.0, "snr_db": [10], "seed": 0,
-                        "if_missing": "skip"}}}
+def own_experiment_base(name: str) -> dict:
+    """The ``harness`` an experiment of one's own starts from: ``conf/experiment/smoke.yaml``'s shared settings (its
+    corpus, seeds, jobs, plots...), named ``name``, with no conditions, module or showcase.  Its YAML gives what
+    differs, and the command line can set every one of them (``harness.jobs=4``), as for a built-in experiment,
+    which spells them all out."""
+    from omegaconf import OmegaConf
+
+    smoke = OmegaConf.to_container(OmegaConf.load(conf_dir().joinpath("experiment", "smoke.yaml")).harness)
+    return {**smoke, "name": name, "module": None, "conditions": None, "showcase": None}
 
 
 def _load_experiments(folder: Path) -> None:
@@ -95,7 +95,7 @@ def _load_experiments(folder: Path) -> None:
         if not OmegaConf.is_dict(node) or not OmegaConf.is_dict(node.get("harness")):
             raise LaughlabError(f"{file} is not an experiment: it needs a harness: mapping of settings "
                                 "(docs/experiments.md, 'An experiment of your own')")
-        node = OmegaConf.merge({"harness": {**OWN_EXPERIMENT_BASE, "name": name}}, node)
+        node = OmegaConf.merge({"harness": own_experiment_base(name)}, node)
         ConfigStore.instance().store(group="experiment", name=name, node=node, package="_global_")
         _LOCAL_EXPERIMENTS[name] = file.resolve()
 
