@@ -153,6 +153,9 @@ def main(argv=None) -> int:
     ap.add_argument("--split", default="test", choices=["test", "train"])
     ap.add_argument("--limit", type=int, default=0, help="only the first N real laughs (a quick look)")
     ap.add_argument("--out", default=str(HERE / "results" / "real.json"))
+    ap.add_argument("--detector", default=None,
+                    help="run every combination with this detector (default: the default configuration's, yamnet; "
+                         "none: the papers' pipelines, as the figures before 2026-11-25 were measured)")
     args = ap.parse_args(argv)
     from laughlab.corpora import fetch
 
@@ -160,9 +163,12 @@ def main(argv=None) -> int:
     sets = {"real": real_items(args.split), "synthetic": synthetic_items()}
     if args.limit:
         sets["real"] = sets["real"][: args.limit]
+    if args.detector:   # each input's overrides: the detector for every face x body
+        sets = {k: [(iid, [*ov, f"detector={args.detector}"], n) for iid, ov, n in items] for k, items in sets.items()}
     tmp = Path(tempfile.mkdtemp(prefix="bench_real-"))
     results = {"machine": {"python": sys.version.split()[0], "platform": platform.platform(),
-                           "cpus": os.cpu_count()}, "split": args.split, "sets": {}}
+                           "cpus": os.cpu_count()}, "split": args.split, "detector": args.detector or "default",
+               "sets": {}}
     t_start = time.perf_counter()
     try:
         for set_name, items in sets.items():
