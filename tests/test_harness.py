@@ -487,3 +487,22 @@ def test_a_corpus_folders_truth_csv_is_checked_before_any_trial(tmp_path, text, 
     (tmp_path / "tank.truth.csv").write_text("kind,bout,onset_s,offset_s,intensity\nbout,0,0.5,2,1\ncall,0,0.5,0.7,1\n"
                                              "bout,1,2,3.0005,0.5\n")   # touching bouts, an end within rounding
     assert folder_items(tmp_path)[0].truth == str(tmp_path / "tank.truth.csv")
+
+
+def test_report_extras_compute_rows_and_the_shared_plugins():
+    """A figure review: a mapping of mappings (detector_eval's PR scores) was printed as a Python dict with 17
+    digits; the compute rows were bolded though a rerun reversed them; the plugins every condition shares (set by
+    the experiment's defaults, as energy_vs_concat's extractor=phoneme) were said nowhere."""
+    from laughlab.harness.report import _base_line, _clear_best, _extra_lines
+
+    lines = _extra_lines("scores", {"n": 2, "pr": {"head": {"ap": 0.32200027, "at": {"threshold": 0.5}},
+                                                    "mlp": {"ap": 0.3130371, "at": {"threshold": 0.7}}}})
+    assert lines == ["### scores", "", "- n: 2", "", "pr:", "", "|  | ap | at.threshold |", "|---|---|---|",
+                     "| head | 0.322 | 0.5 |", "| mlp | 0.313 | 0.7 |", ""]
+    r = lambda m: {"n": 20, "mean": m, "ci95": [m - 0.01, m + 0.01]}   # noqa: E731 - apart intervals
+    doc = {"metrics": {"frame_ms_p99": {"higher_is_better": False}, "miss_rate": {"higher_is_better": False}},
+           "results": {"a": {"frame_ms_p99": r(0.2), "miss_rate": r(0.1)},
+                       "b": {"frame_ms_p99": r(1.4), "miss_rate": r(0.5)}}}
+    assert _clear_best(doc, "miss_rate", ["a", "b"]) == "a" and _clear_best(doc, "frame_ms_p99", ["a", "b"]) is None
+    assert _base_line({"config": {"extractor": {"name": "phoneme"}, "face": {"name": "smile", "x": 1}}}) == [
+        "- every condition starts from `extractor=phoneme face=smile` (its overrides replace these)"]

@@ -165,11 +165,17 @@ def unmeasured(doc: dict) -> list[str]:
     return [m for m in metric_order(doc) if not any(doc["results"][c][m]["n"] for c in conditions_of(doc))]
 
 
+def is_compute(metric: str) -> bool:
+    """A row of the machine's time (``frame_ms_*``, ``realtime_factor``): measured with the trial processes
+    sharing the machine, so never in bold (a review: its 'best' did not hold in a rerun)."""
+    return metric.startswith("frame_ms") or metric == "realtime_factor"
+
+
 def _clear_best(doc: dict, metric: str, conds: list[str]) -> str | None:
     """The condition with the best mean of ``metric`` when its 95 % interval is apart from every other
     condition's (:func:`~laughlab.harness.results.separated`); None when the intervals overlap, the
     metric has no better direction, or fewer than two conditions have a value."""
-    if doc["metrics"][metric]["higher_is_better"] is None:
+    if doc["metrics"][metric]["higher_is_better"] is None or is_compute(metric):
         return None
     rs = {c: doc["results"][c][metric] for c in conds}
     have = [c for c, r in rs.items() if r["n"] and r["mean"] is not None and math.isfinite(r["mean"])
@@ -230,8 +236,29 @@ def _profile_table(doc: dict, metric: str) -> list[str]:
     return lines
 
 
+def _base_line(doc: dict) -> list[str]:
+    """The plugins every condition starts from (a review: energy_vs_concat's shared extractor=phoneme, set by the
+    experiment's defaults, was said nowhere in its report)."""
+    cfg = doc.get("config") or {}
+    picked = [f"{g}={cfg[g]['name']}" for g in ("extractor", "detector", "face", "body", "scheduler")
+              if isinstance(cfg.get(g), dict) and cfg[g].get("name")]
+    return [f"- every condition starts from `{' '.join(picked)}` (its overrides replace these)"] if picked else []
+
+
+def _flat(d: dict, prefix: str = "") -> dict:
+    """A nested mapping's leaves by dotted key: ``{'a': {'b': 1}}`` -> ``{'a.b': 1}``."""
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        else:
+            out[f"{prefix}{k}"] = v
+    return out
+
+
 def _extra_lines(key: str, value) -> list[str]:
-    """An experiment's extra numbers: scalars as a list, lists of records as a table."""
+    """An experiment's extra numbers: scalars as a list, lists of records and mappings of records as tables
+    (a review: a mapping of mappings was printed as a Python dict with 17 digits)."""
     if not isinstance(value, dict):
         return [f"- {key}: {_fmt(value) if isinstance(value, float) else value}", ""]
     lines = [f"### {key}", ""]
@@ -239,14 +266,20 @@ def _extra_lines(key: str, value) -> list[str]:
     for k, v in value.items():
         if isinstance(v, list) and v and isinstance(v[0], dict):
             tables.append((k, v))
+        elif isinstance(v, dict) and v and all(isinstance(x, dict) for x in v.values()):
+            tables.append((k, [{"": name, **_flat(rec)} for name, rec in v.items()]))
+        elif isinstance(v, dict):
+            lines.append(f"- {k}: " + ", ".join(f"{a} {_fmt(b) if isinstance(b, float) else b}"
+                                                 for a, b in _flat(v).items()))
         else:
             lines.append(f"- {k}: {_fmt(v) if isinstance(v, float) else v}")
     lines.append("")
     for k, rows in tables:
-        cols = list(rows[0])
+        cols = list(dict.fromkeys(c for r in rows for c in r))   # every record's keys, in order of appearance
         lines += [f"{k}:", "", "| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
         for r in rows:
-            lines.append("| " + " | ".join(_fmt(r[c]) if isinstance(r[c], float) else str(r[c]) for c in cols) + " |")
+            lines.append("| " + " | ".join(_fmt(r[c]) if isinstance(r.get(c), float) else str(r.get(c, ""))
+                                           for c in cols) + " |")
         lines.append("")
     return lines
 
@@ -284,6 +317,7 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              f"{len(doc['conditions'])} conditions; profiles {', '.join(doc['corpus']['profiles'])}; "
              f"seeds {doc['corpus']['seeds'][0]}..{doc['corpus']['seeds'][-1]})",
              "- conditions: " + "; ".join(f"**{c}** `{' '.join(o)}`" for c, o in doc["conditions"].items()),
+             *_base_line(doc),
              *[f"- skipped corpus file (harness.corpus.on_bad=skip): `{s['file']}`: {s['reason']}"
                for s in doc["corpus"].get("skipped", [])],
              *([f"- **without the real recordings**: the real corpus was not fetched, so its sets "
@@ -294,7 +328,7 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
              "seeded; it stays within the values' range). ↑ higher is better, ↓ lower is better; the best "
              "condition is in bold only where its interval does not overlap any other condition's (a "
              "conservative rule: no bold is not evidence of no difference). "
-             f"The compute rows (frame_ms_*, realtime_factor) were measured with "
+             f"The compute rows (frame_ms_*, realtime_factor; never in bold) were measured with "
              f"{(doc.get('config', {}).get('harness') or {}).get('jobs', 1)} trial process(es) sharing the "
              "machine; `make bench` measures them alone.", ""]
     if any(0 < doc["results"][c][m]["n"] < FEW for m in table_metrics(doc) for c in conditions_of(doc)):
