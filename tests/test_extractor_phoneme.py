@@ -424,3 +424,16 @@ def test_other_rates(sr, fps):
     labels, controls, _ = run(0.1 * np.sin(2 * np.pi * 300 * t), sr=sr, fps=fps)
     assert controls[-2]["f0"] == pytest.approx(300.0, rel=0.01)
     assert all(lab in PHONEMES for lab in labels)
+
+
+def test_label_hysteresis_by_hand():
+    """The labels' hysteresis (module doc): a new label needs confirm_frames (2) agreeing frames and the current
+    one must have lasted min_segment_s (0.03 s, 1.8 frames at 60 fps); a transient (click, plosive, glottal stop)
+    switches at once, a call onset does not wait for confirmation but does for the minimum length.  (Only a
+    lower bound on segment lengths was tested: a mutation asking for 3 agreeing frames survived.)"""
+    ext = PhonemeExtractor(PhonemeParams(), Context(fps=60, sample_rate=SR))
+    raw = [("vowel", False), ("vowel", False), ("fricative", False), ("fricative", False), ("vowel", False),
+           ("click", False), ("vowel", False), ("vowel", False), ("fricative", True), ("fricative", False)]
+    got = [ext._smooth(label, onset, k / 60) for k, (label, onset) in enumerate(raw)]
+    assert got == ["silence", "vowel", "vowel", "fricative", "fricative", "click", "click", "vowel", "vowel",
+                   "fricative"]
