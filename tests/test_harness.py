@@ -62,6 +62,18 @@ def test_mean_ci_lies_within_the_values(values):
     assert lo <= r["mean"] + 1e-12 and r["mean"] - 1e-12 <= hi
 
 
+def test_mean_ci_is_the_normal_interval_for_a_large_sample():
+    """The bounds above hold for any interval clamped to the values (a test audit: they cannot fail); its width
+    can.  For 400 values of a normal sample the percentile bootstrap's interval is about mean +- 1.96 sd / sqrt(n)
+    (the central limit theorem), and its sd is the sample's."""
+    x = np.random.default_rng(7).normal(2.0, 0.5, 400)
+    r = mean_ci(x)
+    half = 1.959964 * x.std(ddof=1) / np.sqrt(len(x))
+    assert r["ci95"] == pytest.approx([x.mean() - half, x.mean() + half], abs=0.1 * half)
+    assert r["std"] == pytest.approx(x.std(ddof=1)) and r["n"] == 400
+    assert mean_ci([0.3] * 5)["ci95"] == [0.3, 0.3] and mean_ci([float("nan")])["n"] == 0
+
+
 def test_bold_only_where_the_intervals_are_apart():
     def doc(a, b):
         return {"metrics": {"m": {"higher_is_better": True}},

@@ -69,3 +69,17 @@ def test_any_values_pass_or_are_one_error_naming_a_key(picks):
         check_harness(h)
     except LaughlabError as exc:
         assert str(exc).startswith("harness.") and "\n" not in str(exc)
+        return
+    # accepted: every value is of the kind the runner reads (a check that accepted everything passed above)
+    c = h.get("corpus") or {}
+    real = c.get("real") or {}
+    assert isinstance(h["jobs"], int) and not isinstance(h["jobs"], bool) and h["jobs"] >= 1
+    assert isinstance(c.get("profiles", []), list) and all(isinstance(x, str) for x in c.get("profiles", []))
+    seeds = c.get("seeds", 0)
+    assert (isinstance(seeds, int) and not isinstance(seeds, bool) and seeds >= 0) or (
+        isinstance(seeds, list) and all(isinstance(x, int) and not isinstance(x, bool) for x in seeds))
+    assert h.get("plots", True) in (True, False) and h.get("keep_trials", False) in (True, False)
+    assert isinstance(real.get("sets", []), list) and real.get("split", "test") in ("train", "test", "all")
+    for key in ("duration_s",):
+        v = c.get(key, 1.0)
+        assert isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < float("inf")
