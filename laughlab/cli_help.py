@@ -31,7 +31,8 @@ def help_text() -> str:
     lines = ["usage: python -m laughlab [group=option ...] [key.path=value ...] [-m for a sweep]", "",
              "Audio-driven laughter animation: pick one plugin per group, set any parameter by its path.", "",
              "groups (default first; third-party plugins add options: python -m laughlab plugins; a folder of",
-             "your own plugin modules: plugins_dir=PATH, docs/architecture.md 'Writing a plugin'):"]
+             "your own plugin modules: plugins_dir=PATH, docs/architecture.md 'Writing a plugin'; its",
+             "experiment/NAME.yaml files are experiment=NAME, docs/experiments.md):"]
     defaults = {}
     for line in conf_dir().joinpath("config.yaml").read_text().splitlines():
         m = re.match(r"\s+- (\w+): (\w+)", line)
