@@ -578,3 +578,31 @@ def test_pipeline_trunk_is_the_clip_pose_plus_the_hill_offsets(hill_plugins, tmp
     for k in changes:
         jump = np.abs(hill[k:k + 3, TRUNK] - hill[k - 1:k + 2, TRUNK]).max()
         assert jump < 1.0, (k, jump)                                    # degrees per frame (was 3 to 6)
+
+
+def test_track_controller_by_hand_with_its_anti_windup():
+    """``control=track``'s PI controller, one step at a time on a torso whose lung gauge reads what the test says:
+    u = target / full + kp err + ki I, I <- I leak + err dt, the integral held while u is past [0, 1] pushing further
+    (conditional integration).  (The test above checked loose bounds only: a mutation integrating always survived.)"""
+    from types import SimpleNamespace
+
+    tp = TrackParams(full_cmh2o=20.0, kp=0.02, ki=1.0)
+    body = HillBody(HillParams(control="track", track=tp), Context(fps=60))
+    dt, leak = 1 / 60, math.exp(-(1 / 60) / tp.leak_s)
+    gauge = np.array([0.0])
+    body.torso = SimpleNamespace(lung=SimpleNamespace(gauge_cmh2o=gauge))
+
+    def step(target):
+        return body._track(Frame(0, 0.0, dt, {"pressure": target}), dt)[0][0, 0]   # the abdominal activation
+
+    ff = 10 / 20 + 0.02 * 10                                   # target 10 cmH2O, gauge 0: err 10
+    assert step(10.0) == pytest.approx(ff + 10 * dt)            # 0.8667 < 1: integrated
+    assert body.integral == pytest.approx(10 * dt)
+    assert step(10.0) == pytest.approx(ff + 10 * dt)            # ff + (I leak + err dt) = 1.03 > 1: held
+    assert body.integral == pytest.approx(10 * dt)
+    gauge[0] = 10.0                                             # target 0, gauge 10: err -10, ff -0.2
+    assert step(0.0) == 0.0                                     # -0.2 + I leak - 10 dt < 0: held, clipped to 0
+    assert body.integral == pytest.approx(10 * dt)
+    gauge[0] = 4.0                                              # target 5: err 1, u inside [0, 1]: integrated
+    assert step(5.0) == pytest.approx(5 / 20 + 0.02 + 10 * dt * leak + dt)
+    assert body.integral == pytest.approx(10 * dt * leak + dt)
