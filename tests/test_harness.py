@@ -345,11 +345,11 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     assert "swept by the experiment's" not in text          # every swept key was given on the command line
     assert ("- fixed at every point: extractor.rise_per_s=24, harness.corpus.duration_s=5, harness.corpus.profiles="
             "[intense], harness.corpus.seeds=1, scheduler.min_inactive_s=2\n") in text
-    assert "(profiles intense; seeds 0)" in text
+    assert "- each point: 1 trial of each condition (**energy**; profiles intense; seeds 0)\n" in text
     # a best lag at the end of its [0, 2] s search in every trial is said (a review)
     assert "- ‡ `intensity_lag_kinetic_s` sat at the edge of its search, [0, 2] s, in every trial of " in text
     n = len(json.loads(docs[0].read_text())["metrics"])
-    assert f"Each cell is the mean of the point's 1 trial; the table shows 9 key metrics of the {n} each" in text
+    assert f"Each cell is the mean of a point's 1 trial of that condition; the table shows 9 key metrics of the {n} each" in text
 
 
 def _bad_corpus(folder):
@@ -518,3 +518,21 @@ def test_report_extras_compute_rows_and_the_shared_plugins():
     assert _clear_best(doc, "miss_rate", ["a", "b"]) == "a" and _clear_best(doc, "frame_ms_p99", ["a", "b"]) is None
     assert _base_line({"config": {"extractor": {"name": "phoneme"}, "face": {"name": "smile", "x": 1}}}) == [
         "- every condition starts from `extractor=phoneme face=smile` (its overrides replace these)"]
+
+
+def test_a_sweep_of_a_two_condition_experiment_reports_both(tmp_path):
+    """A review: a sweep's report showed only the first condition (smoke's energy; none was dropped without a word)
+    and gave the first point's whole trial count as every point's."""
+    from laughlab.harness.report import write_report
+
+    sweep = tmp_path / "sweep"
+    r = laughlab("-m", "experiment=smoke", "harness.corpus.seeds=1,2", "harness.corpus.duration_s=2",
+                 "harness.corpus.profiles=[mild]", "harness.showcase=null", f"hydra.sweep.dir={sweep}")
+    assert r.returncode == 0, r.stderr
+    text = write_report(sweep, tmp_path / "rep", "cmd").read_text()
+    assert "- sweep points: 2 x 2 conditions; swept: condition, harness.corpus.seeds\n" in text
+    assert "- each point: 1-2 trials of each condition (**energy**, **none**; profiles mild; seeds 0 at the first " \
+           "point)\n" in text
+    rows = [ln for ln in text.splitlines() if ln.startswith(("| energy |", "| none |"))]
+    assert [ln.split(" | ")[:2] for ln in rows] == [["| energy", "1"], ["| energy", "2"], ["| none", "1"], ["| none", "2"]]
+    assert "| none | 1 | n/a |" in text                      # none plays no clip: its clip metrics do not apply
