@@ -18,7 +18,7 @@ from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, chec
                                   compose_config, conf_dir, group_options, load_plugin_dirs,
                                   register_plugin_configs)
 from laughlab.cli_help import check_flags, check_sweep_flags, help_text
-from laughlab.core.errors import LaughlabError, one_line_parser, shown_path
+from laughlab.core.errors import LaughlabError, RefusedFolder, one_line_parser, shown_path
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
 
@@ -178,7 +178,8 @@ def task(cfg) -> dict:
         rundir.restore_hydra(out_dir, running=True)
         fail(str(exc))
     except LaughlabError as exc:
-        if cfg.get("harness") and _CLAIM is not None and (out_dir / "metrics.jsonl").exists():
+        if cfg.get("harness") and _CLAIM is not None and (out_dir / "metrics.jsonl").exists() \
+                and not isinstance(exc, RefusedFolder):
             fail(_stopped(cfg, out_dir, str(exc)))   # after trials (a metric that fails): they are kept, resumable
         # a sweep job refused by a finished run: Hydra wrote this job's .hydra/ over that run's; put it back
         if _CLAIM is not None or not rundir.restore_hydra(out_dir):

@@ -85,5 +85,6 @@ def check_sweep_flags(argv: list[str]) -> None:
         return
     shown = next((a for a in argv if a.split("=", 1)[0] in _SHOW_FLAGS), None)
     if shown:
-        raise LaughlabError(f"{shown} shows one configuration and does not combine with -m: drop -m to see the "
-                            "first point's (--cfg hydra shows the sweep's hydra.sweeper.params and launcher)")
+        raise LaughlabError(f"{shown} shows one configuration and does not combine with -m: drop -m and give each "
+                            "swept key one value to see that point's (its hydra node, --cfg hydra, holds the "
+                            "experiment's hydra.sweeper.params and the launcher)")

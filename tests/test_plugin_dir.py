@@ -256,11 +256,25 @@ def test_an_experiment_of_ones_own_in_the_plugins_dir(tmp_path):
     # without the folder the name is unknown, and the line says where one's own experiments go
     r = run("experiment=gape_vs_smile", cwd=tmp_path)
     assert r.returncode == 2 and "plugins_dir=DIR with DIR/experiment/gape_vs_smile.yaml" in r.stderr, r.stderr
-    # a built-in experiment's name, or a file that is not YAML: one line naming the file
-    (tmp_path / "mine" / "experiment" / "smoke.yaml").write_text(EXPERIMENT)
-    r = run("plugins_dir=mine", "experiment=gape_vs_smile", cwd=tmp_path)
-    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "laughlab has an experiment named 'smoke'" in r.stderr
-    (tmp_path / "mine" / "experiment" / "smoke.yaml").write_text("harness: [unclosed\n")
-    (tmp_path / "mine" / "experiment" / "smoke.yaml").rename(tmp_path / "mine" / "experiment" / "bad.yaml")
-    r = run("plugins_dir=mine", "experiment=gape_vs_smile", cwd=tmp_path)
-    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "bad.yaml is not a readable experiment" in r.stderr
+    # a built-in experiment's name, a file that is not YAML, a harness.name of another: one line naming the file,
+    # when that experiment is asked for; the folder's other experiments still run (a review: one bad file stopped
+    # every run with the folder)
+    folder = tmp_path / "mine" / "experiment"
+    (folder / "smoke.yaml").write_text(EXPERIMENT)
+    (folder / "bad.yaml").write_text("harness: {conditions: [unclosed\n")
+    (folder / "named.yaml").write_text(EXPERIMENT.replace("name: gape_vs_smile", "name: energy_vs_concat"))
+    (folder / "dflt.yaml").write_text(EXPERIMENT.replace("/extractor: phoneme", "/extractor: nosuch").replace(
+        "name: gape_vs_smile", "name: dflt"))
+    for asked, said in (("smoke", "smoke.yaml: laughlab has an experiment named 'smoke'; give yours another name"),
+                        ("bad", "bad.yaml: not a readable experiment: expected ',' or ']', but got '<stream end>' "
+                                "(line 2, column 1)"),
+                        ("named", "named.yaml: harness.name 'energy_vs_concat' is not the file's name: an "
+                                  "experiment's name is its file's (named); remove harness.name or rename the file"),
+                        ("dflt", "unknown extractor 'nosuch' in a defaults list (an experiment's override /extractor); "
+                                 "choose one of: phoneme, pressure, rms")):
+        r = run("plugins_dir=mine", f"experiment={asked}", "hydra.run.dir=x", cwd=tmp_path)
+        assert r.returncode == 2 and r.stderr.count("\n") == 1 and said in r.stderr, (asked, r.stderr)
+        assert not (tmp_path / "x").exists()
+    r = run("plugins_dir=mine", "experiment=gape_vs_smile", "harness.corpus.seeds=1", "hydra.run.dir=again",
+            cwd=tmp_path)
+    assert r.returncode == 0, r.stderr

@@ -212,8 +212,10 @@ def test_a_changed_config_does_not_mix_into_an_interrupted_experiment(tmp_path):
     p.kill()
     p.wait()
     other = run(*SMOKE, "harness.corpus.duration_s=7", f"hydra.run.dir={d}")
-    assert other.returncode == 2
+    assert other.returncode == 2 and other.stderr.count("\n") == 1
     assert "interrupted experiment with another configuration" in other.stderr
+    # a refusal, not a stop: no "run the same command again to resume" after it (a review: it contradicted itself)
+    assert other.stderr.rstrip().endswith("or add overwrite=true") and "to resume" not in other.stderr
 
 
 def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):

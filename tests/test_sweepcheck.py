@@ -50,10 +50,15 @@ def test_each_value_of_each_key_is_checked_with_the_others_at_their_first_values
                                   "converted to Integer"),
     ("hydra/launcher=nope", "unknown launcher hydra/launcher=nope; launchers here: basic, joblib"),
     ("--cfg=hydra", "--cfg=hydra shows one configuration and does not combine with -m: drop -m"),
+    # a sweep over experiments: Hydra's own composition has no harness (its "Could not override" came after the check)
+    ("experiment=smoke,energy_readings harness.corpus.seeds=1",
+     "harness.corpus.seeds=1 with a sweep over experiments: Hydra composes the sweep itself without an experiment, "
+     "where harness does not exist; write ++harness.corpus.seeds=1"),
 ])
 def test_a_bad_sweep_is_one_line_before_any_job(tmp_path, swept, message):
     sweep = tmp_path / "sweep"
-    r = laughlab("-m", "experiment=energy_ablation", swept, f"hydra.sweep.dir={sweep}")
+    first = [] if swept.startswith("experiment=") else ["experiment=energy_ablation"]
+    r = laughlab("-m", *first, *swept.split(), f"hydra.sweep.dir={sweep}")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr
     assert "Traceback" not in r.stderr and "HYDRA_FULL_ERROR" not in r.stderr
     assert not sweep.exists()                                      # no job started, no folder made

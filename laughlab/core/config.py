@@ -76,28 +76,52 @@ def own_experiment_base(name: str) -> dict:
 def _load_experiments(folder: Path) -> None:
     """Give each ``NAME.yaml`` in a plugins_dir's ``experiment/`` folder the option ``experiment=NAME``: a YAML
     written as ``conf/experiment/``'s are (``# @package _global_``, a ``defaults`` list, a ``harness`` node), so
-    one's own experiment needs no copy of laughlab's configs (docs/experiments.md)."""
+    one's own experiment needs no copy of laughlab's configs (docs/experiments.md).  A file that cannot be one is
+    kept with its reason, said only when that experiment is asked for (a review: one bad file stopped every run
+    with the folder, naming the bad file whatever was asked)."""
     if not folder.is_dir():
         return
     from hydra.core.config_store import ConfigStore
-    from omegaconf import OmegaConf
 
     for file in sorted(folder.glob("*.yaml")):
         name = file.stem
         if _LOCAL_EXPERIMENTS.get(name) == file.resolve():
             continue
-        if conf_dir().joinpath("experiment", file.name).is_file():
-            raise LaughlabError(f"{file}: laughlab has an experiment named {name!r}; give yours another name")
-        try:
-            node = OmegaConf.load(file)
-        except Exception as exc:   # a YAML error: its first line says where
-            raise LaughlabError(f"{file} is not a readable experiment: {str(exc).splitlines()[0]}") from None
-        if not OmegaConf.is_dict(node) or not OmegaConf.is_dict(node.get("harness")):
-            raise LaughlabError(f"{file} is not an experiment: it needs a harness: mapping of settings "
-                                "(docs/experiments.md, 'An experiment of your own')")
-        node = OmegaConf.merge({"harness": own_experiment_base(name)}, node)
-        ConfigStore.instance().store(group="experiment", name=name, node=node, package="_global_")
+        node, why = _experiment_node(file)
         _LOCAL_EXPERIMENTS[name] = file.resolve()
+        if why:
+            _BAD_EXPERIMENTS[name] = f"{file}: {why}"
+            continue
+        _BAD_EXPERIMENTS.pop(name, None)
+        ConfigStore.instance().store(group="experiment", name=name, node=node, package="_global_")
+
+
+#: experiments of a plugins_dir that cannot be loaded: name -> the line that says why
+_BAD_EXPERIMENTS: dict[str, str] = {}
+
+
+def _experiment_node(file: Path):
+    """(the experiment's configuration, None) or (None, why it is not one)."""
+    from omegaconf import OmegaConf
+
+    name = file.stem
+    if conf_dir().joinpath("experiment", file.name).is_file():
+        return None, f"laughlab has an experiment named {name!r}; give yours another name"
+    try:
+        node = OmegaConf.load(file)
+    except Exception as exc:   # a YAML error: what and where
+        mark = getattr(exc, "problem_mark", None)
+        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+        what = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        return None, f"not a readable experiment: {what}{where}"
+    if not OmegaConf.is_dict(node) or not OmegaConf.is_dict(node.get("harness")):
+        return None, ("not an experiment: it needs a harness: mapping of settings (docs/experiments.md, "
+                      "'An experiment of your own')")
+    given = node.harness.get("name")
+    if given is not None and given != name:
+        return None, (f"harness.name {given!r} is not the file's name: an experiment's name is its file's "
+                      f"({name}); remove harness.name or rename the file")
+    return OmegaConf.merge({"harness": own_experiment_base(name)}, node), None
 
 
 def register_plugin_configs() -> None:
@@ -166,6 +190,11 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
     if m and exc.__cause__ is not None:   # Hydra's line names the override, its cause says what is wrong with it
         cause = str(exc.__cause__).strip().splitlines()
         return f"bad setting {m.group(1)}: {cause[0]}" if cause else text
+    m = re.search(r"Could not find '(input|extractor|detector|face|body|scheduler|output|experiment)/([^']+)'", text)
+    if m:  # a defaults list naming a plugin that does not exist (an experiment's ``override /extractor: nosuch``)
+        group, name = m.groups()
+        return (f"unknown {group} {name!r} in a defaults list (an experiment's override /{group}); choose one of: "
+                f"{', '.join(group_options(group))}")
     m = re.search(r"Could not find 'hydra/launcher/([^']+)'", text)
     if m:  # Hydra's line says nothing of where a launcher comes from
         return launcher_missing(m.group(1))
@@ -377,6 +406,8 @@ def check_overrides(overrides: list[str]) -> None:
         choices = [v.strip() for v in value.strip("[]").split(",")] if value not in ("null", "") else []
         options = group_options(group)
         for choice in choices:
+            if group == "experiment" and choice in _BAD_EXPERIMENTS:
+                raise LaughlabError(_BAD_EXPERIMENTS[choice])
             if choice not in options:
                 own = (f" (an experiment of your own: plugins_dir=DIR with DIR/experiment/{choice}.yaml)"
                        if group == "experiment" else "")

@@ -18,6 +18,11 @@ class UnknownParameter(LaughlabError):
         self.key = key
 
 
+class RefusedFolder(LaughlabError):
+    """A run folder that holds another run: refused before anything ran in it, so nothing of it is to be kept
+    or resumed (the command line says only why)."""
+
+
 def shown_path(path, limit: int = 200) -> str:
     """``path`` as an error line shows it: whole up to ``limit`` characters, else its start, its last 40
     characters and its length (a 3000-character path would bury the cause)."""

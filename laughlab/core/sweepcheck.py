@@ -57,6 +57,14 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
     from laughlab.core.config import is_group
 
     base, sweeps = sweep_values(overrides)
+    if any(k.lstrip("+~") == "experiment" for k in sweeps):
+        # Hydra composes the sweep's own configuration (for its sweeper and launcher) without the swept group, where
+        # harness.* does not exist: its "Could not override" came after the check (a review)
+        plain = [o for o in base if o.split("=", 1)[0].lstrip("~").startswith("harness.") and not o.startswith("++")]
+        if plain:
+            raise LaughlabError(f"{plain[0]} with a sweep over experiments: Hydra composes the sweep itself without "
+                                f"an experiment, where harness does not exist; write ++{plain[0].lstrip('+')} "
+                                "(++ sets a key whether it exists or not), or sweep each experiment on its own")
     cfg = preflight(base)
     check_launcher(cfg.hydra.get("launcher") or {})
     params = None if any(is_group(k.lstrip("+~")) for k in sweeps) else cfg.hydra.get("sweeper", {}).get("params")

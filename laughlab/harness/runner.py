@@ -19,7 +19,7 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from laughlab.core import blame, pipeline
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, RefusedFolder
 from laughlab.core.progress import bar
 from laughlab.harness.corpus import Item
 
@@ -164,8 +164,9 @@ class Journal:
         self.stale = 0
         for rec in journal_records(self.path):
             if rec.get("experiment_hash") != self.experiment_hash:
-                raise LaughlabError(f"{self.path.parent} holds an interrupted experiment with another configuration; "
-                                    "run it with its own command, or choose another hydra.run.dir, or add "
+                raise RefusedFolder(f"{self.path.parent} holds an interrupted experiment with another configuration "
+                                    "(every setting counts but harness.jobs and harness.plots, paths as written); "
+                                    "resume it with its own command, or choose another hydra.run.dir, or add "
                                     "overwrite=true")
             if rec.get("code_hash", "") != self.code:
                 self.stale += 1
