@@ -442,7 +442,7 @@ def test_a_folder_of_two_experiments_sweeps_is_one_line_not_a_traceback(tmp_path
         (tmp_path / job).mkdir(parents=True)
         (tmp_path / job / "results.json").write_text(json.dumps({"experiment": name}))
     with pytest.raises(LaughlabError, match=r"holds the results of 2 experiments \(concat_ablation, "
-                                            r"energy_ablation\); report each sweep's folder on its own"):
+                                            r"energy_ablation\); report each point's folder on its own"):
         sweep_report(tmp_path, tmp_path / "rep", "cmd")
     assert sorted(["12", "", "3", "fast"], key=_order) == ["3", "12", "", "fast"]   # numbers, then words
 
@@ -518,6 +518,16 @@ def test_report_extras_compute_rows_and_the_shared_plugins():
     assert _clear_best(doc, "miss_rate", ["a", "b"]) == "a" and _clear_best(doc, "frame_ms_p99", ["a", "b"]) is None
     assert _base_line({"config": {"extractor": {"name": "phoneme"}, "face": {"name": "smile", "x": 1}}}) == [
         "- every condition starts from `extractor=phoneme face=smile` (its overrides replace these)"]
+    from laughlab.harness.report import _trials_line
+
+    # 1 synthetic input and 3 recordings run with seeds 0 and 1: 7 runs a condition (a review: "4 inputs x 2")
+    two = {"n_trials": 14, "conditions": {"a": [], "b": []}, "config": {"harness": {"run_seeds": [0, 1]}},
+           "corpus": {"inputs": ["mild-s00", "rec-a", "rec-b", "rec-c"], "profiles": ["mild", "recording"],
+                      "seeds": [0, 1]}}
+    assert _trials_line(two) == ("- trials: 14 (7 runs of 4 inputs, the recordings once per run seed (0, 1) x 2 "
+                                 "conditions; profiles mild, recording; seeds 0..1)")
+    one = {**two, "n_trials": 8, "corpus": {**two["corpus"], "seeds": [0]}}
+    assert _trials_line(one) == "- trials: 8 (4 inputs x 2 conditions; profiles mild, recording; seed 0)"
 
 
 def test_a_sweep_of_a_two_condition_experiment_reports_both(tmp_path):
