@@ -345,7 +345,7 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     assert "swept by the experiment's" not in text          # every swept key was given on the command line
     assert ("- fixed at every point: extractor.rise_per_s=24, harness.corpus.duration_s=5, harness.corpus.profiles="
             "[intense], harness.corpus.seeds=1, scheduler.min_inactive_s=2\n") in text
-    assert "- each point: 1 trial of each condition (**energy**; profiles intense; seeds 0)\n" in text
+    assert "- each point: 1 trial of condition **energy** (profiles intense; seeds 0)\n" in text
     # a best lag at the end of its [0, 2] s search in every trial is said (a review)
     assert "- ‡ `intensity_lag_kinetic_s` sat at the edge of its search, [0, 2] s, in every trial of " in text
     n = len(json.loads(docs[0].read_text())["metrics"])

@@ -112,9 +112,10 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
              + (f" x {len(conds)} conditions" if len(conds) > 1 else "")
              + f"; swept: {', '.join(varying) or '(nothing)'}",
              *([f"- fixed at every point: {', '.join(fixed)}"] if fixed else []),
-             f"- each point: {per_text} trial{'' if per == [1] else 's'} of each condition ("
-             + ", ".join(f"**{c}**" for c in conds)
-             + f"; profiles {', '.join(doc0['corpus']['profiles'])}; seeds {', '.join(map(str, seeds))}"
+             f"- each point: {per_text} trial{'' if per == [1] else 's'} of "
+             + (f"each condition ({', '.join(f'**{c}**' for c in conds)}; " if len(conds) > 1
+                else f"condition **{conds[0]}** (")
+             + f"profiles {', '.join(doc0['corpus']['profiles'])}; seeds {', '.join(map(str, seeds))}"
              + (" at the first point)" if any(p["doc"]["corpus"]["seeds"] != seeds for p in points) else ")"),
              f"- laughlab commit: `{doc0['git_hash']}`", "",
              "## Every point", "", "One column per metric: its name, ↑ higher is better or ↓ lower is better, and "
