@@ -49,6 +49,8 @@ def test_each_value_of_each_key_is_checked_with_the_others_at_their_first_values
     ("hydra.launcher.n_jobs=two", "bad setting hydra.launcher.n_jobs=two: Value 'two' of type 'str' could not be "
                                   "converted to Integer"),
     ("hydra/launcher=nope", "unknown launcher hydra/launcher=nope; launchers here: basic, joblib"),
+    ("experiment=smoke hydra.launcher.n_jobs=2", "unknown parameter hydra.launcher.n_jobs of this launcher; Hydra's "
+                                                 "basic launcher runs one job at a time, hydra/launcher=joblib takes n_jobs"),
     ("--cfg=hydra", "--cfg=hydra shows one configuration and does not combine with -m: drop -m"),
     # a sweep over experiments: Hydra's own composition has no harness (its "Could not override" came after the check)
     ("experiment=smoke,energy_readings harness.corpus.seeds=1",
@@ -57,7 +59,7 @@ def test_each_value_of_each_key_is_checked_with_the_others_at_their_first_values
 ])
 def test_a_bad_sweep_is_one_line_before_any_job(tmp_path, swept, message):
     sweep = tmp_path / "sweep"
-    first = [] if swept.startswith("experiment=") else ["experiment=energy_ablation"]
+    first = [] if swept.startswith("experiment=") else ["experiment=energy_ablation"]   # its launcher: joblib
     r = laughlab("-m", *first, *swept.split(), f"hydra.sweep.dir={sweep}")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr
     assert "Traceback" not in r.stderr and "HYDRA_FULL_ERROR" not in r.stderr

@@ -168,6 +168,9 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
                 valid = "; valid: " + ", ".join(keys) if keys else f"; this {group} takes no parameters"
             except Exception:  # listing the keys is a courtesy
                 valid = ""
+        if key.startswith("hydra.launcher."):   # the basic launcher has no n_jobs (a review)
+            return (f"unknown parameter {key} of this launcher; Hydra's basic launcher runs one job at a time, "
+                    f"hydra/launcher=joblib takes n_jobs")
         if "." not in key and group not in GROUP_KINDS:   # a top-level key mistyped: the nearest one (sed=3)
             near = _nearest_top_level(key)
             if near:
