@@ -368,8 +368,9 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
         lines += ["## How the energy is made (thesis Figs. 4.1 and 3.1) on the same input", "",
                   "Fig. 4.1: the MCS, its primitive (the energy if no clip consumed), the actual energy and the "
                   "clips. Fig. 3.1: the MCS with min/max amplitude fixed against drifting.", ""]
-        for name in thesis:
-            lines += [f"**{name.split('_fig')[0]}**", "", f"![{name}](figures/{name})", ""]
+        for name in thesis:   # each captioned with its condition and figure (a review: "energy" twice, unexplained)
+            cond, fig = name.split("_fig")[0], "Fig. 4.1" if "_fig4_1" in name else "Fig. 3.1"
+            lines += [f"**{cond}**, {fig}", "", f"![{name}](figures/{name})", ""]
     others = sorted(p.name for p in figs.glob("*.png") if p.name != "metrics.png" and p.name not in shows
                     and p.name not in thesis and "fig3_2" not in p.name and "filmstrip" not in p.name)
     for name in others:
