@@ -465,3 +465,21 @@ def test_a_writer_that_aborts_removes_the_folders_it_made_and_only_those(tmp_pat
     st = Staging()
     st.path(tmp_path / "plots" / "fig.png").write_text("done")
     assert [p.name for p in st.commit()] == ["fig.png"] and (tmp_path / "plots" / "fig.png").read_text() == "done"
+
+
+def test_an_overwrite_killed_as_it_marks_its_start_puts_the_earlier_run_back(tmp_path):
+    """The kill test above once hit this instant (under a loaded machine): the earlier run was aside in
+    .laughlab-previous/ and the new run's marker was half-written (..laughlab-run.json.part), and the next run
+    called the folder "not a laughlab run".  Made here without a kill: that state, then the next run."""
+    d = tmp_path / "D"
+    assert run("input.duration_s=1", f"hydra.run.dir={d}", *NO_PLOTS).returncode == 0
+    before = _tree(d)
+    aside = d / rundir.PREVIOUS
+    aside.mkdir()
+    for p in list(d.iterdir()):
+        if p.name not in (rundir.PREVIOUS, rundir.LOCK):
+            os.replace(p, aside / p.name)
+    (d / rundir.MARKER_PART).write_text('{"complete": fal')          # cut mid-write
+    again = run("input.duration_s=1", f"hydra.run.dir={d}", *NO_PLOTS)
+    assert again.returncode == 2 and "already holds a run" in again.stderr, again.stderr
+    assert _tree(d) == before and not aside.exists() and not (d / rundir.MARKER_PART).exists()

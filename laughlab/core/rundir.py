@@ -35,7 +35,9 @@ LOCK = ".laughlab.lock"
 MARKER = ".laughlab-run.json"
 PREVIOUS = ".laughlab-previous"
 """The earlier run that ``overwrite=true`` replaces, kept aside until the new run finishes."""
-OWN = frozenset({LOCK, MARKER, PREVIOUS})
+MARKER_PART = f".{MARKER}.part"
+"""The marker being written (then renamed): a run killed in that instant leaves it."""
+OWN = frozenset({LOCK, MARKER, PREVIOUS, MARKER_PART})
 
 
 class InUse(LaughlabError):
@@ -130,10 +132,17 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
     os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
     try:
         entries = {p.name for p in path.iterdir()} - OWN - set(ours)
+        (path / MARKER_PART).unlink(missing_ok=True)   # a run killed as it wrote its marker (a test hit it)
         marker = _read_marker(path)
         complete = marker is not None and marker.get("complete", False)
         aside = (path / PREVIOUS / MARKER).is_file()
-        if marker is not None and not complete and aside and not resumable:
+        if marker is None and aside and not resumable and not entries:
+            # an overwrite killed between putting the earlier run aside and marking its own start: nothing of it
+            # was written yet, so the earlier run simply comes back
+            _put_back(path)
+            entries = {p.name for p in path.iterdir()} - OWN - set(ours)
+            marker, complete, aside = _read_marker(path), True, False
+        elif marker is not None and not complete and aside and not resumable:
             # a killed (or crashed) overwrite: its partial files go, the run it was replacing comes back
             for name in entries - set(marker.get("user_files", [])) - {MARKER}:
                 _remove(path / name)
@@ -269,7 +278,7 @@ def _read_marker(path: Path) -> dict | None:
 
 
 def _write_marker(path: Path, doc: dict) -> None:
-    tmp = path / f".{MARKER}.part"
+    tmp = path / MARKER_PART
     tmp.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
     os.replace(tmp, path / MARKER)
 
