@@ -56,6 +56,7 @@ def test_each_value_of_each_key_is_checked_with_the_others_at_their_first_values
     ("experiment=smoke,energy_readings harness.corpus.seeds=1",
      "harness.corpus.seeds=1 with a sweep over experiments: Hydra composes the sweep itself without an experiment, "
      "where harness does not exist; write ++harness.corpus.seeds=1"),
+    ("experiment=smoke,energy_readings +harness.corpus.seeds=1", "write ++harness.corpus.seeds=1"),
 ])
 def test_a_bad_sweep_is_one_line_before_any_job(tmp_path, swept, message):
     sweep = tmp_path / "sweep"

@@ -60,7 +60,7 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
     if any(k.lstrip("+~") == "experiment" for k in sweeps):
         # Hydra composes the sweep's own configuration (for its sweeper and launcher) without the swept group, where
         # harness.* does not exist: its "Could not override" came after the check (a review)
-        plain = [o for o in base if o.split("=", 1)[0].lstrip("~").startswith("harness.") and not o.startswith("++")]
+        plain = [o for o in base if o.split("=", 1)[0].lstrip("+~").startswith("harness.") and not o.startswith("++")]
         if plain:
             raise LaughlabError(f"{plain[0]} with a sweep over experiments: Hydra composes the sweep itself without "
                                 f"an experiment, where harness does not exist; write ++{plain[0].lstrip('+')} "

@@ -42,7 +42,7 @@ OWN = (*PAGE_FILES, "design.js", "design.json", "stimuli", "audio_check", "vendo
 def check_out(out: Path, overwrite: bool) -> None:
     """Refuse a study folder that may not be (re)built: one that holds people's answers, or, without
     ``overwrite``, anything; with it, anything but an earlier study."""
-    from laughlab.study.db import participants_kind, participants_stored
+    from laughlab.study.db import participants_kind
 
     if not out.exists():
         return
@@ -58,7 +58,7 @@ def check_out(out: Path, overwrite: bool) -> None:
             sqlite = False
         # a database of people's answers is never replaced; one without any answer (the page served and opened,
         # nobody answered: a review found it blocked the rebuild) goes with the study's other files
-        if sqlite and participants_kind(f) != "simulated" and _answered(f, participants_stored):
+        if sqlite and participants_kind(f) != "simulated" and _answered(f):
             raise LaughlabError(f"{out} holds a study's response database with answers ({name}); build the study "
                                 "into another folder")
     if held and not overwrite:
@@ -68,9 +68,11 @@ def check_out(out: Path, overwrite: bool) -> None:
                             "study: choose an empty or new --out")
 
 
-def _answered(db: Path, participants_stored) -> bool:
+def _answered(db: Path) -> bool:
     """Does the study database ``db`` hold an answer?  (Unreadable: assume it does.)"""
     import sqlite3
+
+    from laughlab.study.db import participants_stored
 
     try:
         return bool(participants_stored(db))
