@@ -278,3 +278,15 @@ def test_an_experiment_of_ones_own_in_the_plugins_dir(tmp_path):
     r = run("plugins_dir=mine", "experiment=gape_vs_smile", "harness.corpus.seeds=1", "hydra.run.dir=again",
             cwd=tmp_path)
     assert r.returncode == 0, r.stderr
+
+
+def test_plugins_dir_is_one_folder(tmp_path):
+    """A review: plugins_dir=a plugins_dir=b kept the last without a word (both were loaded, the trial workers got
+    one), and plugins_dir=[a,b] said only that it was not a folder."""
+    for d in ("a", "b"):
+        (tmp_path / d).mkdir()
+    r = run("plugins_dir=a", "plugins_dir=b", "input.duration_s=1", "hydra.run.dir=x", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
+    assert "plugins_dir is given 2 times (plugins_dir=a, plugins_dir=b): it is one folder" in r.stderr
+    r = run("plugins_dir=[a,b]", "input.duration_s=1", cwd=tmp_path)
+    assert r.returncode == 2 and "is not a folder (plugins_dir is one folder: put every plugin module" in r.stderr

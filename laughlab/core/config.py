@@ -392,6 +392,10 @@ def check_overrides(overrides: list[str]) -> None:
     key no part of laughlab reads (``+fsp=30``, a typo of ``fps``, was added and ignored)."""
     from laughlab.core import plugins
 
+    dirs = [ov for ov in overrides if ov.split("=")[0].lstrip("+") == "plugins_dir"]
+    if len(dirs) > 1:   # each was loaded, but a run and its trial workers keep only the last (a review)
+        raise LaughlabError(f"plugins_dir is given {len(dirs)} times ({', '.join(dirs)}): it is one folder; put every "
+                            "plugin module and experiment/ in it")
     for ov in overrides:
         key = ov.split("=")[0].lstrip("+")
         root = re.split(r"[./]", key)[0]

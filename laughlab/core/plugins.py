@@ -82,7 +82,9 @@ def load_plugin_dir(path: str | Path) -> list[str]:
     """
     folder = Path(path).expanduser()
     if not folder.is_dir():
-        raise LaughlabError(f"plugins_dir {str(path)!r} is not a folder")
+        more = " (plugins_dir is one folder: put every plugin module and experiment/ in it)" \
+            if str(path).startswith("[") else ""
+        raise LaughlabError(f"plugins_dir {str(path)!r} is not a folder{more}")
     loaded = []
     for file in sorted(folder.glob("*.py")):
         mod_name = f"laughlab_local_plugins.{file.stem}"
