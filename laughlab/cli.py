@@ -395,6 +395,7 @@ def _main(argv: list[str]) -> None:
 
         print(f"laughlab {__version__}")
         return
+    argv = _absolute_plugins_dir(argv)
     try:
         check_flags(argv, _HYDRA_FLAGS | {"-m", "--multirun", "-r", "--run"})
         check_sweep_flags(argv)
@@ -462,6 +463,24 @@ def _main(argv: list[str]) -> None:
             # no job ran (each was refused, or had finished before): the sweep folder still describes the
             # earlier sweep, so its multirun.yaml, which Hydra wrote at the start, is put back
             before[0].write_bytes(before[1])
+
+
+def _absolute_plugins_dir(argv: list[str]) -> list[str]:
+    """``plugins_dir=my`` as the absolute path of an existing folder: what results.json, the report's run line and a
+    resumed experiment compare then hold from any working directory (a review: a relative path was recorded as typed,
+    and the same folder spelled otherwise refused the resume)."""
+    import os
+    import re
+
+    out = []
+    for a in argv:
+        key, eq, value = a.partition("=")
+        if eq and key.lstrip("+") == "plugins_dir" and value and Path(value).expanduser().is_dir():
+            full = os.path.abspath(Path(value).expanduser())
+            if re.fullmatch(r"[A-Za-z0-9_./-]+", full):   # else left as typed: Hydra's grammar reads it only quoted
+                a = f"{key}={full}"
+        out.append(a)
+    return out
 
 
 def _quiet_stdout() -> None:

@@ -245,6 +245,10 @@ def test_an_experiment_of_ones_own_in_the_plugins_dir(tmp_path):
     doc = json.loads((tmp_path / "exp" / "results.json").read_text())
     assert doc["experiment"] == "gape_vs_smile" and doc["n_trials"] == 4
     assert doc["config"]["extractor"]["name"] == "phoneme"            # its defaults list applied
+    # recorded as the folder's absolute path, so the report's run line and a resume hold from anywhere (a review:
+    # a relative path was recorded as typed, and the same folder spelled otherwise refused the resume)
+    assert doc["config"]["plugins_dir"] == str(tmp_path / "mine")
+    assert f"- plugins_dir={tmp_path / 'mine'}" in (tmp_path / "exp" / ".hydra" / "overrides.yaml").read_text()
     assert doc["conditions"] == {"smile": ["face=smile", "detector=none"],
                                  "gape": ["face=gape", "face.gain=3", "detector=none"]}
     smiles = {}   # the gape face writes no smile channel: its smile onset is n/a, the smile face's a latency
@@ -287,6 +291,7 @@ def test_plugins_dir_is_one_folder(tmp_path):
         (tmp_path / d).mkdir()
     r = run("plugins_dir=a", "plugins_dir=b", "input.duration_s=1", "hydra.run.dir=x", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
-    assert "plugins_dir is given 2 times (plugins_dir=a, plugins_dir=b): it is one folder" in r.stderr
+    assert (f"plugins_dir is given 2 times (plugins_dir={tmp_path / 'a'}, plugins_dir={tmp_path / 'b'}): it is one "
+            "folder") in r.stderr
     r = run("plugins_dir=[a,b]", "input.duration_s=1", cwd=tmp_path)
     assert r.returncode == 2 and "is not a folder (plugins_dir is one folder: put every plugin module" in r.stderr
