@@ -145,6 +145,11 @@ def williams(n: int) -> list[list[int]]:
     return rows
 
 
+def _seeds_of(item, run_seeds: list[int]) -> list[int]:
+    """The seeds an audio item is rendered with: a synthetic input its own, a recording each run seed."""
+    return [item.seed] if item.seed is not None else run_seeds
+
+
 def design_notes(n_conditions: int, n_items: int, n_participants: int, design: str) -> list[str]:
     """What a design leaves unbalanced, said before the stimuli are rendered (a review: both were accepted without
     a word): participants not a multiple of the Williams square's rows, and ``one_per_condition`` with fewer audio
@@ -405,7 +410,7 @@ def run(cfg, out_dir) -> dict:
     video = {k: v for k, v in (h.get("video") or {}).items()}
     base = _task_overrides()
     progress = str(cfg.get("progress", "auto")) != "off"
-    for line in design_notes(len(conditions), sum(1 if i.seed is not None else len(run_seeds) for i in items),
+    for line in design_notes(len(conditions), sum(len(_seeds_of(i, run_seeds)) for i in items),
                              n_participants, design):
         print(f"stimuli: note: {line}", file=sys.stderr)
 
@@ -421,7 +426,7 @@ def run(cfg, out_dir) -> dict:
         audio_files: dict[tuple[str, int], tuple[Path, Path]] = {}
         units = []  # (audio_id, item, seed)
         for item in items:
-            seeds = [item.seed] if item.seed is not None else run_seeds
+            seeds = _seeds_of(item, run_seeds)
             for s in seeds:
                 audio_id = item.id if len(seeds) == 1 else f"{item.id}-seed{s}"
                 samples, rate = _item_audio(item, base, s, work)

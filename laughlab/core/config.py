@@ -240,10 +240,7 @@ def _nearest_top_level(key: str) -> str | None:
     """The configuration's top-level key or group nearest ``key`` (difflib; None if none is close)."""
     import difflib
 
-    import yaml
-
-    doc = yaml.safe_load(conf_dir().joinpath("config.yaml").read_text()) or {}
-    names = [k for k in doc if k not in ("defaults", "hydra")] + [g for g in GROUP_KINDS]
+    names = [k for k in _top_level_keys() if k != "hydra"] + list(GROUP_KINDS)
     found = difflib.get_close_matches(key, names, n=1, cutoff=0.6)
     return found[0] if found else None
 
@@ -379,12 +376,12 @@ def compose_app(overrides) -> "DictConfig":  # noqa: F821
     return cfg
 
 
-def _top_level_keys() -> set[str]:
-    """The settings at the top of ``config.yaml`` (``seed``, ``fps``, ``character``...)."""
-    from omegaconf import OmegaConf
+def _top_level_keys() -> tuple[str, ...]:
+    """The settings at the top of ``config.yaml`` (``seed``, ``fps``, ``character``...), in the file's order."""
+    import yaml
 
-    doc = OmegaConf.to_container(OmegaConf.create(conf_dir().joinpath("config.yaml").read_text()))
-    return {k for k in doc if k != "defaults"}
+    doc = yaml.safe_load(conf_dir().joinpath("config.yaml").read_text()) or {}
+    return tuple(k for k in doc if k != "defaults")
 
 
 def check_overrides(overrides: list[str]) -> None:

@@ -4,6 +4,10 @@ from __future__ import annotations
 from pathlib import Path
 
 
+#: the plugin groups a run's summary line and a report name, in the order the summary line gives them
+CHAIN = ("extractor", "detector", "face", "body", "scheduler")
+
+
 def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozenset()) -> str:
     """One line on success: what ran on what, how long the command took, its speed, where its files are
     (not those named in ``skip``: the user's own files in the run's folder).
@@ -16,7 +20,7 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     src = cfg.input.name
     what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
     chain = " > ".join(str(cfg[g].name) + (" (fused)" if g == "detector" and cfg[g].get("fuse") else "")
-                       for g in ("extractor", "detector", "face", "body", "scheduler")
+                       for g in CHAIN
                        if g in cfg and cfg[g] is not None and "name" in cfg[g])   # fused: detector=yamnet_fused
     dur = float(metrics.get("duration_s") or 0.0)
     files = sorted(p.name + ("/" if p.is_dir() else "") for p in Path(out_dir).iterdir()

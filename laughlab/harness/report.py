@@ -253,8 +253,10 @@ def _trials_line(doc: dict) -> str:
 def _base_line(doc: dict) -> list[str]:
     """The plugins every condition starts from (a review: energy_vs_concat's shared extractor=phoneme, set by the
     experiment's defaults, was said nowhere in its report)."""
+    from laughlab.core.summary import CHAIN
+
     cfg = doc.get("config") or {}
-    picked = [f"{g}={cfg[g]['name']}" for g in ("extractor", "detector", "face", "body", "scheduler")
+    picked = [f"{g}={cfg[g]['name']}" for g in CHAIN
               if isinstance(cfg.get(g), dict) and cfg[g].get("name")]
     return [f"- every condition starts from `{' '.join(picked)}` (its overrides replace these)"] if picked else []
 

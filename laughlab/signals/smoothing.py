@@ -126,6 +126,8 @@ class Smoother:
         return (e - self.min_e) / self.range
 
     def value(self) -> float:
-        """The re-scaled value of the current state, without a step (after a face took some of it back)."""
+        """The re-scaled value of the current state, without a step (after a face took some of it back).  The
+        tail of :meth:`smooth` computes the same inline: calling this there cost 28 ns a call (87 -> 115 ns),
+        four times a frame."""
         e = self.e
         return 0.0 if e < self.min_e else 1.0 if e > self.max_e else (e - self.min_e) / self.range
