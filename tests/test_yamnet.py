@@ -464,6 +464,31 @@ def test_the_train_split_sweep_gates_like_the_detector(rule, veto):
         assert not np.array_equal(want, gate_windows(ps, qs, rule, **kw))
 
 
+def test_the_train_sweep_counts_bouts_false_openings_and_first_openings_by_hand():
+    """``yamnet_fit --rules``' figures on a hand-made scene: two bouts (1-2 s, 5-6 s), windows every 0.5 s."""
+    from laughlab.detector.yamnet_fit import _first_open, _found_false
+
+    t = np.arange(1, 21) * 0.5                                  # window ends 0.5 ... 10 s
+    opened = np.zeros(20, bool)
+    opened[[2, 3]] = True                                       # 1.5-2.0 s: inside bout 1, 0.5 s after its start
+    opened[[6, 7]] = True                                       # 3.5-4.0 s: outside both (bout 1's tail ends at 3 s)
+    opened[[12]] = True                                         # 6.5 s: bout 2's 1 s tail, 1.5 s after its start
+    sc = {"t": t, "dur": 10.0, "bouts": [(1.0, 2.0), (5.0, 6.0)]}
+    found, false = _found_false([sc], lambda s: opened)
+    # non-laughter: 10 s - (2 s + 2 s of bouts and tails) = 6 s = 0.1 min; one opening outside -> 100 per 10 min
+    assert found == 1.0 and false == pytest.approx(100.0)
+    assert _first_open([sc], lambda s: opened) == pytest.approx(1.0)   # median of 0.5 s and 1.5 s
+    assert np.isnan(_first_open([sc], lambda s: np.zeros(20, bool)))
+
+
+def test_the_train_sweep_refuses_a_hop_out_of_range(capsys):
+    from laughlab.detector.yamnet_fit import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["--rules", "--hop", "0"])
+    assert e.value.code == 2 and "--hop must be from 0.01 to 1 s (got 0)" in capsys.readouterr().err
+
+
 def test_the_clip_gain_closes_after_close_quiet_s_of_quiet_and_cannot_open_in_quiet():
     # sound (mcs 0.6) for frames 0..39, then quiet; the classes say laughter in every window (0.5)
     mcs = [0.6] * 40 + [0.0] * 50

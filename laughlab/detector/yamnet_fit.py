@@ -154,14 +154,19 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--check", action="store_true", help="refit and compare with the bundled head; write nothing")
     ap.add_argument("--gate", action="store_true", help="print the live gate's opening rules on the train scenes")
     ap.add_argument("--rules", action="store_true", help="print the rules head / classes / either on the train "
-                    "scenes (windows every 0.25 s)")
+                    "scenes (windows every --hop s)")
+    ap.add_argument("--hop", type=float, default=STEP_S, help="with --rules: seconds between windows (default "
+                    f"{STEP_S}, the live gate's hop_s)")
     ns = ap.parse_args(argv)
     if ns.fuse:
         return main_fuse(ns)
     if ns.rules:
-        for r in rule_sweep():
+        if not 0.01 <= ns.hop <= 1.0:
+            ap.error(f"--hop must be from 0.01 to 1 s (got {ns.hop:g})")
+        for r in rule_sweep(hop_s=ns.hop):
             print(f"{r['name']}: bouts found {r['bouts_found']:.3f}, openings outside laughter "
-                  f"{r['false_per_10min']:.1f} per 10 min; synthetic bouts found {r['synthetic_found']:.3f}")
+                  f"{r['false_per_10min']:.1f} per 10 min, first opening {r['first_open_s']:.2f} s after a bout "
+                  f"starts (median); synthetic bouts found {r['synthetic_found']:.3f}")
         return 0
     if ns.gate:
         for r in gate_sweep():
@@ -309,8 +314,21 @@ def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) 
             return gate_windows(sc["p"], sc["q"], other=sc["o"], **{"veto": "none", **kw})
         found, false = _found_false(train, opened)
         out.append({"name": name, **kw, "bouts_found": found, "false_per_10min": false,
-                    "synthetic_found": _found_false(synth, opened)[0]})
+                    "first_open_s": _first_open(train, opened), "synthetic_found": _found_false(synth, opened)[0]})
     return out
+
+
+def _first_open(scenes: list, opened_of) -> float:
+    """Median over the bouts found (as :func:`_found_false` finds them) of the first open window's end after the
+    bout's start (s); nan when none is found."""
+    delays = []
+    for sc in scenes:
+        t, opened = sc["t"], opened_of(sc)
+        for a, b in sc["bouts"]:
+            w = (t >= a) & (t <= b + 1.0) & opened
+            if w.any():
+                delays.append(float(t[w][0] - a))
+    return float(np.median(delays)) if delays else float("nan")
 
 
 # -- the fused head (``--fuse``): YAMNet's scores with the feature MLP's cues ------------------------------------
