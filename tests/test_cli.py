@@ -115,6 +115,14 @@ def bad_files(tmp_path_factory):
     (["experiment=nope"], "unknown experiment 'nope'"),
     (["input=file", "input.path=rire_é.wav"], "a value with spaces or characters other than ASCII letters, digits "
                                               "and - _ . / must be quoted: \"input.path='rire_é.wav'\""),
+    # a review: a browser download's name "Avatar (1).vrm", "=" and "[" gave Hydra's "mismatched input ' ('
+    # expecting <EOF>" without the setting; a quote was hinted inside the very quotes it ends
+    (["input=file", "character=Avatar (1).vrm"], "cannot read the setting character=Avatar (1).vrm: a value with "
+     "spaces or characters other than ASCII letters, digits and - _ . / must be quoted: \"character='Avatar (1).vrm'\""),
+    (["input.path=a=b.wav"], "cannot read the setting input.path=a=b.wav: a value with spaces"),
+    (["seed=2", "input.path=x[1].wav"], "cannot read the setting input.path=x[1].wav: "),
+    (["input.path=it's.wav"], "must be quoted: \"input.path='it\\'s.wav'\" (the double quotes for the shell)"),
+    (["-m", "seed=1,2", "input.path=a (1).wav"], "cannot read the setting input.path=a (1).wav: "),
     (["output=video", "output.video.file=input.wav"], "file must be a file name ending in .mp4 (got 'input.wav')"),
     (["detekt"], "unknown command 'detekt': the commands are detect, report, corpus, study, view, plugins;"),   # was Hydra's 'Error parsing override'
     # a flag was dropped without a word and the default run started (a review: --hlep, --overwrite)

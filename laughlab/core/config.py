@@ -176,11 +176,9 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
             if near:
                 return f"unknown parameter {key}; did you mean {near}?"
         return f"unknown parameter {key}{valid}"
-    m = re.search(r"(?:LexerNoViableAltException|mismatched input [^:]*): ([\w.+~/-]+)=([^\n]*)", text)
-    if m:  # Hydra's override grammar reads only plain ASCII values unquoted (a path with é or a space)
-        key, value = m.group(1), m.group(2).strip()
-        return (f"cannot read the setting {key}={value}: a value with spaces or characters other than ASCII "
-                f"letters, digits and - _ . / must be quoted: \"{key}='{value}'\" (the double quotes for the shell)")
+    unreadable = unreadable_override(text, overrides)
+    if unreadable:  # Hydra's override grammar reads only plain ASCII values unquoted (a path with é or a space)
+        return unreadable
     m = re.search(r"Ambiguous value for argument '([^=']+)=([^']*)'", text)
     if m:  # Hydra's three numbered lines, as one: a comma is a sweep (-m), or a list in brackets
         key, value = m.groups()
@@ -203,6 +201,36 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
         return launcher_missing(m.group(1))
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     return lines[0] if lines else type(exc).__name__
+
+
+def unreadable_override(text: str, overrides=()) -> str | None:
+    """The line for a setting Hydra's override grammar cannot read (a value with a space, ``(``, ``=``, ``[``, a
+    quote or a character other than ASCII), naming the setting and how to quote it; None if ``text`` is not
+    such an error.  Hydra's own line names the setting only for characters its lexer refuses
+    (``LexerNoViableAltException: KEY=VALUE``); for the others (``mismatched input ' (' expecting <EOF>``) the
+    setting is the first of ``overrides`` the parser refuses alone."""
+    if not re.search(r"LexerNoViableAltException|mismatched input|extraneous input|no viable alternative", text):
+        return None
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    parser, line = OverridesParser.create(), None
+    for ov in overrides:
+        try:
+            parser.parse_overrides([ov])
+        except Exception:  # the grammar's refusal, whatever its class
+            line = ov
+            break
+    if line is None:
+        m = re.search(r"LexerNoViableAltException: ([^\n]*)", text)
+        line = m.group(1).strip() if m else None
+    if line is None or "=" not in line:
+        return None
+    key, value = line.split("=", 1)
+    if not re.fullmatch(r"[\w.+~/@-]+", key):
+        return None
+    quoted = value.replace("'", "\\'")   # Hydra's quoted values: a backslash escapes the quote after it
+    return (f"cannot read the setting {line}: a value with spaces or characters other than ASCII letters, digits "
+            f"and - _ . / must be quoted: \"{key}='{quoted}'\" (the double quotes for the shell)")
 
 
 def launcher_missing(name: str) -> str:
