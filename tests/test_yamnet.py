@@ -790,3 +790,45 @@ def test_detect_keeps_a_trees_layout_and_its_repeated_take_names(tmp_path):
     r = laughlab("detect", str(rec), "--out", str(out), "--formats", "csv,textgrid,elan", "--overwrite")
     assert r.returncode == 0, r.stderr
     assert not (out / "day1").exists() and (out / "day2" / "take1.TextGrid").exists()
+
+
+def test_quieting_stderr_from_two_threads_at_once_restores_it():
+    """A review: the offline helper's two network threads each saved and restored fd 2 while building their
+    interpreters; when one saved it while the other had it on /dev/null, /dev/null stayed for the rest of the
+    process and a run's error line was lost.  The interleaving forced here: A enters, B enters, A leaves, B leaves."""
+    import os
+    import threading
+
+    from laughlab.detector.yamnet_model import _quiet_stderr
+
+    def ident():
+        st_ = os.fstat(2)
+        return st_.st_dev, st_.st_ino
+
+    null = os.stat(os.devnull)
+    before = ident()
+    assert before != (null.st_dev, null.st_ino)   # the test means something only if fd 2 is not /dev/null already
+    a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+    seen = {}
+
+    def a():
+        with _quiet_stderr():
+            a_in.set()
+            b_in.wait(5)
+        a_out.set()
+
+    def b():
+        a_in.wait(5)
+        with _quiet_stderr():
+            seen["inside"] = ident()
+            b_in.set()
+            a_out.wait(5)
+            seen["after_a"] = ident()
+
+    ts = [threading.Thread(target=a), threading.Thread(target=b)]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join(10)
+    assert seen["inside"] == seen["after_a"] == (null.st_dev, null.st_ino)   # quiet while either is inside
+    assert ident() == before                                                  # and restored once both left

@@ -61,25 +61,42 @@ def laugh_indices(names: list[str], classes: tuple[str, ...] = LAUGH_CLASSES) ->
     return [names.index(n) for n in classes]
 
 
+#: ``_quiet_stderr``'s state, shared by the threads that build interpreters at once (the offline helper's two
+#: network threads): fd 2 is silenced by the first to enter and restored by the last to leave
+_QUIET = {"lock": threading.Lock(), "depth": 0, "saved": None}
+
+
 @contextlib.contextmanager
 def _quiet_stderr():
-    """Silence file descriptor 2 (C++ logging) for the duration of the block."""
+    """Silence file descriptor 2 (C++ logging) for the duration of the block, from any number of threads at once.
+
+    Each thread saving and restoring fd 2 on its own (before 2026-11-27) interleaved: a thread that saved fd 2
+    while the other had it on /dev/null restored /dev/null for the rest of the process, and a run's error line
+    was then lost (a review: 5 of 6 runs under ``ulimit -f`` exited 2 without a word)."""
     import os
     import sys
 
+    with _QUIET["lock"]:
+        if _QUIET["depth"] == 0:
+            try:
+                sys.stderr.flush()
+                saved = os.dup(2)
+            except (OSError, ValueError):
+                saved = None
+            if saved is not None:
+                with open(os.devnull, "w") as null:
+                    os.dup2(null.fileno(), 2)
+            _QUIET["saved"] = saved
+        _QUIET["depth"] += 1
     try:
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError):
         yield
-        return
-    try:
-        with open(os.devnull, "w") as null:
-            os.dup2(null.fileno(), 2)
-            yield
     finally:
-        os.dup2(saved, 2)
-        os.close(saved)
+        with _QUIET["lock"]:
+            _QUIET["depth"] -= 1
+            if _QUIET["depth"] == 0 and _QUIET["saved"] is not None:
+                os.dup2(_QUIET["saved"], 2)
+                os.close(_QUIET["saved"])
+                _QUIET["saved"] = None
 
 
 #: The bundled model's layout, checked when it is loaded (``_Layout``).  The file computes, for one window:
