@@ -320,6 +320,28 @@ def test_report_of_nothing_is_one_line(tmp_path):
     assert r.returncode == 2 and r.stderr.strip().count("\n") == 0 and "no results.json" in r.stderr
 
 
+@pytest.mark.parametrize("text, why", [
+    ('{"experiment": "smoke", "results": {', "not whole JSON: Expecting property name enclosed in double quotes "
+                                            "at line 1"),
+    ("", "empty"),
+    ("{}", "no experiment and results in it"),
+    ("[1, 2]", "no experiment and results in it"),
+    ('{"experiment": "smoke"}', "no experiment and results in it"),
+])
+def test_a_damaged_results_file_is_one_line_and_writes_nothing(tmp_path, text, why):
+    """A review: a truncated, empty or foreign results.json gave a traceback (JSONDecodeError, KeyError)."""
+    (tmp_path / "results.json").write_text(text)
+    r = laughlab("report", tmp_path)
+    assert r.returncode == 2 and r.stderr.strip().count("\n") == 0
+    assert f"results.json is not a laughlab results file ({why}); run the experiment again" in r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.json"]
+    sweep = tmp_path / "sweep"   # a sweep's job with a damaged one: the same line
+    (sweep / "0").mkdir(parents=True)
+    (sweep / "0" / "results.json").write_text(text)
+    r = laughlab("report", sweep)
+    assert r.returncode == 2 and "is not a laughlab results file" in r.stderr and not (sweep / "report").exists()
+
+
 def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     sweep = tmp_path / "sweep"
     r = laughlab("-m", "experiment=energy_ablation", "extractor.rise_per_s=24", "scheduler.min_inactive_s=2",

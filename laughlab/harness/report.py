@@ -7,7 +7,6 @@ multirun sweep) and writes ``RUN_DIR/report/README.md`` with its figures (``--ou
 """
 from __future__ import annotations
 
-import json
 import os
 import math
 import shutil
@@ -24,7 +23,7 @@ from laughlab.core.errors import LaughlabError, shown_names  # noqa: E402
 from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, edge_note  # noqa: E402
 from laughlab.harness.report_format import fmt as _fmt  # noqa: E402
 from laughlab.harness.report_format import heading as _heading  # noqa: E402
-from laughlab.harness.results import separated  # noqa: E402
+from laughlab.harness.results import read_results, separated  # noqa: E402
 from laughlab.harness.sweep_report import sweep_report  # noqa: E402
 
 def conditions_of(doc: dict) -> list[str]:
@@ -317,7 +316,7 @@ def _run_command(run_dir: Path, doc: dict) -> list[str]:
 
 
 def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
-    doc = json.loads((run_dir / "results.json").read_text())
+    doc = read_results(run_dir / "results.json")
     figs = out / "figures"
     if figs.exists():
         shutil.rmtree(figs)
@@ -416,7 +415,7 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
         results, write = next(root.rglob("results.json")), sweep_report
     else:
         raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)")
-    name = json.loads(results.read_text())["experiment"]  # a results.json of an experiment, else a clear KeyError
+    name = read_results(results)["experiment"]
     target = Path(out) if out else root / "report"
     if target.exists() and not target.is_dir():
         raise LaughlabError(f"report folder {target} exists and is not a folder")

@@ -2,7 +2,6 @@
 the swept parameters (``python -m laughlab report SWEEP_DIR``, through :func:`laughlab.harness.report.write_report`)."""
 from __future__ import annotations
 
-import json
 import math
 import shutil
 from itertools import combinations
@@ -11,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from laughlab.core.errors import LaughlabError
+from laughlab.harness.results import read_results
 from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, better_label, param_label
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
@@ -27,7 +27,7 @@ def _sweep_points(root: Path) -> list[dict]:
         ov_file = job / ".hydra" / "overrides.yaml"
         overrides = yaml.safe_load(ov_file.read_text()) if ov_file.exists() else []
         params = dict(o.split("=", 1) for o in overrides if "=" in o and not o.startswith(("experiment=", "hydra")))
-        points.append({"dir": job, "params": params, "doc": json.loads(rj.read_text())})
+        points.append({"dir": job, "params": params, "doc": read_results(rj)})
     return points
 
 
