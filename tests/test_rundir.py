@@ -96,6 +96,23 @@ def test_a_file_of_the_users_by_an_outputs_name_is_never_replaced(tmp_path, mine
         assert (d / mine).read_text() == "my own"
 
 
+def test_another_hydra_applications_configuration_is_never_replaced(tmp_path):
+    """A review: overwrite=true into another Hydra application's output folder replaced its .hydra/config.yaml
+    (the refusal said "files laughlab did not write are kept").  A laughlab run's own .hydra is replaced as before."""
+    d = tmp_path / "theirs"
+    (d / ".hydra").mkdir(parents=True)
+    (d / ".hydra" / "config.yaml").write_text("other_app: 1\n")
+    for extra in ([], ["overwrite=true"]):
+        p = run("input.duration_s=2", f"hydra.run.dir={d}", *extra, *NO_PLOTS)
+        assert p.returncode == 2 and "no laughlab run recorded writing (.hydra)" in p.stderr
+        assert (d / ".hydra" / "config.yaml").read_text() == "other_app: 1\n" and sorted(os.listdir(d)) == [".hydra"]
+    ours = tmp_path / "ours"
+    for seed in (1, 2):
+        assert run(f"seed={seed}", "input.duration_s=2", f"hydra.run.dir={ours}", "overwrite=true",
+                   *NO_PLOTS).returncode == 0
+    assert "seed: 2" in (ours / ".hydra" / "config.yaml").read_text()
+
+
 def test_the_names_a_sink_declares_or_is_given_are_protected_too(tmp_path):
     """The protected names come from the sinks (their ``files``, ``output.video.file``), not a list kept by hand:
     a third-party sink's file and a video named by the user are kept like motion.bvh."""

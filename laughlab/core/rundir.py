@@ -16,7 +16,8 @@
   run that fails or is stopped puts it back (an interrupted experiment, which can resume, keeps it
   aside until it finishes).  A file that no run
   recorded writing but named as a run's output (``OUTPUTS``: ``motion.bvh``, ``video.mp4``...) refuses
-  the run even then, as the run would replace it (so does a run of laughlab 0.1, which wrote no marker);
+  the run even then, as the run would replace it (so does a run of laughlab 0.1, which wrote no marker, and
+  another Hydra application's ``.hydra/``);
 * a run that was interrupted (its marker says ``complete: false``: killed, or stopped by a
   failure the process could not clean up) may be run again into its folder without
   ``overwrite``: an experiment then resumes (:mod:`laughlab.harness.experiment`), a single run
@@ -166,7 +167,9 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
             return Claim(path, fd, created, user, resumed=True, lock_made=lock_made)
         # files no run recorded writing (the user's, or a marker-less 0.1 run's: they cannot be told apart) named
         # as a run's outputs: a run would replace them, so they refuse it, whether or not overwrite=true
-        clash = sorted((entries - earlier) & (OUTPUTS | writes)) if overwrite or marker is None else []
+        # (and a .hydra/ of another Hydra application's, which this run's would replace: a review)
+        named = OUTPUTS | writes | ({".hydra"} - set(ours))
+        clash = sorted((entries - earlier) & named) if overwrite or marker is None else []
         if clash:
             raise LaughlabError(f"{path} holds files by the names of a run's outputs that no laughlab run recorded "
                                 f"writing ({', '.join(clash)}); move them or choose another {where} "
