@@ -86,7 +86,22 @@ def probe_file(path: str | Path):
         check_wav_length(p, info, path)
     if not MIN_RATE <= info.samplerate <= MAX_RATE:
         raise LaughlabError(f"sample rate {info.samplerate} Hz of {path} is outside {MIN_RATE}-{MAX_RATE} Hz")
+    if info.subtype in ("FLOAT", "DOUBLE") and not _any_finite(p):
+        raise LaughlabError(f"{path} holds no finite samples (every one is NaN or infinite): a damaged or "
+                            "mis-converted file")
     return info
+
+
+def _any_finite(p: Path, block: int = 65536) -> bool:
+    """Does a float file hold a finite sample?  Read until the first one (at once for a sound file; to the end only
+    for a file of NaN and infinities, which a run would take as a silence of its length: a review)."""
+    import numpy as np
+    import soundfile as sf
+
+    for b in sf.blocks(str(p), blocksize=block, dtype="float32", always_2d=True):
+        if np.isfinite(b).any():
+            return True
+    return False
 
 
 def check_wav_length(p: Path, info, shown) -> None:
