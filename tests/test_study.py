@@ -9,6 +9,7 @@ other conditions).
 """
 import csv
 import json
+import shutil
 import sqlite3
 import threading
 import urllib.error
@@ -214,6 +215,29 @@ def test_every_study_command_fails_in_one_line(study, tmp_path):
         assert "Traceback" not in out.stderr
         if "--host" in argv:
             assert "cannot listen on --host" in out.stderr, out.stderr
+
+
+@pytest.mark.parametrize("name, text, why", [
+    ("stimuli.json", "{broken", "stimuli.json is damaged (not JSON: "),
+    ("orders/jspsych_all.json", "[]", "jspsych_all.json is damaged (not a JSON object)"),
+    ("orders/jspsych_all.json", '{"1": [{"trial": 1}]}', "jspsych_all.json is damaged (KeyError: 'stimulus_id')"),
+])
+def test_a_damaged_stimuli_folder_is_one_line_and_builds_nothing(study, tmp_path, name, text, why):
+    """A review: a damaged stimuli.json or order file gave a traceback (JSONDecodeError, AttributeError)."""
+    stim = tmp_path / "stim"
+    shutil.copytree(study.with_name("stim"), stim)
+    (stim / name).write_text(text)
+    out = fuzz.run_cli(["study", "build", str(stim)])
+    assert out.code == 2 and out.stderr.count("\n") == 1 and why in out.stderr
+    assert out.stderr.rstrip().endswith("render the stimuli again (python -m laughlab experiment=stimuli)")
+    assert not stim.with_name("stim-study").exists()
+    (study / "design.json").rename(tmp_path / "design.json")   # a damaged design: serve says so in one line
+    try:
+        (study / "design.json").write_text("{")
+        out = fuzz.run_cli(["study", "serve", str(study), "--db", str(tmp_path / "r.sqlite")])
+        assert out.code == 2 and "design.json is damaged (not JSON: " in out.stderr and out.stderr.count("\n") == 1
+    finally:
+        (tmp_path / "design.json").replace(study / "design.json")
 
 
 def test_power_by_simulation_repeats_from_its_seed_and_wilsons_interval_by_hand(study):

@@ -124,10 +124,31 @@ def read_stimuli(run_dir: Path) -> tuple[dict, list[dict], dict[int, list[dict]]
     need = [n for n in ("stimuli.json", "manifest.csv", "orders/jspsych_all.json") if not (run_dir / n).is_file()]
     if need:
         raise LaughlabError(f"{run_dir} is not a finished experiment=stimuli folder: it has no {', '.join(need)}")
-    info = json.loads((run_dir / "stimuli.json").read_text())
+    again = "; render the stimuli again (python -m laughlab experiment=stimuli)"
+    info = read_json(run_dir / "stimuli.json", again)
     manifest = read_csv(run_dir / "manifest.csv")
-    orders = {int(p): trials for p, trials in json.loads((run_dir / "orders" / "jspsych_all.json").read_text()).items()}
+    orders_file = run_dir / "orders" / "jspsych_all.json"
+    try:
+        orders = {int(p): list(trials) for p, trials in read_json(orders_file, again).items()}
+        for trials in orders.values():
+            for t in trials:
+                for key in ("trial", "stimulus_id", "condition", "audio_id", "file"):
+                    t[key]   # noqa: B018 (each trial names these: make_design reads them)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise LaughlabError(f"{orders_file} is damaged ({type(exc).__name__}: {exc}){again}") from None
     return info, manifest, orders
+
+
+def read_json(path: Path, fix: str) -> dict:
+    """A JSON object laughlab wrote (``stimuli.json``, ``design.json``, ``report.json``...); a damaged one is one
+    line naming it, ending with ``fix`` (a review: tracebacks)."""
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise LaughlabError(f"{path} is damaged (not JSON: {str(exc).splitlines()[0]}){fix}") from None
+    if not isinstance(doc, dict):
+        raise LaughlabError(f"{path} is damaged (not a JSON object){fix}")
+    return doc
 
 
 def attention_trials(n_trials: int, count: int) -> list[int]:
@@ -193,7 +214,7 @@ def load_design(study_dir: Path) -> dict:
     if not path.is_file():
         raise LaughlabError(f"{study_dir} is not a study folder (no design.json): build one with "
                             "python -m laughlab study build STIMULI_RUN_DIR")
-    return json.loads(path.read_text())
+    return read_json(path, "; build the study again (python -m laughlab study build STIMULI_RUN_DIR)")
 
 
 def scale_range(design: dict) -> tuple[float, float]:

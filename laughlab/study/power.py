@@ -18,7 +18,6 @@ SD 1.2, intercept 4): state which you used.
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -96,7 +95,9 @@ def pilot_variance(report_dir: Path, question: str | None) -> tuple[dict, float,
     doc_path = Path(report_dir).expanduser() / "report.json"
     if not doc_path.is_file():
         raise LaughlabError(f"no report.json in {report_dir}: analyse the pilot first (study analyze)")
-    doc = json.loads(doc_path.read_text())
+    from laughlab.study.design import read_json
+
+    doc = read_json(doc_path, "; analyse the pilot again (study analyze)")
     if not doc.get("variance"):
         raise LaughlabError(f"{doc_path} has no fitted model")
     v = next((x for x in doc["variance"] if question in (None, x["question"])), None)
