@@ -118,13 +118,14 @@ def bad_files(tmp_path_factory):
     (["fps=0"], "fps must be a positive number"),
     (["fps=-30"], "fps must be a positive number"),
     (["experiment=nope"], "unknown experiment 'nope'"),
-    (["input=file", "input.path=rire_é.wav"], "a value with spaces or characters other than ASCII letters, digits "
-                                              "and - _ . / must be quoted: \"input.path='rire_é.wav'\""),
+    (["input=file", "input.path=rire_é.wav"], "a value with characters such as ( ) [ ] = , ' or letters outside "
+                                              "ASCII must be quoted: \"input.path='rire_é.wav'\""),
     # a review: a browser download's name "Avatar (1).vrm", "=" and "[" gave Hydra's "mismatched input ' ('
     # expecting <EOF>" without the setting; a quote was hinted inside the very quotes it ends
     (["input=file", "character=Avatar (1).vrm"], "cannot read the setting character=Avatar (1).vrm: a value with "
-     "spaces or characters other than ASCII letters, digits and - _ . / must be quoted: \"character='Avatar (1).vrm'\""),
-    (["input.path=a=b.wav"], "cannot read the setting input.path=a=b.wav: a value with spaces"),
+     "characters such as ( ) [ ] = , ' or letters outside ASCII must be quoted: \"character='Avatar (1).vrm'\""),
+    (["input.path=a=b.wav"], "cannot read the setting input.path=a=b.wav: a value with characters such as"),
+    (["input=file", "input.path=a,b.wav"], "one value with a comma in it is quoted: \"input.path='a,b.wav'\""),
     (["seed=2", "input.path=x[1].wav"], "cannot read the setting input.path=x[1].wav: "),
     (["input.path=it's.wav"], "must be quoted: \"input.path='it\\'s.wav'\" (the double quotes for the shell)"),
     (["-m", "seed=1,2", "input.path=a (1).wav"], "cannot read the setting input.path=a (1).wav: "),

@@ -186,7 +186,8 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
             return (f"output={value}: several outputs are a list, write 'output=[{value}]' (quoted for the shell); "
                     f"without brackets a comma means a sweep (-m)")
         return (f"{key}={value} gives several values: to run each, add -m (a sweep: python -m laughlab -m "
-                f"{key}={value}); for a list write '{key}=[{value}]'")
+                f"{key}={value}); for a list write '{key}=[{value}]'; one value with a comma in it is quoted: "
+                f"\"{key}='{value}'\"")
     m = re.match(r"Error merging override (\S+)", text)
     if m and exc.__cause__ is not None:   # Hydra's line names the override, its cause says what is wrong with it
         cause = str(exc.__cause__).strip().splitlines()
@@ -229,8 +230,8 @@ def unreadable_override(text: str, overrides=()) -> str | None:
     if not re.fullmatch(r"[\w.+~/@-]+", key):
         return None
     quoted = value.replace("'", "\\'")   # Hydra's quoted values: a backslash escapes the quote after it
-    return (f"cannot read the setting {line}: a value with spaces or characters other than ASCII letters, digits "
-            f"and - _ . / must be quoted: \"{key}='{quoted}'\" (the double quotes for the shell)")
+    return (f"cannot read the setting {line}: a value with characters such as ( ) [ ] = , ' or letters outside "
+            f"ASCII must be quoted: \"{key}='{quoted}'\" (the double quotes for the shell)")
 
 
 def launcher_missing(name: str) -> str:
