@@ -756,6 +756,20 @@ def test_detect_textgrids_read_back_in_praatio_and_laughlab(tmp_path_factory, p,
     _scan_textgrid(path.read_text(), str(path))   # laughlab's own check, as Praat reads a TextGrid
 
 
+@pytest.mark.parametrize("duration", [1 / 44100, 0.0, 4e-5])
+def test_a_recording_shorter_than_the_textgrids_resolution_still_gives_one_praat_reads(tmp_path, duration):
+    """A review: a 1-sample file's TextGrid ran from 0 to 0, which praatio refuses."""
+    from praatio import textgrid
+
+    from laughlab.io.textgrid import _scan_textgrid
+
+    path = tmp_path / "x.TextGrid"
+    path.write_text(S.textgrid_text([], duration))
+    tier = textgrid.openTextgrid(str(path), includeEmptyIntervals=True).getTier("laughter")
+    assert [(e.start, e.end, e.label) for e in tier.entries] == [(0.0, 0.0001, "")]
+    _scan_textgrid(path.read_text(), str(path))
+
+
 def test_a_detect_stopped_while_writing_leaves_nothing_a_later_overwrite_refuses(tmp_path, monkeypatch):
     """A Ctrl-C while detect wrote its files left the written ones out of its manifest, and the next
     --overwrite refused them as the user's: the manifest now lists them before they are written."""

@@ -101,8 +101,9 @@ def textgrid_text(segs: list[Segment], duration_s: float) -> str:
     """A Praat TextGrid (long text format), one interval tier ``laughter``: ``laugh`` or empty.
 
     Times are written to 0.1 ms, as the segments are: the duration too is rounded first, so a segment that
-    ends with the recording leaves no empty interval of zero length after it (Praat and praatio refuse one)."""
-    duration_s = round(float(duration_s), 4)
+    ends with the recording leaves no empty interval of zero length after it (Praat and praatio refuse one); a
+    recording shorter than 0.1 ms gets one interval of 0.1 ms (a review: a 1-sample file's 0 to 0 was refused)."""
+    duration_s = max(round(float(duration_s), 4), 1e-4)
     iv = []
     t = 0.0
     for s in segs:
