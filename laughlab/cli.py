@@ -377,6 +377,14 @@ def _main(argv: list[str]) -> None:
             return
     if argv[:1] == ["plugins"] or ("plugins" in argv and all(a == "plugins" or a.startswith("plugins_dir=")
                                                             for a in argv)):   # not 'face=x plugins': a run's typo
+        rest = [a for a in argv[1:] if not a.startswith("plugins_dir=")]
+        if rest[:1] in (["-h"], ["--help"]):
+            print("usage: python -m laughlab plugins [plugins_dir=DIR]\n\nList every plugin: its kind, name, origin "
+                  "and the setting that chooses it (with plugins_dir=DIR, your own too).")
+            return
+        if rest:   # a review: 'plugins bogus' printed the table
+            fail(f"plugins takes no argument but plugins_dir=DIR (got {rest[0]!r}); see python -m laughlab plugins "
+                 "--help")
         try:
             load_plugin_dirs(argv)
             from laughlab.core.plugin_table import list_plugins

@@ -264,6 +264,16 @@ def test_existing_run_is_not_overwritten_without_asking(default_run, tmp_path):
     assert len(pd.read_csv(target / "channels.csv")) == 180
 
 
+def test_plugins_has_a_help_and_refuses_other_arguments():
+    """A review: 'plugins --help' and 'plugins bogus' printed the table, exit 0."""
+    r = laughlab("plugins", "--help")
+    assert r.returncode == 0 and r.stdout.startswith("usage: python -m laughlab plugins [plugins_dir=DIR]")
+    assert "kind" not in r.stdout.split()
+    r = laughlab("plugins", "bogus")
+    assert one_line_error(r).endswith("plugins takes no argument but plugins_dir=DIR (got 'bogus'); see python -m "
+                                      "laughlab plugins --help") and r.stdout == ""
+
+
 def test_plugins_command_lists_kind_name_origin_and_how_to_use_it(tmp_path):
     r = laughlab("plugins")
     assert r.returncode == 0
