@@ -4,6 +4,7 @@ written, and the closing line says how many were skipped and how many had no lau
 import csv
 
 import numpy as np
+import pytest
 import soundfile as sf
 
 from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
@@ -120,3 +121,16 @@ def test_detect_writes_annotations_a_corpus_folder_reads(tmp_path):
     (rec / "laugh.TextGrid").write_bytes((tmp_path / "out" / "laugh.TextGrid").read_bytes())
     (item,) = build_corpus({"folder": str(rec), "profiles": []})
     assert item.id == "rec-laugh" and item.truth == str(rec / "laugh.TextGrid")
+
+
+def test_two_inputs_of_one_name_are_both_named(tmp_path):
+    """A review: "two inputs share the name 'a'" did not say which files; both paths are in the line."""
+    from laughlab.core.errors import LaughlabError
+    from laughlab.detector.detect import inputs
+
+    for ext in ("wav", "flac"):
+        (tmp_path / f"a.{ext}").write_bytes(b"x")
+    with pytest.raises(LaughlabError) as e:
+        inputs([str(tmp_path)])
+    assert str(e.value) == (f"two inputs share the name 'a' ({tmp_path / 'a.flac'}, {tmp_path / 'a.wav'}): their "
+                            "label files would collide; run them separately (--out)")

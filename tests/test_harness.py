@@ -404,6 +404,29 @@ def test_a_bad_corpus_is_reported_in_one_message_before_any_trial(tmp_path):
     assert not out.exists()  # nothing ran, nothing was written
 
 
+@pytest.mark.parametrize("setting, message", [
+    ("harness.corpus.folder={file}", "harness.corpus.folder {file} is a file, not a folder of recordings"),
+    ("harness.corpus.seeds=0", "the corpus is empty: harness.corpus.seeds gives no seed for its profiles"),
+])
+def test_a_corpus_error_names_its_cause(tmp_path, setting, message):
+    """A review: a file given as the folder was "not found", and seeds=0 asked for the profiles that were given."""
+    f = tmp_path / "laugh.wav"
+    f.write_bytes(b"RIFF")
+    out = tmp_path / "run"
+    r = laughlab("experiment=smoke", f"hydra.run.dir={out}", setting.format(file=f))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and message.format(file=f) in r.stderr
+    assert not out.exists()
+
+
+def test_report_of_a_single_run_says_what_to_do_with_it(tmp_path):
+    run = tmp_path / "laugh"
+    assert laughlab("input.duration_s=1", f"hydra.run.dir={run}", "~output.plots").returncode == 0
+    r = laughlab("report", run)
+    assert r.returncode == 2 and r.stderr.strip().endswith(
+        f"holds no results.json (run an experiment first); report is for experiments: to watch this run, "
+        f"python -m laughlab view {run}")
+
+
 def test_on_bad_skip_runs_the_rest_and_records_what_it_skipped(tmp_path):
     corpus = tmp_path / "corpus"
     _bad_corpus(corpus)

@@ -500,3 +500,15 @@ def test_an_overwrite_killed_as_it_marks_its_start_puts_the_earlier_run_back(tmp
     again = run("input.duration_s=1", f"hydra.run.dir={d}", *NO_PLOTS)
     assert again.returncode == 2 and "already holds a run" in again.stderr, again.stderr
     assert _tree(d) == before and not aside.exists() and not (d / rundir.MARKER_PART).exists()
+
+
+def test_a_folder_that_cannot_be_written_is_not_said_to_be_created(tmp_path, monkeypatch):
+    """A review: an existing read-only run folder was "cannot create the run directory"."""
+    def refused(*a, **k):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(rundir.os, "open", refused)
+    with pytest.raises(LaughlabError, match=r"^cannot write into the run directory .*: Permission denied$"):
+        rundir.claim(tmp_path)
+    with pytest.raises(LaughlabError, match=r"^cannot create the run directory .*new: Permission denied$"):
+        rundir.claim(tmp_path / "new")

@@ -121,7 +121,8 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
         path.mkdir(parents=True, exist_ok=True)
         fd = os.open(path / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
     except OSError as exc:
-        raise LaughlabError(f"cannot create the run directory {path}: {exc.strerror or exc}") from None
+        verb = "write into" if not created else "create"   # a review: an existing read-only folder was "created"
+        raise LaughlabError(f"cannot {verb} the run directory {path}: {exc.strerror or exc}") from None
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:

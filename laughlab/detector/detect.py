@@ -43,8 +43,9 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
     names = [n for _, n in out]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise LaughlabError(f"two inputs share the name {dup[0]!r}: their label files would collide; "
-                            f"run them separately (--out)")
+        both = [str(f) for f, n in out if n == dup[0]]
+        raise LaughlabError(f"two inputs share the name {dup[0]!r} ({', '.join(both)}): their label files would "
+                            "collide; run them separately (--out)")
     return out
 
 

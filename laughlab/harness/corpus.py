@@ -148,8 +148,9 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
     if on_bad not in ON_BAD:
         raise LaughlabError(f"harness.corpus.on_bad must be stop or skip (got {on_bad!r})")
     d = Path(folder).expanduser()
-    if not d.is_dir():
-        raise LaughlabError(f"corpus folder not found: {folder}")
+    if not d.is_dir():   # a file named as the folder: said so (a review: "not found" of a file that is there)
+        raise LaughlabError(f"harness.corpus.folder {folder} is a file, not a folder of recordings" if d.exists()
+                            else f"corpus folder not found: {folder}")
     files = sorted(p for p in d.iterdir() if p.suffix.lower() in AUDIO_SUFFIXES)
     if not files:
         raise LaughlabError(f"corpus folder {folder} holds no audio files ({', '.join(AUDIO_SUFFIXES)})")
@@ -262,5 +263,8 @@ def build_corpus(spec, skipped: list | None = None, left_out: list | None = None
     if left_out is not None:
         left_out.extend(missing)
     if not items:
+        if spec.get("profiles") and not seeds:   # a review: profiles were given, seeds=0 emptied them
+            raise LaughlabError("the corpus is empty: harness.corpus.seeds gives no seed for its profiles "
+                                "(a count of at least 1, or a list)")
         raise LaughlabError("the corpus is empty: give harness.corpus.profiles or harness.corpus.folder")
     return items

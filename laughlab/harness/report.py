@@ -414,7 +414,9 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     elif root.is_dir() and any(root.rglob("results.json")):
         results, write = next(root.rglob("results.json")), sweep_report
     else:
-        raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)")
+        single = root.is_dir() and (root / "metrics.json").is_file()   # a single run's folder (a review)
+        raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)" + (
+            f"; report is for experiments: to watch this run, python -m laughlab view {run_dir}" if single else ""))
     name = read_results(results)["experiment"]
     target = Path(out) if out else root / "report"
     if target.exists() and not target.is_dir():
