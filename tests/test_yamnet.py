@@ -205,6 +205,20 @@ def test_a_non_finite_sample_reads_as_silence_offline_and_spoils_nothing_after_i
     assert np.isfinite(got).all() and np.array_equal(got, Y.window_scores(zero, sr, ends, model))
 
 
+def test_offline_scores_report_their_progress_piece_by_piece(model):
+    """``detect``'s bar moves through a long file (a review: 0% until a 2-hour file ended): the seconds of input
+    converted, piece by piece, adding up to the file's length; the scores are the same with or without it."""
+    from laughlab.detector.stream16k import CONVERT_CHUNK
+
+    sr = 44100
+    x = np.random.default_rng(3).uniform(-0.2, 0.2, 2 * CONVERT_CHUNK + 1000)
+    ends = np.arange(sr, len(x) + 1, sr)
+    seen = []
+    got = Y.window_scores(x, sr, ends, model, progress=seen.append)
+    assert seen == [CONVERT_CHUNK / sr, CONVERT_CHUNK / sr, 1000 / sr]
+    assert np.array_equal(got, Y.window_scores(x, sr, ends, model))
+
+
 def test_frames_are_the_models_own():
     """96 frames of 400 samples every 160, as the file's reshape and gather cut them (ops 0-4)."""
     x = np.arange(Y.WINDOW, dtype=np.float32)

@@ -16,6 +16,7 @@ class LogProgress:
         self.stream = stream or sys.stderr
         self.n = 0
         self.t0 = self.last = time.monotonic()
+        self.said = None   # the last line printed
 
     def update(self, k: int = 1) -> None:
         self.n += k
@@ -25,8 +26,10 @@ class LogProgress:
             self._line(now)
 
     def _line(self, now: float) -> None:
-        print(f"{self.desc}: {self.n:{self.fmt}}/{self.total:{self.fmt}} {self.unit}, {now - self.t0:.0f} s",
-              file=self.stream, flush=True)
+        line = f"{self.desc}: {self.n:{self.fmt}}/{self.total:{self.fmt}} {self.unit}, {now - self.t0:.0f} s"
+        if line != self.said:   # the closing line is not the last update's again (a review: printed twice)
+            print(line, file=self.stream, flush=True)
+            self.said = line
 
     def close(self) -> None:
         self._line(time.monotonic())

@@ -177,12 +177,10 @@ def main(argv: list[str]) -> None:
         except LaughlabError as exc:  # damaged past its header: found only when read
             unreadable(name, exc)
             continue
-        t, p = S.laughter_prob(x, sr, ns.hop, model, score)
+        t, p = S.laughter_prob(x, sr, ns.hop, model, score, progress=None if bar is None else bar.update)
         p = S.smooth(p, ns.smooth)
         dur = len(x) / sr
         results.append((name, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f))
-        if bar is not None:
-            bar.update(dur)
     if bar is not None:
         bar.close()
     if not results:

@@ -39,15 +39,16 @@ class Segment:
     prob: float = 1.0
 
 
-def laughter_prob(audio: np.ndarray, sample_rate: int, hop_s: float = 0.5, model=None, score=None):
-    """(times (s), probabilities) of a whole signal: the head's probability, one window every ``hop_s``."""
+def laughter_prob(audio: np.ndarray, sample_rate: int, hop_s: float = 0.5, model=None, score=None, progress=None):
+    """(times (s), probabilities) of a whole signal: the head's probability, one window every ``hop_s``
+    (``progress``: see :func:`laughlab.detector.yamnet.window_scores`)."""
     from laughlab.detector.yamnet import LaughterScore, Yamnet, window_scores
 
     sr = int(sample_rate)
     dur = len(audio) / sr
     times = np.arange(hop_s / 2.0, max(dur, hop_s / 2.0 + 1e-9), hop_s)
     ends = np.round((times + SPEAKS_FOR_S) * sr).astype(np.int64)
-    S = window_scores(audio, sr, ends, model or Yamnet())
+    S = window_scores(audio, sr, ends, model or Yamnet(), progress=progress)
     score = score or LaughterScore()
     return times, np.array([score(s) for s in S])
 

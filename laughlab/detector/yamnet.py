@@ -248,7 +248,8 @@ class LaughterScore:
         return (float(self.head.prob(scores)) if self.head is not None else q), q
 
 
-def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: Yamnet | None = None) -> np.ndarray:
+def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: Yamnet | None = None,
+                  progress=None) -> np.ndarray:
     """The 521 scores of the windows ending at the sample indices ``ends`` of ``audio`` (zeros before 0).
 
     Offline use (``laughlab detect``, the fits and the benchmarks).  For a window ending at input sample
@@ -256,7 +257,8 @@ def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: 
     converted ``CONVERT_CHUNK`` samples at a time, and windows go to the model 64 at a time as soon as
     their samples are converted, each distinct 10 ms frame's log-mel row computed once, on the process'
     two network threads (the bundled model), which run while the rest is converted.  The scores are the
-    one-window-at-a-time scores bit for bit.
+    one-window-at-a-time scores bit for bit.  ``progress``: called with the seconds of input converted, piece by
+    piece (``detect``'s bar moves through a long file: a review saw it at 0% for the whole of a 2-hour one).
     """
     model = model or Yamnet()
     sr = int(sample_rate)
@@ -274,10 +276,14 @@ def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: 
             c = chunks[len(parts)]
             parts.append(net_pool().submit(_scores_here, pad, c) if threads else _scores_here(pad, c, model))
 
+    left = len(np.ravel(audio))
     for y in pieces_16k(audio, sr):
         pad[filled:filled + len(y)] = np.clip(y, -1.0, 1.0)
         filled += len(y)
         ready(filled)
+        if progress is not None:
+            piece, left = min(CONVERT_CHUNK, left), left - min(CONVERT_CHUNK, left)
+            progress(piece / sr)
     ready(len(pad))
     parts = [p.result() if threads else p for p in parts]
     return np.concatenate(parts) if parts else np.empty((0, N_CLASSES))
