@@ -318,6 +318,7 @@ def test_a_successful_run_says_what_ran_how_long_and_where(tmp_path):
     assert "x real time" in line and f"-> {out}/: " in line
     for name in ("channels.csv", "events.csv", "motion.bvh", "plots/"):
         assert name in line and (out / name.rstrip("/")).exists()
+    assert line.endswith(f"truth.csv; watch it: python -m laughlab view {out}")   # the next step (a review)
 
 
 def test_progress_in_a_log_is_a_line_every_few_seconds_not_a_bar():

@@ -27,7 +27,9 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
                    if not p.name.startswith(".") and p.name not in skip)
     took = f"in {duration_text(seconds)} ({speed(cfg, metrics, seconds)})"
     length = f"{dur:.1f}" if dur >= 1.0 or dur == 0.0 else f"{dur:.2g}"   # a 0.05 s file is not "0.1 s"
-    return f"laughlab: {length} s of {what}, {chain}, {took} -> {out_dir}/: {', '.join(files)}"
+    # the next step, as an experiment's and a study's lines give theirs (a review): a run with motion is watched
+    watch = f"; watch it: python -m laughlab view {out_dir}" if "motion.bvh" in files else ""
+    return f"laughlab: {length} s of {what}, {chain}, {took} -> {out_dir}/: {', '.join(files)}{watch}"
 
 
 def speed(cfg, metrics: dict, seconds: float) -> str:
