@@ -112,7 +112,7 @@ def test_riddle_preset_through_the_command_line(tmp_path):
         ("SS", "speaking", "smile"), ("SL", "speaking", "laugh"), ("LS", "listening", "smile"),
         ("LL", "listening", "laugh")}
     assert [r["audio_id"] for r in psy] == ["intense-s00", "mild-s00", "intense-s00", "mild-s00"]
-    assert "stimuli: 8 videos" in r.stdout
+    assert "stimuli: 8 videos" in r.stdout and f"; the study page: python -m laughlab study build {out}\n" in r.stdout
 
 
 def test_normalise_loudness():
