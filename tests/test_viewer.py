@@ -269,6 +269,68 @@ def test_view_out_overwrite_replaces_only_an_earlier_page(run_dir, tmp_path):
     assert r.returncode == 0 and (out / "index.html").read_text() != "stale"
     (out / "notes.txt").write_text("mine")                          # a file of the user's: never replaced
     r = laughlab("view", str(run_dir), "--out", str(out), "--overwrite")
-    assert r.returncode == 2 and (out / "notes.txt").read_text() == "mine" and "--overwrite" not in r.stderr
+    assert r.returncode == 2 and (out / "notes.txt").read_text() == "mine"
+    assert "holds a viewer page and files that are not its (notes.txt); --overwrite replaces only" in r.stderr
+    (out / "notes.txt").unlink()
+    # a review: a file in vendor/ and an audio.* the page does not name were deleted
+    for mine in ("vendor/mynotes.txt", "audio.mp3"):
+        (out / mine).write_text("mine")
+        r = laughlab("view", str(run_dir), "--out", str(out), "--overwrite")
+        assert r.returncode == 2 and (out / mine).read_text() == "mine" and f"not its ({mine})" in r.stderr
+        (out / mine).unlink()
+    assert laughlab("view", str(run_dir), "--out", str(out), "--overwrite").returncode == 0
     r = laughlab("view", str(run_dir), "--overwrite")
     assert r.returncode == 2 and r.stderr == "laughlab: error: view: --overwrite goes with --out FOLDER (see --help)\n"
+
+
+@pytest.mark.parametrize("name, cut, why", [
+    ("channels.csv", lambda t: t[:len(t) // 2], "line "),
+    ("channels.csv", lambda t: "time,mcs\nabc,def\n", "could not convert string to float: 'abc'"),
+    ("motion.bvh", lambda t: t[:len(t) // 2], "line "),
+    ("motion.bvh", lambda t: "garbage\n", "expected 'HIERARCHY'"),
+    ("events.csv", lambda t: "when,what\n1,2\n", "(no column 'time')"),
+])
+def test_a_damaged_file_of_the_run_is_one_line(run_dir, tmp_path, name, cut, why):
+    """A review: a channels.csv saved back by a spreadsheet or a copy cut short gave a traceback."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run)
+    (run / name).write_text(cut((run / name).read_text()))
+    r = laughlab("view", str(run), "--out", str(tmp_path / "site"))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert r.stderr.startswith(f"laughlab: error: {run / name} is damaged (") and why in r.stderr
+    assert r.stderr.endswith("; run it again to write it whole\n") and not (tmp_path / "site").exists()
+
+
+def test_view_out_writes_into_the_folder_named_and_leaves_nothing_on_failure(run_dir, tmp_path, monkeypatch):
+    """A review: --out a link to a folder failed ("cannot write RUN: OSError") and left an 8 MB .NAME.part; an
+    empty folder of mode 700 came back 755."""
+    import os
+
+    (tmp_path / "target").mkdir()
+    (tmp_path / "link").symlink_to(tmp_path / "target")
+    out, _ = V.write(run_dir, tmp_path / "link")
+    assert out == tmp_path / "target" and (tmp_path / "link" / "index.html").is_file()
+    assert (tmp_path / "link").is_symlink() and sorted(os.listdir(tmp_path)) == ["link", "target"]
+    (tmp_path / "mine").mkdir(mode=0o700)
+    (tmp_path / "mine").chmod(0o700)
+    V.write(run_dir, tmp_path / "mine")
+    assert (tmp_path / "mine" / "index.html").is_file() and (tmp_path / "mine").stat().st_mode & 0o777 == 0o700
+
+    def full(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(V.shutil, "copyfile", full)
+    with pytest.raises(V.LaughlabError, match=r"^cannot write the viewer page into .*site: No space left on device$"):
+        V.write(run_dir, tmp_path / "site")
+    assert sorted(os.listdir(tmp_path)) == ["link", "mine", "target"]
+
+
+def test_port_0_is_any_free_port_not_a_taken_one(run_dir, monkeypatch, capsys):
+    from laughlab.viewer import cli as view_cli
+
+    monkeypatch.setattr(V, "serve_until_interrupted", lambda httpd: httpd.server_close())
+    view_cli.main([str(run_dir), "--port", "0"])
+    said = capsys.readouterr().out
+    assert said.startswith(f"laughlab: viewing {run_dir} at http://127.0.0.1:") and "taken" not in said

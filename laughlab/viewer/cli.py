@@ -34,7 +34,7 @@ def main(args: list[str]) -> None:
               f"(e.g. {serve}) and open http://127.0.0.1:8000/")
         return
     httpd = V.server(ns.run_dir, ns.port, ns.character)
-    taken = f"port {ns.port} is taken; " if httpd.server_address[1] != ns.port else ""
+    taken = f"port {ns.port} is taken; " if httpd.server_address[1] != ns.port and ns.port != 0 else ""
     print(f"laughlab: {taken}viewing {ns.run_dir} at http://127.0.0.1:{httpd.server_address[1]}/ (Ctrl-C to stop)",
           flush=True)
     V.serve_until_interrupted(httpd)

@@ -44,12 +44,26 @@ def _channels_file(path: Path) -> dict[str, np.ndarray]:
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
     head, body = rows[0], rows[1:]
+    short = next((i + 2 for i, r in enumerate(body) if len(r) != len(head)), None)
+    if short is not None:
+        raise ValueError(f"line {short} has another number of values than the header (cut short or edited?)")
     out = {}
     for k, name in enumerate(head):
         if name == "label":
             continue
         out[name] = np.array([float(r[k]) if r[k] else np.nan for r in body])
     return out
+
+
+def _read(path: Path, reader):
+    """``reader(path)``, a file of the run that a spreadsheet saved back or a copy cut short turned into one line
+    naming it (a review: IndexError and ValueError tracebacks)."""
+    try:
+        return reader(path)
+    except (ValueError, IndexError, KeyError, TypeError, UnicodeDecodeError, csv.Error) as exc:
+        why = (f"no column {exc.args[0]!r}" if isinstance(exc, KeyError) and exc.args else
+               str(exc).replace(f"{path}: ", "").splitlines()[0] if str(exc) else type(exc).__name__)
+        raise LaughlabError(f"{path} is damaged ({why}); run it again to write it whole") from None
 
 
 def _clips(run_dir: Path, duration: float) -> list[dict]:
@@ -160,7 +174,7 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
         raise LaughlabError(f"{run_dir} is not a finished run: it has no {', '.join(missing)}")
     from laughlab.io.bvh import read_bvh
 
-    skeleton, motion, frame_time = read_bvh(run_dir / "motion.bvh")
+    skeleton, motion, frame_time = _read(run_dir / "motion.bvh", read_bvh)
     fps = 1.0 / frame_time  # the BVH's frame time is rounded: metrics.json has the run's own fps
     n = len(motion)
     duration = n / fps
@@ -168,7 +182,7 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
         m = json.loads((run_dir / "metrics.json").read_text())
         fps = float(m.get("fps", fps))
         duration = float(m.get("duration_s") or n / fps)
-    ch = _channels(run_dir)
+    ch = _read(run_dir / "channels.csv", _channels_file)
     files: dict[str, bytes | Path] = {}
     avatar = None
     if character is not None:
@@ -186,7 +200,7 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
     if audio is not None:
         files["audio" + audio.suffix.lower()] = audio
     pick = {k: [round(float(x), 4) if np.isfinite(x) else 0.0 for x in ch[k]] for k in ("mcs", "energy") if k in ch}
-    clips = _clips(run_dir, duration)
+    clips = _read(run_dir / "events.csv", lambda _: _clips(run_dir, duration))
     run = {"name": run_dir.resolve().name, "fps": fps, "duration": duration,
            "audio": ("audio" + audio.suffix.lower()) if audio is not None else None, "channels": pick,
            "clips": clips, "energy_max": max([c["energy"] for c in clips] + [max(pick.get("energy", [1.0]))]),
@@ -217,9 +231,16 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
     too, for any static web server.
     """
     out = Path(out)
-    earlier = (out.is_dir() and all((out / f).is_file() for f in PAGE_FILES)   # a page, and nothing of the user's
-               and all(p.name in (*PAGE_FILES, "vendor") or p.name.startswith("audio.") for p in out.iterdir()))
+    if out.is_symlink() and out.is_dir():   # a link to a folder: the page goes into that folder (a review)
+        out = out.resolve()
+    foreign = _not_the_pages(out)
+    earlier = foreign == []
     if out.exists() and (not out.is_dir() or any(out.iterdir())) and not (overwrite and earlier):
+        if overwrite and foreign:
+            from laughlab.core.errors import shown_names
+
+            raise LaughlabError(f"{out} holds a viewer page and files that are not its ({shown_names(foreign)}); "
+                                "--overwrite replaces only a viewer page: move them or choose another --out")
         again = " or add --overwrite to replace the viewer page in it" if earlier else ""
         raise LaughlabError(f"{out} exists and is not an empty folder; choose another --out{again}")
     files = assets(run_dir, character)
@@ -230,17 +251,45 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
                                       vrm=run["avatar"]["vrm"])
     tmp = out.with_name(f".{out.name}.part")
     shutil.rmtree(tmp, ignore_errors=True)
-    for name, data in files.items():
-        dest = tmp / name
-        dest.parent.mkdir(parents=True, exist_ok=True)
-        if isinstance(data, Path):
-            shutil.copyfile(data, dest)
-        else:
-            dest.write_bytes(data)
-    if out.exists():   # empty, or an earlier page (--overwrite): replaced whole once the new one is written
-        shutil.rmtree(out)
-    tmp.rename(out)
+    try:
+        for name, data in files.items():
+            dest = tmp / name
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            if isinstance(data, Path):
+                shutil.copyfile(data, dest)
+            else:
+                dest.write_bytes(data)
+        if out.exists():   # empty, or an earlier page (--overwrite): replaced whole once the new one is written,
+            tmp.chmod(out.stat().st_mode & 0o7777)   # with the folder's own permissions (a review: 700 became 755)
+            shutil.rmtree(out)
+        tmp.rename(out)
+    except OSError as exc:   # the folder named, not the run's (a review: "cannot write RUN: OSError")
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise LaughlabError(f"cannot write the viewer page into {out}: {exc.strerror or type(exc).__name__}") \
+            from None
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     return out, page.fits_inline(files["run.json"], glb)
+
+
+def _not_the_pages(out: Path) -> list[str] | None:
+    """The files in ``out`` that a viewer page :func:`write` wrote would not hold (beside its files, the vendored
+    scripts as this laughlab has them and the one audio file its ``run.json`` names), ``[]`` for a page and
+    nothing else; None if ``out`` holds no page.  (A review: ``--overwrite`` deleted a file of the user's put in
+    ``vendor/`` and any ``audio.*``.)"""
+    if not (out.is_dir() and all((out / f).is_file() for f in PAGE_FILES)):
+        return None
+    try:
+        audio = json.loads((out / "run.json").read_text()).get("audio")
+    except (ValueError, OSError, AttributeError):
+        return None
+    vendor = page.vendor_dir()
+    ours = {"vendor/" + f.relative_to(vendor).as_posix() for f in vendor.rglob("*") if f.is_file()}
+    held = {p.relative_to(out).as_posix() for p in (out / "vendor").rglob("*") if p.is_file()} \
+        if (out / "vendor").is_dir() else set()
+    return sorted(held - ours) + sorted(p.name for p in out.iterdir()
+                                        if p.name not in (*PAGE_FILES, "vendor") and p.name != audio)
 
 
 class _Handler(SimpleHTTPRequestHandler):
