@@ -485,7 +485,7 @@ def test_a_folder_of_two_experiments_sweeps_is_one_line_not_a_traceback(tmp_path
 
     for name, job in (("energy_ablation", "a/0"), ("concat_ablation", "b/0")):
         (tmp_path / job).mkdir(parents=True)
-        (tmp_path / job / "results.json").write_text(json.dumps({"experiment": name}))
+        (tmp_path / job / "results.json").write_text(json.dumps({"experiment": name, "results": {}}))
     with pytest.raises(LaughlabError, match=r"holds the results of 2 experiments \(concat_ablation, "
                                             r"energy_ablation\); report each point's folder on its own"):
         sweep_report(tmp_path, tmp_path / "rep", "cmd")
