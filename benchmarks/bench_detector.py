@@ -114,10 +114,9 @@ def step_cost(sr: int, seconds: float = 60.0, detector: str = "yamnet", params=N
             [round(float(np.median(ts[where == i])), 4) for i in range(hop)]}
 
 
-def run_pipeline(wav: Path, out: Path, detector: str, extra=()) -> dict:
-    """The default pipeline on ``wav`` with ``detector=...`` and ``extra`` overrides, run in this process as
-    ``python -m laughlab input=file input.path=WAV output=trial`` runs it (same bytes; no start-up per file),
-    and its metrics against the file's truth."""
+def run_trial(wav: Path, out: Path, overrides=()) -> TrialData:
+    """The default pipeline on ``wav`` with ``overrides``, run in this process as ``python -m laughlab input=file
+    input.path=WAV output=trial`` runs it (same bytes; no start-up per file), loaded with the file's truth."""
     import contextlib
     import io
 
@@ -126,13 +125,17 @@ def run_pipeline(wav: Path, out: Path, detector: str, extra=()) -> dict:
     from laughlab.core import pipeline
     from laughlab.harness.runner import _compose
 
-    cfg = _compose(["input=file", f"input.path={wav}", f"detector={detector}", "output=trial", "progress=off",
-                    *extra])
+    cfg = _compose(["input=file", f"input.path={wav}", "output=trial", "progress=off", *overrides])
     out.mkdir(parents=True, exist_ok=True)
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         pipeline.execute(pipeline.build(cfg), out, OmegaConf.to_container(cfg, resolve=True))
     truth = wav.with_name(wav.stem + ".truth.csv")
-    trial = TrialData.load(out, truth if truth.exists() else None)
+    return TrialData.load(out, truth if truth.exists() else None)
+
+
+def run_pipeline(wav: Path, out: Path, detector: str, extra=()) -> dict:
+    """:func:`run_trial` with ``detector=...`` and ``extra`` overrides, and its metrics against the file's truth."""
+    trial = run_trial(wav, out, [f"detector={detector}", *extra])
     m = compute(trial)
     starts = trial.starts()
     m["clip_starts"] = int(len(starts))

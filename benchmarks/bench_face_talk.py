@@ -24,8 +24,6 @@ from __future__ import annotations
 
 import argparse
 import concurrent.futures as cf
-import contextlib
-import io
 import json
 import sys
 import tempfile
@@ -46,19 +44,8 @@ FACES = ("smile", "facs")
 
 def run(job) -> dict:
     """One file through the default pipeline: the frames' smile and jaw, and the truth's bouts and speech."""
-    from omegaconf import OmegaConf
-
-    from laughlab.core import pipeline
-    from laughlab.harness.runner import _compose
-    from laughlab.harness.trialdata import TrialData
-
     wav, out, face, extra = job
-    cfg = _compose(["input=file", f"input.path={wav}", f"face={face}", "output=trial", "progress=off", *extra])
-    out.mkdir(parents=True, exist_ok=True)
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
-        pipeline.execute(pipeline.build(cfg), out, OmegaConf.to_container(cfg, resolve=True))
-    truth = wav.with_name(wav.stem + ".truth.csv")
-    t = TrialData.load(out, truth if truth.exists() else None)
+    t = B.run_trial(wav, out, [f"face={face}", *extra])
     times = t.channels["time"].to_numpy()
     smile, jaw = t.channels["smile"].to_numpy(), t.channels["jaw"].to_numpy()
     res = {"frames": len(times), "smile_over": int((smile > 0.5).sum()), "jaw_over": int((jaw > 0.3).sum()),
