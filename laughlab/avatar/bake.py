@@ -2,8 +2,9 @@
 
 Everything of the avatar file is kept (meshes, skins, materials, textures, its VRM extension);
 the animation is appended: the humanoid bones' local rotations and the hips' translation per
-frame (:func:`laughlab.avatar.retarget.retarget`), and every mesh node's morph weights per frame
-(:func:`laughlab.avatar.expressions.morph_weights`).  ``scenes[0].extras.laughlab`` carries fps,
+frame (:func:`laughlab.avatar.retarget.retarget`), and the morph weights per frame of every mesh node
+with a target the run drives (:func:`laughlab.avatar.expressions.morph_weights`; its other targets
+keep the avatar's default weights; a node with none driven gets no ``weights`` channel).  ``scenes[0].extras.laughlab`` carries fps,
 frames and the input audio's duration as in laughlab's own ``character.glb``.
 """
 from __future__ import annotations
@@ -13,7 +14,7 @@ from typing import Mapping
 
 import numpy as np
 
-from laughlab.avatar.expressions import breath_on_bones, breathing_pose, morph_weights
+from laughlab.avatar.expressions import breath_on_bones, breathing_pose, driven_morphs, morph_weights
 from laughlab.avatar.load import Avatar
 from laughlab.avatar.retarget import retarget
 from laughlab.io.gltf import Buffer, glb_bytes, hold_to_end
@@ -46,8 +47,10 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
     track(avatar.bones["hips"], "translation", moved.hips_translation)
     for k, node in enumerate(moved.nodes):
         track(node, "rotation", moved.rotations[:, k])
+    driven = driven_morphs(avatar, arkit, breath)
     for node, w in sorted(morph_weights(avatar, arkit, breath, len(times)).items()):
-        track(node, "weights", w.reshape(-1))
+        if driven.get(node):   # a node none of whose targets the run drives keeps its own weights: no channel
+            track(node, "weights", w.reshape(-1))
     doc.setdefault("animations", []).insert(0, {"name": "laugh", "samplers": samplers, "channels": channels})
     scene = doc.get("scene", 0)
     if doc.get("scenes"):

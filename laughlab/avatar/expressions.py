@@ -86,9 +86,35 @@ def expression_weights(avatar: Avatar, arkit: Mapping[str, np.ndarray], n: int) 
     return out
 
 
+def driven_morphs(avatar: Avatar, arkit: Mapping[str, np.ndarray] | set,
+                  breath: Mapping[str, np.ndarray] | set) -> dict[int, list[int]]:
+    """Mesh node -> the indices of its morph targets that the run's face and breathing set (the targets
+    :func:`morph_weights` computes; every other target keeps the avatar's default weight)."""
+    out: dict[int, set[int]] = {}
+    if has_arkit_morphs(avatar):
+        for node, names in avatar.morph_names.items():
+            for k, name in enumerate(names):
+                if arkit_morph(name) in arkit:
+                    out.setdefault(node, set()).add(k)
+    else:
+        for expr in expression_weights(avatar, {}, 0):
+            for node, index, _ in avatar.expressions.get(expr, []):
+                if 0 <= index < len(avatar.morph_names.get(node, ())):
+                    out.setdefault(node, set()).add(index)
+    for node, names in avatar.morph_names.items():
+        for k, name in enumerate(names):
+            if name.lower() in breath:
+                out.setdefault(node, set()).add(k)
+    return {node: sorted(ks) for node, ks in sorted(out.items())}
+
+
 def morph_weights(avatar: Avatar, arkit: Mapping[str, np.ndarray], breath: Mapping[str, np.ndarray],
                   n: int) -> dict[int, np.ndarray]:
-    """Mesh node -> its morph targets' weights per frame ``(F, T)`` in [0, 1]."""
+    """Mesh node -> its morph targets' weights per frame ``(F, T)``: the targets :func:`driven_morphs` names
+    computed and clipped to [0, 1], every other target at the avatar's default weight
+    (:attr:`Avatar.morph_defaults`: a glTF ``weights`` channel sets every target of its node, so a target the
+    run does not drive must carry the weight the avatar file gives it, not 0)."""
+    driven = driven_morphs(avatar, arkit, breath)
     out = {node: np.zeros((n, len(names))) for node, names in avatar.morph_names.items() if names}
     if has_arkit_morphs(avatar):
         for node, names in avatar.morph_names.items():
@@ -105,7 +131,13 @@ def morph_weights(avatar: Avatar, arkit: Mapping[str, np.ndarray], breath: Mappi
         for k, name in enumerate(names):
             if name.lower() in breath:
                 out[node][:, k] = breath[name.lower()]
-    return {node: np.clip(np.nan_to_num(w), 0.0, 1.0) for node, w in out.items()}
+    for node, w in out.items():
+        ks = driven.get(node, [])
+        default = np.asarray(avatar.morph_defaults.get(node, np.zeros(w.shape[1])), dtype=np.float64)
+        w[:, ks] = np.clip(np.nan_to_num(w[:, ks]), 0.0, 1.0)
+        rest = np.setdiff1d(np.arange(w.shape[1]), ks)
+        w[:, rest] = default[rest]
+    return out
 
 
 def breath_on_bones(avatar: Avatar, breath: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:

@@ -52,6 +52,10 @@ class Avatar:
         Expression name (VRM 1.0 preset names, 0.x names translated) -> list of (mesh node, morph index, weight).
     morph_names : dict
         Mesh node index -> its morph target names ('' where unnamed).
+    morph_defaults : dict
+        Mesh node index -> its morph targets' default weights: the node's ``weights``, else its mesh's,
+        else zeros (glTF 2.0, 3.7.2.2 *Morph Targets*: ``mesh.weights`` holds the default weights, used where the
+        node has no ``weights`` of its own; without either, the defaults are 0).
     """
 
     path: Path
@@ -65,6 +69,7 @@ class Avatar:
     facing: int
     expressions: dict = field(default_factory=dict)
     morph_names: dict = field(default_factory=dict)
+    morph_defaults: dict = field(default_factory=dict)
 
     @property
     def order(self) -> list[int]:
@@ -259,6 +264,16 @@ def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> dict
     return out
 
 
+def _default_weights(node: dict, mesh: dict, n: int) -> np.ndarray:
+    """A mesh node's default morph weights: ``node.weights``, else ``mesh.weights``, else zeros (glTF 2.0,
+    3.7.2.2 *Morph Targets* and 5.25 ``node.weights``); a list of the wrong length or not numbers is ignored."""
+    for w in (node.get("weights"), mesh.get("weights")):
+        if isinstance(w, list) and len(w) == n and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in w):
+            return np.nan_to_num(np.asarray(w, dtype=np.float64))
+    return np.zeros(n)
+
+
 def load_avatar(path: str | Path) -> Avatar:
     """Read and check an avatar file (see the module's docstring)."""
     path = Path(path)
@@ -295,5 +310,6 @@ def load_avatar(path: str | Path) -> Avatar:
             if not names:
                 names = list((prims[0].get("extras") or {}).get("targetNames") or [])
             av.morph_names[i] = (names + [""] * n_t)[:n_t]
+            av.morph_defaults[i] = _default_weights(nd, mesh, n_t)
     av.expressions = _expressions(doc, kind, mesh_nodes)
     return av
