@@ -1,0 +1,50 @@
+"""A review of laughlab on users' avatars (2026-11-27, /work/exp/review-avatar.md): the avatar file itself:
+read once, its textures carried into character.glb, what laughlab cannot read refused in one line."""
+import shutil
+from pathlib import Path
+
+import pytest
+from omegaconf import OmegaConf
+
+from laughlab.core import pipeline
+from laughlab.core.config import compose_config
+from laughlab.io.gltf import parse_glb, read_glb
+
+ASSETS = Path(__file__).parent / "assets" / "avatars"
+GODETTE = ASSETS / "Godette_vrm_v4.vrm"
+ROBOT = ASSETS / "debug_robot.vrm"
+
+
+def _build(tmp_path, *overrides):
+    cfg = compose_config([*overrides])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+    return pipeline.build(cfg)
+
+
+def _cli(tmp_path, *args):
+    from inprocess import laughlab
+
+    return laughlab(*args, f"hydra.run.dir={tmp_path / 'run'}")
+
+
+def _one_line(out, tmp_path, says):
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.strip().count("\n") == 0 and "Traceback" not in out.stderr, out.stderr
+    assert out.stderr.startswith("laughlab: error: ") and says in out.stderr, out.stderr
+    assert not (tmp_path / "run").exists()
+
+
+# -- 12: the avatar checked at the start is the avatar baked at the end ---------------------------------------
+
+@pytest.mark.parametrize("replacement", [b"not an avatar any more", "robot"])
+def test_the_avatar_replaced_during_the_run_is_not_read_again(tmp_path, replacement):
+    """Review 12: the gltf sink read the file again at the end: replaced by garbage, a traceback and the run lost;
+    replaced by another avatar, that one baked though it was never checked."""
+    path = tmp_path / "swap.vrm"
+    shutil.copy(GODETTE, path)
+    pipe = _build(tmp_path, "output=gltf", "face=facs", "input.duration_s=1", f"character={path}")
+    path.write_bytes(ROBOT.read_bytes() if replacement == "robot" else replacement)
+    pipeline.execute(pipe, tmp_path / "run")
+    doc, _ = read_glb(tmp_path / "run" / "character.glb")
+    godette, _ = parse_glb(GODETTE.read_bytes())
+    assert len(doc["nodes"]) == len(godette["nodes"]) and "VRM" in doc["extensions"]
