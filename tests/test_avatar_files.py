@@ -48,3 +48,39 @@ def test_the_avatar_replaced_during_the_run_is_not_read_again(tmp_path, replacem
     doc, _ = read_glb(tmp_path / "run" / "character.glb")
     godette, _ = parse_glb(GODETTE.read_bytes())
     assert len(doc["nodes"]) == len(godette["nodes"]) and "VRM" in doc["extensions"]
+
+
+# -- 3: required extensions laughlab cannot read -----------------------------------------------------------------
+
+def _robot_requiring(path: Path, *names: str) -> Path:
+    from test_avatar import _robot_edited
+
+    def edit(doc):
+        doc["extensionsUsed"] = list(doc.get("extensionsUsed", [])) + list(names)
+        doc["extensionsRequired"] = list(names)
+
+    return _robot_edited(edit, path)
+
+
+@pytest.mark.parametrize("ext, says", [
+    ("KHR_draco_mesh_compression", "export it without mesh compression (Draco)"),
+    ("EXT_meshopt_compression", "export it without mesh compression (meshopt)"),
+    ("KHR_texture_basisu", "export its textures as PNG or JPEG"),
+    ("EXT_some_future_thing", "export it without that extension"),
+])
+def test_an_avatar_requiring_an_extension_laughlab_cannot_read_is_one_line(tmp_path, ext, says):
+    """Review 3: a Draco-compressed avatar (an RPM download option) read its vertices as zeros: a blank video and a
+    broken viewer page, both with exit 0."""
+    path = _robot_requiring(tmp_path / "draco.vrm", ext)
+    for output in ("output=gltf", "output=video"):
+        out = _cli(tmp_path, output, "input.duration_s=1", f"character={path}")
+        _one_line(out, tmp_path, f"{path}: the avatar requires the glTF extension {ext}, which laughlab cannot "
+                                 f"read; {says}")
+
+
+def test_required_extensions_laughlab_reads_are_fine(tmp_path):
+    from laughlab.avatar.load import load_avatar
+
+    path = _robot_requiring(tmp_path / "q.vrm", "KHR_mesh_quantization", "KHR_texture_transform",
+                            "KHR_materials_unlit")
+    assert load_avatar(path).kind == "vrm1"

@@ -2,6 +2,7 @@
 avatar's joints are where the retargeting puts them, its morphs follow the face channels, the camera frames it
 above the control bar; with ``--out`` the page opens from the disk (three-vrm inside its import map)."""
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -173,5 +174,26 @@ def test_the_avatar_page_written_with_out_plays_opened_as_a_file(godette_site, r
         shows_godette(page.screenshot(), page.eval("window.laughlab.onScreen()"))
         whole_character_above_the_bar(page, times=(0.5, 2.0, 3.5))
         joints_where_the_retargeting_puts_them(page, ASSETS / "Godette_vrm_v4.vrm", run_dir, 140)
+    finally:
+        page.close()
+
+
+@pytest.mark.browser
+def test_a_character_that_does_not_load_is_not_blamed_on_the_file_url(godette_site, tmp_path):
+    """Review 3: a character three.js could not read (a Draco mesh without a DRACOLoader) showed 'This page was
+    opened as a file ... Serve its folder', which does not help; that advice is for files the page cannot read."""
+    import re
+
+    text = (godette_site / "index.html").read_text()
+    broken = re.sub(r'(<script type="application/octet-stream" id="laughlab-glb">)[^<]*', r"\1Z2xURgIAAAA=", text)
+    assert broken != text
+    (tmp_path / "index.html").write_text(broken)
+    page = Page((tmp_path / "index.html").as_uri())
+    try:
+        msg, t0 = None, time.time()
+        while msg is None and time.time() - t0 < 60:
+            msg = page.eval("(m => m && !m.hidden ? m.textContent : null)(document.getElementById('msg'))")
+            time.sleep(0.2)
+        assert msg is not None and msg.startswith("The viewer could not start: ") and "opened as a file" not in msg
     finally:
         page.close()

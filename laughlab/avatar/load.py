@@ -24,6 +24,19 @@ from laughlab.avatar.names import REQUIRED, bones_by_name
 MAX_BYTES = 100 * 1024 * 1024
 """The largest avatar file laughlab loads (100 MB)."""
 
+#: extensions an avatar may list in ``extensionsRequired`` that laughlab reads (or may ignore without drawing
+#: anything wrong): integer vertex attributes, and material looks (the video uses the base colour; three.js
+#: renders them); any other required extension is refused: glTF 2.0 (3.12 *Specifying Extensions*) lists in
+#: ``extensionsRequired`` the extensions an asset cannot be loaded without
+READS_REQUIRED = ("KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_")
+
+#: required extensions laughlab cannot read -> what to do instead
+NOT_READ = {
+    "KHR_draco_mesh_compression": "export it without mesh compression (Draco)",
+    "EXT_meshopt_compression": "export it without mesh compression (meshopt)",
+    "KHR_texture_basisu": "export its textures as PNG or JPEG (not KTX2/Basis)",
+}
+
 
 @dataclass
 class Avatar:
@@ -264,6 +277,19 @@ def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> dict
     return out
 
 
+def _check_required(path: Path, doc: dict) -> None:
+    """Refuse an avatar that requires an extension laughlab cannot read (a Draco-compressed mesh read as zeros
+    drew nothing and the viewer failed, a review found, both with exit 0)."""
+    required = doc.get("extensionsRequired") or []
+    if not isinstance(required, list):
+        raise _fail(path, "its extensionsRequired is not a list; the file is damaged")
+    for name in required:
+        if not isinstance(name, str) or not name.startswith(READS_REQUIRED):
+            hint = NOT_READ.get(name, "export it without that extension")
+            raise _fail(path, f"the avatar requires the glTF extension {name}, which laughlab cannot read; "
+                              f"{hint}")
+
+
 def _default_weights(node: dict, mesh: dict, n: int) -> np.ndarray:
     """A mesh node's default morph weights: ``node.weights``, else ``mesh.weights``, else zeros (glTF 2.0,
     3.7.2.2 *Morph Targets* and 5.25 ``node.weights``); a list of the wrong length or not numbers is ignored."""
@@ -281,6 +307,7 @@ def load_avatar(path: str | Path) -> Avatar:
     nodes = doc.get("nodes") or []
     if not nodes:
         raise _fail(path, "has no nodes, so no skeleton")
+    _check_required(path, doc)
     check_structure(path, doc, binary)
     kind, bones = _humanoid(path, doc)
     n = len(nodes)
