@@ -206,10 +206,14 @@ class VideoSink(Sink):
                     audio = source_audio(run.source, self.tmp_dir)
             self.audio = audio
             if self.avatar is not None:
+                from laughlab.avatar.errors import AvatarError
                 from laughlab.render.avatar_view import AvatarRenderer
 
-                self.renderer = AvatarRenderer(self.avatar, run.skeleton, p.width, p.height,
-                                               Camera(**vars(p.character_camera)), p.supersample)
+                try:
+                    self.renderer = AvatarRenderer(self.avatar, run.skeleton, p.width, p.height,
+                                                   Camera(**vars(p.character_camera)), p.supersample)
+                except AvatarError as exc:   # a texture whose pixels do not decode: the avatar's line, not ours
+                    raise LaughlabError(str(exc)) from None
             elif p.style == "character":
                 from laughlab.render.character_view import CharacterRenderer
 

@@ -1,8 +1,10 @@
 """A review of laughlab on users' avatars (2026-11-27, /work/exp/review-avatar.md): the avatar file itself:
 read once, its textures carried into character.glb, what laughlab cannot read refused in one line."""
+import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
@@ -84,3 +86,64 @@ def test_required_extensions_laughlab_reads_are_fine(tmp_path):
     path = _robot_requiring(tmp_path / "q.vrm", "KHR_mesh_quantization", "KHR_texture_transform",
                             "KHR_materials_unlit")
     assert load_avatar(path).kind == "vrm1"
+
+
+# -- 2 and 11: a .gltf's texture files ----------------------------------------------------------------------------
+
+def _godette_as_gltf(folder: Path) -> Path:
+    """Godette as a .gltf + .bin with her images as files 'tex N.png' beside it (URIs percent-encoded), in a
+    folder whose name has a space, as Blender exports 'glTF Separate'."""
+    doc, binary = parse_glb(GODETTE.read_bytes())
+    folder.mkdir(parents=True)
+    for i, img in enumerate(doc["images"]):
+        view = doc["bufferViews"][img.pop("bufferView")]
+        ext = {"image/png": "png", "image/jpeg": "jpg"}[img.pop("mimeType")]
+        (folder / f"tex {i}.{ext}").write_bytes(binary[view.get("byteOffset", 0):
+                                                       view.get("byteOffset", 0) + view["byteLength"]])
+        img["uri"] = f"tex%20{i}.{ext}"
+    (folder / "Godette copy.bin").write_bytes(binary)
+    doc["buffers"] = [{"uri": "Godette%20copy.bin", "byteLength": len(binary)}]
+    path = folder / "Godette copy.gltf"
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_a_gltfs_texture_files_are_carried_into_character_glb(tmp_path):
+    """Review 2: the images' relative URIs were copied as they were into character.glb, in the run's folder where
+    those files are not: the avatar showed white in the viewer.  Now the baked file holds them."""
+    from laughlab.avatar.load import load_avatar
+    from laughlab.avatar.mesh import parts
+
+    path = _godette_as_gltf(tmp_path / "my avatars")
+    out = _cli(tmp_path, "output=gltf", "face=facs", "input.duration_s=1", f"character={path}")
+    assert out.returncode == 0, out.stderr
+    baked = tmp_path / "run" / "character.glb"
+    doc, binary = read_glb(baked)
+    assert doc["images"] and all("uri" not in img for img in doc["images"])
+    for i, img in enumerate(doc["images"]):
+        view = doc["bufferViews"][img["bufferView"]]
+        data = binary[view.get("byteOffset", 0):view.get("byteOffset", 0) + view["byteLength"]]
+        assert data == next((tmp_path / "my avatars").glob(f"tex {i}.*")).read_bytes()
+        assert img["mimeType"] in ("image/png", "image/jpeg")
+    # the baked file, alone in another folder, has Godette's colours (what the video and the viewer draw)
+    alone = tmp_path / "elsewhere" / "character.glb"
+    alone.parent.mkdir()
+    alone.write_bytes(baked.read_bytes())
+    got = np.concatenate([p.colours for p in parts(load_avatar(alone))])
+    want = np.concatenate([p.colours for p in parts(load_avatar(GODETTE))])
+    np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("damage, says", [
+    (lambda f: f.write_bytes(np.random.default_rng(0).bytes(4000)), "is not an image laughlab can read"),
+    (lambda f: f.unlink(), "cannot be read (No such file or directory); put it beside the avatar"),
+    (lambda f: f.write_bytes(f.read_bytes()[:200]), "is not an image laughlab can read"),
+], ids=["random-bytes", "missing", "cut-short"])
+def test_a_texture_that_cannot_be_read_is_one_line_at_start_up(tmp_path, damage, says):
+    """Review 11: a texture Pillow could not decode stopped a video run half-way, reported as 'cannot write the run
+    folder: UnidentifiedImageError'.  Now the avatar is refused when it is loaded, naming the image."""
+    path = _godette_as_gltf(tmp_path / "bad tex")
+    damage(tmp_path / "bad tex" / "tex 0.png")
+    for output in ("output=video", "output=gltf"):
+        out = _cli(tmp_path, output, "input.duration_s=1", f"character={path}")
+        _one_line(out, tmp_path, f"{path}: its texture 'tex 0.png' {says}")

@@ -1,6 +1,7 @@
 """A user's avatar with a run baked in: the avatar's own glTF plus one animation, ``laugh``.
 
-Everything of the avatar file is kept (meshes, skins, materials, textures, its VRM extension);
+Everything of the avatar file is kept (meshes, skins, materials, textures, its VRM extension); the
+images of a ``.gltf`` (files beside it, ``data:`` URIs) are put into the file's buffer, so it is whole;
 the animation is appended: the humanoid bones' local rotations and the hips' translation per
 frame (:func:`laughlab.avatar.retarget.retarget`), and the morph weights per frame of every mesh node
 with a target the run drives (:func:`laughlab.avatar.expressions.morph_weights`; its other targets
@@ -15,6 +16,7 @@ from typing import Mapping
 import numpy as np
 
 from laughlab.avatar.expressions import breath_on_bones, breathing_pose, driven_morphs, morph_weights
+from laughlab.avatar.images import embed_images
 from laughlab.avatar.load import Avatar
 from laughlab.avatar.retarget import retarget
 from laughlab.io.gltf import Buffer, glb_bytes, hold_to_end
@@ -36,6 +38,7 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
     moved = retarget(avatar, poses, skeleton)
     doc = copy.deepcopy(avatar.doc)
     buf = Buffer(avatar.binary, doc.get("bufferViews"), doc.get("accessors"))
+    embed_images(doc, avatar.images, buf)   # a .gltf's texture files: into the file, which goes elsewhere
     t_in = buf.accessor(times, minmax=True)
     samplers, channels = [], []
 

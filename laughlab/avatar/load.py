@@ -13,12 +13,12 @@ import json
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
-from urllib.parse import unquote
 
 import numpy as np
 
 from laughlab.avatar.check import check_bones, check_structure
 from laughlab.avatar.errors import AvatarError
+from laughlab.avatar.images import beside, read_images
 from laughlab.avatar.names import REQUIRED, bones_by_name
 
 MAX_BYTES = 100 * 1024 * 1024
@@ -69,6 +69,9 @@ class Avatar:
         Mesh node index -> its morph targets' default weights: the node's ``weights``, else its mesh's,
         else zeros (glTF 2.0, 3.7.2.2 *Morph Targets*: ``mesh.weights`` holds the default weights, used where the
         node has no ``weights`` of its own; without either, the defaults are 0).
+    images : dict
+        Image index -> its bytes, for the images outside the buffer (files beside a ``.gltf``, ``data:`` URIs),
+        read once at load (:func:`laughlab.avatar.images.read_images`: every image checked by Pillow).
     """
 
     path: Path
@@ -83,6 +86,7 @@ class Avatar:
     expressions: dict = field(default_factory=dict)
     morph_names: dict = field(default_factory=dict)
     morph_defaults: dict = field(default_factory=dict)
+    images: dict = field(default_factory=dict)
 
     @property
     def order(self) -> list[int]:
@@ -136,16 +140,6 @@ def read_gltf(path: str | Path) -> tuple[dict, bytes]:
         raise _fail(path, f"its buffer holds {len(binary):,} bytes where the file declares {declared:,}: "
                           "it is cut short")
     return doc, binary
-
-
-def beside(path: Path, uri: str) -> Path:
-    """The file a glTF's relative ``uri`` names, which must lie in the avatar's folder or below it: a URI such as
-    ``../../etc/passwd`` would copy any readable file into the exported character and its web page."""
-    target = (path.parent / unquote(uri)).resolve()
-    if not target.is_relative_to(path.parent.resolve()):
-        raise _fail(path, f"its file {uri!r} lies outside the avatar's folder; laughlab reads only files beside "
-                          "the avatar")
-    return target
 
 
 def _read_gltf(path: Path) -> tuple[dict, bytes]:
@@ -318,6 +312,7 @@ def load_avatar(path: str | Path) -> Avatar:
                 parents[c] = i
     rest_local = np.array([local_matrix(nd) for nd in nodes])
     av = Avatar(path, kind, doc, binary, bones, parents, rest_local, np.zeros_like(rest_local), 1)
+    av.images = read_images(path, doc, binary)
     order = av.order
     for i in order:
         av.rest_world[i] = rest_local[i] if parents[i] < 0 else av.rest_world[parents[i]] @ rest_local[i]

@@ -75,16 +75,19 @@ def _texture(avatar: Avatar, tex_index: int, cache: dict) -> np.ndarray | None:
     src = (doc.get("textures") or [{}])[tex_index].get("source")
     if src is not None:
         image = doc["images"][src]
-        if "bufferView" in image:
+        if src in avatar.images:    # read from its file (or data: URI) when the avatar was loaded
+            data = avatar.images[src]
+        else:
             view = doc["bufferViews"][image["bufferView"]]
             data = avatar.binary[view.get("byteOffset", 0):view.get("byteOffset", 0) + view["byteLength"]]
+        try:
             img = np.asarray(Image.open(io.BytesIO(data)).convert("RGBA").convert("RGB"), dtype=np.float64)
-        elif image.get("uri") and not image["uri"].startswith("data:"):
-            from laughlab.avatar.load import beside
+        except Exception as exc:   # identified at load (laughlab.avatar.images), but its pixels do not decode
+            from laughlab.avatar.errors import AvatarError
+            from laughlab.avatar.images import image_name
 
-            p = beside(avatar.path, image["uri"])   # outside the avatar's folder: refused in one line
-            if p.is_file():
-                img = np.asarray(Image.open(p).convert("RGBA").convert("RGB"), dtype=np.float64)
+            raise AvatarError(f"{avatar.path}: its texture {image_name(doc, src)!r} cannot be decoded "
+                              f"({type(exc).__name__}); save it again as PNG or JPEG") from None
     cache[tex_index] = img
     return img
 
