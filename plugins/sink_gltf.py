@@ -49,6 +49,9 @@ class GltfSink(Sink):
             # and keep it: the end of the run bakes this avatar, the one checked, not the file as it is then
             # (replaced or re-exported during a long run, a review found: a traceback, or another avatar baked)
             self.avatar = load_character(self.params.character)
+            from laughlab.avatar.expressions import say_face_route
+
+            say_face_route(self.avatar)
 
     def open(self, run) -> None:
         super().open(run)

@@ -5,6 +5,7 @@ a few frames with known ARKit weights and reads the weights back from the baked 
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from laughlab.avatar.bake import baked_glb
 from laughlab.avatar.load import load_avatar
@@ -103,3 +104,98 @@ def test_a_mesh_with_no_driven_morph_gets_no_weights_channel(tmp_path):
     av = load_avatar(tmp_path / "fuse.glb")
     got = morph_weights(av, ARKIT, BREATH, 3)
     np.testing.assert_allclose(got[mesh_node(doc)], 0.3)
+
+
+# -- 4: ARKit's raw names ---------------------------------------------------------------------------------------
+
+def test_arkit_raw_names_are_driven_as_the_swift_names(tmp_path):
+    """Review 4: ARKit's BlendShapeLocation raw values (eyeBlink_L, mouthSmile_R, ...) were not recognised: only
+    jawOpen, browInnerUp and the breathing moved."""
+    import re
+
+    def edit(doc):
+        doc["meshes"][0]["extras"]["targetNames"] = [
+            re.sub(r"(Left|Right)$", lambda m: "_" + m.group(1)[0], n) for n in doc["meshes"][0]["extras"]["targetNames"]]
+
+    doc, w = bake(edited(mannequin_arkit_glb, edit, tmp_path / "raw.glb"))
+    names = doc["meshes"][0]["extras"]["targetNames"]
+    node = mesh_node(doc)
+    assert "eyeBlink_L" in names and "mouthSmile_R" in names
+    for raw, arkit in (("eyeBlink_L", "eyeBlinkLeft"), ("eyeBlink_R", "eyeBlinkRight"), ("mouthSmile_L", "mouthSmileLeft"),
+                       ("mouthSmile_R", "mouthSmileRight"), ("browDown_L", "browDownLeft"), ("jawOpen", "jawOpen")):
+        np.testing.assert_allclose(w[node][:, names.index(raw)], ARKIT[arkit], atol=1e-7)
+    from laughlab.avatar.expressions import arkit_morph
+
+    assert [arkit_morph(n) for n in ("eyeBlink_Left", "blendShape1.cheekSquint_R", "EYEBLINK_l", "chest_L")] == \
+        ["eyeBlinkLeft", "cheekSquintRight", "eyeBlinkLeft", None]
+
+
+# -- 5 and 9: ARKit morphs and VRM expressions decided expression by expression; the line saying which -----------
+
+def test_one_arkit_named_morph_does_not_switch_off_the_vrm_expressions(tmp_path):
+    """Review 5: Godette with her unused HideBlush morph renamed tongueOut lost every expression (the choice was
+    all-or-nothing): no mouth, blink or smile.  Now she laughs as before; and an ARKit morph that is an input of an
+    expression takes its weight itself, the expression being left out (no double drive)."""
+    def tongue(doc):
+        prim = next(p for m in doc["meshes"] for p in m["primitives"] if (p.get("extras") or {}).get("targetNames"))
+        prim["extras"]["targetNames"][2] = "tongueOut"
+
+    plain_doc, plain = bake(GODETTE)
+    doc, w = bake(edited(GODETTE, tongue, tmp_path / "tongue.vrm"))
+    assert plain and set(w) == set(plain)
+    for node in w:
+        np.testing.assert_array_equal(w[node], plain[node])   # tongueOut is not driven by laughlab's faces
+    assert max(v.max() for v in w.values()) > 0.5
+
+    def blink_morph(doc):   # her left-eye blink morph renamed as ARKit's: it takes eyeBlinkLeft, blinkLeft is out
+        prim = next(p for m in doc["meshes"] for p in m["primitives"] if (p.get("extras") or {}).get("targetNames"))
+        names = prim["extras"]["targetNames"]
+        names[names.index("blink_left")] = "eyeBlinkLeft"
+
+    from laughlab.avatar.expressions import face_route, used_expressions
+
+    path = edited(GODETTE, blink_morph, tmp_path / "blink.vrm")
+    av = load_avatar(path)
+    assert "blinkLeft" not in used_expressions(av, ARKIT) and "happy" in used_expressions(av, ARKIT)
+    doc, w = bake(path)
+    node = next(n for n, names in av.morph_names.items() if "eyeBlinkLeft" in names)
+    k = av.morph_names[node].index("eyeBlinkLeft")
+    np.testing.assert_allclose(w[node][:, k], ARKIT["eyeBlinkLeft"], atol=1e-7)
+    assert face_route(av)["line"].startswith("face: ") and "1 ARKit-named morph and the VRM expressions aa" in \
+        face_route(av)["line"]
+
+
+@pytest.mark.parametrize("edit, says", [
+    (None, "face: 11 of 15 morphs of {name} driven, through the VRM expressions aa, ih, ee, happy, relaxed, sad, "
+           "angry, blinkLeft, blinkRight"),
+    (lambda d: d["extensions"]["VRM"]["blendShapeMaster"].update(blendShapeGroups=[]),
+     "face: 0 of 15 morphs of {name} driven: no ARKit-named morph and no VRM expression laughlab maps"),
+])
+def test_the_run_says_in_one_line_how_the_face_drives_the_avatar(tmp_path, edit, says):
+    """Review 9: a face laughlab cannot drive was silent.  Now one line at start-up says the route and how many
+    morphs move, and character.glb's extras hold the counts.  (    Godette without her blend shape groups has no expression: 0 morphs.)"""
+    from inprocess import laughlab
+
+    path = tmp_path / "face.glb"
+    edited(GODETTE, edit, path) if edit else path.write_bytes(GODETTE.read_bytes())
+    out = laughlab("output=gltf", "face=facs", "input.duration_s=1", f"character={path}",
+                   f"hydra.run.dir={tmp_path / 'run'}")
+    assert out.returncode == 0, out.stderr
+    said = [ln for ln in out.stderr.splitlines() if ln.startswith("laughlab: face: ")]
+    assert len(said) == 1 and said[0].startswith(f"laughlab: {says.format(name=path.name)}"), out.stderr
+    doc, _ = parse_glb((tmp_path / "run" / "character.glb").read_bytes())
+    face = doc["scenes"][0]["extras"]["laughlab"]["face"]
+    weights = [w for ch, w in _weights(doc, tmp_path / "run" / "character.glb")]
+    moving = sum(int((w.max(axis=0) > w.min(axis=0)).sum()) for w in weights)
+    assert face["morphs"] == 15 and (face["morphs_driven"] == moving == 0 if edit else 0 < moving <= face[
+        "morphs_driven"] <= 11), (face, moving)
+
+
+def _weights(doc, path):
+    _, binary = parse_glb(path.read_bytes())
+    anim = doc["animations"][0]
+    for ch in anim["channels"]:
+        if ch["target"]["path"] == "weights":
+            s = anim["samplers"][ch["sampler"]]
+            t = accessor_array(doc, binary, s["input"])
+            yield ch, accessor_array(doc, binary, s["output"]).reshape(len(t), -1)

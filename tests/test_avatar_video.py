@@ -1,5 +1,6 @@
 """Issue 28, item 3: ``output=video character=PATH``: the user's avatar rendered in software, its colours and
 textures, the same bytes for the same run."""
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -67,6 +68,10 @@ def test_output_video_on_the_avatar_is_the_same_bytes_for_the_same_run(tmp_path)
                if k == 0 else laughlab(*args))
         assert out.returncode == 0, out.stderr
         outs.append((d / "video.mp4").read_bytes())
+        # the route of the face said in one line and counted in metrics.json (review-avatar 9)
+        assert "laughlab: face: " in out.stderr or k == 1   # said once a process: this one said it before
+        metrics = json.loads((d / "metrics.json").read_text())
+        assert metrics["avatar_morphs"] == 15 and 0 < metrics["avatar_morphs_driven"] <= 11, metrics
     assert outs[0] == outs[1] and len(outs[0]) > 10_000
 
 

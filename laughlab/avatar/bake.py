@@ -5,8 +5,10 @@ images of a ``.gltf`` (files beside it, ``data:`` URIs) are put into the file's 
 the animation is appended: the humanoid bones' local rotations and the hips' translation per
 frame (:func:`laughlab.avatar.retarget.retarget`), and the morph weights per frame of every mesh node
 with a target the run drives (:func:`laughlab.avatar.expressions.morph_weights`; its other targets
-keep the avatar's default weights; a node with none driven gets no ``weights`` channel).  ``scenes[0].extras.laughlab`` carries fps,
-frames and the input audio's duration as in laughlab's own ``character.glb``.
+keep the avatar's default weights; a node with none driven gets no ``weights`` channel).
+``scenes[0].extras.laughlab`` carries fps, frames and the input audio's duration as in laughlab's own
+``character.glb``, and ``face``: the number of morph targets, how many the face drove, and the VRM
+expressions it used (:func:`laughlab.avatar.expressions.face_route`).
 """
 from __future__ import annotations
 
@@ -15,7 +17,7 @@ from typing import Mapping
 
 import numpy as np
 
-from laughlab.avatar.expressions import breath_on_bones, breathing_pose, driven_morphs, morph_weights
+from laughlab.avatar.expressions import breath_on_bones, breathing_pose, driven_morphs, face_route, morph_weights
 from laughlab.avatar.images import embed_images
 from laughlab.avatar.load import Avatar
 from laughlab.avatar.retarget import retarget
@@ -58,6 +60,8 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
     scene = doc.get("scene", 0)
     if doc.get("scenes"):
         extras = doc["scenes"][scene].setdefault("extras", {})
-        extras["laughlab"] = {"fps": float(fps), "frames": int(f), "audio_duration_s": float(audio_duration_s)}
+        route = face_route(avatar, set(arkit))
+        extras["laughlab"] = {"fps": float(fps), "frames": int(f), "audio_duration_s": float(audio_duration_s),
+                              "face": {k: route[k] for k in ("morphs", "morphs_driven", "expressions")}}
     doc["asset"] = {**doc.get("asset", {}), "generator": f"laughlab (avatar: {doc.get('asset', {}).get('generator', '?')})"}
     return glb_bytes(doc, buf)
