@@ -245,10 +245,11 @@ def test_expressions_follow_the_face_channels(godette_run):
         _, _, w = file_world(godette_run / "character.glb", f)
         ah = np.clip(arkit["jawOpen"][f] + 0.25 * angry[f], 0, 1)
         assert w[face][names.index("ah")] == pytest.approx(ah, abs=1e-6)
-        # blink_left: Blink_L (1.0) and Angry (0.25) and Sorrow (0.1); Blink is not driven (split eyes)
+        # blink_left: Blink_L (1.0) and Angry (0.25) and Sorrow (0.1); Blink is not driven (split eyes); Blink_L is
+        # isBinary in her file: 1 above 0.5, else 0 (review-avatar 8: it took every value between)
         frown = [arkit[k][f] if k in arkit.dtype.names else 0.0 for k in ("mouthFrownLeft", "mouthFrownRight")]
         sad = np.clip(0.5 * frown[0] + 0.5 * frown[1], 0, 1)
-        want = np.clip(arkit["eyeBlinkLeft"][f] + 0.25 * angry[f] + 0.1 * sad, 0, 1)
+        want = np.clip(float(arkit["eyeBlinkLeft"][f] > 0.5) + 0.25 * angry[f] + 0.1 * sad, 0, 1)
         assert w[face][names.index("blink_left")] == pytest.approx(want, abs=1e-6)
     assert arkit["jawOpen"].max() > 0.3 and arkit["eyeBlinkLeft"].max() > 0.5  # the run moves both
 

@@ -9,7 +9,7 @@ import pytest
 
 from laughlab.avatar.bake import baked_glb
 from laughlab.avatar.load import load_avatar
-from laughlab.avatar.mannequin import mannequin_arkit_glb
+from laughlab.avatar.mannequin import mannequin_arkit_glb, mannequin_vrm
 from laughlab.io.gltf import Buffer, accessor_array, glb_bytes, parse_glb
 from laughlab.motion.skeleton import HUMANOID, rest_pose
 
@@ -199,3 +199,49 @@ def _weights(doc, path):
             s = anim["samplers"][ch["sampler"]]
             t = accessor_array(doc, binary, s["input"])
             yield ch, accessor_array(doc, binary, s["output"]).reshape(len(t), -1)
+
+
+# -- 8: the VRM rules overrideBlink/overrideMouth and isBinary -----------------------------------------------------
+
+def _mannequin_vrm_with(tmp_path, rules: dict) -> tuple[Path, list]:
+    """The mannequin as a VRM 1.0 with ``rules`` merged into its preset expressions; and its ARKit names by morph
+    index (the VRM's morphs are named shapeNN)."""
+    names = parse_glb(mannequin_arkit_glb())[0]["meshes"][0]["extras"]["targetNames"]
+
+    def edit(doc):
+        for name, rule in rules.items():
+            doc["extensions"]["VRMC_vrm"]["expressions"]["preset"][name].update(rule)
+
+    return edited(mannequin_vrm, edit, tmp_path / "rules.vrm"), names
+
+
+def test_vrm_override_and_is_binary_rules_are_applied(tmp_path):
+    """Review 8: happy with overrideBlink block and overrideMouth blend still let the eyes close and the jaw open
+    through it, and an isBinary blink took every value between 0 and 1; three-vrm, playing the run's
+    animation.vrma, applies the rules, so the run's two files disagreed."""
+    path, names = _mannequin_vrm_with(tmp_path, {"happy": {"overrideBlink": "block", "overrideMouth": "blend"},
+                                                 "blinkRight": {"isBinary": True}})
+    doc, w = bake(path)
+    m = w[mesh_node(doc)]
+    happy = np.clip(0.5 * ARKIT["mouthSmileLeft"] + 0.5 * ARKIT["mouthSmileRight"], 0, 1)
+    assert (happy > 0).all()
+    np.testing.assert_allclose(m[:, names.index("eyeBlinkLeft")], 0.0)          # blocked while happy > 0
+    np.testing.assert_allclose(m[:, names.index("eyeBlinkRight")], 0.0)         # binary and overridden: 0
+    np.testing.assert_allclose(m[:, names.index("jawOpen")], ARKIT["jawOpen"] * (1 - happy), atol=1e-7)  # blend
+    np.testing.assert_allclose(m[:, names.index("mouthSmileLeft")], happy, atol=1e-7)   # happy itself as it was
+
+    doc, w = bake(_mannequin_vrm_with(tmp_path, {"blinkLeft": {"isBinary": True}})[0])
+    m = w[mesh_node(doc)]
+    np.testing.assert_array_equal(m[:, names.index("eyeBlinkLeft")], [0.0, 1.0, 0.0])   # 0, 0.6, 0.3 -> 1 above 0.5
+    np.testing.assert_allclose(m[:, names.index("eyeBlinkRight")], ARKIT["eyeBlinkRight"], atol=1e-7)
+    np.testing.assert_allclose(m[:, names.index("jawOpen")], ARKIT["jawOpen"], atol=1e-7)   # no override: as is
+
+
+def test_a_binary_overrider_acts_through_its_binary_value(tmp_path):
+    """VRMC_vrm-1.0 expressions.md, 'Interaction between override and isBinary': a binary happy (0.15, 0.35, 0.8:
+    0, 0, 1) blending the blink suppresses it only where it is 1."""
+    path, names = _mannequin_vrm_with(tmp_path, {"happy": {"overrideBlink": "blend", "isBinary": True}})
+    doc, w = bake(path)
+    m = w[mesh_node(doc)]
+    np.testing.assert_allclose(m[:, names.index("eyeBlinkLeft")], ARKIT["eyeBlinkLeft"] * [1, 1, 0], atol=1e-7)
+    np.testing.assert_allclose(m[:, names.index("mouthSmileLeft")], [0, 0, 1], atol=1e-7)

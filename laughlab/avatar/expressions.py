@@ -118,6 +118,44 @@ def expression_weights(avatar: Avatar | None, arkit: Mapping[str, np.ndarray], n
     return out
 
 
+#: VRM 1.0's procedural expressions, by the override property that acts on them (VRMC_vrm-1.0 expressions.md,
+#: *Procedural override*)
+PROCEDURAL: dict[str, tuple[str, ...]] = {
+    "overrideBlink": ("blink", "blinkLeft", "blinkRight"),
+    "overrideMouth": ("aa", "ih", "ou", "ee", "oh"),
+    "overrideLookAt": ("lookUp", "lookDown", "lookLeft", "lookRight"),
+}
+
+
+def vrm_rules(avatar: Avatar, weights: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Expression weights with the avatar's VRM rules applied, as a VRM player applies them (three-vrm does, on
+    this run's ``animation.vrma``), so that the baked file and the VRM Animation agree (VRMC_vrm-1.0
+    expressions.md: *expression object*, *Procedural override*, *Interaction between override and isBinary*):
+
+    * ``isBinary``: the weight is 1 above 0.5, else 0;
+    * ``overrideBlink``/``overrideMouth``/``overrideLookAt`` of an expression (its output weight ``w``): ``block``
+      adds 1 where ``w > 0``, ``blend`` adds ``w``; the procedural expressions of that kind are multiplied by
+      ``1 - clip(sum, 0, 1)``, and a binary one among them is 0 wherever that factor is below 1.  An override of
+      an expression's own kind (``overrideBlink`` on ``blink``) is ignored, as the specification says.
+    """
+    rules = avatar.expression_rules
+    out = {e: (np.where(w > 0.5, 1.0, 0.0) if rules.get(e, {}).get("isBinary") else w) for e, w in weights.items()}
+    for prop, targets in PROCEDURAL.items():
+        amount = None
+        for e, w in out.items():
+            how = rules.get(e, {}).get(prop)
+            if how in ("block", "blend") and e not in targets:
+                a = (w > 0).astype(np.float64) if how == "block" else w
+                amount = a if amount is None else amount + a
+        if amount is None:
+            continue
+        factor = 1.0 - np.clip(amount, 0.0, 1.0)
+        for e in targets:
+            if e in out:
+                out[e] = np.where(factor < 1.0, 0.0, out[e]) if rules.get(e, {}).get("isBinary") else out[e] * factor
+    return out
+
+
 def driven_morphs(avatar: Avatar, arkit: Mapping[str, np.ndarray] | set,
                   breath: Mapping[str, np.ndarray] | set) -> dict[int, list[int]]:
     """Mesh node -> the indices of its morph targets that the run's face and breathing set (the targets
@@ -177,7 +215,7 @@ def morph_weights(avatar: Avatar, arkit: Mapping[str, np.ndarray], breath: Mappi
     morphs start at 0 and add up), then ARKit-named morphs and breathing morphs take their channel's weight."""
     driven = driven_morphs(avatar, arkit, breath)
     out = {node: np.zeros((n, len(names))) for node, names in avatar.morph_names.items() if names}
-    for expr, w in expression_weights(avatar, arkit, n).items():
+    for expr, w in vrm_rules(avatar, expression_weights(avatar, arkit, n)).items():
         for node, index, weight in _binds(avatar, expr):
             out[node][:, index] += w * weight
     for node, names in avatar.morph_names.items():

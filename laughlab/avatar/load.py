@@ -63,6 +63,9 @@ class Avatar:
         +1 if the avatar faces +Z (its left is +X), -1 if it faces -Z (VRM 0.x).
     expressions : dict
         Expression name (VRM 1.0 preset names, 0.x names translated) -> list of (mesh node, morph index, weight).
+    expression_rules : dict
+        Expression name -> its VRM rules: ``isBinary`` (bool; VRM 0.x and 1.0) and ``overrideBlink``,
+        ``overrideMouth``, ``overrideLookAt`` (``none``, ``block`` or ``blend``; VRM 1.0), for those that set any.
     morph_names : dict
         Mesh node index -> its morph target names ('' where unnamed).
     morph_defaults : dict
@@ -86,6 +89,7 @@ class Avatar:
     expressions: dict = field(default_factory=dict)
     morph_names: dict = field(default_factory=dict)
     morph_defaults: dict = field(default_factory=dict)
+    expression_rules: dict = field(default_factory=dict)
     images: dict = field(default_factory=dict)
 
     @property
@@ -249,16 +253,24 @@ def _humanoid(path: Path, doc: dict) -> tuple[str, dict]:
     return kind, bones
 
 
-def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> dict:
-    """Expression -> [(mesh node, morph index, weight 0-1)]."""
+def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> tuple[dict, dict]:
+    """Expression -> [(mesh node, morph index, weight 0-1)], and expression -> its rules (``isBinary``,
+    ``override*``: VRMC_vrm-1.0 expressions.md, *expression object*; VRM 0.x has ``isBinary`` only)."""
     ext = doc.get("extensions") or {}
     out: dict[str, list] = {}
+    rules: dict[str, dict] = {}
     if kind == "vrm1":
         groups = (ext["VRMC_vrm"].get("expressions") or {})
         for section in ("preset", "custom"):
             for name, e in (groups.get(section) or {}).items():
                 out[name] = [(int(b["node"]), int(b["index"]), float(b.get("weight", 1.0)))
                              for b in e.get("morphTargetBinds") or []]
+                rule = {k: e[k] for k in ("overrideBlink", "overrideMouth", "overrideLookAt")
+                        if e.get(k) in ("block", "blend")}
+                if e.get("isBinary") is True:
+                    rule["isBinary"] = True
+                if rule:
+                    rules[name] = rule
     elif kind == "vrm0":
         for g in (ext["VRM"].get("blendShapeMaster") or {}).get("blendShapeGroups") or []:
             preset = str(g.get("presetName", "unknown")).lower()
@@ -268,7 +280,9 @@ def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> dict
                 for node in mesh_nodes.get(int(b.get("mesh", -1)), []):
                     binds.append((node, int(b["index"]), float(b.get("weight", 100.0)) / 100.0))
             out[name] = binds
-    return out
+            if g.get("isBinary") is True:
+                rules[name] = {"isBinary": True}
+    return out, rules
 
 
 def _check_required(path: Path, doc: dict) -> None:
@@ -333,5 +347,5 @@ def load_avatar(path: str | Path) -> Avatar:
                 names = list((prims[0].get("extras") or {}).get("targetNames") or [])
             av.morph_names[i] = (names + [""] * n_t)[:n_t]
             av.morph_defaults[i] = _default_weights(nd, mesh, n_t)
-    av.expressions = _expressions(doc, kind, mesh_nodes)
+    av.expressions, av.expression_rules = _expressions(doc, kind, mesh_nodes)
     return av
