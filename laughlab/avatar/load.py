@@ -19,7 +19,7 @@ import numpy as np
 from laughlab.avatar.check import check_bones, check_structure
 from laughlab.avatar.errors import AvatarError
 from laughlab.avatar.images import beside, read_images
-from laughlab.avatar.names import REQUIRED, bones_by_name
+from laughlab.avatar.names import REQUIRED, bones_by_name, node_ranks
 
 MAX_BYTES = 100 * 1024 * 1024
 """The largest avatar file laughlab loads (100 MB)."""
@@ -239,7 +239,7 @@ def _humanoid(path: Path, doc: dict) -> tuple[str, dict]:
         kind = "vrm0"
     else:
         names = [n.get("name", "") for n in doc.get("nodes") or []]
-        bones = bones_by_name(names)
+        bones = bones_by_name(names, node_ranks(doc))
         if not bones:
             raise _fail(path, "has no humanoid: no VRM humanoid bone map and no node named as a Mixamo, Ready "
                               "Player Me or VRM bone (docs/avatars.md lists the names)")
@@ -330,7 +330,7 @@ def load_avatar(path: str | Path) -> Avatar:
     order = av.order
     for i in order:
         av.rest_world[i] = rest_local[i] if parents[i] < 0 else av.rest_world[parents[i]] @ rest_local[i]
-    check_bones(path, bones, av.rest_world, order)
+    check_bones(path, bones, av.rest_world, order, nodes)
     lx = av.rest_world[bones["leftUpperArm"], 0, 3] - av.rest_world[bones["rightUpperArm"], 0, 3]
     av.facing = 1 if lx > 0 else -1
     if kind == "gltf" and not doc.get("skins") and not any("mesh" in nd for nd in nodes):

@@ -61,11 +61,18 @@ def plain_name(name: str) -> str:
     return name.rsplit(":", 1)[-1].strip().lower()
 
 
-def bones_by_name(node_names: list[str]) -> dict[str, int]:
-    """VRM bone -> node index for nodes whose names :data:`NODE_NAMES` knows (the first match wins)."""
+def bones_by_name(node_names: list[str], rank: list[int] | None = None) -> dict[str, int]:
+    """VRM bone -> node index for nodes whose names :data:`NODE_NAMES` knows.  Among nodes of one name, the lowest
+    ``rank`` wins, then the first; a node ranked below 0 is never a bone.  :func:`node_ranks` ranks a glTF's nodes
+    so that a bone is a skin's joint before a plain node, and a mesh named like a bone (``Head``, ``Body``: many
+    game characters) comes last or not at all (a review: a skinned mesh ``Head`` listed first took the head's
+    place, and the real head bone never turned)."""
+    rank = rank or [0] * len(node_names)
     index: dict[str, int] = {}
     for i, n in enumerate(node_names):
-        index.setdefault(plain_name(n), i)
+        key = plain_name(n)
+        if rank[i] >= 0 and (key not in index or rank[i] < rank[index[key]]):
+            index[key] = i
     out = {}
     for bone, names in NODE_NAMES.items():
         for n in names:
@@ -74,3 +81,12 @@ def bones_by_name(node_names: list[str]) -> dict[str, int]:
                 out[bone] = i
                 break
     return out
+
+
+def node_ranks(doc: dict) -> list[int]:
+    """Each node's rank as a bone for :func:`bones_by_name`: 0 a joint of a skin, 1 a node without a mesh, 2 a
+    mesh that is not skinned (a rigid part may be its own bone), -1 a skinned mesh (never: glTF ignores its own
+    transform, 2.0 spec 3.7.3 *Skins*)."""
+    joints = {j for s in doc.get("skins") or [] for j in s.get("joints") or []}
+    return [0 if i in joints else -1 if "skin" in n else 2 if "mesh" in n else 1
+            for i, n in enumerate(doc.get("nodes") or [])]

@@ -1,0 +1,81 @@
+"""A review of laughlab on users' avatars (2026-11-27, /work/exp/review-avatar.md): the rig. Which nodes are the
+bones, which way the avatar faces, which names are recognised; each checked by the joints' world positions
+against laughlab's own skeleton (motion.bvh's forward kinematics)."""
+import copy
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from laughlab.avatar.errors import AvatarError
+from laughlab.avatar.load import load_avatar
+from laughlab.avatar.mannequin import mannequin_arkit_glb
+from laughlab.avatar.names import JOINT_TO_VRM
+from laughlab.avatar.retarget import animated_world, retarget
+from laughlab.io.gltf import Buffer, glb_bytes, parse_glb
+from laughlab.motion.skeleton import HUMANOID, forward_kinematics
+
+#: a few frames of laughlab's skeleton in motion: every joint turned by up to 40 degrees, the hips moved
+POSES = np.concatenate([np.random.default_rng(7).uniform(-5, 5, (4, 3)),
+                        np.random.default_rng(8).uniform(-40, 40, (4, 3 * HUMANOID.n_joints))], axis=1)
+
+
+def want_world(poses=POSES) -> np.ndarray:
+    """laughlab's joints' world positions (m) for ``poses``."""
+    return forward_kinematics(HUMANOID, poses) * 0.01
+
+
+def got_world(path: Path, turn: np.ndarray = np.eye(3)) -> np.ndarray:
+    """The avatar's humanoid joints' world positions (m) after retargeting ``POSES``, turned back by ``turn``."""
+    av = load_avatar(path)
+    world = animated_world(av, retarget(av, POSES))
+    pos = np.stack([world[:, av.bones[JOINT_TO_VRM[n]], :3, 3] for n in HUMANOID.names], axis=1)
+    return pos @ turn   # (turn^T p) for each row: the avatar's frame back to laughlab's
+
+
+def save(doc: dict, binary: bytes, path: Path) -> Path:
+    path.write_bytes(glb_bytes(doc, Buffer(binary, doc["bufferViews"], doc["accessors"])))
+    return path
+
+
+def prepend_node(doc: dict, node: dict) -> dict:
+    """``doc`` with ``node`` as node 0 (every node reference shifted), a root of the scene."""
+    d = copy.deepcopy(doc)
+    for n in d["nodes"]:
+        if "children" in n:
+            n["children"] = [c + 1 for c in n["children"]]
+    for s in d.get("skins", []):
+        s["joints"] = [j + 1 for j in s["joints"]]
+        if "skeleton" in s:
+            s["skeleton"] += 1
+    for sc in d["scenes"]:
+        sc["nodes"] = [c + 1 for c in sc["nodes"]] + [0]
+    d["nodes"].insert(0, node)
+    return d
+
+
+# -- 6: bones are joints, not meshes named like them ---------------------------------------------------------------
+
+def test_a_mesh_named_head_is_not_taken_for_the_head_bone(tmp_path):
+    """Review 6: a skinned mesh 'Head' listed before the bones took the head bone's place (the first node of the
+    name won); the animation then targeted the mesh, which a player ignores, and the head never turned."""
+    doc, binary = parse_glb(mannequin_arkit_glb())
+    doc = prepend_node(doc, {"name": "Head", "mesh": 0, "skin": 0})
+    path = save(doc, binary, tmp_path / "headmesh.glb")
+    av = load_avatar(path)
+    assert av.bones["head"] != 0 and doc["nodes"][av.bones["head"]]["name"] == "head"
+    np.testing.assert_allclose(got_world(path), want_world(), atol=1e-9)
+
+
+def test_a_skinned_mesh_mapped_as_a_bone_is_one_line(tmp_path):
+    """A VRM map (or a name) that puts a driven bone on a skinned mesh node is refused: its animation would move
+    nothing."""
+    from laughlab.avatar.mannequin import mannequin_vrm
+
+    doc, binary = parse_glb(mannequin_vrm())
+    mesh = next(i for i, n in enumerate(doc["nodes"]) if "skin" in n)
+    doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["head"] = {"node": mesh}
+    path = save(doc, binary, tmp_path / "m.vrm")
+    with pytest.raises(AvatarError, match=rf"m.vrm: the head bone is node {mesh}, a skinned mesh .*whose own "
+                                          r"transform glTF ignores; map the bone to its joint"):
+        load_avatar(path)
