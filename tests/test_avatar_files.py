@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from omegaconf import OmegaConf
 
+from laughlab.avatar.mannequin import mannequin_vrm
 from laughlab.core import pipeline
 from laughlab.core.config import compose_config
 from laughlab.io.gltf import parse_glb, read_glb
@@ -147,3 +148,75 @@ def test_a_texture_that_cannot_be_read_is_one_line_at_start_up(tmp_path, damage,
     for output in ("output=video", "output=gltf"):
         out = _cli(tmp_path, output, "input.duration_s=1", f"character={path}")
         _one_line(out, tmp_path, f"{path}: its texture 'tex 0.png' {says}")
+
+
+# -- 10: a damaged VRM extension -----------------------------------------------------------------------------------
+
+def _vrm1(edit):
+    def make(path):
+        from test_avatar import _glb
+
+        doc, binary = parse_glb(mannequin_vrm())
+        edit(doc["extensions"]["VRMC_vrm"], doc)
+        path.write_bytes(_glb(doc, binary))
+        return path
+    return make
+
+
+def _vrm0(edit):
+    def make(path):
+        from test_avatar import _glb
+
+        doc, binary = parse_glb(GODETTE.read_bytes())
+        edit(doc["extensions"]["VRM"], doc)
+        path.write_bytes(_glb(doc, binary))
+        return path
+    return make
+
+
+def _set(d: dict, key, value):
+    d[key] = value
+
+
+@pytest.mark.parametrize("make, says", [
+    (_vrm1(lambda v, d: v["expressions"]["preset"]["aa"]["morphTargetBinds"][0].pop("index")),
+     "its VRMC_vrm.expressions.preset.aa.morphTargetBinds[0] has no index; the file is damaged"),
+    (_vrm1(lambda v, d: _set(v["humanoid"]["humanBones"], "hips", 3)),
+     "its VRMC_vrm.humanoid.humanBones.hips is 3, not an object; the file is damaged"),
+    (_vrm1(lambda v, d: _set(d["extensions"], "VRMC_vrm", None)),
+     "its VRMC_vrm extension is null, not an object; the file is damaged"),
+    (_vrm1(lambda v, d: _set(v, "expressions", {"preset": {"aa": None}})),
+     "its VRMC_vrm.expressions.preset.aa is null, not an object; the file is damaged"),
+    (_vrm1(lambda v, d: _set(v["humanoid"], "humanBones", [])),
+     "its VRMC_vrm.humanoid.humanBones is [], not an object; the file is damaged"),
+    (_vrm1(lambda v, d: _set(v["expressions"]["preset"]["aa"]["morphTargetBinds"][0], "weight", "1")),
+     "its VRMC_vrm.expressions.preset.aa.morphTargetBinds[0] has weight \"1\", not a number"),
+    (_vrm0(lambda v, d: v["blendShapeMaster"]["blendShapeGroups"][1]["binds"][0].pop("index")),
+     "its VRM.blendShapeMaster.blendShapeGroups[1].binds[0] has no index; the file is damaged"),
+    (_vrm0(lambda v, d: _set(v["blendShapeMaster"]["blendShapeGroups"][1]["binds"][0], "mesh", "0")),
+     "its VRM.blendShapeMaster.blendShapeGroups[1].binds[0] has mesh \"0\", not a whole number"),
+    (_vrm0(lambda v, d: _set(v["humanoid"], "humanBones", {"hips": 0})),
+     "its VRM.humanoid.humanBones is {\"hips\": 0}, not a list; the file is damaged"),
+], ids=["v1-bind-no-index", "v1-bone-int", "v1-null-extension", "v1-null-expression", "v1-bones-list",
+        "v1-weight-string", "v0-bind-no-index", "v0-bind-mesh-string", "v0-bones-object"])
+def test_a_damaged_vrm_extension_is_one_line_exit_2(tmp_path, make, says):
+    """Review 10: KeyError, AttributeError and TypeError tracebacks (exit 1) where docs/avatars.md promises one
+    line naming the file and what is wrong, exit 2."""
+    path = make(tmp_path / "avatar.vrm")
+    out = _cli(tmp_path, "output=gltf", "input.duration_s=1", f"character={path}")
+    _one_line(out, tmp_path, f"{path}: {says}")
+
+
+def test_odd_but_harmless_names_still_load(tmp_path):
+    """A node named by a number and morph names that are not a list (both seen in the review's damaged files) are
+    not bones or morph names; the avatar still loads."""
+    from test_avatar import _glb
+
+    from laughlab.avatar.load import load_avatar
+
+    doc, binary = parse_glb(GODETTE.read_bytes())
+    doc["nodes"][0]["name"] = 5
+    doc["meshes"][0]["primitives"][0]["extras"]["targetNames"] = "ah"
+    (tmp_path / "odd.vrm").write_bytes(_glb(doc, binary))
+    av = load_avatar(tmp_path / "odd.vrm")
+    assert av.kind == "vrm0" and all(len(n) == len(set(n)) or "" in n for n in av.morph_names.values())

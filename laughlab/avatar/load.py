@@ -228,17 +228,61 @@ def local_matrix(node: dict) -> np.ndarray:
     return m
 
 
+def _obj(path: Path, value, what: str) -> dict:
+    """``value`` if it is a JSON object, ``{}`` if absent (None is damage too, where the key is there)."""
+    if not isinstance(value, dict):
+        raise _fail(path, f"its {what} is {json.dumps(value)[:40]}, not an object; the file is damaged")
+    return value
+
+
+def _items(path: Path, parent: dict, key: str, what: str, kind: type = dict):
+    """``parent[key]`` (a JSON object or list, as ``kind``; empty if absent), or one line saying it is damaged."""
+    value = parent.get(key, kind())
+    if not isinstance(value, kind):
+        raise _fail(path, f"its {what}.{key} is {json.dumps(value)[:40]}, not "
+                          f"{'an object' if kind is dict else 'a list'}; the file is damaged")
+    return value
+
+
+def _whole(path: Path, d: dict, key: str, what: str, default=None) -> int:
+    v = d.get(key, default)
+    if v is None:
+        raise _fail(path, f"its {what} has no {key}; the file is damaged")
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise _fail(path, f"its {what} has {key} {json.dumps(v)[:40]}, not a whole number; the file is damaged")
+    return v
+
+
+def _number(path: Path, d: dict, key: str, what: str, default: float) -> float:
+    v = d.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _fail(path, f"its {what} has {key} {json.dumps(v)[:40]}, not a number; the file is damaged")
+    return float(v)
+
+
+def _extension(path: Path, doc: dict, name: str) -> dict:
+    return _obj(path, _obj(path, doc.get("extensions", {}), "extensions")[name], f"{name} extension")
+
+
 def _humanoid(path: Path, doc: dict) -> tuple[str, dict]:
-    ext = doc.get("extensions") or {}
+    """The kind of avatar and its humanoid bones; the VRM extension's JSON checked as it is read (a damaged one
+    ended in a traceback, a review found), each failure one line naming the field."""
+    ext = _obj(path, doc.get("extensions", {}), "extensions")
     n_nodes = len(doc.get("nodes") or [])
     if "VRMC_vrm" in ext:
-        bones = {k: v.get("node") for k, v in ((ext["VRMC_vrm"].get("humanoid") or {}).get("humanBones") or {}).items()}
+        human = _obj(path, _extension(path, doc, "VRMC_vrm").get("humanoid", {}), "VRMC_vrm.humanoid")
+        bones = {k: _obj(path, v, f"VRMC_vrm.humanoid.humanBones.{k}").get("node")
+                 for k, v in _items(path, human, "humanBones", "VRMC_vrm.humanoid").items()}
         kind = "vrm1"
     elif "VRM" in ext:
-        bones = {b.get("bone"): b.get("node") for b in (ext["VRM"].get("humanoid") or {}).get("humanBones") or []}
+        human = _obj(path, _extension(path, doc, "VRM").get("humanoid", {}), "VRM.humanoid")
+        bones = {}
+        for k, b in enumerate(_items(path, human, "humanBones", "VRM.humanoid", list)):
+            b = _obj(path, b, f"VRM.humanoid.humanBones[{k}]")
+            bones[b.get("bone")] = b.get("node")
         kind = "vrm0"
     else:
-        names = [n.get("name", "") for n in doc.get("nodes") or []]
+        names = [n.get("name", "") if isinstance(n.get("name", ""), str) else "" for n in doc.get("nodes") or []]
         bones = bones_by_name(names, node_ranks(doc))
         if not bones:
             raise _fail(path, "has no humanoid: no VRM humanoid bone map and no node named as a Mixamo, Ready "
@@ -253,18 +297,25 @@ def _humanoid(path: Path, doc: dict) -> tuple[str, dict]:
     return kind, bones
 
 
-def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> tuple[dict, dict]:
+def _expressions(path: Path, doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> tuple[dict, dict]:
     """Expression -> [(mesh node, morph index, weight 0-1)], and expression -> its rules (``isBinary``,
-    ``override*``: VRMC_vrm-1.0 expressions.md, *expression object*; VRM 0.x has ``isBinary`` only)."""
-    ext = doc.get("extensions") or {}
+    ``override*``: VRMC_vrm-1.0 expressions.md, *expression object*; VRM 0.x has ``isBinary`` only).  The
+    extension's JSON is checked as it is read (one line naming the field, as :func:`_humanoid`)."""
     out: dict[str, list] = {}
     rules: dict[str, dict] = {}
     if kind == "vrm1":
-        groups = (ext["VRMC_vrm"].get("expressions") or {})
+        groups = _obj(path, _extension(path, doc, "VRMC_vrm").get("expressions", {}), "VRMC_vrm.expressions")
         for section in ("preset", "custom"):
-            for name, e in (groups.get(section) or {}).items():
-                out[name] = [(int(b["node"]), int(b["index"]), float(b.get("weight", 1.0)))
-                             for b in e.get("morphTargetBinds") or []]
+            for name, e in _items(path, groups, section, "VRMC_vrm.expressions").items():
+                what = f"VRMC_vrm.expressions.{section}.{name}"
+                e = _obj(path, e, what)
+                binds = []
+                for k, b in enumerate(_items(path, e, "morphTargetBinds", what, list)):
+                    b = _obj(path, b, f"{what}.morphTargetBinds[{k}]")
+                    at = f"{what}.morphTargetBinds[{k}]"
+                    binds.append((_whole(path, b, "node", at), _whole(path, b, "index", at),
+                                  _number(path, b, "weight", at, 1.0)))
+                out[name] = binds
                 rule = {k: e[k] for k in ("overrideBlink", "overrideMouth", "overrideLookAt")
                         if e.get(k) in ("block", "blend")}
                 if e.get("isBinary") is True:
@@ -272,13 +323,20 @@ def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> tupl
                 if rule:
                     rules[name] = rule
     elif kind == "vrm0":
-        for g in (ext["VRM"].get("blendShapeMaster") or {}).get("blendShapeGroups") or []:
+        master = _obj(path, _extension(path, doc, "VRM").get("blendShapeMaster", {}), "VRM.blendShapeMaster")
+        for j, g in enumerate(_items(path, master, "blendShapeGroups", "VRM.blendShapeMaster", list)):
+            what = f"VRM.blendShapeMaster.blendShapeGroups[{j}]"
+            g = _obj(path, g, what)
             preset = str(g.get("presetName", "unknown")).lower()
-            name = VRM0_PRESETS.get(preset, g.get("name", preset)) if preset != "unknown" else g.get("name", "")
+            name = VRM0_PRESETS.get(preset, str(g.get("name", preset))) if preset != "unknown" \
+                else str(g.get("name", ""))
             binds = []
-            for b in g.get("binds") or []:
-                for node in mesh_nodes.get(int(b.get("mesh", -1)), []):
-                    binds.append((node, int(b["index"]), float(b.get("weight", 100.0)) / 100.0))
+            for k, b in enumerate(_items(path, g, "binds", what, list)):
+                at = f"{what}.binds[{k}]"
+                b = _obj(path, b, at)
+                mesh, index = _whole(path, b, "mesh", at), _whole(path, b, "index", at)
+                weight = _number(path, b, "weight", at, 100.0) / 100.0
+                binds += [(node, index, weight) for node in mesh_nodes.get(mesh, [])]
             out[name] = binds
             if g.get("isBinary") is True:
                 rules[name] = {"isBinary": True}
@@ -296,6 +354,12 @@ def _check_required(path: Path, doc: dict) -> None:
             hint = NOT_READ.get(name, "export it without that extension")
             raise _fail(path, f"the avatar requires the glTF extension {name}, which laughlab cannot read; "
                               f"{hint}")
+
+
+def _target_names(d: dict) -> list[str]:
+    """``extras.targetNames`` (the exporters' convention for morph names), if it is a list; names as strings."""
+    names = (d.get("extras") if isinstance(d.get("extras"), dict) else {}).get("targetNames")
+    return [n if isinstance(n, str) else "" for n in names] if isinstance(names, list) else []
 
 
 def _default_weights(node: dict, mesh: dict, n: int) -> np.ndarray:
@@ -340,12 +404,12 @@ def load_avatar(path: str | Path) -> Avatar:
         if "mesh" in nd:
             mesh_nodes.setdefault(int(nd["mesh"]), []).append(i)
             mesh = doc["meshes"][nd["mesh"]]
-            names = list((mesh.get("extras") or {}).get("targetNames") or [])
+            names = _target_names(mesh)
             prims = mesh.get("primitives") or [{}]
             n_t = len(prims[0].get("targets") or [])
             if not names:
-                names = list((prims[0].get("extras") or {}).get("targetNames") or [])
+                names = _target_names(prims[0])
             av.morph_names[i] = (names + [""] * n_t)[:n_t]
             av.morph_defaults[i] = _default_weights(nd, mesh, n_t)
-    av.expressions, av.expression_rules = _expressions(doc, kind, mesh_nodes)
+    av.expressions, av.expression_rules = _expressions(path, doc, kind, mesh_nodes)
     return av
