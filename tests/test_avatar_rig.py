@@ -79,3 +79,52 @@ def test_a_skinned_mesh_mapped_as_a_bone_is_one_line(tmp_path):
     with pytest.raises(AvatarError, match=rf"m.vrm: the head bone is node {mesh}, a skinned mesh .*whose own "
                                           r"transform glTF ignores; map the bone to its joint"):
         load_avatar(path)
+
+
+# -- 7: an avatar exported facing another way ----------------------------------------------------------------------
+
+def turned(tmp_path: Path, degrees: float) -> tuple[Path, np.ndarray]:
+    """The mannequin under a root node turned ``degrees`` about Y (an export with the wrong forward axis), and that
+    turn as a matrix."""
+    from scipy.spatial.transform import Rotation
+
+    doc, binary = parse_glb(mannequin_arkit_glb())
+    rot = Rotation.from_euler("y", degrees, degrees=True)
+    scene = doc["scenes"][0]
+    doc["nodes"].append({"name": "Root", "rotation": [float(x) for x in rot.as_quat()], "children": scene["nodes"]})
+    scene["nodes"] = [len(doc["nodes"]) - 1]
+    return save(doc, binary, tmp_path / f"turned{degrees:g}.glb"), rot.as_matrix()
+
+
+@pytest.mark.parametrize("degrees", [90, -90, 37, 180, 0.5])
+def test_an_avatar_turned_any_way_about_y_is_retargeted_exactly(tmp_path, degrees):
+    """Review 7: facing was only +Z or -Z, so an avatar facing +X was retargeted as if it faced -Z: its hands 0.77 m
+    from where they belong.  Now any yaw: the joints are laughlab's, turned as the avatar is."""
+    path, R = turned(tmp_path, degrees)
+    np.testing.assert_allclose(got_world(path, R), want_world(), atol=1e-9)
+
+
+def test_the_video_and_the_viewer_turn_it_to_the_camera_alike(tmp_path):
+    """The video's vertices of the turned avatar are the unturned one's; the viewer turns its root by the same
+    angle (run.json's avatar.turn, radians about Y)."""
+    from laughlab.render.avatar_view import AvatarRenderer
+    from laughlab.viewer.server import _view_of
+
+    plain = tmp_path / "plain.glb"
+    plain.write_bytes(mannequin_arkit_glb())
+    path, _ = turned(tmp_path, 90)
+    pose = POSES[:1]
+    a, b = (AvatarRenderer(load_avatar(p), HUMANOID, 64, 48) for p in (plain, path))
+    va, _ = a.vertices(a.worlds(pose)[0], {})
+    vb, _ = b.vertices(b.worlds(pose)[0], {})
+    np.testing.assert_allclose(vb, va, atol=1e-6)
+    assert _view_of(load_avatar(path))["turn"] == pytest.approx(-np.pi / 2)
+    assert _view_of(load_avatar(plain))["turn"] == 0.0
+
+
+def test_arms_one_above_the_other_are_one_line(tmp_path):
+    from laughlab.avatar.load import facing_turn
+
+    with pytest.raises(AvatarError, match=r"a.glb: its upper arms are one above the other in the rest pose"):
+        facing_turn(Path("a.glb"), np.array([0.001, 0.3, 0.0]))
+    np.testing.assert_array_equal(facing_turn(Path("a.glb"), np.array([-0.24, 0.0, 3e-8])), np.diag([-1.0, 1, -1]))

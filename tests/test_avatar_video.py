@@ -51,7 +51,7 @@ def test_the_avatar_is_drawn_with_its_colours_facing_the_camera():
     blue = (mid[:, 2] > mid[:, 0] + 40)                                # her blue hair and dress
     assert skin.mean() > 0.05 and blue.mean() > 0.1, (skin.mean(), blue.mean())
     # turned the wrong way she would show the back of her head and her backpack: little skin
-    r.facing = np.array([1.0, 1.0, 1.0])
+    r.turn = np.eye(3)
     r.aim = None
     back = r.render(rest_pose(), {})[40:200, 100:220].reshape(-1, 3).astype(int)
     assert ((back[:, 0] > 180) & (back[:, 0] > back[:, 2] + 20)).mean() < skin.mean() / 2

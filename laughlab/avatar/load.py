@@ -60,7 +60,12 @@ class Avatar:
     rest_world : ndarray (N, 4, 4)
         Each node's world transform in the rest pose.
     facing : int
-        +1 if the avatar faces +Z (its left is +X), -1 if it faces -Z (VRM 0.x).
+        +1 if the avatar faces +Z (its left is +X), -1 if it faces -Z (VRM 0.x); for an avatar turned some other
+        way about Y, the nearer of the two (``turn`` is exact).
+    turn : ndarray (3, 3)
+        The rotation about Y that turns laughlab's frame (facing +Z, left +X) into the avatar's: it takes +X to
+        the direction from the avatar's right upper arm to its left one, on the ground plane
+        (:func:`facing_turn`); identity for +Z, ``diag(-1, 1, -1)`` for -Z.
     expressions : dict
         Expression name (VRM 1.0 preset names, 0.x names translated) -> list of (mesh node, morph index, weight).
     expression_rules : dict
@@ -86,6 +91,7 @@ class Avatar:
     rest_local: np.ndarray
     rest_world: np.ndarray
     facing: int
+    turn: np.ndarray = field(default_factory=lambda: np.eye(3))
     expressions: dict = field(default_factory=dict)
     morph_names: dict = field(default_factory=dict)
     morph_defaults: dict = field(default_factory=dict)
@@ -356,6 +362,26 @@ def _check_required(path: Path, doc: dict) -> None:
                               f"{hint}")
 
 
+#: an avatar whose shoulders lie within this angle (degrees) of the X axis faces exactly +Z or -Z (exporters'
+#: rounding: Godette's are 1e-5 degrees off), so its retargeting is the exact half turn or none
+AXIS_SNAP_DEG = 0.01
+
+
+def facing_turn(path: Path, left: np.ndarray) -> np.ndarray:
+    """The avatar's ``turn`` (see :class:`Avatar`) from ``left``, the vector from its right upper arm to its left
+    one in the rest pose: any yaw (an export with the wrong forward axis faces +-X; retargeted as +-Z it twisted
+    the arms back, a review found), or one line if the arms are one above the other."""
+    x, z = float(left[0]), float(left[2])
+    flat = np.hypot(x, z)
+    if not flat > 0.05 * np.linalg.norm(left):
+        raise _fail(path, "its upper arms are one above the other in the rest pose, so which way it faces cannot be "
+                          "told; export it standing, in a T-pose or an A-pose")
+    x, z = x / flat, z / flat
+    if abs(z) < np.sin(np.radians(AXIS_SNAP_DEG)):
+        x, z = (1.0 if x > 0 else -1.0), 0.0
+    return np.array([[x, 0.0, -z], [0.0, 1.0, 0.0], [z, 0.0, x]])
+
+
 def _target_names(d: dict) -> list[str]:
     """``extras.targetNames`` (the exporters' convention for morph names), if it is a list; names as strings."""
     names = (d.get("extras") if isinstance(d.get("extras"), dict) else {}).get("targetNames")
@@ -395,8 +421,8 @@ def load_avatar(path: str | Path) -> Avatar:
     for i in order:
         av.rest_world[i] = rest_local[i] if parents[i] < 0 else av.rest_world[parents[i]] @ rest_local[i]
     check_bones(path, bones, av.rest_world, order, nodes)
-    lx = av.rest_world[bones["leftUpperArm"], 0, 3] - av.rest_world[bones["rightUpperArm"], 0, 3]
-    av.facing = 1 if lx > 0 else -1
+    av.turn = facing_turn(path, av.rest_world[bones["leftUpperArm"], :3, 3] - av.rest_world[bones["rightUpperArm"], :3, 3])
+    av.facing = 1 if av.turn[0, 0] > 0 else -1
     if kind == "gltf" and not doc.get("skins") and not any("mesh" in nd for nd in nodes):
         raise _fail(path, "has bones but nothing to show: no skin and no mesh")
     mesh_nodes: dict[int, list[int]] = {}

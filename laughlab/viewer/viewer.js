@@ -85,7 +85,10 @@ const gltf = await loadCharacter(avatar);
 const vrm = gltf.userData.vrm || null;
 const root = vrm ? vrm.scene : gltf.scene;
 scene.add(root);
-if (avatar.facing < 0) root.rotation.y = Math.PI;  // VRM 0.x faces -Z: turn it to the camera
+// turn the avatar to the camera (VRM 0.x faces -Z; an export may face +-X): the turn about Y that laughlab's
+// retargeting and video undo too (laughlab/avatar/retarget.py facing_matrix)
+if (avatar.turn !== undefined) root.rotation.y = avatar.turn;
+else if (avatar.facing < 0) root.rotation.y = Math.PI;
 const mixer = new THREE.AnimationMixer(root);
 const action = mixer.clipAction(gltf.animations[0]);
 action.play();
