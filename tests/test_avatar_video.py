@@ -142,3 +142,25 @@ def test_the_mannequins_frames_drawn_by_two_threads_are_the_frames_drawn_one_by_
     two = CharacterRenderer(HUMANOID, 160, 120)
     got = two.render_many(poses, weights, threads=2)
     assert all(np.array_equal(a, b) for a, b in zip(got, want)) and not np.array_equal(want[0], want[4])
+
+
+def test_vertex_colours_are_multiplied_in(tmp_path):
+    """Review 13: the video ignored COLOR_0, so a vertex-coloured avatar (the Mixamo test figure: blue top, grey
+    trousers in the viewer) rendered white.  The mannequin with every vertex coloured (1, 0.5, 0) linear (RGBA
+    floats), and no material (white)."""
+    from laughlab.avatar.mannequin import mannequin_arkit_glb
+    from laughlab.io.gltf import Buffer, glb_bytes, parse_glb
+
+    doc, binary = parse_glb(mannequin_arkit_glb())
+    buf = Buffer(binary, doc["bufferViews"], doc["accessors"])
+    for mesh in doc["meshes"]:
+        for prim in mesh["primitives"]:
+            n = doc["accessors"][prim["attributes"]["POSITION"]]["count"]
+            prim["attributes"]["COLOR_0"] = buf.accessor(np.tile(np.array([1.0, 0.5, 0.0, 1.0], dtype=np.float32),
+                                                                 (n, 1)))
+            prim.pop("material", None)
+    path = tmp_path / "coloured.glb"
+    path.write_bytes(glb_bytes(doc, buf))
+    colours = np.concatenate([p.colours for p in parts(load_avatar(path))])
+    want = 255.0 * np.array([1.0, 0.5, 0.0]) ** (1 / 2.2)
+    np.testing.assert_allclose(colours, np.broadcast_to(want, colours.shape), atol=1e-9)

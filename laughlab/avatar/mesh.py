@@ -4,8 +4,10 @@ Every triangle primitive of every mesh node in the avatar's scene, in the node's
 positions and normals, its morph targets' position offsets, its skin (up to four joints and weights
 a vertex, the joints' inverse bind matrices) or, unskinned, the node it hangs from.  The colour of a
 vertex is its material's base colour factor times the base colour texture sampled at the vertex's
-UV (nearest texel, repeat), in sRGB 0-255: right for the palette textures of low-poly avatars,
-blurred for detailed ones (the renderer interpolates colours between vertices).
+UV (nearest texel, repeat) times its ``COLOR_0`` if it has one (glTF 2.0, 3.9.2: the three are
+multiplied; vertex-coloured avatars drew white before), in sRGB 0-255: right for the palette
+textures of low-poly avatars, blurred for detailed ones (the renderer interpolates colours between
+vertices).
 """
 from __future__ import annotations
 
@@ -101,11 +103,16 @@ def _colours(avatar: Avatar, prim: dict, uv: np.ndarray | None, n: int, cache: d
     tex = pbr.get("baseColorTexture")
     img = _texture(avatar, tex["index"], cache) if tex is not None and uv is not None else None
     if img is None:
-        return np.broadcast_to(srgb_factor, (n, 3)).copy()
-    h, w = img.shape[:2]
-    x = np.floor(np.mod(uv[:, 0], 1.0) * w).astype(np.int64).clip(0, w - 1)
-    y = np.floor(np.mod(uv[:, 1], 1.0) * h).astype(np.int64).clip(0, h - 1)
-    return img[y, x] * (srgb_factor / 255.0)
+        out = np.broadcast_to(srgb_factor, (n, 3)).copy()
+    else:
+        h, w = img.shape[:2]
+        x = np.floor(np.mod(uv[:, 0], 1.0) * w).astype(np.int64).clip(0, w - 1)
+        y = np.floor(np.mod(uv[:, 1], 1.0) * h).astype(np.int64).clip(0, h - 1)
+        out = img[y, x] * (srgb_factor / 255.0)
+    if "COLOR_0" in prim.get("attributes", {}):   # glTF multiplies the vertex colour in too (linear, RGB or RGBA)
+        vc = accessor(avatar, prim["attributes"]["COLOR_0"])[:n, :3]
+        out = out * np.clip(vc, 0.0, 1.0) ** (1 / 2.2)
+    return out
 
 
 def parts(avatar: Avatar) -> list[Part]:
