@@ -164,3 +164,17 @@ def test_vertex_colours_are_multiplied_in(tmp_path):
     colours = np.concatenate([p.colours for p in parts(load_avatar(path))])
     want = 255.0 * np.array([1.0, 0.5, 0.0]) ** (1 / 2.2)
     np.testing.assert_allclose(colours, np.broadcast_to(want, colours.shape), atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["Godette_vrm_v4.vrm", "debug_robot.vrm"])
+def test_the_top_of_the_head_is_in_the_frame(name):
+    """Review 16: the camera's distance came from the head joint's height, and Godette's hair buns, above it, were
+    cut off by the frame's top (the stimuli videos too).  In the rest pose nothing of her touches the top rows now,
+    and she still fills the frame's height from the top fifth down."""
+    from laughlab.render.character_view import background
+
+    r = AvatarRenderer(load_avatar(ASSETS / name), HUMANOID, 320, 240, supersample=1)
+    img = r.render(rest_pose(), {}).astype(int)
+    figure = np.abs(img - background(240, 320).astype(int)).sum(axis=2) > 30
+    rows = np.flatnonzero(figure.any(axis=1))
+    assert 0.05 * 240 < rows.min() < 0.2 * 240 and rows.max() == 239, (rows.min(), rows.max())
