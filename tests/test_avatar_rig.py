@@ -128,3 +128,44 @@ def test_arms_one_above_the_other_are_one_line(tmp_path):
     with pytest.raises(AvatarError, match=r"a.glb: its upper arms are one above the other in the rest pose"):
         facing_turn(Path("a.glb"), np.array([0.001, 0.3, 0.0]))
     np.testing.assert_array_equal(facing_turn(Path("a.glb"), np.array([-0.24, 0.0, 3e-8])), np.diag([-1.0, 1, -1]))
+
+
+# -- 17: Unreal, Blender metarig/Rigify and VRoid names ------------------------------------------------------------
+
+TRUNK = ("hips", "spine", "spine1", "spine2", "neck", "head")
+RIGS = {
+    "unreal": dict(zip(TRUNK, ("pelvis", "spine_01", "spine_02", "spine_03", "neck_01", "head")), **{
+        f"{s}_{j}": f"{u}_{s[0]}" for s in ("left", "right") for j, u in (
+            ("clavicle", "clavicle"), ("upper_arm", "upperarm"), ("forearm", "lowerarm"), ("hand", "hand"),
+            ("thigh", "thigh"), ("shin", "calf"), ("foot", "foot"), ("toe", "ball"))}),
+    "metarig": dict(zip(TRUNK, ("spine", "spine.001", "spine.002", "spine.003", "spine.004", "spine.006")), **{
+        f"{s}_{j}": f"{b}.{s[0].upper()}" for s in ("left", "right") for j, b in (
+            ("clavicle", "shoulder"), ("upper_arm", "upper_arm"), ("forearm", "forearm"), ("hand", "hand"),
+            ("thigh", "thigh"), ("shin", "shin"), ("foot", "foot"), ("toe", "toe"))}),
+    "vroid": dict(zip(TRUNK, ("J_Bip_C_Hips", "J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_UpperChest",
+                              "J_Bip_C_Neck", "J_Bip_C_Head")), **{
+        f"{s}_{j}": f"J_Bip_{s[0].upper()}_{b}" for s in ("left", "right") for j, b in (
+            ("clavicle", "Shoulder"), ("upper_arm", "UpperArm"), ("forearm", "LowerArm"), ("hand", "Hand"),
+            ("thigh", "UpperLeg"), ("shin", "LowerLeg"), ("foot", "Foot"), ("toe", "ToeBase"))}),
+}
+
+
+@pytest.mark.parametrize("rig", ["unreal", "metarig", "vroid", "rigify-def"])
+def test_unreal_metarig_rigify_and_vroid_names_are_recognised(tmp_path, rig):
+    """Review 17: metarig.glb lacked 'hips, head, leftUpperArm...' (its root bone 'spine' was taken as VRM spine),
+    unreal.glb 'spine, leftUpperLeg...' (spine_01, thigh_l, calf_l unknown).  Every joint is now found, and the
+    joints are where laughlab's are.  Rigify's deform bones are the metarig's names with DEF-, beside ORG- copies
+    that no skin uses (the skin's joints win)."""
+    doc, binary = parse_glb(mannequin_arkit_glb())
+    names = RIGS["metarig" if rig == "rigify-def" else rig]
+    for n in doc["nodes"]:
+        if n.get("name") in names:
+            n["name"] = ("DEF-" if rig == "rigify-def" else "") + names[n["name"]]
+    if rig == "rigify-def":   # ORG- copies of every bone, not in the skin, listed first
+        for name in [doc["nodes"][j]["name"] for j in doc["skins"][0]["joints"]]:
+            doc = prepend_node(doc, {"name": name.replace("DEF-", "ORG-")})
+        assert sum(n["name"].startswith("ORG-") for n in doc["nodes"]) == 22
+    path = save(doc, binary, tmp_path / f"{rig}.glb")
+    av = load_avatar(path)
+    assert len(av.bones) == 22 and not any(doc["nodes"][i]["name"].startswith("ORG-") for i in av.bones.values())
+    np.testing.assert_allclose(got_world(path), want_world(), atol=1e-9)
