@@ -245,3 +245,36 @@ def test_a_binary_overrider_acts_through_its_binary_value(tmp_path):
     m = w[mesh_node(doc)]
     np.testing.assert_allclose(m[:, names.index("eyeBlinkLeft")], ARKIT["eyeBlinkLeft"] * [1, 1, 0], atol=1e-7)
     np.testing.assert_allclose(m[:, names.index("mouthSmileLeft")], [0, 0, 1], atol=1e-7)
+
+
+# -- 18: a body-shape slider named Chest is not a breathing morph --------------------------------------------------
+
+def test_a_chest_slider_is_left_alone_and_the_spine_breathes(tmp_path):
+    """Review 18: breathing drove any morph named chest or belly from 0 to 1 over its value (a character creator's
+    'Chest' slider), and the spine did not breathe.  Only laughlab's own files keep plain chest/belly (the
+    mannequin below, as test_avatar's ARKit run shows); other avatars name them laughlab_chest/laughlab_belly."""
+    from laughlab.avatar.expressions import breath_on_bones
+
+    def slider(doc):
+        doc["asset"]["generator"] = "Blender glTF exporter"
+        names = doc["meshes"][0]["extras"]["targetNames"]
+        doc["meshes"][0]["weights"] = [0.0] * len(names)
+        doc["meshes"][0]["weights"][names.index("chest")] = 0.4
+
+    path = edited(mannequin_arkit_glb, slider, tmp_path / "slider.glb")
+    doc, w = bake(path)
+    names = doc["meshes"][0]["extras"]["targetNames"]
+    node = mesh_node(doc)
+    np.testing.assert_allclose(w[node][:, names.index("chest")], 0.4, atol=1e-7)   # the avatar's own value
+    assert set(breath_on_bones(load_avatar(path), BREATH)) == {"chest", "belly"}   # both breathe on the spine
+
+    def renamed(doc):
+        slider(doc)
+        names = doc["meshes"][0]["extras"]["targetNames"]
+        names[names.index("chest")] = "laughlab_chest"
+
+    doc, w = bake(edited(mannequin_arkit_glb, renamed, tmp_path / "renamed.glb"))
+    np.testing.assert_allclose(w[node][:, names.index("chest")], BREATH["chest"], atol=1e-7)
+    # laughlab's own mannequin file keeps its chest and belly morphs breathing
+    doc, w = bake(edited(mannequin_arkit_glb, lambda d: None, tmp_path / "ours.glb"))
+    np.testing.assert_allclose(w[node][:, names.index("belly")], BREATH["belly"], atol=1e-7)

@@ -12,8 +12,10 @@ Three routes, in this order:
    morph binds add ``expression weight x bind weight`` to its morph targets (clipped to [0, 1]).
    ``blink`` is driven only if the avatar lacks ``blinkLeft`` or ``blinkRight`` (else the two
    eyes are driven apart and ``blink`` stays 0, so no eye closes twice).
-3. **Breathing.**  The body's ``chest`` and ``belly`` channels go to morph targets of those names
-   (case ignored) if the avatar has them, else to the spine bones (:func:`breathing_pose`).
+3. **Breathing.**  The body's ``chest`` and ``belly`` channels go to morph targets named
+   ``laughlab_chest`` and ``laughlab_belly`` (case ignored; plain ``chest``/``belly`` only on laughlab's
+   own mannequin files: on another avatar those are body-shape sliders) if the avatar has them, else to
+   the spine bones (:func:`breathing_pose`).
 """
 from __future__ import annotations
 
@@ -156,6 +158,21 @@ def vrm_rules(avatar: Avatar, weights: dict[str, np.ndarray]) -> dict[str, np.nd
     return out
 
 
+def breath_morph(avatar: Avatar, name: str) -> str | None:
+    """The breathing channel (``chest``, ``belly``) a morph target takes, or None: one named ``laughlab_chest`` or
+    ``laughlab_belly`` (case ignored); one named plain ``chest`` or ``belly`` only on a file laughlab wrote (its
+    mannequin, ``python -m laughlab.avatar.mannequin``; its own character.glb): elsewhere a ``Chest`` morph is
+    a character creator's body slider, which breathing drove from 0 to 1 (a review)."""
+    low = (name or "").lower()
+    if low in ("laughlab_chest", "laughlab_belly"):
+        return low[len("laughlab_"):]
+    if low in ("chest", "belly"):
+        asset = avatar.doc.get("asset") if isinstance(getattr(avatar, "doc", None), dict) else None
+        generator = str((asset or {}).get("generator", "")) if isinstance(asset, dict) else ""
+        return low if generator.startswith("laughlab") else None
+    return None
+
+
 def driven_morphs(avatar: Avatar, arkit: Mapping[str, np.ndarray] | set,
                   breath: Mapping[str, np.ndarray] | set) -> dict[int, list[int]]:
     """Mesh node -> the indices of its morph targets that the run's face and breathing set (the targets
@@ -163,7 +180,7 @@ def driven_morphs(avatar: Avatar, arkit: Mapping[str, np.ndarray] | set,
     out: dict[int, set[int]] = {}
     for node, names in avatar.morph_names.items():
         for k, name in enumerate(names):
-            if arkit_morph(name) in arkit or name.lower() in breath:
+            if arkit_morph(name) in arkit or breath_morph(avatar, name) in breath:
                 out.setdefault(node, set()).add(k)
     for expr in used_expressions(avatar, arkit):
         for node, index, _ in _binds(avatar, expr):
@@ -223,8 +240,9 @@ def morph_weights(avatar: Avatar, arkit: Mapping[str, np.ndarray], breath: Mappi
             a = arkit_morph(name)
             if a is not None and a in arkit:
                 out[node][:, k] = arkit[a]
-            if name.lower() in breath:
-                out[node][:, k] = breath[name.lower()]
+            b = breath_morph(avatar, name)
+            if b in breath:
+                out[node][:, k] = breath[b]
     for node, w in out.items():
         ks = driven.get(node, [])
         default = np.asarray(avatar.morph_defaults.get(node, np.zeros(w.shape[1])), dtype=np.float64)
@@ -235,11 +253,10 @@ def morph_weights(avatar: Avatar, arkit: Mapping[str, np.ndarray], breath: Mappi
 
 
 def breath_on_bones(avatar: Avatar, breath: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The breathing channels of ``breath`` that the avatar has no morph for (by name, case ignored):
-    those move its spine bones (:func:`breathing_pose`), the others its ``chest``/``belly`` morphs.
-    Decided per channel, so an avatar with a ``chest`` morph and no ``belly`` one still breathes with
-    its belly on the bones."""
-    names = {n.lower() for n in avatar.all_morph_names()}
+    """The breathing channels of ``breath`` that the avatar has no morph for (:func:`breath_morph`): those move
+    its spine bones (:func:`breathing_pose`), the others its breathing morphs.  Decided per channel, so an avatar
+    with a chest morph and no belly one still breathes with its belly on the bones."""
+    names = {breath_morph(avatar, n) for n in avatar.all_morph_names()}
     return {k: v for k, v in breath.items() if k.lower() not in names}
 
 
