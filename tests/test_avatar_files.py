@@ -220,3 +220,34 @@ def test_odd_but_harmless_names_still_load(tmp_path):
     (tmp_path / "odd.vrm").write_bytes(_glb(doc, binary))
     av = load_avatar(tmp_path / "odd.vrm")
     assert av.kind == "vrm0" and all(len(n) == len(set(n)) or "" in n for n in av.morph_names.values())
+
+
+# -- 19: python -m laughlab.avatar.mannequin DIR --------------------------------------------------------------------
+
+def _mannequin_tool(*args):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "laughlab.avatar.mannequin", *map(str, args)], capture_output=True,
+                          text=True, timeout=120)
+
+
+def test_the_mannequin_tool_keeps_existing_files_and_says_errors_in_one_line(tmp_path):
+    """Review 19: it replaced a user's mannequin.vrm silently, and a folder it could not make was a traceback."""
+    from laughlab.avatar.mannequin import mannequin_vrm as vrm
+
+    mine = tmp_path / "mq" / "mannequin.vrm"
+    mine.parent.mkdir()
+    mine.write_text("my own file")
+    r = _mannequin_tool(tmp_path / "mq")
+    assert r.returncode == 2 and r.stdout == "" and r.stderr == (
+        f"laughlab: error: {mine} exists; pass --overwrite to replace it, or give another folder\n"), r.stderr
+    assert mine.read_text() == "my own file" and not (tmp_path / "mq" / "mannequin_arkit.glb").exists()
+    r = _mannequin_tool(tmp_path / "mq", "--overwrite")
+    assert r.returncode == 0 and mine.read_bytes() == vrm() and sorted(p.name for p in mine.parent.iterdir()) == [
+        "mannequin.vrm", "mannequin_arkit.glb"], r.stderr
+    (tmp_path / "file").write_text("x")
+    r = _mannequin_tool(tmp_path / "file" / "sub")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert r.stderr.startswith(f"laughlab: error: cannot write the mannequin into {tmp_path / 'file' / 'sub'} ("), \
+        r.stderr
