@@ -133,6 +133,11 @@ def test_a_gltfs_texture_files_are_carried_into_character_glb(tmp_path):
     got = np.concatenate([p.colours for p in parts(load_avatar(alone))])
     want = np.concatenate([p.colours for p in parts(load_avatar(GODETTE))])
     np.testing.assert_array_equal(got, want)
+    # and the Khronos validator finds no error in it (the embedded images' views and MIME types)
+    from test_gltf import validator_issues
+
+    found = validator_issues(alone, tmp_path)
+    assert found["numErrors"] == 0, found["messages"]
 
 
 @pytest.mark.parametrize("damage, says", [
@@ -251,3 +256,21 @@ def test_the_mannequin_tool_keeps_existing_files_and_says_errors_in_one_line(tmp
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert r.stderr.startswith(f"laughlab: error: cannot write the mannequin into {tmp_path / 'file' / 'sub'} ("), \
         r.stderr
+
+
+def test_a_ktx2_image_offered_beside_a_png_is_carried_along(tmp_path):
+    """KHR_texture_basisu used but not required: its KTX2 images sit beside PNG fallbacks.  Pillow cannot read
+    KTX2, which must not refuse the avatar; the baked file carries it as image/ktx2."""
+    from laughlab.avatar.images import KTX2
+
+    path = _godette_as_gltf(tmp_path / "basis")
+    doc = json.loads(path.read_text())
+    (tmp_path / "basis" / "tex.ktx2").write_bytes(KTX2 + b"\0" * 68)
+    doc["images"].append({"uri": "tex.ktx2"})
+    doc.setdefault("extensionsUsed", []).append("KHR_texture_basisu")
+    doc["textures"][0].setdefault("extensions", {})["KHR_texture_basisu"] = {"source": len(doc["images"]) - 1}
+    path.write_text(json.dumps(doc))
+    out = _cli(tmp_path, "output=gltf", "face=facs", "input.duration_s=1", f"character={path}")
+    assert out.returncode == 0, out.stderr
+    baked, _ = read_glb(tmp_path / "run" / "character.glb")
+    assert baked["images"][-1]["mimeType"] == "image/ktx2" and "uri" not in baked["images"][-1]

@@ -89,12 +89,19 @@ def image_format(path: Path, name: str, data: bytes) -> str:
     return fmt
 
 
+#: the first bytes of a KTX2 file (KHR_texture_basisu): laughlab does not draw those (an avatar requiring the
+#: extension is refused), but one offered beside a PNG fallback is carried along unchecked
+KTX2 = b"\xabKTX 20\xbb\r\n\x1a\n"
+
+
 def read_images(path: Path, doc: dict, binary: bytes) -> dict[int, bytes]:
-    """Every image checked (:func:`image_format`); image index -> bytes for those outside the buffer."""
+    """Every image checked (:func:`image_format`; KTX2 ones carried along as they are); image index -> bytes for
+    those outside the buffer."""
     out = {}
     for i in range(len(doc.get("images") or [])):
         data, outside = _bytes(path, doc, binary, i)
-        image_format(path, image_name(doc, i), data)
+        if not data.startswith(KTX2):
+            image_format(path, image_name(doc, i), data)
         if outside:
             out[i] = data
     return out
@@ -106,8 +113,11 @@ def embed_images(doc: dict, images: dict[int, bytes], buf) -> None:
     from PIL import Image
 
     for i, data in sorted(images.items()):
-        with Image.open(io.BytesIO(data)) as im:
-            mime = MIME[im.format]
+        if data.startswith(KTX2):
+            mime = "image/ktx2"
+        else:
+            with Image.open(io.BytesIO(data)) as im:
+                mime = MIME[im.format]
         buf.data += b"\0" * (-len(buf.data) % 4)
         buf.views.append({"buffer": 0, "byteOffset": len(buf.data), "byteLength": len(data)})
         buf.data += data
