@@ -202,8 +202,9 @@ def _set(d: dict, key, value):
      "its VRM.blendShapeMaster.blendShapeGroups[1].binds[0] has mesh \"0\", not a whole number"),
     (_vrm0(lambda v, d: _set(v["humanoid"], "humanBones", {"hips": 0})),
      "its VRM.humanoid.humanBones is {\"hips\": 0}, not a list; the file is damaged"),
+    (_vrm0(lambda v, d: _set(d["images"], 0, 5)), "image 0 is not an object; the file is damaged"),
 ], ids=["v1-bind-no-index", "v1-bone-int", "v1-null-extension", "v1-null-expression", "v1-bones-list",
-        "v1-weight-string", "v0-bind-no-index", "v0-bind-mesh-string", "v0-bones-object"])
+        "v1-weight-string", "v0-bind-no-index", "v0-bind-mesh-string", "v0-bones-object", "image-not-object"])
 def test_a_damaged_vrm_extension_is_one_line_exit_2(tmp_path, make, says):
     """Review 10: KeyError, AttributeError and TypeError tracebacks (exit 1) where docs/avatars.md promises one
     line naming the file and what is wrong, exit 2."""

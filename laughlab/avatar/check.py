@@ -79,6 +79,8 @@ def check_structure(path: Path, doc: dict, binary: bytes) -> None:
         if "inverseBindMatrices" in s:
             _index(path, s["inverseBindMatrices"], len(accessors), f"skin {i}")
     for i, img in enumerate(doc.get("images") or []):
+        if not isinstance(img, dict):
+            raise AvatarError(f"{path}: image {i} is not an object; the file is damaged")
         if "bufferView" in img:
             _index(path, img["bufferView"], len(views), f"image {i}")
     for i, anim in enumerate(doc.get("animations") or []):
