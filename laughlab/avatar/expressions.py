@@ -11,11 +11,16 @@ Three routes, in this order:
    ``clip(sum of weight x ARKit value, 0, 1)`` from :data:`ARKIT_TO_VRM`, and each expression's
    morph binds add ``expression weight x bind weight`` to its morph targets (clipped to [0, 1]).
    ``blink`` is driven only if the avatar lacks ``blinkLeft`` or ``blinkRight`` (else the two
-   eyes are driven apart and ``blink`` stays 0, so no eye closes twice).
+   eyes are driven apart and ``blink`` stays 0, so no eye closes twice).  The avatar's own VRM
+   rules (``isBinary``, ``overrideBlink``/``overrideMouth``/``overrideLookAt``) apply to the
+   expressions' weights first (:func:`vrm_rules`).
 3. **Breathing.**  The body's ``chest`` and ``belly`` channels go to morph targets named
    ``laughlab_chest`` and ``laughlab_belly`` (case ignored; plain ``chest``/``belly`` only on laughlab's
    own mannequin files: on another avatar those are body-shape sliders) if the avatar has them, else to
    the spine bones (:func:`breathing_pose`).
+
+Every morph target none of these sets keeps the avatar's default weight (:func:`morph_weights`), and
+:func:`face_route` says in one line which route the face takes and how many morphs it drives.
 """
 from __future__ import annotations
 
