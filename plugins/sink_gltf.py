@@ -42,10 +42,16 @@ class GltfSink(Sink):
 
     def __init__(self, params=None, ctx=None):
         super().__init__(params, ctx)
+        self.avatar = None
         if getattr(self.params, "character", None):  # check the avatar now: a bad file stops the run before anything is written
             from laughlab.avatar.load import load_character
 
-            load_character(self.params.character)
+            # and keep it: the end of the run bakes this avatar, the one checked, not the file as it is then
+            # (replaced or re-exported during a long run, a review found: a traceback, or another avatar baked)
+            self.avatar = load_character(self.params.character)
+            from laughlab.avatar.expressions import say_face_route
+
+            say_face_route(self.avatar)
 
     def open(self, run) -> None:
         super().open(run)
@@ -90,12 +96,11 @@ class GltfSink(Sink):
 
     def data(self, n: int) -> bytes:
         """The file's bytes for the ``n`` frames recorded."""
-        if self.params.character:
+        if self.avatar is not None:
             from laughlab.avatar.bake import baked_glb
             from laughlab.avatar.channels import joined
-            from laughlab.avatar.load import load_avatar
 
-            return baked_glb(load_avatar(self.params.character), self.run.skeleton, np.concatenate(self.times),
+            return baked_glb(self.avatar, self.run.skeleton, np.concatenate(self.times),
                              np.concatenate(self.poses), joined(self.arkit), joined(self.breath),
                              audio_duration_s=self.audio_duration_s(n), fps=self.run.fps)
         from laughlab.character.body import build

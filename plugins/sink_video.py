@@ -184,6 +184,9 @@ class VideoSink(Sink):
             from laughlab.avatar.load import load_character
 
             self.avatar = load_character(self.params.character)
+            from laughlab.avatar.expressions import say_face_route
+
+            say_face_route(self.avatar)
 
     def open(self, run) -> None:
         super().open(run)
@@ -206,10 +209,14 @@ class VideoSink(Sink):
                     audio = source_audio(run.source, self.tmp_dir)
             self.audio = audio
             if self.avatar is not None:
+                from laughlab.avatar.errors import AvatarError
                 from laughlab.render.avatar_view import AvatarRenderer
 
-                self.renderer = AvatarRenderer(self.avatar, run.skeleton, p.width, p.height,
-                                               Camera(**vars(p.character_camera)), p.supersample)
+                try:
+                    self.renderer = AvatarRenderer(self.avatar, run.skeleton, p.width, p.height,
+                                                   Camera(**vars(p.character_camera)), p.supersample)
+                except AvatarError as exc:   # a texture whose pixels do not decode: the avatar's line, not ours
+                    raise LaughlabError(str(exc)) from None
             elif p.style == "character":
                 from laughlab.render.character_view import CharacterRenderer
 
@@ -223,6 +230,7 @@ class VideoSink(Sink):
         except BaseException:
             self.abort()
             raise
+        self.channels_seen: set = set()   # the ARKit weights the face gave (metrics: the morphs they drove)
         self.n = 0          # animation frames seen
         self.m = 0          # video frames written
         self.render_s = 0.0
@@ -272,6 +280,7 @@ class VideoSink(Sink):
         from laughlab.avatar.expressions import breath_on_bones, breathing_pose, morph_weights
 
         arkit, breath = face_and_breath(chunk.channels)
+        self.channels_seen |= set(arkit)
         arkit = {k: np.asarray(v)[idx] for k, v in arkit.items()}
         breath = {k: np.asarray(v)[idx] for k, v in breath.items()}
         poses = breathing_pose(poses, breath_on_bones(self.avatar, breath), self.run.skeleton)
@@ -292,8 +301,14 @@ class VideoSink(Sink):
 
     def metrics(self) -> dict:
         """Video frames written and the drawing-plus-piping speed (frames per second of wall time)."""
-        return {"video_frames": int(self.m), "video_fps": self.vfps,
-                "video_render_fps": self.m / self.render_s if self.render_s > 0 else float("nan")}
+        out = {"video_frames": int(self.m), "video_fps": self.vfps,
+               "video_render_fps": self.m / self.render_s if self.render_s > 0 else float("nan")}
+        if self.avatar is not None:   # how the face drove the avatar (its one line was said at start-up)
+            from laughlab.avatar.expressions import face_route
+
+            route = face_route(self.avatar, self.channels_seen)
+            out.update(avatar_morphs=route["morphs"], avatar_morphs_driven=route["morphs_driven"])
+        return out
 
     def abort(self) -> None:
         try:

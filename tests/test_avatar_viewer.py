@@ -2,6 +2,7 @@
 avatar's joints are where the retargeting puts them, its morphs follow the face channels, the camera frames it
 above the control bar; with ``--out`` the page opens from the disk (three-vrm inside its import map)."""
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -173,5 +174,61 @@ def test_the_avatar_page_written_with_out_plays_opened_as_a_file(godette_site, r
         shows_godette(page.screenshot(), page.eval("window.laughlab.onScreen()"))
         whole_character_above_the_bar(page, times=(0.5, 2.0, 3.5))
         joints_where_the_retargeting_puts_them(page, ASSETS / "Godette_vrm_v4.vrm", run_dir, 140)
+    finally:
+        page.close()
+
+
+@pytest.mark.browser
+def test_a_character_that_does_not_load_is_not_blamed_on_the_file_url(godette_site, tmp_path):
+    """Review 3: a character three.js could not read (a Draco mesh without a DRACOLoader) showed 'This page was
+    opened as a file ... Serve its folder', which does not help; that advice is for files the page cannot read."""
+    import re
+
+    text = (godette_site / "index.html").read_text()
+    broken = re.sub(r'(<script type="application/octet-stream" id="laughlab-glb">)[^<]*', r"\1Z2xURgIAAAA=", text)
+    assert broken != text
+    (tmp_path / "index.html").write_text(broken)
+    page = Page((tmp_path / "index.html").as_uri())
+    try:
+        msg, t0 = None, time.time()
+        while msg is None and time.time() - t0 < 60:
+            msg = page.eval("(m => m && !m.hidden ? m.textContent : null)(document.getElementById('msg'))")
+            time.sleep(0.2)
+        assert msg is not None and msg.startswith("The viewer could not start: ") and "opened as a file" not in msg
+    finally:
+        page.close()
+
+
+@pytest.mark.browser
+def test_an_avatar_in_centimetres_is_framed_and_drawn(run_dir, tmp_path):
+    """Review 14: the mannequin under a x100 root (FBX exported without unit conversion: 170 m tall) showed an empty
+    scene: the camera backed off at most 55 m and the far plane was 50 m.  Now the distances follow the
+    character's bounding sphere: it fills the view, and it is drawn (not clipped away)."""
+    import io
+
+    from PIL import Image
+
+    from laughlab.avatar.mannequin import mannequin_arkit_glb
+    from laughlab.io.gltf import Buffer, glb_bytes, parse_glb
+
+    doc, binary = parse_glb(mannequin_arkit_glb())
+    scene = doc["scenes"][0]
+    doc["nodes"].append({"name": "Root", "scale": [100.0, 100.0, 100.0], "children": scene["nodes"]})
+    scene["nodes"] = [len(doc["nodes"]) - 1]
+    path = tmp_path / "centimetres.glb"
+    path.write_bytes(glb_bytes(doc, Buffer(binary, doc["bufferViews"], doc["accessors"])))
+    r = laughlab("view", str(run_dir), "--character", str(path), "--out", str(tmp_path / "site"))
+    assert r.returncode == 0, r.stderr
+    page = Page((tmp_path / "site" / "index.html").as_uri())
+    try:
+        page.wait_ready(120)
+        page.eval("window.laughlab.check(2.0)")
+        at = page.eval("window.laughlab.onScreen()")
+        assert at["viewTop"] < at["highest"] < at["lowest"] < at["barTop"], at
+        assert at["lowest"] - at["highest"] > 0.5 * (at["viewBottom"] - at["viewTop"]), at   # it fills the view
+        img = np.asarray(Image.open(io.BytesIO(page.screenshot())).convert("RGB")).astype(int)
+        band = img[int(at["highest"]): int((at["highest"] + at["lowest"]) / 2)]
+        figure = np.abs(band - np.array([0x2a, 0x30, 0x40])).sum(axis=2) > 60
+        assert figure.mean() > 0.03, figure.mean()   # drawn, not beyond the far plane
     finally:
         page.close()

@@ -1,10 +1,14 @@
 """A user's avatar with a run baked in: the avatar's own glTF plus one animation, ``laugh``.
 
-Everything of the avatar file is kept (meshes, skins, materials, textures, its VRM extension);
+Everything of the avatar file is kept (meshes, skins, materials, textures, its VRM extension); the
+images of a ``.gltf`` (files beside it, ``data:`` URIs) are put into the file's buffer, so it is whole;
 the animation is appended: the humanoid bones' local rotations and the hips' translation per
-frame (:func:`laughlab.avatar.retarget.retarget`), and every mesh node's morph weights per frame
-(:func:`laughlab.avatar.expressions.morph_weights`).  ``scenes[0].extras.laughlab`` carries fps,
-frames and the input audio's duration as in laughlab's own ``character.glb``.
+frame (:func:`laughlab.avatar.retarget.retarget`), and the morph weights per frame of every mesh node
+with a target the run drives (:func:`laughlab.avatar.expressions.morph_weights`; its other targets
+keep the avatar's default weights; a node with none driven gets no ``weights`` channel).
+``scenes[0].extras.laughlab`` carries fps, frames and the input audio's duration as in laughlab's own
+``character.glb``, and ``face``: the number of morph targets, how many the face drove, and the VRM
+expressions it used (:func:`laughlab.avatar.expressions.face_route`).
 """
 from __future__ import annotations
 
@@ -13,7 +17,8 @@ from typing import Mapping
 
 import numpy as np
 
-from laughlab.avatar.expressions import breath_on_bones, breathing_pose, morph_weights
+from laughlab.avatar.expressions import breath_on_bones, breathing_pose, driven_morphs, face_route, morph_weights
+from laughlab.avatar.images import embed_images
 from laughlab.avatar.load import Avatar
 from laughlab.avatar.retarget import retarget
 from laughlab.io.gltf import Buffer, glb_bytes, hold_to_end
@@ -35,6 +40,7 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
     moved = retarget(avatar, poses, skeleton)
     doc = copy.deepcopy(avatar.doc)
     buf = Buffer(avatar.binary, doc.get("bufferViews"), doc.get("accessors"))
+    embed_images(doc, avatar.images, buf)   # a .gltf's texture files: into the file, which goes elsewhere
     t_in = buf.accessor(times, minmax=True)
     samplers, channels = [], []
 
@@ -46,12 +52,16 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
     track(avatar.bones["hips"], "translation", moved.hips_translation)
     for k, node in enumerate(moved.nodes):
         track(node, "rotation", moved.rotations[:, k])
+    driven = driven_morphs(avatar, arkit, breath)
     for node, w in sorted(morph_weights(avatar, arkit, breath, len(times)).items()):
-        track(node, "weights", w.reshape(-1))
+        if driven.get(node):   # a node none of whose targets the run drives keeps its own weights: no channel
+            track(node, "weights", w.reshape(-1))
     doc.setdefault("animations", []).insert(0, {"name": "laugh", "samplers": samplers, "channels": channels})
     scene = doc.get("scene", 0)
     if doc.get("scenes"):
         extras = doc["scenes"][scene].setdefault("extras", {})
-        extras["laughlab"] = {"fps": float(fps), "frames": int(f), "audio_duration_s": float(audio_duration_s)}
+        route = face_route(avatar, set(arkit))
+        extras["laughlab"] = {"fps": float(fps), "frames": int(f), "audio_duration_s": float(audio_duration_s),
+                              "face": {k: route[k] for k in ("morphs", "morphs_driven", "expressions")}}
     doc["asset"] = {**doc.get("asset", {}), "generator": f"laughlab (avatar: {doc.get('asset', {}).get('generator', '?')})"}
     return glb_bytes(doc, buf)

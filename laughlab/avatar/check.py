@@ -79,6 +79,8 @@ def check_structure(path: Path, doc: dict, binary: bytes) -> None:
         if "inverseBindMatrices" in s:
             _index(path, s["inverseBindMatrices"], len(accessors), f"skin {i}")
     for i, img in enumerate(doc.get("images") or []):
+        if not isinstance(img, dict):
+            raise AvatarError(f"{path}: image {i} is not an object; the file is damaged")
         if "bufferView" in img:
             _index(path, img["bufferView"], len(views), f"image {i}")
     for i, anim in enumerate(doc.get("animations") or []):
@@ -125,12 +127,14 @@ def _check_nodes(path: Path, nodes: list, n_meshes: int, n_skins: int) -> None:
                               "trees, and the file is damaged")
 
 
-def check_bones(path: Path, bones: dict, rest_world: np.ndarray, order: list[int]) -> None:
+def check_bones(path: Path, bones: dict, rest_world: np.ndarray, order: list[int], nodes: list | None = None) -> None:
     """Refuse two of the bones laughlab drives (:data:`laughlab.avatar.names.JOINT_TO_VRM`) on one node, and such
     a bone whose rest transform cannot be inverted (a zero scale on it or an ancestor; tested relative to its
     largest scale, so an avatar in centimetres or scaled by 0.01 is fine): the body's rotations are solved in
     each bone's own frame.  Bones laughlab does not drive (eyes, jaw, fingers) are not checked.  Bones are taken
-    parent first (``order``), so the line names the highest bone a zero scale reaches."""
+    parent first (``order``), so the line names the highest bone a zero scale reaches.  A driven bone on a skinned
+    mesh node (``nodes``) is refused too: glTF ignores that node's own transform (2.0 spec, 3.7.3 *Skins*), so
+    its animation would move nothing."""
     from laughlab.avatar.names import JOINT_TO_VRM
 
     driven = set(JOINT_TO_VRM.values())
@@ -142,6 +146,10 @@ def check_bones(path: Path, bones: dict, rest_world: np.ndarray, order: list[int
             raise AvatarError(f"{path}: the humanoid maps {seen[node]} and {bone} to the same node {node}; "
                               "each bone needs its own node")
         seen[node] = bone
+        if nodes is not None and "skin" in nodes[node]:
+            raise AvatarError(f"{path}: the {bone} bone is node {node}, a skinned mesh "
+                              f"({nodes[node].get('name', 'unnamed')!r}), whose own transform glTF ignores; map "
+                              "the bone to its joint")
         scales = np.linalg.svd(rest_world[node][:3, :3], compute_uv=False)
         if not np.isfinite(scales).all() or scales[-1] <= 1e-9 * scales[0]:
             raise AvatarError(f"{path}: the {bone} bone (node {node}) has a zero scale in its rest pose (or an "

@@ -13,16 +13,29 @@ import json
 import struct
 from dataclasses import dataclass, field
 from pathlib import Path
-from urllib.parse import unquote
 
 import numpy as np
 
 from laughlab.avatar.check import check_bones, check_structure
 from laughlab.avatar.errors import AvatarError
-from laughlab.avatar.names import REQUIRED, bones_by_name
+from laughlab.avatar.images import beside, read_images
+from laughlab.avatar.names import REQUIRED, bones_by_name, node_ranks
 
 MAX_BYTES = 100 * 1024 * 1024
 """The largest avatar file laughlab loads (100 MB)."""
+
+#: extensions an avatar may list in ``extensionsRequired`` that laughlab reads (or may ignore without drawing
+#: anything wrong): integer vertex attributes, and material looks (the video uses the base colour; three.js
+#: renders them); any other required extension is refused: glTF 2.0 (3.12 *Specifying Extensions*) lists in
+#: ``extensionsRequired`` the extensions an asset cannot be loaded without
+READS_REQUIRED = ("KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_")
+
+#: required extensions laughlab cannot read -> what to do instead
+NOT_READ = {
+    "KHR_draco_mesh_compression": "export it without mesh compression (Draco)",
+    "EXT_meshopt_compression": "export it without mesh compression (meshopt)",
+    "KHR_texture_basisu": "export its textures as PNG or JPEG (not KTX2/Basis)",
+}
 
 
 @dataclass
@@ -47,11 +60,26 @@ class Avatar:
     rest_world : ndarray (N, 4, 4)
         Each node's world transform in the rest pose.
     facing : int
-        +1 if the avatar faces +Z (its left is +X), -1 if it faces -Z (VRM 0.x).
+        +1 if the avatar faces +Z (its left is +X), -1 if it faces -Z (VRM 0.x); for an avatar turned some other
+        way about Y, the nearer of the two (``turn`` is exact).
+    turn : ndarray (3, 3)
+        The rotation about Y that turns laughlab's frame (facing +Z, left +X) into the avatar's: it takes +X to
+        the direction from the avatar's right upper arm to its left one, on the ground plane
+        (:func:`facing_turn`); identity for +Z, ``diag(-1, 1, -1)`` for -Z.
     expressions : dict
         Expression name (VRM 1.0 preset names, 0.x names translated) -> list of (mesh node, morph index, weight).
+    expression_rules : dict
+        Expression name -> its VRM rules: ``isBinary`` (bool; VRM 0.x and 1.0) and ``overrideBlink``,
+        ``overrideMouth``, ``overrideLookAt`` (``none``, ``block`` or ``blend``; VRM 1.0), for those that set any.
     morph_names : dict
         Mesh node index -> its morph target names ('' where unnamed).
+    morph_defaults : dict
+        Mesh node index -> its morph targets' default weights: the node's ``weights``, else its mesh's,
+        else zeros (glTF 2.0, 3.7.2.2 *Morph Targets*: ``mesh.weights`` holds the default weights, used where the
+        node has no ``weights`` of its own; without either, the defaults are 0).
+    images : dict
+        Image index -> its bytes, for the images outside the buffer (files beside a ``.gltf``, ``data:`` URIs),
+        read once at load (:func:`laughlab.avatar.images.read_images`: every image checked by Pillow).
     """
 
     path: Path
@@ -63,8 +91,12 @@ class Avatar:
     rest_local: np.ndarray
     rest_world: np.ndarray
     facing: int
+    turn: np.ndarray = field(default_factory=lambda: np.eye(3))
     expressions: dict = field(default_factory=dict)
     morph_names: dict = field(default_factory=dict)
+    morph_defaults: dict = field(default_factory=dict)
+    expression_rules: dict = field(default_factory=dict)
+    images: dict = field(default_factory=dict)
 
     @property
     def order(self) -> list[int]:
@@ -118,16 +150,6 @@ def read_gltf(path: str | Path) -> tuple[dict, bytes]:
         raise _fail(path, f"its buffer holds {len(binary):,} bytes where the file declares {declared:,}: "
                           "it is cut short")
     return doc, binary
-
-
-def beside(path: Path, uri: str) -> Path:
-    """The file a glTF's relative ``uri`` names, which must lie in the avatar's folder or below it: a URI such as
-    ``../../etc/passwd`` would copy any readable file into the exported character and its web page."""
-    target = (path.parent / unquote(uri)).resolve()
-    if not target.is_relative_to(path.parent.resolve()):
-        raise _fail(path, f"its file {uri!r} lies outside the avatar's folder; laughlab reads only files beside "
-                          "the avatar")
-    return target
 
 
 def _read_gltf(path: Path) -> tuple[dict, bytes]:
@@ -212,18 +234,62 @@ def local_matrix(node: dict) -> np.ndarray:
     return m
 
 
+def _obj(path: Path, value, what: str) -> dict:
+    """``value`` if it is a JSON object, ``{}`` if absent (None is damage too, where the key is there)."""
+    if not isinstance(value, dict):
+        raise _fail(path, f"its {what} is {json.dumps(value)[:40]}, not an object; the file is damaged")
+    return value
+
+
+def _items(path: Path, parent: dict, key: str, what: str, kind: type = dict):
+    """``parent[key]`` (a JSON object or list, as ``kind``; empty if absent), or one line saying it is damaged."""
+    value = parent.get(key, kind())
+    if not isinstance(value, kind):
+        raise _fail(path, f"its {what}.{key} is {json.dumps(value)[:40]}, not "
+                          f"{'an object' if kind is dict else 'a list'}; the file is damaged")
+    return value
+
+
+def _whole(path: Path, d: dict, key: str, what: str, default=None) -> int:
+    v = d.get(key, default)
+    if v is None:
+        raise _fail(path, f"its {what} has no {key}; the file is damaged")
+    if isinstance(v, bool) or not isinstance(v, int):
+        raise _fail(path, f"its {what} has {key} {json.dumps(v)[:40]}, not a whole number; the file is damaged")
+    return v
+
+
+def _number(path: Path, d: dict, key: str, what: str, default: float) -> float:
+    v = d.get(key, default)
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _fail(path, f"its {what} has {key} {json.dumps(v)[:40]}, not a number; the file is damaged")
+    return float(v)
+
+
+def _extension(path: Path, doc: dict, name: str) -> dict:
+    return _obj(path, _obj(path, doc.get("extensions", {}), "extensions")[name], f"{name} extension")
+
+
 def _humanoid(path: Path, doc: dict) -> tuple[str, dict]:
-    ext = doc.get("extensions") or {}
+    """The kind of avatar and its humanoid bones; the VRM extension's JSON checked as it is read (a damaged one
+    ended in a traceback, a review found), each failure one line naming the field."""
+    ext = _obj(path, doc.get("extensions", {}), "extensions")
     n_nodes = len(doc.get("nodes") or [])
     if "VRMC_vrm" in ext:
-        bones = {k: v.get("node") for k, v in ((ext["VRMC_vrm"].get("humanoid") or {}).get("humanBones") or {}).items()}
+        human = _obj(path, _extension(path, doc, "VRMC_vrm").get("humanoid", {}), "VRMC_vrm.humanoid")
+        bones = {k: _obj(path, v, f"VRMC_vrm.humanoid.humanBones.{k}").get("node")
+                 for k, v in _items(path, human, "humanBones", "VRMC_vrm.humanoid").items()}
         kind = "vrm1"
     elif "VRM" in ext:
-        bones = {b.get("bone"): b.get("node") for b in (ext["VRM"].get("humanoid") or {}).get("humanBones") or []}
+        human = _obj(path, _extension(path, doc, "VRM").get("humanoid", {}), "VRM.humanoid")
+        bones = {}
+        for k, b in enumerate(_items(path, human, "humanBones", "VRM.humanoid", list)):
+            b = _obj(path, b, f"VRM.humanoid.humanBones[{k}]")
+            bones[b.get("bone")] = b.get("node")
         kind = "vrm0"
     else:
-        names = [n.get("name", "") for n in doc.get("nodes") or []]
-        bones = bones_by_name(names)
+        names = [n.get("name", "") if isinstance(n.get("name", ""), str) else "" for n in doc.get("nodes") or []]
+        bones = bones_by_name(names, node_ranks(doc))
         if not bones:
             raise _fail(path, "has no humanoid: no VRM humanoid bone map and no node named as a Mixamo, Ready "
                               "Player Me or VRM bone (docs/avatars.md lists the names)")
@@ -237,26 +303,99 @@ def _humanoid(path: Path, doc: dict) -> tuple[str, dict]:
     return kind, bones
 
 
-def _expressions(doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> dict:
-    """Expression -> [(mesh node, morph index, weight 0-1)]."""
-    ext = doc.get("extensions") or {}
+def _expressions(path: Path, doc: dict, kind: str, mesh_nodes: dict[int, list[int]]) -> tuple[dict, dict]:
+    """Expression -> [(mesh node, morph index, weight 0-1)], and expression -> its rules (``isBinary``,
+    ``override*``: VRMC_vrm-1.0 expressions.md, *expression object*; VRM 0.x has ``isBinary`` only).  The
+    extension's JSON is checked as it is read (one line naming the field, as :func:`_humanoid`)."""
     out: dict[str, list] = {}
+    rules: dict[str, dict] = {}
     if kind == "vrm1":
-        groups = (ext["VRMC_vrm"].get("expressions") or {})
+        groups = _obj(path, _extension(path, doc, "VRMC_vrm").get("expressions", {}), "VRMC_vrm.expressions")
         for section in ("preset", "custom"):
-            for name, e in (groups.get(section) or {}).items():
-                out[name] = [(int(b["node"]), int(b["index"]), float(b.get("weight", 1.0)))
-                             for b in e.get("morphTargetBinds") or []]
+            for name, e in _items(path, groups, section, "VRMC_vrm.expressions").items():
+                what = f"VRMC_vrm.expressions.{section}.{name}"
+                e = _obj(path, e, what)
+                binds = []
+                for k, b in enumerate(_items(path, e, "morphTargetBinds", what, list)):
+                    b = _obj(path, b, f"{what}.morphTargetBinds[{k}]")
+                    at = f"{what}.morphTargetBinds[{k}]"
+                    binds.append((_whole(path, b, "node", at), _whole(path, b, "index", at),
+                                  _number(path, b, "weight", at, 1.0)))
+                out[name] = binds
+                rule = {k: e[k] for k in ("overrideBlink", "overrideMouth", "overrideLookAt")
+                        if e.get(k) in ("block", "blend")}
+                if e.get("isBinary") is True:
+                    rule["isBinary"] = True
+                if rule:
+                    rules[name] = rule
     elif kind == "vrm0":
-        for g in (ext["VRM"].get("blendShapeMaster") or {}).get("blendShapeGroups") or []:
+        master = _obj(path, _extension(path, doc, "VRM").get("blendShapeMaster", {}), "VRM.blendShapeMaster")
+        for j, g in enumerate(_items(path, master, "blendShapeGroups", "VRM.blendShapeMaster", list)):
+            what = f"VRM.blendShapeMaster.blendShapeGroups[{j}]"
+            g = _obj(path, g, what)
             preset = str(g.get("presetName", "unknown")).lower()
-            name = VRM0_PRESETS.get(preset, g.get("name", preset)) if preset != "unknown" else g.get("name", "")
+            name = VRM0_PRESETS.get(preset, str(g.get("name", preset))) if preset != "unknown" \
+                else str(g.get("name", ""))
             binds = []
-            for b in g.get("binds") or []:
-                for node in mesh_nodes.get(int(b.get("mesh", -1)), []):
-                    binds.append((node, int(b["index"]), float(b.get("weight", 100.0)) / 100.0))
+            for k, b in enumerate(_items(path, g, "binds", what, list)):
+                at = f"{what}.binds[{k}]"
+                b = _obj(path, b, at)
+                mesh, index = _whole(path, b, "mesh", at), _whole(path, b, "index", at)
+                weight = _number(path, b, "weight", at, 100.0) / 100.0
+                binds += [(node, index, weight) for node in mesh_nodes.get(mesh, [])]
             out[name] = binds
-    return out
+            if g.get("isBinary") is True:
+                rules[name] = {"isBinary": True}
+    return out, rules
+
+
+def _check_required(path: Path, doc: dict) -> None:
+    """Refuse an avatar that requires an extension laughlab cannot read (a Draco-compressed mesh read as zeros
+    drew nothing and the viewer failed, a review found, both with exit 0)."""
+    required = doc.get("extensionsRequired") or []
+    if not isinstance(required, list):
+        raise _fail(path, "its extensionsRequired is not a list; the file is damaged")
+    for name in required:
+        if not isinstance(name, str) or not name.startswith(READS_REQUIRED):
+            hint = NOT_READ.get(name, "export it without that extension")
+            raise _fail(path, f"the avatar requires the glTF extension {name}, which laughlab cannot read; "
+                              f"{hint}")
+
+
+#: an avatar whose shoulders lie within this angle (degrees) of the X axis faces exactly +Z or -Z (exporters'
+#: rounding: Godette's are 1e-5 degrees off), so its retargeting is the exact half turn or none
+AXIS_SNAP_DEG = 0.01
+
+
+def facing_turn(path: Path, left: np.ndarray) -> np.ndarray:
+    """The avatar's ``turn`` (see :class:`Avatar`) from ``left``, the vector from its right upper arm to its left
+    one in the rest pose: any yaw (an export with the wrong forward axis faces +-X; retargeted as +-Z it twisted
+    the arms back, a review found), or one line if the arms are one above the other."""
+    x, z = float(left[0]), float(left[2])
+    flat = np.hypot(x, z)
+    if not flat > 0.05 * np.linalg.norm(left):
+        raise _fail(path, "its upper arms are one above the other in the rest pose, so which way it faces cannot be "
+                          "told; export it standing, in a T-pose or an A-pose")
+    x, z = x / flat, z / flat
+    if abs(z) < np.sin(np.radians(AXIS_SNAP_DEG)):
+        x, z = (1.0 if x > 0 else -1.0), 0.0
+    return np.array([[x, 0.0, -z], [0.0, 1.0, 0.0], [z, 0.0, x]])
+
+
+def _target_names(d: dict) -> list[str]:
+    """``extras.targetNames`` (the exporters' convention for morph names), if it is a list; names as strings."""
+    names = (d.get("extras") if isinstance(d.get("extras"), dict) else {}).get("targetNames")
+    return [n if isinstance(n, str) else "" for n in names] if isinstance(names, list) else []
+
+
+def _default_weights(node: dict, mesh: dict, n: int) -> np.ndarray:
+    """A mesh node's default morph weights: ``node.weights``, else ``mesh.weights``, else zeros (glTF 2.0,
+    3.7.2.2 *Morph Targets* and 5.25 ``node.weights``); a list of the wrong length or not numbers is ignored."""
+    for w in (node.get("weights"), mesh.get("weights")):
+        if isinstance(w, list) and len(w) == n and all(
+                isinstance(x, (int, float)) and not isinstance(x, bool) for x in w):
+            return np.nan_to_num(np.asarray(w, dtype=np.float64))
+    return np.zeros(n)
 
 
 def load_avatar(path: str | Path) -> Avatar:
@@ -266,6 +405,7 @@ def load_avatar(path: str | Path) -> Avatar:
     nodes = doc.get("nodes") or []
     if not nodes:
         raise _fail(path, "has no nodes, so no skeleton")
+    _check_required(path, doc)
     check_structure(path, doc, binary)
     kind, bones = _humanoid(path, doc)
     n = len(nodes)
@@ -276,12 +416,13 @@ def load_avatar(path: str | Path) -> Avatar:
                 parents[c] = i
     rest_local = np.array([local_matrix(nd) for nd in nodes])
     av = Avatar(path, kind, doc, binary, bones, parents, rest_local, np.zeros_like(rest_local), 1)
+    av.images = read_images(path, doc, binary)
     order = av.order
     for i in order:
         av.rest_world[i] = rest_local[i] if parents[i] < 0 else av.rest_world[parents[i]] @ rest_local[i]
-    check_bones(path, bones, av.rest_world, order)
-    lx = av.rest_world[bones["leftUpperArm"], 0, 3] - av.rest_world[bones["rightUpperArm"], 0, 3]
-    av.facing = 1 if lx > 0 else -1
+    check_bones(path, bones, av.rest_world, order, nodes)
+    av.turn = facing_turn(path, av.rest_world[bones["leftUpperArm"], :3, 3] - av.rest_world[bones["rightUpperArm"], :3, 3])
+    av.facing = 1 if av.turn[0, 0] > 0 else -1
     if kind == "gltf" and not doc.get("skins") and not any("mesh" in nd for nd in nodes):
         raise _fail(path, "has bones but nothing to show: no skin and no mesh")
     mesh_nodes: dict[int, list[int]] = {}
@@ -289,11 +430,12 @@ def load_avatar(path: str | Path) -> Avatar:
         if "mesh" in nd:
             mesh_nodes.setdefault(int(nd["mesh"]), []).append(i)
             mesh = doc["meshes"][nd["mesh"]]
-            names = list((mesh.get("extras") or {}).get("targetNames") or [])
+            names = _target_names(mesh)
             prims = mesh.get("primitives") or [{}]
             n_t = len(prims[0].get("targets") or [])
             if not names:
-                names = list((prims[0].get("extras") or {}).get("targetNames") or [])
+                names = _target_names(prims[0])
             av.morph_names[i] = (names + [""] * n_t)[:n_t]
-    av.expressions = _expressions(doc, kind, mesh_nodes)
+            av.morph_defaults[i] = _default_weights(nd, mesh, n_t)
+    av.expressions, av.expression_rules = _expressions(path, doc, kind, mesh_nodes)
     return av

@@ -1,7 +1,7 @@
 """laughlab's own mannequin as an avatar file: an ARKit-named GLB and a VRM 1.0.
 
-``python -m laughlab.avatar.mannequin DIR`` writes both (``mannequin_arkit.glb``,
-``mannequin.vrm``).  They are the mannequin of :mod:`laughlab.character.body` in its rest pose
+``python -m laughlab.avatar.mannequin DIR [--overwrite]`` writes both (``mannequin_arkit.glb``,
+``mannequin.vrm``; files of those names already there are replaced only with ``--overwrite``).  They are the mannequin of :mod:`laughlab.character.body` in its rest pose
 (no animation): the GLB with its joints named as in ``motion.bvh`` and its morph targets named
 after the ARKit blendshapes (the ARKit route of ``docs/avatars.md``); the VRM with a
 ``VRMC_vrm`` humanoid map, its morphs renamed ``shapeNN`` (so no ARKit name passes through) and
@@ -10,7 +10,6 @@ MIT, like the mannequin.
 """
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
@@ -81,15 +80,47 @@ def mannequin_vrm() -> bytes:
     return glb_bytes(doc, buf)
 
 
+FILES = ("mannequin_arkit.glb", "mannequin.vrm")
+
+
+def write(out_dir: Path, overwrite: bool = False) -> list[str]:
+    """Write :data:`FILES` into ``out_dir`` (made if missing); an existing file is refused unless ``overwrite``
+    (it replaced a user's file of that name silently, a review found), and nothing is written then.  Each file
+    goes to a ``.part`` first and is renamed, so a failure leaves no half-written one."""
+    from laughlab.core.errors import LaughlabError
+
+    out_dir = Path(out_dir)
+    there = [f for f in FILES if (out_dir / f).exists()]
+    if there and not overwrite:
+        raise LaughlabError(f"{out_dir / there[0]} exists; pass --overwrite to replace "
+                            f"{'it' if len(there) == 1 else ' and '.join(there)}, or give another folder")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        for name, data in zip(FILES, (mannequin_arkit_glb(), mannequin_vrm())):
+            part = out_dir / f".{name}.part"
+            part.write_bytes(data)
+            part.replace(out_dir / name)
+    except OSError as exc:
+        raise LaughlabError(f"cannot write the mannequin into {out_dir} ({exc.strerror or exc})") from None
+    return list(FILES)
+
+
 def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(prog="python -m laughlab.avatar.mannequin",
-                                 description="Write laughlab's mannequin as mannequin_arkit.glb and mannequin.vrm.")
+    import sys
+
+    from laughlab.core.errors import LaughlabError, one_line_parser
+
+    ap = one_line_parser(prog="python -m laughlab.avatar.mannequin",
+                         description="Write laughlab's mannequin as mannequin_arkit.glb and mannequin.vrm.")
     ap.add_argument("out_dir", type=Path)
-    args = ap.parse_args(argv)
-    args.out_dir.mkdir(parents=True, exist_ok=True)
-    (args.out_dir / "mannequin_arkit.glb").write_bytes(mannequin_arkit_glb())
-    (args.out_dir / "mannequin.vrm").write_bytes(mannequin_vrm())
-    print(json.dumps({"written": ["mannequin_arkit.glb", "mannequin.vrm"]}))
+    ap.add_argument("--overwrite", action="store_true", help="replace those two files if the folder has them")
+    try:
+        args = ap.parse_args(argv)
+        written = write(args.out_dir, args.overwrite)
+    except LaughlabError as exc:
+        print(f"laughlab: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
+    print(json.dumps({"written": written}))
 
 
 if __name__ == "__main__":

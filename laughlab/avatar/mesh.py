@@ -4,8 +4,10 @@ Every triangle primitive of every mesh node in the avatar's scene, in the node's
 positions and normals, its morph targets' position offsets, its skin (up to four joints and weights
 a vertex, the joints' inverse bind matrices) or, unskinned, the node it hangs from.  The colour of a
 vertex is its material's base colour factor times the base colour texture sampled at the vertex's
-UV (nearest texel, repeat), in sRGB 0-255: right for the palette textures of low-poly avatars,
-blurred for detailed ones (the renderer interpolates colours between vertices).
+UV (nearest texel, repeat) times its ``COLOR_0`` if it has one (glTF 2.0, 3.9.2: the three are
+multiplied; vertex-coloured avatars drew white before), in sRGB 0-255: right for the palette
+textures of low-poly avatars, blurred for detailed ones (the renderer interpolates colours between
+vertices).
 """
 from __future__ import annotations
 
@@ -75,16 +77,19 @@ def _texture(avatar: Avatar, tex_index: int, cache: dict) -> np.ndarray | None:
     src = (doc.get("textures") or [{}])[tex_index].get("source")
     if src is not None:
         image = doc["images"][src]
-        if "bufferView" in image:
+        if src in avatar.images:    # read from its file (or data: URI) when the avatar was loaded
+            data = avatar.images[src]
+        else:
             view = doc["bufferViews"][image["bufferView"]]
             data = avatar.binary[view.get("byteOffset", 0):view.get("byteOffset", 0) + view["byteLength"]]
+        try:
             img = np.asarray(Image.open(io.BytesIO(data)).convert("RGBA").convert("RGB"), dtype=np.float64)
-        elif image.get("uri") and not image["uri"].startswith("data:"):
-            from laughlab.avatar.load import beside
+        except Exception as exc:   # identified at load (laughlab.avatar.images), but its pixels do not decode
+            from laughlab.avatar.errors import AvatarError
+            from laughlab.avatar.images import image_name
 
-            p = beside(avatar.path, image["uri"])   # outside the avatar's folder: refused in one line
-            if p.is_file():
-                img = np.asarray(Image.open(p).convert("RGBA").convert("RGB"), dtype=np.float64)
+            raise AvatarError(f"{avatar.path}: its texture {image_name(doc, src)!r} cannot be decoded "
+                              f"({type(exc).__name__}); save it again as PNG or JPEG") from None
     cache[tex_index] = img
     return img
 
@@ -98,11 +103,16 @@ def _colours(avatar: Avatar, prim: dict, uv: np.ndarray | None, n: int, cache: d
     tex = pbr.get("baseColorTexture")
     img = _texture(avatar, tex["index"], cache) if tex is not None and uv is not None else None
     if img is None:
-        return np.broadcast_to(srgb_factor, (n, 3)).copy()
-    h, w = img.shape[:2]
-    x = np.floor(np.mod(uv[:, 0], 1.0) * w).astype(np.int64).clip(0, w - 1)
-    y = np.floor(np.mod(uv[:, 1], 1.0) * h).astype(np.int64).clip(0, h - 1)
-    return img[y, x] * (srgb_factor / 255.0)
+        out = np.broadcast_to(srgb_factor, (n, 3)).copy()
+    else:
+        h, w = img.shape[:2]
+        x = np.floor(np.mod(uv[:, 0], 1.0) * w).astype(np.int64).clip(0, w - 1)
+        y = np.floor(np.mod(uv[:, 1], 1.0) * h).astype(np.int64).clip(0, h - 1)
+        out = img[y, x] * (srgb_factor / 255.0)
+    if "COLOR_0" in prim.get("attributes", {}):   # glTF multiplies the vertex colour in too (linear, RGB or RGBA)
+        vc = accessor(avatar, prim["attributes"]["COLOR_0"])[:n, :3]
+        out = out * np.clip(vc, 0.0, 1.0) ** (1 / 2.2)
+    return out
 
 
 def parts(avatar: Avatar) -> list[Part]:

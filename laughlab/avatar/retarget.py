@@ -9,8 +9,9 @@ avatar's frame::
 * ``A_b``: the bone's world rotation in the avatar's rest pose; ``G_j``: the joint's world
   rotation in the frame (identity in laughlab's T-pose rest);
 * ``F``: the avatar's facing: identity if it faces +Z like laughlab (VRM 1.0, most glTF), a half
-  turn about Y if it faces -Z (VRM 0.x); it is read from the file (which side the left upper arm
-  is on), not assumed from the version;
+  turn about Y if it faces -Z (VRM 0.x), any other turn about Y for an avatar exported facing
+  another way (e.g. +X); it is read from the file (the direction from the right upper arm to the
+  left one, on the ground plane), not assumed from the version;
 * ``D_j``: the rest correction of the limbs (shoulders, arms, hands, legs, feet, toes): the
   shortest rotation that turns the avatar's rest bone (from the bone to its child bone) onto
   laughlab's T-pose bone; identity for a T-pose avatar, about 30-45 degrees about Z at the
@@ -115,8 +116,9 @@ def drivers(avatar: Avatar, skeleton: Skeleton = HUMANOID) -> dict[str, int]:
 
 
 def facing_matrix(avatar: Avatar) -> np.ndarray:
-    """``F``: identity for an avatar facing +Z, a half turn about Y for one facing -Z."""
-    return np.diag([1.0, 1.0, 1.0]) if avatar.facing > 0 else np.diag([-1.0, 1.0, -1.0])
+    """``F``: the avatar's turn about Y (:attr:`Avatar.turn`): identity for an avatar facing +Z, a half turn
+    for one facing -Z, any other yaw for one turned otherwise."""
+    return np.asarray(avatar.turn, dtype=np.float64)
 
 
 def corrections(avatar: Avatar, skeleton: Skeleton = HUMANOID) -> dict[int, np.ndarray]:
@@ -158,7 +160,6 @@ def retarget(avatar: Avatar, poses: np.ndarray, skeleton: Skeleton = HUMANOID) -
     drive = drivers(avatar, skeleton)
     D = corrections(avatar, skeleton)
     node_bone = {avatar.bones[b]: b for b in drive}
-    n = len(avatar.parents)
     A = _rot(avatar.rest_world)
     L_rest = _rot(avatar.rest_local)
     world: dict[int, np.ndarray] = {}

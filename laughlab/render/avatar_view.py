@@ -3,10 +3,12 @@
 Per frame: laughlab's pose is retargeted onto the avatar (:mod:`laughlab.avatar.retarget`), each mesh's
 morph targets are added (:func:`laughlab.avatar.expressions.morph_weights`), skinned meshes are blended
 by their joints' world matrices times the inverse bind matrices (up to four a vertex, as glTF does),
-rigid meshes follow their node; a VRM 0.x avatar is turned to face the camera.  The vertices (in cm),
+rigid meshes follow their node; the avatar is turned to face the camera (a VRM 0.x one, or one exported
+facing any other way: :func:`laughlab.avatar.retarget.facing_matrix`, as in the viewer).  The vertices (in cm),
 lit per vertex as the mannequin is, go through :func:`laughlab.render.raster.rasterise`.  The camera
 is the mannequin's, its distance scaled by the avatar's height (x 1.5: avatars often have big heads),
-aimed at a point 70% of the way from the chest to the head joint.
+or farther if the top of the mesh in the rest pose (hair above the head joint) would not fit within 85%
+of the half field of view, aimed at a point 70% of the way from the chest to the head joint.
 """
 from __future__ import annotations
 
@@ -14,7 +16,7 @@ import numpy as np
 
 from laughlab.avatar.load import Avatar
 from laughlab.avatar.mesh import parts
-from laughlab.avatar.retarget import animated_world, retarget
+from laughlab.avatar.retarget import animated_world, facing_matrix, retarget
 from laughlab.render.character_view import FILL, KEY, background, downsample
 from laughlab.render.raster import draw_frames, rasterise
 from laughlab.render.scene import Camera
@@ -36,8 +38,13 @@ class AvatarRenderer:
         # little farther than for the mannequin: avatars often have big heads
         cam = camera or Camera(azimuth_deg=15.0, elevation_deg=3.0, distance_cm=170.0, target_height_cm=138.0,
                                fov_deg=30.0)
-        self.camera = Camera(**{**vars(cam), "distance_cm": cam.distance_cm * scale})
-        self.facing = np.array([avatar.facing, 1.0, avatar.facing])
+        self.turn = facing_matrix(avatar)   # rows @ turn: the avatar's frame into laughlab's (facing the camera)
+        # and far enough that the top of the mesh in the rest pose (hair, ears, a hat: above the head joint) lies
+        # within 85% of the half field of view above the aim (the joint-based distance cut Godette's hair buns off)
+        top = float(self.vertices(avatar.rest_world, {})[0][:, 1].max())
+        above = top - float(self._target(avatar.rest_world)[1])
+        fits = above / np.tan(np.radians(0.85 * cam.fov_deg / 2)) if above > 0 else 0.0
+        self.camera = Camera(**{**vars(cam), "distance_cm": max(cam.distance_cm * scale, fits)})
         self.aim: np.ndarray | None = None
         self.follow = 1.0 - np.exp(-1.0 / 6.0)
         self.key, self.fill = KEY / np.linalg.norm(KEY), FILL / np.linalg.norm(FILL)
@@ -68,8 +75,8 @@ class AvatarRenderer:
                 nrm = p.normals @ m[:3, :3].T
             vs.append(out)
             ns.append(nrm)
-        v = np.concatenate(vs) * self.facing * 100.0
-        n = np.concatenate(ns) * self.facing
+        v = np.concatenate(vs) @ self.turn * 100.0
+        n = np.concatenate(ns) @ self.turn
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-9)
         return v, n
 
@@ -85,11 +92,15 @@ class AvatarRenderer:
         is drawn on its own (the rasteriser releases the GIL), so the frames are the bytes :meth:`render` gives."""
         return draw_frames(self._draw, [(w, m, self._follow(w)) for w, m in zip(worlds, morphs)], threads)
 
-    def _follow(self, world: np.ndarray) -> np.ndarray:
-        """The camera's aim for a frame: it follows the chest and head, smoothed from frame to frame (cm)."""
+    def _target(self, world: np.ndarray) -> np.ndarray:
+        """The point 70% of the way from the chest to the head joint (cm, facing +Z)."""
         b = self.avatar.bones
         chest = b.get("upperChest", b.get("chest", b["spine"]))
-        target = (0.3 * world[chest, :3, 3] + 0.7 * world[b["head"], :3, 3]) * self.facing * 100.0
+        return (0.3 * world[chest, :3, 3] + 0.7 * world[b["head"], :3, 3]) @ self.turn * 100.0
+
+    def _follow(self, world: np.ndarray) -> np.ndarray:
+        """The camera's aim for a frame: it follows the chest and head, smoothed from frame to frame (cm)."""
+        target = self._target(world)
         self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
         return self.aim
 

@@ -157,6 +157,7 @@ def _view_of(avatar) -> dict:
     if avatar is None:
         return {"vrm": False, "facing": 1, "bones": {}}
     return {"vrm": avatar.kind in ("vrm0", "vrm1"), "facing": int(avatar.facing),
+            "turn": float(np.arctan2(avatar.turn[2, 0], avatar.turn[0, 0])),   # radians about Y, to face +Z
             "bones": dict(sorted(avatar.bones.items())), "file": avatar.path.name}
 
 

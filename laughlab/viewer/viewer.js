@@ -85,7 +85,10 @@ const gltf = await loadCharacter(avatar);
 const vrm = gltf.userData.vrm || null;
 const root = vrm ? vrm.scene : gltf.scene;
 scene.add(root);
-if (avatar.facing < 0) root.rotation.y = Math.PI;  // VRM 0.x faces -Z: turn it to the camera
+// turn the avatar to the camera (VRM 0.x faces -Z; an export may face +-X): the turn about Y that laughlab's
+// retargeting and video undo too (laughlab/avatar/retarget.py facing_matrix)
+if (avatar.turn !== undefined) root.rotation.y = avatar.turn;
+else if (avatar.facing < 0) root.rotation.y = Math.PI;
 const mixer = new THREE.AnimationMixer(root);
 const action = mixer.clipAction(gltf.animations[0]);
 action.play();
@@ -137,11 +140,18 @@ state.vrm = vrm !== null;
 // the middle of the view (88% of its height, 90% of its width), whatever the window's shape; the view ends
 // where the control bar starts (the page's CSS), so the bar never covers the character
 const viewFrom = new THREE.Vector3(0.5, 0.3, 3.9).normalize();
+// the distances scale with the character's bounding sphere, so an avatar in centimetres (170 m tall in glTF's
+// metres: FBX exports without unit conversion) is framed as one in metres (it was beyond the far plane)
+const radius = Math.max(1e-3, reach.getBoundingSphere(new THREE.Sphere()).radius);
+if (radius > 1.5) floor.scale.setScalar(radius / 1.5);
 function frameCharacter() {
   const centre = reach.getCenter(new THREE.Vector3());
   const p = new THREE.Vector3();
   const fits = () => points.every((v) => { p.copy(v).project(camera); return Math.abs(p.x) < 0.9 && Math.abs(p.y) < 0.88 && p.z < 1; });
-  let d = 0.5;
+  camera.near = Math.min(0.05, radius / 50);
+  camera.far = Math.max(50, radius * 60);
+  camera.updateProjectionMatrix();
+  let d = 0.5 * radius;
   for (let i = 0; i < 120; i++) {  // move back from close by until every point projects inside
     camera.position.copy(centre).addScaledVector(viewFrom, d);
     camera.lookAt(centre);
