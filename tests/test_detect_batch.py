@@ -134,3 +134,19 @@ def test_two_inputs_of_one_name_are_both_named(tmp_path):
         inputs([str(tmp_path)])
     assert str(e.value) == (f"two inputs share the name 'a' ({tmp_path / 'a.flac'}, {tmp_path / 'a.wav'}): their "
                             "label files would collide; run them separately (--out)")
+
+
+def test_a_stopped_detect_closes_its_progress_before_the_error_line(tmp_path, monkeypatch):
+    """A review: after Ctrl-C the error line was printed at the end of the progress bar's line."""
+    from laughlab.detector import segments
+
+    sf.write(tmp_path / "a.wav", np.zeros(16000), 16000)
+
+    def stopped(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(segments, "laughter_prob", stopped)
+    r = laughlab("detect", str(tmp_path / "a.wav"), "--out", str(tmp_path / "out"), "--progress", "on")
+    assert r.returncode == 130 and not (tmp_path / "out").exists()
+    lines = r.stderr.splitlines()
+    assert lines[-2].startswith("detect: 0.0/1.0 s of audio, ") and lines[-1] == "laughlab: error: interrupted"

@@ -318,6 +318,10 @@ def test_a_best_lag_at_the_edge_of_its_search_is_marked_and_definitions_are_whol
 def test_report_of_nothing_is_one_line(tmp_path):
     r = laughlab("report", tmp_path)
     assert r.returncode == 2 and r.stderr.strip().count("\n") == 0 and "no results.json" in r.stderr
+    (tmp_path / "laugh.wav").write_bytes(b"x")   # a review: a file was said to hold no results.json
+    r = laughlab("report", tmp_path / "laugh.wav")
+    assert r.returncode == 2 and r.stderr == (f"laughlab: error: {tmp_path / 'laugh.wav'} is a file; report takes an "
+                                              "experiment's run folder (its hydra.run.dir)\n")
 
 
 @pytest.mark.parametrize("text, why", [

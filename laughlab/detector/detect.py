@@ -171,18 +171,20 @@ def main(argv: list[str]) -> None:
                                       "[{elapsed}<{remaining}]")
     t0 = time.perf_counter()
     results = []
-    for f, name in named:
-        try:
-            x, sr = read_mono(f)
-        except LaughlabError as exc:  # damaged past its header: found only when read
-            unreadable(name, exc)
-            continue
-        t, p = S.laughter_prob(x, sr, ns.hop, model, score, progress=None if bar is None else bar.update)
-        p = S.smooth(p, ns.smooth)
-        dur = len(x) / sr
-        results.append((name, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f))
-    if bar is not None:
-        bar.close()
+    try:
+        for f, name in named:
+            try:
+                x, sr = read_mono(f)
+            except LaughlabError as exc:  # damaged past its header: found only when read
+                unreadable(name, exc)
+                continue
+            t, p = S.laughter_prob(x, sr, ns.hop, model, score, progress=None if bar is None else bar.update)
+            p = S.smooth(p, ns.smooth)
+            dur = len(x) / sr
+            results.append((name, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f))
+    finally:   # also on Ctrl-C: the error line then starts a line of its own, not the end of the bar's (a review)
+        if bar is not None:
+            bar.close()
     if not results:
         raise LaughlabError("no readable audio among the inputs")
     out = Path(ns.out)

@@ -409,6 +409,8 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     root = Path(run_dir)
     if not root.exists():
         raise LaughlabError(f"{run_dir} not found")
+    if not root.is_dir():   # a review: a file was said to hold no results.json
+        raise LaughlabError(f"{run_dir} is a file; report takes an experiment's run folder (its hydra.run.dir)")
     if (root / "results.json").exists():
         results, write = root / "results.json", experiment_report
     elif root.is_dir() and any(root.rglob("results.json")):
