@@ -315,8 +315,12 @@ def test_view_out_writes_into_the_folder_named_and_leaves_nothing_on_failure(run
     assert (tmp_path / "link").is_symlink() and sorted(os.listdir(tmp_path)) == ["link", "target"]
     (tmp_path / "mine").mkdir(mode=0o700)
     (tmp_path / "mine").chmod(0o700)
+    inode = (tmp_path / "mine").stat().st_ino
     V.write(run_dir, tmp_path / "mine")
-    assert (tmp_path / "mine" / "index.html").is_file() and (tmp_path / "mine").stat().st_mode & 0o777 == 0o700
+    V.write(run_dir, tmp_path / "mine", overwrite=True)
+    # written in place: the same folder (its owner, permissions, any mount on it), holding the page only
+    assert (tmp_path / "mine").stat().st_ino == inode and (tmp_path / "mine").stat().st_mode & 0o777 == 0o700
+    assert V._not_the_pages(tmp_path / "mine") == []
 
     def full(*a, **k):
         raise OSError(28, "No space left on device")
@@ -325,6 +329,10 @@ def test_view_out_writes_into_the_folder_named_and_leaves_nothing_on_failure(run
     with pytest.raises(V.LaughlabError, match=r"^cannot write the viewer page into .*site: No space left on device$"):
         V.write(run_dir, tmp_path / "site")
     assert sorted(os.listdir(tmp_path)) == ["link", "mine", "target"]
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(V.LaughlabError, match=r"^cannot write the viewer page into .*empty: No space left"):
+        V.write(run_dir, tmp_path / "empty")
+    assert os.listdir(tmp_path / "empty") == []   # left as it was
 
 
 def test_port_0_is_any_free_port_not_a_taken_one(run_dir, monkeypatch, capsys):

@@ -250,7 +250,11 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
     glb = glb.read_bytes() if isinstance(glb, Path) else glb
     files["index.html"] = page.static(run["name"], files["run.json"], glb, out.resolve(), Path(run_dir).resolve(),
                                       vrm=run["avatar"]["vrm"])
-    tmp = out.with_name(f".{out.name}.part")
+    # a folder that exists (empty, or an earlier page with --overwrite) is written in place, keeping its owner,
+    # permissions and any mount on it (a review: it was deleted and a new one renamed in); the page is made
+    # whole in a hidden folder inside it first, so a failure leaves it as it was
+    made = not out.exists()
+    tmp = (out.with_name(f".{out.name}.part") if made else out / ".laughlab-view.part")
     shutil.rmtree(tmp, ignore_errors=True)
     try:
         for name, data in files.items():
@@ -260,10 +264,17 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
                 shutil.copyfile(data, dest)
             else:
                 dest.write_bytes(data)
-        if out.exists():   # empty, or an earlier page (--overwrite): replaced whole once the new one is written,
-            tmp.chmod(out.stat().st_mode & 0o7777)   # with the folder's own permissions (a review: 700 became 755)
-            shutil.rmtree(out)
-        tmp.rename(out)
+        if made:
+            tmp.rename(out)
+        else:
+            for old in [p for p in out.iterdir() if p != tmp]:   # an earlier page's own files (checked above)
+                if old.is_dir():
+                    shutil.rmtree(old)
+                else:
+                    old.unlink()
+            for new in tmp.iterdir():
+                new.rename(out / new.name)
+            tmp.rmdir()
     except OSError as exc:   # the folder named, not the run's (a review: "cannot write RUN: OSError")
         shutil.rmtree(tmp, ignore_errors=True)
         raise LaughlabError(f"cannot write the viewer page into {out}: {exc.strerror or type(exc).__name__}") \
