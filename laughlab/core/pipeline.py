@@ -379,8 +379,8 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         if hasattr(src, "save_artifacts"):
             artifacts = src.save_artifacts(out_dir)
         metrics = _metrics(pipe, np.frombuffer(times_ns, dtype=np.int64), k, samples / rate, wall)
-        for sink in opened:  # a sink's own numbers (e.g. vmc latency), keys prefixed with its name
-            more = getattr(sink, "metrics", None)
+        for part in (src, *opened):  # the source's and a sink's own numbers (mic overflows, vmc latency)
+            more = getattr(part, "metrics", None)
             if callable(more):
                 metrics.update(more() or {})
         metrics.update(extra or {})
