@@ -83,7 +83,8 @@ class VmcSink(Sink):
     ``Chunk.capture_ns`` when the pipeline provides it, else the time the
     source handed the block to the pipeline (the sink wraps ``source.blocks``),
     and for a paced non-live input the moment its audio would have been
-    captured live.  ``metrics()`` gives ``vmc_frames``,
+    captured live.  ``metrics()`` gives ``vmc_frames``, ``vmc_dropped_datagrams`` (the socket never blocks
+    the frame loop: :class:`laughlab.io.vmc.VmcSender`) and
     ``vmc_latency_ms_p50``/``p90``/``p99``/``max`` for ``metrics.json``.
     """
 
@@ -163,7 +164,7 @@ class VmcSink(Sink):
     def metrics(self) -> dict:
         """Frames sent and the capture-to-send latency (ms) for ``metrics.json``."""
         s = self._summary or latency_summary(np.array(self.lat_ms))
-        out = {"vmc_frames": int(self.n)}
+        out = {"vmc_frames": int(self.n), "vmc_dropped_datagrams": int(self.sender.dropped)}
         for key in ("p50", "p90", "p99", "max"):  # None (JSON null) when nothing was measured
             out[f"vmc_latency_ms_{key}"] = s[key] if s["n"] else None
         return out
@@ -175,8 +176,9 @@ class VmcSink(Sink):
             s = self._summary
             how = "paced at the frame clock" if self.paced else \
                 ("live" if self.live else "not paced: as fast as computed")
-            print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}); latency audio block -> "
-                  f"OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max {s['max']:.2f} ms",
+            dropped = f", {self.sender.dropped} datagrams dropped" if self.sender.dropped else ""
+            print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}{dropped}); latency audio "
+                  f"block -> OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max {s['max']:.2f} ms",
                   file=sys.stdout, flush=True)
         return []
 
