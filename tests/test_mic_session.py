@@ -178,3 +178,16 @@ def test_a_set_duration_reads_exactly_its_samples_and_matches_the_offline_run(mo
     for name in ("channels.csv", "events.csv", "motion.bvh"):
         assert (tmp_path / "mic" / name).read_bytes() == (tmp_path / "file" / name).read_bytes(), name
     assert "Frames: 180" in (tmp_path / "mic" / "motion.bvh").read_text()
+
+
+def test_body_hill_fits_in_its_thread_on_the_microphone_and_in_the_frame_on_a_file(monkeypatch):
+    """threaded: auto read ctx.live, which Context did not have: the fit ran in the frame on the microphone too
+    (60-170 ms stalls, review-live 3)."""
+    mic = mic_pipe(monkeypatch, FakeSoundDevice(noise(1)), "input.duration_s=0.5", "body=hill", "extractor=pressure")
+    try:
+        assert mic.ctx.live is True and mic.body.live.threaded is True
+    finally:
+        mic.body.close()
+    cfg = compose_config(["input.duration_s=0.5", "body=hill", "extractor=pressure"])
+    offline = pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
+    assert offline.ctx.live is False and offline.body.live.threaded is False

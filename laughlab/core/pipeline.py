@@ -132,6 +132,7 @@ def build(cfg: DictConfig) -> Pipeline:
             raise LaughlabError(f"bad parameter in {plugins.typed(f'{group}.{name}')}: {exc}") from None
         ctx.sample_rate = built[group].sample_rate
         ctx.calibration_s = float(built[group].calibration_s)
+        ctx.live = bool(getattr(built[group], "live", False))
     for group, kind in GROUPS.items():
         if group == "input":
             continue
