@@ -12,6 +12,7 @@ import math
 import signal
 import sys
 import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +65,11 @@ class MicSource(Source):
     live = True
     stopped_by: str | None = None
     _stop: "StopOnSignal | None" = None
+    #: reads the device flagged as overflowed (audio lost: laughlab fell behind), and the worst lag behind the
+    #: microphone (s: wall time since the stream started minus the audio read), for metrics.json
+    overflows: int = 0
+    lag_s_max: float = 0.0
+    clock = staticmethod(time.perf_counter)
 
     def open(self) -> None:
         try:
@@ -107,6 +113,8 @@ class MicSource(Source):
                 raise LaughlabError(f"the microphone could not be started ({_first_line(exc)}); check that it is "
                                     "connected and not in use (python -m sounddevice lists the devices)") from None
             stop = self._stop = stack.enter_context(StopOnSignal()) if total is None else None
+            clock = self.clock
+            t0 = clock()
             while total is None or got < total:
                 if stop is not None and stop.signum is not None:
                     self.stopped_by = signal.Signals(stop.signum).name
@@ -115,7 +123,7 @@ class MicSource(Source):
                           f"kept ({key} again aborts it and removes what it wrote)", file=sys.stderr, flush=True)
                     return
                 try:
-                    data, _overflow = stream.read(n if total is None else min(n, total - got))
+                    data, overflowed = stream.read(n if total is None else min(n, total - got))
                 except sd.PortAudioError as exc:   # a USB microphone pulled out, a device gone to sleep
                     self.stopped_by = "device"
                     print(f"laughlab: warning: the microphone stopped after {got / self.sample_rate:.1f} s "
@@ -123,11 +131,22 @@ class MicSource(Source):
                           file=sys.stderr, flush=True)
                     return
                 got += len(data)
+                if overflowed:
+                    self.overflows += 1
+                    if self.overflows == 1:
+                        print(f"laughlab: warning: the microphone's buffer overflowed after "
+                              f"{got / self.sample_rate:.1f} s: laughlab fell behind the microphone and audio was lost (each time is counted: "
+                              "metrics.json input_overflows)", file=sys.stderr, flush=True)
+                lag = clock() - t0 - got / self.sample_rate
+                if lag > self.lag_s_max:
+                    self.lag_s_max = lag
                 yield data[:, 0].copy()
 
     def metrics(self) -> dict:
-        """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``device`` or None: its end)."""
-        return {"input_stopped_by": self.stopped_by}
+        """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``device`` or None: its end),
+        the reads the device flagged as overflowed, and the worst lag behind the microphone (s)."""
+        return {"input_stopped_by": self.stopped_by, "input_overflows": int(self.overflows),
+                "input_lag_s_max": float(self.lag_s_max)}
 
     def close(self) -> None:
         if self._stop is not None:   # the frame loop failed while the stream was open: the handlers go back

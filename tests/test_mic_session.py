@@ -191,3 +191,24 @@ def test_body_hill_fits_in_its_thread_on_the_microphone_and_in_the_frame_on_a_fi
     cfg = compose_config(["input.duration_s=0.5", "body=hill", "extractor=pressure"])
     offline = pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
     assert offline.ctx.live is False and offline.body.live.threaded is False
+
+
+def test_falling_behind_the_microphone_is_counted_warned_once_and_said(monkeypatch, tmp_path, capsys):
+    """The device's overflow flag was dropped and the summary said all was well 26 s behind (review-live 4)."""
+    from laughlab.core.summary import speed
+
+    sr = 16000
+    fake = FakeSoundDevice(noise(3), overflow_at={50, 51, 90})
+    pipe = mic_pipe(monkeypatch, fake, "input.duration_s=2")
+    # the wall clock, as the source reads it: 0.4 s behind the audio from 1 s of audio on
+    pipe.source.clock = lambda: fake.pos / sr + (0.4 if fake.pos > sr else 0.0)
+    metrics = pipeline.execute(pipe, tmp_path)
+    assert metrics["input_overflows"] == 3 and metrics["input_lag_s_max"] == pytest.approx(0.4)
+    assert json.loads((tmp_path / "metrics.json").read_text())["input_overflows"] == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("laughlab: warning: the microphone's buffer overflowed after 0.9 s: "
+                                                   "laughlab fell behind the microphone and audio was lost"), err
+    cfg = compose_config(["input=mic"])
+    assert speed(cfg, metrics, 3.0).endswith("; fell behind the microphone by 0.40 s, audio lost 3 times")
+    kept_up = {**metrics, "input_overflows": 0, "input_lag_s_max": 0.01}
+    assert "fell behind" not in speed(cfg, kept_up, 3.0)

@@ -34,7 +34,8 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
     """How fast the run went, in the terms of its output.
 
     - a live input (the microphone): it runs at the speed of the sound, so the compute per frame against the
-      frame's time;
+      frame's time, and how far the session fell behind the microphone when it did (``input_lag_s_max`` over a
+      frame, or the device's overflows: the sinks count there, not in the compute);
     - a stream paced at the frame clock (``output=vmc`` on a file): real time by design;
     - otherwise the whole command's real-time factor (audio seconds per second waited), then the frame loop's
       (``metrics.json``: ``realtime_factor``, the plugins and the writers), and for a video its rendered
@@ -43,7 +44,11 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
     fps = float(metrics.get("fps") or cfg.get("fps") or 60.0)
     if str(cfg.input.name) == "mic":
         p99 = metrics.get("frame_ms_p99")
-        return f"live; compute per frame p99 {float(p99):.2f} ms of {1000 / fps:.1f} ms" if p99 is not None else "live"
+        said = f"live; compute per frame p99 {float(p99):.2f} ms of {1000 / fps:.1f} ms" if p99 is not None else "live"
+        lag, lost = float(metrics.get("input_lag_s_max") or 0.0), int(metrics.get("input_overflows") or 0)
+        if lag > 1 / fps or lost:   # the compute kept up, the session did not: a sink or a stall held it up
+            said += f"; fell behind the microphone by {lag:.2f} s" + (f", audio lost {lost} times" if lost else "")
+        return said
     vmc = (cfg.get("output") or {}).get("vmc")
     if vmc is not None and str(vmc.get("realtime", "auto")) in ("auto", "on"):
         return "paced at the frame clock for the vmc stream"
