@@ -49,6 +49,10 @@ class VmcParams:
         ``Blink_L``, ``Blink_R`` for avatars without perfect-sync clips.
     report : bool
         Print the frame count and the measured latency when the run ends.
+    rest_on_stop : bool
+        When the stream ends (the input's end, Ctrl-C, a failure) send one more frame at rest: every
+        blendshape sent at 0 and the skeleton's rest pose, then ``Blend/Apply``.  Receivers (VSeeFace,
+        Warudo, EVMC4U) keep the last values they got, so without it the avatar stays frozen mid-laugh.
     """
 
     host: str = "127.0.0.1"
@@ -59,6 +63,7 @@ class VmcParams:
     blend_case: str = "arkit"
     vrm_presets: bool = False
     report: bool = True
+    rest_on_stop: bool = True
 
     def __post_init__(self) -> None:
         if not self.host:
@@ -109,6 +114,9 @@ class VmcSink(Sink):
         self.n = 0
         self.lat_ms: list[float] = []
         self._names: dict[str, str] = {}
+        self._sent: dict[str, None] = {}   # the blendshape names sent, in order (the rest frame zeroes them)
+        self._t = 0.0                       # the time of the last frame sent (s)
+        self._stopped = False
         self._summary: dict | None = None
 
     def _blend_name(self, name: str) -> str:
@@ -130,6 +138,7 @@ class VmcSink(Sink):
                 if have:
                     weights[preset] = np.mean(have, axis=0)
         names = [self._blend_name(k) if k not in VRM_PRESETS else k for k in weights]
+        self._sent.update(dict.fromkeys(names))
         values = np.array([weights[k] for k in weights]).reshape(len(weights), n).T.tolist() if weights else [[]] * n
         capture = getattr(chunk, "capture_ns", None)
         clock = time.perf_counter_ns
@@ -151,15 +160,27 @@ class VmcSink(Sink):
                     captured = int(capture[i])
             msgs = self.encoder.messages(float(chunk.times[i]), pos[i], rot[i], zip(names, values[i]))
             self.sender.send(self.encoder.packets(msgs))
+            self._t = float(chunk.times[i])
             if captured is not None:
                 self.lat_ms.append((clock() - captured) / 1e6)
             self.n += 1
 
     def _finish(self) -> None:
+        if self._stopped:   # abort() after close()
+            return
+        self._stopped = True
+        if self.params.rest_on_stop and self.n:
+            self._send_rest()
         if self.clock is not None:
             self.clock.restore()
             self.clock = None
         self.sender.close()
+
+    def _send_rest(self) -> None:
+        """One frame at rest after the last: every blendshape sent at 0, the rest pose, Blend/Apply."""
+        pos, rot = self.bones.local(np.zeros((1, self.bones.skeleton.n_channels)))
+        msgs = self.encoder.messages(self._t + 1.0 / self.run.fps, pos[0], rot[0], ((k, 0.0) for k in self._sent))
+        self.sender.send(self.encoder.packets(msgs))
 
     def metrics(self) -> dict:
         """Frames sent and the capture-to-send latency (ms) for ``metrics.json``."""
