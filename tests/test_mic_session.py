@@ -212,3 +212,22 @@ def test_falling_behind_the_microphone_is_counted_warned_once_and_said(monkeypat
     assert speed(cfg, metrics, 3.0).endswith("; fell behind the microphone by 0.40 s, audio lost 3 times")
     kept_up = {**metrics, "input_overflows": 0, "input_lag_s_max": 0.01}
     assert "fell behind" not in speed(cfg, kept_up, 3.0)
+
+
+def test_the_latency_bench_replays_the_microphone_in_its_own_blocks():
+    """bench_latency's stand-in cut blocks of round(sr/fps) samples where the mic reads ceil(sr/fps): 533 against
+    534 at 16 kHz and 30 fps, 25 ms more latency in the bench than the mic has (review-live 9)."""
+    import importlib.util
+
+    from laughlab.core.bases import Context
+    from laughlab_plugins.source_mic import MicParams, block_samples
+
+    spec = importlib.util.spec_from_file_location("bench_latency", ROOT / "benchmarks" / "bench_latency.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    assert block_samples(16000, 30) == 534 and block_samples(16000, 60, 2) == 534 and block_samples(48000, 30) == 1600
+    replay = bench.make_replay_mic()(np.zeros(3200, dtype=np.float32), MicParams(sample_rate=16000),
+                                     Context(fps=30.0))   # 0.2 s, played at real time
+    replay.open()
+    sizes = [len(b) for b in replay._chunks()]
+    assert sizes[:-1] == [534] * (len(sizes) - 1)

@@ -20,7 +20,7 @@ from laughlab.motion.skeleton import HUMANOID, euler_to_matrix, global_transform
 from laughlab.io.vmc import (SMILE_TO_ARKIT, UNITY_BONES, BoneMap, VmcEncoder, arkit_weights, euler_zxy_to_quat,
                           osc_message, paced_chunks, quat_to_matrix, to_unity_position, to_unity_quat)
 from laughlab_plugins import sink_vmc
-from laughlab_plugins.source_mic import MicParams, MicSource
+from laughlab_plugins.source_mic import MicParams, MicSource, block_samples
 
 pythonosc = pytest.importorskip("pythonosc")
 from pythonosc.dispatcher import Dispatcher  # noqa: E402
@@ -261,14 +261,13 @@ class ReplayMic(MicSource):
         self.n_frames = None
 
     def _chunks(self):
-        n = int(round(self.sample_rate / self.ctx.fps)) * self.params.block_frames
+        n = block_samples(self.sample_rate, self.ctx.fps, self.params.block_frames)
         yield from paced_chunks(self.audio, self.sample_rate, n, on_start=lambda t: setattr(self, "t0", t))
 
 
 def test_microphone_path_streams_frame_by_frame(tmp_path, capsys):
     with Receiver() as rx:
-        # 25 fps: 640 samples a frame at 16 kHz.  (At 30 fps the mic's blocks of round(16000/30) = 533 samples
-        # fall short of the 533.33-sample frames, so each frame waits for one more block: +1 frame of latency.)
+        # 25 fps: 640 samples a frame at 16 kHz, every block one whole frame (block_samples rounds up elsewhere)
         cfg = config(rx.port, "input.duration_s=1.8", "fps=25")
         pipe = pipeline.build(cfg)
         audio = np.concatenate(list(__import__("laughlab.io.audio", fromlist=["read_blocks"]).read_blocks(
