@@ -231,3 +231,14 @@ def test_the_latency_bench_replays_the_microphone_in_its_own_blocks():
     replay.open()
     sizes = [len(b) for b in replay._chunks()]
     assert sizes[:-1] == [534] * (len(sizes) - 1)
+
+
+def test_an_offline_scheduler_on_the_microphone_is_refused_naming_the_setting_before_any_sink(monkeypatch, tmp_path):
+    from laughlab.core.errors import LaughlabError
+
+    with pytest.raises(LaughlabError) as err:   # by build: no pipeline, so no sink opened (it was in execute)
+        mic_pipe(monkeypatch, FakeSoundDevice(noise(1)), "input.duration_s=0.5", "scheduler=concat",
+                 "scheduler.mode=optimal")
+    assert str(err.value) == ("scheduler=concat (scheduler.mode=optimal) plans over the whole input and cannot run on a "
+                              "live source (input=mic); use scheduler.mode=greedy, its real-time mode")
+    mic_pipe(monkeypatch, FakeSoundDevice(noise(1)), "input.duration_s=0.5", "scheduler=concat")   # greedy: fine

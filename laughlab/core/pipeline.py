@@ -142,6 +142,8 @@ def build(cfg: DictConfig) -> Pipeline:
         except ValueError as exc:
             where = plugins.typed(f"{group}.{values['name']}")
             raise LaughlabError(f"bad parameter in {where}: {exc}") from None
+        if group == "scheduler" and ctx.live and getattr(built[group], "offline_plan", False):
+            raise LaughlabError(_offline_only(built[group]))   # before any sink opens
         if group == "extractor" and not getattr(built[group], "calibrates", False):
             ctx.calibration_s = 0.0  # no min/max to calibrate: input=mic skips its calibration phase
     outputs = _section(cfg, "output") or {}
@@ -436,9 +438,8 @@ def _plan_offline(pipe: Pipeline) -> None:
     The look-ahead is the whole input, so a live source is refused.
     """
     src, ext, det, sch = pipe.source, pipe.extractor, pipe.detector, pipe.scheduler
-    if src.live:
-        raise LaughlabError(f"scheduler {sch.name} plans over the whole input and cannot run on a live source; "
-                            "use its real-time mode")
+    if src.live:   # a pipeline built in code with a live source put in (build refuses the configuration)
+        raise LaughlabError(_offline_only(sch))
     labels = []
     for k, block in enumerate(src.blocks()):
         frame = Frame(k, k * pipe.ctx.dt, pipe.ctx.dt, {}, None, {}, {}, [], 0.0)
@@ -448,6 +449,17 @@ def _plan_offline(pipe: Pipeline) -> None:
     sch.plan(labels)
     ext.reset()
     det.reset()
+
+
+def _offline_only(sch) -> str:
+    """The refusal of a scheduler that plans over the whole input on a live source, naming the setting to use:
+    its ``mode`` parameter's default (``scheduler.mode=greedy``, the real-time mode)."""
+    modes = [f.default for f in dataclasses.fields(sch.params) if f.name == "mode"] \
+        if dataclasses.is_dataclass(sch.params) else []
+    now = f" (scheduler.mode={sch.params.mode})" if modes else ""
+    fix = f"scheduler.mode={modes[0]}, its real-time mode" if modes else "a real-time scheduler"
+    return (f"scheduler={sch.name}{now} plans over the whole input and cannot run on a live source (input=mic); "
+            f"use {fix}")
 
 
 def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, audio_s: float, wall_s: float) -> dict:
