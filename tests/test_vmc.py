@@ -400,3 +400,15 @@ def test_rest_on_stop_false_sends_the_frames_only(tmp_path):
                          tmp_path, {})
         rx.drain()
     assert len(rx.frames()) == 15
+
+
+def test_the_streaming_sink_gets_each_frame_before_the_file_writers(tmp_path):
+    """'output=[files,vmc]' wrote each frame to csv, bvh and plots before VMC sent it (review-live 13)."""
+    with Receiver() as rx:
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.2", realtime="off", report=False))
+        assert [s.name for s in pipe.sinks] == ["csv", "vmc"]
+        calls = []
+        for sink in pipe.sinks:
+            sink.write = (lambda w, name: lambda chunk: (calls.append(name), w(chunk)))(sink.write, sink.name)
+        pipeline.execute(pipe, tmp_path, {})
+    assert calls == ["vmc", "csv"] * 6

@@ -343,10 +343,13 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         k = samples = 0
         rate = float(ctx.sample_rate)
 
+        # streaming sinks (vmc) first: a live frame goes out before the file writers take their share of it
+        order = sorted(opened, key=lambda s: not getattr(s, "streaming", False))
+
         def hand_over() -> None:   # the frames recorded since the last chunk, to every sink
             chunk = rec.take(mixer.take())
             chunk.audio_s = samples / rate
-            for sink in opened:
+            for sink in order:
                 sink.write(chunk)
 
         # bound methods in locals: the loop runs once per frame
