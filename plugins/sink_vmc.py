@@ -17,7 +17,8 @@ from laughlab import hookimpl
 from laughlab.core.bases import Sink
 from laughlab.core.errors import LaughlabError
 from laughlab.core.plugins import check_range
-from laughlab.io.vmc import (DEFAULT_PORT, VRM_PRESETS, BlockClock, BoneMap, VmcEncoder, VmcSender, arkit_weights,
+from laughlab.core.summary import FrameSample
+from laughlab.io.vmc import (DEFAULT_PORT, VRM_PRESETS, BoneMap, VmcEncoder, VmcSender, arkit_weights,
                           latency_summary)
 
 
@@ -85,10 +86,8 @@ class VmcSink(Sink):
 
     Latency: for each frame, the time from its audio block's capture to the
     frame's last datagram leaving the socket.  The capture time is
-    ``Chunk.capture_ns`` when the pipeline provides it, else the time the
-    source handed the block to the pipeline (the sink wraps ``source.blocks``),
-    and for a paced non-live input the moment its audio would have been
-    captured live.  ``metrics()`` gives ``vmc_frames``, ``vmc_dropped_datagrams`` (the socket never blocks
+    ``Chunk.capture_ns`` (when the frame loop got the block), and for a paced
+    non-live input the moment its audio would have been captured live.  ``metrics()`` gives ``vmc_frames``, ``vmc_dropped_datagrams`` (the socket never blocks
     the frame loop: :class:`laughlab.io.vmc.VmcSender`) and
     ``vmc_latency_ms_p50``/``p90``/``p99``/``max`` for ``metrics.json``.
     """
@@ -108,11 +107,10 @@ class VmcSink(Sink):
         self.encoder = VmcEncoder(self.bones.bones, p.max_packet_bytes)
         live = self.live = bool(getattr(run.source, "live", False))
         self.paced = p.realtime == "on" or (p.realtime == "auto" and not live)
-        self.clock = BlockClock(run.source) if run.source is not None else None
         self.dt_ns = int(round(1e9 / run.fps))
         self.origin_ns: int | None = None  # paced: frame k is due at origin + (k + 1) dt
         self.n = 0
-        self.lat_ms: list[float] = []
+        self.lat_ms = FrameSample("d")   # bounded: a session until Ctrl-C
         self._names: dict[str, str] = {}
         self._sent: dict[str, None] = {}   # the blendshape names sent, in order (the rest frame zeroes them)
         self._t = 0.0                       # the time of the last frame sent (s)
@@ -152,18 +150,15 @@ class VmcSink(Sink):
                 if wait > 0:
                     time.sleep(wait / 1e9)
                 captured = due
-                if self.clock is not None:
-                    self.clock.pop()
             else:
-                captured = self.clock.pop() if self.clock is not None else None
-                if capture is not None:
-                    captured = int(capture[i])
+                captured = int(capture[i]) if capture is not None else None
             msgs = self.encoder.messages(float(chunk.times[i]), pos[i], rot[i], zip(names, values[i]))
             self.sender.send(self.encoder.packets(msgs))
             self._t = float(chunk.times[i])
             if captured is not None:
-                self.lat_ms.append((clock() - captured) / 1e6)
+                self.lat_ms.values.append((clock() - captured) / 1e6)
             self.n += 1
+        self.lat_ms.settle()
 
     def _finish(self) -> None:
         if self._stopped:   # abort() after close()
@@ -171,9 +166,6 @@ class VmcSink(Sink):
         self._stopped = True
         if self.params.rest_on_stop and self.n:
             self._send_rest()
-        if self.clock is not None:
-            self.clock.restore()
-            self.clock = None
         self.sender.close()
 
     def _send_rest(self) -> None:
@@ -182,9 +174,13 @@ class VmcSink(Sink):
         msgs = self.encoder.messages(self._t + 1.0 / self.run.fps, pos[0], rot[0], ((k, 0.0) for k in self._sent))
         self.sender.send(self.encoder.packets(msgs))
 
+    def _latency(self) -> dict:
+        s = latency_summary(self.lat_ms.array(np.float64))
+        return {**s, "max": self.lat_ms.max()} if s["n"] else s   # the max of every frame, not of those kept
+
     def metrics(self) -> dict:
         """Frames sent and the capture-to-send latency (ms) for ``metrics.json``."""
-        s = self._summary or latency_summary(np.array(self.lat_ms))
+        s = self._summary or self._latency()
         out = {"vmc_frames": int(self.n), "vmc_dropped_datagrams": int(self.sender.dropped)}
         for key in ("p50", "p90", "p99", "max"):  # None (JSON null) when nothing was measured
             out[f"vmc_latency_ms_{key}"] = s[key] if s["n"] else None
@@ -192,7 +188,7 @@ class VmcSink(Sink):
 
     def close(self):
         self._finish()
-        self._summary = latency_summary(np.array(self.lat_ms))
+        self._summary = self._latency()
         if self.params.report:
             s = self._summary
             how = "paced at the frame clock" if self.paced else \

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from array import array
 import math
 import os
 import sys
@@ -25,6 +24,7 @@ from laughlab.core.errors import LaughlabError, UnknownParameter
 from laughlab.core.frame import Frame
 from laughlab.core.mixer import Mixer
 from laughlab.core.outfiles import unwrite
+from laughlab.core.summary import FrameSample
 
 #: config group -> plugin kind
 GROUPS = {"input": "source", "extractor": "extractor", "detector": "detector", "scheduler": "scheduler",
@@ -314,7 +314,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
     opened = []
     n_chunk = chunk_frames(pipe)
     rec = _Recorder(n_chunk, ctx.skeleton.n_channels)
-    times_ns = array("q")  # per-frame compute time (ns), 8 bytes a frame
+    times = FrameSample("q")  # per-frame compute time (ns), 8 bytes a frame, bounded (a session until Ctrl-C)
     bar = _progress_bar(pipe)
     artifacts: list[Path] = []
     written: list[Path] = []
@@ -351,10 +351,11 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             chunk.audio_s = samples / rate
             for sink in order:
                 sink.write(chunk)
+            times.settle()
 
         # bound methods in locals: the loop runs once per frame
         ext_step, det_step, sch_step, body_step, face_step = ext.step, det.step, sch.step, body.step, face.step
-        advance, note, add, record_ns = mixer.advance, mixer.note, rec.add, times_ns.append
+        advance, note, add, record_ns = mixer.advance, mixer.note, rec.add, times.values.append
         for block in src.blocks():
             t0 = clock()
             frame = Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)
@@ -384,7 +385,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             written += sink.close() or []
         if hasattr(src, "save_artifacts"):
             artifacts = src.save_artifacts(out_dir)
-        metrics = _metrics(pipe, np.frombuffer(times_ns, dtype=np.int64), k, samples / rate, wall)
+        metrics = _metrics(pipe, times, k, samples / rate, wall)
         for part in (src, *opened):  # the source's and a sink's own numbers (mic overflows, vmc latency)
             more = getattr(part, "metrics", None)
             if callable(more):
@@ -465,7 +466,7 @@ def _offline_only(sch) -> str:
             f"use {fix}")
 
 
-def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, audio_s: float, wall_s: float) -> dict:
+def _metrics(pipe: Pipeline, times: FrameSample, n_frames: int, audio_s: float, wall_s: float) -> dict:
     """Compute metrics: per-frame compute time (ms) and real-time factor.
 
     ``duration_s``: the input's own length, ``audio_s`` (samples read / sample rate, s); the frames span
@@ -477,7 +478,7 @@ def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, audio_s: float
     which, like the hand-over to the writers, counts in ``realtime_factor`` only.  ``realtime_factor``: audio duration / wall-clock time of the whole
     frame loop including reading and writing (higher is faster).
     """
-    ms = times_ns / 1e6
+    ms = times.array(np.int64) / 1e6
     return {
         "n_frames": int(n_frames),
         "fps": pipe.ctx.fps,
@@ -485,7 +486,7 @@ def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, audio_s: float
         "seed": pipe.run.seed,
         "frame_ms_p50": float(np.percentile(ms, 50)),
         "frame_ms_p99": float(np.percentile(ms, 99)),
-        "frame_ms_max": float(ms.max()),
+        "frame_ms_max": times.max() / 1e6,
         "wall_s": wall_s,
         "realtime_factor": audio_s / wall_s if wall_s > 0 else float("inf"),
         "nonfinite_samples": int(getattr(pipe.extractor, "nonfinite_samples", 0)),

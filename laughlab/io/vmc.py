@@ -77,7 +77,6 @@ import socket
 import struct
 import sys
 import time
-from collections import deque
 from typing import Iterable, Iterator, Mapping
 
 import numpy as np
@@ -407,34 +406,6 @@ def paced_chunks(audio: np.ndarray, sample_rate: int, block: int, clock=time.per
         if wait > 0:
             sleep(wait)
         yield audio[start:end]
-
-
-class BlockClock:
-    """Time stamps of the audio blocks a source yields (perf_counter_ns when each was handed out).
-
-    Wraps ``source.blocks`` so the frames' capture times are known to a sink
-    when the pipeline does not pass them in the chunk (``Chunk.capture_ns``).
-    """
-
-    def __init__(self, source):
-        self.times: deque[int] = deque()
-        self.source = source
-        original = source.blocks
-
-        def blocks():
-            self.times.clear()  # a second pass (offline planning) starts over
-            for b in original():
-                self.times.append(time.perf_counter_ns())
-                yield b
-
-        source.blocks = blocks
-        self._original = original
-
-    def pop(self) -> int | None:
-        return self.times.popleft() if self.times else None
-
-    def restore(self) -> None:
-        vars(self.source).pop("blocks", None)  # drop the instance attribute set above
 
 
 def latency_summary(ms: np.ndarray) -> dict:
