@@ -66,7 +66,8 @@ class MicSource(Source):
     stopped_by: str | None = None
     _stop: "StopOnSignal | None" = None
     #: reads the device flagged as overflowed (audio lost: laughlab fell behind), and the worst lag behind the
-    #: microphone (s: wall time since the stream started minus the audio read), for metrics.json
+    #: microphone (s: wall time since the stream started minus the audio read, less the smallest such lag so
+    #: far, which is the device's own latency), for metrics.json
     overflows: int = 0
     lag_s_max: float = 0.0
     clock = staticmethod(time.perf_counter)
@@ -114,7 +115,7 @@ class MicSource(Source):
                                     "connected and not in use (python -m sounddevice lists the devices)") from None
             stop = self._stop = stack.enter_context(StopOnSignal()) if total is None else None
             clock = self.clock
-            t0 = clock()
+            t0, base = clock(), math.inf
             while total is None or got < total:
                 if stop is not None and stop.signum is not None:
                     self.stopped_by = signal.Signals(stop.signum).name
@@ -137,9 +138,11 @@ class MicSource(Source):
                         print(f"laughlab: warning: the microphone's buffer overflowed after "
                               f"{got / self.sample_rate:.1f} s: laughlab fell behind the microphone and audio was lost (each time is counted: "
                               "metrics.json input_overflows)", file=sys.stderr, flush=True)
-                lag = clock() - t0 - got / self.sample_rate
-                if lag > self.lag_s_max:
-                    self.lag_s_max = lag
+                lag = clock() - t0 - got / self.sample_rate   # the device's own latency, and more if behind
+                if lag < base:
+                    base = lag
+                elif lag - base > self.lag_s_max:
+                    self.lag_s_max = lag - base
                 yield data[:, 0].copy()
 
     def metrics(self) -> dict:

@@ -6,6 +6,10 @@ from array import array
 from pathlib import Path
 
 
+#: a live session this far behind the microphone at its worst (s, beyond the device's own latency) says so: the
+#: lag lip sync starts to show (a warm-up stall of a few frames at the start is not worth a word)
+BEHIND_S = 0.1
+
 #: the plugin groups a run's summary line and a report name, in the order the summary line gives them
 CHAIN = ("extractor", "detector", "face", "body", "scheduler")
 
@@ -36,8 +40,8 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
     """How fast the run went, in the terms of its output.
 
     - a live input (the microphone): it runs at the speed of the sound, so the compute per frame against the
-      frame's time, and how far the session fell behind the microphone when it did (``input_lag_s_max`` over a
-      frame, or the device's overflows: the sinks count there, not in the compute);
+      frame's time, and how far the session fell behind the microphone when it did (``input_lag_s_max`` over
+      :data:`BEHIND_S`, or the device's overflows: the sinks count there, not in the compute);
     - a stream paced at the frame clock (``output=vmc`` on a file): real time by design;
     - otherwise the whole command's real-time factor (audio seconds per second waited), then the frame loop's
       (``metrics.json``: ``realtime_factor``, the plugins and the writers), and for a video its rendered
@@ -48,7 +52,7 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
         p99 = metrics.get("frame_ms_p99")
         said = f"live; compute per frame p99 {float(p99):.2f} ms of {1000 / fps:.1f} ms" if p99 is not None else "live"
         lag, lost = float(metrics.get("input_lag_s_max") or 0.0), int(metrics.get("input_overflows") or 0)
-        if lag > 1 / fps or lost:   # the compute kept up, the session did not: a sink or a stall held it up
+        if lag > BEHIND_S or lost:   # the compute kept up, the session did not: a sink or a stall held it up
             said += f"; fell behind the microphone by {lag:.2f} s" + (f", audio lost {lost} times" if lost else "")
         return said
     vmc = (cfg.get("output") or {}).get("vmc")
