@@ -87,8 +87,9 @@ class VmcSink(Sink):
     Latency: for each frame, the time from its audio block's capture to the
     frame's last datagram leaving the socket.  The capture time is
     ``Chunk.capture_ns`` (when the frame loop got the block), and for a paced
-    non-live input the moment its audio would have been captured live.  ``metrics()`` gives ``vmc_frames``, ``vmc_dropped_datagrams`` (the socket never blocks
-    the frame loop: :class:`laughlab.io.vmc.VmcSender`) and
+    non-live input the moment its audio would have been captured live.
+    ``metrics()`` gives ``vmc_frames``, ``vmc_dropped_datagrams`` (the socket
+    never blocks the frame loop: :class:`laughlab.io.vmc.VmcSender`) and
     ``vmc_latency_ms_p50``/``p90``/``p99``/``max`` for ``metrics.json``.
     """
 

@@ -136,8 +136,8 @@ class MicSource(Source):
                     self.overflows += 1
                     if self.overflows == 1:
                         print(f"laughlab: warning: the microphone's buffer overflowed after "
-                              f"{got / self.sample_rate:.1f} s: laughlab fell behind the microphone and audio was lost (each time is counted: "
-                              "metrics.json input_overflows)", file=sys.stderr, flush=True)
+                              f"{got / self.sample_rate:.1f} s: laughlab fell behind the microphone and audio was "
+                              "lost (each time is counted: metrics.json input_overflows)", file=sys.stderr, flush=True)
                 lag = clock() - t0 - got / self.sample_rate   # the device's own latency, and more if behind
                 if lag < base:
                     base = lag

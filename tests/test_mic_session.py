@@ -240,6 +240,6 @@ def test_an_offline_scheduler_on_the_microphone_is_refused_naming_the_setting_be
     with pytest.raises(LaughlabError) as err:   # by build: no pipeline, so no sink opened (it was in execute)
         mic_pipe(monkeypatch, FakeSoundDevice(noise(1)), "input.duration_s=0.5", "scheduler=concat",
                  "scheduler.mode=optimal")
-    assert str(err.value) == ("scheduler=concat (scheduler.mode=optimal) plans over the whole input and cannot run on a "
-                              "live source (input=mic); use scheduler.mode=greedy, its real-time mode")
+    assert str(err.value) == ("scheduler=concat (scheduler.mode=optimal) plans over the whole input and cannot run "
+                              "on a live source (input=mic); use scheduler.mode=greedy, its real-time mode")
     mic_pipe(monkeypatch, FakeSoundDevice(noise(1)), "input.duration_s=0.5", "scheduler=concat")   # greedy: fine
