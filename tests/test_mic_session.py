@@ -243,3 +243,27 @@ def test_an_offline_scheduler_on_the_microphone_is_refused_naming_the_setting_be
     assert str(err.value) == ("scheduler=concat (scheduler.mode=optimal) plans over the whole input and cannot run "
                               "on a live source (input=mic); use scheduler.mode=greedy, its real-time mode")
     mic_pipe(monkeypatch, FakeSoundDevice(noise(1)), "input.duration_s=0.5", "scheduler=concat")   # greedy: fine
+
+
+def test_body_hill_on_the_microphone_matches_the_offline_run_after_its_warm_up(monkeypatch, tmp_path):
+    """body=hill warms its compiled torso up on a spare one when the input is live (frame 0 took 0.4 s); the
+    frames are the offline run's (the fit in the frame on both: body.live.threaded=no)."""
+    import soundfile as sf
+
+    from laughlab_plugins import body_hill
+
+    steps = []
+    step = body_hill.Torso.step
+    monkeypatch.setattr(body_hill.Torso, "step", lambda self, *a: (steps.append(self), step(self, *a))[1])
+    audio = noise(2.5)
+    hill = ["body=hill", "extractor=pressure", "body.live.threaded=no"]
+    mic = mic_pipe(monkeypatch, FakeSoundDevice(audio), "input.duration_s=2", *hill)
+    pipeline.execute(mic, tmp_path / "mic")
+    assert steps[0] is not mic.body.torso and steps[1] is mic.body.torso   # one spare step, then frame 0
+    sf.write(tmp_path / "in.wav", audio[:32000], 16000, subtype="FLOAT")
+    cfg = compose_config(["input=file", f"input.path={tmp_path / 'in.wav'}", *hill])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    cfg.output = {"csv": {}, "bvh": {}}
+    pipeline.execute(pipeline.build(cfg), tmp_path / "file")
+    for name in ("channels.csv", "motion.bvh"):
+        assert (tmp_path / "mic" / name).read_bytes() == (tmp_path / "file" / name).read_bytes(), name
