@@ -75,7 +75,7 @@ class Receiver:
 
 def make_replay_mic():
     from laughlab.io.vmc import paced_chunks
-    from laughlab_plugins.source_mic import MicSource
+    from laughlab_plugins.source_mic import MicSource, block_samples
 
     class ReplayMic(MicSource):
         """The ``mic`` source reading from memory at real time instead of a device."""
@@ -88,7 +88,7 @@ def make_replay_mic():
             self.sample_rate, self.n_frames = self.params.sample_rate, None
 
         def _chunks(self):
-            n = int(round(self.sample_rate / self.ctx.fps)) * self.params.block_frames
+            n = block_samples(self.sample_rate, self.ctx.fps, self.params.block_frames)   # the mic's own blocks
             yield from paced_chunks(self.audio, self.sample_rate, n, on_start=lambda t: setattr(self, "t0", t))
 
     return ReplayMic

@@ -233,6 +233,11 @@ class HillBody(Body):
         self._schedule = schedule
 
     def reset(self) -> None:
+        if getattr(self.ctx, "live", False) and not getattr(self, "_warm", False):
+            # the first step loads the compiled torso (numba, about 0.4 s): on a spare torso before the microphone
+            # opens, not in frame 0 (a hitch that overflowed the device's buffer with input.calibration_s=0)
+            Torso(self.params.torso, batch=1).step(np.zeros((1, len(GROUPS))), 0.0, self.dt_sub)
+            self._warm = True
         self.torso.reset()
         if getattr(self, "live", None) is not None:
             self.live.reset()

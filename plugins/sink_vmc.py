@@ -17,7 +17,8 @@ from laughlab import hookimpl
 from laughlab.core.bases import Sink
 from laughlab.core.errors import LaughlabError
 from laughlab.core.plugins import check_range
-from laughlab.io.vmc import (DEFAULT_PORT, VRM_PRESETS, BlockClock, BoneMap, VmcEncoder, VmcSender, arkit_weights,
+from laughlab.core.summary import FrameSample
+from laughlab.io.vmc import (DEFAULT_PORT, VRM_PRESETS, BoneMap, VmcEncoder, VmcSender, arkit_weights,
                           latency_summary)
 
 
@@ -49,6 +50,10 @@ class VmcParams:
         ``Blink_L``, ``Blink_R`` for avatars without perfect-sync clips.
     report : bool
         Print the frame count and the measured latency when the run ends.
+    rest_on_stop : bool
+        When the stream ends (the input's end, Ctrl-C, a failure) send one more frame at rest: every
+        blendshape sent at 0 and the skeleton's rest pose, then ``Blend/Apply``.  Receivers (VSeeFace,
+        Warudo, EVMC4U) keep the last values they got, so without it the avatar stays frozen mid-laugh.
     """
 
     host: str = "127.0.0.1"
@@ -59,6 +64,7 @@ class VmcParams:
     blend_case: str = "arkit"
     vrm_presets: bool = False
     report: bool = True
+    rest_on_stop: bool = True
 
     def __post_init__(self) -> None:
         if not self.host:
@@ -80,10 +86,10 @@ class VmcSink(Sink):
 
     Latency: for each frame, the time from its audio block's capture to the
     frame's last datagram leaving the socket.  The capture time is
-    ``Chunk.capture_ns`` when the pipeline provides it, else the time the
-    source handed the block to the pipeline (the sink wraps ``source.blocks``),
-    and for a paced non-live input the moment its audio would have been
-    captured live.  ``metrics()`` gives ``vmc_frames``,
+    ``Chunk.capture_ns`` (when the frame loop got the block), and for a paced
+    non-live input the moment its audio would have been captured live.
+    ``metrics()`` gives ``vmc_frames``, ``vmc_dropped_datagrams`` (the socket
+    never blocks the frame loop: :class:`laughlab.io.vmc.VmcSender`) and
     ``vmc_latency_ms_p50``/``p90``/``p99``/``max`` for ``metrics.json``.
     """
 
@@ -102,12 +108,14 @@ class VmcSink(Sink):
         self.encoder = VmcEncoder(self.bones.bones, p.max_packet_bytes)
         live = self.live = bool(getattr(run.source, "live", False))
         self.paced = p.realtime == "on" or (p.realtime == "auto" and not live)
-        self.clock = BlockClock(run.source) if run.source is not None else None
         self.dt_ns = int(round(1e9 / run.fps))
         self.origin_ns: int | None = None  # paced: frame k is due at origin + (k + 1) dt
         self.n = 0
-        self.lat_ms: list[float] = []
+        self.lat_ms = FrameSample("d")   # bounded: a session until Ctrl-C
         self._names: dict[str, str] = {}
+        self._sent: dict[str, None] = {}   # the blendshape names sent, in order (the rest frame zeroes them)
+        self._t = 0.0                       # the time of the last frame sent (s)
+        self._stopped = False
         self._summary: dict | None = None
 
     def _blend_name(self, name: str) -> str:
@@ -129,6 +137,7 @@ class VmcSink(Sink):
                 if have:
                     weights[preset] = np.mean(have, axis=0)
         names = [self._blend_name(k) if k not in VRM_PRESETS else k for k in weights]
+        self._sent.update(dict.fromkeys(names))
         values = np.array([weights[k] for k in weights]).reshape(len(weights), n).T.tolist() if weights else [[]] * n
         capture = getattr(chunk, "capture_ns", None)
         clock = time.perf_counter_ns
@@ -142,41 +151,52 @@ class VmcSink(Sink):
                 if wait > 0:
                     time.sleep(wait / 1e9)
                 captured = due
-                if self.clock is not None:
-                    self.clock.pop()
             else:
-                captured = self.clock.pop() if self.clock is not None else None
-                if capture is not None:
-                    captured = int(capture[i])
+                captured = int(capture[i]) if capture is not None else None
             msgs = self.encoder.messages(float(chunk.times[i]), pos[i], rot[i], zip(names, values[i]))
             self.sender.send(self.encoder.packets(msgs))
+            self._t = float(chunk.times[i])
             if captured is not None:
-                self.lat_ms.append((clock() - captured) / 1e6)
+                self.lat_ms.values.append((clock() - captured) / 1e6)
             self.n += 1
+        self.lat_ms.settle()
 
     def _finish(self) -> None:
-        if self.clock is not None:
-            self.clock.restore()
-            self.clock = None
+        if self._stopped:   # abort() after close()
+            return
+        self._stopped = True
+        if self.params.rest_on_stop and self.n:
+            self._send_rest()
         self.sender.close()
+
+    def _send_rest(self) -> None:
+        """One frame at rest after the last: every blendshape sent at 0, the rest pose, Blend/Apply."""
+        pos, rot = self.bones.local(np.zeros((1, self.bones.skeleton.n_channels)))
+        msgs = self.encoder.messages(self._t + 1.0 / self.run.fps, pos[0], rot[0], ((k, 0.0) for k in self._sent))
+        self.sender.send(self.encoder.packets(msgs))
+
+    def _latency(self) -> dict:
+        s = latency_summary(self.lat_ms.array(np.float64))
+        return {**s, "max": self.lat_ms.max()} if s["n"] else s   # the max of every frame, not of those kept
 
     def metrics(self) -> dict:
         """Frames sent and the capture-to-send latency (ms) for ``metrics.json``."""
-        s = self._summary or latency_summary(np.array(self.lat_ms))
-        out = {"vmc_frames": int(self.n)}
+        s = self._summary or self._latency()
+        out = {"vmc_frames": int(self.n), "vmc_dropped_datagrams": int(self.sender.dropped)}
         for key in ("p50", "p90", "p99", "max"):  # None (JSON null) when nothing was measured
             out[f"vmc_latency_ms_{key}"] = s[key] if s["n"] else None
         return out
 
     def close(self):
         self._finish()
-        self._summary = latency_summary(np.array(self.lat_ms))
+        self._summary = self._latency()
         if self.params.report:
             s = self._summary
             how = "paced at the frame clock" if self.paced else \
                 ("live" if self.live else "not paced: as fast as computed")
-            print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}); latency audio block -> "
-                  f"OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max {s['max']:.2f} ms",
+            dropped = f", {self.sender.dropped} datagrams dropped" if self.sender.dropped else ""
+            print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}{dropped}); latency audio "
+                  f"block -> OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max {s['max']:.2f} ms",
                   file=sys.stdout, flush=True)
         return []
 

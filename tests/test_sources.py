@@ -126,10 +126,21 @@ def test_microphone_without_an_input_device_says_how_to_choose_one(monkeypatch):
 
 
 class FakeSoundDevice:
-    """Stands in for the ``sounddevice`` module: an input stream that plays back an array."""
+    """Stands in for the ``sounddevice`` module: an input stream that plays back an array (not at real time).
 
-    def __init__(self, audio):
+    ``on_read(k)`` is called at the start of read ``k`` (0-based; e.g. to send a signal there); read ``fail_at``
+    and later raise ``PortAudioError`` (a microphone pulled out); reads in ``overflow_at`` report an overflow.
+    ``sizes`` records the samples asked for by each read.
+    """
+
+    class PortAudioError(Exception):
+        """sounddevice's exception."""
+
+    def __init__(self, audio, on_read=None, fail_at=None, overflow_at=()):
         self.audio, self.pos = np.asarray(audio, dtype=np.float32), 0
+        self.on_read, self.fail_at, self.overflow_at = on_read, fail_at, set(overflow_at)
+        self.sizes: list[int] = []
+        self.closed = False
 
     def check_input_settings(self, **kw):
         pass
@@ -142,12 +153,20 @@ class FakeSoundDevice:
                 return self
 
             def __exit__(self, *a):
+                fake.closed = True
                 return False
 
             def read(self, n):
+                k = len(fake.sizes)
+                fake.sizes.append(n)
+                if fake.on_read is not None:
+                    fake.on_read(k)
+                if fake.fail_at is not None and k >= fake.fail_at:
+                    raise fake.PortAudioError("Unanticipated host error [PaErrorCode -9999]: 'Device unavailable' "
+                                              "[ALSA error -19]")
                 chunk = fake.audio[fake.pos:fake.pos + n]
                 fake.pos += n
-                return np.pad(chunk, (0, n - len(chunk)))[:, None], False
+                return np.pad(chunk, (0, n - len(chunk)))[:, None], k in fake.overflow_at
 
         return Stream()
 

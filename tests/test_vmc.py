@@ -20,7 +20,7 @@ from laughlab.motion.skeleton import HUMANOID, euler_to_matrix, global_transform
 from laughlab.io.vmc import (SMILE_TO_ARKIT, UNITY_BONES, BoneMap, VmcEncoder, arkit_weights, euler_zxy_to_quat,
                           osc_message, paced_chunks, quat_to_matrix, to_unity_position, to_unity_quat)
 from laughlab_plugins import sink_vmc
-from laughlab_plugins.source_mic import MicParams, MicSource
+from laughlab_plugins.source_mic import MicParams, MicSource, block_samples
 
 pythonosc = pytest.importorskip("pythonosc")
 from pythonosc.dispatcher import Dispatcher  # noqa: E402
@@ -89,7 +89,8 @@ def config(port: int, *overrides: str, **vmc):
     cfg = compose_config(["input.duration_s=1.0", "fps=30", *overrides])
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
     OmegaConf.set_struct(cfg, False)
-    cfg.output = OmegaConf.create({"csv": {}, "vmc": {"port": port, "report": True, **vmc}})
+    # the frame at rest after the last (rest_on_stop) is tested on its own: here the frames are the run's
+    cfg.output = OmegaConf.create({"csv": {}, "vmc": {"port": port, "report": True, "rest_on_stop": False, **vmc}})
     return cfg
 
 
@@ -260,14 +261,13 @@ class ReplayMic(MicSource):
         self.n_frames = None
 
     def _chunks(self):
-        n = int(round(self.sample_rate / self.ctx.fps)) * self.params.block_frames
+        n = block_samples(self.sample_rate, self.ctx.fps, self.params.block_frames)
         yield from paced_chunks(self.audio, self.sample_rate, n, on_start=lambda t: setattr(self, "t0", t))
 
 
 def test_microphone_path_streams_frame_by_frame(tmp_path, capsys):
     with Receiver() as rx:
-        # 25 fps: 640 samples a frame at 16 kHz.  (At 30 fps the mic's blocks of round(16000/30) = 533 samples
-        # fall short of the 533.33-sample frames, so each frame waits for one more block: +1 frame of latency.)
+        # 25 fps: 640 samples a frame at 16 kHz, every block one whole frame (block_samples rounds up elsewhere)
         cfg = config(rx.port, "input.duration_s=1.8", "fps=25")
         pipe = pipeline.build(cfg)
         audio = np.concatenate(list(__import__("laughlab.io.audio", fromlist=["read_blocks"]).read_blocks(
@@ -355,3 +355,60 @@ def test_facs_face_sends_its_arkit_channels(tmp_path):
     assert len(frames) == 15 and arkit
     check_frames(frames, len(arkit))
     assert [m[2][0] for m in frames[0] if m[1] == "/VMC/Ext/Blend/Val"] == arkit
+
+
+@pytest.mark.parametrize("how", ["end", "failure"])
+def test_the_stream_ends_with_one_frame_at_rest(tmp_path, how):
+    """Receivers keep the last values: the avatar stayed frozen mid-laugh, eyes shut and grinning (review-live 7).
+    Now the input's end, or a failure, sends one frame at rest after the last: the blendshapes sent at 0, the
+    skeleton's rest pose, Blend/Apply last."""
+    with Receiver() as rx:
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.5", "face=facs", realtime="off", rest_on_stop=True))
+        if how == "failure":
+            step = pipe.face.step
+
+            def fail_at_10(frame):
+                if frame.index == 10:
+                    raise LaughlabError("a face that fails at frame 10")
+                step(frame)
+
+            pipe.face.step = fail_at_10
+            with pytest.raises(LaughlabError):
+                pipeline.execute(pipe, tmp_path, {})
+        else:
+            pipeline.execute(pipe, tmp_path, {})
+        rx.drain()
+    frames = rx.frames()
+    n = 10 if how == "failure" else 15
+    assert len(frames) == n + 1
+    check_frames(frames, 20)
+    last, rest = ({m[2][0]: m[2][1] for m in f if m[1] == "/VMC/Ext/Blend/Val"} for f in (frames[-2], frames[-1]))
+    assert list(rest) == list(last) and max(last.values()) > 0.1 and set(rest.values()) == {0.0}
+    sink = next(s for s in pipe.sinks if s.name == "vmc")
+    rest_pos, rest_rot = sink.bones.local(np.zeros((1, pipe.ctx.skeleton.n_channels)))
+    bones = [m[2] for m in frames[-1] if m[1] == "/VMC/Ext/Bone/Pos"]
+    assert [b[0] for b in bones] == sink.bones.bones
+    np.testing.assert_allclose([b[1:4] for b in bones], rest_pos[0], atol=1e-6)
+    np.testing.assert_allclose([b[4:] for b in bones], rest_rot[0], atol=1e-6)
+    times = [m[2][0] for f in frames for m in f if m[1] == "/VMC/Ext/T"]
+    assert times[-1] == pytest.approx(times[-2] + 1 / 30)
+
+
+def test_rest_on_stop_false_sends_the_frames_only(tmp_path):
+    with Receiver() as rx:
+        pipeline.execute(pipeline.build(config(rx.port, "input.duration_s=0.5", realtime="off", rest_on_stop=False)),
+                         tmp_path, {})
+        rx.drain()
+    assert len(rx.frames()) == 15
+
+
+def test_the_streaming_sink_gets_each_frame_before_the_file_writers(tmp_path):
+    """'output=[files,vmc]' wrote each frame to csv, bvh and plots before VMC sent it (review-live 13)."""
+    with Receiver() as rx:
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.2", realtime="off", report=False))
+        assert [s.name for s in pipe.sinks] == ["csv", "vmc"]
+        calls = []
+        for sink in pipe.sinks:
+            sink.write = (lambda w, name: lambda chunk: (calls.append(name), w(chunk)))(sink.write, sink.name)
+        pipeline.execute(pipe, tmp_path, {})
+    assert calls == ["vmc", "csv"] * 6

@@ -48,6 +48,9 @@ class Context:
         Length of the calibration phase at the start of the input (van Duijn
         2014, 3.1.1), in seconds: what the source asks for (``Source.calibration_s``),
         or the extractor's ``calibration_s`` when it sets one.
+    live : bool
+        The source is live (``Source.live``: the microphone), set by ``pipeline.build`` when the source
+        opens: a plugin may then move slow work off the frame loop (``body=hill``'s fit in its thread).
     """
 
     fps: float = 60.0
@@ -55,6 +58,7 @@ class Context:
     rng: np.random.Generator = field(default_factory=lambda: np.random.default_rng(0))
     seed: int = 0
     calibration_s: float = 0.0
+    live: bool = False
     _clips: Any = None
 
     @property

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from array import array
 import math
 import os
 import sys
@@ -25,6 +24,7 @@ from laughlab.core.errors import LaughlabError, UnknownParameter
 from laughlab.core.frame import Frame
 from laughlab.core.mixer import Mixer
 from laughlab.core.outfiles import unwrite
+from laughlab.core.summary import FrameSample
 
 #: config group -> plugin kind
 GROUPS = {"input": "source", "extractor": "extractor", "detector": "detector", "scheduler": "scheduler",
@@ -132,6 +132,7 @@ def build(cfg: DictConfig) -> Pipeline:
             raise LaughlabError(f"bad parameter in {plugins.typed(f'{group}.{name}')}: {exc}") from None
         ctx.sample_rate = built[group].sample_rate
         ctx.calibration_s = float(built[group].calibration_s)
+        ctx.live = bool(getattr(built[group], "live", False))
     for group, kind in GROUPS.items():
         if group == "input":
             continue
@@ -141,6 +142,8 @@ def build(cfg: DictConfig) -> Pipeline:
         except ValueError as exc:
             where = plugins.typed(f"{group}.{values['name']}")
             raise LaughlabError(f"bad parameter in {where}: {exc}") from None
+        if group == "scheduler" and ctx.live and getattr(built[group], "offline_plan", False):
+            raise LaughlabError(_offline_only(built[group]))   # before any sink opens
         if group == "extractor" and not getattr(built[group], "calibrates", False):
             ctx.calibration_s = 0.0  # no min/max to calibrate: input=mic skips its calibration phase
     outputs = _section(cfg, "output") or {}
@@ -311,7 +314,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
     opened = []
     n_chunk = chunk_frames(pipe)
     rec = _Recorder(n_chunk, ctx.skeleton.n_channels)
-    times_ns = array("q")  # per-frame compute time (ns), 8 bytes a frame
+    times = FrameSample("q")  # per-frame compute time (ns), 8 bytes a frame, bounded (a session until Ctrl-C)
     bar = _progress_bar(pipe)
     artifacts: list[Path] = []
     written: list[Path] = []
@@ -340,15 +343,19 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         k = samples = 0
         rate = float(ctx.sample_rate)
 
+        # streaming sinks (vmc) first: a live frame goes out before the file writers take their share of it
+        order = sorted(opened, key=lambda s: not getattr(s, "streaming", False))
+
         def hand_over() -> None:   # the frames recorded since the last chunk, to every sink
             chunk = rec.take(mixer.take())
             chunk.audio_s = samples / rate
-            for sink in opened:
+            for sink in order:
                 sink.write(chunk)
+            times.settle()
 
         # bound methods in locals: the loop runs once per frame
         ext_step, det_step, sch_step, body_step, face_step = ext.step, det.step, sch.step, body.step, face.step
-        advance, note, add, record_ns = mixer.advance, mixer.note, rec.add, times_ns.append
+        advance, note, add, record_ns = mixer.advance, mixer.note, rec.add, times.values.append
         for block in src.blocks():
             t0 = clock()
             frame = Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)
@@ -378,9 +385,9 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             written += sink.close() or []
         if hasattr(src, "save_artifacts"):
             artifacts = src.save_artifacts(out_dir)
-        metrics = _metrics(pipe, np.frombuffer(times_ns, dtype=np.int64), k, samples / rate, wall)
-        for sink in opened:  # a sink's own numbers (e.g. vmc latency), keys prefixed with its name
-            more = getattr(sink, "metrics", None)
+        metrics = _metrics(pipe, times, k, samples / rate, wall)
+        for part in (src, *opened):  # the source's and a sink's own numbers (mic overflows, vmc latency)
+            more = getattr(part, "metrics", None)
             if callable(more):
                 metrics.update(more() or {})
         metrics.update(extra or {})
@@ -435,9 +442,8 @@ def _plan_offline(pipe: Pipeline) -> None:
     The look-ahead is the whole input, so a live source is refused.
     """
     src, ext, det, sch = pipe.source, pipe.extractor, pipe.detector, pipe.scheduler
-    if src.live:
-        raise LaughlabError(f"scheduler {sch.name} plans over the whole input and cannot run on a live source; "
-                            "use its real-time mode")
+    if src.live:   # a pipeline built in code with a live source put in (build refuses the configuration)
+        raise LaughlabError(_offline_only(sch))
     labels = []
     for k, block in enumerate(src.blocks()):
         frame = Frame(k, k * pipe.ctx.dt, pipe.ctx.dt, {}, None, {}, {}, [], 0.0)
@@ -449,7 +455,18 @@ def _plan_offline(pipe: Pipeline) -> None:
     det.reset()
 
 
-def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, audio_s: float, wall_s: float) -> dict:
+def _offline_only(sch) -> str:
+    """The refusal of a scheduler that plans over the whole input on a live source, naming the setting to use:
+    its ``mode`` parameter's default (``scheduler.mode=greedy``, the real-time mode)."""
+    modes = [f.default for f in dataclasses.fields(sch.params) if f.name == "mode"] \
+        if dataclasses.is_dataclass(sch.params) else []
+    now = f" (scheduler.mode={sch.params.mode})" if modes else ""
+    fix = f"scheduler.mode={modes[0]}, its real-time mode" if modes else "a real-time scheduler"
+    return (f"scheduler={sch.name}{now} plans over the whole input and cannot run on a live source (input=mic); "
+            f"use {fix}")
+
+
+def _metrics(pipe: Pipeline, times: FrameSample, n_frames: int, audio_s: float, wall_s: float) -> dict:
     """Compute metrics: per-frame compute time (ms) and real-time factor.
 
     ``duration_s``: the input's own length, ``audio_s`` (samples read / sample rate, s); the frames span
@@ -461,7 +478,7 @@ def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, audio_s: float
     which, like the hand-over to the writers, counts in ``realtime_factor`` only.  ``realtime_factor``: audio duration / wall-clock time of the whole
     frame loop including reading and writing (higher is faster).
     """
-    ms = times_ns / 1e6
+    ms = times.array(np.int64) / 1e6
     return {
         "n_frames": int(n_frames),
         "fps": pipe.ctx.fps,
@@ -469,7 +486,7 @@ def _metrics(pipe: Pipeline, times_ns: np.ndarray, n_frames: int, audio_s: float
         "seed": pipe.run.seed,
         "frame_ms_p50": float(np.percentile(ms, 50)),
         "frame_ms_p99": float(np.percentile(ms, 99)),
-        "frame_ms_max": float(ms.max()),
+        "frame_ms_max": times.max() / 1e6,
         "wall_s": wall_s,
         "realtime_factor": audio_s / wall_s if wall_s > 0 else float("inf"),
         "nonfinite_samples": int(getattr(pipe.extractor, "nonfinite_samples", 0)),

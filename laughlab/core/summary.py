@@ -1,8 +1,14 @@
-"""The one line a run prints when it succeeds: what ran on what, how long the command took, how fast, where."""
+"""The one line a run prints when it succeeds: what ran on what, how long the command took, how fast, where; and
+the per-frame figures its percentiles come from, kept in bounded memory (:class:`FrameSample`)."""
 from __future__ import annotations
 
+from array import array
 from pathlib import Path
 
+
+#: a live session this far behind the microphone at its worst (s, beyond the device's own latency) says so: the
+#: lag lip sync starts to show (a warm-up stall of a few frames at the start is not worth a word)
+BEHIND_S = 0.1
 
 #: the plugin groups a run's summary line and a report name, in the order the summary line gives them
 CHAIN = ("extractor", "detector", "face", "body", "scheduler")
@@ -36,7 +42,8 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
     """How fast the run went, in the terms of its output.
 
     - a live input (the microphone): it runs at the speed of the sound, so the compute per frame against the
-      frame's time;
+      frame's time, and how far the session fell behind the microphone when it did (``input_lag_s_max`` over
+      :data:`BEHIND_S`, or the device's overflows: the sinks count there, not in the compute);
     - a stream paced at the frame clock (``output=vmc`` on a file): real time by design;
     - otherwise the whole command's real-time factor (audio seconds per second waited), then the frame loop's
       (``metrics.json``: ``realtime_factor``, the plugins and the writers), and for a video its rendered
@@ -45,7 +52,11 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
     fps = float(metrics.get("fps") or cfg.get("fps") or 60.0)
     if str(cfg.input.name) == "mic":
         p99 = metrics.get("frame_ms_p99")
-        return f"live; compute per frame p99 {float(p99):.2f} ms of {1000 / fps:.1f} ms" if p99 is not None else "live"
+        said = f"live; compute per frame p99 {float(p99):.2f} ms of {1000 / fps:.1f} ms" if p99 is not None else "live"
+        lag, lost = float(metrics.get("input_lag_s_max") or 0.0), int(metrics.get("input_overflows") or 0)
+        if lag > BEHIND_S or lost:   # the compute kept up, the session did not: a sink or a stall held it up
+            said += f"; fell behind the microphone by {lag:.2f} s" + (f", audio lost {lost} times" if lost else "")
+        return said
     vmc = (cfg.get("output") or {}).get("vmc")
     if vmc is not None and str(vmc.get("realtime", "auto")) in ("auto", "on"):
         return "paced at the frame clock for the vmc stream"
@@ -71,3 +82,58 @@ def duration_text(s: float) -> str:
         return f"{s:.1f} s"
     m = int(round(s)) // 60
     return f"{m} min {int(round(s)) % 60:02d} s" if m < 60 else f"{m // 60} h {m % 60:02d} min"
+
+
+class FrameSample:
+    """Per-frame figures (compute ns, latency ms) for their percentiles, in bounded memory for a session that
+    runs until stopped (review-live 10: a list grew 34 bytes a frame, about 1 GB a day).
+
+    ``values`` is appended to once a frame (``values.append``, the frame loop's fast path) and :meth:`settle`
+    is called now and then (every chunk).  Every frame is kept until ``2 * cap`` are; then every second one,
+    then every fourth...: those of frames ``0, s, 2s, ...`` for a stride ``s`` that doubles each time the
+    array fills, so the kept ones stay evenly spread over the whole run.  The count and the maximum stay
+    exact.  A run shorter than ``2 * cap`` frames (73 min at 60 fps) keeps every value, as before.
+    """
+
+    #: ``cap`` unless one is given: 2**17, so at most 2**18 values (2 MB of 8-byte values)
+    CAP = 1 << 17
+
+    def __init__(self, typecode: str, cap: int | None = None):
+        self.values = array(typecode)
+        self.cap = int(cap or self.CAP)
+        self.stride = 1
+        self.n = 0          # frames settled
+        self._peak = None   # the maximum of the frames settled and no longer kept
+        self._kept = 0      # len(values) at the last settle
+
+    def append(self, x) -> None:
+        self.values.append(x)
+
+    def settle(self) -> None:
+        a, start = self.values, self._kept
+        new = len(a) - start
+        if self.stride > 1 and new:
+            tail = a[start:]
+            self._peak = max(self._peak, max(tail))
+            first = -self.n % self.stride   # the first new frame whose index is a multiple of the stride
+            del a[start:]
+            a.extend(tail[first::self.stride])
+        self.n += new
+        while len(a) >= 2 * self.cap:
+            self._peak = max(a) if self._peak is None else max(self._peak, max(a))
+            del a[1::2]
+            self.stride *= 2
+        self._kept = len(a)
+
+    def array(self, dtype):
+        """The kept values as a numpy array (settled first)."""
+        import numpy as np   # not at import: the command line reads this module before it needs numpy
+
+        self.settle()
+        return np.frombuffer(self.values, dtype=dtype) if len(self.values) else np.zeros(0, dtype=dtype)
+
+    def max(self):
+        """The largest value of every frame (None when there were none)."""
+        self.settle()
+        top = max(self.values) if len(self.values) else None
+        return top if self._peak is None else self._peak if top is None else max(top, self._peak)

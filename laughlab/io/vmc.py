@@ -75,8 +75,8 @@ from __future__ import annotations
 import math
 import socket
 import struct
+import sys
 import time
-from collections import deque
 from typing import Iterable, Iterator, Mapping
 
 import numpy as np
@@ -334,7 +334,15 @@ class VmcEncoder:
 
 
 class VmcSender:
-    """A UDP socket to one VMC receiver.
+    """A UDP socket to one VMC receiver that never makes the frame loop wait.
+
+    The socket is non-blocking: a datagram it cannot take at once is dropped and counted (``dropped``).  A
+    LAN address nobody answers (the avatar PC switched off) fills the send buffer while the kernel waits 3 s
+    for ARP, and a blocking ``sendto`` froze the frame loop for those 3 s (review-live 2).  Any other send
+    error (no route, no buffer space) drops the datagram too; the first of each kind is said once on stderr
+    with the address and the cause, never as a fault of the run's folder.  ``ConnectionRefusedError``
+    (nobody listening on that port) is UDP's normal case: silent.  ``SO_BROADCAST`` is set on IPv4, so a
+    broadcast address (255.255.255.255, or the LAN's) reaches every receiver on it.
 
     Raises ``OSError`` (from ``socket.getaddrinfo``) if the host does not resolve.
     """
@@ -342,8 +350,14 @@ class VmcSender:
     def __init__(self, host: str, port: int):
         info = socket.getaddrinfo(host, int(port), type=socket.SOCK_DGRAM)[0]
         self.address = info[4]
+        self.where = f"{host}:{port}"
         self.sock = socket.socket(info[0], socket.SOCK_DGRAM)
-        self.packets = 0
+        self.sock.setblocking(False)
+        if info[0] == socket.AF_INET:
+            self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+        self.packets = 0   # datagrams handed to the socket
+        self.dropped = 0   # datagrams dropped: the socket could not take them, or refused them
+        self._said: set = set()
 
     def send(self, packets: list[bytes]) -> None:
         for p in packets:
@@ -351,7 +365,21 @@ class VmcSender:
                 self.sock.sendto(p, self.address)
             except ConnectionRefusedError:  # nobody listening (ICMP port unreachable): UDP goes on
                 pass
+            except BlockingIOError:
+                self._drop("BlockingIOError", "the network does not take the datagrams as fast as they come: is "
+                                              "the receiver switched off or asleep?")
+                continue
+            except OSError as exc:
+                self._drop(exc.errno, exc.strerror or type(exc).__name__)
+                continue
             self.packets += 1
+
+    def _drop(self, kind, cause: str) -> None:
+        self.dropped += 1
+        if kind not in self._said:
+            self._said.add(kind)
+            print(f"laughlab: warning: output.vmc: cannot send to {self.where} ({cause}); its datagrams are dropped "
+                  "and counted (the vmc line, metrics.json: vmc_dropped_datagrams)", file=sys.stderr, flush=True)
 
     def close(self) -> None:
         self.sock.close()
@@ -378,34 +406,6 @@ def paced_chunks(audio: np.ndarray, sample_rate: int, block: int, clock=time.per
         if wait > 0:
             sleep(wait)
         yield audio[start:end]
-
-
-class BlockClock:
-    """Time stamps of the audio blocks a source yields (perf_counter_ns when each was handed out).
-
-    Wraps ``source.blocks`` so the frames' capture times are known to a sink
-    when the pipeline does not pass them in the chunk (``Chunk.capture_ns``).
-    """
-
-    def __init__(self, source):
-        self.times: deque[int] = deque()
-        self.source = source
-        original = source.blocks
-
-        def blocks():
-            self.times.clear()  # a second pass (offline planning) starts over
-            for b in original():
-                self.times.append(time.perf_counter_ns())
-                yield b
-
-        source.blocks = blocks
-        self._original = original
-
-    def pop(self) -> int | None:
-        return self.times.popleft() if self.times else None
-
-    def restore(self) -> None:
-        vars(self.source).pop("blocks", None)  # drop the instance attribute set above
 
 
 def latency_summary(ms: np.ndarray) -> dict:

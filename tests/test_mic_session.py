@@ -1,0 +1,269 @@
+"""How a live microphone session ends and what it reports (review-live 1, 4, 6, 8): Ctrl-C or SIGTERM with no
+``input.duration_s`` ends the input and keeps the session, a microphone that stops ends it with a warning, an
+overflow is counted, and a set duration reads exactly the samples asked for."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from omegaconf import OmegaConf
+
+from laughlab.core import pipeline
+from laughlab.core.config import compose_config
+from test_sources import FakeSoundDevice
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def noise(seconds: float, sr: int = 16000, seed: int = 0) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * sr)) / sr
+    return (rng.normal(0, 0.1, len(t)) * (1 + np.sin(2 * np.pi * 4 * t))).astype(np.float32)
+
+
+def mic_pipe(monkeypatch, fake, *overrides, outputs=None):
+    monkeypatch.setitem(sys.modules, "sounddevice", fake)
+    cfg = compose_config(["input=mic", "input.calibration_s=0", *overrides])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    cfg.output = outputs if outputs is not None else {"csv": {}, "bvh": {}}
+    return pipeline.build(cfg)
+
+
+@pytest.fixture
+def default_ctrl_c():
+    """Python's own Ctrl-C handler on SIGINT for the test (a test runner's worker may have another)."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_ctrl_c_ends_a_session_with_no_duration_and_keeps_it(monkeypatch, tmp_path, capsys, default_ctrl_c):
+    fake = FakeSoundDevice(noise(5), on_read=lambda k: k == 40 and signal.raise_signal(signal.SIGINT))
+    pipe = mic_pipe(monkeypatch, fake)
+    metrics = pipeline.execute(pipe, tmp_path)
+    # the block read when the signal came is the last: 41 blocks of 267 samples, 41.05 frames of 266.67 (the
+    # last one short, as the offline run of those samples has it); the loop finished as at any end of input
+    assert fake.sizes == [267] * 41
+    assert metrics["n_frames"] == 42 and metrics["input_stopped_by"] == "SIGINT"
+    assert len(pd.read_csv(tmp_path / "channels.csv")) == 42 and "Frames: 42" in (tmp_path / "motion.bvh").read_text()
+    assert json.loads((tmp_path / "metrics.json").read_text())["input_stopped_by"] == "SIGINT"
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "laughlab: Ctrl-C: the input ended after 0.7 s and the session is kept" in err, err
+    assert fake.closed and signal.getsignal(signal.SIGINT) is signal.default_int_handler   # the handler is back
+
+
+def test_a_second_ctrl_c_aborts_and_removes_what_was_written(monkeypatch, tmp_path, default_ctrl_c):
+    def twice(k):
+        if k == 40:
+            signal.raise_signal(signal.SIGINT)
+            signal.raise_signal(signal.SIGINT)
+
+    pipe = mic_pipe(monkeypatch, FakeSoundDevice(noise(5), on_read=twice))
+    with pytest.raises(KeyboardInterrupt):
+        pipeline.execute(pipe, tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_with_a_duration_ctrl_c_aborts_as_in_an_offline_run(monkeypatch, tmp_path, default_ctrl_c):
+    fake = FakeSoundDevice(noise(5), on_read=lambda k: k == 10 and signal.raise_signal(signal.SIGINT))
+    pipe = mic_pipe(monkeypatch, fake, "input.duration_s=2")
+    with pytest.raises(KeyboardInterrupt):
+        pipeline.execute(pipe, tmp_path)
+    assert not (tmp_path / "channels.csv").exists()
+
+
+def test_a_microphone_that_stops_ends_the_input_with_one_warning(monkeypatch, tmp_path, capsys):
+    pipe = mic_pipe(monkeypatch, FakeSoundDevice(noise(5), fail_at=60))
+    metrics = pipeline.execute(pipe, tmp_path)
+    # 60 blocks of 267 samples read: 60.08 frames, the last one short
+    assert metrics["n_frames"] == 61 and metrics["input_stopped_by"] == "device"
+    assert len(pd.read_csv(tmp_path / "channels.csv")) == 61
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1, err
+    assert err.startswith("laughlab: warning: the microphone stopped after 1.0 s (Unanticipated host error "), err
+    assert "the session up to there is kept" in err
+
+
+def test_a_microphone_that_cannot_start_is_one_line(monkeypatch, tmp_path):
+    from laughlab.core.errors import LaughlabError
+
+    fake = FakeSoundDevice(noise(1))
+    pipe = mic_pipe(monkeypatch, fake)
+
+    def refuse(**kw):
+        raise fake.PortAudioError("Error opening InputStream: Device unavailable [PaErrorCode -9985]")
+
+    fake.InputStream = refuse
+    with pytest.raises(LaughlabError, match=r"^the microphone could not be started \(Error opening InputStream"):
+        pipeline.execute(pipe, tmp_path)
+
+
+FAKE_MODULE = '''
+"""A fake sounddevice: noise as fast as it is read; read SIGNAL_AT sends the signal FAKE_SD_SIGNAL to this process."""
+import os, signal
+import numpy as np
+
+class PortAudioError(Exception):
+    pass
+
+def check_input_settings(**kw):
+    pass
+
+class InputStream:
+    def __init__(self, **kw):
+        self.k, self.rng = 0, np.random.default_rng(0)
+    def __enter__(self):
+        return self
+    def __exit__(self, *a):
+        return False
+    def read(self, n):
+        self.k += 1
+        if self.k == int(os.environ["FAKE_SD_SIGNAL_AT"]):
+            os.kill(os.getpid(), getattr(signal, os.environ["FAKE_SD_SIGNAL"]))
+        if self.k > 3000:   # a signal that did not end the input: the test fails, it does not hang
+            raise PortAudioError("the fake ran out")
+        return self.rng.normal(0, 0.1, (n, 1)).astype(np.float32), False
+'''
+
+
+@pytest.mark.parametrize("sig, key", [("SIGINT", "Ctrl-C"), ("SIGTERM", "SIGTERM")])
+def test_the_command_keeps_a_session_stopped_by_a_signal(tmp_path, sig, key):
+    """The whole command: exit 0, the files and metrics.json, the vmc summary, one line on stderr (90 blocks of
+    267 samples: 91 frames, the last one short)."""
+    (tmp_path / "fake").mkdir()
+    (tmp_path / "fake" / "sounddevice.py").write_text(textwrap.dedent(FAKE_MODULE))
+    run = tmp_path / "run"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path / "fake"), str(ROOT)]),
+           "FAKE_SD_SIGNAL_AT": "90", "FAKE_SD_SIGNAL": sig}
+    p = subprocess.run([sys.executable, "-m", "laughlab", "input=mic", "input.calibration_s=0",
+                        "output=[files,vmc]", "~output.plots", "output.vmc.port=39591",
+                        f"hydra.run.dir={run}"],
+                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=120,
+                       preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # not inherited as ignored
+    assert p.returncode == 0, p.stderr
+    assert p.stderr.count("\n") == 1 and f"laughlab: {key}: the input ended after 1.5 s and the session is kept" \
+        in p.stderr, p.stderr
+    assert "vmc: 91 frames to 127.0.0.1:39591 (live)" in p.stdout, p.stdout
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["input_stopped_by"] == sig and metrics["n_frames"] == 91 == metrics["vmc_frames"]
+    assert len(pd.read_csv(run / "channels.csv")) == 91
+
+
+@pytest.mark.parametrize("sr", [16000, 44100])
+def test_a_set_duration_reads_exactly_its_samples_and_matches_the_offline_run(monkeypatch, tmp_path, sr):
+    """At 16 kHz the blocks of 267 samples read 720 x 267 = 192240 samples for 12 s and the run had one short frame
+    more than the offline run of the same audio (721 rows, 'Frames: 721').  Now the last read is cut to what is left."""
+    import soundfile as sf
+
+    audio = noise(3.5, sr)
+    fake = FakeSoundDevice(audio)
+    mic = mic_pipe(monkeypatch, fake, "input.duration_s=3", f"input.sample_rate={sr}")
+    pipeline.execute(mic, tmp_path / "mic")
+    assert sum(fake.sizes) == 3 * sr and fake.sizes[:-1] == [math.ceil(sr / 60)] * (len(fake.sizes) - 1)
+    sf.write(tmp_path / "in.wav", audio[:3 * sr], sr, subtype="FLOAT")
+    cfg = compose_config(["input=file", f"input.path={tmp_path / 'in.wav'}"])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    cfg.output = {"csv": {}, "bvh": {}}
+    pipeline.execute(pipeline.build(cfg), tmp_path / "file")
+    for name in ("channels.csv", "events.csv", "motion.bvh"):
+        assert (tmp_path / "mic" / name).read_bytes() == (tmp_path / "file" / name).read_bytes(), name
+    assert "Frames: 180" in (tmp_path / "mic" / "motion.bvh").read_text()
+
+
+def test_body_hill_fits_in_its_thread_on_the_microphone_and_in_the_frame_on_a_file(monkeypatch):
+    """threaded: auto read ctx.live, which Context did not have: the fit ran in the frame on the microphone too
+    (60-170 ms stalls, review-live 3)."""
+    mic = mic_pipe(monkeypatch, FakeSoundDevice(noise(1)), "input.duration_s=0.5", "body=hill", "extractor=pressure")
+    try:
+        assert mic.ctx.live is True and mic.body.live.threaded is True
+    finally:
+        mic.body.close()
+    cfg = compose_config(["input.duration_s=0.5", "body=hill", "extractor=pressure"])
+    offline = pipeline.build(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]))
+    assert offline.ctx.live is False and offline.body.live.threaded is False
+
+
+def test_falling_behind_the_microphone_is_counted_warned_once_and_said(monkeypatch, tmp_path, capsys):
+    """The device's overflow flag was dropped and the summary said all was well 26 s behind (review-live 4)."""
+    from laughlab.core.summary import speed
+
+    sr = 16000
+    fake = FakeSoundDevice(noise(3), overflow_at={50, 51, 90})
+    pipe = mic_pipe(monkeypatch, fake, "input.duration_s=2")
+    # the wall clock, as the source reads it: each read returns 30 ms after its audio's end (the device's own
+    # latency, not counted), and 0.4 s more from 1 s of audio on
+    pipe.source.clock = lambda: fake.pos / sr + (0.03 if fake.pos else 0.0) + (0.4 if fake.pos > sr else 0.0)
+    metrics = pipeline.execute(pipe, tmp_path)
+    assert metrics["input_overflows"] == 3 and metrics["input_lag_s_max"] == pytest.approx(0.4)
+    assert json.loads((tmp_path / "metrics.json").read_text())["input_overflows"] == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("laughlab: warning: the microphone's buffer overflowed after 0.9 s: "
+                                                   "laughlab fell behind the microphone and audio was lost"), err
+    cfg = compose_config(["input=mic"])
+    assert speed(cfg, metrics, 3.0).endswith("; fell behind the microphone by 0.40 s, audio lost 3 times")
+    kept_up = {**metrics, "input_overflows": 0, "input_lag_s_max": 0.08}   # a warm-up stall at the start
+    assert "fell behind" not in speed(cfg, kept_up, 3.0)
+
+
+def test_the_latency_bench_replays_the_microphone_in_its_own_blocks():
+    """bench_latency's stand-in cut blocks of round(sr/fps) samples where the mic reads ceil(sr/fps): 533 against
+    534 at 16 kHz and 30 fps, 25 ms more latency in the bench than the mic has (review-live 9)."""
+    import importlib.util
+
+    from laughlab.core.bases import Context
+    from laughlab_plugins.source_mic import MicParams, block_samples
+
+    spec = importlib.util.spec_from_file_location("bench_latency", ROOT / "benchmarks" / "bench_latency.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    assert block_samples(16000, 30) == 534 and block_samples(16000, 60, 2) == 534 and block_samples(48000, 30) == 1600
+    replay = bench.make_replay_mic()(np.zeros(3200, dtype=np.float32), MicParams(sample_rate=16000),
+                                     Context(fps=30.0))   # 0.2 s, played at real time
+    replay.open()
+    sizes = [len(b) for b in replay._chunks()]
+    assert sizes[:-1] == [534] * (len(sizes) - 1)
+
+
+def test_an_offline_scheduler_on_the_microphone_is_refused_naming_the_setting_before_any_sink(monkeypatch, tmp_path):
+    from laughlab.core.errors import LaughlabError
+
+    with pytest.raises(LaughlabError) as err:   # by build: no pipeline, so no sink opened (it was in execute)
+        mic_pipe(monkeypatch, FakeSoundDevice(noise(1)), "input.duration_s=0.5", "scheduler=concat",
+                 "scheduler.mode=optimal")
+    assert str(err.value) == ("scheduler=concat (scheduler.mode=optimal) plans over the whole input and cannot run "
+                              "on a live source (input=mic); use scheduler.mode=greedy, its real-time mode")
+    mic_pipe(monkeypatch, FakeSoundDevice(noise(1)), "input.duration_s=0.5", "scheduler=concat")   # greedy: fine
+
+
+def test_body_hill_on_the_microphone_matches_the_offline_run_after_its_warm_up(monkeypatch, tmp_path):
+    """body=hill warms its compiled torso up on a spare one when the input is live (frame 0 took 0.4 s); the
+    frames are the offline run's (the fit in the frame on both: body.live.threaded=no)."""
+    import soundfile as sf
+
+    from laughlab_plugins import body_hill
+
+    steps = []
+    step = body_hill.Torso.step
+    monkeypatch.setattr(body_hill.Torso, "step", lambda self, *a: (steps.append(self), step(self, *a))[1])
+    audio = noise(2.5)
+    hill = ["body=hill", "extractor=pressure", "body.live.threaded=no"]
+    mic = mic_pipe(monkeypatch, FakeSoundDevice(audio), "input.duration_s=2", *hill)
+    pipeline.execute(mic, tmp_path / "mic")
+    assert steps[0] is not mic.body.torso and steps[1] is mic.body.torso   # one spare step, then frame 0
+    sf.write(tmp_path / "in.wav", audio[:32000], 16000, subtype="FLOAT")
+    cfg = compose_config(["input=file", f"input.path={tmp_path / 'in.wav'}", *hill])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    cfg.output = {"csv": {}, "bvh": {}}
+    pipeline.execute(pipeline.build(cfg), tmp_path / "file")
+    for name in ("channels.csv", "motion.bvh"):
+        assert (tmp_path / "mic" / name).read_bytes() == (tmp_path / "file" / name).read_bytes(), name
