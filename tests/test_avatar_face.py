@@ -278,3 +278,13 @@ def test_a_chest_slider_is_left_alone_and_the_spine_breathes(tmp_path):
     # laughlab's own mannequin file keeps its chest and belly morphs breathing
     doc, w = bake(edited(mannequin_arkit_glb, lambda d: None, tmp_path / "ours.glb"))
     np.testing.assert_allclose(w[node][:, names.index("belly")], BREATH["belly"], atol=1e-7)
+    # a review: a user's avatar once baked is stamped "laughlab (avatar: ...)"; loaded again (character= a run's
+    # character.glb, view --character), its slider must stay the user's, and a baked mannequin keeps breathing
+    for made, kept in ((path, True), (tmp_path / "ours.glb", False)):
+        again = tmp_path / f"again-{made.stem}.glb"
+        again.write_bytes(baked_glb(load_avatar(made), HUMANOID, np.arange(3) / 60, np.tile(rest_pose(), (3, 1)),
+                                    ARKIT, BREATH, audio_duration_s=3 / 60, fps=60.0))
+        assert parse_glb(again.read_bytes())[0]["asset"]["generator"].startswith("laughlab (avatar: ")
+        doc, w = bake(again)
+        want = 0.4 if kept else BREATH["chest"]
+        np.testing.assert_allclose(w[node][:, names.index("chest")], want, atol=1e-7)

@@ -174,8 +174,22 @@ def breath_morph(avatar: Avatar, name: str) -> str | None:
     if low in ("chest", "belly"):
         asset = avatar.doc.get("asset") if isinstance(getattr(avatar, "doc", None), dict) else None
         generator = str((asset or {}).get("generator", "")) if isinstance(asset, dict) else ""
-        return low if generator.startswith("laughlab") else None
+        return low if laughlab_made(generator) else None
     return None
+
+
+#: the generators of the glTF files laughlab makes itself (``laughlab.io.gltf``, ``laughlab.avatar.mannequin``)
+OWN_GENERATORS = ("laughlab", "laughlab mannequin")
+BAKED = "laughlab (avatar: "
+
+
+def laughlab_made(generator: str) -> bool:
+    """Is a file of this ``asset.generator`` one laughlab made (its mannequin, its character.glb), also once baked
+    again (``laughlab (avatar: laughlab mannequin)``)?  A user's avatar baked by laughlab is not (a review: its
+    ``Chest`` slider breathed again when its character.glb was loaded)."""
+    while generator.startswith(BAKED) and generator.endswith(")"):
+        generator = generator[len(BAKED):-1]
+    return generator in OWN_GENERATORS
 
 
 def driven_morphs(avatar: Avatar, arkit: Mapping[str, np.ndarray] | set,
