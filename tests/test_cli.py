@@ -401,6 +401,22 @@ def test_every_output_group_states_a_meaningful_speed(output):
     assert f"rms > yamnet > smile > shapes > energy, in 3.4 s ({SPEEDS[output]}) -> " in line
 
 
+def test_the_closing_line_offers_view_only_for_what_view_plays(tmp_path):
+    """A review: "watch it" was offered for a folder with motion.bvh but no channels.csv, which view refuses; a
+    folder with a space is quoted for the shell."""
+    from laughlab.core.config import compose_config
+    from laughlab.core.summary import summary_line
+
+    cfg = compose_config([])
+    out = tmp_path / "my run"
+    out.mkdir()
+    (out / "motion.bvh").write_text("")
+    assert "watch it" not in summary_line(cfg, {"duration_s": 1.0}, out, 1.0)
+    for name in ("channels.csv", "events.csv"):
+        (out / name).write_text("")
+    assert summary_line(cfg, {"duration_s": 1.0}, out, 1.0).endswith(f"; watch it: python -m laughlab view '{out}'")
+
+
 @pytest.mark.parametrize("args, seconds, metrics, said", [
     (["input=mic"], 31.0, {"duration_s": 30.0, "fps": 60.0, "frame_ms_p99": 0.234},
      "in 31.0 s (live; compute per frame p99 0.23 ms of 16.7 ms)"),

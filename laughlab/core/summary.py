@@ -2,6 +2,7 @@
 the per-frame figures its percentiles come from, kept in bounded memory (:class:`FrameSample`)."""
 from __future__ import annotations
 
+import shlex
 from array import array
 from pathlib import Path
 
@@ -34,7 +35,11 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     took = f"in {duration_text(seconds)} ({speed(cfg, metrics, seconds)})"
     length = f"{dur:.1f}" if dur >= 1.0 or dur == 0.0 else f"{dur:.2g}"   # a 0.05 s file is not "0.1 s"
     # the next step, as an experiment's and a study's lines give theirs (a review): a run with motion is watched
-    watch = f"; watch it: python -m laughlab view {out_dir}" if "motion.bvh" in files else ""
+    # (only when the viewer has what it plays: output=bvh alone writes motion.bvh but no channels: a review)
+    from laughlab.viewer import NEEDED
+
+    watch = (f"; watch it: python -m laughlab view {shlex.quote(str(out_dir))}"
+             if all(n in files for n in NEEDED) else "")
     return f"laughlab: {length} s of {what}, {chain}, {took} -> {out_dir}/: {', '.join(files)}{watch}"
 
 

@@ -30,10 +30,9 @@ from pathlib import Path
 import numpy as np
 
 from laughlab.core.errors import LaughlabError
-from laughlab.viewer import page
+from laughlab.viewer import NEEDED, page  # NEEDED: the files a run needs, named once
 
 DEFAULT_PORT = 8765
-NEEDED = ("motion.bvh", "channels.csv", "events.csv")
 
 
 def _channels(run_dir: Path) -> dict[str, np.ndarray]:
