@@ -13,7 +13,7 @@ import sys
 import time
 from pathlib import Path
 
-from laughlab.core import blame, clock, interrupts
+from laughlab.core import blame, clock, interrupts, quiet
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, check_overrides,  # noqa: F401
                                   compose_config, conf_dir, group_options, load_plugin_dirs,
                                   register_plugin_configs)
@@ -36,7 +36,7 @@ _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "
 def fail(message: str, code: int = 2) -> "None":
     if interrupts.received:  # whatever failed after a Ctrl-C or SIGTERM failed because of it
         message, code = ("interrupted" if code != 130 else message), 130
-    print(f"laughlab: error: {message}", file=sys.stderr)
+    quiet.say(f"laughlab: error: {message}")   # on the real stderr even while fd 2 is silenced (core/quiet.py)
     if code == 130:
         interrupts.clear_exit_flag()
     sys.exit(code)

@@ -15,6 +15,10 @@ BEHIND_S = 0.1
 CHAIN = ("extractor", "detector", "face", "body", "scheduler")
 
 
+#: the files of a run the viewer plays (``python -m laughlab view``, ``laughlab.viewer.server``)
+VIEWER_NEEDS = ("motion.bvh", "channels.csv", "events.csv")
+
+
 def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozenset()) -> str:
     """One line on success: what ran on what, how long the command took, its speed, where its files are
     (not those named in ``skip``: the user's own files in the run's folder).
@@ -35,11 +39,9 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     took = f"in {duration_text(seconds)} ({speed(cfg, metrics, seconds)})"
     length = f"{dur:.1f}" if dur >= 1.0 or dur == 0.0 else f"{dur:.2g}"   # a 0.05 s file is not "0.1 s"
     # the next step, as an experiment's and a study's lines give theirs (a review): a run with motion is watched
-    # (only when the viewer has what it plays: output=bvh alone writes motion.bvh but no channels: a review)
-    from laughlab.viewer import NEEDED
-
+    # (only when the viewer has what it plays: motion.bvh without the channels is refused by view: a review)
     watch = (f"; watch it: python -m laughlab view {shlex.quote(str(out_dir))}"
-             if all(n in files for n in NEEDED) else "")
+             if all(n in files for n in VIEWER_NEEDS) else "")
     return f"laughlab: {length} s of {what}, {chain}, {took} -> {out_dir}/: {', '.join(files)}{watch}"
 
 

@@ -10,7 +10,6 @@ whole file's scores) and loads each part once per thread.
 """
 from __future__ import annotations
 
-import contextlib
 import copy
 import csv
 import hashlib
@@ -19,6 +18,8 @@ from importlib import resources
 from pathlib import Path
 
 import numpy as np
+
+from laughlab.core.quiet import quiet_stderr as _quiet_stderr  # LiteRT's C++ logging on fd 2
 
 #: the model's input: samples at 16 kHz (0.975 s)
 RATE = 16000
@@ -59,44 +60,6 @@ def class_names(path: str | Path | None = None) -> list[str]:
 
 def laugh_indices(names: list[str], classes: tuple[str, ...] = LAUGH_CLASSES) -> list[int]:
     return [names.index(n) for n in classes]
-
-
-#: ``_quiet_stderr``'s state, shared by the threads that build interpreters at once (the offline helper's two
-#: network threads): fd 2 is silenced by the first to enter and restored by the last to leave
-_QUIET = {"lock": threading.Lock(), "depth": 0, "saved": None}
-
-
-@contextlib.contextmanager
-def _quiet_stderr():
-    """Silence file descriptor 2 (C++ logging) for the duration of the block, from any number of threads at once.
-
-    Each thread saving and restoring fd 2 on its own (before 2026-11-27) interleaved: a thread that saved fd 2
-    while the other had it on /dev/null restored /dev/null for the rest of the process, and a run's error line
-    was then lost (a review: 5 of 6 runs under ``ulimit -f`` exited 2 without a word)."""
-    import os
-    import sys
-
-    with _QUIET["lock"]:
-        if _QUIET["depth"] == 0:
-            try:
-                sys.stderr.flush()
-                saved = os.dup(2)
-            except (OSError, ValueError):
-                saved = None
-            if saved is not None:
-                with open(os.devnull, "w") as null:
-                    os.dup2(null.fileno(), 2)
-            _QUIET["saved"] = saved
-        _QUIET["depth"] += 1
-    try:
-        yield
-    finally:
-        with _QUIET["lock"]:
-            _QUIET["depth"] -= 1
-            if _QUIET["depth"] == 0 and _QUIET["saved"] is not None:
-                os.dup2(_QUIET["saved"], 2)
-                os.close(_QUIET["saved"])
-                _QUIET["saved"] = None
 
 
 #: The bundled model's layout, checked when it is loaded (``_Layout``).  The file computes, for one window:

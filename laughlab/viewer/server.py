@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from laughlab.core.errors import LaughlabError
-from laughlab.viewer import NEEDED, page  # NEEDED: the files a run needs, named once
+from laughlab.core.summary import VIEWER_NEEDS as NEEDED  # the files a run needs, named once
+from laughlab.viewer import page
 
 DEFAULT_PORT = 8765
 

@@ -1,0 +1,55 @@
+"""File descriptor 2 silenced while C++ libraries log to it, without losing laughlab's own lines.
+
+LiteRT prints "INFO: Created TensorFlow Lite XNNPACK delegate" on fd 2 whenever an interpreter is built, and
+the offline detector builds them on two network threads, some lazily while a run goes on.  :func:`quiet_stderr`
+sends fd 2 to /dev/null for the block, from any number of threads at once: the first to enter silences it and
+the last to leave restores it (each thread saving and restoring fd 2 on its own interleaved, and /dev/null stayed
+for the rest of the process: a review).  :func:`say` writes a line of laughlab's (an error line) to the real
+stderr even inside such a block, so it is never lost.  No numpy here: the command line's start-up imports it.
+"""
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import threading
+
+#: shared by the threads: fd 2 is silenced by the first to enter and restored by the last to leave
+_STATE = {"lock": threading.Lock(), "depth": 0, "saved": None}
+
+
+@contextlib.contextmanager
+def quiet_stderr():
+    """Silence file descriptor 2 (C++ logging) for the duration of the block, from any number of threads."""
+    with _STATE["lock"]:
+        if _STATE["depth"] == 0:
+            try:
+                sys.stderr.flush()
+                saved = os.dup(2)
+            except (OSError, ValueError):
+                saved = None
+            if saved is not None:
+                with open(os.devnull, "w") as null:
+                    os.dup2(null.fileno(), 2)
+            _STATE["saved"] = saved
+        _STATE["depth"] += 1
+    try:
+        yield
+    finally:
+        with _STATE["lock"]:
+            _STATE["depth"] -= 1
+            if _STATE["depth"] == 0 and _STATE["saved"] is not None:
+                os.dup2(_STATE["saved"], 2)
+                os.close(_STATE["saved"])
+                _STATE["saved"] = None
+
+
+def say(line: str) -> None:
+    """Print ``line`` on stderr; while fd 2 is silenced (another thread building an interpreter), on the real one
+    (a review: an error line printed in that window was lost)."""
+    with _STATE["lock"]:
+        if _STATE["depth"] and _STATE["saved"] is not None and sys.stderr is sys.__stderr__:
+            sys.stderr.flush()
+            os.write(_STATE["saved"], (line + "\n").encode(errors="replace"))
+        else:
+            print(line, file=sys.stderr, flush=True)
