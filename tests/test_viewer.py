@@ -342,3 +342,31 @@ def test_port_0_is_any_free_port_not_a_taken_one(run_dir, monkeypatch, capsys):
     view_cli.main([str(run_dir), "--port", "0"])
     said = capsys.readouterr().out
     assert said.startswith(f"laughlab: viewing {run_dir} at http://127.0.0.1:") and "taken" not in said
+
+
+def test_overwrite_takes_an_older_pages_scripts_and_puts_the_page_back_if_the_swap_fails(run_dir, tmp_path,
+                                                                                        monkeypatch):
+    """A review: a page of an earlier laughlab (other three.js files) was refused as holding files not its own, a
+    leftover .laughlab-view.part blocked the folder, and a failure while the new page moved in left neither page."""
+    out = tmp_path / "site"
+    V.write(run_dir, out)
+    (out / "vendor" / "three" / "build" / "three.old.js").write_text("an earlier three.js")
+    (out / V.PART).mkdir()                                   # a killed run's leftover
+    V.write(run_dir, out, overwrite=True)
+    assert not (out / "vendor" / "three" / "build" / "three.old.js").exists() and not (out / V.PART).exists()
+    (out / "index.html").write_text("the earlier page")
+    before = sorted(p.relative_to(out).as_posix() for p in out.rglob("*"))
+    real, moved = V.Path.rename, []
+
+    def rename(self, target):   # the third file of the new page cannot move in
+        if self.parent.name == V.PART:
+            moved.append(self.name)
+            if len(moved) == 3:
+                raise OSError(16, "Device or resource busy")
+        return real(self, target)
+
+    monkeypatch.setattr(V.Path, "rename", rename)
+    with pytest.raises(V.LaughlabError, match="Device or resource busy"):
+        V.write(run_dir, out, overwrite=True)
+    assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*")) == before
+    assert (out / "index.html").read_text() == "the earlier page"

@@ -254,7 +254,7 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
     # permissions and any mount on it (a review: it was deleted and a new one renamed in); the page is made
     # whole in a hidden folder inside it first, so a failure leaves it as it was
     made = not out.exists()
-    tmp = (out.with_name(f".{out.name}.part") if made else out / ".laughlab-view.part")
+    tmp = (out.with_name(f".{out.name}.part") if made else out / PART)
     shutil.rmtree(tmp, ignore_errors=True)
     try:
         for name, data in files.items():
@@ -267,14 +267,7 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
         if made:
             tmp.rename(out)
         else:
-            for old in [p for p in out.iterdir() if p != tmp]:   # an earlier page's own files (checked above)
-                if old.is_dir():
-                    shutil.rmtree(old)
-                else:
-                    old.unlink()
-            for new in tmp.iterdir():
-                new.rename(out / new.name)
-            tmp.rmdir()
+            _swap_in(out, tmp)
     except OSError as exc:   # the folder named, not the run's (a review: "cannot write RUN: OSError")
         shutil.rmtree(tmp, ignore_errors=True)
         raise LaughlabError(f"cannot write the viewer page into {out}: {exc.strerror or type(exc).__name__}") \
@@ -283,6 +276,39 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return out, page.fits_inline(files["run.json"], glb)
+
+
+#: inside a folder that exists: the new page being made, and the earlier page while the new one moves in
+PART, OLD = ".laughlab-view.part", ".laughlab-view.old"
+
+
+def _swap_in(out: Path, tmp: Path) -> None:
+    """Move the page made in ``tmp`` into ``out`` in place of what is there (an empty folder, or an earlier page):
+    the earlier page's files go aside first and come back if the move fails part way (a review: a failure left
+    neither page)."""
+    aside = out / OLD
+    shutil.rmtree(aside, ignore_errors=True)
+    aside.mkdir()
+    gone, came = [], []
+    try:
+        for old in [p for p in out.iterdir() if p.name not in (PART, OLD)]:
+            old.rename(aside / old.name)
+            gone.append(old.name)
+        for new in tmp.iterdir():
+            new.rename(out / new.name)
+            came.append(new.name)
+    except BaseException:
+        for name in came:
+            if (out / name).is_dir():
+                shutil.rmtree(out / name)
+            else:
+                (out / name).unlink()
+        for name in gone:
+            (aside / name).rename(out / name)
+        aside.rmdir()
+        raise
+    shutil.rmtree(aside)
+    tmp.rmdir()
 
 
 def _not_the_pages(out: Path) -> list[str] | None:
@@ -296,12 +322,13 @@ def _not_the_pages(out: Path) -> list[str] | None:
         audio = json.loads((out / "run.json").read_text()).get("audio")
     except (ValueError, OSError, AttributeError):
         return None
-    vendor = page.vendor_dir()
-    ours = {"vendor/" + f.relative_to(vendor).as_posix() for f in vendor.rglob("*") if f.is_file()}
-    held = {p.relative_to(out).as_posix() for p in (out / "vendor").rglob("*") if p.is_file()} \
-        if (out / "vendor").is_dir() else set()
-    return sorted(held - ours) + sorted(p.name for p in out.iterdir()
-                                        if p.name not in (*PAGE_FILES, "vendor") and p.name != audio)
+    # the vendored packages' folders (three, three_vrm...): a page of an earlier laughlab holds other files of
+    # them (another three.js), which are the page's too (a review)
+    packages = {p.name for p in page.vendor_dir().iterdir() if p.is_dir()}
+    held = [p.relative_to(out).as_posix() for p in (out / "vendor").rglob("*") if p.is_file()] \
+        if (out / "vendor").is_dir() else []
+    return sorted(h for h in held if h.split("/")[1] not in packages or h.count("/") < 2) + sorted(
+        p.name for p in out.iterdir() if p.name not in (*PAGE_FILES, "vendor", PART, OLD) and p.name != audio)
 
 
 class _Handler(SimpleHTTPRequestHandler):
