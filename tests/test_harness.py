@@ -325,7 +325,7 @@ def test_report_of_nothing_is_one_line(tmp_path):
 
 
 @pytest.mark.parametrize("text, why", [
-    ('{"experiment": "smoke", "results": {', "not whole JSON: Expecting property name enclosed in double quotes "
+    ('{"experiment": "smoke", "results": {', "not JSON: Expecting property name enclosed in double quotes "
                                             "at line 1"),
     ("", "empty"),
     ("{}", "no experiment and results in it"),

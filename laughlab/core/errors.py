@@ -78,3 +78,26 @@ def finite_number(text: str) -> float:
 def first_line(exc: BaseException) -> str:
     """The first line of an exception's message (a library's reason), or its type's name if it has none."""
     return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+
+
+def read_json_object(path, fix: str, damaged: str = "is damaged", keys: dict | None = None) -> dict:
+    """A JSON object laughlab wrote (``results.json``, ``stimuli.json``, ``design.json``...), with ``keys`` (name:
+    type) in it; a damaged one (truncated, empty, not text, another program's JSON) is one line naming it:
+    ``{path} {damaged} ({why}){fix}`` (reviews: tracebacks)."""
+    import json
+    from pathlib import Path
+
+    text = None
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+        doc = json.loads(text)
+    except UnicodeDecodeError:
+        why = "not text"
+    except json.JSONDecodeError as exc:
+        why = f"not JSON: {exc.msg} at line {exc.lineno}" if text.strip() else "empty"
+    else:
+        keys = keys or {}
+        if isinstance(doc, dict) and all(isinstance(doc.get(k), t) for k, t in keys.items()):
+            return doc
+        why = f"no {' and '.join(keys)} in it" if keys else "not a JSON object"
+    raise LaughlabError(f"{path} {damaged} ({why}){fix}")

@@ -175,20 +175,7 @@ def read_results(path: Path) -> dict:
     """A ``results.json`` read for a report: a JSON object naming its ``experiment`` with its ``results`` by
     condition; anything else (truncated, empty, another program's JSON) is one line naming the file (a review:
     a traceback)."""
-    from laughlab.core.errors import LaughlabError
+    from laughlab.core.errors import read_json_object
 
-    path = Path(path)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        why = "not text"
-    except json.JSONDecodeError as exc:
-        why = f"not whole JSON: {exc.msg} at line {exc.lineno}" if path.stat().st_size else "empty"
-    else:
-        ok = (isinstance(doc, dict) and isinstance(doc.get("experiment"), str)
-              and isinstance(doc.get("results"), dict))
-        if ok:
-            return doc
-        why = "no experiment and results in it"
-    raise LaughlabError(f"{path} is not a laughlab results file ({why}); run the experiment again (the same "
-                        "command resumes it)")
+    return read_json_object(path, "; run the experiment again (the same command resumes it)",
+                            damaged="is not a laughlab results file", keys={"experiment": str, "results": dict})

@@ -20,7 +20,7 @@ import json
 from importlib import resources
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, read_json_object
 
 SCALES = ("likert", "slider")
 #: the kinds of rows a study stores (``kind`` column)
@@ -142,13 +142,7 @@ def read_stimuli(run_dir: Path) -> tuple[dict, list[dict], dict[int, list[dict]]
 def read_json(path: Path, fix: str) -> dict:
     """A JSON object laughlab wrote (``stimuli.json``, ``design.json``, ``report.json``...); a damaged one is one
     line naming it, ending with ``fix`` (a review: tracebacks)."""
-    try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise LaughlabError(f"{path} is damaged (not JSON: {str(exc).splitlines()[0]}){fix}") from None
-    if not isinstance(doc, dict):
-        raise LaughlabError(f"{path} is damaged (not a JSON object){fix}")
-    return doc
+    return read_json_object(path, fix)
 
 
 def attention_trials(n_trials: int, count: int) -> list[int]:

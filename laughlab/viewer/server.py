@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, first_line
 from laughlab.core.summary import VIEWER_NEEDS as NEEDED  # the files a run needs, named once
 from laughlab.viewer import page
 
@@ -62,7 +62,7 @@ def _read(path: Path, reader):
         return reader(path)
     except (ValueError, IndexError, KeyError, TypeError, UnicodeDecodeError, csv.Error) as exc:
         why = (f"no column {exc.args[0]!r}" if isinstance(exc, KeyError) and exc.args else
-               str(exc).replace(f"{path}: ", "").splitlines()[0] if str(exc) else type(exc).__name__)
+               first_line(exc).replace(f"{path}: ", ""))
         raise LaughlabError(f"{path} is damaged ({why}); run it again to write it whole") from None
 
 
