@@ -251,6 +251,11 @@ def gate_windows(p: np.ndarray, q: np.ndarray, rule: str, open_at: float = 0.5, 
     return out
 
 
+def _open_in_bout(t: np.ndarray, opened: np.ndarray, a: float, b: float) -> np.ndarray:
+    """The windows (ending at ``t``) open inside the bout ``a``-``b`` s or up to 1 s after it: they answer it."""
+    return (t >= a) & (t <= b + 1.0) & opened
+
+
 def _found_false(scenes: list, opened_of) -> tuple[float, float]:
     """Share of bouts during which the gate is open (inside the bout or up to 1 s after) and openings outside
     every bout (and its 1 s tail) per 10 minutes of non-laughter."""
@@ -261,7 +266,7 @@ def _found_false(scenes: list, opened_of) -> tuple[float, float]:
         opened = opened_of(sc)
         onsets = t[opened & ~np.concatenate([[False], opened[:-1]])]
         n_bouts += len(bouts)
-        found += sum(bool(((t >= a) & (t <= b + 1.0) & opened).any()) for a, b in bouts)
+        found += sum(bool(_open_in_bout(t, opened, a, b).any()) for a, b in bouts)
         heard = np.zeros(len(onsets), bool)
         for a, b in bouts:
             heard |= (onsets >= a) & (onsets <= b + 1.0)
@@ -325,7 +330,7 @@ def _first_open(scenes: list, opened_of) -> float:
     for sc in scenes:
         t, opened = sc["t"], opened_of(sc)
         for a, b in sc["bouts"]:
-            w = (t >= a) & (t <= b + 1.0) & opened
+            w = _open_in_bout(t, opened, a, b)
             if w.any():
                 delays.append(float(t[w][0] - a))
     return float(np.median(delays)) if delays else float("nan")
