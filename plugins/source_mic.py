@@ -12,7 +12,6 @@ import contextlib
 import math
 import signal
 import sys
-import threading
 import time
 from dataclasses import dataclass
 
@@ -22,6 +21,7 @@ from laughlab import hookimpl
 from laughlab.io.audio import cut_frames
 from laughlab.core.bases import Source
 from laughlab.core.errors import LaughlabError
+from laughlab.core.interrupts import StopOnSignal
 from laughlab.core.plugins import check_range
 
 
@@ -37,7 +37,7 @@ class MicParams:
         Capture rate (Hz).
     duration_s : float or None
         Stop after this many seconds; None runs until Ctrl-C or SIGTERM, which then end the input and keep the
-        session (:class:`StopOnSignal`).
+        session (:class:`laughlab.core.interrupts.StopOnSignal`).
     block_frames : int
         Animation frames per audio block read from the device (1 = lowest latency).
     calibration_s : float
@@ -270,48 +270,6 @@ def _running(stream, sd):
         except sd.PortAudioError:
             with contextlib.suppress(sd.PortAudioError):
                 stream.close()
-
-
-class StopOnSignal:
-    """While a session with no set length (``input.duration_s=null``) reads the microphone, the first Ctrl-C
-    (SIGINT) or SIGTERM ends the input: the frame loop finishes, the sinks close and the session is kept (the
-    stop signal *is* its end; SIGTERM too, as a process manager stops an always-on installation).  The second
-    signal goes to the handler this one stood in for (laughlab's: abort, remove what was written, exit 130).
-
-    Only laughlab's own handler and Python's default Ctrl-C handler are stood in for, on the main thread;
-    an ignored signal or another program's handler is left alone."""
-
-    def __init__(self):
-        self.signum: int | None = None
-        self._old: dict = {}
-
-    def __enter__(self) -> "StopOnSignal":
-        from laughlab.core.interrupts import STOP_SIGNALS
-
-        if threading.current_thread() is threading.main_thread():
-            for sig in STOP_SIGNALS:
-                old = signal.getsignal(sig)
-                if old is signal.default_int_handler or getattr(old, "__module__", "") == "laughlab.core.interrupts":
-                    self._old[sig] = old
-                    signal.signal(sig, self._on_signal)
-        return self
-
-    def _on_signal(self, signum, frame) -> None:
-        if self.signum is None:
-            self.signum = signum   # the read loop ends the input at its next block
-            return
-        old = self._old.get(signum, signal.default_int_handler)
-        self.restore()
-        old(signum, frame)
-
-    def restore(self) -> None:
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
-        self._old = {}
-
-    def __exit__(self, *exc) -> bool:
-        self.restore()
-        return False
 
 
 #: the level meter's scale: dBFS from METER_FLOOR_DB to 0

@@ -398,3 +398,24 @@ def test_body_hill_on_the_microphone_matches_the_offline_run_after_its_warm_up(m
     pipeline.execute(pipeline.build(cfg), tmp_path / "file")
     for name in ("channels.csv", "motion.bvh"):
         assert (tmp_path / "mic" / name).read_bytes() == (tmp_path / "file" / name).read_bytes(), name
+
+
+def test_laughlabs_own_handler_is_stood_in_for_by_identity_not_by_its_module_name():
+    """StopOnSignal recognised laughlab's handler by ``__module__ == 'laughlab.core.interrupts'``: a rename or a
+    wrapper turned the kept session off, and any handler claiming that module was taken over (diff-review 18)."""
+    from laughlab.core import interrupts
+
+    def lookalike(signum, frame):   # another program's handler, whatever its module says
+        pass
+
+    lookalike.__module__ = "laughlab.core.interrupts"
+    old = signal.signal(signal.SIGTERM, lookalike)
+    try:
+        with interrupts.StopOnSignal():
+            assert signal.getsignal(signal.SIGTERM) is lookalike
+        signal.signal(signal.SIGTERM, interrupts._handler)
+        with interrupts.StopOnSignal() as stop:
+            assert signal.getsignal(signal.SIGTERM) == stop._on_signal
+        assert signal.getsignal(signal.SIGTERM) is interrupts._handler
+    finally:
+        signal.signal(signal.SIGTERM, old)
