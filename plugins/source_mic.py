@@ -129,32 +129,40 @@ class MicSource(Source):
             waiting = _backlog(stream, sd)
             health.start()
             while total is None or got < total:
-                if stop is not None and stop.signum is not None:
-                    self.stopped_by = signal.Signals(stop.signum).name
-                    key = "Ctrl-C" if stop.signum == signal.SIGINT else self.stopped_by
-                    if not got:   # pipeline.execute would fail on no frames after a line saying 'kept'
-                        raise LaughlabError(f"{key}: stopped before any audio was read; nothing to keep")
-                    self._say(f"laughlab: {key}: the input ended after {got / self.sample_rate:.1f} s and the session "
-                              f"is kept ({key} again aborts it and removes what it wrote)")
+                block = self._read_block(stream, n if total is None else min(n, total - got), got, stop, waiting)
+                if block is None:
                     return
-                if waiting is not None:
-                    health.waiting(waiting())
-                try:
-                    data, overflowed = stream.read(n if total is None else min(n, total - got))
-                except sd.PortAudioError as exc:   # a USB microphone pulled out, a device gone to sleep
-                    self.stopped_by = "device"
-                    if not got:
-                        raise LaughlabError(f"the microphone stopped before any audio was read ({_first_line(exc)}); "
-                                            "nothing to keep") from None
-                    self._say(f"laughlab: warning: the microphone stopped after {got / self.sample_rate:.1f} s "
-                              f"({_first_line(exc)}); the input ends there and the session up to there is kept")
-                    return
+                data, overflowed = block
                 got += len(data)
                 if health.read(got, overflowed, clocked=waiting is None):
                     self._say(f"laughlab: warning: the microphone's buffer overflowed after "
                               f"{got / self.sample_rate:.1f} s: laughlab fell behind the microphone and audio was "
                               "lost (each time is counted: metrics.json input_overflows)")
                 yield data[:, 0].copy()
+
+    def _read_block(self, stream, n: int, got: int, stop, waiting):
+        """The next ``n`` samples and the device's overflow flag, or None where the input ends (a stop signal,
+        the device stopping: said in a line); either before any audio (``got == 0``) is an error."""
+        if stop is not None and stop.signum is not None:
+            self.stopped_by = signal.Signals(stop.signum).name
+            key = "Ctrl-C" if stop.signum == signal.SIGINT else self.stopped_by
+            if not got:   # pipeline.execute would fail on no frames after a line saying 'kept'
+                raise LaughlabError(f"{key}: stopped before any audio was read; nothing to keep")
+            self._say(f"laughlab: {key}: the input ended after {got / self.sample_rate:.1f} s and the session is "
+                      f"kept ({key} again aborts it and removes what it wrote)")
+            return None
+        if waiting is not None:
+            self.health.waiting(waiting())
+        try:
+            return stream.read(n)
+        except self._sd.PortAudioError as exc:   # a USB microphone pulled out, a device gone to sleep
+            self.stopped_by = "device"
+            if not got:
+                raise LaughlabError(f"the microphone stopped before any audio was read ({_first_line(exc)}); "
+                                    "nothing to keep") from None
+            self._say(f"laughlab: warning: the microphone stopped after {got / self.sample_rate:.1f} s "
+                      f"({_first_line(exc)}); the input ends there and the session up to there is kept")
+            return None
 
     def metrics(self) -> dict:
         """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``device`` or None: its end),
