@@ -98,8 +98,8 @@ class Failing:
 
 FATAL = [(errno.EINVAL, "Invalid argument", ""),   # an IPv6 link-local address without its scope id
          (errno.EAFNOSUPPORT, "Address family not supported by protocol", ""),
-         (errno.EMSGSIZE, "Message too long", "; set output.vmc.max_packet_bytes=1400 to split a frame into smaller "
-                                              "datagrams"),
+         (errno.EMSGSIZE, "Message too long", " (a datagram of 1380 bytes: set output.vmc.max_packet_bytes lower, "
+                                              "1400 fits Ethernet)"),
          (errno.EBADF, "Bad file descriptor", ""),
          (errno.EACCES, "Permission denied", "")]   # a broadcast address without SO_BROADCAST
 
@@ -116,8 +116,8 @@ def test_an_error_that_comes_back_on_every_send_ends_the_run_in_one_line(tmp_pat
     with_fake(monkeypatch, fake)
     with pytest.raises(LaughlabError) as e:
         pipeline.execute(pipe, tmp_path, {})
-    assert str(e.value) == (f"output.vmc: cannot send to 127.0.0.1:39539: {cause}{hint} (the run stops; what it wrote "
-                            "is removed)")
+    assert str(e.value) == (f"output.vmc: cannot send to 127.0.0.1:39539: {cause}{hint}; the run stops and what it "
+                            "wrote is removed")
     assert fake.k == 1 and fake.closed   # the first datagram, no frame at rest after it; the socket closed
     assert list(tmp_path.iterdir()) == [] and capsys.readouterr().err == ""
 
@@ -142,7 +142,7 @@ def test_the_command_says_a_send_that_cannot_work_in_one_line_not_as_the_run_fol
     p = laughlab("input.duration_s=1", "output=[files,vmc]", "~output.plots", "output.vmc.realtime=off",
                  f"hydra.run.dir={run}")
     assert p.returncode == 2 and p.stderr == ("laughlab: error: output.vmc: cannot send to 127.0.0.1:39539: Invalid "
-                                              "argument (the run stops; what it wrote is removed)\n"), p.stderr
+                                              "argument; the run stops and what it wrote is removed\n"), p.stderr
     assert not run.exists()
 
 

@@ -393,10 +393,10 @@ class VmcSender:
             except OSError as exc:
                 cause = exc.strerror or type(exc).__name__
                 if exc.errno not in TRANSIENT_ERRNOS and strict:
-                    hint = ("; set output.vmc.max_packet_bytes=1400 to split a frame into smaller datagrams"
-                            if exc.errno == errno.EMSGSIZE else "")
-                    self.failed = VmcSendError(f"output.vmc: cannot send to {self.where}: {cause}{hint} (the run "
-                                               "stops; what it wrote is removed)")
+                    hint = (f" (a datagram of {len(p)} bytes: set output.vmc.max_packet_bytes lower, 1400 fits "
+                            "Ethernet)" if exc.errno == errno.EMSGSIZE else "")
+                    self.failed = VmcSendError(f"output.vmc: cannot send to {self.where}: {cause}{hint}; the run stops "
+                                               "and what it wrote is removed")
                     raise self.failed from None
                 self._drop(exc.errno, cause)
                 continue
