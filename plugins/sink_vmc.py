@@ -20,6 +20,7 @@ from laughlab.core.plugins import check_range
 from laughlab.core.summary import FrameSample
 from laughlab.io.vmc import (DEFAULT_PORT, VRM_PRESETS, BoneMap, VmcEncoder, VmcSender, arkit_weights,
                           latency_summary)
+from laughlab.motion.skeleton import rest_pose
 
 
 @dataclass
@@ -165,15 +166,18 @@ class VmcSink(Sink):
         if self._stopped:   # abort() after close()
             return
         self._stopped = True
-        if self.params.rest_on_stop and self.n:
-            self._send_rest()
-        self.sender.close()
+        try:
+            if self.params.rest_on_stop and self.n and self.sender.failed is None:
+                self._send_rest()
+        finally:
+            self.sender.close()
 
     def _send_rest(self) -> None:
-        """One frame at rest after the last: every blendshape sent at 0, the rest pose, Blend/Apply."""
-        pos, rot = self.bones.local(np.zeros((1, self.bones.skeleton.n_channels)))
+        """One frame at rest after the last: every blendshape sent at 0, the rest pose (``rest_pose``: the hips
+        standing, 95 cm up; a pose of zeros put them on the floor, diff-review 12), Blend/Apply."""
+        pos, rot = self.bones.local(rest_pose(self.bones.skeleton)[None])
         msgs = self.encoder.messages(self._t + 1.0 / self.run.fps, pos[0], rot[0], ((k, 0.0) for k in self._sent))
-        self.sender.send(self.encoder.packets(msgs))
+        self.sender.send(self.encoder.packets(msgs), strict=False)   # its error warned of: the frames went out
 
     def _latency(self) -> dict:
         s = latency_summary(self.lat_ms.array(np.float64))

@@ -7,11 +7,11 @@ loudest frame of that burst as its first minAmp and maxAmp.
 """
 from __future__ import annotations
 
+import collections
 import contextlib
 import math
 import signal
 import sys
-import threading
 import time
 from dataclasses import dataclass
 
@@ -21,6 +21,7 @@ from laughlab import hookimpl
 from laughlab.io.audio import cut_frames
 from laughlab.core.bases import Source
 from laughlab.core.errors import LaughlabError
+from laughlab.core.interrupts import StopOnSignal
 from laughlab.core.plugins import check_range
 
 
@@ -36,7 +37,7 @@ class MicParams:
         Capture rate (Hz).
     duration_s : float or None
         Stop after this many seconds; None runs until Ctrl-C or SIGTERM, which then end the input and keep the
-        session (:class:`StopOnSignal`).
+        session (:class:`laughlab.core.interrupts.StopOnSignal`).
     block_frames : int
         Animation frames per audio block read from the device (1 = lowest latency).
     calibration_s : float
@@ -64,13 +65,11 @@ class MicSource(Source):
     Params = MicParams
     live = True
     stopped_by: str | None = None
-    _stop: "StopOnSignal | None" = None
-    #: reads the device flagged as overflowed (audio lost: laughlab fell behind), and the worst lag behind the
-    #: microphone (s: wall time since the stream started minus the audio read, less the smallest such lag so
-    #: far, which is the device's own latency), for metrics.json
-    overflows: int = 0
-    lag_s_max: float = 0.0
+    #: how the reading went (:class:`InputHealth`: overflows, the worst lag), for metrics.json
+    health: "InputHealth | None" = None
     clock = staticmethod(time.perf_counter)
+    _gens: tuple = ()
+    _line: "MeterLine | None" = None
 
     def open(self) -> None:
         try:
@@ -100,12 +99,26 @@ class MicSource(Source):
         self.duration_s = d
         self.calibration_s = float(self.params.calibration_s)
 
+    def _say(self, text: str) -> None:
+        """A line on stderr, on a line of its own: the calibration meter's line is ended first, and a progress
+        bar (a session with no set length on a terminal) is cleared, and drawn again after it."""
+        if self._line is not None:
+            self._line.end()
+        tqdm = sys.modules.get("tqdm")
+        if tqdm is not None and getattr(tqdm.tqdm, "_instances", None):
+            tqdm.tqdm.write(text, file=sys.stderr)
+        else:
+            print(text, file=sys.stderr, flush=True)
+
     def _chunks(self):
         n = block_samples(self.sample_rate, self.ctx.fps, self.params.block_frames)
         total = None if self.params.duration_s is None else int(self.params.duration_s * self.sample_rate)
         got = 0
         sd = self._sd
+        health = self.health = InputHealth(self.sample_rate, self.clock)
         with contextlib.ExitStack() as stack:
+            # before the device starts: a stop signal during a slow start ends the input too
+            stop = stack.enter_context(StopOnSignal()) if total is None else None
             try:
                 stream = sd.InputStream(device=self._device, channels=1, samplerate=self.sample_rate,
                                         dtype="float32", blocksize=n)
@@ -113,52 +126,128 @@ class MicSource(Source):
             except sd.PortAudioError as exc:
                 raise LaughlabError(f"the microphone could not be started ({_first_line(exc)}); check that it is "
                                     "connected and not in use (python -m sounddevice lists the devices)") from None
-            stop = self._stop = stack.enter_context(StopOnSignal()) if total is None else None
-            clock = self.clock
-            t0, base = clock(), math.inf
+            waiting = _backlog(stream, sd)
+            health.start()
             while total is None or got < total:
-                if stop is not None and stop.signum is not None:
-                    self.stopped_by = signal.Signals(stop.signum).name
-                    key = "Ctrl-C" if stop.signum == signal.SIGINT else self.stopped_by
-                    print(f"laughlab: {key}: the input ended after {got / self.sample_rate:.1f} s and the session is "
-                          f"kept ({key} again aborts it and removes what it wrote)", file=sys.stderr, flush=True)
+                block = self._read_block(stream, n if total is None else min(n, total - got), got, stop, waiting)
+                if block is None:
                     return
-                try:
-                    data, overflowed = stream.read(n if total is None else min(n, total - got))
-                except sd.PortAudioError as exc:   # a USB microphone pulled out, a device gone to sleep
-                    self.stopped_by = "device"
-                    print(f"laughlab: warning: the microphone stopped after {got / self.sample_rate:.1f} s "
-                          f"({_first_line(exc)}); the input ends there and the session up to there is kept",
-                          file=sys.stderr, flush=True)
-                    return
+                data, overflowed = block
                 got += len(data)
-                if overflowed:
-                    self.overflows += 1
-                    if self.overflows == 1:
-                        print(f"laughlab: warning: the microphone's buffer overflowed after "
+                if health.read(got, overflowed, clocked=waiting is None):
+                    self._say(f"laughlab: warning: the microphone's buffer overflowed after "
                               f"{got / self.sample_rate:.1f} s: laughlab fell behind the microphone and audio was "
-                              "lost (each time is counted: metrics.json input_overflows)", file=sys.stderr, flush=True)
-                lag = clock() - t0 - got / self.sample_rate   # the device's own latency, and more if behind
-                if lag < base:
-                    base = lag
-                elif lag - base > self.lag_s_max:
-                    self.lag_s_max = lag - base
+                              "lost (each time is counted: metrics.json input_overflows)")
                 yield data[:, 0].copy()
+
+    def _read_block(self, stream, n: int, got: int, stop, waiting):
+        """The next ``n`` samples and the device's overflow flag, or None where the input ends (a stop signal,
+        the device stopping: said in a line); either before any audio (``got == 0``) is an error."""
+        if stop is not None and stop.signum is not None:
+            self.stopped_by = signal.Signals(stop.signum).name
+            key = "Ctrl-C" if stop.signum == signal.SIGINT else self.stopped_by
+            if not got:   # pipeline.execute would fail on no frames after a line saying 'kept'
+                raise LaughlabError(f"{key}: stopped before any audio was read; nothing to keep")
+            self._say(f"laughlab: {key}: the input ended after {got / self.sample_rate:.1f} s and the session is "
+                      f"kept ({key} again aborts it and removes what it wrote)")
+            return None
+        if waiting is not None:
+            self.health.waiting(waiting())
+        try:
+            return stream.read(n)
+        except self._sd.PortAudioError as exc:   # a USB microphone pulled out, a device gone to sleep
+            self.stopped_by = "device"
+            if not got:
+                raise LaughlabError(f"the microphone stopped before any audio was read ({_first_line(exc)}); "
+                                    "nothing to keep") from None
+            self._say(f"laughlab: warning: the microphone stopped after {got / self.sample_rate:.1f} s "
+                      f"({_first_line(exc)}); the input ends there and the session up to there is kept")
+            return None
 
     def metrics(self) -> dict:
         """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``device`` or None: its end),
         the reads the device flagged as overflowed, and the worst lag behind the microphone (s)."""
-        return {"input_stopped_by": self.stopped_by, "input_overflows": int(self.overflows),
-                "input_lag_s_max": float(self.lag_s_max)}
+        h = self.health or InputHealth(self.sample_rate, self.clock)
+        return {"input_stopped_by": self.stopped_by, "input_overflows": int(h.overflows),
+                "input_lag_s_max": float(h.lag_s_max)}
 
     def close(self) -> None:
-        if self._stop is not None:   # the frame loop failed while the stream was open: the handlers go back
-            self._stop.restore()
+        """The frame loop ended (or failed): its generators are closed, so the stream is closed and the signal
+        handlers are back now, not when they are garbage-collected (a traceback holding them)."""
+        gens, self._gens = self._gens, ()
+        for gen in gens:
+            with contextlib.suppress(Exception):   # cleanup, in the pipeline's finally: never hides its error
+                gen.close()
 
     def blocks(self):
-        frames = cut_frames(self._chunks(), self.sample_rate, self.ctx.fps)
+        reader = self._chunks()
+        frames = cut_frames(reader, self.sample_rate, self.ctx.fps)
         n = int(round(self.ctx.calibration_s * self.ctx.fps))
-        return calibration_meter(frames, n, self.ctx.fps) if n > 0 else frames
+        self._line = MeterLine()
+        outer = calibration_meter(frames, n, self.ctx.fps, line=self._line) if n > 0 else frames
+        self._gens = (outer, frames, reader)   # closed outermost first
+        return outer
+
+
+class InputHealth:
+    """How the reading of the microphone went, for ``metrics.json``: the reads the device flagged as overflowed
+    (audio lost: laughlab fell behind) and the worst lag behind the microphone (s).
+
+    The lag is the stream's backlog when the reader comes back for the next block (``read_available``: the
+    audio already waiting), which no clock enters.  A stream without it (a stand-in) measures wall time since
+    the start minus the audio read, less the smallest such lag of the last :attr:`WINDOW_S` of audio (the
+    device's own latency).  The smallest of the whole session drifted with the sound card's clock: 50 ppm
+    slow, 0.18 s an hour, and a session that kept up 'fell behind' after half an hour (diff-review 2); and
+    audio lost in an overflow stayed in the lag for the rest of the session.
+    """
+
+    #: the stand-in's lag is taken over the smallest of this much audio before it (s)
+    WINDOW_S = 10.0
+
+    def __init__(self, sample_rate: int, clock):
+        self.sample_rate, self.clock = sample_rate, clock
+        self.overflows = 0
+        self.lag_s_max = 0.0
+        self._t0 = 0.0
+        self._low: collections.deque = collections.deque()   # (samples read, lag), lags rising: the sliding min
+
+    def start(self) -> None:
+        self._t0 = self.clock()
+
+    def waiting(self, samples: int) -> None:
+        """The stream's backlog before a read (samples)."""
+        lag = max(0, samples) / self.sample_rate
+        if lag > self.lag_s_max:
+            self.lag_s_max = lag
+
+    def read(self, got: int, overflowed: bool, clocked: bool) -> bool:
+        """A read ended, ``got`` samples in all; ``clocked``: no backlog, the lag from the clock.  Whether it
+        was the first overflow (the one warned of)."""
+        if clocked:
+            lag, low = self.clock() - self._t0 - got / self.sample_rate, self._low
+            while low and low[-1][1] >= lag:
+                low.pop()
+            low.append((got, lag))
+            while low[0][0] < got - self.WINDOW_S * self.sample_rate:
+                low.popleft()
+            self.lag_s_max = max(self.lag_s_max, lag - low[0][1])
+        if overflowed:
+            self.overflows += 1
+        return bool(overflowed) and self.overflows == 1
+
+
+def _backlog(stream, sd):
+    """A function giving the samples waiting in ``stream`` (``read_available``), or None if it has none."""
+    if not hasattr(stream, "read_available"):
+        return None
+
+    def waiting() -> int:
+        try:
+            return int(stream.read_available)
+        except sd.PortAudioError:   # the read that follows says what happened
+            return 0
+
+    return waiting
 
 
 def block_samples(sample_rate: int, fps: float, block_frames: int = 1) -> int:
@@ -173,57 +262,22 @@ def _first_line(exc: BaseException) -> str:
 
 @contextlib.contextmanager
 def _running(stream, sd):
-    """The stream, started; stopping a device that went away raises nothing more."""
-    stream.__enter__()
+    """The stream, started, and closed in the end; stopping a device that went away raises nothing more.  A
+    stream that fails to start is closed too (its PortAudio handle was left open, diff-review 8)."""
+    try:
+        stream.__enter__()
+    except BaseException:
+        with contextlib.suppress(Exception):
+            stream.close()
+        raise
     try:
         yield stream
     finally:
         try:
-            stream.__exit__(None, None, None)
+            stream.__exit__(None, None, None)   # stop, then close: a stop that fails skips the close
         except sd.PortAudioError:
-            pass
-
-
-class StopOnSignal:
-    """While a session with no set length (``input.duration_s=null``) reads the microphone, the first Ctrl-C
-    (SIGINT) or SIGTERM ends the input: the frame loop finishes, the sinks close and the session is kept (the
-    stop signal *is* its end; SIGTERM too, as a process manager stops an always-on installation).  The second
-    signal goes to the handler this one stood in for (laughlab's: abort, remove what was written, exit 130).
-
-    Only laughlab's own handler and Python's default Ctrl-C handler are stood in for, on the main thread;
-    an ignored signal or another program's handler is left alone."""
-
-    def __init__(self):
-        self.signum: int | None = None
-        self._old: dict = {}
-
-    def __enter__(self) -> "StopOnSignal":
-        from laughlab.core.interrupts import STOP_SIGNALS
-
-        if threading.current_thread() is threading.main_thread():
-            for sig in STOP_SIGNALS:
-                old = signal.getsignal(sig)
-                if old is signal.default_int_handler or getattr(old, "__module__", "") == "laughlab.core.interrupts":
-                    self._old[sig] = old
-                    signal.signal(sig, self._on_signal)
-        return self
-
-    def _on_signal(self, signum, frame) -> None:
-        if self.signum is None:
-            self.signum = signum   # the read loop ends the input at its next block
-            return
-        old = self._old.get(signum, signal.default_int_handler)
-        self.restore()
-        old(signum, frame)
-
-    def restore(self) -> None:
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
-        self._old = {}
-
-    def __exit__(self, *exc) -> bool:
-        self.restore()
-        return False
+            with contextlib.suppress(sd.PortAudioError):
+                stream.close()
 
 
 #: the level meter's scale: dBFS from METER_FLOOR_DB to 0
@@ -238,32 +292,52 @@ def meter_line(level_db: float, peak_db: float, left_s: float, width: int = 30) 
     return f"  [{'#' * fill}{' ' * (width - fill)}] {level_db:6.1f} dBFS, peak {peak_db:6.1f}, {left_s:4.1f} s left"
 
 
-def calibration_meter(frames, n: int, fps: float, out=None):
+class MeterLine:
+    """The calibration meter's line while it is left open on a terminal (redrawn after ``"\\r"``, no newline):
+    a line written meanwhile ends it first, or it is glued to the meter's text (diff-review 3)."""
+
+    def __init__(self):
+        self.out = None
+
+    def end(self) -> None:
+        if self.out is not None:
+            out, self.out = self.out, None
+            out.write("\n")
+            out.flush()
+
+
+def calibration_meter(frames, n: int, fps: float, out=None, line: MeterLine | None = None):
     """Pass ``frames`` through; over the first ``n`` say what to do and show their level on ``out`` (stderr).
 
     The meter redraws about 10 times a second on a terminal; elsewhere only the
-    first and the last line are written.
+    first and the last line are written.  Its line is ended when the input ends, or fails, before the
+    calibration does, or when ``line.end()`` is called (:meth:`MicSource._say`).
     """
     out = out or sys.stderr
+    line = line or MeterLine()
     live = out.isatty()
     every = max(1, int(round(fps / 10)))
     print(f"laughlab: calibrating for {n / fps:g} s (van Duijn 2014, 3.1.1): laugh or clap once, loudly, "
           "close to the microphone (input.calibration_s=0 skips this)", file=out, flush=True)
     peak = -math.inf
-    for k, block in enumerate(frames):
-        if k < n:
-            ms = float(np.dot(block, block)) / max(1, len(block))
-            level = 10.0 * math.log10(max(ms, 1e-14))
-            peak = max(peak, level)
-            if live and (k % every == 0 or k == n - 1):
-                out.write("\r" + meter_line(level, peak, (n - 1 - k) / fps))
-                out.flush()
-            if k == n - 1:
-                hint = (f"; the burst was quiet, so laughter will move the character little: run again closer "
-                        f"to the microphone" if peak < QUIET_BURST_DB else "; go ahead and laugh")
-                print(("\n" if live else "") + f"laughlab: calibrated (peak {peak:.1f} dBFS){hint}",
-                      file=out, flush=True)
-        yield block
+    try:
+        for k, block in enumerate(frames):
+            if k < n:
+                ms = float(np.dot(block, block)) / max(1, len(block))
+                level = 10.0 * math.log10(max(ms, 1e-14))
+                peak = max(peak, level)
+                if live and (k % every == 0 or k == n - 1):
+                    out.write("\r" + meter_line(level, peak, (n - 1 - k) / fps))
+                    out.flush()
+                    line.out = out
+                if k == n - 1:
+                    line.end()
+                    hint = ("; the burst was quiet, so laughter will move the character little: run again closer "
+                            "to the microphone" if peak < QUIET_BURST_DB else "; go ahead and laugh")
+                    print(f"laughlab: calibrated (peak {peak:.1f} dBFS){hint}", file=out, flush=True)
+            yield block
+    finally:
+        line.end()
 
 
 @hookimpl

@@ -3,6 +3,7 @@
 overflow is counted, and a set duration reads exactly the samples asked for."""
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
@@ -30,9 +31,9 @@ def noise(seconds: float, sr: int = 16000, seed: int = 0) -> np.ndarray:
     return (rng.normal(0, 0.1, len(t)) * (1 + np.sin(2 * np.pi * 4 * t))).astype(np.float32)
 
 
-def mic_pipe(monkeypatch, fake, *overrides, outputs=None):
+def mic_pipe(monkeypatch, fake, *overrides, outputs=None, calibration_s=0):
     monkeypatch.setitem(sys.modules, "sounddevice", fake)
-    cfg = compose_config(["input=mic", "input.calibration_s=0", *overrides])
+    cfg = compose_config(["input=mic", f"input.calibration_s={calibration_s}", *overrides])
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
     cfg.output = outputs if outputs is not None else {"csv": {}, "bvh": {}}
     return pipeline.build(cfg)
@@ -108,6 +109,91 @@ def test_a_microphone_that_cannot_start_is_one_line(monkeypatch, tmp_path):
         pipeline.execute(pipe, tmp_path)
 
 
+def test_a_microphone_that_fails_to_start_is_closed(monkeypatch, tmp_path):
+    """A stream whose start() raised was never closed: its PortAudio handle was left open (diff-review 8)."""
+    from laughlab.core.errors import LaughlabError
+
+    fake = FakeSoundDevice(noise(1), start_error="Error starting stream: Device unavailable [PaErrorCode -9985]")
+    with pytest.raises(LaughlabError, match=r"^the microphone could not be started \(Error starting stream"):
+        pipeline.execute(mic_pipe(monkeypatch, fake), tmp_path)
+    assert fake.closed
+
+
+def test_closing_the_source_closes_the_stream_and_puts_the_handler_back(monkeypatch, default_ctrl_c):
+    """close() put the signal handlers back but left the stream open until its generator was garbage-collected,
+    later or never while a traceback held it (diff-review 8)."""
+    fake = FakeSoundDevice(noise(1))
+    src = mic_pipe(monkeypatch, fake).source
+    blocks = src.blocks()   # held, as a traceback would hold it
+    next(blocks)
+    assert not fake.closed and signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    src.close()
+    assert fake.closed and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+@pytest.mark.parametrize("how", ["signal", "device"])
+def test_a_stop_before_any_audio_is_read_keeps_nothing_in_one_line(monkeypatch, tmp_path, capsys, default_ctrl_c,
+                                                                   how):
+    """'the input ended after 0.0 s and the session is kept', then 'the input holds no audio frames' and nothing
+    kept (diff-review 3).  A stop signal while the device starts now ends the input too."""
+    from laughlab.core.errors import LaughlabError
+
+    if how == "signal":
+        fake = FakeSoundDevice(noise(1), on_start=lambda: signal.raise_signal(signal.SIGINT))
+        says = r"^Ctrl-C: stopped before any audio was read; nothing to keep$"
+    else:
+        fake = FakeSoundDevice(noise(1), fail_at=0)
+        says = (r"^the microphone stopped before any audio was read \(Unanticipated host error .*\); "
+                r"nothing to keep$")
+    with pytest.raises(LaughlabError, match=says):
+        pipeline.execute(mic_pipe(monkeypatch, fake), tmp_path)
+    assert capsys.readouterr().err == "" and list(tmp_path.iterdir()) == []
+    assert fake.closed and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+class Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+@pytest.mark.parametrize("how", ["signal", "device", "overflow", "abort", "bar"])
+def test_a_line_during_the_calibration_starts_a_line_of_its_own(monkeypatch, tmp_path, default_ctrl_c, how):
+    """On a terminal the calibration meter redraws its line after '\\r' with no newline: the Ctrl-C line, the
+    microphone's warnings, and the error line after an abort were printed onto its end (diff-review 3).  So was
+    the Ctrl-C line onto the progress bar of a session with no set length ('bar', no calibration)."""
+    def twice(k):
+        if k == 20:
+            signal.raise_signal(signal.SIGINT)
+            signal.raise_signal(signal.SIGINT)
+
+    fake = {"signal": FakeSoundDevice(noise(3), on_read=lambda k: k == 20 and signal.raise_signal(signal.SIGINT)),
+            "device": FakeSoundDevice(noise(3), fail_at=20),
+            "overflow": FakeSoundDevice(noise(3), overflow_at={20}),
+            "abort": FakeSoundDevice(noise(3), on_read=twice),
+            "bar": FakeSoundDevice(noise(3), on_read=lambda k: k == 20 and signal.raise_signal(signal.SIGINT))}[how]
+    tty = Terminal()
+    monkeypatch.setattr(sys, "stderr", tty)
+    more = ["progress=on"] if how == "bar" else ["progress=off"]   # the bar and the meter: see the report
+    if how == "overflow":
+        more.append("input.duration_s=2")
+    pipe = mic_pipe(monkeypatch, fake, *more, calibration_s=0 if how == "bar" else 1)
+    if how == "abort":
+        with pytest.raises(KeyboardInterrupt):
+            pipeline.execute(pipe, tmp_path)
+    else:
+        pipeline.execute(pipe, tmp_path)
+    err = tty.getvalue()
+    # what a terminal shows of each line: the text after its last carriage return
+    lines = [x.rsplit("\r", 1)[-1] for x in err.split("\n")]
+    assert ("\rlaughlab: 0frame" if how == "bar" else "\r  [") in err, err   # the bar or the meter drew
+    assert lines[-1].strip() == "", err   # and its line was ended (or cleared): an error line after starts its own
+    assert all(x.startswith("laughlab: ") and x.count("laughlab: ") == 1 for x in lines if "laughlab: " in x), lines
+    said = {"signal": "laughlab: Ctrl-C: the input ended after 0.4 s", "device": "laughlab: warning: the microphone "
+            "stopped after 0.3 s", "overflow": "laughlab: warning: the microphone's buffer overflowed after 0.4 s",
+            "abort": None, "bar": "laughlab: Ctrl-C: the input ended after 0.4 s"}[how]
+    assert said is None or any(x.startswith(said) for x in lines), lines
+
+
 FAKE_MODULE = '''
 """A fake sounddevice: noise as fast as it is read; read SIGNAL_AT sends the signal FAKE_SD_SIGNAL to this process."""
 import os, signal
@@ -123,9 +209,13 @@ class InputStream:
     def __init__(self, **kw):
         self.k, self.rng = 0, np.random.default_rng(0)
     def __enter__(self):
+        if os.environ["FAKE_SD_SIGNAL_AT"] == "0":   # while the stream starts
+            os.kill(os.getpid(), getattr(signal, os.environ["FAKE_SD_SIGNAL"]))
         return self
     def __exit__(self, *a):
         return False
+    def close(self):
+        pass
     def read(self, n):
         self.k += 1
         if self.k == int(os.environ["FAKE_SD_SIGNAL_AT"]):
@@ -157,6 +247,22 @@ def test_the_command_keeps_a_session_stopped_by_a_signal(tmp_path, sig, key):
     metrics = json.loads((run / "metrics.json").read_text())
     assert metrics["input_stopped_by"] == sig and metrics["n_frames"] == 91 == metrics["vmc_frames"]
     assert len(pd.read_csv(run / "channels.csv")) == 91
+
+
+def test_the_command_stopped_before_any_audio_says_so_in_one_line(tmp_path):
+    """A SIGTERM while the device starts: one line, exit 2 and no run folder, not a 'kept' line then 'the input
+    holds no audio frames' (diff-review 3)."""
+    (tmp_path / "fake").mkdir()
+    (tmp_path / "fake" / "sounddevice.py").write_text(textwrap.dedent(FAKE_MODULE))
+    run = tmp_path / "run"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path / "fake"), str(ROOT)]),
+           "FAKE_SD_SIGNAL_AT": "0", "FAKE_SD_SIGNAL": "SIGTERM"}
+    p = subprocess.run([sys.executable, "-m", "laughlab", "input=mic", "input.calibration_s=0", "output=[files]",
+                        "~output.plots", f"hydra.run.dir={run}"], cwd=ROOT, env=env, capture_output=True, text=True,
+                       timeout=120)
+    assert p.returncode == 2, p.stderr
+    assert p.stderr == "laughlab: error: SIGTERM: stopped before any audio was read; nothing to keep\n", p.stderr
+    assert not run.exists()
 
 
 @pytest.mark.parametrize("sr", [16000, 44100])
@@ -193,26 +299,51 @@ def test_body_hill_fits_in_its_thread_on_the_microphone_and_in_the_frame_on_a_fi
     assert offline.ctx.live is False and offline.body.live.threaded is False
 
 
-def test_falling_behind_the_microphone_is_counted_warned_once_and_said(monkeypatch, tmp_path, capsys):
-    """The device's overflow flag was dropped and the summary said all was well 26 s behind (review-live 4)."""
+@pytest.mark.parametrize("backlog", [True, False])
+def test_falling_behind_the_microphone_is_counted_warned_once_and_said(monkeypatch, tmp_path, capsys, backlog):
+    """The device's overflow flag was dropped and the summary said all was well 26 s behind (review-live 4).
+    The lag is the stream's backlog (read_available), or for a stream without it the wall clock's lag over its
+    smallest of the last 10 s (diff-review 2)."""
     from laughlab.core.summary import speed
 
     sr = 16000
-    fake = FakeSoundDevice(noise(3), overflow_at={50, 51, 90})
+    behind = 0.4 * sr   # from 1 s of audio on, the reader comes back 0.4 s late
+    fake = FakeSoundDevice(noise(3), overflow_at={50, 51, 90},
+                           available=(lambda f: 40 + (behind if f.pos > sr else 0)) if backlog else None)
     pipe = mic_pipe(monkeypatch, fake, "input.duration_s=2")
-    # the wall clock, as the source reads it: each read returns 30 ms after its audio's end (the device's own
-    # latency, not counted), and 0.4 s more from 1 s of audio on
-    pipe.source.clock = lambda: fake.pos / sr + (0.03 if fake.pos else 0.0) + (0.4 if fake.pos > sr else 0.0)
+    if not backlog:   # the wall clock, as the source reads it: each read returns 30 ms after its audio's end (the
+        # device's own latency, not counted), and 0.4 s more from 1 s of audio on
+        pipe.source.clock = lambda: fake.pos / sr + (0.03 if fake.pos else 0.0) + (0.4 if fake.pos > sr else 0.0)
     metrics = pipeline.execute(pipe, tmp_path)
-    assert metrics["input_overflows"] == 3 and metrics["input_lag_s_max"] == pytest.approx(0.4)
+    assert metrics["input_overflows"] == 3
+    assert metrics["input_lag_s_max"] == pytest.approx(0.4 + (40 / sr if backlog else 0.0))
     assert json.loads((tmp_path / "metrics.json").read_text())["input_overflows"] == 3
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("laughlab: warning: the microphone's buffer overflowed after 0.9 s: "
                                                    "laughlab fell behind the microphone and audio was lost"), err
     cfg = compose_config(["input=mic"])
-    assert speed(cfg, metrics, 3.0).endswith("; fell behind the microphone by 0.40 s, audio lost 3 times")
+    said = f"; fell behind the microphone by {metrics['input_lag_s_max']:.2f} s, audio lost 3 times"
+    assert speed(cfg, metrics, 3.0).endswith(said)
     kept_up = {**metrics, "input_overflows": 0, "input_lag_s_max": 0.08}   # a warm-up stall at the start
     assert "fell behind" not in speed(cfg, kept_up, 3.0)
+
+
+def test_a_sound_card_clock_slower_than_the_system_clock_is_not_falling_behind(monkeypatch):
+    """An hour at 100 ppm slow: the reader keeps up, yet wall time less the audio read grows 0.36 s, and the lag
+    over the session's smallest said 'fell behind the microphone by 0.36 s' (diff-review 2, 15).  A stream
+    without read_available (the real one has it) takes the lag over the smallest of the last 10 s."""
+    from laughlab.core.summary import speed
+
+    sr, card = 16000, 16000 * (1 - 100e-6)
+    fake = FakeSoundDevice(np.zeros(0))   # silence, as long as it is read
+    pipe = mic_pipe(monkeypatch, fake, "input.duration_s=3600", "input.block_frames=10")
+    src = pipe.source
+    src.clock = lambda: fake.pos / card + 0.03   # a read returns when the card's clock has its audio, + latency
+    assert sum(len(x) for x in src._chunks()) == 3600 * sr
+    assert fake.pos / card - fake.pos / sr == pytest.approx(0.36, abs=1e-3)   # the drift the clock saw
+    metrics = src.metrics()
+    assert metrics["input_overflows"] == 0 and metrics["input_lag_s_max"] < 0.002
+    assert "fell behind" not in speed(compose_config(["input=mic"]), metrics, 3600.0)
 
 
 def test_the_latency_bench_replays_the_microphone_in_its_own_blocks():
@@ -267,3 +398,24 @@ def test_body_hill_on_the_microphone_matches_the_offline_run_after_its_warm_up(m
     pipeline.execute(pipeline.build(cfg), tmp_path / "file")
     for name in ("channels.csv", "motion.bvh"):
         assert (tmp_path / "mic" / name).read_bytes() == (tmp_path / "file" / name).read_bytes(), name
+
+
+def test_laughlabs_own_handler_is_stood_in_for_by_identity_not_by_its_module_name():
+    """StopOnSignal recognised laughlab's handler by ``__module__ == 'laughlab.core.interrupts'``: a rename or a
+    wrapper turned the kept session off, and any handler claiming that module was taken over (diff-review 18)."""
+    from laughlab.core import interrupts
+
+    def lookalike(signum, frame):   # another program's handler, whatever its module says
+        pass
+
+    lookalike.__module__ = "laughlab.core.interrupts"
+    old = signal.signal(signal.SIGTERM, lookalike)
+    try:
+        with interrupts.StopOnSignal():
+            assert signal.getsignal(signal.SIGTERM) is lookalike
+        signal.signal(signal.SIGTERM, interrupts._handler)
+        with interrupts.StopOnSignal() as stop:
+            assert signal.getsignal(signal.SIGTERM) == stop._on_signal
+        assert signal.getsignal(signal.SIGTERM) is interrupts._handler
+    finally:
+        signal.signal(signal.SIGTERM, old)

@@ -130,15 +130,20 @@ class FakeSoundDevice:
 
     ``on_read(k)`` is called at the start of read ``k`` (0-based; e.g. to send a signal there); read ``fail_at``
     and later raise ``PortAudioError`` (a microphone pulled out); reads in ``overflow_at`` report an overflow.
-    ``sizes`` records the samples asked for by each read.
+    ``on_start()`` is called when the stream starts, which raises ``PortAudioError(start_error)`` if that is
+    given.  ``available(fake)``, if given, is the stream's ``read_available`` (samples waiting; a real stream
+    has it, the stand-in has none without it).  ``sizes`` records the samples asked for by each read;
+    ``closed``: the stream was closed.
     """
 
     class PortAudioError(Exception):
         """sounddevice's exception."""
 
-    def __init__(self, audio, on_read=None, fail_at=None, overflow_at=()):
+    def __init__(self, audio, on_read=None, fail_at=None, overflow_at=(), on_start=None, start_error=None,
+                 available=None):
         self.audio, self.pos = np.asarray(audio, dtype=np.float32), 0
         self.on_read, self.fail_at, self.overflow_at = on_read, fail_at, set(overflow_at)
+        self.on_start, self.start_error, self.available = on_start, start_error, available
         self.sizes: list[int] = []
         self.closed = False
 
@@ -149,12 +154,25 @@ class FakeSoundDevice:
         fake = self
 
         class Stream:
-            def __enter__(self):
+            def __enter__(self):   # sounddevice: start()
+                if fake.on_start is not None:
+                    fake.on_start()
+                if fake.start_error is not None:
+                    raise fake.PortAudioError(fake.start_error)
                 return self
 
-            def __exit__(self, *a):
+            def __exit__(self, *a):   # sounddevice: stop(), close()
                 fake.closed = True
                 return False
+
+            def close(self):
+                fake.closed = True
+
+            @property
+            def read_available(self):
+                if fake.available is None:
+                    raise AttributeError("read_available")
+                return fake.available(fake)
 
             def read(self, n):
                 k = len(fake.sizes)

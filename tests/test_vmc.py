@@ -384,12 +384,19 @@ def test_the_stream_ends_with_one_frame_at_rest(tmp_path, how):
     check_frames(frames, 20)
     last, rest = ({m[2][0]: m[2][1] for m in f if m[1] == "/VMC/Ext/Blend/Val"} for f in (frames[-2], frames[-1]))
     assert list(rest) == list(last) and max(last.values()) > 0.1 and set(rest.values()) == {0.0}
+    # the rest pose from the skeleton itself, not from the call the sink makes (diff-review 12): every rotation the
+    # identity, every bone below the hips at its offset from its parent, in Unity's frame ((-x, y, z) / 100), and
+    # the hips standing, 0.95 m up (skeleton.rest_pose), not on the floor as a pose of zeros put them
     sink = next(s for s in pipe.sinks if s.name == "vmc")
-    rest_pos, rest_rot = sink.bones.local(np.zeros((1, pipe.ctx.skeleton.n_channels)))
-    bones = [m[2] for m in frames[-1] if m[1] == "/VMC/Ext/Bone/Pos"]
-    assert [b[0] for b in bones] == sink.bones.bones
-    np.testing.assert_allclose([b[1:4] for b in bones], rest_pos[0], atol=1e-6)
-    np.testing.assert_allclose([b[4:] for b in bones], rest_rot[0], atol=1e-6)
+    skel = pipe.ctx.skeleton
+    bones, moved = ([m[2] for m in f if m[1] == "/VMC/Ext/Bone/Pos"] for f in (frames[-1], frames[-2]))
+    assert [b[0] for b in bones] == [b[0] for b in moved] == sink.bones.bones and bones[0][0] == "Hips"
+    offsets = np.array([skel.offsets[j] for j in sink.bones.joints], dtype=np.float64) * [-0.01, 0.01, 0.01]
+    np.testing.assert_allclose([b[4:] for b in bones], [[0.0, 0.0, 0.0, 1.0]] * len(bones), atol=1e-6)
+    np.testing.assert_allclose([b[1:4] for b in bones[1:]], offsets[1:], atol=1e-6)
+    np.testing.assert_allclose(bones[0][1:4], [0.0, 0.95, 0.0], atol=1e-6)
+    assert np.abs(np.array([b[4:] for b in moved]) - [0.0, 0.0, 0.0, 1.0]).max() > 0.01   # the last frame was not
+    assert abs(moved[0][2] - 0.95) < 0.05   # its hips about as high
     times = [m[2][0] for f in frames for m in f if m[1] == "/VMC/Ext/T"]
     assert times[-1] == pytest.approx(times[-2] + 1 / 30)
 

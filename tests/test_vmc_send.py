@@ -1,15 +1,19 @@
-"""The VMC sender never blocks the frame loop and never fails the run (review-live 2, 5): a non-blocking socket,
-datagrams it cannot send dropped and counted, each kind of send error said once with the address and the cause."""
+"""The VMC sender never blocks the frame loop (review-live 2, 5): a non-blocking socket, datagrams it cannot send
+for a passing cause dropped and counted, each kind said once with the address and the cause.  An error that comes
+back on every send ends the run in one line (diff-review 7)."""
 from __future__ import annotations
 
 import errno
 import json
 import socket
 
+import pytest
 from omegaconf import OmegaConf
 
 from laughlab.core import pipeline
 from laughlab.core.config import compose_config
+from laughlab.core.errors import LaughlabError
+from laughlab.io import vmc as vmc_io
 from laughlab.io.vmc import VmcSender
 
 
@@ -39,7 +43,7 @@ class Refusing:
 
 
 ERRORS = [BlockingIOError(errno.EAGAIN, "Resource temporarily unavailable"),
-          PermissionError(errno.EACCES, "Permission denied"),
+          OSError(errno.ENETUNREACH, "Network is unreachable"),
           OSError(errno.EHOSTUNREACH, "No route to host"),
           OSError(errno.ENOBUFS, "No buffer space available"),
           ConnectionRefusedError(errno.ECONNREFUSED, "Connection refused")]
@@ -71,7 +75,97 @@ def test_send_errors_drop_and_count_the_datagrams_and_the_run_keeps_its_files(tm
     # one line per kind of error, with the address and the cause; nobody listening (refused) is silent
     assert len(lines) == 4, out.err
     assert all(x.startswith("laughlab: warning: output.vmc: cannot send to 255.255.255.255:39539 (") for x in lines)
-    for cause in ("does not take the datagrams as fast", "Permission denied", "No route to host", "No buffer space"):
+    for cause in ("does not take the datagrams as fast", "Network is unreachable", "No route to host",
+                  "No buffer space"):
         assert sum(cause in x for x in lines) == 1, (cause, lines)
     assert "cannot write" not in out.err
     assert f"(not paced: as fast as computed, {dropped} datagrams dropped)" in out.out
+
+
+class Failing:
+    """A socket whose every sendto raises ``error``."""
+
+    def __init__(self, error):
+        self.error, self.k, self.closed = error, 0, False
+
+    def sendto(self, data, address):
+        self.k += 1
+        raise self.error
+
+    def close(self):
+        self.closed = True
+
+
+FATAL = [(errno.EINVAL, "Invalid argument", ""),   # an IPv6 link-local address without its scope id
+         (errno.EAFNOSUPPORT, "Address family not supported by protocol", ""),
+         (errno.EMSGSIZE, "Message too long", " (a datagram of 1380 bytes: set output.vmc.max_packet_bytes lower, "
+                                              "1400 fits Ethernet)"),
+         (errno.EBADF, "Bad file descriptor", ""),
+         (errno.EACCES, "Permission denied", "")]   # a broadcast address without SO_BROADCAST
+
+
+@pytest.mark.parametrize("code, cause, hint", FATAL)
+def test_an_error_that_comes_back_on_every_send_ends_the_run_in_one_line(tmp_path, monkeypatch, capsys, code, cause,
+                                                                          hint):
+    """Every datagram was dropped, one warning, and exit 0 with nothing sent (diff-review 7)."""
+    cfg = compose_config(["input.duration_s=1.0", "fps=30"])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    cfg.output = {"csv": {}, "vmc": {"host": "127.0.0.1", "port": 39539, "realtime": "off"}}
+    pipe = pipeline.build(cfg)
+    fake = Failing(OSError(code, cause))
+    with_fake(monkeypatch, fake)
+    with pytest.raises(LaughlabError) as e:
+        pipeline.execute(pipe, tmp_path, {})
+    assert str(e.value) == (f"output.vmc: cannot send to 127.0.0.1:39539: {cause}{hint}; the run stops and what it "
+                            "wrote is removed")
+    assert fake.k == 1 and fake.closed   # the first datagram, no frame at rest after it; the socket closed
+    assert list(tmp_path.iterdir()) == [] and capsys.readouterr().err == ""
+
+
+def with_fake(monkeypatch, fake):
+    """Every VmcSender made from now on sends through ``fake``."""
+    init = VmcSender.__init__
+
+    def init_with_fake(self, host, port):
+        init(self, host, port)
+        self.sock.close()
+        self.sock = fake
+
+    monkeypatch.setattr(vmc_io.VmcSender, "__init__", init_with_fake)
+
+
+def test_the_command_says_a_send_that_cannot_work_in_one_line_not_as_the_run_folder(tmp_path, monkeypatch):
+    from inprocess import laughlab
+
+    with_fake(monkeypatch, Failing(OSError(errno.EINVAL, "Invalid argument")))
+    run = tmp_path / "run"
+    p = laughlab("input.duration_s=1", "output=[files,vmc]", "~output.plots", "output.vmc.realtime=off",
+                 f"hydra.run.dir={run}")
+    assert p.returncode == 2 and p.stderr == ("laughlab: error: output.vmc: cannot send to 127.0.0.1:39539: Invalid "
+                                              "argument; the run stops and what it wrote is removed\n"), p.stderr
+    assert not run.exists()
+
+
+def test_an_error_that_cannot_pass_at_the_frame_at_rest_keeps_the_session(tmp_path, monkeypatch, capsys):
+    """The frames went out: the frame at rest after them (rest_on_stop), a larger bundle, is not worth the session."""
+    cfg = compose_config(["input.duration_s=0.5", "fps=30"])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    cfg.output = {"csv": {}, "vmc": {"host": "127.0.0.1", "port": 39539, "realtime": "off", "report": False}}
+    pipe = pipeline.build(cfg)
+    fake = Refusing([OSError(errno.EMSGSIZE, "Message too long")])
+    fake.sendto = lambda data, address: None   # the frames go out
+    with_fake(monkeypatch, fake)
+    sink = next(s for s in pipe.sinks if s.name == "vmc")
+    rest = sink._send_rest
+
+    def failing_rest():
+        fake.sendto = Failing(OSError(errno.EMSGSIZE, "Message too long")).sendto
+        rest()
+
+    sink._send_rest = failing_rest
+    metrics = pipeline.execute(pipe, tmp_path, {})
+    assert metrics["vmc_frames"] == 15 and metrics["vmc_dropped_datagrams"] >= 1
+    assert (tmp_path / "channels.csv").exists()
+    err = capsys.readouterr().err
+    assert err == ("laughlab: warning: output.vmc: cannot send to 127.0.0.1:39539 (Message too long); its datagrams "
+                   "are dropped and counted (the vmc line, metrics.json: vmc_dropped_datagrams)\n"), err

@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import signal
 import sys
+import threading
 
 #: the signals that stop a command: Ctrl-C, and SIGTERM (a killed job, a cluster's pre-emption)
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -111,3 +112,45 @@ def exit_interrupted(message: str = "interrupted") -> None:
     print(f"laughlab: error: {message}", file=sys.stderr)
     clear_exit_flag()
     sys.exit(130)
+
+
+class StopOnSignal:
+    """While a session with no set length (``input.duration_s=null``) reads the microphone, the first Ctrl-C
+    (SIGINT) or SIGTERM ends the input: the frame loop finishes, the sinks close and the session is kept (the
+    stop signal *is* its end; SIGTERM too, as a process manager stops an always-on installation).  The second
+    signal goes to the handler this one stood in for (laughlab's: abort, remove what was written, exit 130).
+
+    Only laughlab's own handler (:func:`install`'s, by identity: it recognised it by its module's name, which
+    a rename or a wrapper would have quietly defeated, diff-review 18) and Python's default Ctrl-C handler are
+    stood in for, on the main thread; an ignored signal or another program's handler is left alone.  The input
+    source (``input=mic``) enters it."""
+
+    def __init__(self):
+        self.signum: int | None = None
+        self._old: dict = {}
+
+    def __enter__(self) -> "StopOnSignal":
+        if threading.current_thread() is threading.main_thread():
+            for sig in STOP_SIGNALS:
+                old = signal.getsignal(sig)
+                if old is signal.default_int_handler or old is _handler:
+                    self._old[sig] = old
+                    signal.signal(sig, self._on_signal)
+        return self
+
+    def _on_signal(self, signum, frame) -> None:
+        if self.signum is None:
+            self.signum = signum   # the read loop ends the input at its next block
+            return
+        old = self._old.get(signum, signal.default_int_handler)
+        self.restore()
+        old(signum, frame)
+
+    def restore(self) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+        self._old = {}
+
+    def __exit__(self, *exc) -> bool:
+        self.restore()
+        return False

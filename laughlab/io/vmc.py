@@ -72,6 +72,7 @@ position above the root), converted the same way.
 """
 from __future__ import annotations
 
+import errno
 import math
 import socket
 import struct
@@ -80,6 +81,8 @@ import time
 from typing import Iterable, Iterator, Mapping
 
 import numpy as np
+
+from laughlab.core.errors import LaughlabError
 
 __all__ = [
     "SMILE_TO_ARKIT", "UNITY_BONES", "VRM_PRESETS", "arkit_weights", "euler_zxy_to_quat", "quat_to_matrix",
@@ -333,16 +336,31 @@ class VmcEncoder:
         return out
 
 
+#: send errors that pass (the network, the receiver, the socket's buffer, a firewall's full connection table):
+#: the datagram is dropped and counted.  Any other (EINVAL, EAFNOSUPPORT, EMSGSIZE, EBADF, EACCES...) comes
+#: back on every send, and ends the run (:class:`VmcSendError`).  Windows' socket codes too.
+TRANSIENT_ERRNOS = frozenset(getattr(errno, prefix + name) for name in (
+    "EAGAIN", "EWOULDBLOCK", "EINTR", "ENOBUFS", "ENOMEM", "EHOSTUNREACH", "ENETUNREACH", "EHOSTDOWN", "ENETDOWN",
+    "ENETRESET", "ECONNREFUSED", "ECONNRESET", "EPERM") for prefix in ("", "WSA") if hasattr(errno, prefix + name))
+
+
+class VmcSendError(LaughlabError):
+    """A send error that comes back on every send: the stream cannot go out at all."""
+
+
 class VmcSender:
     """A UDP socket to one VMC receiver that never makes the frame loop wait.
 
     The socket is non-blocking: a datagram it cannot take at once is dropped and counted (``dropped``).  A
     LAN address nobody answers (the avatar PC switched off) fills the send buffer while the kernel waits 3 s
-    for ARP, and a blocking ``sendto`` froze the frame loop for those 3 s (review-live 2).  Any other send
-    error (no route, no buffer space) drops the datagram too; the first of each kind is said once on stderr
-    with the address and the cause, never as a fault of the run's folder.  ``ConnectionRefusedError``
-    (nobody listening on that port) is UDP's normal case: silent.  ``SO_BROADCAST`` is set on IPv4, so a
-    broadcast address (255.255.255.255, or the LAN's) reaches every receiver on it.
+    for ARP, and a blocking ``sendto`` froze the frame loop for those 3 s (review-live 2).  Other send errors
+    that pass (:data:`TRANSIENT_ERRNOS`: no route, no buffer space) drop the datagram too; the first of each
+    kind is said once on stderr with the address and the cause, never as a fault of the run's folder.
+    ``ConnectionRefusedError`` (nobody listening on that port) is UDP's normal case: silent.  An error that
+    would come back on every send (an IPv6 link-local address without its scope, a datagram too large for
+    the path) raises :class:`VmcSendError`, one line with the address and the cause: the run stops rather
+    than run to its end sending nothing (diff-review 7).  ``SO_BROADCAST`` is set on IPv4, so a broadcast
+    address (255.255.255.255, or the LAN's) reaches every receiver on it.
 
     Raises ``OSError`` (from ``socket.getaddrinfo``) if the host does not resolve.
     """
@@ -357,9 +375,12 @@ class VmcSender:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
         self.packets = 0   # datagrams handed to the socket
         self.dropped = 0   # datagrams dropped: the socket could not take them, or refused them
+        self.failed: VmcSendError | None = None   # the error that ended the stream
         self._said: set = set()
 
-    def send(self, packets: list[bytes]) -> None:
+    def send(self, packets: list[bytes], strict: bool = True) -> None:
+        """Send ``packets``; an error that would come back on every send raises :class:`VmcSendError`, or with
+        ``strict=False`` (the frame at rest, the stream's last) is dropped and said like a passing one."""
         for p in packets:
             try:
                 self.sock.sendto(p, self.address)
@@ -370,7 +391,14 @@ class VmcSender:
                                               "the receiver switched off or asleep?")
                 continue
             except OSError as exc:
-                self._drop(exc.errno, exc.strerror or type(exc).__name__)
+                cause = exc.strerror or type(exc).__name__
+                if exc.errno not in TRANSIENT_ERRNOS and strict:
+                    hint = (f" (a datagram of {len(p)} bytes: set output.vmc.max_packet_bytes lower, 1400 fits "
+                            "Ethernet)" if exc.errno == errno.EMSGSIZE else "")
+                    self.failed = VmcSendError(f"output.vmc: cannot send to {self.where}: {cause}{hint}; the run stops "
+                                               "and what it wrote is removed")
+                    raise self.failed from None
+                self._drop(exc.errno, cause)
                 continue
             self.packets += 1
 
