@@ -449,6 +449,13 @@ def test_progress_bar_on_a_terminal_for_long_inputs_and_video(monkeypatch, extra
     finally:
         if bar is not None:
             bar.close()
+    pipe.source.live = True   # a live source (the microphone): no bar under auto, its calibration meter has the line
+    bar = pipeline._progress_bar(pipe)
+    try:
+        assert (bar is not None) == (shown and "progress=on" in extra)
+    finally:
+        if bar is not None:
+            bar.close()
 
 
 def test_progress_on_into_a_log_is_plain_lines_that_end_at_every_frame(tmp_path):

@@ -276,11 +276,13 @@ def planned_files(cfg) -> frozenset[str]:
 def _progress_bar(pipe: Pipeline):
     """A bar on the terminal when the run will take a while: ``progress=auto`` shows it for an input over
     60 s, or of any length when a sink declares ``slow = True`` (``video`` draws and encodes each frame,
-    about 30 frames/s: a 9 s input was quiet for 20-40 s)."""
+    about 30 frames/s: a 9 s input was quiet for 20-40 s).  Not for a live source: it goes at the speed of the
+    sound, and its calibration meter and stop lines use the line (a review: they were printed onto the bar's)."""
     n = pipe.source.n_frames
     slow = any(getattr(s, "slow", False) for s in pipe.sinks)
-    show = pipe.run.progress == "on" or (
-        pipe.run.progress == "auto" and sys.stderr.isatty() and (n is None or n > 60 * pipe.ctx.fps or slow))
+    live = bool(getattr(pipe.source, "live", False))
+    show = pipe.run.progress == "on" or (pipe.run.progress == "auto" and sys.stderr.isatty() and not live
+                                         and (n is None or n > 60 * pipe.ctx.fps or slow))
     if not show:
         return None
     from laughlab.core.progress import bar   # progress=on into a log: plain lines, not carriage returns
