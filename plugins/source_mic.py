@@ -20,7 +20,7 @@ import numpy as np
 from laughlab import hookimpl
 from laughlab.io.audio import cut_frames
 from laughlab.core.bases import Source
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, first_line
 from laughlab.core.interrupts import StopOnSignal
 from laughlab.core.plugins import check_range
 
@@ -124,7 +124,7 @@ class MicSource(Source):
                                         dtype="float32", blocksize=n)
                 stack.enter_context(_running(stream, sd))
             except sd.PortAudioError as exc:
-                raise LaughlabError(f"the microphone could not be started ({_first_line(exc)}); check that it is "
+                raise LaughlabError(f"the microphone could not be started ({first_line(exc)}); check that it is "
                                     "connected and not in use (python -m sounddevice lists the devices)") from None
             waiting = _backlog(stream, sd)
             health.start()
@@ -158,10 +158,10 @@ class MicSource(Source):
         except self._sd.PortAudioError as exc:   # a USB microphone pulled out, a device gone to sleep
             self.stopped_by = "device"
             if not got:
-                raise LaughlabError(f"the microphone stopped before any audio was read ({_first_line(exc)}); "
+                raise LaughlabError(f"the microphone stopped before any audio was read ({first_line(exc)}); "
                                     "nothing to keep") from None
             self._say(f"laughlab: warning: the microphone stopped after {got / self.sample_rate:.1f} s "
-                      f"({_first_line(exc)}); the input ends there and the session up to there is kept")
+                      f"({first_line(exc)}); the input ends there and the session up to there is kept")
             return None
 
     def metrics(self) -> dict:
@@ -254,10 +254,6 @@ def block_samples(sample_rate: int, fps: float, block_frames: int = 1) -> int:
     """Samples the microphone is read in: ``block_frames`` frames, rounded up (a block a sample short of a
     frame would make every frame wait one more block).  ``benchmarks/bench_latency.py`` replays by it."""
     return math.ceil(sample_rate / fps) * block_frames
-
-
-def _first_line(exc: BaseException) -> str:
-    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
 @contextlib.contextmanager

@@ -77,7 +77,8 @@ def finite_number(text: str) -> float:
 
 def first_line(exc: BaseException) -> str:
     """The first line of an exception's message (a library's reason), or its type's name if it has none."""
-    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    text = str(exc).strip()   # (PortAudio's messages may start with a newline)
+    return text.splitlines()[0] if text else type(exc).__name__
 
 
 def read_json_object(path, fix: str, damaged: str = "is damaged", keys: dict | None = None) -> dict:
