@@ -1,6 +1,8 @@
 """The ``vmc`` sink: the VMC protocol over OSC, received by a real python-osc server on loopback."""
 from __future__ import annotations
 
+import socket
+import sys
 import threading
 import time
 
@@ -51,6 +53,16 @@ class Receiver:
         d = Dispatcher()
         d.set_default_handler(self._on)
         self.server = BlockingOSCUDPServer(("127.0.0.1", 0), d)
+        # a receive buffer that holds a whole test's stream: under a loaded suite this thread can fall behind a
+        # stream sent as fast as it goes (realtime=off), and the kernel drops what does not fit (a clean-clone run
+        # lost the last datagram of a frame); SO_RCVBUFFORCE goes past rmem_max where the tests may (root)
+        force = getattr(socket, "SO_RCVBUFFORCE", 33 if sys.platform.startswith("linux") else None)   # Linux's 33
+        for opt in (force, socket.SO_RCVBUF):
+            try:
+                self.server.socket.setsockopt(socket.SOL_SOCKET, opt, 8 << 20)
+                break
+            except (OSError, TypeError):
+                continue
         self.port = self.server.server_address[1]
         self.thread = threading.Thread(target=self.server.serve_forever, kwargs={"poll_interval": 0.01}, daemon=True)
 
