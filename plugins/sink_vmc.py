@@ -17,7 +17,7 @@ from laughlab import hookimpl
 from laughlab.core.bases import Sink
 from laughlab.core.errors import LaughlabError
 from laughlab.core.plugins import check_range
-from laughlab.core.summary import FrameSample
+from laughlab.core.framesample import FrameSample
 from laughlab.io.vmc import (DEFAULT_PORT, VRM_PRESETS, BoneMap, VmcEncoder, VmcSender, arkit_weights,
                           latency_summary)
 from laughlab.motion.skeleton import rest_pose

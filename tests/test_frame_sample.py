@@ -9,7 +9,7 @@ from omegaconf import OmegaConf
 
 from laughlab.core import pipeline
 from laughlab.core.config import compose_config
-from laughlab.core.summary import FrameSample
+from laughlab.core.framesample import FrameSample
 
 
 @pytest.mark.parametrize("n, chunk", [(10, 1), (31, 1), (1000, 1), (1000, 7), (5003, 256), (100_000, 1)])

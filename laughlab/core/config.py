@@ -8,7 +8,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, first_line
 
 
 def _register_resolvers() -> None:
@@ -112,7 +112,7 @@ def _experiment_node(file: Path):
     except Exception as exc:   # a YAML error: what and where
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
-        what = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        what = getattr(exc, "problem", None) or first_line(exc)
         return None, f"not a readable experiment: {what}{where}"
     if not OmegaConf.is_dict(node) or not OmegaConf.is_dict(node.get("harness")):
         return None, ("not an experiment: it needs a harness: mapping of settings (docs/experiments.md, "

@@ -24,7 +24,7 @@ from laughlab.core.errors import LaughlabError, UnknownParameter
 from laughlab.core.frame import Frame
 from laughlab.core.mixer import Mixer
 from laughlab.core.outfiles import unwrite
-from laughlab.core.summary import FrameSample
+from laughlab.core.framesample import FrameSample
 
 #: config group -> plugin kind
 GROUPS = {"input": "source", "extractor": "extractor", "detector": "detector", "scheduler": "scheduler",
