@@ -184,7 +184,7 @@ def task(cfg) -> dict:
         # a sweep job refused by a finished run: Hydra wrote this job's .hydra/ over that run's; put it back
         if _CLAIM is not None or not rundir.restore_hydra(out_dir):
             _remove_new_run_dir(out_dir)
-        fail(str(exc))
+        fail(str(exc), code=exc.exit_code)
     except (KeyboardInterrupt, Exception) as exc:
         what, code = _fault(exc, out_dir, cfg)
         fail(_stopped(cfg, out_dir, what), code=code)

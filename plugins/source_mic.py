@@ -20,7 +20,7 @@ import numpy as np
 from laughlab import hookimpl
 from laughlab.io.audio import cut_frames
 from laughlab.core.bases import Source
-from laughlab.core.errors import LaughlabError, first_line
+from laughlab.core.errors import LaughlabError, StoppedBySignal, first_line
 from laughlab.core.interrupts import StopOnSignal
 from laughlab.core.plugins import check_range
 
@@ -147,7 +147,7 @@ class MicSource(Source):
             self.stopped_by = signal.Signals(stop.signum).name
             key = "Ctrl-C" if stop.signum == signal.SIGINT else self.stopped_by
             if not got:   # pipeline.execute would fail on no frames after a line saying 'kept'
-                raise LaughlabError(f"{key}: stopped before any audio was read; nothing to keep")
+                raise StoppedBySignal(f"{key}: stopped before any audio was read; nothing to keep")
             self._say(f"laughlab: {key}: the input ended after {got / self.sample_rate:.1f} s and the session is "
                       f"kept ({key} again aborts it and removes what it wrote)")
             return None

@@ -145,8 +145,9 @@ def test_a_stop_before_any_audio_is_read_keeps_nothing_in_one_line(monkeypatch, 
         fake = FakeSoundDevice(noise(1), fail_at=0)
         says = (r"^the microphone stopped before any audio was read \(Unanticipated host error .*\); "
                 r"nothing to keep$")
-    with pytest.raises(LaughlabError, match=says):
+    with pytest.raises(LaughlabError, match=says) as raised:
         pipeline.execute(mic_pipe(monkeypatch, fake), tmp_path)
+    assert raised.value.exit_code == (130 if how == "signal" else 2)
     assert capsys.readouterr().err == "" and list(tmp_path.iterdir()) == []
     assert fake.closed and signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
@@ -250,8 +251,8 @@ def test_the_command_keeps_a_session_stopped_by_a_signal(tmp_path, sig, key):
 
 
 def test_the_command_stopped_before_any_audio_says_so_in_one_line(tmp_path):
-    """A SIGTERM while the device starts: one line, exit 2 and no run folder, not a 'kept' line then 'the input
-    holds no audio frames' (diff-review 3)."""
+    """A SIGTERM while the device starts: one line, no run folder, not a 'kept' line then 'the input holds no
+    audio frames' (diff-review 3); and exit status 130, as any interrupt (it exited 2, a user error's status)."""
     (tmp_path / "fake").mkdir()
     (tmp_path / "fake" / "sounddevice.py").write_text(textwrap.dedent(FAKE_MODULE))
     run = tmp_path / "run"
@@ -260,7 +261,7 @@ def test_the_command_stopped_before_any_audio_says_so_in_one_line(tmp_path):
     p = subprocess.run([sys.executable, "-m", "laughlab", "input=mic", "input.calibration_s=0", "output=[files]",
                         "~output.plots", f"hydra.run.dir={run}"], cwd=ROOT, env=env, capture_output=True, text=True,
                        timeout=120)
-    assert p.returncode == 2, p.stderr
+    assert p.returncode == 130, p.stderr
     assert p.stderr == "laughlab: error: SIGTERM: stopped before any audio was read; nothing to keep\n", p.stderr
     assert not run.exists()
 

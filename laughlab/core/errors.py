@@ -5,8 +5,17 @@ class LaughlabError(Exception):
     """A user error: bad input, unknown plugin, bad parameter.
 
     The command line prints ``laughlab: error: <message>`` on stderr and exits
-    with status 2; nothing half-written is left behind.
+    with status 2 (:attr:`exit_code`); nothing half-written is left behind.
     """
+
+    exit_code = 2
+
+
+class StoppedBySignal(LaughlabError):
+    """A stop signal (Ctrl-C, SIGTERM) that ended the work before there was anything to keep: its own line,
+    and the exit status of any interrupt, 130 (it exited 2, as a user error did)."""
+
+    exit_code = 130
 
 
 class UnknownParameter(LaughlabError):
