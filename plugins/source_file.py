@@ -4,6 +4,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from laughlab import hookimpl
 from laughlab.io.audio import cut_frames, n_frames_for, probe_file, read_blocks
 from laughlab.core.bases import Source
@@ -90,6 +92,7 @@ class FileSource(Source):
         self.n_frames = n_frames_for(info.frames, self.sample_rate, self.ctx.fps)
         self.duration_s = info.frames / info.samplerate
         self.truth = RecordingTruth.read(self.params.truth, self.duration_s) if self.params.truth else None
+        self.peak = 0.0   # the loudest finite sample read (by any reader of the file: the same file)
 
     def save_artifacts(self, out_dir: Path) -> list[Path]:
         """``truth.csv`` from ``input.truth``, whole or not at all (nothing without it)."""
@@ -106,7 +109,19 @@ class FileSource(Source):
         return staging.commit()
 
     def blocks(self):
-        return cut_frames(read_blocks(self.params.path), self.sample_rate, self.ctx.fps)
+        return cut_frames(self._read(), self.sample_rate, self.ctx.fps)
+
+    def _read(self):
+        """The file's chunks, noting the loudest finite sample (a silent file says so in the run's line)."""
+        for chunk in read_blocks(self.params.path):
+            finite = chunk[np.isfinite(chunk)]
+            if finite.size:
+                self.peak = max(self.peak, float(np.abs(finite).max()))
+            yield chunk
+
+    def metrics(self) -> dict:
+        """For ``metrics.json``: the loudest sample read, ``input_peak`` (1 is full scale; 0 digital silence)."""
+        return {"input_peak": float(self.peak)}
 
     def audio_path(self):
         return Path(self.params.path).expanduser()

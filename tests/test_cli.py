@@ -117,6 +117,8 @@ def bad_files(tmp_path_factory):
     (["extractor.rise_per_s=-1"], "rise_per_s must be > 0"),
     (["fps=0"], "fps must be a positive number"),
     (["fps=-30"], "fps must be a positive number"),
+    (["fps=0.5"], "fps must be 1-1000 animation frames a second (got 0.5)"),   # a review: ran, no events
+    (["fps=1001"], "fps must be 1-1000 animation frames a second (got 1001)"),
     (["experiment=nope"], "unknown experiment 'nope'"),
     (["input=file", "input.path=rire_é.wav"], "a value with characters such as ( ) [ ] = , ' or letters outside "
                                               "ASCII must be quoted: \"input.path='rire_é.wav'\""),
@@ -415,6 +417,24 @@ def test_the_closing_line_offers_view_only_for_what_view_plays(tmp_path):
     for name in ("channels.csv", "events.csv"):
         (out / name).write_text("")
     assert summary_line(cfg, {"duration_s": 1.0}, out, 1.0).endswith(f"; watch it: python -m laughlab view '{out}'")
+
+
+@pytest.mark.parametrize("gain, said", [(0.0, " (silent: its loudest sample is 0), "),
+                                         (10 ** (-72 / 20), " (silent: its loudest sample -72 dBFS), "),
+                                         (10 ** (-50 / 20), ", ")])
+def test_a_silent_file_says_so_in_the_closing_line(tmp_path, gain, said):
+    """A review: a file of digital silence (or a level no method moves at, below -60 dBFS) ran as any other, its
+    figures empty and nothing said.  ``input_peak`` (metrics.json) is the loudest sample read, 1 full scale."""
+    t = np.arange(44100 * 2) / 44100
+    x = np.sin(2 * np.pi * 300 * t) * (t < 1.5)
+    x = x / np.abs(x).max() * gain
+    sf.write(tmp_path / "a.wav", x.astype(np.float32), 44100, subtype="FLOAT")
+    r = laughlab("input=file", f"input.path={tmp_path / 'a.wav'}", "output=[files]", "detector=none",
+                 f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith(f"laughlab: 2.0 s of a.wav{said}rms > none"), r.stdout
+    peak = json.loads((tmp_path / "r" / "metrics.json").read_text())["input_peak"]
+    assert peak == pytest.approx(gain, rel=1e-6)
 
 
 @pytest.mark.parametrize("args, seconds, metrics, said", [

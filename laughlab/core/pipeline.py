@@ -59,8 +59,8 @@ class RunParams:
         if isinstance(self.fps, bool) or not (isinstance(self.fps, (int, float)) and math.isfinite(self.fps)
                                               and self.fps > 0):
             raise ValueError(f"fps must be a positive number (got {self.fps})")
-        if self.fps > 1000:
-            raise ValueError(f"fps must be at most 1000 (got {self.fps})")
+        if not 1 <= self.fps <= 1000:   # fps=0.5 ran without a word: frames of 2 s, no clip on a clear laugh
+            raise ValueError(f"fps must be 1-1000 animation frames a second (got {self.fps})")
         if not isinstance(self.overwrite, bool):
             raise ValueError(f"overwrite must be true or false (got {self.overwrite!r})")
         if self.progress not in ("auto", "on", "off"):

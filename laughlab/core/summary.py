@@ -1,6 +1,7 @@
 """The one line a run prints when it succeeds: what ran on what, how long the command took, how fast, where."""
 from __future__ import annotations
 
+import math
 import shlex
 from pathlib import Path
 
@@ -8,6 +9,9 @@ from pathlib import Path
 #: a live session this far behind the microphone at its worst (s, beyond the device's own latency) says so: the
 #: lag lip sync starts to show (a warm-up stall of a few frames at the start is not worth a word)
 BEHIND_S = 0.1
+
+#: a file whose loudest sample is below this (dB full scale) is called silent in the run's line: nothing moves
+SILENT_DBFS = -60.0
 
 #: the plugin groups a run's summary line and a report name, in the order the summary line gives them
 CHAIN = ("extractor", "detector", "face", "body", "scheduler")
@@ -28,6 +32,9 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     """
     src = cfg.input.name
     what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
+    peak = metrics.get("input_peak")
+    if peak is not None and peak < 10 ** (SILENT_DBFS / 20):   # a review: a silent file ran without a word
+        what += " (silent: its loudest sample " + (f"{20 * math.log10(peak):.0f} dBFS" if peak > 0 else "is 0") + ")"
     chain = " > ".join(str(cfg[g].name) + (" (fused)" if g == "detector" and cfg[g].get("fuse") else "")
                        for g in CHAIN
                        if g in cfg and cfg[g] is not None and "name" in cfg[g])   # fused: detector=yamnet_fused
