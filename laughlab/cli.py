@@ -313,32 +313,19 @@ def report_command(args: list[str]) -> None:
     print(f"report written: {path}")
 
 
-def view_command(args: list[str]) -> None:
-    """``python -m laughlab view RUN_DIR``: the run on the character (or the user's avatar) in a browser."""
-    from laughlab.viewer.cli import main as view_main
-
-    view_main(args)
-
-
-def study_command(args: list[str]) -> None:
-    """``python -m laughlab study build|serve|analyze|power``: the perception study (``laughlab.study``)."""
-    from laughlab.study.cli import main as study_main
-
-    study_main(args)
+#: the commands besides a run and ``report``: each module's ``main(args)``, imported when its command is used
+COMMANDS = {
+    "detect": "laughlab.detector.detect",   # laughter segments of recordings
+    "corpus": "laughlab.corpora.cli",       # fetch|list|lock: the real development corpus
+    "study": "laughlab.study.cli",          # build|serve|analyze|power: the perception study
+    "view": "laughlab.viewer.cli",          # the run on the character (or the user's avatar) in a browser
+}
 
 
-def detect_command(args: list[str]) -> None:
-    """``python -m laughlab detect PATH...``: laughter segments of recordings (``laughlab.detector.detect``)."""
-    from laughlab.detector.detect import main as detect_main
+def _command(name: str):
+    import importlib
 
-    detect_main(args)
-
-
-def corpus_command(args: list[str]) -> None:
-    """``python -m laughlab corpus fetch|list|lock``: the real development corpus (see ``laughlab.corpora``)."""
-    from laughlab.corpora.cli import main as corpus_main
-
-    corpus_main(args)
+    return report_command if name == "report" else importlib.import_module(COMMANDS[name]).main
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -362,12 +349,11 @@ def _main(argv: list[str]) -> None:
     if argv in (["--help"], ["-h"], ["help"]):
         print(help_text())
         return
-    commands = (("detect", detect_command), ("report", report_command), ("corpus", corpus_command),
-                ("study", study_command), ("view", view_command))
-    for name, command in commands:
+    commands = ("detect", "report", "corpus", "study", "view")
+    for name in commands:
         if argv[:1] == [name]:
             try:
-                command(argv[1:])
+                _command(name)(argv[1:])
             except LaughlabError as exc:
                 fail(str(exc))
             except BrokenPipeError:  # e.g. piped into head: stop quietly
@@ -396,7 +382,7 @@ def _main(argv: list[str]) -> None:
             _quiet_stdout()
         return
     if argv and "=" not in argv[0] and not argv[0].startswith(("~", "-")):   # e.g. a mistyped command
-        fail(f"unknown command {argv[0]!r}: the commands are {', '.join(n for n, _ in commands)}, plugins; a run "
+        fail(f"unknown command {argv[0]!r}: the commands are {', '.join(commands)}, plugins; a run "
              "takes overrides key=value (python -m laughlab --help)")
     if argv == ["--version"]:
         from laughlab import __version__
