@@ -22,8 +22,8 @@ class FileParams:
         Audio file (WAV, FLAC, OGG, MP3, ... as soundfile reads; 8-192 kHz; channels mixed to mono).
     truth : str
         Optional ground truth of the recording: a ``truth.csv`` (laughlab's columns) or an annotation
-        (Audacity labels ``.txt``, Praat ``.TextGrid``; ``laughlab.corpora.annotations``), checked when the
-        run starts.  Its bouts shade the figures as a synthetic input's do, and the run writes it as
+        (Audacity labels ``.txt``, Praat ``.TextGrid``, ELAN ``.eaf``; ``laughlab.corpora.annotations``), checked
+        when the run starts.  Its bouts shade the figures as a synthetic input's do, and the run writes it as
         ``truth.csv`` (an experiment's showcase of a recording passes its annotation here).
     """
 
@@ -56,9 +56,9 @@ class RecordingTruth:
         p = Path(path).expanduser()
         if not p.is_file():
             raise LaughlabError(f"input.truth not found: {path}")
-        if p.suffix.lower() in (".txt", ".textgrid"):
-            from laughlab.corpora.annotations import read
+        from laughlab.corpora.annotations import SUFFIXES, read
 
+        if p.suffix.lower() in SUFFIXES:
             rows = read(p, duration_s).truth_rows()
         else:
             check_truth_csv(p, duration_s)

@@ -103,6 +103,45 @@ def test_textgrid_annotations(tmp_path):
     assert a.bouts == [(0.2, 1.0)]
 
 
+EAF = """<?xml version="1.0" encoding="UTF-8"?>
+<ANNOTATION_DOCUMENT FORMAT="3.0" VERSION="3.0">
+    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds"/>
+    <TIME_ORDER>
+        <TIME_SLOT TIME_SLOT_ID="ts1" TIME_VALUE="200"/><TIME_SLOT TIME_SLOT_ID="ts2" TIME_VALUE="1000"/>
+        <TIME_SLOT TIME_SLOT_ID="ts3" TIME_VALUE="250"/><TIME_SLOT TIME_SLOT_ID="ts4" {slot4}/>
+    </TIME_ORDER>
+    <TIER LINGUISTIC_TYPE_REF="lt" TIER_ID="{bouts}"><ANNOTATION><ALIGNABLE_ANNOTATION ANNOTATION_ID="a1"
+        TIME_SLOT_REF1="ts1" TIME_SLOT_REF2="ts2"><ANNOTATION_VALUE>laugh</ANNOTATION_VALUE></ALIGNABLE_ANNOTATION>
+        </ANNOTATION></TIER>
+    <TIER LINGUISTIC_TYPE_REF="lt" TIER_ID="calls"><ANNOTATION><ALIGNABLE_ANNOTATION ANNOTATION_ID="a2"
+        TIME_SLOT_REF1="ts3" TIME_SLOT_REF2="ts4"><ANNOTATION_VALUE></ANNOTATION_VALUE></ALIGNABLE_ANNOTATION>
+        </ANNOTATION></TIER>
+</ANNOTATION_DOCUMENT>
+"""
+
+
+@pytest.mark.parametrize("bouts", ["bouts", "laughter"])
+def test_elan_annotations(tmp_path, bouts):
+    """A review: detect writes ELAN files, but input.truth= and a corpus folder read only Audacity labels and
+    TextGrids (an .eaf was read as a CSV: "no column kind, onset_s, offset_s").  Tiers as the TextGrid's: bouts
+    (or detect's laughter) and calls, times in ms; an empty call text is a call."""
+    p = tmp_path / "a.eaf"
+    p.write_text(EAF.format(bouts=bouts, slot4='TIME_VALUE="400"'))
+    a = A.read(p, 2.0)
+    assert a.bouts == [(0.2, 1.0)] and a.calls == [(0.25, 0.4)]
+    with pytest.raises(LaughlabError, match=rf"a\.eaf:{bouts} #1: interval 0\.200-1\.000 s is outside the recording"):
+        A.read(p, 0.5)
+    p.write_text(EAF.format(bouts=bouts, slot4=""))   # an unaligned slot: no time
+    with pytest.raises(LaughlabError, match=r"a\.eaf:calls #1: the annotation has no time"):
+        A.read(p, 2.0)
+    p.write_text(EAF.format(bouts="words", slot4='TIME_VALUE="400"'))
+    with pytest.raises(LaughlabError, match=r"it has no tier 'bouts' .* \(tiers: words, calls\)$"):
+        A.read(p, 2.0)
+    p.write_text("<ANNOTATION_DOCUMENT>")
+    with pytest.raises(LaughlabError, match=r"^bad ELAN file .*a\.eaf: no element found"):
+        A.read(p, 2.0)
+
+
 # ------------------------------------------------------------------ fetching, with a stand-in registry
 @pytest.fixture
 def fake_registry(tmp_path, monkeypatch):

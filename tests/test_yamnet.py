@@ -768,6 +768,7 @@ def test_detect_textgrids_read_back_in_praatio_and_laughlab(tmp_path_factory, p,
     laughs = [(e.start, e.end) for e in tg.getTier("laughter").entries if e.label == "laugh"]
     assert laughs == [(s.start, s.end) for s in segs]
     _scan_textgrid(path.read_text(), str(path))   # laughlab's own check, as Praat reads a TextGrid
+    assert tg.maxTimestamp <= duration and all(s.end <= duration for s in segs)   # nothing past the last sample
 
 
 @pytest.mark.parametrize("duration", [1 / 44100, 0.0, 4e-5])

@@ -9,9 +9,9 @@ starting with ``\\``, are skipped).  Labels:
 - ``inhale``, ``speech``, ``other``: non-laughter sounds in the file.
 
 A Praat TextGrid with tiers ``bouts`` and ``calls`` (interval texts ``laugh``
-and ``call``) is read the same way.  What ``laughlab detect`` writes is an annotation too, so its segments,
+and ``call``) is read the same way, and so is an ELAN document (``.eaf``) with those tiers.  What ``laughlab detect`` writes is an annotation too, so its segments,
 corrected in Praat or Audacity, give a recording its truth: the TextGrid's tier ``laughter`` stands for
-``bouts`` when there is no ``bouts``, and the label ``laughter`` (its Audacity files until 2026-11-27) for
+``bouts`` when there is no ``bouts`` (in an ELAN file too), and the label ``laughter`` (its Audacity files until 2026-11-27) for
 ``laugh``.  The bundled annotations live in
 ``laughlab/data/annotations/<id with / as __>.txt``.
 
@@ -119,10 +119,49 @@ def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) 
     return check(Annotation(str(path), labels), duration_s)
 
 
+def read_eaf_annotation(path: str | Path, duration_s: float | None = None) -> Annotation:
+    """Read tiers ``bouts`` (or ``laughter``, as ``laughlab detect --formats ...,elan`` writes) and ``calls`` of an
+    ELAN document (EAF: time slots in milliseconds, time-alignable annotations), as the TextGrid's are read; so
+    segments corrected in ELAN give a recording its truth too.  A bad annotation is named by its tier and number."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.parse(str(path)).getroot()
+    except FileNotFoundError:
+        raise LaughlabError(f"annotation not found: {path}") from None
+    except (OSError, ET.ParseError) as exc:
+        raise LaughlabError(f"bad ELAN file {path}: {first_line(exc)}") from None
+    try:
+        slots = {ts.get("TIME_SLOT_ID"): int(ts.get("TIME_VALUE")) / 1000.0
+                 for ts in root.iter("TIME_SLOT") if ts.get("TIME_VALUE") is not None}
+    except ValueError:
+        raise LaughlabError(f"bad ELAN file {path}: a TIME_VALUE is not a whole number of milliseconds") from None
+    tiers = {t.get("TIER_ID"): t for t in root.iter("TIER")}
+    bouts = "bouts" if "bouts" in tiers else "laughter" if "laughter" in tiers else None
+    if bouts is None:
+        raise LaughlabError(f"bad ELAN file {path}: it has no tier 'bouts' (nor 'laughter', as laughlab detect "
+                            f"writes) (tiers: {', '.join(str(t) for t in tiers)})")
+    labels = []
+    for tier, want in ((bouts, "laugh"), ("calls", "call")):
+        for i, ann in enumerate(tiers[tier].iter("ALIGNABLE_ANNOTATION") if tier in tiers else (), 1):
+            a, b = slots.get(ann.get("TIME_SLOT_REF1")), slots.get(ann.get("TIME_SLOT_REF2"))
+            if a is None or b is None:   # an unaligned slot (ELAN allows them): no time to check against
+                raise LaughlabError(f"{path}:{tier} #{i}: the annotation has no time (an unaligned time slot)")
+            text = (ann.findtext("ANNOTATION_VALUE") or "").strip().lower()
+            labels.append(Label(a, b, want if text in (want, "x", "", "laughter") else text, f"{tier} #{i}"))
+    return check(Annotation(str(path), labels), duration_s)
+
+
+#: the annotation formats, by suffix (lower case): Audacity labels, Praat TextGrid, ELAN
+SUFFIXES = (".txt", ".textgrid", ".eaf")
+
+
 def read(path: str | Path, duration_s: float | None = None) -> Annotation:
-    """An Audacity label track (``.txt``) or a Praat TextGrid (``.TextGrid``)."""
+    """An Audacity label track (``.txt``), a Praat TextGrid (``.TextGrid``) or an ELAN document (``.eaf``)."""
     if str(path).lower().endswith(".textgrid"):
         return read_textgrid_annotation(path, duration_s)
+    if str(path).lower().endswith(".eaf"):
+        return read_eaf_annotation(path, duration_s)
     return read_audacity(path, duration_s)
 
 

@@ -21,6 +21,8 @@ from laughlab.core.outfiles import unwrite
 from laughlab.core.summary import duration_text, factor_text
 
 AUDIO_SUFFIXES = {".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif", ".opus"}
+#: recordings in formats soundfile does not read (phones', video's): a folder's are named, not passed over in silence
+OTHER_MEDIA = {".m4a", ".aac", ".wma", ".mp4", ".m4b", ".3gp", ".amr", ".caf", ".webm", ".mka", ".mov", ".mkv", ".avi"}
 FORMATS = ("csv", "audacity", "textgrid", "elan")
 
 
@@ -28,18 +30,28 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
     """The audio files of ``paths`` with the name each one's outputs take: a file given by itself, its stem; a
     file found in a given folder, its path from that folder without the suffix (``day1/take1``), so a tree of
     recordings keeps its layout in ``--out`` and repeated take names in different folders do not collide."""
-    out = []
+    out, seen, other = [], set(), []
     for p in paths:
         q = Path(p).expanduser()
         if q.is_dir():
-            found = sorted(f for f in q.rglob("*") if f.suffix.lower() in AUDIO_SUFFIXES and f.is_file())
+            files = sorted(f for f in q.rglob("*") if f.is_file())
+            found = [f for f in files if f.suffix.lower() in AUDIO_SUFFIXES]
+            media = [f for f in files if f.suffix.lower() in OTHER_MEDIA]
+            other += media
             if not found:
-                raise LaughlabError(f"no audio files in folder {p}")
-            out += [(f, f.relative_to(q).with_suffix("").as_posix()) for f in found]
+                raise LaughlabError(f"no audio files in folder {p}" + (f" that laughlab reads: {_unread(media)}"
+                                                                        if media else ""))
+            named = [(f, f.relative_to(q).with_suffix("").as_posix()) for f in found]
         elif q.exists():
-            out.append((q, q.stem))
+            named = [(q, q.stem)]
         else:
             raise LaughlabError(f"input not found: {p}")
+        for f, name in named:   # the same file twice (a folder and a file in it, overlapping globs): once
+            if f.resolve() not in seen:
+                seen.add(f.resolve())
+                out.append((f, name))
+    if other:   # a review: a folder's .m4a recordings were left out without a word
+        print(f"laughlab: not read: {_unread(other)}", file=sys.stderr)
     names = [n for _, n in out]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
@@ -47,6 +59,13 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
         raise LaughlabError(f"two inputs share the name {dup[0]!r} ({', '.join(both)}): their label files would "
                             "collide; run them separately (--out)")
     return out
+
+
+def _unread(files: list[Path]) -> str:
+    """What a folder held that detect does not read, and how to read it, in a few words."""
+    kinds = sorted({f.suffix.lower() for f in files})
+    return (f"{len(files)} file(s) ({', '.join(kinds)}: formats laughlab does not read; convert them to WAV, e.g. "
+            "ffmpeg -i IN.m4a OUT.wav)")
 
 
 #: in --out, the names of the files the last ``detect`` wrote there (so that ``--overwrite`` removes only those)

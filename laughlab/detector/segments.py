@@ -19,6 +19,7 @@ Audacity label file (``NAME.txt``: ``start<TAB>end<TAB>laugh``) and a Praat Text
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 from dataclasses import dataclass
@@ -81,10 +82,20 @@ def segments(times: np.ndarray, p: np.ndarray, hop_s: float, threshold: float = 
         while j + 1 < n and on[j + 1]:
             j += 1
         a, b = max(0.0, times[k] - hop_s / 2.0), min(end_cap, times[j] + hop_s / 2.0)
-        if b - a >= min_length_s - 1e-9:
-            out.append(Segment(round(float(a), 4), round(float(b), 4), round(float(p[k:j + 1].mean()), 4)))
+        if b - a >= min_length_s - 1e-9:   # to 0.1 ms, the end never past the recording's (a review: 4 us past)
+            out.append(Segment(round(float(a), 4), min(round(float(b), 4), floor_to(end_cap, 4)),
+                               round(float(p[k:j + 1].mean()), 4)))
         k = j + 1
     return out
+
+
+def floor_to(t: float, digits: int) -> float:
+    """``t`` (s) rounded down to ``digits`` decimals, as written: a time that stays inside a recording of ``t`` s
+    (a duration that already has ``digits`` decimals is kept: no 5.8376 -> 5.8375 from its binary form)."""
+    if not math.isfinite(t):
+        return t
+    q = 10 ** digits
+    return math.floor(t * q + 1e-6) / q
 
 
 def atomic_write(path: Path, text: str) -> None:
@@ -101,10 +112,10 @@ def audacity_text(segs: list[Segment]) -> str:
 def textgrid_text(segs: list[Segment], duration_s: float) -> str:
     """A Praat TextGrid (long text format), one interval tier ``laughter``: ``laugh`` or empty.
 
-    Times are written to 0.1 ms, as the segments are: the duration too is rounded first, so a segment that
+    Times are written to 0.1 ms, as the segments are: the duration too is rounded (down) first, so a segment that
     ends with the recording leaves no empty interval of zero length after it (Praat and praatio refuse one); a
     recording shorter than 0.1 ms gets one interval of 0.1 ms (a review: a 1-sample file's 0 to 0 was refused)."""
-    duration_s = max(round(float(duration_s), 4), 1e-4)
+    duration_s = max(floor_to(float(duration_s), 4), 1e-4)
     iv = []
     t = 0.0
     for s in segs:
@@ -128,13 +139,14 @@ def textgrid_text(segs: list[Segment], duration_s: float) -> str:
 MIME_TYPES = {".wav": "audio/x-wav", ".mp3": "audio/mpeg"}
 
 
-def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None = None) -> str:
+def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None = None,
+             duration_s: float = math.inf) -> str:
     """An ELAN annotation document (EAF 3.0): one time-alignable tier ``laughter``, ``laugh`` per segment.
 
     Times in whole milliseconds (ELAN's unit) and a fixed DATE, so the same input gives the same bytes.
     ``media``: the recording, linked in the header (its absolute ``file:`` URL, and its path relative to
     ``beside``, the EAF's folder, which ELAN tries when the folders have moved together); None: no link, and
-    ELAN asks for the recording when the file is opened."""
+    ELAN asks for the recording when the file is opened.  No time past ``duration_s`` (whole ms, rounded down)."""
     import os
     from urllib.parse import quote
     from xml.sax.saxutils import quoteattr
@@ -154,7 +166,7 @@ def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None
     for i, seg in enumerate(segs):
         a, b = 2 * i + 1, 2 * i + 2
         slots += [f'        <TIME_SLOT TIME_SLOT_ID="ts{a}" TIME_VALUE="{int(round(seg.start * 1000))}"/>',
-                  f'        <TIME_SLOT TIME_SLOT_ID="ts{b}" TIME_VALUE="{int(round(seg.end * 1000))}"/>']
+                  f'        <TIME_SLOT TIME_SLOT_ID="ts{b}" TIME_VALUE="{int(min(round(seg.end * 1000), floor_to(duration_s * 1000, 0)))}"/>']
         anns += ["        <ANNOTATION>",
                  f'            <ALIGNABLE_ANNOTATION ANNOTATION_ID="a{i + 1}" TIME_SLOT_REF1="ts{a}" '
                  f'TIME_SLOT_REF2="ts{b}">',
@@ -190,16 +202,19 @@ def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]]
     written = []
     for name, dur, segs, *media in results:   # (stem, duration, segments[, the recording's path])
         text = {"audacity": lambda: audacity_text(segs), "textgrid": lambda: textgrid_text(segs, dur),
-                "elan": lambda: eaf_text(segs, media[0] if media else None, (out_dir / name).parent)}
+                "elan": lambda: eaf_text(segs, media[0] if media else None, (out_dir / name).parent, dur)}
         for f, suffix in SUFFIXES.items():
             if f in formats:
                 written.append(out_dir / (name + suffix))
                 atomic_write(written[-1], text[f]())
-    if "csv" in formats:
-        rows = ["file,start,end,probability\n"] + [f"{name},{s.start:.4f},{s.end:.4f},{s.prob:.4f}\n"
-                                                   for name, _, segs, *_ in results for s in segs]
+    if "csv" in formats:   # through csv: a name with a comma or a quote is quoted (a review: it split the row)
+        text = io.StringIO()
+        w = csv.writer(text, lineterminator="\n")
+        w.writerow(["file", "start", "end", "probability"])
+        w.writerows([name, f"{s.start:.4f}", f"{s.end:.4f}", f"{s.prob:.4f}"] for name, _, segs, *_ in results
+                    for s in segs)
         written.append(out_dir / "segments.csv")
-        atomic_write(written[-1], "".join(rows))
+        atomic_write(written[-1], text.getvalue())
     return written
 
 

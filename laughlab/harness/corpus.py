@@ -120,13 +120,13 @@ def check_truth_csv(path: Path, duration: float | None) -> None:
 
 
 def _truth_beside(f: Path, duration: float | None) -> str | None:
-    """``NAME.truth.csv``, else an annotation ``NAME.txt`` (Audacity labels) or ``NAME.TextGrid``,
+    """``NAME.truth.csv``, else an annotation ``NAME.txt`` (Audacity labels), ``NAME.TextGrid`` or ``NAME.eaf``,
     parsed now (overlaps, labels, times past the end raise LaughlabError)."""
     truth = f.with_name(f.stem + ".truth.csv")
     if truth.exists():
         check_truth_csv(truth, duration)
         return str(truth)
-    for ext in (".txt", ".TextGrid"):
+    for ext in (".txt", ".TextGrid", ".eaf"):
         ann = f.with_name(f.stem + ext)
         if ann.exists():
             from laughlab.corpora.annotations import read
