@@ -101,6 +101,26 @@ def test_the_glb_holds_the_animation_the_bvh_holds(facs_run):
     assert weights[:, k].max() > 0.3  # the synthetic laugh opens the jaw
 
 
+def test_mouth_close_closes_the_lips_over_the_open_jaw(tmp_path):
+    """An outputs review: face=cgm's mouthClose (face_arkit.csv, VMC) had no target in character.glb (nor on a
+    user's avatar: the route drives only these names).  ARKit's mouthClose closes the lips while the jaw is open:
+    jawOpen + mouthClose at 1 puts the lower lip back where it rests, the chin stays down; and a cgm run's glb
+    carries the weights face_arkit.csv holds."""
+    c = build()
+    jaw, close = (c.morphs[MORPHS.index(n)] for n in ("jawOpen", "mouthClose"))
+    moved = np.abs(close).max(axis=1) > 0
+    assert moved.any() and (np.abs(jaw[moved] + close[moved]).max() == 0.0)   # those vertices back at rest
+    assert (np.abs(jaw[~moved]).max(axis=1) > 0.005).any()                    # the chin is still down (> 5 mm)
+    out = run(tmp_path, "face=cgm", "extractor=phoneme", "input.duration_s=4")
+    doc, binary = read_glb(out / "character.glb")
+    anim = doc["animations"][0]
+    w = [ch for ch in anim["channels"] if ch["target"]["path"] == "weights"][0]
+    weights = accessor_array(doc, binary, anim["samplers"][w["sampler"]]["output"]).reshape(241, len(MORPHS))
+    arkit = np.genfromtxt(out / "face_arkit.csv", delimiter=",", names=True)
+    np.testing.assert_allclose(weights[:240, MORPHS.index("mouthClose")], arkit["mouthClose"], atol=1e-5)
+    assert arkit["mouthClose"].max() > 0.05   # the run closes the lips somewhere
+
+
 def test_the_glb_is_byte_identical_for_the_same_run(tmp_path, facs_run):
     again = run(tmp_path, "face=facs", "input.duration_s=4")
     assert (again / "character.glb").read_bytes() == (facs_run / "character.glb").read_bytes()

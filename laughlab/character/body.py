@@ -14,7 +14,7 @@ so elbows, knees and the spine bend smoothly.  Head, face and neck-top follow ``
 Morph targets (position offsets in the rest pose, metres):
 
 * the face, ARKit names (Apple's ``ARFaceAnchor.BlendShapeLocation``) for every shape the
-  face plugins write: ``jawOpen``, ``mouthSmile*``, ``mouthFrown*``, ``mouthStretch*``,
+  face plugins write: ``jawOpen``, ``mouthClose``, ``mouthSmile*``, ``mouthFrown*``, ``mouthStretch*``,
   ``mouthUpperUp*``, ``mouthLowerDown*``, ``cheekSquint*``, ``eyeBlink*``, ``eyeSquint*``,
   ``browInnerUp``, ``browDown*``, ``browOuterUp*`` (``*`` = ``Left``/``Right``, the
   character's own sides: left is +X);
@@ -34,7 +34,7 @@ from laughlab.motion.skeleton import HUMANOID, Skeleton, forward_kinematics, res
 
 #: the morph targets, face first (ARKit names), then the body
 FACE_MORPHS = (
-    "jawOpen", "mouthSmileLeft", "mouthSmileRight", "mouthFrownLeft", "mouthFrownRight",
+    "jawOpen", "mouthClose", "mouthSmileLeft", "mouthSmileRight", "mouthFrownLeft", "mouthFrownRight",
     "mouthStretchLeft", "mouthStretchRight", "mouthUpperUpLeft", "mouthUpperUpRight",
     "mouthLowerDownLeft", "mouthLowerDownRight", "cheekSquintLeft", "cheekSquintRight",
     "eyeBlinkLeft", "eyeBlinkRight", "eyeSquintLeft", "eyeSquintRight", "browInnerUp",
@@ -303,6 +303,9 @@ def _morphs(v: np.ndarray, tags: np.ndarray, hc: np.ndarray, pos: np.ndarray, sk
     drop = np.where(mouth, np.clip((-4.0 - p[:, 1]) / 0.55 + 0.5, 0.0, 1.0), drop)
     m["jawOpen"][:, 1] = -3.2 * drop
     m["jawOpen"][:, 2] = -0.6 * drop
+    # mouthClose (ARKit: the lips closed while the jaw is open, used with jawOpen): the lower lip and the mouth's
+    # lower half go back up by the jaw's drop, the chin stays down (face=cgm writes it: a review found it dropped)
+    m["mouthClose"] = -np.where((lip_l | mouth)[:, None], m["jawOpen"], 0.0)
     for side, sx in (("Left", 1.0), ("Right", -1.0)):
         corner = (3.2 * sx, -4.0, 8.4)
         near = _bump(p, corner, 3.2) * (face | lip_u | lip_l | mouth)

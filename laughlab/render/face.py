@@ -115,13 +115,14 @@ def draw_face(draw, to_screen: Callable[[np.ndarray], np.ndarray], px_per_cm: fl
         line(brow, (70, 50, 40), 0.5)
     # nose
     line(np.array([[0.15, 0.6], [0.55, -1.6], [-0.35, -1.85]]), mix(skin, SKIN_DARK, 0.5), 0.22, lift=0.6)
-    # mouth: corners rise with the smile, the lower lip drops with the jaw
+    # mouth: corners rise with the smile, the lower lip drops with the jaw (less mouthClose)
     smile = 0.5 * (_w(weights, "mouthSmileLeft") + _w(weights, "mouthSmileRight"))
     frown = 0.5 * (_w(weights, "mouthFrownLeft") + _w(weights, "mouthFrownRight"))
     stretch = 0.5 * (_w(weights, "mouthStretchLeft") + _w(weights, "mouthStretchRight"))
     lower = 0.5 * (_w(weights, "mouthLowerDownLeft") + _w(weights, "mouthLowerDownRight"))
     upper = 0.5 * (_w(weights, "mouthUpperUpLeft") + _w(weights, "mouthUpperUpRight"))
     jaw = _w(weights, "jawOpen")
+    close = _w(weights, "mouthClose")   # ARKit: the lips closed over the open jaw (face=cgm)
     my = -4.9
     corners = []
     for side, s in (("Left", 1.0), ("Right", -1.0)):
@@ -129,7 +130,7 @@ def draw_face(draw, to_screen: Callable[[np.ndarray], np.ndarray], px_per_cm: fl
         fr = _w(weights, f"mouthFrown{side}")
         corners.append((s * (2.5 + 1.0 * sm + 0.6 * stretch), my + 1.3 * sm - 0.8 * fr - 0.35 * jaw))
     top_y = my + 0.15 + 0.35 * upper + 0.25 * smile
-    bot_y = my - 0.15 - 3.4 * jaw - 0.7 * lower + 0.25 * smile - 0.3 * frown
+    bot_y = my - 0.15 - 3.4 * max(0.0, jaw - close) - 0.7 * lower + 0.25 * smile - 0.3 * frown
     top = _quad(corners[1], (0.0, top_y), corners[0], 9)
     bottom = _quad(corners[0], (0.0, bot_y), corners[1], 9)
     opening = top_y - bot_y
