@@ -33,9 +33,12 @@ def register_faces(register):
 '''
 
 
-def run(*args, cwd):
+def run(*args, cwd, env_workers=None):
+    import os
+
+    env = {**os.environ, "LAUGHLAB_WORKERS": env_workers} if env_workers is not None else None
     return subprocess.run([sys.executable, "-m", "laughlab", *args], capture_output=True, text=True, cwd=cwd,
-                          timeout=300)
+                          timeout=300, env=env)
 
 
 def test_a_plugins_dir_face_in_an_experiment_a_sweep_and_cfg_job(tmp_path):
@@ -295,3 +298,58 @@ def test_plugins_dir_is_one_folder(tmp_path):
             "folder") in r.stderr
     r = run("plugins_dir=[a,b]", "input.duration_s=1", cwd=tmp_path)
     assert r.returncode == 2 and "is not a folder (plugins_dir is one folder: put every plugin module" in r.stderr
+
+
+BACKGROUND_SINK = '''
+from pathlib import Path
+
+import laughlab
+from laughlab import Sink
+
+from .zz_helpers import label   # a sibling module whose file sorts after this one
+
+
+class Frames(Sink):
+    """Counts the frames into frames.txt; it only writes a file, so it runs in the helper process."""
+    name = "frames"
+    files = ("frames.txt",)
+    background = True
+
+    def open(self, run):
+        super().open(run)
+        self.n = 0
+
+    def write(self, chunk):
+        self.n += len(chunk.times)
+
+    def close(self):
+        p = Path(self.run.out_dir) / "frames.txt"
+        from laughlab.core import background
+
+        p.write_text(f"{label()} {self.n} {background.IN_HELPER}\\n")
+        return [p]
+
+
+@laughlab.hookimpl
+def register_sinks(register):
+    register(Frames)
+'''
+
+
+def test_a_background_sink_and_a_helper_module_in_the_plugins_dir(tmp_path):
+    """The plugin authors' review: a sink of the folder with ``background = True`` (as architecture.md allows)
+    failed every offline run with a PicklingError traceback (the helper process could not import
+    ``laughlab_local_plugins.NAME``); ``from .helpers import x`` worked only if the helper's file sorted first.
+    The folder is now the package ``laughlab_local_plugins`` in both processes.  The sink ran in the helper
+    process (and in the run's own with LAUGHLAB_WORKERS=0)."""
+    (tmp_path / "p").mkdir()
+    (tmp_path / "p" / "bgsink.py").write_text(BACKGROUND_SINK)
+    (tmp_path / "p" / "zz_helpers.py").write_text("def label():\n    return 'frames'\n")
+    r = run("plugins_dir=p", "detector=none", "input.duration_s=3", "hydra.run.dir=run", "+output.frames={}",
+            cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "run" / "frames.txt").read_text().split() == ["frames", "180", "True"]
+    r = run("plugins_dir=p", "detector=none", "input.duration_s=3", "hydra.run.dir=run2", "+output.frames={}",
+            "output.plots=null", cwd=tmp_path, env_workers="0")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "run2" / "frames.txt").read_text().split() == ["frames", "180", "False"]

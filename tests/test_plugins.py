@@ -1,4 +1,5 @@
 """Plugin registry: entry points, fake plugins registered in code, a plugins folder."""
+import re
 from dataclasses import dataclass
 
 import pytest
@@ -24,6 +25,27 @@ def test_builtins_come_from_entry_points():
         assert names <= set(reg[kind]), kind
         for name in names:
             assert "laughlab" in reg[kind][name].origin and "entry point" in reg[kind][name].origin
+
+
+def test_an_installed_plugin_with_a_misspelt_hook_is_one_line(monkeypatch):
+    """The plugin authors' review: a package's module with ``register_extractor`` (singular) or a hook without
+    ``@hookimpl`` was ignored without a word (only "unknown extractor" later), while the same module in a
+    plugins_dir is refused in one line.  Now the same checks, naming the entry point."""
+    import importlib.metadata
+    import types
+
+    for text, says in (("@laughlab.hookimpl\ndef register_extractor(register):\n    pass\n",
+                        "plugin typo (laughlab_typo.typo): register_extractor is not a laughlab hook"),
+                       ("def register_extractors(register):\n    pass\n",
+                        "plugin typo (laughlab_typo.typo): register_extractors is not marked @laughlab.hookimpl")):
+        module = types.ModuleType("laughlab_typo.typo")
+        exec("import laughlab\n" + text, module.__dict__)
+        ep = types.SimpleNamespace(name="typo", value="laughlab_typo.typo", load=lambda m=module: m, dist=None)
+        monkeypatch.setattr(importlib.metadata, "entry_points", lambda group: [ep] if group == "laughlab" else [])
+        monkeypatch.setattr(plugins, "_loaded_entry_points", False)
+        with pytest.raises(LaughlabError, match="^" + re.escape(says)):
+            plugins.load_entry_points()
+        assert plugins.pm.get_plugin("typo") is None
 
 
 @dataclass

@@ -69,6 +69,16 @@ def warm(modules: Sequence[str]) -> None:
         _HELPER.warm(modules)
 
 
+def local_package(folder) -> None:
+    """Have the helper (if one was started) know a ``plugins_dir`` as the main process does
+    (:func:`laughlab.core.plugins.local_package`): it unpickles the folder's background sinks by name."""
+    if _HELPER is not None:
+        try:
+            _send_msg(_HELPER.conn, ("package", str(folder)))
+        except OSError:  # a helper that went away is reported when a run takes it
+            pass
+
+
 def take() -> "Helper | None":
     """Hand the helper to one run (a helper serves one run)."""
     global _HELPER
@@ -226,6 +236,12 @@ def _serve(conn, parent_end) -> None:
             try:
                 if op == "warm":
                     _import(msg[1])
+                elif op == "package":
+                    from pathlib import Path
+
+                    from laughlab.core.localpackage import local_package
+
+                    local_package(Path(msg[1]))
                 elif op == "write":
                     if not failed:
                         for s in sinks:

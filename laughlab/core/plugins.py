@@ -23,6 +23,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from laughlab.core import hookspecs
 from laughlab.core.errors import LaughlabError, UnknownParameter, shown_path
+from laughlab.core.localpackage import LOCAL_PACKAGE, local_package
 
 hookimpl = pluggy.HookimplMarker("laughlab")
 
@@ -69,6 +70,8 @@ def load_entry_points() -> None:
             except Exception as exc:  # one broken plugin: say which, do not crash with a traceback
                 raise LaughlabError(f"plugin {ep.name} ({ep.value}) failed to load: {type(exc).__name__}: {exc}") \
                     from exc
+            if isinstance(plugin, type(sys)):   # a module: the hook checks of a plugins_dir module (a review: a
+                _check_hooks(plugin, f"{ep.name} ({ep.value})")   # misspelt hook in a package was ignored)
             pm.register(plugin, name=ep.name)
             dist = ep.dist
             _EP_ORIGINS[ep.name] = f"{dist.metadata['name']} {dist.version} (entry point)" if dist else "entry point"
@@ -86,18 +89,24 @@ def load_plugin_dir(path: str | Path) -> list[str]:
             if str(path).startswith("[") else ""
         raise LaughlabError(f"plugins_dir {str(path)!r} is not a folder{more}")
     loaded = []
+    local_package(folder)
+    from laughlab.core import background
+
+    background.local_package(folder)   # the helper process unpickles a background sink of the folder by name
     for file in sorted(folder.glob("*.py")):
-        mod_name = f"laughlab_local_plugins.{file.stem}"
+        mod_name = f"{LOCAL_PACKAGE}.{file.stem}"
         if pm.get_plugin(mod_name) is not None:
             continue
-        spec = importlib.util.spec_from_file_location(mod_name, file)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[mod_name] = module  # before executing: dataclasses look their module up there
-        try:
-            spec.loader.exec_module(module)
-        except Exception as exc:  # a broken user plugin is a user error
-            del sys.modules[mod_name]
-            raise LaughlabError(f"plugin {file} failed to import: {type(exc).__name__}: {exc}") from exc
+        module = sys.modules.get(mod_name)   # already imported by a sibling module (from .helpers import x)
+        if module is None:
+            spec = importlib.util.spec_from_file_location(mod_name, file)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[mod_name] = module  # before executing: dataclasses look their module up there
+            try:
+                spec.loader.exec_module(module)
+            except Exception as exc:  # a broken user plugin is a user error
+                sys.modules.pop(mod_name, None)
+                raise LaughlabError(f"plugin {file} failed to import: {type(exc).__name__}: {exc}") from exc
         try:
             _check_hooks(module, file)
             pm.register(module, name=mod_name)
@@ -111,7 +120,7 @@ def load_plugin_dir(path: str | Path) -> list[str]:
     return loaded
 
 
-def _check_hooks(module, file: Path) -> None:
+def _check_hooks(module, file: Path | str) -> None:
     """Refuse, in one line, a plugin module whose hooks laughlab would never call: a ``@hookimpl`` of no hook of
     laughlab's (``register_face``), or a ``register_*`` function left without ``@hookimpl`` (a review: both left
     the plugin silently unregistered, and the run said only that its name was unknown)."""
@@ -132,7 +141,7 @@ def _origin(plugin: Any) -> str:
     name = pm.get_name(plugin) or repr(plugin)
     if name in _EP_ORIGINS:
         return _EP_ORIGINS[name]
-    if name.startswith("laughlab_local_plugins."):
+    if name.startswith(LOCAL_PACKAGE + "."):
         return f"plugins dir: {getattr(plugin, '__file__', name)}"
     return f"registered: {name}"
 
