@@ -162,8 +162,8 @@ def task(cfg) -> dict:
             _CLAIM.finish(cfg_hash)
             _finished()
             hint = "" if _in_sweep() else f"; report: python -m laughlab report {out_dir}"   # a sweep: one at its end
-            print(f"{doc['experiment']}: {doc['n_trials']} trials in {duration_text(time.monotonic() - t0)} -> "
-                  f"{out_dir / 'results.json'}{hint}")
+            _done_line(f"{doc['experiment']}: {doc['n_trials']} trials in {duration_text(time.monotonic() - t0)} -> "
+                       f"{out_dir / 'results.json'}{hint}")
             return doc
         pipe = pipeline.build(cfg)
         from laughlab.harness.results import provenance
@@ -172,7 +172,7 @@ def task(cfg) -> dict:
         metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True), {"provenance": made})
         _CLAIM.finish(cfg_hash)
         _finished()
-        print(summary_line(cfg, metrics, out_dir, time.monotonic() - t0, skip=_CLAIM.user_files))
+        _done_line(summary_line(cfg, metrics, out_dir, time.monotonic() - t0, skip=_CLAIM.user_files))
         return metrics
     except rundir.InUse as exc:  # another process' run: touch nothing of it but what Hydra wrote over
         rundir.restore_hydra(out_dir, running=True)
@@ -208,6 +208,15 @@ def _finished() -> None:
     """A single run is done (marker complete): a stop signal is let go from now on (not in a sweep)."""
     if not _in_sweep():
         interrupts.finish(whole_process=_STARTED_AS_PROCESS)
+
+
+def _done_line(text: str) -> None:
+    """A finished run's closing line; a closed stdout (``| head``, ``| true``) is no fault of the run, which is
+    kept (a review: the broken pipe was taken for a failed write, the marker removed and the files left)."""
+    try:
+        print(text, flush=True)
+    except BrokenPipeError:
+        _quiet_stdout()
 
 
 def _in_sweep() -> bool:

@@ -543,3 +543,21 @@ def test_a_single_run_records_what_made_it(tmp_path):
                     "input_sha256": hashlib.sha256(wav.read_bytes()).hexdigest()}
     r = laughlab("input.duration_s=1", "~output.plots", f"hydra.run.dir={tmp_path / 'synth'}")
     assert json.loads((tmp_path / "synth" / "metrics.json").read_text())["provenance"]["input_sha256"] is None
+
+
+def test_a_run_whose_stdout_is_closed_is_kept_whole(tmp_path):
+    """The plugin authors' review: ``python -m laughlab ... | true`` finished the run, then the closing line's
+    broken pipe was taken for a failed write: "the run's partial output was removed", the marker went, every file
+    stayed and overwrite=true refused the folder as the user's.  The run is kept, its marker written, exit 0."""
+    run = tmp_path / "run"
+    p = subprocess.Popen([sys.executable, "-m", "laughlab", "detector=none", "input.duration_s=1", "output=[files]",
+                          "~output.plots", f"hydra.run.dir={run}"], cwd=ROOT, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    p.stdout.close()   # the reader went away before the closing line (| true, | head -0)
+    err = p.stderr.read()
+    assert p.wait(timeout=300) == 0 and err == "", err
+    marker = json.loads((run / ".laughlab-run.json").read_text())
+    assert marker["complete"] and {"channels.csv", "events.csv", "motion.bvh"} <= set(marker["files"])
+    r = laughlab_process("detector=none", "input.duration_s=1", "output=[files]", "~output.plots",
+                         f"hydra.run.dir={run}", "overwrite=true")
+    assert r.returncode == 0, r.stderr
