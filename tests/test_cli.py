@@ -128,6 +128,10 @@ def bad_files(tmp_path_factory):
      "characters such as ( ) [ ] = , ' or letters outside ASCII must be quoted: \"character='Avatar (1).vrm'\""),
     (["input.path=a=b.wav"], "cannot read the setting input.path=a=b.wav: a value with characters such as"),
     (["input=file", "input.path=a,b.wav"], "one value with a comma in it is quoted: \"input.path='a,b.wav'\""),
+    # a plugin authors' review: the list was quoted whole (a string), which the harness then refused
+    (["experiment=smoke", "+harness.conditions.mine=[face=facs,body=hill]"], "in a list, items with characters "
+     "such as = ( ) or letters outside ASCII are quoted one by one: \"+harness.conditions.mine=['face=facs',"
+     "'body=hill']\""),
     (["seed=2", "input.path=x[1].wav"], "cannot read the setting input.path=x[1].wav: "),
     (["input.path=it's.wav"], "must be quoted: \"input.path='it\\'s.wav'\" (the double quotes for the shell)"),
     (["-m", "seed=1,2", "input.path=a (1).wav"], "cannot read the setting input.path=a (1).wav: "),
@@ -561,3 +565,12 @@ def test_a_run_whose_stdout_is_closed_is_kept_whole(tmp_path):
     r = laughlab_process("detector=none", "input.duration_s=1", "output=[files]", "~output.plots",
                          f"hydra.run.dir={run}", "overwrite=true")
     assert r.returncode == 0, r.stderr
+
+
+def test_the_documented_way_to_add_a_condition_composes():
+    """docs/experiments.md's form (the plugin authors' review: its earlier '[face=facs]' was refused)."""
+    from laughlab.core.config import compose_config
+
+    cfg = compose_config(["experiment=smoke", "+harness.conditions.facs=['face=facs']"])
+    assert list(cfg.harness.conditions.facs) == ["face=facs"] and len(cfg.harness.conditions) >= 2
+    assert "`\"+harness.conditions.facs=['face=facs']\"` adds one" in (ROOT / "docs" / "experiments.md").read_text()

@@ -353,3 +353,17 @@ def test_a_background_sink_and_a_helper_module_in_the_plugins_dir(tmp_path):
             "output.plots=null", cwd=tmp_path, env_workers="0")
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "run2" / "frames.txt").read_text().split() == ["frames", "180", "False"]
+
+
+def test_a_plugin_sinks_parameter_without_plus_says_how(tmp_path):
+    """The plugin authors' review: ``+output.frames={} output.frames.precision=5`` said "unknown parameter
+    output.frames.precision; valid: output.plots.max_seconds" (another sink's); the sink's node exists only once
+    ``+`` adds it."""
+    (tmp_path / "p").mkdir()
+    (tmp_path / "p" / "bgsink.py").write_text(BACKGROUND_SINK.replace("from .zz_helpers import label", "label = str"))
+    r = run("plugins_dir=p", "input.duration_s=1", "hydra.run.dir=run", "+output.frames={}",
+            "output.frames.precision=5", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr == (
+        "laughlab: error: output.frames is a plugin's sink, which has no output option: its parameters are added "
+        "with +, +output.frames.precision=5 (that also adds the sink)\n"), r.stderr
+    assert not (tmp_path / "run").exists()

@@ -1,6 +1,6 @@
 """Plugin registry: entry points, fake plugins registered in code, a plugins folder."""
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import pytest
 
@@ -144,3 +144,28 @@ def test_plugins_dir_errors(tmp_path):
     (tmp_path / "broken.py").write_text("raise RuntimeError('boom')\n")
     with pytest.raises(LaughlabError, match="broken.py failed to import: RuntimeError: boom"):
         plugins.load_plugin_dir(tmp_path)
+
+
+@dataclass
+class WindowParams:
+    window_samples: int = field(default=2_000_000, metadata={"large": True})   # 45 s at 44.1 kHz
+    rate: float = field(default=1e7, metadata={"large": True})
+    gain: float = 1.0
+
+
+class Window(Extractor):
+    name = "win"
+    Params = WindowParams
+
+
+def test_a_field_declared_large_takes_numbers_beyond_a_million_but_finite():
+    """The plugin authors' review: a plugin's own default of 2,000,000 samples was refused ("magnitude at most
+    1e+06") with no way out.  ``metadata={"large": True}`` lifts the bound; NaN and infinities stay refused, and
+    the other fields keep it."""
+    p = plugins.make_params(Window, {}, "extractor=win")
+    assert (p.window_samples, p.rate) == (2_000_000, 1e7)
+    assert plugins.make_params(Window, {"window_samples": 10**9}, "extractor=win").window_samples == 10**9
+    with pytest.raises(LaughlabError, match=r"^bad parameter extractor=win\.rate: it must be a finite number \(got inf\)$"):
+        plugins.make_params(Window, {"rate": float("inf")}, "extractor=win")
+    with pytest.raises(LaughlabError, match=r"^bad parameter extractor=win\.gain: .*at most 1e\+06 \(got 2000000\.0\)$"):
+        plugins.make_params(Window, {"gain": 2e6}, "extractor=win")

@@ -229,6 +229,11 @@ def unreadable_override(text: str, overrides=()) -> str | None:
     key, value = line.split("=", 1)
     if not re.fullmatch(r"[\w.+~/@-]+", key):
         return None
+    if value.startswith("[") and value.endswith("]") and "'" not in value and '"' not in value:
+        # a list (a condition's overrides): its items are quoted, not the list, which would be one string
+        items = ",".join(f"'{item.strip()}'" for item in value[1:-1].split(",") if item.strip())
+        return (f"cannot read the setting {line}: in a list, items with characters such as = ( ) or letters "
+                f"outside ASCII are quoted one by one: \"{key}=[{items}]\" (the double quotes for the shell)")
     quoted = value.replace("'", "\\'")   # Hydra's quoted values: a backslash escapes the quote after it
     return (f"cannot read the setting {line}: a value with characters such as ( ) [ ] = , ' or letters outside "
             f"ASCII must be quoted: \"{key}='{quoted}'\" (the double quotes for the shell)")
@@ -274,6 +279,21 @@ def _nearest_top_level(key: str) -> str | None:
     return found[0] if found else None
 
 
+def _plugin_sink_key(rest: str, overrides: list[str]) -> str | None:
+    """``output.NAME.KEY`` of a plugin's sink with no output option (``conf/output/NAME.yaml``): its node is not
+    in the configuration until ``+`` adds it, so a parameter is set as ``+output.NAME.KEY=V`` (a review: the line
+    listed the plots' parameters as the valid ones)."""
+    from laughlab.core import plugins
+
+    sink, _, param = rest.partition(".")
+    if not param or conf_dir().joinpath("output", f"{sink}.yaml").is_file() \
+            or sink not in plugins.registry()["sink"]:
+        return None
+    value = next((o.split("=", 1)[1] for o in overrides if o.lstrip("+").split("=", 1)[0] == f"output.{rest}"), "V")
+    return (f"output.{sink} is a plugin's sink, which has no output option: its parameters are added with +, "
+            f"+output.{rest}={value} (that also adds the sink)")
+
+
 def _misplaced(key: str, overrides: list[str]) -> str | None:
     """An unknown ``key`` that another option of its group has (``scheduler.mode`` under scheduler=energy),
     or that a group has when given without the group (``mode=fast``): the line saying what to write."""
@@ -287,6 +307,8 @@ def _misplaced(key: str, overrides: list[str]) -> str | None:
     if group in GROUP_KINDS and rest:
         explicit = any(o.lstrip("+~").split("=", 1)[0] == group for o in overrides)
         hint = misplaced_parameter(group, choices.get(group), rest, explicit)
+        if hint is None and group == "output":
+            hint = _plugin_sink_key(rest, overrides)
         if hint is None and group == "output":
             # an output's parameters sit under its name (output.vmc.port): say which outputs have this one
             options = keyhints.option_keys(conf_dir().joinpath("output"), None)

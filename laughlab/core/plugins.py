@@ -262,10 +262,11 @@ def make_params(cls: type, values: Any, where: str) -> Any:
     merged = None
     try:
         merged = OmegaConf.merge(_schema(params_cls), values)
-        bad = first_nonfinite(OmegaConf.to_container(merged, resolve=True), nonfinite_ok(params_cls))
+        bad = first_nonfinite(OmegaConf.to_container(merged, resolve=True), nonfinite_ok(params_cls),
+                              large=large_ok(params_cls))
         if bad is not None:
-            raise LaughlabError(f"bad parameter {typed(where, bad[0])}: it must be a finite number of magnitude at "
-                                f"most {MAX_MAGNITUDE:g} (got {bad[1]})")
+            bound = "" if bad[0] in large_ok(params_cls) else f" of magnitude at most {MAX_MAGNITUDE:g}"
+            raise LaughlabError(f"bad parameter {typed(where, bad[0])}: it must be a finite number{bound} (got {bad[1]})")
         return OmegaConf.to_object(merged)
     except OmegaConfBaseException as exc:
         msg = str(exc).splitlines()[0]
@@ -320,12 +321,27 @@ def nonfinite_ok(params_cls: type) -> frozenset:
     return frozenset(f.name for f in fields(params_cls) if f.metadata.get("nonfinite"))
 
 
-def first_nonfinite(values: Any, allowed: frozenset = frozenset(), path: str = "") -> tuple[str, float] | None:
+def large_ok(params_cls: type) -> frozenset:
+    """Fields of a ``Params`` dataclass that take finite numbers beyond :data:`MAX_MAGNITUDE`
+    (``metadata={"large": True}``: a count of samples, an FFT size; a plugin review: a 2,000,000-sample window,
+    the plugin's own default, was refused)."""
+    return frozenset(f.name for f in fields(params_cls) if f.metadata.get("large"))
+
+
+def first_nonfinite(values: Any, allowed: frozenset = frozenset(), path: str = "",
+                    large: frozenset = frozenset()) -> tuple[str, float] | None:
     """The first NaN, infinite or huge float in nested parameter values: ``(dotted key, value)``, or None.
 
     One place for every plugin: a numeric parameter that is NaN, infinite or beyond
-    ``MAX_MAGNITUDE`` (whole numbers too, but seeds) is a user error unless its field is in ``allowed``.
+    ``MAX_MAGNITUDE`` (whole numbers too, but seeds) is a user error unless its field is in ``allowed``
+    (any number) or ``large`` (any finite number).
     """
+    if not path and isinstance(values, dict) and large:
+        for k in large & values.keys():
+            v = values[k]
+            if isinstance(v, float) and not math.isfinite(v):
+                return k, v
+        values = {k: v for k, v in values.items() if k not in large}
     if isinstance(values, float):
         return None if math.isfinite(values) and abs(values) <= MAX_MAGNITUDE else (path, values)
     if isinstance(values, int) and not isinstance(values, bool):  # seeds are names, not amounts
