@@ -165,9 +165,18 @@ def test_a_channel_that_is_not_a_number_is_one_line_naming_it(tmp_path):
         'frame.channels["jaw"] = min(1.0, frame.control["mcs"] * self.params.gain)',
         'frame.channels["jaw"] = "wide" if frame.index == 7 else 0.5'))
     r = run("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
-    assert r.returncode == 2 and r.stderr == (
-        "laughlab: error: channel 'jaw' is 'wide' (str) at frame 7: channel values are numbers; the plugin that "
-        "writes it has a bug, so nothing was written\n")
+    assert r.returncode == 1 and r.stderr == (
+        "laughlab: error: channel 'jaw' is 'wide' (str) at frame 7: channel values are numbers; a bug in the plugin "
+        "that writes it (laughlab's own plugins: please report it); nothing was written\n")
+    assert not (tmp_path / "run").exists()
+    # None (numpy took it for NaN: "is nan ... please report it", exit 2: the plugin authors' review)
+    (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace(
+        'frame.channels["jaw"] = min(1.0, frame.control["mcs"] * self.params.gain)',
+        'frame.channels["jaw"] = None if frame.index == 20 else 0.5'))
+    r = run("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
+    assert r.returncode == 1 and r.stderr == (
+        "laughlab: error: channel 'jaw' is None at frame 20: a bug in the plugin that writes it (laughlab's own "
+        "plugins: please report it); nothing was written\n"), r.stderr
     assert not (tmp_path / "run").exists()
 
 

@@ -83,22 +83,35 @@ def not_a_number(key: str, values: list, first_frame: int) -> str:
     else:
         j, v = 0, values[0]
     return (f"channel {key!r} is {str(v)[:40]!r} ({type(v).__name__}) at frame {first_frame + j}: channel values "
-            f"are numbers; the plugin that writes it has a bug, so nothing was written")
+            f"are numbers; {WHOSE}; nothing was written")
 
 
-def check_finite(vals: dict, poses, first_frame: int) -> None:
+class PluginBug(LaughlabError):
+    """A plugin's value no writer takes (not a number, NaN, infinite): one line, and the exit status of a plugin
+    that raises, 1 (it exited 2, a user error's, and asked the author of a plugin of their own to report it to
+    laughlab: the plugin authors' review)."""
+
+    exit_code = 1
+
+
+#: what the line asks of the user: the plugin is theirs, or laughlab's
+WHOSE = "a bug in the plugin that writes it (laughlab's own plugins: please report it)"
+
+
+def check_finite(vals: dict, poses, first_frame: int, raw=None) -> None:
     """The guard before every writer: a NaN or infinite channel or pose value is a plugin's bug, never output.
 
-    Raises LaughlabError naming the channel (or pose column) and the first frame
-    where it happens; the run then removes what it wrote.
+    Raises :class:`PluginBug` naming the channel (or pose column), the value (``None`` as the plugin gave it:
+    ``raw(key, j)``, the value written) and the first frame where it happens; the run then removes what it wrote.
     """
     import numpy as np   # not at import: the command line starts without numpy
     for k, arr in vals.items():
         if not np.isfinite(arr).all():
             j = int(np.argmin(np.isfinite(arr)))
-            raise LaughlabError(f"channel {k!r} is {arr[j]} at frame {first_frame + j}: a plugin computed a "
-                                f"non-finite value, so nothing was written (please report it)")
+            v = raw(k, j) if raw is not None else arr[j]
+            raise PluginBug(f"channel {k!r} is {'None' if v is None else arr[j]} at frame {first_frame + j}: "
+                            f"{WHOSE}; nothing was written")
     if len(poses) and not np.isfinite(poses).all():
         j, c = (int(x[0]) for x in np.nonzero(~np.isfinite(poses)))
-        raise LaughlabError(f"pose column {c} is {poses[j, c]} at frame {first_frame + j}: a non-finite joint "
-                            f"value, so nothing was written (please report it)")
+        raise PluginBug(f"pose column {c} is {poses[j, c]} at frame {first_frame + j}: a non-finite joint "
+                        f"value, {WHOSE}; nothing was written")

@@ -234,8 +234,9 @@ class _Recorder:
                 except KeyError:
                     raise LaughlabError(f"channel {k!r} is not written every frame") from None
                 except (TypeError, ValueError):   # a value that is not a number: say which and where
-                    raise LaughlabError(blame.not_a_number(k, [d[k] for d in dicts], self.done)) from None
-        blame.check_finite(vals, poses, self.done)
+                    raise blame.PluginBug(blame.not_a_number(k, [d[k] for d in dicts], self.done)) from None
+        blame.check_finite(vals, poses, self.done, raw=lambda k, j: next(  # the value as given (None), on failure
+            ds[j][k] for keys, ds in zip(self.keys, (self.controls, self.outputs)) if k in keys))
         chunk = Chunk(np.array(self.times, dtype=np.float64), vals, poses, self.events, self.labels,
                       np.array(self.capture, dtype=np.int64))
         self.done += i
