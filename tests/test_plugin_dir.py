@@ -6,6 +6,8 @@ import json
 import subprocess
 import sys
 
+import pytest
+
 PLUGIN = '''
 from dataclasses import dataclass
 
@@ -157,26 +159,21 @@ def test_a_plugin_that_raises_is_named_with_its_frame_and_its_own_lines(tmp_path
     assert not (tmp_path / "exp" / "results.json").exists()
 
 
-def test_a_channel_that_is_not_a_number_is_one_line_naming_it(tmp_path):
+@pytest.mark.parametrize("value, says", [
+    ('"wide" if frame.index == 7 else 0.5', "channel 'jaw' is 'wide' (str) at frame 7: channel values are numbers; "),
+    # None: numpy took it for NaN ("is nan ... please report it", exit 2: the plugin authors' review)
+    ("None if frame.index == 20 else 0.5", "channel 'jaw' is None at frame 20: "),
+])
+def test_a_channel_that_is_not_a_number_is_one_line_naming_it(tmp_path, value, says):
     """The plugin review: a face writing a string into a channel failed in numpy's conversion, a traceback that
-    named neither the channel nor the frame."""
+    named neither the channel nor the frame.  Exit status 1, as a plugin that raises."""
     (tmp_path / "p").mkdir()
     (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace(
-        'frame.channels["jaw"] = min(1.0, frame.control["mcs"] * self.params.gain)',
-        'frame.channels["jaw"] = "wide" if frame.index == 7 else 0.5'))
+        'frame.channels["jaw"] = min(1.0, frame.control["mcs"] * self.params.gain)', f'frame.channels["jaw"] = {value}'))
     r = run("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
     assert r.returncode == 1 and r.stderr == (
-        "laughlab: error: channel 'jaw' is 'wide' (str) at frame 7: channel values are numbers; a bug in the plugin "
-        "that writes it (laughlab's own plugins: please report it); nothing was written\n")
-    assert not (tmp_path / "run").exists()
-    # None (numpy took it for NaN: "is nan ... please report it", exit 2: the plugin authors' review)
-    (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace(
-        'frame.channels["jaw"] = min(1.0, frame.control["mcs"] * self.params.gain)',
-        'frame.channels["jaw"] = None if frame.index == 20 else 0.5'))
-    r = run("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
-    assert r.returncode == 1 and r.stderr == (
-        "laughlab: error: channel 'jaw' is None at frame 20: a bug in the plugin that writes it (laughlab's own "
-        "plugins: please report it); nothing was written\n"), r.stderr
+        f"laughlab: error: {says}a bug in the plugin that writes it (laughlab's own plugins: please report it); "
+        "nothing was written\n"), r.stderr
     assert not (tmp_path / "run").exists()
 
 
