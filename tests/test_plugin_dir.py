@@ -304,6 +304,11 @@ def test_plugins_dir_is_one_folder(tmp_path):
             "folder") in r.stderr
     r = run("plugins_dir=[a,b]", "input.duration_s=1", cwd=tmp_path)
     assert r.returncode == 2 and "is not a folder (plugins_dir is one folder: put every plugin module" in r.stderr
+    # the plugin authors' review: `plugins` listed both folders' plugins, a set-up no run accepts
+    r = run("plugins", "plugins_dir=a", "plugins_dir=b", cwd=tmp_path)
+    assert r.returncode == 2 and r.stdout == "" and r.stderr == (
+        "laughlab: error: plugins_dir is given 2 times (plugins_dir=a, plugins_dir=b): it is one folder; put every "
+        "plugin module and experiment/ in it\n"), r.stderr
 
 
 BACKGROUND_SINK = '''

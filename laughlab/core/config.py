@@ -52,11 +52,21 @@ def load_plugin_dirs(overrides) -> None:
     own configuration in processes of their own (a review: ``face=NAME`` of a plugins_dir plugin was unknown there)."""
     from laughlab.core import plugins
 
+    one_plugins_dir(overrides)
     for ov in overrides:
         key, _, value = str(ov).partition("=")
         if key.lstrip("+~") == "plugins_dir" and value and value != "null":
             plugins.load_plugin_dir(value)
             _load_experiments(Path(value).expanduser() / "experiment")
+
+
+def one_plugins_dir(overrides) -> None:
+    """``plugins_dir`` is one folder: given twice, each would load, but a run and its trial workers keep only the
+    last (a review), and ``python -m laughlab plugins`` listed both (another)."""
+    dirs = [str(ov) for ov in overrides if str(ov).split("=")[0].lstrip("+") == "plugins_dir"]
+    if len(dirs) > 1:
+        raise LaughlabError(f"plugins_dir is given {len(dirs)} times ({', '.join(dirs)}): it is one folder; put every "
+                            "plugin module and experiment/ in it")
 
 
 #: experiments of a plugins_dir (``PLUGINS_DIR/experiment/NAME.yaml``): name -> file
@@ -440,10 +450,7 @@ def check_overrides(overrides: list[str]) -> None:
     key no part of laughlab reads (``+fsp=30``, a typo of ``fps``, was added and ignored)."""
     from laughlab.core import plugins
 
-    dirs = [ov for ov in overrides if ov.split("=")[0].lstrip("+") == "plugins_dir"]
-    if len(dirs) > 1:   # each was loaded, but a run and its trial workers keep only the last (a review)
-        raise LaughlabError(f"plugins_dir is given {len(dirs)} times ({', '.join(dirs)}): it is one folder; put every "
-                            "plugin module and experiment/ in it")
+    one_plugins_dir(overrides)
     for ov in overrides:
         key = ov.split("=")[0].lstrip("+")
         root = re.split(r"[./]", key)[0]
