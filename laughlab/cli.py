@@ -17,7 +17,7 @@ from laughlab.core import blame, clock, interrupts, quiet
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, check_overrides,  # noqa: F401
                                   compose_config, conf_dir, group_options, load_plugin_dirs,
                                   register_plugin_configs)
-from laughlab.cli_help import check_flags, check_sweep_flags, help_text
+from laughlab.cli_help import check_flags, check_sweep_flags, help_text, local_options
 from laughlab.core.errors import LaughlabError, RefusedFolder, one_line_parser, shown_path
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
@@ -357,6 +357,12 @@ def main(argv: list[str] | None = None) -> None:
 def _main(argv: list[str]) -> None:
     if argv in (["--help"], ["-h"], ["help"]):
         print(help_text())
+        return
+    if {"--help", "-h"} & set(argv) and all(a in ("--help", "-h") or a.startswith("plugins_dir=") for a in argv):
+        try:   # a review: Hydra's generic help replaced laughlab's
+            print(help_text(local_options(argv)))
+        except LaughlabError as exc:
+            fail(str(exc))
         return
     commands = ("detect", "report", "corpus", "study", "view")
     for name in commands:

@@ -26,8 +26,10 @@ examples:
 """
 
 
-def help_text() -> str:
-    """``--help``: the groups and their options, examples, where the docs are (no Hydra, no plugins import)."""
+def help_text(extra: dict | None = None) -> str:
+    """``--help``: the groups and their options, examples, where the docs are (no Hydra, no plugins import).
+    ``extra``: group -> the options a ``plugins_dir`` adds (``plugins_dir=PATH --help``; a plugin's sink is
+    ``+output.NAME={}``)."""
     lines = ["usage: python -m laughlab [group=option ...] [key.path=value ...] [-m for a sweep]", "",
              "Audio-driven laughter animation: pick one plugin per group, set any parameter by its path.", "",
              "groups (default first; third-party plugins add options: python -m laughlab plugins; a folder of",
@@ -43,12 +45,25 @@ def help_text() -> str:
         names = sorted(p.name[:-5] for p in d.iterdir() if p.name.endswith(".yaml")) if d.is_dir() else []
         first = defaults.get(g)
         names = ([first] if first in names else []) + [n for n in names if n != first]
-        lines.append(f"  {g + ':':<12} {', '.join(names)}")
+        mine = [f"+output.{n}={{}}" if g == "output" else n for n in (extra or {}).get(g, ())]
+        lines.append(f"  {g + ':':<12} {', '.join(names)}" + (f"; plugins_dir: {', '.join(mine)}" if mine else ""))
     lines += ["", HELP_EXAMPLES.rstrip(), "",
               "docs: README.md and the docs/ pages it links (pipeline.md: outputs; experiments.md; papers.md:",
               "what each plugin implements; benchmarks.md); each conf/<group>/<option>.yaml explains its parameters.",
               "Hydra's own flags: python -m laughlab --hydra-help"]
     return "\n".join(lines)
+
+
+def local_options(argv: list[str]) -> dict:
+    """group -> the plugins and experiments a ``plugins_dir=`` among ``argv`` adds, for ``--help``."""
+    from laughlab.core import config, plugins
+
+    config.load_plugin_dirs(argv)
+    out = {plugins.group_of(kind): sorted(n for n, info in named.items() if info.origin.startswith("plugins dir"))
+           for kind, named in plugins.registry().items()}
+    builtin = {p.name[:-5] for p in conf_dir().joinpath("experiment").glob("*.yaml")}
+    out["experiment"] = [n for n in config.group_options("experiment") if n not in builtin]
+    return out
 
 
 #: top-level keys a user may write as a --flag out of habit (--seed 3): the line says to write KEY=VALUE

@@ -378,3 +378,19 @@ def test_a_plugin_sinks_parameter_without_plus_says_how(tmp_path):
         "laughlab: error: output.frames is a plugin's sink, which has no output option: its parameters are added "
         "with +, +output.frames.precision=5 (that also adds the sink)\n"), r.stderr
     assert not (tmp_path / "run").exists()
+
+
+def test_help_with_a_plugins_dir_lists_its_plugins_in_laughlabs_own_help(tmp_path):
+    """The plugin authors' review: ``plugins_dir=p --help`` gave Hydra's generic 125-line help, not laughlab's."""
+    (tmp_path / "p" / "experiment").mkdir(parents=True)
+    (tmp_path / "p" / "gape.py").write_text(PLUGIN)
+    (tmp_path / "p" / "experiment" / "mine.yaml").write_text("# @package _global_\nharness:\n  conditions:\n"
+                                                             "    a: [face=gape]\n")
+    r = run("plugins_dir=p", "--help", cwd=tmp_path)
+    assert r.returncode == 0 and r.stdout.startswith("usage: python -m laughlab [group=option ...]"), r.stderr
+    lines = r.stdout.splitlines()
+    assert "  face:        smile, cgm, facs; plugins_dir: gape" in lines
+    assert any(ln.startswith("  experiment:  ") and ln.endswith("; plugins_dir: mine") for ln in lines)
+    assert "Hydra" not in r.stdout.split("Hydra's own flags")[0]
+    r = run("plugins_dir=nope", "--help", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr == "laughlab: error: plugins_dir 'nope' is not a folder\n"
