@@ -27,6 +27,7 @@ class Gape(Face):
 
     def step(self, frame):
         frame.channels["jaw"] = min(1.0, frame.control["mcs"] * self.params.gain)
+        frame.channels.update(smile=0.5, blink=0.0, eyes_closed=0.0)   # the rest of a face's channels
 
 
 @laughlab.hookimpl
@@ -86,9 +87,11 @@ BAD = {
     "params": (PLUGIN.replace("@dataclass\nclass GapeParams", "class GapeParams"),
                "p.py): its Params must be a @dataclass (got 'GapeParams')"),
     "no_name": (PLUGIN.replace('    name = "gape"\n', ""), "p.py has no name: give its class name = '...', the name "),
-    # a face registered as a body
+    # a face registered as a body (the plugin authors' review: `body=gape` then ran it as the body, no chest/belly)
     "kind": (PLUGIN.replace("register_faces", "register_bodies"),
-             "unknown face 'gape'; choose one of: cgm, facs, smile ('gape' is registered as a body, plugins dir: "),
+             "body plugin 'gape' (Gape, plugins dir: "),
+    "kind_duck": (PLUGIN.replace("register_faces", "register_bodies").replace("class Gape(Face)", "class Gape"),
+                  "unknown face 'gape'; choose one of: cgm, facs, smile ('gape' is registered as a body, plugins dir: "),
     # a plain function as a metric
     "metric": ("import laughlab\n\ndef gape_mean(trial):\n    return 0.0\n\n@laughlab.hookimpl\n"
                "def register_metrics(register):\n    register(gape_mean)\n",
@@ -394,3 +397,16 @@ def test_help_with_a_plugins_dir_lists_its_plugins_in_laughlabs_own_help(tmp_pat
     assert "Hydra" not in r.stdout.split("Hydra's own flags")[0]
     r = run("plugins_dir=nope", "--help", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr == "laughlab: error: plugins_dir 'nope' is not a folder\n"
+
+
+def test_a_face_that_writes_only_the_jaw_runs_with_one_warning(tmp_path):
+    """The plugin authors' review: a face without blink or eyes_closed ran without a word (an experiment's jaw and
+    blink metrics then went n/a).  A face of the jaw alone is a fair experiment: it runs, and one line says what
+    stays at rest."""
+    (tmp_path / "p").mkdir()
+    (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace("smile=0.5, blink=0.0, eyes_closed=0.0", "smile=0.5"))
+    r = run("plugins_dir=p", "face=gape", "detector=none", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
+    assert r.returncode == 0 and r.stderr == (
+        "laughlab: warning: face 'gape' writes no blink, eyes_closed (a face writes smile, jaw, blink, eyes_closed: "
+        "docs/architecture.md); the character's blink/eyes_closed stay at rest and the metrics that read them are "
+        "n/a\n"), r.stderr

@@ -191,9 +191,8 @@ class _Recorder:
     the floats are the same.
     """
 
-    def __init__(self, n: int, n_channels: int):
-        self.n = n
-        self.n_channels = n_channels
+    def __init__(self, n: int, n_channels: int, names: dict | None = None):
+        self.n, self.n_channels, self.names = n, n_channels, names   # names: stage -> plugin, for the contract
         self.keys: tuple | None = None
         self.done = 0  # frames handed out in earlier chunks
         self._reset()
@@ -209,6 +208,8 @@ class _Recorder:
 
     def add(self, frame: Frame, capture_ns: int = 0) -> None:
         if self.keys is None:
+            if self.names is not None:
+                blame.check_contract(frame.channels, self.names)
             self.keys = (tuple(frame.control), tuple(frame.channels))
         self.capture.append(capture_ns)
         self.controls.append(frame.control)
@@ -316,7 +317,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
     info = RunInfo(out_dir, ctx.fps, ctx.skeleton, src.n_frames, src, config)
     opened = []
     n_chunk = chunk_frames(pipe)
-    rec = _Recorder(n_chunk, ctx.skeleton.n_channels)
+    rec = _Recorder(n_chunk, ctx.skeleton.n_channels, {"face": pipe.face.name, "body": pipe.body.name})
     times = FrameSample("q")  # per-frame compute time (ns), 8 bytes a frame, bounded (a session until Ctrl-C)
     bar = _progress_bar(pipe)
     artifacts: list[Path] = []

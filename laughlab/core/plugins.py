@@ -182,6 +182,14 @@ def _check_class(kind: str, name: str, cls: type, origin: str) -> None:
     parameters were then called another plugin's)."""
     import inspect
 
+    from laughlab.core import bases
+
+    base = {"source": bases.Source, "extractor": bases.Extractor, "detector": bases.Detector,
+            "scheduler": bases.Scheduler, "body": bases.Body, "face": bases.Face, "sink": bases.Sink}
+    other = [k for k, b in base.items() if k != kind and issubclass(cls, b) and not issubclass(cls, base.get(kind, b))]
+    if other:   # a plugin authors' review: a Face registered by register_bodies ran as the body, no chest or belly
+        raise LaughlabError(f"{kind} plugin {name!r} ({cls.__name__}, {origin}) is a {other[0].capitalize()}: register "
+                            f"it with {KINDS[other[0]]}")
     if inspect.isabstract(cls):
         missing = ", ".join(f"{m}()" for m in sorted(cls.__abstractmethods__))
         raise LaughlabError(f"{kind} plugin {name!r} ({cls.__name__}, {origin}) does not define {missing}")
