@@ -169,7 +169,7 @@ def run_power(ns) -> None:
     import csv
 
     from laughlab.study import power as W
-    from laughlab.study.design import load_design
+    from laughlab.study.design import load_design, scale_range
 
     if ns.sims < 1 or not 0 < ns.alpha < 1 or not 0 < ns.target < 1:
         raise LaughlabError("--sims must be >= 1, --alpha and --target between 0 and 1")
@@ -179,10 +179,11 @@ def run_power(ns) -> None:
     design = load_design(Path(ns.study_dir).expanduser())
     out = Path(ns.out).expanduser() if ns.out else Path(ns.study_dir).expanduser() / "power"
     W.check_out(out)   # before the simulations: they take minutes
-    var, icpt, source = None, (design["points"] + 1) / 2 if design["scale"] == "likert" else 4.0, "defaults"
+    var, icpt, source = None, sum(scale_range(design)) / 2, "defaults"   # the scale's middle (4 on 1..7)
     if ns.pilot:
         var, icpt, q = W.pilot_variance(ns.pilot, ns.question)
         source = f"pilot {ns.pilot} ({q})"
+    W.check_effect(ns.effect, icpt, scale_range(design))   # before the simulations: they take minutes
     rows = W.power(design, (a, b), ns.effect, ns.participants, ns.sims, ns.alpha, var, icpt, ns.seed,
                    progress=lambda m: print(m, file=sys.stderr, flush=True))
     if ns.sims < 100:   # a power of 0.8 from 5 simulations is 0.38-0.96 (Wilson): say so, not only in the CSV
