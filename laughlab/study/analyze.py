@@ -2,7 +2,8 @@
 
 Input: the study's database (``responses.sqlite``: the design travels inside it), or CSV files in
 the same columns (the page's "download my answers" files, one file or a folder of them; then
-``--design STUDY_DIR`` supplies the exclusion rules and the condition order, else the defaults).
+``--design STUDY_DIR`` supplies the exclusion rules, the condition order and what every row is checked
+against, else the defaults): read by ``laughlab.study.answers``.
 
 Steps, each written to the report folder:
 
@@ -54,64 +55,9 @@ import numpy as np
 
 from laughlab.core.errors import LaughlabError
 from laughlab.study import db as DB
+from laughlab.study.answers import load
 
 DEFAULT_RULES = {"audio_check": True, "attention_max_fail": 0, "straightline": True}
-
-
-# -- reading --------------------------------------------------------------------------------------------------------
-
-def load(source, design_dir=None):
-    """The answers (a DataFrame in :data:`DB.COLUMNS`) and the design (or None) of a database or CSV(s)."""
-    import pandas as pd
-
-    from laughlab.study.design import load_design
-
-    source = Path(source).expanduser()
-    design = None
-    if source.is_dir():
-        files = sorted(source.glob("*.csv"))
-        if not files:
-            raise LaughlabError(f"{source} holds no .csv files of answers")
-        frames = [_read_csv(f) for f in files]
-        df = pd.concat(frames, ignore_index=True)
-    elif source.suffix.lower() == ".csv":
-        df = _read_csv(source)
-    elif source.is_file():
-        df = pd.DataFrame(DB.rows(source), columns=list(DB.COLUMNS))
-        design = DB.stored_design(source)
-    else:
-        raise LaughlabError(f"no database or CSV at {source}")
-    if design_dir is not None:
-        design = load_design(Path(design_dir).expanduser())
-    if df.empty:
-        raise LaughlabError(f"{source} holds no answers yet")
-    for c in ("participant", "trial", "order_row"):
-        df[c] = pd.to_numeric(df[c], errors="coerce").astype("Int64")
-    for c in ("value", "expected", "rt_ms"):
-        df[c] = pd.to_numeric(df[c], errors="coerce")
-    for c in ("stimulus", "condition", "audio_id", "kind", "question", "text"):
-        df[c] = df[c].fillna("").astype(str)
-    dup = df[df["kind"] != ""].duplicated(["participant", "trial", "question"], keep="first")
-    if dup.any():  # the same participant's CSV twice (a download and a re-download): keep one copy
-        df = df[~dup].reset_index(drop=True)
-    return df, design
-
-
-def _read_csv(path: Path):
-    import pandas as pd
-
-    try:
-        df = pd.read_csv(path, dtype=str, keep_default_na=False)
-    except Exception as exc:  # noqa: BLE001 - a broken file: one line
-        raise LaughlabError(f"cannot read {path}: {exc}") from None
-    missing = [c for c in ("participant", "trial", "stimulus", "condition", "kind", "question", "value")
-               if c not in df.columns]
-    if missing:
-        raise LaughlabError(f"{path} lacks the column(s) {', '.join(missing)} of a study's answers")
-    for c in DB.COLUMNS:
-        if c not in df.columns:
-            df[c] = ""
-    return df[list(DB.COLUMNS)].replace("", np.nan).astype(object)
 
 
 # -- exclusions -----------------------------------------------------------------------------------------------------

@@ -1,0 +1,121 @@
+"""Hand-edited CSV answers for ``study analyze`` (laughlab.study.answers): every row is checked against the
+design, and the first that does not fit is one line naming the file, its line and the column (a review: a 55
+on a 1..7 scale turned a mean of 4 into 10.25, a typo in a condition or question made a new one, "5a" or a
+misspelt kind was dropped in silence, and "1x" as a participant gave a pandas traceback)."""
+import csv
+import json
+
+import pytest
+
+import fuzz
+
+CONDITIONS = ["smile_only", "laugh_energy"]
+COLUMNS = ["participant", "order_row", "trial", "stimulus", "condition", "audio_id", "kind", "question", "value",
+           "text", "expected"]
+
+
+def small_design() -> dict:
+    """2 conditions x 2 audio items, 3 participants rating all 4 videos, one question on 7 points, an attention
+    item (answer 2) in trial 2, the audio check."""
+    stimuli = {f"{c}-{a}": {"file": f"stimuli/{c}-{a}.mp4", "condition": c, "audio_id": a, "duration_s": 1.0,
+                            "sha256": f"{c}{a}"} for c in CONDITIONS for a in ("x", "y")}
+    participants = {str(p): {"order_row": (p - 1) % 2, "audio_check": 0, "trials": [
+        {"trial": k + 1, "stimulus": s, "condition": stimuli[s]["condition"], "audio_id": stimuli[s]["audio_id"],
+         "file": stimuli[s]["file"], "attention": k == 1} for k, s in enumerate(sorted(stimuli))]}
+        for p in (1, 2, 3)}
+    return {"id": "test", "conditions": CONDITIONS, "scale": "likert", "points": 7,
+            "slider": {"min": 0, "max": 100, "step": 1},
+            "questions": [{"id": "naturalness", "prompt": "How natural?", "labels": ["no", "yes"]}],
+            "attention": {"count": 1, "value": 2}, "exclusions": {"audio_check": True, "attention_max_fail": 0,
+                                                                 "straightline": True},
+            "stimuli": stimuli, "participants": participants}
+
+
+@pytest.fixture
+def answers(tmp_path):
+    """A study folder holding only design.json, and a folder of 3 participants' answer files: laugh_energy
+    rated 5, smile_only 3, plus the participant's number (so no one straight-lines)."""
+    d = small_design()
+    study = tmp_path / "study"
+    study.mkdir()
+    (study / "design.json").write_text(json.dumps(d))
+    folder = tmp_path / "answers"
+    folder.mkdir()
+    for p, entry in d["participants"].items():
+        rows = [[p, entry["order_row"], 0, "", "", "", "audio_check", "audio_check", 1, "hat", ""]]
+        for t in entry["trials"]:
+            v = (5 if t["condition"] == "laugh_energy" else 3) + int(p) % 2
+            rows.append([p, entry["order_row"], t["trial"], t["stimulus"], t["condition"], t["audio_id"], "rating",
+                         "naturalness", v, "", ""])
+            if t["attention"]:
+                rows.append([p, entry["order_row"], t["trial"], t["stimulus"], t["condition"], t["audio_id"],
+                             "attention", "attention", 2, "", 2])
+        with open(folder / f"participant_{int(p):03d}_answers.csv", "w", newline="") as f:
+            w = csv.writer(f, lineterminator="\n")
+            w.writerow(COLUMNS)
+            w.writerows(rows)
+    return study, folder
+
+
+def edit(folder, line: int, column: str, value: str):
+    """Set one cell of participant 1's file (``line`` as an editor counts: the header is line 1)."""
+    f = folder / "participant_001_answers.csv"
+    rows = list(csv.reader(f.open(newline="")))
+    rows[line - 1][COLUMNS.index(column)] = value
+    with open(f, "w", newline="") as fh:
+        csv.writer(fh, lineterminator="\n").writerows(rows)
+    return f
+
+
+@pytest.mark.parametrize("line, column, value, why", [
+    (3, "value", "55", "'55' is not on the scale (a whole point 1..7)"),
+    (3, "value", "2.5", "'2.5' is not on the scale (a whole point 1..7)"),
+    (3, "value", "0", "'0' is not on the scale (a whole point 1..7)"),
+    (3, "value", "5a", "'5a' is not a number"),
+    (3, "value", "", "'' is not a number"),
+    (3, "condition", "smile_onyl", "'smile_onyl': the stimulus laugh_energy-x is of the condition laugh_energy"),
+    (3, "question", "naturalnes", "'naturalnes' is not a question of the design (naturalness)"),
+    (3, "kind", "ratng", "'ratng' is not one of rating, attention, audio_check"),
+    (3, "participant", "1x", "'1x' is not a whole number"),
+    (3, "participant", "9", "participant 9 is not in the design (1..3)"),
+    (3, "stimulus", "laugh_energy-y", "'laugh_energy-y': trial 1 of participant 1 shows laugh_energy-x"),
+    (3, "trial", "7", "participant 1 has no trial 7 (1..4)"),
+    (2, "value", "0.5", "'0.5': the audio check is 0 (failed) or 1 (passed)"),
+    (5, "expected", "two", "'two' is not a number"),   # the attention row of trial 2
+])
+def test_a_row_that_does_not_fit_the_design_is_one_line_naming_file_line_and_column(answers, tmp_path, line, column,
+                                                                                     value, why):
+    study, folder = answers
+    f = edit(folder, line, column, value)
+    out = fuzz.run_cli(["study", "analyze", str(folder), "--design", str(study), "--out", str(tmp_path / "rep")])
+    assert out.code == 2, out
+    assert out.stderr == f"laughlab: error: {f}, line {line}, column {column}: {why}\n", out.stderr
+    assert not (tmp_path / "rep").exists()
+
+
+def test_good_answers_are_all_read_and_a_repeated_file_once(answers, tmp_path):
+    """Means by hand: laugh_energy 5 + p % 2 over participants 1..3 is (6 + 5 + 6) / 3; each of 3 participants
+    gave 2 ratings per condition.  A participant's file downloaded twice counts once; two different values for
+    one answer are refused, naming both places."""
+    study, folder = answers
+    (folder / "participant_001_again.csv").write_bytes((folder / "participant_001_answers.csv").read_bytes())
+    out = fuzz.run_cli(["study", "analyze", str(folder), "--design", str(study), "--out", str(tmp_path / "rep")])
+    assert out.code == 0, out.stderr
+    with open(tmp_path / "rep" / "means.csv") as f:
+        means = {r["condition"]: r for r in csv.DictReader(f)}
+    assert float(means["laugh_energy"]["mean"]) == pytest.approx(17 / 3, abs=1e-4)
+    assert float(means["smile_only"]["mean"]) == pytest.approx(11 / 3, abs=1e-4)
+    assert {r["n_ratings"] for r in means.values()} == {"6"} and set(means) == set(CONDITIONS)
+    edit(folder, 3, "value", "7")
+    out = fuzz.run_cli(["study", "analyze", str(folder), "--design", str(study), "--out", str(tmp_path / "rep2")])
+    assert out.code == 2 and out.stderr.count("\n") == 1, out.stderr
+    assert (f"participant_001_answers.csv, line 3: participant 1 trial 1 naturalness is answered 7 here and 6 at "
+            f"{folder / 'participant_001_again.csv'}, line 3; keep one") in out.stderr
+
+
+def test_without_a_design_the_kinds_and_numbers_are_still_checked(answers, tmp_path):
+    study, folder = answers
+    f = edit(folder, 3, "kind", "")
+    out = fuzz.run_cli(["study", "analyze", str(folder), "--out", str(tmp_path / "rep")])
+    assert out.code == 2 and out.stderr == (f"laughlab: error: {f}, line 3, column kind: '' is not one of rating, "
+                                            "attention, audio_check\n"), out.stderr
