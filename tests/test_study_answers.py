@@ -14,16 +14,17 @@ COLUMNS = ["participant", "order_row", "trial", "stimulus", "condition", "audio_
            "text", "expected"]
 
 
-def small_design() -> dict:
+def small_design(conditions=tuple(CONDITIONS), same: str = "") -> dict:
     """2 conditions x 2 audio items, 3 participants rating all 4 videos, one question on 7 points, an attention
-    item (answer 2) in trial 2, the audio check."""
+    item (answer 2) in trial 2, the audio check.  ``same``: a condition whose videos are those of the first."""
+    conditions = list(conditions)
     stimuli = {f"{c}-{a}": {"file": f"stimuli/{c}-{a}.mp4", "condition": c, "audio_id": a, "duration_s": 1.0,
-                            "sha256": f"{c}{a}"} for c in CONDITIONS for a in ("x", "y")}
+                            "sha256": f"{conditions[0] if c == same else c}{a}"} for c in conditions for a in ("x", "y")}
     participants = {str(p): {"order_row": (p - 1) % 2, "audio_check": 0, "trials": [
         {"trial": k + 1, "stimulus": s, "condition": stimuli[s]["condition"], "audio_id": stimuli[s]["audio_id"],
          "file": stimuli[s]["file"], "attention": k == 1} for k, s in enumerate(sorted(stimuli))]}
         for p in (1, 2, 3)}
-    return {"id": "test", "conditions": CONDITIONS, "scale": "likert", "points": 7,
+    return {"id": "test", "conditions": conditions, "scale": "likert", "points": 7,
             "slider": {"min": 0, "max": 100, "step": 1},
             "questions": [{"id": "naturalness", "prompt": "How natural?", "labels": ["no", "yes"]}],
             "attention": {"count": 1, "value": 2}, "exclusions": {"audio_check": True, "attention_max_fail": 0,
@@ -33,9 +34,12 @@ def small_design() -> dict:
 
 @pytest.fixture
 def answers(tmp_path):
+    return write_answers(tmp_path, small_design())
+
+
+def write_answers(tmp_path, d: dict):
     """A study folder holding only design.json, and a folder of 3 participants' answer files: laugh_energy
-    rated 5, smile_only 3, plus the participant's number (so no one straight-lines)."""
-    d = small_design()
+    rated 5, the other conditions 3, plus the participant's number modulo 2 (so no one straight-lines)."""
     study = tmp_path / "study"
     study.mkdir()
     (study / "design.json").write_text(json.dumps(d))
@@ -119,3 +123,25 @@ def test_without_a_design_the_kinds_and_numbers_are_still_checked(answers, tmp_p
     out = fuzz.run_cli(["study", "analyze", str(folder), "--out", str(tmp_path / "rep")])
     assert out.code == 2 and out.stderr == (f"laughlab: error: {f}, line 3, column kind: '' is not one of rating, "
                                             "attention, audio_check\n"), out.stderr
+
+
+def test_conditions_showing_the_same_videos_are_not_tested(tmp_path):
+    """A review: the riddle preset's SS and LS (SL and LL) are the same video byte for byte and the page does not
+    show the role, yet the report tested SS - LS as a condition effect.  Here smile_copy shows smile_only's
+    videos: of the 3 pairs only the 2 with laugh_energy are tested (Holm over those 2), the README says which
+    pair is not, and study power refuses it."""
+    from laughlab.study.design import identical_conditions
+
+    d = small_design(("smile_only", "laugh_energy", "smile_copy"), same="smile_copy")
+    assert identical_conditions(d) == [("smile_only", "smile_copy")]
+    assert identical_conditions(small_design()) == []
+    study, folder = write_answers(tmp_path, d)
+    out = fuzz.run_cli(["study", "analyze", str(folder), "--design", str(study), "--out", str(tmp_path / "rep")])
+    assert out.code == 0, out.stderr
+    with open(tmp_path / "rep" / "contrasts.csv") as f:
+        pairs = [(r["a"], r["b"]) for r in csv.DictReader(f)]
+    assert sorted(pairs) == [("laugh_energy", "smile_copy"), ("smile_only", "laugh_energy")]
+    assert "Not tested: smile_only - smile_copy. Each pair's conditions show the same videos" in \
+        (tmp_path / "rep" / "README.md").read_text()
+    out = fuzz.run_cli(["study", "power", str(study), "--contrast", "smile_copy:smile_only", "--effect", "1"])
+    assert out.code == 2 and "smile_copy and smile_only show the same videos" in out.stderr, out.stderr

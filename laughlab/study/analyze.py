@@ -38,7 +38,9 @@ Steps, each written to the report folder:
 5. ``contrasts.csv``: every pair of conditions per question, estimate (scale points), SE, 95 %
    CI, z, p and p Holm-corrected over the question's pairs; effect size ``d`` = the difference
    over the square root of the summed variance components (participant + stimulus + residual:
-   Westfall, Kenny & Judd 2014), with the CI scaled alike.
+   Westfall, Kenny & Judd 2014), with the CI scaled alike.  Pairs of conditions whose videos are the same
+   files (the riddle preset's SS and LS, SL and LL: the role is not presented) are not tested, and the
+   README says so.
 6. ``fig_means.png`` (condition means with their 95 % CIs, participants' means as dots) and
    ``fig_participants.png`` (one line per participant across the conditions); ``README.md``
    with the tables; ``report.json`` with everything as numbers.
@@ -56,6 +58,7 @@ import numpy as np
 from laughlab.core.errors import LaughlabError
 from laughlab.study import db as DB
 from laughlab.study.answers import load
+from laughlab.study.design import identical_conditions
 
 DEFAULT_RULES = {"audio_check": True, "attention_max_fail": 0, "straightline": True}
 
@@ -223,8 +226,9 @@ def variance_components(fit) -> dict[str, float]:
     return out
 
 
-def contrasts(fit, ref: str, conditions: list[str]):
-    """Every pair (a, b) of the fitted conditions: a - b with SE, CI, z, p, Holm's p and d (module doc, step 5)."""
+def contrasts(fit, ref: str, conditions: list[str], same: list[tuple[str, str]] = ()):
+    """Every pair (a, b) of the fitted conditions: a - b with SE, CI, z, p, Holm's p and d (module doc, step 5);
+    pairs in ``same`` (conditions showing the same videos: ``design.identical_conditions``) are left out."""
     import pandas as pd
     from scipy import stats
     from statsmodels.stats.multitest import multipletests
@@ -237,6 +241,8 @@ def contrasts(fit, ref: str, conditions: list[str]):
     present = [c for c in conditions if c == ref or any(n.endswith(f"[T.{c}]") for n in fit.fe_params.index)]
     rows = []
     for a, b in combinations(present, 2):
+        if (a, b) in same or (b, a) in same:
+            continue
         L = np.zeros(k)
         for c, sign in ((a, 1.0), (b, -1.0)):
             i = _coef_index(fit, ref, c)
@@ -288,6 +294,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
         [c for c in sorted(seen) if c not in (design or {}).get("conditions", [])]
     questions = [q["id"] for q in (design or {}).get("questions", [])] or \
         sorted(set(df.loc[df["kind"] == "rating", "question"]))
+    same = identical_conditions(design)   # the riddle's SS and LS: one video, so no contrast (module doc, step 5)
     excluded = exclusions(df, rules, slider)
     ratings = df[(df["kind"] == "rating") & df["value"].notna()]
     tidy = ratings[~ratings["participant"].astype(int).isin(excluded)].reset_index(drop=True)
@@ -315,7 +322,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
         variances.append({"question": q, **{f"var_{k}": v for k, v in var.items()}, "converged": bool(fit.converged),
                           "n_ratings": len(data), "n_participants": int(data["participant"].nunique()),
                           "n_stimuli": int(data["stimulus"].nunique()), "reference": ref})
-        c = contrasts(fit, ref, conditions)
+        c = contrasts(fit, ref, conditions, same)
         c.insert(0, "question", q)
         cons.append(c)
     contrast_df = pd.concat(cons, ignore_index=True) if cons else pd.DataFrame()
@@ -344,6 +351,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
            "planted": DB.stored(source, "simulation") if kind == "simulated" else None,
            "excluded": {str(p): r for p, r in excluded.items()}, "included": n_all - len(excluded),
            "conditions": conditions, "questions": questions, "model_notes": notes,
+           "untested": [list(p) for p in same if set(p) <= set(conditions)],
            "model_warnings": {q: w for q, w in warned.items() if w},
            "means": means.to_dict("records"), "fixed": fixed, "variance": variances,
            "contrasts": contrast_df.to_dict("records")}
@@ -434,8 +442,14 @@ def _markdown(doc: dict, source: Path, command: str, has_design: bool = True) ->
     lines += ["", "## Pairwise contrasts (Holm over each question's pairs)", "",
               "Estimates in rating points from the mixed model; d is the estimate over the square root of the summed "
               "variance components (participant + stimulus + residual; Westfall, Kenny & Judd 2014), its interval "
-              "the estimate's scaled alike.", "",
-              "| question | a - b | estimate | 95 % CI | z | p | p (Holm) | d [95 % CI] |",
+              "the estimate's scaled alike.", ""]
+    if doc.get("untested"):
+        pairs = ", ".join(f"{a} - {b}" for a, b in doc["untested"])
+        lines += [f"Not tested: {pairs}. Each pair's conditions show the same videos, byte for byte, and the "
+                  "page does not present what tells them apart (the riddle preset's role, Speaks or Listens), so "
+                  "their difference can only be noise; they are left out of the contrasts and of Holm's family.",
+                  ""]
+    lines += ["| question | a - b | estimate | 95 % CI | z | p | p (Holm) | d [95 % CI] |",
               "|---|---|---|---|---|---|---|---|"]
     for c in doc["contrasts"]:
         lines.append(f"| {c['question']} | {c['a']} - {c['b']} | {_fmt(c['estimate'])} | "

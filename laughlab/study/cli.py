@@ -90,6 +90,13 @@ def _run(ns) -> None:
         from laughlab.study.build import build
 
         out = build(ns.stimuli_dir, ns.out, ns.questions, ns.overwrite)
+        from laughlab.study.design import identical_conditions, load_design
+
+        same = identical_conditions(load_design(out))
+        if same:   # the riddle preset's SS and LS: the role is not shown (a review: it was tested as an effect)
+            print(f"study: note: {', '.join(f'{a} and {b}' for a, b in same)} show the same videos and the page does "
+                  "not present what tells them apart (the riddle's Speaks/Listens role): study analyze will not test "
+                  "their difference", file=sys.stderr)
         print(f"laughlab: study written to {out}/; serve it with: python -m laughlab study serve {out}")
     elif ns.cmd == "serve":
         serve(ns)

@@ -144,6 +144,11 @@ def power(design: dict, contrast: tuple[str, str], effect: float, ns: list[int],
             raise LaughlabError(f"unknown condition {c!r}; the design has: {', '.join(conditions)}")
     if a == b:
         raise LaughlabError("the contrast needs two different conditions")
+    from laughlab.study.design import identical_conditions
+
+    if (a, b) in identical_conditions(design) or (b, a) in identical_conditions(design):
+        raise LaughlabError(f"{a} and {b} show the same videos (the page does not present what tells them apart), so "
+                            "the analysis does not test their difference; choose conditions whose videos differ")
     items = sorted({s["audio_id"] for s in design["stimuli"].values()})
     kind = design.get("design") or "all"
     scale = scale_range(design) if design.get("scale") == "likert" else None
