@@ -138,6 +138,8 @@ def test_bad_posts_get_4xx_are_logged_and_never_stored(study, tmp_path):
         assert srv.rows() == []
         log = (tmp_path / "r.sqlite.rejected.log").read_text().splitlines()
         assert len(log) == len(bad) + 5 and all(json.loads(line)["status"] >= 400 for line in log)
+        # the consent text promises that no IP address is kept (a review: each line had the client's address)
+        assert all("client" not in json.loads(line) for line in log) and "127.0.0.1" not in "".join(log)
         # the good one is stored once; the same trial again is refused (a forged or replayed post)
         assert srv.post("/api/response", good)[0] == 201
         assert srv.post("/api/response", good)[0] == 409
