@@ -33,8 +33,13 @@ Steps, each written to the report folder:
    maintained Python package fits one with crossed random effects (R's ``ordinal::clmm`` does);
    with seven points and means away from the ends the linear model's estimates and tests are
    close to the ordinal model's, and its estimates are in scale points, which is what a reader
-   wants to see.  Wald z tests, as statsmodels gives them (with few participants they are a
-   little liberal).
+   wants to see.  Wald z tests, as statsmodels gives them: they take the condition effects' standard
+   errors as known, and with few stimuli per condition the stimulus variance is estimated from few
+   levels, so when that variance is not small the tests are liberal (a review's simulation,
+   ``benchmarks/bench_study_type1.py``: 24 participants, 4 stimuli per condition, stimulus variance 0.5
+   of 2.58 in all: familywise error 0.095 after Holm at a nominal 0.05; with the default 0.09: 0.050).
+   Satterthwaite or Kenward-Roger degrees of freedom would correct this, but statsmodels' MixedLM has
+   neither; the README warns per question instead (:func:`few_stimuli_note`).
 5. ``contrasts.csv``: every pair of conditions per question, estimate (scale points), SE, 95 %
    CI, z, p and p Holm-corrected over the question's pairs; effect size ``d`` = the difference
    over the square root of the summed variance components (participant + stimulus + residual:
@@ -212,6 +217,25 @@ def fit_note(fit, warned: list[str]) -> str:
         ", which leaves the condition estimates and tests below valid.")
 
 
+#: below this many stimuli per condition, and with the stimulus variance at least this share of the total, the
+#: README warns that the tests are liberal (module doc, step 4)
+FEW_STIMULI, STIMULUS_SHARE = 10, 0.05
+
+
+def few_stimuli_note(var: dict[str, float], per_condition: int) -> str:
+    """The README's warning for a question whose stimuli per condition are few and vary ("" when not)."""
+    total = sum(var.values())
+    share = var.get("stimulus", 0.0) / total if total > 0 else 0.0
+    if per_condition >= FEW_STIMULI or share < STIMULUS_SHARE:
+        return ""
+    return (f"Only {per_condition} stimuli per condition, and they vary (stimulus variance {var['stimulus']:.3g}, "
+            f"{share:.0%} of the total): the Wald tests below take that variance as known, though it is estimated "
+            "from few stimuli, so their p values are too small (in simulations with 4 stimuli per condition and a "
+            "19 % share, the familywise error after Holm was 0.095 at a nominal 0.05: "
+            "benchmarks/bench_study_type1.py). Read p values near the threshold as not significant; more audio "
+            "items per condition is the remedy.")
+
+
 def _coef_index(fit, ref: str, cond: str) -> int | None:
     if cond == ref:
         return None
@@ -319,6 +343,9 @@ def analyze(source, out=None, design_dir=None) -> Path:
                           "ci_low": float(ci.loc[name, 0]), "ci_high": float(ci.loc[name, 1]),
                           "z": float(fit.tvalues[name]), "p": float(fit.pvalues[name])})
         var = variance_components(fit)
+        few = few_stimuli_note(var, int(data.groupby("condition")["stimulus"].nunique().min()))
+        if few:
+            notes[q] = f"{notes[q]} {few}" if notes.get(q) else few
         variances.append({"question": q, **{f"var_{k}": v for k, v in var.items()}, "converged": bool(fit.converged),
                           "n_ratings": len(data), "n_participants": int(data["participant"].nunique()),
                           "n_stimuli": int(data["stimulus"].nunique()), "reference": ref})
