@@ -135,14 +135,15 @@ def check_row(row: dict, design: dict | None, where: str) -> dict:
     kind, q, cond = row["kind"], row["question"], row["condition"]
     if kind not in KINDS:
         bad("kind", f"{kind!r} is not one of {', '.join(KINDS)}")
-    entry = (design or {}).get("participants", {}).get(str(p))
-    if design is not None and entry is None:
-        bad("participant", f"participant {p} is not in the design (1..{len(design['participants'])})")
+    people = (design or {}).get("participants")   # (a design written by hand may leave them out)
+    entry = (people or {}).get(str(p))
+    if people is not None and entry is None:
+        bad("participant", f"participant {p} is not in the design (1..{len(people)})")
     if kind == "audio_check":
         if q != "audio_check":
             bad("question", f"{q!r} is not audio_check, the question of an audio-check row")
     else:
-        questions = [x["id"] for x in design["questions"]] if design is not None else None
+        questions = [x["id"] for x in design["questions"]] if (design or {}).get("questions") else None
         if kind == "attention" and q != "attention":
             bad("question", f"{q!r} is not attention, the question of an attention row")
         if kind == "rating" and (q in ("", *KINDS) or (questions is not None and q not in questions)):
@@ -150,7 +151,9 @@ def check_row(row: dict, design: dict | None, where: str) -> dict:
                                                                           if questions else ""))
         if not cond:
             bad("condition", "the condition is empty")
-        if design is not None:
+        if (design or {}).get("conditions") and cond not in design["conditions"]:
+            bad("condition", f"{cond!r} is not a condition of the design ({', '.join(design['conditions'])})")
+        if entry is not None:
             if not 1 <= t <= len(entry["trials"]):
                 bad("trial", f"participant {p} has no trial {t} (1..{len(entry['trials'])})")
             shown = entry["trials"][t - 1]
@@ -161,7 +164,7 @@ def check_row(row: dict, design: dict | None, where: str) -> dict:
     value = _num(row["value"], "value", where)
     if kind == "audio_check" and value not in (0.0, 1.0):
         bad("value", f"{row['value']!r}: the audio check is 0 (failed) or 1 (passed)")
-    if kind != "audio_check" and design is not None:
+    if kind != "audio_check" and design is not None and "scale" in design:
         lo, hi = scale_range(design)
         likert = design["scale"] == "likert"
         if not lo <= value <= hi or (likert and value != int(value)):
