@@ -170,3 +170,23 @@ def test_the_warning_reaches_the_readme(tmp_path):
         assert out.code == 0, out.stderr
         text = (folder.with_name("answers-report") / "README.md").read_text()
         assert ("Only 2 stimuli per condition, and they vary" in text) == warned, text
+
+
+def test_figures_are_also_pdf_the_same_bytes_again_and_an_interval_past_the_scale_is_marked(answers, tmp_path):
+    """A review: 110-dpi PNGs only, and an interval past the axis's end cut off without a mark.  By hand: on the
+    Likert axis 0.6..7.4 an interval [3.9, 7.8] passes the top at 7.8, [0.2, 2] the bottom at 0.2."""
+    from PIL import Image
+
+    from laughlab.study.plots import off_axis
+
+    assert off_axis([3.9, 0.2, 2.0, float("nan")], [7.8, 2.0, 7.4, float("nan")], (0.6, 7.4)) == [(0, 7.8, 1),
+                                                                                                   (1, 0.2, -1)]
+    study, folder = answers
+    for out in ("a", "b"):
+        assert fuzz.run_cli(["study", "analyze", str(folder), "--design", str(study), "--out",
+                             str(tmp_path / out)]).code == 0
+    for name in ("fig_means", "fig_participants"):
+        pdf = (tmp_path / "a" / f"{name}.pdf").read_bytes()
+        assert pdf.startswith(b"%PDF") and pdf == (tmp_path / "b" / f"{name}.pdf").read_bytes()
+        assert (tmp_path / "a" / f"{name}.png").read_bytes() == (tmp_path / "b" / f"{name}.png").read_bytes()
+        assert round(Image.open(tmp_path / "a" / f"{name}.png").info["dpi"][0]) == 300

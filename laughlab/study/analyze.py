@@ -46,8 +46,9 @@ Steps, each written to the report folder:
    Westfall, Kenny & Judd 2014), with the CI scaled alike.  Pairs of conditions whose videos are the same
    files (the riddle preset's SS and LS, SL and LL: the role is not presented) are not tested, and the
    README says so.
-6. ``fig_means.png`` (condition means with their 95 % CIs, participants' means as dots) and
-   ``fig_participants.png`` (one line per participant across the conditions); ``README.md``
+6. ``fig_means.png`` (condition means with their 95 % CIs, participants' means as dots; an interval past
+   the scale's end marked there with its bound) and ``fig_participants.png`` (one line per participant
+   across the conditions), each also as a PDF (``laughlab.study.plots``); ``README.md``
    with the tables; ``report.json`` with everything as numbers.
 """
 from __future__ import annotations
@@ -392,7 +393,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
 
 
 REPORT_FILES = {"README.md", "report.json", "tidy.csv", "exclusions.csv", "means.csv", "model.csv", "variance.csv",
-                "contrasts.csv", "fig_means.png", "fig_participants.png"}
+                "contrasts.csv", "fig_means.png", "fig_participants.png", "fig_means.pdf", "fig_participants.pdf"}
 
 
 def _check_out(out: Path) -> None:
