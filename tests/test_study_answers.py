@@ -190,3 +190,23 @@ def test_figures_are_also_pdf_the_same_bytes_again_and_an_interval_past_the_scal
         assert pdf.startswith(b"%PDF") and pdf == (tmp_path / "b" / f"{name}.pdf").read_bytes()
         assert (tmp_path / "a" / f"{name}.png").read_bytes() == (tmp_path / "b" / f"{name}.png").read_bytes()
         assert round(Image.open(tmp_path / "a" / f"{name}.png").info["dpi"][0]) == 300
+
+
+def test_a_second_analyze_keeps_what_the_researcher_changed_unless_told(answers, tmp_path):
+    """A review: notes added to the report's README were deleted without a word by the next study analyze."""
+    study, folder = answers
+    args = ["study", "analyze", str(folder), "--design", str(study), "--out", str(tmp_path / "rep")]
+    assert fuzz.run_cli(args).code == 0
+    assert fuzz.run_cli(args).code == 0   # nothing changed: the earlier report is replaced
+    readme = tmp_path / "rep" / "README.md"
+    readme.write_text(readme.read_text() + "MY NOTES: participant 3 said the audio was choppy\n")
+    (tmp_path / "rep" / "notes.txt").write_text("mine")
+    out = fuzz.run_cli(args)
+    assert out.code == 2 and out.stderr.count("\n") == 1, out.stderr
+    assert ("holds files changed since it was written: README.md; not a study report's: notes.txt; choose another "
+            "--out, or add --overwrite") in out.stderr
+    assert "MY NOTES" in readme.read_text()
+    out = fuzz.run_cli(args + ["--overwrite"])
+    assert out.code == 0, out.stderr
+    assert "MY NOTES" not in readme.read_text() and (tmp_path / "rep" / "notes.txt").read_text() == "mine"
+    assert "notes.txt" not in out.stdout   # the command names the report's files, not the researcher's

@@ -65,6 +65,7 @@ from laughlab.core.errors import LaughlabError
 from laughlab.study import db as DB
 from laughlab.study.answers import load
 from laughlab.study.design import identical_conditions
+from laughlab.study.reportdir import REPORT_FILES, check_out, put  # noqa: F401 (REPORT_FILES: the report's files)
 
 DEFAULT_RULES = {"audio_check": True, "attention_max_fail": 0, "straightline": True}
 
@@ -296,7 +297,7 @@ def _p(x) -> str:
     return "< .001" if x < 0.001 else f"{x:.3f}"
 
 
-def analyze(source, out=None, design_dir=None) -> Path:
+def analyze(source, out=None, design_dir=None, overwrite: bool = False) -> Path:
     """Write the report folder (module doc); its path."""
     import pandas as pd
 
@@ -310,7 +311,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
     df, design = load(source, design_dir)
     source = Path(source).expanduser()
     out = Path(out).expanduser() if out else source.with_name(source.stem + "-report")
-    _check_out(out)
+    check_out(out, overwrite)
     kind = DB.participants_kind(source) if source.is_file() and source.suffix.lower() != ".csv" else None
     rules = {**DEFAULT_RULES, **((design or {}).get("exclusions") or {})}
     slider = design["slider"]["max"] - design["slider"]["min"] if design and design.get("scale") == "slider" else None
@@ -385,35 +386,16 @@ def analyze(source, out=None, design_dir=None) -> Path:
            "contrasts": contrast_df.to_dict("records")}
     (tmp / "report.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
     (tmp / "README.md").write_text(_markdown(doc, source, command, design is not None))
-    _check_out(out)  # again: the fit takes a while, and the folder may have been filled meanwhile
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    check_out(out, overwrite)  # again: the fit takes a while, and the folder may have been filled meanwhile
+    put(tmp, out)
     return out
-
-
-REPORT_FILES = {"README.md", "report.json", "tidy.csv", "exclusions.csv", "means.csv", "model.csv", "variance.csv",
-                "contrasts.csv", "fig_means.png", "fig_participants.png", "fig_means.pdf", "fig_participants.pdf"}
-
-
-def _check_out(out: Path) -> None:
-    """Refuse a report folder that holds anything but an earlier study report (which it replaces)."""
-    if not out.exists():
-        return
-    if not out.is_dir():
-        raise LaughlabError(f"{out} exists and is not a folder; choose another --out")
-    held = {p.name for p in out.iterdir()}
-    if not held:
-        return
-    try:
-        ours = (out / "README.md").read_text(encoding="utf-8").startswith("# Study report: ")
-    except (OSError, UnicodeDecodeError):
-        ours = False
-    if not ours or held - REPORT_FILES:
-        others = sorted(held - REPORT_FILES) or sorted(held)
-        raise LaughlabError(f"{out} holds files that are not a study report ({', '.join(others[:3])}"
-                            f"{', ...' if len(others) > 3 else ''}); choose another --out "
-                            "(a report replaces only an earlier report)")
+    for name in REPORT_FILES | {STAMP}:   # an earlier report's files only: what the researcher added stays
+        if (tmp / name).exists():
+            (tmp / name).replace(out / name)
+        else:
+            (out / name).unlink(missing_ok=True)
+    shutil.rmtree(tmp, ignore_errors=True)
+    return out
 
 
 def reason_counts(excluded: dict) -> str:

@@ -60,6 +60,8 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("source", help="responses.sqlite, or a CSV of answers, or a folder of them")
     a.add_argument("--out", help="the report folder (default: SOURCE's name + -report beside it)")
     a.add_argument("--design", help="the study folder, for CSV input: exclusion rules and condition order")
+    a.add_argument("--overwrite", action="store_true", help="replace an earlier report whose files were changed or "
+                                                             "added to (the added files are kept)")
     w = sub.add_parser("power", help="participants needed to detect an effect (simulation, the same model)")
     w.add_argument("study_dir", help="a study folder (its design: conditions, stimuli, orders, scale)")
     w.add_argument("--contrast", required=True, help="A:B, e.g. laugh_energy:smile_only")
@@ -105,8 +107,10 @@ def _run(ns) -> None:
     elif ns.cmd == "analyze":
         from laughlab.study.analyze import analyze
 
-        out = analyze(ns.source, ns.out, ns.design)
-        written = sorted(f.name for f in out.iterdir())   # every file (a review: it named 3 of the 10)
+        out = analyze(ns.source, ns.out, ns.design, ns.overwrite)
+        from laughlab.study.analyze import REPORT_FILES
+
+        written = sorted(f.name for f in out.iterdir() if f.name in REPORT_FILES)   # (a review: it named 3 of 10)
         print(f"laughlab: report written to {out}/: README.md (read it first), "
               f"{', '.join(n for n in written if n != 'README.md')}")
     else:
