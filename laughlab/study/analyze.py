@@ -389,13 +389,6 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False) -> Path:
     check_out(out, overwrite)  # again: the fit takes a while, and the folder may have been filled meanwhile
     put(tmp, out)
     return out
-    for name in REPORT_FILES | {STAMP}:   # an earlier report's files only: what the researcher added stays
-        if (tmp / name).exists():
-            (tmp / name).replace(out / name)
-        else:
-            (out / name).unlink(missing_ok=True)
-    shutil.rmtree(tmp, ignore_errors=True)
-    return out
 
 
 def reason_counts(excluded: dict) -> str:
