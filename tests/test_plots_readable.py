@@ -233,8 +233,8 @@ def test_the_study_figures_keep_the_design_order_and_the_fit_says_what_its_warni
     rng = np.random.default_rng(3)
     rows = []
     for p in range(1, 9):
-        rows.append(dict(participant=p, trial=0, stimulus="", condition="", kind="audio_check", question="",
-                         value=1))
+        rows.append(dict(participant=p, trial=0, stimulus="", condition="", kind="audio_check",
+                         question="audio_check", value=1))
         for t, (c, s) in enumerate(((c, s) for c in design_order for s in ("a", "b")), start=1):
             for q in ("naturalness", "body_sound_match"):
                 v = 4 + (c == "laugh_energy") + rng.normal(0, 0.7)

@@ -138,6 +138,8 @@ def test_bad_posts_get_4xx_are_logged_and_never_stored(study, tmp_path):
         assert srv.rows() == []
         log = (tmp_path / "r.sqlite.rejected.log").read_text().splitlines()
         assert len(log) == len(bad) + 5 and all(json.loads(line)["status"] >= 400 for line in log)
+        # the consent text promises that no IP address is kept (a review: each line had the client's address)
+        assert all("client" not in json.loads(line) for line in log) and "127.0.0.1" not in "".join(log)
         # the good one is stored once; the same trial again is refused (a forged or replayed post)
         assert srv.post("/api/response", good)[0] == 201
         assert srv.post("/api/response", good)[0] == 409
@@ -268,6 +270,42 @@ def test_power_with_few_simulations_says_how_rough_it_is(study, tmp_path):
     assert (tmp_path / "pw" / "power.csv").read_text().startswith("n,detected,sims,power,ci_low,ci_high\n4,")
 
 
+def test_power_counts_a_negative_effect_in_its_own_direction(study):
+    """A review: ``--effect -2`` counted only significant results with a above b, so its power was about 0 where
+    +2's was 0.85.  By hand: a rated 2 and b 6 (every other condition 4, a little noise) is a clear a - b = -4;
+    it is detected for a planted -4 and not for +4, and the data mirrored on the scale (v -> 8 - v) is detected
+    for +4 and not for -4."""
+    import pandas as pd
+
+    from laughlab.study import power as W
+
+    conds = ["smile_only", "face_breathing", "laugh_energy", "laugh_concat"]
+    level = {"laugh_energy": 2.0, "smile_only": 6.0}
+    rows = [(p, c, f"{c}-{i}", level.get(c, 4.0) + (0.5 if (p + k) % 2 else -0.5))
+            for p in range(1, 7) for k, (c, i) in enumerate((c, i) for c in conds for i in "xy")]
+    df = pd.DataFrame(rows, columns=["participant", "condition", "stimulus", "value"])
+    mirror = df.assign(value=8 - df["value"])
+    args = (conds, "laugh_energy", "smile_only", 0.05)
+    assert W.detected(df, *args, -4.0) and not W.detected(df, *args, 4.0)
+    assert W.detected(mirror, *args, 4.0) and not W.detected(mirror, *args, -4.0)
+
+
+@pytest.mark.parametrize("effect, why", [
+    ("0", "--effect must be a non-zero, finite number of scale points (got 0)"),
+    ("3.5", "--effect 3.5 is impossible on this 1..7 scale: from the base rating 4 it must lie between -3 and +3"),
+    ("-100", "--effect -100 is impossible on this 1..7 scale"),
+    ("--", "--effect needs a number of scale points, e.g. --effect 0.5"),   # argparse handed on [] (a traceback)
+    ("nan", "must be a finite number"),
+])
+def test_power_refuses_an_effect_the_scale_cannot_hold_in_one_line(study, tmp_path, effect, why):
+    """A review: --effect 100 or 0 ran and reported a power for an effect that was not the one simulated (ratings
+    are cut at the scale's ends), and --effect=-- gave a traceback."""
+    out = fuzz.run_cli(["study", "power", str(study), "--contrast", "laugh_energy:smile_only", f"--effect={effect}",
+                        "--sims", "1", "--participants", "2", "--out", str(tmp_path / "pw")])
+    assert out.code == 2 and why in out.stderr and out.stderr.count("\n") == 1, out.stderr
+    assert "Traceback" not in out.stderr and not (tmp_path / "pw").exists()
+
+
 @pytest.mark.slow
 def test_power_by_simulation_grows_with_participants(study):
     """With 2 stimuli per condition and the default variances (participant SD 0.8, stimulus 0.3, residual
@@ -280,8 +318,15 @@ def test_power_by_simulation_grows_with_participants(study):
     assert [r["n"] for r in first] == [4, 12]
     assert first[1]["power"] >= 0.8 and first[1]["power"] > first[0]["power"]
     assert all(r["ci_low"] <= r["power"] <= r["ci_high"] for r in first)
-    none = W.power(d, ("laugh_energy", "smile_only"), 0.0, [12], sims=14, seed=5)
-    assert none[0]["power"] <= 0.2
+    import numpy as np
+    from laughlab_experiments.stimuli import participant_trials
+
+    rng = np.random.default_rng(5)   # no effect (power refuses --effect 0): 'found' about as often as alpha
+    items = sorted({s["audio_id"] for s in d["stimuli"].values()})
+    trials = participant_trials(d["conditions"], items, 12, d.get("design") or "all")
+    found = sum(W.detected(W.simulate(trials, {}, W.DEFAULT_VAR, 4.0, rng, (1, 7)), d["conditions"], "laugh_energy",
+                           "smile_only", 0.05) for _ in range(14))
+    assert found <= 3
 
 
 @pytest.mark.browser
@@ -315,7 +360,9 @@ def test_on_a_static_host_the_page_keeps_the_answers_and_its_csv_is_analysed(stu
 
     assert out.stdout.startswith(f"laughlab: report written to {tmp_path / 'rep'}/: README.md (read it first), ")
     assert all(name in out.stdout for name in REPORT_FILES)       # every file it wrote (it named 3 of the 10)
-    assert {f.name for f in (tmp_path / "rep").iterdir()} == REPORT_FILES
+    from laughlab.study.reportdir import STAMP   # (the record of what it wrote, for a second analyze)
+
+    assert {f.name for f in (tmp_path / "rep").iterdir()} == REPORT_FILES | {STAMP}
     with open(tmp_path / "rep" / "tidy.csv") as f:
         assert {r["participant"] for r in csv.DictReader(f)} == {"6", "7"}
     # the report's first line is the command that made it, every option in it (a review: --design and --out were

@@ -2,7 +2,8 @@
 
 Input: the study's database (``responses.sqlite``: the design travels inside it), or CSV files in
 the same columns (the page's "download my answers" files, one file or a folder of them; then
-``--design STUDY_DIR`` supplies the exclusion rules and the condition order, else the defaults).
+``--design STUDY_DIR`` supplies the exclusion rules, the condition order and what every row is checked
+against, else the defaults): read by ``laughlab.study.answers``.
 
 Steps, each written to the report folder:
 
@@ -32,14 +33,22 @@ Steps, each written to the report folder:
    maintained Python package fits one with crossed random effects (R's ``ordinal::clmm`` does);
    with seven points and means away from the ends the linear model's estimates and tests are
    close to the ordinal model's, and its estimates are in scale points, which is what a reader
-   wants to see.  Wald z tests, as statsmodels gives them (with few participants they are a
-   little liberal).
+   wants to see.  Wald z tests, as statsmodels gives them: they take the condition effects' standard
+   errors as known, and with few stimuli per condition the stimulus variance is estimated from few
+   levels, so when that variance is not small the tests are liberal (a review's simulation,
+   ``benchmarks/bench_study_type1.py``: 24 participants, 4 stimuli per condition, stimulus variance 0.5
+   of 2.58 in all: familywise error 0.095 after Holm at a nominal 0.05; with the default 0.09: 0.050).
+   Satterthwaite or Kenward-Roger degrees of freedom would correct this, but statsmodels' MixedLM has
+   neither; the README warns per question instead (:func:`few_stimuli_note`).
 5. ``contrasts.csv``: every pair of conditions per question, estimate (scale points), SE, 95 %
    CI, z, p and p Holm-corrected over the question's pairs; effect size ``d`` = the difference
    over the square root of the summed variance components (participant + stimulus + residual:
-   Westfall, Kenny & Judd 2014), with the CI scaled alike.
-6. ``fig_means.png`` (condition means with their 95 % CIs, participants' means as dots) and
-   ``fig_participants.png`` (one line per participant across the conditions); ``README.md``
+   Westfall, Kenny & Judd 2014), with the CI scaled alike.  Pairs of conditions whose videos are the same
+   files (the riddle preset's SS and LS, SL and LL: the role is not presented) are not tested, and the
+   README says so.
+6. ``fig_means.png`` (condition means with their 95 % CIs, participants' means as dots; an interval past
+   the scale's end marked there with its bound) and ``fig_participants.png`` (one line per participant
+   across the conditions), each also as a PDF (``laughlab.study.plots``); ``README.md``
    with the tables; ``report.json`` with everything as numbers.
 """
 from __future__ import annotations
@@ -54,64 +63,11 @@ import numpy as np
 
 from laughlab.core.errors import LaughlabError
 from laughlab.study import db as DB
+from laughlab.study.answers import load
+from laughlab.study.design import identical_conditions
+from laughlab.study.reportdir import REPORT_FILES, check_out, put  # noqa: F401 (REPORT_FILES: the report's files)
 
 DEFAULT_RULES = {"audio_check": True, "attention_max_fail": 0, "straightline": True}
-
-
-# -- reading --------------------------------------------------------------------------------------------------------
-
-def load(source, design_dir=None):
-    """The answers (a DataFrame in :data:`DB.COLUMNS`) and the design (or None) of a database or CSV(s)."""
-    import pandas as pd
-
-    from laughlab.study.design import load_design
-
-    source = Path(source).expanduser()
-    design = None
-    if source.is_dir():
-        files = sorted(source.glob("*.csv"))
-        if not files:
-            raise LaughlabError(f"{source} holds no .csv files of answers")
-        frames = [_read_csv(f) for f in files]
-        df = pd.concat(frames, ignore_index=True)
-    elif source.suffix.lower() == ".csv":
-        df = _read_csv(source)
-    elif source.is_file():
-        df = pd.DataFrame(DB.rows(source), columns=list(DB.COLUMNS))
-        design = DB.stored_design(source)
-    else:
-        raise LaughlabError(f"no database or CSV at {source}")
-    if design_dir is not None:
-        design = load_design(Path(design_dir).expanduser())
-    if df.empty:
-        raise LaughlabError(f"{source} holds no answers yet")
-    for c in ("participant", "trial", "order_row"):
-        df[c] = pd.to_numeric(df[c], errors="coerce").astype("Int64")
-    for c in ("value", "expected", "rt_ms"):
-        df[c] = pd.to_numeric(df[c], errors="coerce")
-    for c in ("stimulus", "condition", "audio_id", "kind", "question", "text"):
-        df[c] = df[c].fillna("").astype(str)
-    dup = df[df["kind"] != ""].duplicated(["participant", "trial", "question"], keep="first")
-    if dup.any():  # the same participant's CSV twice (a download and a re-download): keep one copy
-        df = df[~dup].reset_index(drop=True)
-    return df, design
-
-
-def _read_csv(path: Path):
-    import pandas as pd
-
-    try:
-        df = pd.read_csv(path, dtype=str, keep_default_na=False)
-    except Exception as exc:  # noqa: BLE001 - a broken file: one line
-        raise LaughlabError(f"cannot read {path}: {exc}") from None
-    missing = [c for c in ("participant", "trial", "stimulus", "condition", "kind", "question", "value")
-               if c not in df.columns]
-    if missing:
-        raise LaughlabError(f"{path} lacks the column(s) {', '.join(missing)} of a study's answers")
-    for c in DB.COLUMNS:
-        if c not in df.columns:
-            df[c] = ""
-    return df[list(DB.COLUMNS)].replace("", np.nan).astype(object)
 
 
 # -- exclusions -----------------------------------------------------------------------------------------------------
@@ -263,6 +219,25 @@ def fit_note(fit, warned: list[str]) -> str:
         ", which leaves the condition estimates and tests below valid.")
 
 
+#: below this many stimuli per condition, and with the stimulus variance at least this share of the total, the
+#: README warns that the tests are liberal (module doc, step 4)
+FEW_STIMULI, STIMULUS_SHARE = 10, 0.05
+
+
+def few_stimuli_note(var: dict[str, float], per_condition: int) -> str:
+    """The README's warning for a question whose stimuli per condition are few and vary ("" when not)."""
+    total = sum(var.values())
+    share = var.get("stimulus", 0.0) / total if total > 0 else 0.0
+    if per_condition >= FEW_STIMULI or share < STIMULUS_SHARE:
+        return ""
+    return (f"Only {per_condition} stimuli per condition, and they vary (stimulus variance {var['stimulus']:.3g}, "
+            f"{share:.0%} of the total): the Wald tests below take that variance as known, though it is estimated "
+            "from few stimuli, so their p values are too small (in simulations with 4 stimuli per condition and a "
+            "19 % share, the familywise error after Holm was 0.095 at a nominal 0.05: "
+            "benchmarks/bench_study_type1.py). Read p values near the threshold as not significant; more audio "
+            "items per condition is the remedy.")
+
+
 def _coef_index(fit, ref: str, cond: str) -> int | None:
     if cond == ref:
         return None
@@ -277,8 +252,9 @@ def variance_components(fit) -> dict[str, float]:
     return out
 
 
-def contrasts(fit, ref: str, conditions: list[str]):
-    """Every pair (a, b) of the fitted conditions: a - b with SE, CI, z, p, Holm's p and d (module doc, step 5)."""
+def contrasts(fit, ref: str, conditions: list[str], same: list[tuple[str, str]] = ()):
+    """Every pair (a, b) of the fitted conditions: a - b with SE, CI, z, p, Holm's p and d (module doc, step 5);
+    pairs in ``same`` (conditions showing the same videos: ``design.identical_conditions``) are left out."""
     import pandas as pd
     from scipy import stats
     from statsmodels.stats.multitest import multipletests
@@ -291,6 +267,8 @@ def contrasts(fit, ref: str, conditions: list[str]):
     present = [c for c in conditions if c == ref or any(n.endswith(f"[T.{c}]") for n in fit.fe_params.index)]
     rows = []
     for a, b in combinations(present, 2):
+        if (a, b) in same or (b, a) in same:
+            continue
         L = np.zeros(k)
         for c, sign in ((a, 1.0), (b, -1.0)):
             i = _coef_index(fit, ref, c)
@@ -319,7 +297,7 @@ def _p(x) -> str:
     return "< .001" if x < 0.001 else f"{x:.3f}"
 
 
-def analyze(source, out=None, design_dir=None) -> Path:
+def analyze(source, out=None, design_dir=None, overwrite: bool = False) -> Path:
     """Write the report folder (module doc); its path."""
     import pandas as pd
 
@@ -333,7 +311,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
     df, design = load(source, design_dir)
     source = Path(source).expanduser()
     out = Path(out).expanduser() if out else source.with_name(source.stem + "-report")
-    _check_out(out)
+    check_out(out, overwrite)
     kind = DB.participants_kind(source) if source.is_file() and source.suffix.lower() != ".csv" else None
     rules = {**DEFAULT_RULES, **((design or {}).get("exclusions") or {})}
     slider = design["slider"]["max"] - design["slider"]["min"] if design and design.get("scale") == "slider" else None
@@ -342,6 +320,7 @@ def analyze(source, out=None, design_dir=None) -> Path:
         [c for c in sorted(seen) if c not in (design or {}).get("conditions", [])]
     questions = [q["id"] for q in (design or {}).get("questions", [])] or \
         sorted(set(df.loc[df["kind"] == "rating", "question"]))
+    same = identical_conditions(design)   # the riddle's SS and LS: one video, so no contrast (module doc, step 5)
     excluded = exclusions(df, rules, slider)
     ratings = df[(df["kind"] == "rating") & df["value"].notna()]
     tidy = ratings[~ratings["participant"].astype(int).isin(excluded)].reset_index(drop=True)
@@ -366,10 +345,13 @@ def analyze(source, out=None, design_dir=None) -> Path:
                           "ci_low": float(ci.loc[name, 0]), "ci_high": float(ci.loc[name, 1]),
                           "z": float(fit.tvalues[name]), "p": float(fit.pvalues[name])})
         var = variance_components(fit)
+        few = few_stimuli_note(var, int(data.groupby("condition")["stimulus"].nunique().min()))
+        if few:
+            notes[q] = f"{notes[q]} {few}" if notes.get(q) else few
         variances.append({"question": q, **{f"var_{k}": v for k, v in var.items()}, "converged": bool(fit.converged),
                           "n_ratings": len(data), "n_participants": int(data["participant"].nunique()),
                           "n_stimuli": int(data["stimulus"].nunique()), "reference": ref})
-        c = contrasts(fit, ref, conditions)
+        c = contrasts(fit, ref, conditions, same)
         c.insert(0, "question", q)
         cons.append(c)
     contrast_df = pd.concat(cons, ignore_index=True) if cons else pd.DataFrame()
@@ -398,40 +380,15 @@ def analyze(source, out=None, design_dir=None) -> Path:
            "planted": DB.stored(source, "simulation") if kind == "simulated" else None,
            "excluded": {str(p): r for p, r in excluded.items()}, "included": n_all - len(excluded),
            "conditions": conditions, "questions": questions, "model_notes": notes,
+           "untested": [list(p) for p in same if set(p) <= set(conditions)],
            "model_warnings": {q: w for q, w in warned.items() if w},
            "means": means.to_dict("records"), "fixed": fixed, "variance": variances,
            "contrasts": contrast_df.to_dict("records")}
     (tmp / "report.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
     (tmp / "README.md").write_text(_markdown(doc, source, command, design is not None))
-    _check_out(out)  # again: the fit takes a while, and the folder may have been filled meanwhile
-    if out.exists():
-        shutil.rmtree(out)
-    tmp.rename(out)
+    check_out(out, overwrite)  # again: the fit takes a while, and the folder may have been filled meanwhile
+    put(tmp, out)
     return out
-
-
-REPORT_FILES = {"README.md", "report.json", "tidy.csv", "exclusions.csv", "means.csv", "model.csv", "variance.csv",
-                "contrasts.csv", "fig_means.png", "fig_participants.png"}
-
-
-def _check_out(out: Path) -> None:
-    """Refuse a report folder that holds anything but an earlier study report (which it replaces)."""
-    if not out.exists():
-        return
-    if not out.is_dir():
-        raise LaughlabError(f"{out} exists and is not a folder; choose another --out")
-    held = {p.name for p in out.iterdir()}
-    if not held:
-        return
-    try:
-        ours = (out / "README.md").read_text(encoding="utf-8").startswith("# Study report: ")
-    except (OSError, UnicodeDecodeError):
-        ours = False
-    if not ours or held - REPORT_FILES:
-        others = sorted(held - REPORT_FILES) or sorted(held)
-        raise LaughlabError(f"{out} holds files that are not a study report ({', '.join(others[:3])}"
-                            f"{', ...' if len(others) > 3 else ''}); choose another --out "
-                            "(a report replaces only an earlier report)")
 
 
 def reason_counts(excluded: dict) -> str:
@@ -488,8 +445,14 @@ def _markdown(doc: dict, source: Path, command: str, has_design: bool = True) ->
     lines += ["", "## Pairwise contrasts (Holm over each question's pairs)", "",
               "Estimates in rating points from the mixed model; d is the estimate over the square root of the summed "
               "variance components (participant + stimulus + residual; Westfall, Kenny & Judd 2014), its interval "
-              "the estimate's scaled alike.", "",
-              "| question | a - b | estimate | 95 % CI | z | p | p (Holm) | d [95 % CI] |",
+              "the estimate's scaled alike.", ""]
+    if doc.get("untested"):
+        pairs = ", ".join(f"{a} - {b}" for a, b in doc["untested"])
+        lines += [f"Not tested: {pairs}. Each pair's conditions show the same videos, byte for byte, and the "
+                  "page does not present what tells them apart (the riddle preset's role, Speaks or Listens), so "
+                  "their difference can only be noise; they are left out of the contrasts and of Holm's family.",
+                  ""]
+    lines += ["| question | a - b | estimate | 95 % CI | z | p | p (Holm) | d [95 % CI] |",
               "|---|---|---|---|---|---|---|---|"]
     for c in doc["contrasts"]:
         lines.append(f"| {c['question']} | {c['a']} - {c['b']} | {_fmt(c['estimate'])} | "

@@ -216,3 +216,15 @@ def scale_range(design: dict) -> tuple[float, float]:
     if design["scale"] == "likert":
         return 1.0, float(design["points"])
     return float(design["slider"]["min"]), float(design["slider"]["max"])
+
+
+def identical_conditions(design: dict | None) -> list[tuple[str, str]]:
+    """Pairs of conditions whose videos are the same files (sha256) for every audio item: the riddle preset's
+    SS and LS (SL and LL) differ only in the role, which the page does not present, so a difference between
+    them can only be noise and is not tested (``study analyze``, ``study power``)."""
+    by = {}
+    for s in (design or {}).get("stimuli", {}).values():
+        by.setdefault(s["condition"], {})[s["audio_id"]] = s.get("sha256")
+    conds = [c for c in (design or {}).get("conditions", []) if c in by]
+    return [(a, b) for i, a in enumerate(conds) for b in conds[i + 1:]
+            if by[a] == by[b] and None not in by[a].values()]

@@ -2,7 +2,9 @@
 
 Drawn with a bare ``matplotlib.figure.Figure`` on the Agg canvas (no pyplot: the global backend is
 untouched), one panel per question, conditions in the design's order, the scale's range as the
-y axis.
+y axis.  Each figure is written twice: a PNG at 300 dpi and a PDF (vector, for print), without a
+creation date so that the same answers give the same bytes.  A confidence interval that passes an end
+of the axis is drawn to the end with an arrow there and its bound written beside it.
 """
 from __future__ import annotations
 
@@ -22,6 +24,32 @@ def _panels(n: int, height: float = 3.4):
     for ax in axes[n:]:
         ax.set_visible(False)
     return fig, axes[:n]
+
+
+def save(fig, path: Path) -> None:
+    """``path`` (a PNG at 300 dpi) and the same figure as a PDF beside it; no date inside, so the same bytes."""
+    fig.savefig(path, dpi=300)
+    fig.savefig(Path(path).with_suffix(".pdf"), metadata={"CreationDate": None, "ModDate": None})
+
+
+def off_axis(low, high, ylim: tuple[float, float]) -> list[tuple[int, float, int]]:
+    """The intervals (by position) that pass an end of the axis: (position, bound, +1 above / -1 below)."""
+    out = []
+    for i, (lo, hi) in enumerate(zip(low, high)):
+        if np.isfinite(hi) and hi > ylim[1]:
+            out.append((i, float(hi), 1))
+        if np.isfinite(lo) and lo < ylim[0]:
+            out.append((i, float(lo), -1))
+    return out
+
+
+def _mark_off_axis(ax, m) -> None:
+    ylim = ax.get_ylim()
+    for i, bound, way in off_axis(m["ci_low"].to_numpy(float), m["ci_high"].to_numpy(float), ylim):
+        end = ylim[1] if way > 0 else ylim[0]
+        ax.plot([i], [end], marker="^" if way > 0 else "v", color="tab:blue", ms=8, clip_on=False, zorder=4)
+        ax.annotate(f"{bound:.2f}", (i, end), xytext=(7, -10 if way > 0 else 3), textcoords="offset points",
+                    fontsize=7, color="tab:blue")
 
 
 def _ylim(ax, design, tidy) -> None:
@@ -73,10 +101,11 @@ def means_plot(path: Path, means, tidy, questions: list[str], conditions: list[s
         ax.set_ylabel("rating (mean, 95 % CI)")
         ax.grid(axis="y", alpha=0.3)
         _ylim(ax, design, tidy)
+        _mark_off_axis(ax, m)
     who = "simulated participants" if simulated else "participants"
     fig.suptitle(f"Condition means, {tidy['participant'].nunique()} {who} (dots: each participant's mean)",
                  fontsize=10)
-    fig.savefig(path)
+    save(fig, path)
 
 
 def participant_lines(path: Path, tidy, means, questions: list[str], conditions: list[str], design=None,
@@ -99,4 +128,4 @@ def participant_lines(path: Path, tidy, means, questions: list[str], conditions:
         _ylim(ax, design, tidy)
     fig.suptitle("Each simulated participant's ratings across the conditions" if simulated
                  else "Each participant's ratings across the conditions", fontsize=10)
-    fig.savefig(path)
+    save(fig, path)

@@ -10,7 +10,12 @@ counterbalanced orders (the Latin-square rows of ``experiment=stimuli``, ``parti
 rounded to the nearest point and clipped to the scale for Likert items.  ``effect`` is ``--effect``
 scale points for condition ``a`` over ``b`` (``--contrast a:b``; every other condition as ``b``).
 Each data set is fitted with the same mixed model and the same pairwise contrasts (Holm over all
-pairs), and the contrast counts as detected when it has the planted sign and Holm's p < ``--alpha``.
+pairs, two-sided), and the contrast counts as detected when Holm's p < ``--alpha`` and its estimate has
+the planted effect's sign (``a`` above ``b`` for a positive ``--effect``, below for a negative one: a
+negative effect has the power of the same positive one, as the design is symmetric).  ``--effect`` must be
+non-zero and keep ``a``'s mean on the scale (``intercept + effect`` within it: the simulation puts ``b``
+at the intercept, so a larger effect would be cut at the scale's end and the one simulated would not be
+the one reported).
 Power is the detected share, with a 95 % Wilson interval.  The variance components are those a
 pilot's report estimated (``--pilot REPORT_DIR``, its ``report.json``) or, without a pilot, values
 typical of 7-point ratings of animated characters (participant SD 0.8, stimulus SD 0.3, residual
@@ -69,14 +74,29 @@ def advice(rows: list[dict], target: float, effect: float) -> str | None:
             f"(more audio items: experiment=stimuli harness.corpus.seeds=N), or a larger effect than {effect:g}")
 
 
-def detected(df, conditions: list[str], a: str, b: str, alpha: float) -> bool:
+def detected(df, conditions: list[str], a: str, b: str, alpha: float, effect: float = 1.0) -> bool:
+    """Is ``a - b`` significant (Holm's p < ``alpha``) in the direction of the planted ``effect``?"""
     from laughlab.study.analyze import contrasts, fit_model
 
     fit, ref, _ = fit_model(df, conditions)
     c = contrasts(fit, ref, conditions)
     row = c[((c["a"] == a) & (c["b"] == b)) | ((c["a"] == b) & (c["b"] == a))].iloc[0]
-    sign = 1.0 if row["a"] == a else -1.0
-    return bool(row["p_holm"] < alpha and sign * row["estimate"] > 0)
+    sign = 1.0 if row["a"] == a else -1.0   # the pair as listed, a - b or b - a
+    return bool(row["p_holm"] < alpha and sign * math.copysign(1.0, effect) * row["estimate"] > 0)
+
+
+def check_effect(effect, intercept: float, scale: tuple[float, float] | None) -> float:
+    """``--effect`` as a float: non-zero, finite and keeping ``intercept + effect`` on the scale (module doc)."""
+    if isinstance(effect, bool) or not isinstance(effect, (int, float)):   # argparse hands --effect=-- on as []
+        raise LaughlabError("--effect needs a number of scale points, e.g. --effect 0.5")
+    if not math.isfinite(effect) or effect == 0:
+        raise LaughlabError(f"--effect must be a non-zero, finite number of scale points (got {effect:g})")
+    if scale is not None and not scale[0] <= intercept + effect <= scale[1]:
+        lo, hi = scale
+        raise LaughlabError(f"--effect {effect:g} is impossible on this {lo:g}..{hi:g} scale: from the base rating "
+                            f"{intercept:g} it must lie between {lo - intercept:+g} and {hi - intercept:+g} "
+                            "(and not be 0)")
+    return float(effect)
 
 
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
@@ -124,15 +144,22 @@ def power(design: dict, contrast: tuple[str, str], effect: float, ns: list[int],
             raise LaughlabError(f"unknown condition {c!r}; the design has: {', '.join(conditions)}")
     if a == b:
         raise LaughlabError("the contrast needs two different conditions")
+    from laughlab.study.design import identical_conditions
+
+    if (a, b) in identical_conditions(design) or (b, a) in identical_conditions(design):
+        raise LaughlabError(f"{a} and {b} show the same videos (the page does not present what tells them apart), so "
+                            "the analysis does not test their difference; choose conditions whose videos differ")
     items = sorted({s["audio_id"] for s in design["stimuli"].values()})
     kind = design.get("design") or "all"
     scale = scale_range(design) if design.get("scale") == "likert" else None
+    effect = check_effect(effect, intercept, scale_range(design))
     var = {**DEFAULT_VAR, **(var or {})}
     rng = np.random.default_rng(seed)
     out = []
     for n in ns:
         trials = participant_trials(conditions, items, n, kind)
-        hits = sum(detected(simulate(trials, {a: effect}, var, intercept, rng, scale), conditions, a, b, alpha)
+        hits = sum(detected(simulate(trials, {a: effect}, var, intercept, rng, scale), conditions, a, b, alpha,
+                            effect)
                    for _ in range(sims))
         lo, hi = wilson(hits, sims)
         out.append({"n": n, "detected": hits, "sims": sims, "power": hits / sims, "ci_low": lo, "ci_high": hi})

@@ -19,7 +19,8 @@ Everything is checked against the design before it is stored: the participant mu
 design's, the trial that participant's, the stimulus the one shown in that trial, the questions
 exactly the trial's (the attention item only where the design puts one), every value a number on
 the scale (a whole number for Likert), times and texts short.  Anything else is refused with a 4xx
-and one JSON line in ``<db>.rejected.log`` (time, client, path, status, reason, the body's start),
+and one JSON line in ``<db>.rejected.log`` (time, path, status, reason, the body's start: no client
+address, as the default consent text promises that no IP address is kept),
 and is never stored: 400 malformed JSON, 404 unknown endpoint, 409 already stored or another
 study's page, 411 no length, 413 too large, 415 not JSON, 422 not in the design or out of range.
 """
@@ -145,7 +146,8 @@ class StudyHandler(_Handler):
         self.wfile.write(data)
 
     def _refuse(self, status: int, reason: str, route: str, raw: bytes) -> None:
-        line = {"time": DB.utc_now(), "client": self.client_address[0], "path": route[:100], "status": status,
+        # no client address: the consent text promises that no IP address is kept (a review found it here)
+        line = {"time": DB.utc_now(), "path": route[:100], "status": status,
                 "reason": reason, "body": raw[:200].decode("utf-8", "replace")}
         with self._lock:
             with open(self.log, "a", encoding="utf-8") as f:
