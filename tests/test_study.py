@@ -197,6 +197,35 @@ def test_simulated_participants_in_chromium_and_the_planted_effect_recovered(stu
     assert len({row["participant"] for row in tidy}) == 5
 
 
+@pytest.mark.browser
+def test_answers_another_tab_gave_first_are_not_said_to_be_saved(study, tmp_path, monkeypatch):
+    """A review: a second tab of the same participant had its answers refused (409: already stored from the
+    first tab), and its end page said "All your answers are saved".  Here the server stores trial 2's answers as
+    if another tab had given them first, then refuses this page's."""
+    from laughlab.study import db as DB
+    from laughlab.study import simulate as S
+
+    real = DB.insert_answers
+
+    def other_tab_first(path, rows):
+        if any(r["trial"] == 2 for r in rows):
+            real(path, rows)   # the other tab's answer, stored first
+            raise DB.Duplicate("participant 1 trial 2 is already stored")
+        real(path, rows)
+
+    monkeypatch.setattr(DB, "insert_answers", other_tab_first)
+    d = design_of(study)
+    srv = Served(study, tmp_path / "responses.sqlite")
+    try:
+        given = S.run_sync(srv.url, d, [1], S.planted(d, {}, seed=3))
+    finally:
+        srv.close()
+    assert given[1].saved is False
+    assert given[1].status == ("Some of your answers had already been given in another tab or window of this page: "
+                               "the first ones given are kept, and the rest are saved."), given[1].status
+    assert "All your answers are saved" not in given[1].status
+
+
 def test_every_study_command_fails_in_one_line(study, tmp_path):
     bad = tmp_path / "bad.csv"
     bad.write_text("this,is\nnot,answers\n")

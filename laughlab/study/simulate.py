@@ -31,6 +31,7 @@ class Given:
     answers: dict = field(default_factory=dict)  # (trial, question) -> value
     audio_attempts: list = field(default_factory=list)
     saved: bool | None = None
+    status: str = ""  # the end page's line about saving
     seconds: float = 0.0
     csv: str = ""  # the page's own record of the answers (its "Download my answers" CSV)
 
@@ -134,6 +135,7 @@ async def participant(browser, url: str, design: dict, p: int, answer, keyboard:
         if stop_after is None:
             await page.wait_for_selector("#study-status[data-saved]")
             given.saved = await page.get_attribute("#study-status", "data-saved") == "true"
+            given.status = await page.text_content("#study-status")
             given.csv = await page.evaluate("window.laughlabStudy.csv()")
     finally:
         if stop_after is not None:

@@ -17,7 +17,8 @@
   const session = (window.crypto && crypto.randomUUID) ? crypto.randomUUID()
     : Date.now().toString(16) + Math.random().toString(16).slice(2);
   const ua = navigator.userAgent;
-  const state = {server: false, rows: [], pending: [], flushing: null, keys: null};
+  // refused: posts the server refused (4xx); given: of them, answers already stored (409: another tab of the page)
+  const state = {server: false, rows: [], pending: [], flushing: null, keys: null, refused: 0, given: 0};
   const now = () => new Date().toISOString();
   const esc = (s) => String(s).replace(/[&<>"']/g, (c) => ({"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;",
                                                               "'": "&#39;"}[c]));
@@ -53,7 +54,10 @@
         const [path, body] = state.pending[0];
         const r = await api(path, body);
         if (r.status === 0 || r.status >= 500) return false;  // keep it for the next try
-        if (!r.ok) console.warn(`laughlab study: ${path} refused (${r.status}): ${r.data && r.data.error}`);
+        if (!r.ok) {  // not stored: the end page says so (a review: it said "All your answers are saved")
+          console.warn(`laughlab study: ${path} refused (${r.status}): ${r.data && r.data.error}`);
+          if (r.status === 409) state.given += 1; else state.refused += 1;
+        }
         state.pending.shift();
       }
       return true;
@@ -253,11 +257,16 @@
         send("api/event", {participant: Number(p), session: session, event: "finish"}).then((ok) => {
           const status = document.getElementById("study-status");
           if (!status) return;
+          const sent = ok && !state.pending.length;
           status.textContent = !state.server
             ? "This page has no server to save to: please download your answers and send the file as asked."
-            : ok && !state.pending.length ? "All your answers are saved."
-              : "Some answers could not be sent: please download them and send the file as asked.";
-          status.dataset.saved = String(state.server && ok && !state.pending.length);
+            : !sent ? "Some answers could not be sent: please download them and send the file as asked."
+              : state.refused ? "Some of your answers were refused by the server: please download them and send " +
+                "the file as asked."
+                : state.given ? "Some of your answers had already been given in another tab or window of this " +
+                  "page: the first ones given are kept, and the rest are saved."
+                  : "All your answers are saved.";
+          status.dataset.saved = String(state.server && sent && !state.refused && !state.given);
         });
         focusButton();
       },
