@@ -311,6 +311,12 @@ def report_command(args: list[str]) -> None:
         raise LaughlabError(os_error_line(exc, ns.out or Path(ns.run_dir) / "report")
                             + "; no report was written") from None
     print(f"report written: {path}")
+    from laughlab.harness.sweep_plan import missing_text, unfinished
+
+    state = None if (Path(ns.run_dir) / "results.json").exists() else unfinished(Path(ns.run_dir))
+    if state and state[1]:   # a half-finished sweep: its report says PARTIAL at the top, and this line says so here
+        print(f"laughlab: warning: {missing_text(Path(ns.run_dir), *state)}; the report covers only the finished "
+              "points", file=sys.stderr)
 
 
 #: the commands besides a run and ``report``: each module's ``main(args)``, imported when its command is used

@@ -376,6 +376,32 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     assert "- ‡ `intensity_lag_kinetic_s` sat at the edge of its search, [0, 2] s, in every trial of " in text
     n = len(json.loads(docs[0].read_text())["metrics"])
     assert f"Each cell is the mean of a point's 1 trial of that condition; the table shows 9 key metrics of the {n} each" in text
+    # a half-finished sweep (a review): the points without results.json are named in the report and on stderr, and a
+    # swept parameter of which only one value finished is still swept, not "fixed at every point"
+    half = tmp_path / "half"
+    shutil.copytree(sweep, half, ignore=shutil.ignore_patterns("report"))
+    gone = sorted(p.parent.name for p in half.glob("*/results.json")
+                  if "scheduler.overrule_c=3" in (p.parent / ".hydra" / "overrides.yaml").read_text())
+    for name in gone:
+        (half / name / "results.json").unlink()
+    r = laughlab("report", half)
+    assert r.returncode == 0 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith(f"laughlab: warning: {half}: 2 of 4 sweep points unfinished ({', '.join(gone)}): run the "
+                               "sweep's command again to finish it: python -m laughlab -m experiment=energy_ablation ")
+    text = (half / "report" / "README.md").read_text()
+    assert (f"**PARTIAL: 2 of the sweep's 4 points have no results** (unfinished: "
+            f"{', '.join(f'`{g}`' for g in gone)})") in text.splitlines()[4]
+    assert "- sweep points: 2 of 4 planned; swept: scheduler.decrease_per_s, scheduler.overrule_c\n" in text
+    assert "scheduler.overrule_c=1.5" not in text.split("fixed at every point")[1].splitlines()[0]
+    # no point finished (a review: "run an experiment first" for a started sweep)
+    for p in half.glob("*/results.json"):
+        p.unlink()
+    shutil.rmtree(half / "report")
+    r = laughlab("report", half)
+    assert r.returncode == 2 and r.stderr == (f"laughlab: error: {half}: a sweep with no finished point (0 of 4): run the "
+                                              "sweep's command again to finish it: python -m laughlab -m "
+                                              + text.split("python -m laughlab -m ")[1].split("`")[0]
+                                              .replace(f"hydra.sweep.dir={sweep}", f"hydra.sweep.dir={half}") + "\n")
 
 
 def _bad_corpus(folder):
