@@ -621,3 +621,40 @@ def test_a_sweep_of_a_two_condition_experiment_reports_both(tmp_path):
     rows = [ln for ln in text.splitlines() if ln.startswith(("| energy |", "| none |"))]
     assert [ln.split(" | ")[:2] for ln in rows] == [["| energy", "1"], ["| energy", "2"], ["| none", "1"], ["| none", "2"]]
     assert "| none | 1 | n/a |" in text                      # none plays no clip: its clip metrics do not apply
+
+
+def test_trial_processes_ignore_ctrl_c(monkeypatch):
+    """The terminal's Ctrl-C reaches every process of the command: a trial process' own KeyboardInterrupt printed its
+    traceback after the one line (a sweeps review); the parent alone stops them."""
+    import signal
+
+    from laughlab.harness import runner
+
+    monkeypatch.setattr(runner, "run_trial", lambda t: {"condition": t.condition, "input": t.item.id, "seed": t.seed,
+                                                        "ignored": signal.getsignal(signal.SIGINT) == signal.SIG_IGN})
+    items = build_corpus({"profiles": ["mild"], "seeds": 2, "duration_s": 3})
+    trials = runner.make_trials(items, {"a": []}, lambda item: [0], [], Path("/nonexistent"))
+    records = runner.run_trials(trials, jobs=2, progress=False)
+    assert len(records) == 2 and all(r["ignored"] for r in records)
+
+
+def test_the_clean_up_after_ctrl_c_is_not_cut_by_another(tmp_path):
+    """After the first stop signal the command ignores more of it, and so do the processes its clean-up starts
+    (loky's pgrep, run to end the trial processes, died of the terminal's second SIGINT with tracebacks: a review)."""
+    import signal
+    import subprocess
+
+    from laughlab.core import interrupts
+
+    old = signal.signal(signal.SIGINT, interrupts._handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            interrupts._handler(signal.SIGINT, None)
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+        child = subprocess.run(["sh", "-c", "kill -INT $$; echo alive"], capture_output=True, text=True)
+        assert child.returncode == 0 and child.stdout == "alive\n"
+        interrupts.reset()
+        assert signal.getsignal(signal.SIGINT) is interrupts._handler   # the next command handles it again
+    finally:
+        interrupts.received = None
+        signal.signal(signal.SIGINT, old)

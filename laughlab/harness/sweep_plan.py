@@ -112,3 +112,26 @@ def sweep_command(root: Path) -> str:
     if not any(o.startswith("hydra.sweep.dir=") for o in task):
         task.append(f"hydra.sweep.dir={root}")
     return f"python -m laughlab -m {' '.join(shlex.quote(o) for o in task)}"
+
+
+def interrupted_line(argv: list[str]) -> str:
+    """The one line of a sweep stopped by Ctrl-C: how many of its points finished, and how to resume it (a sweep
+    into a folder of its own, ``hydra.sweep.dir=``, resumes by the same command)."""
+    given = next((a.split("=", 1)[1] for a in argv if a.startswith("hydra.sweep.dir=")), None)
+    state = unfinished(Path(given).expanduser()) if given else None
+    if state is None:
+        return ("interrupted; the finished points are kept in the sweep's folder (a sweep resumes into its own "
+                "hydra.sweep.dir=DIR, given again with the same command)")
+    planned, missing = state
+    return (f"interrupted: {planned - len(missing)} of {planned} points finished; run the same command again to "
+            "resume")
+
+
+def partial_warning(root: Path) -> None:
+    """After the report of a half-finished sweep: one warning line on stderr (the report says PARTIAL)."""
+    import sys
+
+    state = None if (root / "results.json").exists() else unfinished(root)
+    if state and state[1]:
+        print(f"laughlab: warning: {missing_text(root, *state)}; the report covers only the finished points",
+              file=sys.stderr)
