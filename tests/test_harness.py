@@ -216,6 +216,28 @@ def test_report_goes_next_to_the_run_unless_out_is_given(tiny_run, tmp_path):
             f"hydra.run.dir={run}`\n") in text
 
 
+def test_a_new_report_keeps_the_users_files_in_figures(tiny_run, tmp_path):
+    """A sweeps review: regenerating a report deleted a caption and an edited copy of a figure the user had put in
+    report/figures/.  Only the files the earlier report wrote (its manifest) are replaced or removed."""
+    rep = tmp_path / "rep"
+    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0
+    figs = rep / "figures"
+    (figs / "caption.txt").write_text("Figure 2 caption\n")
+    shutil.copyfile(figs / "metrics.png", figs / "metrics_edited_by_me.png")
+    (figs / "stale.png").write_bytes(b"x")   # as if the earlier report had written it and this one does not
+    files = json.loads((rep / ".laughlab-report.json").read_text())["files"]
+    (rep / ".laughlab-report.json").write_text(json.dumps({"files": files + ["figures/stale.png"]}))
+    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0
+    assert (figs / "caption.txt").read_text() == "Figure 2 caption\n" and (figs / "metrics_edited_by_me.png").exists()
+    assert not (figs / "stale.png").exists() and (figs / "metrics.png").exists()
+    # a file of the user's where the report would write one (no earlier report wrote it) is refused, and kept
+    (rep / ".laughlab-report.json").write_text(json.dumps({"files": [f for f in files if f != "figures/metrics.png"]}))
+    (figs / "metrics.png").write_bytes(b"mine")
+    r = laughlab("report", tiny_run[0], "--out", rep)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "figures/metrics.png" in r.stderr
+    assert (figs / "metrics.png").read_bytes() == b"mine"
+
+
 def test_a_report_replaces_only_a_report_and_goes_with_its_run(tiny_run, tmp_path):
     """``report --out`` into a folder of the user's is refused (their README kept); into an earlier report it
     replaces it; the report beside a finished run counts among the run's files, so overwriting the run

@@ -442,12 +442,9 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     staging.mkdir(parents=True)
     try:
         write(root, staging, command or f"python -m laughlab report {run_dir}")
-        target.mkdir(parents=True, exist_ok=True)
-        for item in sorted(staging.iterdir()):
-            old = target / item.name
-            if old.is_dir():
-                shutil.rmtree(old)
-            os.replace(item, old)
+        from laughlab.harness.report_files import replace_report
+
+        replace_report(staging, target)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     if target == root / "report":
