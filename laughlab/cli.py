@@ -36,7 +36,8 @@ _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "
 def fail(message: str, code: int = 2) -> "None":
     if interrupts.received:  # whatever failed after a Ctrl-C or SIGTERM failed because of it
         message, code = ("interrupted" if code != 130 else message), 130
-    quiet.say(f"laughlab: error: {message}")   # on the real stderr even while fd 2 is silenced (core/quiet.py)
+    if code != 130 or not interrupts.in_worker():   # a sweep's job in a launcher's process: the sweep says it once
+        quiet.say(f"laughlab: error: {message}")   # on the real stderr even while fd 2 is silenced (core/quiet.py)
     if code == 130:
         interrupts.clear_exit_flag()
     sys.exit(code)
@@ -122,23 +123,23 @@ def run_composed(cfg) -> None:
     _ = ret.return_value  # re-raises what the job raised
 
 
-def _run_dir_state(path: Path) -> set[str]:
-    return {p.name for p in path.iterdir()} if path.is_dir() else set()
-
-
 def task(cfg) -> dict:
     """The Hydra task: build and run the pipeline into the run directory."""
     from hydra.core.hydra_config import HydraConfig
-    from omegaconf import OmegaConf
-
-    from laughlab.core import pipeline
-
-    global _CLAIM
-    from laughlab.core import rundir
 
     out_dir = Path(HydraConfig.get().runtime.output_dir)
     t0 = time.monotonic() if _STARTED is None else _STARTED
     cfg_hash = config_hash(cfg)
+    with interrupts.worker_job():
+        return _task(cfg, out_dir, t0, cfg_hash)
+
+
+def _task(cfg, out_dir: Path, t0: float, cfg_hash: str) -> dict:
+    from omegaconf import OmegaConf
+
+    from laughlab.core import pipeline, rundir
+
+    global _CLAIM
     try:
         if _CLAIM is None:  # a sweep's job: Hydra made the folder and wrote .hydra/ into it
             _CLAIM = rundir.claim(out_dir, bool(cfg.get("overwrite", False)), ours=frozenset({".hydra"}),
@@ -187,7 +188,10 @@ def task(cfg) -> dict:
         fail(str(exc), code=exc.exit_code)
     except (KeyboardInterrupt, Exception) as exc:
         what, code = _fault(exc, out_dir, cfg)
-        fail(_stopped(cfg, out_dir, what), code=code)
+        what = _stopped(cfg, out_dir, what)
+        if code == 130 and _in_sweep():   # the sweep says it once, in the command's process (_main)
+            raise KeyboardInterrupt from None
+        fail(what, code=code)
     finally:
         if _CLAIM is not None:
             _CLAIM.release()
@@ -320,6 +324,9 @@ def report_command(args: list[str]) -> None:
         raise LaughlabError(os_error_line(exc, ns.out or Path(ns.run_dir) / "report")
                             + "; no report was written") from None
     print(f"report written: {path}")
+    from laughlab.harness.sweep_plan import partial_warning
+
+    partial_warning(Path(ns.run_dir))   # a half-finished sweep: its report says PARTIAL, and one line here
 
 
 #: the commands besides a run and ``report``: each module's ``main(args)``, imported when its command is used
@@ -462,6 +469,12 @@ def _main(argv: list[str]) -> None:
     before = rundir.sweep_state(argv) if multirun else None
     try:
         hydra.main(config_path=f"pkg://{CONFIG_MODULE}", config_name="config", version_base="1.3")(task)()
+    except BaseException as exc:   # one line for the whole sweep: how far it got (its jobs say nothing, fail())
+        if isinstance(exc, SystemExit) or not interrupts.interrupted(exc):
+            raise
+        from laughlab.harness.sweep_plan import interrupted_line
+
+        fail(interrupted_line(argv), code=130)
     finally:
         after = rundir.sweep_state(argv) if before is not None else None
         for job in [j for j, m in (after[2] if after else {}).items() if before[2].get(j) == m]:

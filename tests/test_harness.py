@@ -216,6 +216,28 @@ def test_report_goes_next_to_the_run_unless_out_is_given(tiny_run, tmp_path):
             f"hydra.run.dir={run}`\n") in text
 
 
+def test_a_new_report_keeps_the_users_files_in_figures(tiny_run, tmp_path):
+    """A sweeps review: regenerating a report deleted a caption and an edited copy of a figure the user had put in
+    report/figures/.  Only the files the earlier report wrote (its manifest) are replaced or removed."""
+    rep = tmp_path / "rep"
+    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0
+    figs = rep / "figures"
+    (figs / "caption.txt").write_text("Figure 2 caption\n")
+    shutil.copyfile(figs / "metrics.png", figs / "metrics_edited_by_me.png")
+    (figs / "stale.png").write_bytes(b"x")   # as if the earlier report had written it and this one does not
+    files = json.loads((rep / ".laughlab-report.json").read_text())["files"]
+    (rep / ".laughlab-report.json").write_text(json.dumps({"files": files + ["figures/stale.png"]}))
+    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0
+    assert (figs / "caption.txt").read_text() == "Figure 2 caption\n" and (figs / "metrics_edited_by_me.png").exists()
+    assert not (figs / "stale.png").exists() and (figs / "metrics.png").exists()
+    # a file of the user's where the report would write one (no earlier report wrote it) is refused, and kept
+    (rep / ".laughlab-report.json").write_text(json.dumps({"files": [f for f in files if f != "figures/metrics.png"]}))
+    (figs / "metrics.png").write_bytes(b"mine")
+    r = laughlab("report", tiny_run[0], "--out", rep)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "figures/metrics.png" in r.stderr
+    assert (figs / "metrics.png").read_bytes() == b"mine"
+
+
 def test_a_report_replaces_only_a_report_and_goes_with_its_run(tiny_run, tmp_path):
     """``report --out`` into a folder of the user's is refused (their README kept); into an earlier report it
     replaces it; the report beside a finished run counts among the run's files, so overwriting the run
@@ -376,6 +398,32 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     assert "- ‡ `intensity_lag_kinetic_s` sat at the edge of its search, [0, 2] s, in every trial of " in text
     n = len(json.loads(docs[0].read_text())["metrics"])
     assert f"Each cell is the mean of a point's 1 trial of that condition; the table shows 9 key metrics of the {n} each" in text
+    # a half-finished sweep (a review): the points without results.json are named in the report and on stderr, and a
+    # swept parameter of which only one value finished is still swept, not "fixed at every point"
+    half = tmp_path / "half"
+    shutil.copytree(sweep, half, ignore=shutil.ignore_patterns("report"))
+    gone = sorted(p.parent.name for p in half.glob("*/results.json")
+                  if "scheduler.overrule_c=3" in (p.parent / ".hydra" / "overrides.yaml").read_text())
+    for name in gone:
+        (half / name / "results.json").unlink()
+    r = laughlab("report", half)
+    assert r.returncode == 0 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith(f"laughlab: warning: {half}: 2 of 4 sweep points unfinished ({', '.join(gone)}): run the "
+                               "sweep's command again to finish it: python -m laughlab -m experiment=energy_ablation ")
+    text = (half / "report" / "README.md").read_text()
+    assert (f"**PARTIAL: 2 of the sweep's 4 points have no results** (unfinished: "
+            f"{', '.join(f'`{g}`' for g in gone)})") in text.splitlines()[4]
+    assert "- sweep points: 2 of 4 planned; swept: scheduler.decrease_per_s, scheduler.overrule_c\n" in text
+    assert "scheduler.overrule_c=1.5" not in text.split("fixed at every point")[1].splitlines()[0]
+    # no point finished (a review: "run an experiment first" for a started sweep)
+    for p in half.glob("*/results.json"):
+        p.unlink()
+    shutil.rmtree(half / "report")
+    r = laughlab("report", half)
+    assert r.returncode == 2 and r.stderr == (f"laughlab: error: {half}: a sweep with no finished point (0 of 4): run the "
+                                              "sweep's command again to finish it: python -m laughlab -m "
+                                              + text.split("python -m laughlab -m ")[1].split("`")[0]
+                                              .replace(f"hydra.sweep.dir={sweep}", f"hydra.sweep.dir={half}") + "\n")
 
 
 def _bad_corpus(folder):
@@ -595,3 +643,40 @@ def test_a_sweep_of_a_two_condition_experiment_reports_both(tmp_path):
     rows = [ln for ln in text.splitlines() if ln.startswith(("| energy |", "| none |"))]
     assert [ln.split(" | ")[:2] for ln in rows] == [["| energy", "1"], ["| energy", "2"], ["| none", "1"], ["| none", "2"]]
     assert "| none | 1 | n/a |" in text                      # none plays no clip: its clip metrics do not apply
+
+
+def test_trial_processes_ignore_ctrl_c(monkeypatch):
+    """The terminal's Ctrl-C reaches every process of the command: a trial process' own KeyboardInterrupt printed its
+    traceback after the one line (a sweeps review); the parent alone stops them."""
+    import signal
+
+    from laughlab.harness import runner
+
+    monkeypatch.setattr(runner, "run_trial", lambda t: {"condition": t.condition, "input": t.item.id, "seed": t.seed,
+                                                        "ignored": signal.getsignal(signal.SIGINT) == signal.SIG_IGN})
+    items = build_corpus({"profiles": ["mild"], "seeds": 2, "duration_s": 3})
+    trials = runner.make_trials(items, {"a": []}, lambda item: [0], [], Path("/nonexistent"))
+    records = runner.run_trials(trials, jobs=2, progress=False)
+    assert len(records) == 2 and all(r["ignored"] for r in records)
+
+
+def test_the_clean_up_after_ctrl_c_is_not_cut_by_another(tmp_path):
+    """After the first stop signal the command ignores more of it, and so do the processes its clean-up starts
+    (loky's pgrep, run to end the trial processes, died of the terminal's second SIGINT with tracebacks: a review)."""
+    import signal
+    import subprocess
+
+    from laughlab.core import interrupts
+
+    old = signal.signal(signal.SIGINT, interrupts._handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            interrupts._handler(signal.SIGINT, None)
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+        child = subprocess.run(["sh", "-c", "kill -INT $$; echo alive"], capture_output=True, text=True)
+        assert child.returncode == 0 and child.stdout == "alive\n"
+        interrupts.reset()
+        assert signal.getsignal(signal.SIGINT) is interrupts._handler   # the next command handles it again
+    finally:
+        interrupts.received = None
+        signal.signal(signal.SIGINT, old)

@@ -512,3 +512,22 @@ def test_a_folder_that_cannot_be_written_is_not_said_to_be_created(tmp_path, mon
         rundir.claim(tmp_path)
     with pytest.raises(LaughlabError, match=r"^cannot create the run directory .*new: Permission denied$"):
         rundir.claim(tmp_path / "new")
+
+
+@pytest.mark.parametrize("launcher", [("hydra/launcher=joblib",), ()], ids=["joblib", "basic"])
+def test_ctrl_c_in_a_sweep_is_one_line(tmp_path, launcher):
+    """A sweeps review: Ctrl-C in a joblib-launched sweep printed a line per running job, the launcher's own line and a
+    'leaked semaphore objects' warning (tqdm's lock in the jobs' processes); Hydra's basic launcher, the job's
+    line.  Now one line says how far the sweep got."""
+    d = tmp_path / "sw"
+    p = laughlab("-m", "experiment=smoke", "extractor.rise_per_s=12,48", "harness.corpus.duration_s=60", *launcher,
+                 "harness.corpus.seeds=1", "harness.plots=false", "harness.jobs=1", "progress=off", f"hydra.sweep.dir={d}",
+                 start_new_session=True)
+    deadline = time.time() + 90
+    while not list(d.glob("*/trials/*/*")) and time.time() < deadline:   # the jobs' trials are running
+        time.sleep(0.05)
+    time.sleep(0.5)
+    os.killpg(p.pid, signal.SIGINT)   # as the terminal sends it: to every process of the command
+    out, err = p.communicate(timeout=90)
+    assert p.returncode == 130
+    assert err == "laughlab: error: interrupted: 0 of 2 points finished; run the same command again to resume\n", err

@@ -8,6 +8,7 @@ command line treats any exception after one as the interrupt (:func:`interrupted
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import sys
 import threading
@@ -42,10 +43,18 @@ def reset() -> None:
 
 
 def _handler(signum, frame):
-    global received, _pending
+    global received, _pending, _ignored
     if finished:
         return
     received = received or signum
+    # the command is stopping: another stop signal would cut its clean-up in two, and the processes the clean-up
+    # starts inherit the signal ignored (the terminal's Ctrl-C reaches every process of the command: loky's pgrep,
+    # run to end its workers, died of it and printed tracebacks, a review); Ctrl-\ (SIGQUIT) still ends it at once
+    try:
+        signal.signal(signum, signal.SIG_IGN)
+        _ignored = True
+    except ValueError:   # not the main thread
+        pass
     if _defer:
         _pending = True
         return
@@ -85,8 +94,34 @@ def finish(whole_process: bool = True) -> None:
         pass
 
 
+#: the process that runs the command (:func:`install`); a sweep's job in a launcher's worker process is not it
+main_pid: int | None = None
+
+
+def in_worker() -> bool:
+    """Is this a launcher's worker process (a sweep's job under Hydra's joblib launcher), not the command's own?"""
+    return main_pid != os.getpid()
+
+
+@contextlib.contextmanager
+def worker_job():
+    """A sweep's job in a launcher's worker process: Ctrl-C stops the job through laughlab's handler (its
+    clean-up, no traceback), and between jobs it is ignored; the command's own process stops the sweep and
+    says so in one line (a review: a line per job, and an idle worker's KeyboardInterrupt traceback)."""
+    if not in_worker() or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    signal.signal(signal.SIGINT, _handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def install() -> None:
     """Handle both stop signals, unless someone (an embedding program, a test runner) set their own."""
+    global main_pid
+    main_pid = os.getpid()
     for sig in STOP_SIGNALS:
         if signal.getsignal(sig) in (signal.SIG_DFL, signal.default_int_handler):
             signal.signal(sig, _handler)

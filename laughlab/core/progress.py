@@ -40,6 +40,13 @@ def bar(total, desc: str, log_unit: str, digits: int | None = None, **tqdm_kwarg
     :class:`LogProgress` lines in ``log_unit`` when stderr is not one (a log, CI) and the total is known."""
     if total is not None and not sys.stderr.isatty():
         return LogProgress(total, desc, unit=log_unit, digits=digits)
+    import threading
+
     from tqdm import tqdm
 
+    if getattr(tqdm, "_lock", None) is None:
+        # a lock of this process only: tqdm's default is a multiprocessing semaphore, which a sweep job's process
+        # stopped by its launcher left behind ("resource_tracker: ... leaked semaphore objects", a review); laughlab
+        # draws every bar from one process
+        tqdm.set_lock(threading.RLock())
     return tqdm(total=total, desc=desc, file=sys.stderr, **tqdm_kwargs)

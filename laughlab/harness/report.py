@@ -416,6 +416,11 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     elif root.is_dir() and any(root.rglob("results.json")):
         results, write = next(root.rglob("results.json")), sweep_report
     else:
+        from laughlab.harness.sweep_plan import missing_text, unfinished
+
+        state = unfinished(root)   # a sweep stopped before any point finished (a review: "run an experiment first")
+        if state and state[1]:
+            raise LaughlabError(missing_text(root, *state))
         single = root.is_dir() and (root / "metrics.json").is_file()   # a single run's folder (a review)
         raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)" + (
             f"; report is for experiments: to watch this run, python -m laughlab view {run_dir}" if single else ""))
@@ -437,12 +442,9 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     staging.mkdir(parents=True)
     try:
         write(root, staging, command or f"python -m laughlab report {run_dir}")
-        target.mkdir(parents=True, exist_ok=True)
-        for item in sorted(staging.iterdir()):
-            old = target / item.name
-            if old.is_dir():
-                shutil.rmtree(old)
-            os.replace(item, old)
+        from laughlab.harness.report_files import replace_report
+
+        replace_report(staging, target)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     if target == root / "report":

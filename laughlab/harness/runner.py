@@ -99,6 +99,14 @@ def progress_bar(total: int, desc: str, progress: bool):
     return bar(total if progress else None, desc, "trials", unit="trial", disable=not progress)
 
 
+def ignore_stop_signals() -> None:
+    """A trial process ignores Ctrl-C: the terminal's SIGINT reaches every process of the command, and the workers'
+    own KeyboardInterrupt tracebacks followed the one line (a review); this process stops them and says it."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def run_trials(trials: list[Trial], jobs: int = 1, progress: bool = True, desc: str = "trials",
                on_record=None) -> list[dict]:
     """Run trials (in ``jobs`` processes); return their records sorted by condition, input and seed.
@@ -120,7 +128,8 @@ def run_trials(trials: list[Trial], jobs: int = 1, progress: bool = True, desc: 
         else:
             from joblib import Parallel, delayed
 
-            for rec in Parallel(n_jobs=jobs, return_as="generator_unordered")(delayed(run_trial)(t) for t in trials):
+            for rec in Parallel(n_jobs=jobs, return_as="generator_unordered", initializer=ignore_stop_signals)(
+                    delayed(run_trial)(t) for t in trials):
                 records.append(rec)
                 if on_record is not None:
                     on_record(by_key[(rec["condition"], rec["input"], rec["seed"])], rec)

@@ -46,13 +46,18 @@ def _list_of(test):
     return lambda v: isinstance(v, list) and all(test(x) for x in v)
 
 
+def _seed(v) -> bool:
+    """A seed: a whole number >= 0 (a review: a negative one passed this check and failed in the first trial)."""
+    return _is_int(v) and v >= 0
+
+
 def _seconds(v) -> bool:
     return _is_number(v) and 0 < v < math.inf
 
 
 #: (key, test, what it takes) of ``harness.corpus`` and of ``harness.corpus.real``
 CORPUS = (("profiles", _list_of(lambda p: isinstance(p, str)), "a list of synthetic profiles, e.g. [mild, intense]"),
-          ("seeds", lambda v: (_is_int(v) and v >= 0) or _list_of(_is_int)(v), "a number of seeds or a list of seeds"),
+          ("seeds", lambda v: _seed(v) or _list_of(_seed)(v), "a number of seeds or a list of seeds, each >= 0"),
           ("duration_s", _seconds, "a finite duration in seconds, above 0"),
           ("folder", _str_or_none, "a folder of recordings or null"),
           ("on_bad", lambda v: v in ("stop", "skip"), "stop or skip"))
@@ -65,6 +70,25 @@ REAL = (("sets", _list_of(lambda s: isinstance(s, str)), "a list of sets, e.g. [
         ("if_missing", lambda v: v in ("stop", "skip"), "stop or skip"))
 
 
+#: the shared top-level settings (an experiment's own keys come from its config and its module)
+SHARED = ("name", "module", "conditions", "run_seeds", "showcase", "jobs", "keep_trials", "plots", "corpus")
+
+
+def _unknown(spec: dict, known, prefix: str, near_only: bool = False) -> None:
+    """Refuse a key of ``spec`` that is not one of ``known`` (a review: ``+harness.corpus.seed=1,2`` ran two identical
+    points); with ``near_only``, only a key close to a known one (an experiment adds keys of its own at the top)."""
+    import difflib
+
+    for key in spec:
+        if key in known:
+            continue
+        near = difflib.get_close_matches(str(key), known, n=1, cutoff=0.75)
+        if near or not near_only:
+            hint = f"; did you mean harness.{prefix}{near[0]}?" if near else ""
+            where = f"harness.{prefix}".rstrip(".")
+            raise LaughlabError(f"unknown parameter harness.{prefix}{key}: {where} takes {', '.join(known)}{hint}")
+
+
 def check_harness(h: dict) -> None:
     """Raise one ``LaughlabError`` line for the first shared ``harness`` setting of the wrong type or range
     (``h``: the resolved ``harness`` section as plain containers)."""
@@ -75,14 +99,18 @@ def check_harness(h: dict) -> None:
     _check(h, "conditions", lambda c: c is None or (isinstance(c, dict) and all(
         v is None or _list_of(lambda o: isinstance(o, str))(v) for v in c.values())),
         "a mapping of condition name to a list of overrides, e.g. {energy: [scheduler=energy]}")
-    _check(h, "run_seeds", _list_of(_is_int), "a list of whole numbers, e.g. [0, 1]")
+    _check(h, "run_seeds", _list_of(_seed), "a list of whole numbers >= 0, e.g. [0, 1]")
     _check(h, "showcase", _str_or_none, "an input's id (e.g. mixed-s00) or null")
     _check(h, "jobs", lambda v: _is_int(v) and v >= 1, "a whole number of parallel trial processes, at least 1")
     for flag in ("keep_trials", "plots"):
         _check(h, flag, lambda v: isinstance(v, bool), "true or false")
+    _unknown(h, SHARED, "", near_only=True)
     corpus = _section(h, "corpus", "", "a mapping (profiles, seeds, duration_s, folder, on_bad, real)")
     if corpus is None:
         return
+    _unknown(corpus, [k for k, _, _ in CORPUS] + ["real"], "corpus.")
+    if isinstance(corpus.get("real"), dict):
+        _unknown(corpus["real"], [k for k, _, _ in REAL], "corpus.real.")
     for key, ok, takes in CORPUS:
         _check(corpus, key, ok, takes, "corpus.")
     real = _section(corpus, "real", "corpus.", "a mapping (sets, split, scenes, duration_s, snr_db, seed, if_missing)")

@@ -1,0 +1,38 @@
+"""A report folder's own files: a new report replaces only the files the earlier one wrote (its manifest), never a
+file of the user's beside them (``python -m laughlab report``, :func:`laughlab.harness.report.write_report`)."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from laughlab.core.errors import LaughlabError, shown_names
+
+#: in a report folder, the files the report wrote there (so that a new report replaces only those)
+MANIFEST = ".laughlab-report.json"
+
+
+def replace_report(staging: Path, target: Path) -> None:
+    """Move the new report's files from ``staging`` into ``target``; remove the files only the earlier report wrote
+    (its manifest; a report without one: its README and the figures it names) and keep the user's (a review: a
+    caption and an edited figure in figures/ were deleted).  A file of the user's in the way is refused."""
+    import json
+    import re
+
+    new = sorted(p.relative_to(staging).as_posix() for p in staging.rglob("*") if p.is_file())
+    try:
+        old = set(json.loads((target / MANIFEST).read_text(encoding="utf-8"))["files"])
+    except (OSError, ValueError, KeyError, TypeError):
+        readme = target / "README.md"
+        text = readme.read_text(encoding="utf-8", errors="replace") if readme.is_file() else ""
+        old = {"README.md"} | {f"figures/{n}" for n in re.findall(r"\]\(figures/([^)\s]+)\)", text)}
+    old = {n for n in old if isinstance(n, str) and n and ".." not in Path(n).parts and not Path(n).is_absolute()}
+    theirs = [n for n in new if (target / n).exists() and n not in old]
+    if theirs:
+        raise LaughlabError(f"{target} holds {shown_names(theirs)}, which no earlier report wrote and this one would "
+                            "replace; move them, or choose another --out")
+    for name in new:
+        (target / name).parent.mkdir(parents=True, exist_ok=True)
+        os.replace(staging / name, target / name)
+    for name in sorted(old - set(new)):
+        (target / name).unlink(missing_ok=True)
+    (target / MANIFEST).write_text(json.dumps({"files": new}, indent=1) + "\n", encoding="utf-8")

@@ -1,0 +1,137 @@
+"""A sweep's planned points against its finished ones: the report of a half-finished sweep says which are missing.
+
+Hydra writes ``multirun.yaml`` into the sweep folder before any job starts: its ``hydra.overrides.task`` (the
+command line) and ``hydra.sweeper.params`` (an experiment's own sweep) list every point the sweep will run, as
+the cross product of the swept values (Hydra's basic sweeper).  A point is finished when its folder holds
+``results.json``; its swept values are in its ``.hydra/overrides.yaml``.  A point stopped by Ctrl-C, or never
+started, has no ``results.json`` (:func:`laughlab.cli._stopped` removes it), so :func:`unfinished` names it.
+"""
+from __future__ import annotations
+
+import shlex
+from itertools import product
+from pathlib import Path
+
+from laughlab.core.errors import LaughlabError
+
+#: override keys that are not a point's parameters (the report's points leave them out too)
+NOT_PARAMS = ("experiment", "hydra")
+
+
+def _multirun(root: Path) -> dict | None:
+    import yaml
+
+    path = root / "multirun.yaml"
+    if not path.is_file():
+        return None
+    try:
+        return (yaml.safe_load(path.read_text()) or {}).get("hydra") or {}
+    except (OSError, yaml.YAMLError, AttributeError):
+        return None
+
+
+def planned_points(root: Path) -> list[dict[str, str]] | None:
+    """Each planned point's swept values, ``{key: value}`` as its ``.hydra/overrides.yaml`` writes them, in the
+    sweeper's order; None when ``root`` has no readable ``multirun.yaml`` or a sweep the parser cannot list."""
+    from laughlab.core.sweepcheck import sweep_values
+
+    hydra = _multirun(Path(root))
+    if hydra is None:
+        return None
+    task = [str(o) for o in ((hydra.get("overrides") or {}).get("task") or [])]
+    given = {o.split("=", 1)[0].lstrip("+~") for o in task}
+    params = (hydra.get("sweeper") or {}).get("params") or {}
+    if any(o.split("=", 1)[0].lstrip("+~") == "experiment" and "," in o for o in task):
+        params = {}   # a sweep over experiments composes the sweeper without them (laughlab.core.sweepcheck)
+    extra = [f"{k}={v}" for k, v in params.items() if str(k).lstrip("+~") not in given]
+    try:
+        _, sweeps = sweep_values(task + extra)
+    except LaughlabError:
+        return None
+    keys = list(sweeps)
+    return [dict(v.split("=", 1) for v in combo) for combo in product(*(sweeps[k] for k in keys))]
+
+
+def _params(overrides: list) -> dict[str, str]:
+    return dict(str(o).split("=", 1) for o in overrides if "=" in str(o) and not str(o).startswith(NOT_PARAMS))
+
+
+def _job_params(job: Path) -> dict[str, str] | None:
+    import yaml
+
+    try:
+        return _params(yaml.safe_load((job / ".hydra" / "overrides.yaml").read_text()) or [])
+    except (OSError, yaml.YAMLError, TypeError):
+        return None
+
+
+def _matches(plan: dict, params: dict) -> bool:
+    return all(params.get(k) == v for k, v in plan.items() if not k.lstrip("+~").startswith(NOT_PARAMS))
+
+
+def unfinished(root: Path) -> tuple[int, list[str]] | None:
+    """``(planned points, [each unfinished point])`` of the sweep in ``root``, or None when its plan is unknown
+    (no ``multirun.yaml``).  A point is named by its folder when Hydra made one (``2``), else by its values."""
+    root = Path(root)
+    plan = planned_points(root)
+    if plan is None:
+        return None
+    jobs = {p: _job_params(p) for p in sorted({h.parent for h in root.glob("**/.hydra")}) if p != root}
+    done = [params for job, params in jobs.items() if params is not None and (job / "results.json").is_file()]
+    missing = []
+    for point in plan:
+        if any(_matches(point, params) for params in done):
+            continue
+        folder = next((job for job, params in jobs.items() if params is not None and _matches(point, params)), None)
+        missing.append(str(folder.relative_to(root)) if folder is not None
+                       else " ".join(f"{k}={v}" for k, v in point.items()))
+    return len(plan), missing
+
+
+def swept_keys(root: Path) -> list[str]:
+    """The keys the sweep in ``root`` sweeps over more than one value (none when its plan is unknown)."""
+    plan = planned_points(Path(root)) or []
+    keys = dict.fromkeys(k for point in plan for k in point if not k.lstrip("+~").startswith(NOT_PARAMS))
+    return [k for k in keys if len({point.get(k) for point in plan}) > 1]
+
+
+def missing_text(root: Path, planned: int, missing: list[str]) -> str:
+    """One line: how many points are unfinished, which (the first 6), and how to finish them."""
+    shown = ", ".join(missing[:6]) + (f" and {len(missing) - 6} more" if len(missing) > 6 else "")
+    what = (f"a sweep with no finished point (0 of {planned})" if len(missing) >= planned
+            else f"{len(missing)} of {planned} sweep points unfinished ({shown})")
+    return f"{root}: {what}: run the sweep's command again to finish it: {sweep_command(root)}"
+
+
+def sweep_command(root: Path) -> str:
+    """The sweep's own command, from ``multirun.yaml`` (empty when there is none)."""
+    hydra = _multirun(Path(root))
+    if hydra is None:
+        return ""
+    task = [str(o) for o in ((hydra.get("overrides") or {}).get("task") or [])]
+    if not any(o.startswith("hydra.sweep.dir=") for o in task):
+        task.append(f"hydra.sweep.dir={root}")
+    return f"python -m laughlab -m {' '.join(shlex.quote(o) for o in task)}"
+
+
+def interrupted_line(argv: list[str]) -> str:
+    """The one line of a sweep stopped by Ctrl-C: how many of its points finished, and how to resume it (a sweep
+    into a folder of its own, ``hydra.sweep.dir=``, resumes by the same command)."""
+    given = next((a.split("=", 1)[1] for a in argv if a.startswith("hydra.sweep.dir=")), None)
+    state = unfinished(Path(given).expanduser()) if given else None
+    if state is None:
+        return ("interrupted; the finished points are kept in the sweep's folder (a sweep resumes into its own "
+                "hydra.sweep.dir=DIR, given again with the same command)")
+    planned, missing = state
+    return (f"interrupted: {planned - len(missing)} of {planned} points finished; run the same command again to "
+            "resume")
+
+
+def partial_warning(root: Path) -> None:
+    """After the report of a half-finished sweep: one warning line on stderr (the report says PARTIAL)."""
+    import sys
+
+    state = None if (root / "results.json").exists() else unfinished(root)
+    if state and state[1]:
+        print(f"laughlab: warning: {missing_text(root, *state)}; the report covers only the finished points",
+              file=sys.stderr)
