@@ -18,7 +18,7 @@ from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, chec
                                   compose_config, conf_dir, group_options, load_plugin_dirs,
                                   register_plugin_configs)
 from laughlab.cli_help import check_flags, check_sweep_flags, help_text, local_options
-from laughlab.core.errors import LaughlabError, RefusedFolder, one_line_parser, shown_path
+from laughlab.core.errors import LaughlabError, RefusedFolder, os_error_line, shown_path  # noqa: F401
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
 
@@ -248,18 +248,6 @@ def _fault(exc: BaseException, where: Path | str, cfg) -> tuple[str, int]:
     raise exc
 
 
-def os_error_line(exc: OSError, where: Path | str, verb: str = "cannot write") -> str:
-    """One line for a file-system fault: the path (the file if known, else ``where``; :func:`shown_path`)
-    and the cause."""
-    import errno
-
-    path = shown_path(exc.filename or where)
-    cause = exc.strerror or type(exc).__name__
-    hint = {errno.EFBIG: " (a file size limit: ulimit -f)", errno.ENOSPC: " (the disk is full)",
-            errno.EDQUOT: " (the disk quota is used up)", errno.EROFS: " (a read-only file system)"}.get(exc.errno, "")
-    return f"{verb} {path}: {cause}{hint}"
-
-
 def config_hash(cfg) -> str:
     """A short hash of the run's resolved configuration (without overwrite and progress)."""
     import hashlib
@@ -303,34 +291,9 @@ def _remove_new_run_dir(out_dir: Path) -> None:
             pass
 
 
-def report_command(args: list[str]) -> None:
-    """``python -m laughlab report RUN_DIR [--out DIR]``: Markdown report with figures."""
-
-    from laughlab.harness.report import write_report
-
-    parser = one_line_parser(prog="python -m laughlab report",
-                                     description="Write a Markdown report with figures (README.md) from a run or sweep "
-                                                 "folder, into RUN_DIR/report/ or --out DIR.")
-    parser.add_argument("run_dir", help="an experiment's run folder (results.json) or a multirun sweep folder")
-    parser.add_argument("--out", help="report folder (default: RUN_DIR/report; the committed reports: "
-                                         "--out reports/<experiment>)")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace a report of another experiment in --out (one of the same is always replaced)")
-    ns = parser.parse_args(args)
-    command = "python -m laughlab report " + " ".join(args)
-    try:
-        path = write_report(ns.run_dir, ns.out, command, overwrite=ns.overwrite)
-    except OSError as exc:
-        raise LaughlabError(os_error_line(exc, ns.out or Path(ns.run_dir) / "report")
-                            + "; no report was written") from None
-    print(f"report written: {path}")
-    from laughlab.harness.sweep_plan import partial_warning
-
-    partial_warning(Path(ns.run_dir))   # a half-finished sweep: its report says PARTIAL, and one line here
-
-
-#: the commands besides a run and ``report``: each module's ``main(args)``, imported when its command is used
+#: the commands besides a run: each module's ``main(args)``, imported when its command is used
 COMMANDS = {
+    "report": "laughlab.harness.report_cli",  # a Markdown report with figures of a run or a sweep
     "detect": "laughlab.detector.detect",   # laughter segments of recordings
     "corpus": "laughlab.corpora.cli",       # fetch|list|lock: the real development corpus
     "study": "laughlab.study.cli",          # build|serve|analyze|power: the perception study
@@ -341,7 +304,7 @@ COMMANDS = {
 def _command(name: str):
     import importlib
 
-    return report_command if name == "report" else importlib.import_module(COMMANDS[name]).main
+    return importlib.import_module(COMMANDS[name]).main
 
 
 def main(argv: list[str] | None = None) -> None:

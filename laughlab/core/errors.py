@@ -111,3 +111,15 @@ def read_json_object(path, fix: str, damaged: str = "is damaged", keys: dict | N
             return doc
         why = f"no {' and '.join(keys)} in it" if keys else "not a JSON object"
     raise LaughlabError(f"{path} {damaged} ({why}){fix}")
+
+
+def os_error_line(exc: OSError, where: str, verb: str = "cannot write") -> str:
+    """One line for a file-system fault: the path (the file if known, else ``where``; :func:`shown_path`)
+    and the cause."""
+    import errno
+
+    path = shown_path(exc.filename or where)
+    cause = exc.strerror or type(exc).__name__
+    hint = {errno.EFBIG: " (a file size limit: ulimit -f)", errno.ENOSPC: " (the disk is full)",
+            errno.EDQUOT: " (the disk quota is used up)", errno.EROFS: " (a read-only file system)"}.get(exc.errno, "")
+    return f"{verb} {path}: {cause}{hint}"
