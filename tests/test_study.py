@@ -11,14 +11,20 @@ import csv
 import json
 import shutil
 import sqlite3
+import subprocess
+import sys
 import threading
 import urllib.error
 import urllib.request
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import fuzz
+
+ROOT = Path(__file__).resolve().parents[1]
 
 PLANTED = 1.0
 
@@ -97,6 +103,15 @@ def test_the_study_folder_is_self_contained_and_follows_the_latin_square(study):
         assert (study / s["file"]).is_file()
     for a in d["audio_check"]["files"]:
         assert (study / a["file"]).is_file() and a["answer"]
+    # the page's design holds each word's hash, not the word, and the server does not send design.json (a review:
+    # the audio check was passed by reading the page's source)
+    js = (study / "design.js").read_text()
+    from laughlab.study.design import word_check
+    from laughlab.study.server import files_of
+
+    for a in d["audio_check"]["files"]:
+        assert f'"{a["answer"]}"' not in js and f'"check": "{word_check(a["answer"])}"' in js
+    assert "design.json" not in files_of(study) and "design.js" in files_of(study)
     # design "all": every participant sees every stimulus once; the first trial's condition rotates
     # through a balanced Latin square, so over 4 participants each condition opens once
     conds = d["conditions"]
@@ -677,3 +692,22 @@ def test_a_simulation_records_what_it_planted(study, tmp_path):
     assert DB.stored(db, "simulation") == {"effects": {"laugh_energy": 1.0}, "seed": 3, "participants": 4,
                                            "base": 4.0, "sd_participant": 0.5, "sd_noise": 0.6}
     assert DB.stored_design(db) == d and DB.participants_kind(db) == "simulated"
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.lists(st.text(st.characters(min_codepoint=32, max_codepoint=0x2FF), min_size=1, max_size=12),
+                min_size=1, max_size=20))
+def test_the_page_hashes_a_word_as_the_build_does(words):
+    """The page's check of the typed word (study.js: its normalisation and FNV-1a, run by node) gives the hash
+    ``study build`` wrote (``word_check``), whatever the word: accents, capitals, digits and spaces."""
+    from laughlab.study.design import word_check
+
+    node = shutil.which("node", path=str(Path(sys.executable).parent)) or shutil.which("node")
+    js = (ROOT / "laughlab" / "study" / "page" / "study.js").read_text()
+    norm = js[js.index("const norm = "):].split(";", 1)[0] + ";"
+    fnv = js[js.index("const fnv = "):js.index("const passed = ")]
+    script = f"{norm}\n{fnv}\nconst w = JSON.parse(require('fs').readFileSync(0, 'utf8'));\n" \
+             "console.log(JSON.stringify(w.map((x) => fnv(norm(x)))));"
+    out = subprocess.run([node, "-e", script], input=json.dumps(words), capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout) == [word_check(w) for w in words]

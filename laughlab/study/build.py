@@ -8,7 +8,8 @@ What the folder holds (it runs offline, from ``study serve`` or any static host)
 ``study.js``,          the jsPsych timeline (``laughlab/study/page/``) and its style
 ``study.css``
 ``design.js``,         the design (``laughlab.study.design``): every participant's trials, the
-``design.json``        questions, the checks; the same document twice (the page reads the ``.js``,
+``design.json``        questions, the checks; the same document twice (the page reads the ``.js``, whose audio-check
+                       words are hashes: ``laughlab.study.design.page_design``;
                        so it also runs from ``file://``)
 ``stimuli/*.mp4``      the videos, checked against the manifest's sha256
 ``audio_check/*.wav``  the words of the audio check, loudness-normalised like the stimuli
@@ -162,7 +163,7 @@ def build(run_dir, out=None, questions: str | None = None, overwrite: bool = Fal
         doc["jspsych"] = {"version": vendor.JSPSYCH, "plugins": vendor.PLUGINS}
         text = json.dumps(doc, indent=1, sort_keys=True)
         (tmp / "design.json").write_text(text + "\n")
-        (tmp / "design.js").write_text(f"window.STUDY = {text};\n")
+        (tmp / "design.js").write_text(f"window.STUDY = {json.dumps(D.page_design(doc), indent=1, sort_keys=True)};\n")
         page = resources.files("laughlab.study").joinpath("page")
         for name in PAGE_FILES:
             (tmp / name).write_bytes(page.joinpath(name).read_bytes())

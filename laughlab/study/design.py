@@ -17,6 +17,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import re
 from importlib import resources
 from pathlib import Path
 
@@ -228,3 +229,27 @@ def identical_conditions(design: dict | None) -> list[tuple[str, str]]:
     conds = [c for c in (design or {}).get("conditions", []) if c in by]
     return [(a, b) for i, a in enumerate(conds) for b in conds[i + 1:]
             if by[a] == by[b] and None not in by[a].values()]
+
+
+def normalise_word(s: str) -> str:
+    """What the audio check compares: lower case, letters only (the page does the same)."""
+    return re.sub(r"[^a-z\u00c0-\u024f]", "", s.lower())
+
+
+def word_check(word: str) -> str:
+    """The audio-check word as the page holds it: FNV-1a (32 bits, over the characters of
+    :func:`normalise_word`) in hex.  The page compares a participant's word by this hash, so the words are not
+    in its source for anyone to read (a review); ``design.json``, which the server keeps to itself, has them."""
+    h = 0x811C9DC5
+    for c in normalise_word(word):
+        h = ((h ^ ord(c)) * 0x01000193) & 0xFFFFFFFF
+    return f"{h:08x}"
+
+
+def page_design(doc: dict) -> dict:
+    """The design the page reads (``design.js``): ``doc`` with each audio-check word's ``answer`` replaced by its
+    :func:`word_check`."""
+    check = dict(doc["audio_check"])
+    check["files"] = [{k: v for k, v in f.items() if k != "answer"} | {"check": word_check(f["answer"])}
+                      for f in check["files"]]
+    return {**doc, "audio_check": check}

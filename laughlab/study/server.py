@@ -36,7 +36,7 @@ from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
 from laughlab.study import db as DB
-from laughlab.study.design import load_design, scale_range
+from laughlab.study.design import load_design, normalise_word, scale_range
 from laughlab.viewer.server import DEFAULT_PORT, _Handler, http_server
 
 MAX_BODY = 16 * 1024
@@ -236,18 +236,14 @@ class StudyHandler(_Handler):
         return 200, {}
 
 
-def normalise_word(s: str) -> str:
-    """What the audio check compares: lower case, letters only (the page does the same)."""
-    return re.sub(r"[^a-z\u00c0-\u024f]", "", s.lower())
-
-
 def files_of(study_dir: Path) -> dict[str, Path]:
-    """Every file of the study folder by its URL path (the database and hidden files left out)."""
+    """Every file of the study folder by its URL path (the database, hidden files and ``design.json``, which holds
+    the audio check's words, left out: the page reads ``design.js``)."""
     out = {}
     for f in sorted(study_dir.rglob("*")):
         rel = f.relative_to(study_dir).as_posix()
         if f.is_file() and not any(part.startswith(".") for part in rel.split("/")) and \
-                not rel.startswith(DB_PREFIXES):
+                not rel.startswith(DB_PREFIXES) and rel != "design.json":
             out[rel] = f
     return out
 

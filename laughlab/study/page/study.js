@@ -209,7 +209,12 @@
     const word = S.audio_check.files[P.audio_check];
     const attempts = [];
     const norm = (s) => String(s).toLowerCase().replace(/[^a-z\u00c0-\u024f]/g, "");
-    const passed = () => attempts.length > 0 && norm(attempts[attempts.length - 1]) === norm(word.answer);
+    const fnv = (s) => {  // laughlab.study.design.word_check: the page holds the word's hash, not the word
+      let h = 0x811c9dc5;
+      for (const c of s) h = Math.imul(h ^ c.codePointAt(0), 0x01000193) >>> 0;
+      return h.toString(16).padStart(8, "0");
+    };
+    const passed = () => attempts.length > 0 && fnv(norm(attempts[attempts.length - 1])) === word.check;
     const started = performance.now();
     const form = {
       type: jsPsychSurveyHtmlForm, autofocus: "study-word", button_label: "Continue",
