@@ -181,7 +181,7 @@ def _task(cfg, out_dir: Path, t0: float, cfg_hash: str) -> dict:
     except LaughlabError as exc:
         if cfg.get("harness") and _CLAIM is not None and (out_dir / "metrics.jsonl").exists() \
                 and not isinstance(exc, RefusedFolder):
-            fail(_stopped(cfg, out_dir, str(exc)))   # after trials (a metric that fails): they are kept, resumable
+            fail(_stopped(cfg, out_dir, str(exc)), code=exc.exit_code)   # after trials: kept, resumable
         # a sweep job refused by a finished run: Hydra wrote this job's .hydra/ over that run's; put it back
         if _CLAIM is not None or not rundir.restore_hydra(out_dir):
             _remove_new_run_dir(out_dir)

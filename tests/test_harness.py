@@ -405,7 +405,7 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     gone = sorted(p.parent.name for p in half.glob("*/results.json")
                   if "scheduler.overrule_c=3" in (p.parent / ".hydra" / "overrides.yaml").read_text())
     for name in gone:
-        (half / name / "results.json").unlink()
+        unfinish(half / name)
     r = laughlab("report", half)
     assert r.returncode == 0 and r.stderr.count("\n") == 1, r.stderr
     assert r.stderr.startswith(f"laughlab: warning: {half}: 2 of 4 sweep points unfinished ({', '.join(gone)}): run the "
@@ -417,13 +417,41 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     assert "scheduler.overrule_c=1.5" not in text.split("fixed at every point")[1].splitlines()[0]
     # no point finished (a review: "run an experiment first" for a started sweep)
     for p in half.glob("*/results.json"):
-        p.unlink()
+        unfinish(p.parent)
     shutil.rmtree(half / "report")
     r = laughlab("report", half)
     assert r.returncode == 2 and r.stderr == (f"laughlab: error: {half}: a sweep with no finished point (0 of 4): run the "
                                               "sweep's command again to finish it: python -m laughlab -m "
                                               + text.split("python -m laughlab -m ")[1].split("`")[0]
                                               .replace(f"hydra.sweep.dir={sweep}", f"hydra.sweep.dir={half}") + "\n")
+
+
+def unfinish(job):
+    """A sweep point as a stopped experiment leaves it: no results.json, its run marker not complete."""
+    (job / "results.json").unlink()
+    marker = json.loads((job / ".laughlab-run.json").read_text())
+    (job / ".laughlab-run.json").write_text(json.dumps({**marker, "complete": False}))
+
+
+def test_a_finished_sweep_of_runs_counts_as_finished(tmp_path):
+    """A diff review: a point counted as finished only with results.json, which a plain run never writes, so a
+    finished sweep of runs was "a sweep with no finished point (0 of 2): run the sweep's command again", and a
+    Ctrl-C line said 0 of N.  Points count by their run marker."""
+    from laughlab.harness.sweep_plan import interrupted_line, unfinished
+
+    sweep = tmp_path / "runs"
+    r = laughlab("-m", "input.duration_s=1", "seed=1,2", "detector=none", "output=[files]", "~output.plots",
+                 f"hydra.sweep.dir={sweep}")
+    assert r.returncode == 0, r.stderr
+    assert unfinished(sweep) == (2, [])
+    assert interrupted_line([f"hydra.sweep.dir={sweep}"]).startswith("interrupted: 2 of 2 points finished")
+    r = laughlab("report", sweep)
+    assert r.returncode == 2 and r.stderr == (f"laughlab: error: {sweep} holds no results.json (run an experiment "
+                                              f"first); report is for experiments: to watch a run, python -m laughlab "
+                                              f"view {sweep / '0'}\n"), r.stderr
+    marker = json.loads((sweep / "1" / ".laughlab-run.json").read_text())
+    (sweep / "1" / ".laughlab-run.json").write_text(json.dumps({**marker, "complete": False}))
+    assert unfinished(sweep) == (2, ["1"])
 
 
 def _bad_corpus(folder):

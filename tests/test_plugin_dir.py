@@ -178,6 +178,12 @@ def test_a_channel_that_is_not_a_number_is_one_line_naming_it(tmp_path, value, s
         f"laughlab: error: {says}a bug in the plugin that writes it (laughlab's own plugins: please report it); "
         "nothing was written\n"), r.stderr
     assert not (tmp_path / "run").exists()
+    # in an experiment: the trial named, exit status 1 too (a diff review: 2, no trial)
+    r = run("plugins_dir=p", "experiment=smoke", "~harness.conditions", "+harness.conditions={g:['face=gape']}",
+            "harness.corpus.profiles=[mild]", "harness.corpus.seeds=1", "harness.corpus.duration_s=1", "harness.jobs=1",
+            "harness.plots=false", "progress=off", "hydra.run.dir=exp", cwd=tmp_path)
+    assert r.returncode == 1 and r.stderr.startswith(f"laughlab: error: in trial g/mild-s00 seed 0, {says}a bug in "
+                                                     "the plugin") and r.stderr.count("\n") == 1, r.stderr
 
 
 def test_a_resumed_experiment_does_not_mix_two_codes_numbers(tmp_path):

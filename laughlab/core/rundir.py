@@ -274,6 +274,13 @@ def record(path: str | Path, name: str) -> None:
         _write_marker(Path(path), marker)
 
 
+def finished(path: Path) -> bool:
+    """Whether ``path`` holds a finished run (its marker says complete): a plain run's, an experiment's, a sweep
+    job's alike (a sweep's report and its Ctrl-C line count its points by it)."""
+    marker = _read_marker(Path(path))
+    return bool(marker and marker.get("complete"))
+
+
 def _read_marker(path: Path) -> dict | None:
     try:
         return json.loads((path / MARKER).read_text())

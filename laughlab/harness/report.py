@@ -421,9 +421,10 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
         state = unfinished(root)   # a sweep stopped before any point finished (a review: "run an experiment first")
         if state and state[1]:
             raise LaughlabError(missing_text(root, *state))
-        single = root.is_dir() and (root / "metrics.json").is_file()   # a single run's folder (a review)
+        runs = sorted(m.parent for m in root.rglob("metrics.json"))   # a single run's folder, or a sweep of runs
         raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)" + (
-            f"; report is for experiments: to watch this run, python -m laughlab view {run_dir}" if single else ""))
+            f"; report is for experiments: to watch {'this run' if runs[0] == root else 'a run'}, python -m "
+            f"laughlab view {runs[0]}" if runs else ""))
     name = read_results(results)["experiment"]
     target = Path(out) if out else root / "report"
     if target.exists() and not target.is_dir():

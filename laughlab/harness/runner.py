@@ -65,6 +65,8 @@ def run_trial(trial: Trial) -> dict:
         where = getattr(exc, blame.WHERE, None)
         if where:
             setattr(exc, blame.WHERE, f"{where} in trial {trial.condition}/{trial.item.id} seed {trial.seed}")
+        if isinstance(exc, blame.PluginBug):   # a plugin's value no writer takes: its line names the trial too
+            exc.args = (f"in trial {trial.condition}/{trial.item.id} seed {trial.seed}, {exc}",)
         raise
     data = TrialData.load(out, trial.item.truth)
     metrics = compute(data)

@@ -2,9 +2,11 @@
 
 Hydra writes ``multirun.yaml`` into the sweep folder before any job starts: its ``hydra.overrides.task`` (the
 command line) and ``hydra.sweeper.params`` (an experiment's own sweep) list every point the sweep will run, as
-the cross product of the swept values (Hydra's basic sweeper).  A point is finished when its folder holds
-``results.json``; its swept values are in its ``.hydra/overrides.yaml``.  A point stopped by Ctrl-C, or never
-started, has no ``results.json`` (:func:`laughlab.cli._stopped` removes it), so :func:`unfinished` names it.
+the cross product of the swept values (Hydra's basic sweeper).  A point is finished when its folder's run marker
+says so (:func:`laughlab.core.rundir.finished`: an experiment's or a plain run's; only ``results.json`` counted,
+and a finished sweep of plain runs was '0 finished', a diff review); its swept values are in its
+``.hydra/overrides.yaml``.  A point stopped by Ctrl-C, or never started, is not finished, so :func:`unfinished`
+names it.
 """
 from __future__ import annotations
 
@@ -77,7 +79,9 @@ def unfinished(root: Path) -> tuple[int, list[str]] | None:
     if plan is None:
         return None
     jobs = {p: _job_params(p) for p in sorted({h.parent for h in root.glob("**/.hydra")}) if p != root}
-    done = [params for job, params in jobs.items() if params is not None and (job / "results.json").is_file()]
+    from laughlab.core.rundir import finished
+
+    done = [params for job, params in jobs.items() if params is not None and finished(job)]
     missing = []
     for point in plan:
         if any(_matches(point, params) for params in done):
