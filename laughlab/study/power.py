@@ -9,8 +9,8 @@ counterbalanced orders (the Latin-square rows of ``experiment=stimuli``, ``parti
 
 rounded to the nearest point and clipped to the scale for Likert items.  ``effect`` is ``--effect``
 scale points for condition ``a`` over ``b`` (``--contrast a:b``; every other condition as ``b``).
-Each data set is fitted with the same mixed model and the same pairwise contrasts (Holm over all
-pairs, two-sided), and the contrast counts as detected when Holm's p < ``--alpha`` and its estimate has
+Each data set is fitted with the same mixed model and the same pairwise contrasts (Holm over the
+pairs it tests: all but those whose conditions show the same videos; two-sided), and the contrast counts as detected when Holm's p < ``--alpha`` and its estimate has
 the planted effect's sign (``a`` above ``b`` for a positive ``--effect``, below for a negative one: a
 negative effect has the power of the same positive one, as the design is symmetric).  ``--effect`` must be
 non-zero and keep ``a``'s mean on the scale (``intercept + effect`` within it: the simulation puts ``b``
@@ -74,12 +74,14 @@ def advice(rows: list[dict], target: float, effect: float) -> str | None:
             f"(more audio items: experiment=stimuli harness.corpus.seeds=N), or a larger effect than {effect:g}")
 
 
-def detected(df, conditions: list[str], a: str, b: str, alpha: float, effect: float = 1.0) -> bool:
-    """Is ``a - b`` significant (Holm's p < ``alpha``) in the direction of the planted ``effect``?"""
+def detected(df, conditions: list[str], a: str, b: str, alpha: float, effect: float = 1.0,
+             same: list[tuple[str, str]] = ()) -> bool:
+    """Is ``a - b`` significant (Holm's p < ``alpha``) in the direction of the planted ``effect``?  Holm's family
+    is the one ``study analyze`` tests: every pair but those in ``same`` (conditions showing the same videos)."""
     from laughlab.study.analyze import contrasts, fit_model
 
     fit, ref, _ = fit_model(df, conditions)
-    c = contrasts(fit, ref, conditions)
+    c = contrasts(fit, ref, conditions, same)
     row = c[((c["a"] == a) & (c["b"] == b)) | ((c["a"] == b) & (c["b"] == a))].iloc[0]
     sign = 1.0 if row["a"] == a else -1.0   # the pair as listed, a - b or b - a
     return bool(row["p_holm"] < alpha and sign * math.copysign(1.0, effect) * row["estimate"] > 0)
@@ -146,7 +148,8 @@ def power(design: dict, contrast: tuple[str, str], effect: float, ns: list[int],
         raise LaughlabError("the contrast needs two different conditions")
     from laughlab.study.design import identical_conditions
 
-    if (a, b) in identical_conditions(design) or (b, a) in identical_conditions(design):
+    same = identical_conditions(design)
+    if (a, b) in same or (b, a) in same:
         raise LaughlabError(f"{a} and {b} show the same videos (the page does not present what tells them apart), so "
                             "the analysis does not test their difference; choose conditions whose videos differ")
     items = sorted({s["audio_id"] for s in design["stimuli"].values()})
@@ -159,7 +162,7 @@ def power(design: dict, contrast: tuple[str, str], effect: float, ns: list[int],
     for n in ns:
         trials = participant_trials(conditions, items, n, kind)
         hits = sum(detected(simulate(trials, {a: effect}, var, intercept, rng, scale), conditions, a, b, alpha,
-                            effect)
+                            effect, same)   # Holm over the pairs analyze tests (a diff review: all pairs)
                    for _ in range(sims))
         lo, hi = wilson(hits, sims)
         out.append({"n": n, "detected": hits, "sims": sims, "power": hits / sims, "ci_low": lo, "ci_high": hi})
