@@ -196,6 +196,16 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
     lines = [f for f in saved if f.name.startswith("line_")]
     assert len(lines) == 1
     assert all("is better" in t for t in lines[0].texts if t.startswith(("fraction", "s (", "Pearson")))
+    # what it was measured on (a review: a sweep PNG in a paper could not be traced back), and each point's 95 % CI
+    # inside its panel's value axis (a review: bare means, and axes that fitted the means alone)
+    text = " ".join(lines[0].texts)
+    per = docs[0]["n_trials"] // len(docs[0]["results"])
+    assert f"energy_ablation sweep: each point the mean of {per} trial" in text.replace("\n", " ")
+    assert "scheduler.decrease_per_s=6" in text.replace("\n", "") and "Error bars: each point's 95% bootstrap CI" in text
+    for title, (bottom, top) in zip(lines[0].titles, lines[0].ylims):
+        if title:
+            cis = [d["results"]["energy"][title.split(" ")[0]]["ci95"] for d in docs]
+            assert all(bottom <= lo and hi <= top for lo, hi in cis if lo is not None), (title, cis, bottom, top)
     shutil.copytree(tmp_path / "line", tmp_path / "sweep")
     for k, (c, doc) in enumerate(zip((1.5, 3), docs), start=2):
         _sweep_point(tmp_path / "sweep" / str(k), [f"scheduler.overrule_c={c}", "scheduler.decrease_per_s=20"],
@@ -207,6 +217,8 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
     assert all(f"| {m} {'↑' if units[m]['higher_is_better'] else '↓'} ({units[m]['units']}) |" in header
                for m in KEY_METRICS), header
     (heat,) = [f for f in saved if f.name.startswith("heatmap_")]
+    assert "energy_ablation sweep: each point the mean of" in " ".join(heat.texts)
+    assert sum("\n±" in t for t in heat.texts) >= 4   # each cell's CI half-width under its mean
     flat = re.findall(r"`(\w+)` \(", readme.split("No figure for")[1].split("\n")[0]) if "No figure for" in readme \
         else []
     # every metric of the table has a heatmap, or the report says why not
