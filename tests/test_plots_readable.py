@@ -218,7 +218,7 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
                for m in KEY_METRICS), header
     (heat,) = [f for f in saved if f.name.startswith("heatmap_")]
     assert "energy_ablation sweep: each point the mean of" in " ".join(heat.texts)
-    assert sum("\n±" in t for t in heat.texts) >= 4   # each cell's CI half-width under its mean
+    assert sum(bool(re.fullmatch(r"[\d.]+\n±[\d.]+", t)) for t in heat.texts) >= 4   # a cell's CI under its mean
     flat = re.findall(r"`(\w+)` \(", readme.split("No figure for")[1].split("\n")[0]) if "No figure for" in readme \
         else []
     # every metric of the table has a heatmap, or the report says why not
@@ -424,3 +424,17 @@ def test_the_baseline_condition_is_grey_in_every_report():
     assert to_hex(a["none"]) == to_hex(b["none"]) == "#999999"
     assert [to_hex(a[c]) for c in ("yamnet", "yamnet_fused", "laugh")] == ["#1f77b4", "#ff7f0e", "#2ca02c"]
     assert to_hex(b["energy"]) == "#1f77b4"
+
+
+def test_heatmap_cells_of_different_values_read_differently(tmp_path, saved):
+    """A review: cells labelled with 2 significant figures showed 0.78 on cells of clearly different colour."""
+    from laughlab.harness.sweep_figures import distinct_labels, heatmaps
+
+    assert distinct_labels([0.7812, 0.7849, 0.2]) == ["0.781", "0.785", "0.2"]        # 3 figures by default
+    assert distinct_labels([0.78121, 0.78149, float("nan")]) == ["0.7812", "0.7815", "n/a"]   # more where needed
+    info = {"intensity_r_clip": {"higher_is_better": True, "units": "Pearson r"}}
+    points = [{"params": {"a": a, "b": b}, "r": {"mean": v, "ci95": [v - 0.01, v + 0.01], "n": 4}}
+              for (a, b), v in zip([("1", "1"), ("2", "1"), ("1", "2"), ("2", "2")], (0.7812, 0.7849, 0.79, 0.80))]
+    heatmaps(points, "a", "b", ["intensity_r_clip"], lambda p, m: p["r"], tmp_path / "h.png", info, "t")
+    cells = [t.split("\n")[0] for t in saved[-1].texts if re.fullmatch(r"[\d.]+\n±[\d.]+", t)]
+    assert sorted(cells) == ["0.781", "0.785", "0.79", "0.8"]

@@ -25,6 +25,17 @@ def order(v: str):
     return (0, x, "") if isinstance(x, float) else (1, 0.0, x)
 
 
+def distinct_labels(values, digits: int = 3, most: int = 6) -> list[str]:
+    """``values`` written with ``digits`` significant figures, or as many more (up to ``most``) as it takes for two
+    different values to read differently (a review: 2 figures showed cells of clearly different colour alike)."""
+    finite = sorted({float(v) for v in values if v is not None and math.isfinite(v)})
+    for d in range(digits, most + 1):
+        shown = [fmt(v, d) for v in finite]
+        if len(set(shown)) == len(shown):
+            break
+    return [fmt(v, d) for v in values]
+
+
 def _ci(r: dict) -> tuple[float, float, float]:
     """A point's (mean, low, high); NaN where it has none (a bound missing: the mean)."""
     m = r["mean"] if r["mean"] is not None else math.nan
@@ -73,7 +84,7 @@ def heatmaps(points, a, b, metrics, result, path, info, title: str) -> None:
         # bright (yellow) is the better end: viridis runs dark to bright with the value, so flip it when lower is better
         im = ax.imshow(grid, origin="lower", cmap="viridis" if hib is not False else "viridis_r", aspect="auto",
                        vmin=lo, vmax=hi if hi > lo else None)
-        labels = [fmt(v, 2) for v in grid.ravel()]
+        labels = distinct_labels(grid.ravel())
         for k, text in enumerate(labels):
             i, j = divmod(k, len(xs))
             bright = np.mean(im.cmap(im.norm(grid[i, j]))[:3]) > 0.5
