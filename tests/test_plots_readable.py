@@ -154,6 +154,8 @@ def test_the_figures_of_an_experiment_report(tmp_path, saved):
     # the detector and the face do not depend on the scheduler: the same under both
     assert {"detector_f1", "jaw_call_r"} <= set(same) and "cutoff_rate" in differ
     (metrics,) = [f for f in saved if f.name == "metrics.png"]             # the report's (the run draws none)
+    assert (tmp_path / "rep" / "figures" / "metrics.pdf").read_bytes().startswith(b"%PDF")   # and its PDF
+    assert "](figures/metrics.pdf)" in readme
     panels = {t.split(" ")[0] for t in metrics.titles if t}
     assert panels == set(differ)
     assert all(m in " ".join(metrics.texts) for m in same)           # named under the panels instead
@@ -193,7 +195,7 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
     docs = [_sweep_point(tmp_path / "line" / str(k), [f"scheduler.overrule_c={c}", "scheduler.decrease_per_s=6"])
             for k, c in enumerate((1.5, 3))]
     write_report(tmp_path / "line", tmp_path / "rep_line", "cmd")
-    lines = [f for f in saved if f.name.startswith("line_")]
+    lines = [f for f in saved if f.name.startswith("line_") and f.name.endswith(".png")]
     assert len(lines) == 1
     assert all("is better" in t for t in lines[0].texts if t.startswith(("fraction", "s (", "Pearson")))
     # what it was measured on (a review: a sweep PNG in a paper could not be traced back), and each point's 95 % CI
@@ -216,7 +218,14 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
     header = next(line for line in readme.splitlines() if line.startswith("| scheduler."))
     assert all(f"| {m} {'↑' if units[m]['higher_is_better'] else '↓'} ({units[m]['units']}) |" in header
                for m in KEY_METRICS), header
-    (heat,) = [f for f in saved if f.name.startswith("heatmap_")]
+    (heat,) = [f for f in saved if f.name.startswith("heatmap_") and f.name.endswith(".png")]
+    # a vector PDF beside each PNG, named in the README, with no date inside: a second report, the same bytes
+    pngs = sorted((tmp_path / "rep" / "figures").glob("*.png"))
+    pdfs = {p.with_suffix(".pdf").name: p.with_suffix(".pdf").read_bytes() for p in pngs}
+    assert pngs and all(b.startswith(b"%PDF") and b"CreationDate" not in b for b in pdfs.values())
+    assert all(f"](figures/{name})" in readme for name in pdfs)
+    write_report(tmp_path / "sweep", tmp_path / "rep", "cmd")
+    assert pdfs == {n: (tmp_path / "rep" / "figures" / n).read_bytes() for n in pdfs}
     assert "energy_ablation sweep: each point the mean of" in " ".join(heat.texts)
     assert sum(bool(re.fullmatch(r"[\d.]+\n±[\d.]+", t)) for t in heat.texts) >= 4   # a cell's CI under its mean
     flat = re.findall(r"`(\w+)` \(", readme.split("No figure for")[1].split("\n")[0]) if "No figure for" in readme \

@@ -21,6 +21,7 @@ import numpy as np  # noqa: E402
 
 from laughlab.core.errors import LaughlabError, shown_names  # noqa: E402
 from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, edge_note  # noqa: E402
+from laughlab.harness.report_format import save_figure, vector_link  # noqa: E402
 from laughlab.harness.report_format import fmt as _fmt  # noqa: E402
 from laughlab.harness.report_format import heading as _heading  # noqa: E402
 from laughlab.harness.results import read_results, separated  # noqa: E402
@@ -63,8 +64,9 @@ def condition_colors(conds: list[str]) -> dict:
     return {c: ("0.6" if c == "none" else cmap(others.index(c) % 10)) for c in conds}
 
 
-def comparison_figure(doc: dict, path: Path) -> Path:
-    """One panel per metric that differs between the conditions: each condition's mean with its 95 % CI.
+def comparison_figure(doc: dict, path: Path, pdf: bool = False) -> Path:
+    """One panel per metric that differs between the conditions: each condition's mean with its 95 % CI (``pdf``:
+    a vector PDF beside the PNG, as a report writes it).
 
     Metrics the same under every condition (:func:`same_everywhere`) get no panel; a line under
     the panels names them.
@@ -129,7 +131,7 @@ def comparison_figure(doc: dict, path: Path) -> Path:
             f"Not shown, the same under every condition: {', '.join(same)} (values in the report's table).",
             int(2.3 * cols * 15))), fontsize=7, color="0.3")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    save_figure(fig, path) if pdf else fig.savefig(path)
     plt.close(fig)
     return path
 
@@ -321,7 +323,7 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
     if figs.exists():
         shutil.rmtree(figs)
     figs.mkdir(parents=True)
-    comparison_figure(doc, figs / "metrics.png")
+    comparison_figure(doc, figs / "metrics.png", pdf=True)
     for png in sorted((run_dir / "plots").glob("*.png")) if (run_dir / "plots").is_dir() else []:
         if png.name != "metrics.png":
             shutil.copyfile(png, figs / png.name)
@@ -354,7 +356,7 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
     if gone:
         lines += ["", "No value under any condition (nothing in these inputs for them to measure): "
                   + ", ".join(f"`{m}`" for m in gone) + "."]
-    lines += ["", "![metrics](figures/metrics.png)", ""]
+    lines += ["", "![metrics](figures/metrics.png)", "", vector_link("metrics.png"), ""]
     same = _same_table(doc)
     if same:
         lines += same + [""]

@@ -10,7 +10,7 @@ from pathlib import Path
 from laughlab.core.errors import LaughlabError
 from laughlab.harness.results import read_results
 from laughlab.harness.sweep_plan import swept_keys, sweep_command, unfinished
-from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge
+from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, vector_link
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
 from laughlab.harness.sweep_figures import heatmaps, lines as line_plots
@@ -164,10 +164,10 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
     for a, b in (pairs if heat_metrics else []):
         name = f"heatmap_{a}_{b}.png".replace("/", "_")
         heatmaps(points, a, b, heat_metrics, result, figs / name, doc0["metrics"], title)
-        lines += [f"![{a} x {b}](figures/{name})", ""]
+        lines += [f"![{a} x {b}](figures/{name})", "", vector_link(name), ""]
     if len(varying) == 1 and heat_metrics:
         name = f"line_{varying[0]}.png"
         line_plots(points, varying[0], heat_metrics, result, figs / name, doc0["metrics"], title)
-        lines += [f"![{varying[0]}](figures/{name})", ""]
+        lines += [f"![{varying[0]}](figures/{name})", "", vector_link(name), ""]
     (out / "README.md").write_text("\n".join(lines) + "\n")
     return out / "README.md"
