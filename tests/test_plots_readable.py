@@ -450,3 +450,51 @@ def test_heatmap_cells_of_different_values_read_differently(tmp_path, saved):
     heatmaps(points, "a", "b", ["intensity_r_clip"], lambda p, m: p["r"], tmp_path / "h.png", info, "t")
     cells = [t.split("\n")[0] for t in saved[-1].texts if re.fullmatch(r"[\d.]+\n±[\d.]+", t)]
     assert sorted(cells) == ["0.781", "0.785", "0.79", "0.8"]
+
+
+class _ClipCount:
+    """A researcher's own metric, registered in code as a plugin would be (not laughlab's)."""
+
+    @staticmethod
+    def metric():
+        from laughlab.harness.metrics import metric
+
+        @metric("clip_events_n", True, "count")
+        def clip_events_n(trial):
+            """How many clip events the trial had."""
+            return float(len(trial.events))
+
+        return clip_events_n
+
+    def __init__(self):
+        self.m = self.metric()
+
+    from laughlab import hookimpl
+
+    @hookimpl
+    def register_metrics(self, register):
+        register(self.m)
+
+
+def test_a_sweep_report_shows_a_plugins_metric_and_those_asked_for(tmp_path, saved):
+    """A plugin authors' review: a sweep's table and figures showed only the fixed key metrics, so a metric a
+    plugin registered never appeared; ``report --metrics`` adds any the sweep measured, and refuses others."""
+    from laughlab.core import plugins
+    from laughlab.core.errors import LaughlabError
+    from laughlab.harness.report import write_report
+
+    mine = _ClipCount()
+    plugins.pm.register(mine, name="test-clip-count")
+    try:
+        for k, c in enumerate((6, 20)):
+            _sweep_point(tmp_path / "sweep" / str(k), ["scheduler.overrule_c=2", f"scheduler.decrease_per_s={c}"])
+    finally:
+        plugins.pm.unregister(mine)
+    readme = write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", metrics=["detector_f1"]).read_text()
+    header = next(line for line in readme.splitlines() if line.startswith("| scheduler."))
+    assert "| clip_events_n ↑ (count) |" in header and "| detector_f1 ↑ (F1) |" in header, header
+    assert "and `clip_events_n`, `detector_f1` (a plugin's own, or asked for with `report --metrics`)" in readme
+    (line,) = [f for f in saved if f.name.startswith("line_") and f.name.endswith(".png")]
+    assert "clip_events_n ↑" in line.titles or "`clip_events_n` (" in readme   # a panel, or said to be flat
+    with pytest.raises(LaughlabError, match=r"^--metrics: the sweep measured no jaw_mean; its metrics: "):
+        write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", metrics=["jaw_mean"])

@@ -409,8 +409,8 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
     return out / "README.md"
 
 
-def write_report(run_dir: str | Path, out: str | Path | None = None, command: str = "", overwrite: bool = False) \
-        -> Path:
+def write_report(run_dir: str | Path, out: str | Path | None = None, command: str = "", overwrite: bool = False,
+                 metrics: list[str] | None = None) -> Path:
     """Write the report of an experiment run or a sweep; return the README path.
 
     The report goes into ``out``, by default ``run_dir/report`` (beside the results it is made
@@ -454,7 +454,8 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     shutil.rmtree(staging, ignore_errors=True)
     staging.mkdir(parents=True)
     try:
-        write(root, staging, command or f"python -m laughlab report {run_dir}")
+        args = (metrics,) if write is sweep_report else ()   # an experiment's report shows every metric
+        write(root, staging, command or f"python -m laughlab report {run_dir}", *args)
         from laughlab.harness.report_files import replace_report
 
         replace_report(staging, target)

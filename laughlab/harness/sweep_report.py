@@ -77,7 +77,20 @@ def _edge_lines(points: list[dict], varying: list[str]) -> list[str]:
     return out + [""] if out else []
 
 
-def sweep_report(root: Path, out: Path, command: str) -> Path:
+def shown_metrics(doc: dict, asked: list[str] | None = None) -> list[str]:
+    """The metrics a sweep's table and figures show: :data:`KEY_METRICS`, every metric a plugin other than
+    laughlab registered (a plugin authors' review: a researcher's own metric never appeared), and ``asked``
+    (``report --metrics``); a name the sweep did not measure is refused in one line."""
+    unknown = [m for m in asked or [] if m not in doc["metrics"]]
+    if unknown:
+        raise LaughlabError(f"--metrics: the sweep measured no {', '.join(unknown)}; its metrics: "
+                            + ", ".join(doc["metrics"]))
+    origins = doc.get("plugins") or {}
+    theirs = [m for m in doc["metrics"] if not origins.get(f"metric/{m}", "laughlab ").startswith("laughlab ")]
+    return list(dict.fromkeys([m for m in KEY_METRICS if m in doc["metrics"]] + theirs + list(asked or [])))
+
+
+def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None = None) -> Path:
     points = _sweep_points(root)
     experiments = sorted({p["doc"]["experiment"] for p in points})
     if len(experiments) > 1:
@@ -93,7 +106,8 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
     state = unfinished(root)
     planned = set(swept_keys(root))   # swept by the plan, though the finished points may hold only one value
     varying = [k for k in keys if len({p["params"].get(k) for p in points}) > 1 or k in planned]
-    metrics = [m for m in KEY_METRICS if m in doc0["metrics"]]
+    metrics = shown_metrics(doc0, metrics)
+    key = [m for m in metrics if m in KEY_METRICS]
     per = sorted({p["doc"]["n_trials"] // max(len(p["doc"]["results"]), 1) for p in points})   # a condition's trials
     per_text = str(per[0]) if len(per) == 1 else f"{per[0]}-{per[-1]}"
     figs = out / "figures"
@@ -118,7 +132,10 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
              "## Every point", "", "One column per metric: its name, ↑ higher is better or ↓ lower is better, and "
              f"(its units). Each cell is the mean of a point's {per_text} trial"
              f"{'' if per == [1] else 's'} of that condition; the table shows "
-             f"{len(metrics)} key metrics of the {len(doc0['metrics'])} each point measured: a point's folder "
+             f"{len(key)} key metrics" + (" and " + ", ".join(f"`{m}`" for m in metrics[len(key):])
+                                          + " (a plugin's own, or asked for with `report --metrics`)"
+                                          if len(metrics) > len(key) else "")
+             + f" of the {len(doc0['metrics'])} each point measured: a point's folder "
              "has them all, with 95% bootstrap intervals (`results.json`; `python -m laughlab report POINT_DIR`).",
              ""]
     info = doc0["metrics"]
