@@ -381,6 +381,10 @@ def check(h: dict) -> None:
     n = h.get("participants", 0)
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise LaughlabError(f"harness.participants must be a whole number >= 1 (got {n!r})")
+    # here, not first in run(): the harness had made the run folder's parent by then (a review: an empty runs/)
+    design = h.get("design") or (h["presets"][preset_name] or {}).get("design") or "all"
+    if design not in ("all", "one_per_condition"):
+        raise LaughlabError(f"harness.design must be all or one_per_condition (got {design!r})")
 
 
 def run(cfg, out_dir) -> dict:
@@ -399,9 +403,7 @@ def run(cfg, out_dir) -> dict:
     conditions = check_conditions(h.get("conditions") or preset.get("conditions"))
     muted = set(preset.get("muted") or [])
     columns = preset.get("columns") or {}
-    design = h.get("design") or preset.get("design") or "all"
-    if design not in ("all", "one_per_condition"):
-        raise LaughlabError(f"harness.design must be all or one_per_condition (got {design!r})")
+    design = h.get("design") or preset.get("design") or "all"   # check()ed
     items = build_corpus(h.get("corpus") or {})
     run_seeds = [int(s) for s in h.get("run_seeds") or [0]]
     n_participants = int(h["participants"])   # check()ed

@@ -171,6 +171,16 @@ def test_experiment_is_reproducible(tiny_run, tmp_path):
             assert (a == b) or (math.isnan(a) and math.isnan(b)), (cond, m)
 
 
+def test_the_same_seed_draws_the_same_metrics_png(tiny_run, tmp_path):
+    """A sweeps review: metrics.png drew the compute-time panels, so two runs of one seed never gave its bytes;
+    they are in timing.png now, the one figure that differs run to run."""
+    out, doc = tiny_run
+    doc2 = run_experiment(tiny_cfg(showcase=None), tmp_path, base_overrides=[], progress=False)
+    assert doc2["results"]["energy"]["frame_ms_p50"]["mean"] != doc["results"]["energy"]["frame_ms_p50"]["mean"]
+    assert (tmp_path / "plots" / "metrics.png").read_bytes() == (out / "plots" / "metrics.png").read_bytes()
+    assert (tmp_path / "plots" / "timing.png").exists() and (out / "plots" / "timing.png").exists()
+
+
 def test_report_tables_and_figures(tiny_run, tmp_path):
     out, _ = tiny_run
     readme = write_report(out, tmp_path / "rep", "python -m laughlab report X")

@@ -154,8 +154,13 @@ def test_the_figures_of_an_experiment_report(tmp_path, saved):
     # the detector and the face do not depend on the scheduler: the same under both
     assert {"detector_f1", "jaw_call_r"} <= set(same) and "cutoff_rate" in differ
     (metrics,) = [f for f in saved if f.name == "metrics.png"]             # the report's (the run draws none)
+    assert (tmp_path / "rep" / "figures" / "metrics.pdf").read_bytes().startswith(b"%PDF")   # and its PDF
+    assert "](figures/metrics.pdf)" in readme
     panels = {t.split(" ")[0] for t in metrics.titles if t}
-    assert panels == set(differ)
+    compute = {"frame_ms_p50", "frame_ms_p99", "realtime_factor"}
+    assert panels == set(differ) - compute   # the compute time in timing.png, apart (it differs run to run)
+    (timing,) = [f for f in saved if f.name == "timing.png"]
+    assert {t.split(" ")[0] for t in timing.titles if t} == set(differ) & compute
     assert all(m in " ".join(metrics.texts) for m in same)           # named under the panels instead
     assert all(t == ["energy", "concat"] for t, title in zip(metrics.xticks, metrics.titles) if title)
     table = readme.split("![metrics]")[0]
@@ -193,9 +198,19 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
     docs = [_sweep_point(tmp_path / "line" / str(k), [f"scheduler.overrule_c={c}", "scheduler.decrease_per_s=6"])
             for k, c in enumerate((1.5, 3))]
     write_report(tmp_path / "line", tmp_path / "rep_line", "cmd")
-    lines = [f for f in saved if f.name.startswith("line_")]
+    lines = [f for f in saved if f.name.startswith("line_") and f.name.endswith(".png")]
     assert len(lines) == 1
     assert all("is better" in t for t in lines[0].texts if t.startswith(("fraction", "s (", "Pearson")))
+    # what it was measured on (a review: a sweep PNG in a paper could not be traced back), and each point's 95 % CI
+    # inside its panel's value axis (a review: bare means, and axes that fitted the means alone)
+    text = " ".join(lines[0].texts)
+    per = docs[0]["n_trials"] // len(docs[0]["results"])
+    assert f"energy_ablation sweep: each point the mean of {per} trial" in text.replace("\n", " ")
+    assert "scheduler.decrease_per_s=6" in text.replace("\n", "") and "Error bars: each point's 95% bootstrap CI" in text
+    for title, (bottom, top) in zip(lines[0].titles, lines[0].ylims):
+        if title:
+            cis = [d["results"]["energy"][title.split(" ")[0]]["ci95"] for d in docs]
+            assert all(bottom <= lo and hi <= top for lo, hi in cis if lo is not None), (title, cis, bottom, top)
     shutil.copytree(tmp_path / "line", tmp_path / "sweep")
     for k, (c, doc) in enumerate(zip((1.5, 3), docs), start=2):
         _sweep_point(tmp_path / "sweep" / str(k), [f"scheduler.overrule_c={c}", "scheduler.decrease_per_s=20"],
@@ -206,7 +221,16 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
     header = next(line for line in readme.splitlines() if line.startswith("| scheduler."))
     assert all(f"| {m} {'↑' if units[m]['higher_is_better'] else '↓'} ({units[m]['units']}) |" in header
                for m in KEY_METRICS), header
-    (heat,) = [f for f in saved if f.name.startswith("heatmap_")]
+    (heat,) = [f for f in saved if f.name.startswith("heatmap_") and f.name.endswith(".png")]
+    # a vector PDF beside each PNG, named in the README, with no date inside: a second report, the same bytes
+    pngs = sorted((tmp_path / "rep" / "figures").glob("*.png"))
+    pdfs = {p.with_suffix(".pdf").name: p.with_suffix(".pdf").read_bytes() for p in pngs}
+    assert pngs and all(b.startswith(b"%PDF") and b"CreationDate" not in b for b in pdfs.values())
+    assert all(f"](figures/{name})" in readme for name in pdfs)
+    write_report(tmp_path / "sweep", tmp_path / "rep", "cmd")
+    assert pdfs == {n: (tmp_path / "rep" / "figures" / n).read_bytes() for n in pdfs}
+    assert "energy_ablation sweep: each point the mean of" in " ".join(heat.texts)
+    assert sum(bool(re.fullmatch(r"[\d.]+\n±[\d.]+", t)) for t in heat.texts) >= 4   # a cell's CI under its mean
     flat = re.findall(r"`(\w+)` \(", readme.split("No figure for")[1].split("\n")[0]) if "No figure for" in readme \
         else []
     # every metric of the table has a heatmap, or the report says why not
@@ -412,3 +436,65 @@ def test_the_baseline_condition_is_grey_in_every_report():
     assert to_hex(a["none"]) == to_hex(b["none"]) == "#999999"
     assert [to_hex(a[c]) for c in ("yamnet", "yamnet_fused", "laugh")] == ["#1f77b4", "#ff7f0e", "#2ca02c"]
     assert to_hex(b["energy"]) == "#1f77b4"
+
+
+def test_heatmap_cells_of_different_values_read_differently(tmp_path, saved):
+    """A review: cells labelled with 2 significant figures showed 0.78 on cells of clearly different colour."""
+    from laughlab.harness.sweep_figures import distinct_labels, heatmaps
+
+    assert distinct_labels([0.7812, 0.7849, 0.2]) == ["0.781", "0.785", "0.2"]        # 3 figures by default
+    assert distinct_labels([0.78121, 0.78149, float("nan")]) == ["0.7812", "0.7815", "n/a"]   # more where needed
+    info = {"intensity_r_clip": {"higher_is_better": True, "units": "Pearson r"}}
+    points = [{"params": {"a": a, "b": b}, "r": {"mean": v, "ci95": [v - 0.01, v + 0.01], "n": 4}}
+              for (a, b), v in zip([("1", "1"), ("2", "1"), ("1", "2"), ("2", "2")], (0.7812, 0.7849, 0.79, 0.80))]
+    heatmaps(points, "a", "b", ["intensity_r_clip"], lambda p, m: p["r"], tmp_path / "h.png", info, "t")
+    cells = [t.split("\n")[0] for t in saved[-1].texts if re.fullmatch(r"[\d.]+\n±[\d.]+", t)]
+    assert sorted(cells) == ["0.781", "0.785", "0.79", "0.8"]
+
+
+class _ClipCount:
+    """A researcher's own metric, registered in code as a plugin would be (not laughlab's)."""
+
+    @staticmethod
+    def metric():
+        from laughlab.harness.metrics import metric
+
+        @metric("clip_events_n", True, "count")
+        def clip_events_n(trial):
+            """How many clip events the trial had."""
+            return float(len(trial.events))
+
+        return clip_events_n
+
+    def __init__(self):
+        self.m = self.metric()
+
+    from laughlab import hookimpl
+
+    @hookimpl
+    def register_metrics(self, register):
+        register(self.m)
+
+
+def test_a_sweep_report_shows_a_plugins_metric_and_those_asked_for(tmp_path, saved):
+    """A plugin authors' review: a sweep's table and figures showed only the fixed key metrics, so a metric a
+    plugin registered never appeared; ``report --metrics`` adds any the sweep measured, and refuses others."""
+    from laughlab.core import plugins
+    from laughlab.core.errors import LaughlabError
+    from laughlab.harness.report import write_report
+
+    mine = _ClipCount()
+    plugins.pm.register(mine, name="test-clip-count")
+    try:
+        for k, c in enumerate((6, 20)):
+            _sweep_point(tmp_path / "sweep" / str(k), ["scheduler.overrule_c=2", f"scheduler.decrease_per_s={c}"])
+    finally:
+        plugins.pm.unregister(mine)
+    readme = write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", metrics=["detector_f1"]).read_text()
+    header = next(line for line in readme.splitlines() if line.startswith("| scheduler."))
+    assert "| clip_events_n ↑ (count) |" in header and "| detector_f1 ↑ (F1) |" in header, header
+    assert "and `clip_events_n`, `detector_f1` (a plugin's own, or asked for with `report --metrics`)" in readme
+    (line,) = [f for f in saved if f.name.startswith("line_") and f.name.endswith(".png")]
+    assert "clip_events_n ↑" in line.titles or "`clip_events_n` (" in readme   # a panel, or said to be flat
+    with pytest.raises(LaughlabError, match=r"^--metrics: the sweep measured no jaw_mean; its metrics: "):
+        write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", metrics=["jaw_mean"])

@@ -209,3 +209,11 @@ def test_an_unbalanced_design_is_said_before_rendering():
     assert "rows 1-2 serve one participant more" in note and note.endswith("6 or 12 participants balance them")
     (note,) = design_notes(4, 1, 4, "one_per_condition")
     assert note.startswith("one_per_condition with 1 audio item(s) for 4 conditions: each participant hears an item")
+
+
+def test_a_bad_design_is_refused_before_anything_is_made(tmp_path):
+    """A sweeps review: harness.design=al was refused in one line, but after the harness had made runs/ (left empty)."""
+    r = laughlab("experiment=stimuli", "harness.design=al", "hydra.run.dir=runs/st2", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr == ("laughlab: error: harness.design must be all or one_per_condition "
+                                              "(got 'al')\n"), r.stderr
+    assert list(tmp_path.iterdir()) == []

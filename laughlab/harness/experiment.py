@@ -174,7 +174,7 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     if progress:  # the steps below take 5-30 s on 2 cores: say what is going on
         steps = ["means and bootstrap intervals",
                  *(["the experiment's own numbers"] if hasattr(module, "extra") else []),
-                 *(["plots/metrics.png"] if h.get("plots", True) else [])]
+                 *(["plots/metrics.png and timing.png"] if h.get("plots", True) else [])]
         print(f"{name}: summarising {len(run.records)} trials: {', '.join(steps)}", file=sys.stderr)
     results, by_profile = res.aggregate(run.records, list(metric_info))
     extra = {}
@@ -204,6 +204,7 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
         from laughlab.harness.report import comparison_figure
 
         comparison_figure(doc, out_dir / "plots" / "metrics.png")
+        comparison_figure(doc, out_dir / "plots" / "timing.png", timing=True)   # the one figure that varies
     return doc
 
 

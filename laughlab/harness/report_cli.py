@@ -19,10 +19,13 @@ def main(args: list[str]) -> None:
                                       "--out reports/<experiment>)")
     parser.add_argument("--overwrite", action="store_true",
                         help="replace a report of another experiment in --out (one of the same is always replaced)")
+    parser.add_argument("--metrics", help="a sweep's table and figures also show these metrics (NAME,NAME; "
+                                          "besides the key ones and every metric a plugin registered)")
     ns = parser.parse_args(args)
     command = "python -m laughlab report " + " ".join(args)
     try:
-        path = write_report(ns.run_dir, ns.out, command, overwrite=ns.overwrite)
+        path = write_report(ns.run_dir, ns.out, command, overwrite=ns.overwrite,
+                            metrics=[m.strip() for m in (ns.metrics or "").split(",") if m.strip()])
     except OSError as exc:
         raise LaughlabError(os_error_line(exc, ns.out or Path(ns.run_dir) / "report")
                             + "; no report was written") from None

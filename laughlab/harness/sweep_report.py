@@ -7,16 +7,14 @@ import shutil
 from itertools import combinations
 from pathlib import Path
 
-import numpy as np
-
 from laughlab.core.errors import LaughlabError
 from laughlab.harness.results import read_results
 from laughlab.harness.sweep_plan import swept_keys, sweep_command, unfinished
-from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, better_label, param_label
+from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, vector_link
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
-from laughlab.harness.report_format import panel_grid as _panel_grid
-from laughlab.harness.report_format import plt
+from laughlab.harness.sweep_figures import heatmaps, lines as line_plots
+from laughlab.harness.sweep_figures import order as _order
 
 
 def _sweep_points(root: Path) -> list[dict]:
@@ -30,19 +28,6 @@ def _sweep_points(root: Path) -> list[dict]:
         params = dict(o.split("=", 1) for o in overrides if "=" in o and not o.startswith(("experiment=", "hydra")))
         points.append({"dir": job, "params": params, "doc": read_results(rj)})
     return points
-
-
-def _num(v: str):
-    try:
-        return float(v)
-    except ValueError:
-        return v
-
-
-def _order(v: str):
-    """A sort key for a swept value: numbers by value, then words (a point without the parameter: "")."""
-    x = _num(v)
-    return (0, x, "") if isinstance(x, float) else (1, 0.0, x)
 
 
 def _sweep_command(root: Path) -> list[str]:
@@ -92,7 +77,20 @@ def _edge_lines(points: list[dict], varying: list[str]) -> list[str]:
     return out + [""] if out else []
 
 
-def sweep_report(root: Path, out: Path, command: str) -> Path:
+def shown_metrics(doc: dict, asked: list[str] | None = None) -> list[str]:
+    """The metrics a sweep's table and figures show: :data:`KEY_METRICS`, every metric a plugin other than
+    laughlab registered (a plugin authors' review: a researcher's own metric never appeared), and ``asked``
+    (``report --metrics``); a name the sweep did not measure is refused in one line."""
+    unknown = [m for m in asked or [] if m not in doc["metrics"]]
+    if unknown:
+        raise LaughlabError(f"--metrics: the sweep measured no {', '.join(unknown)}; its metrics: "
+                            + ", ".join(doc["metrics"]))
+    origins = doc.get("plugins") or {}
+    theirs = [m for m in doc["metrics"] if not origins.get(f"metric/{m}", "laughlab ").startswith("laughlab ")]
+    return list(dict.fromkeys([m for m in KEY_METRICS if m in doc["metrics"]] + theirs + list(asked or [])))
+
+
+def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None = None) -> Path:
     points = _sweep_points(root)
     experiments = sorted({p["doc"]["experiment"] for p in points})
     if len(experiments) > 1:
@@ -108,7 +106,8 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
     state = unfinished(root)
     planned = set(swept_keys(root))   # swept by the plan, though the finished points may hold only one value
     varying = [k for k in keys if len({p["params"].get(k) for p in points}) > 1 or k in planned]
-    metrics = [m for m in KEY_METRICS if m in doc0["metrics"]]
+    metrics = shown_metrics(doc0, metrics)
+    key = [m for m in metrics if m in KEY_METRICS]
     per = sorted({p["doc"]["n_trials"] // max(len(p["doc"]["results"]), 1) for p in points})   # a condition's trials
     per_text = str(per[0]) if len(per) == 1 else f"{per[0]}-{per[-1]}"
     figs = out / "figures"
@@ -133,7 +132,10 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
              "## Every point", "", "One column per metric: its name, ↑ higher is better or ↓ lower is better, and "
              f"(its units). Each cell is the mean of a point's {per_text} trial"
              f"{'' if per == [1] else 's'} of that condition; the table shows "
-             f"{len(metrics)} key metrics of the {len(doc0['metrics'])} each point measured: a point's folder "
+             f"{len(key)} key metrics" + (" and " + ", ".join(f"`{m}`" for m in metrics[len(key):])
+                                          + " (a plugin's own, or asked for with `report --metrics`)"
+                                          if len(metrics) > len(key) else "")
+             + f" of the {len(doc0['metrics'])} each point measured: a point's folder "
              "has them all, with 95% bootstrap intervals (`results.json`; `python -m laughlab report POINT_DIR`).",
              ""]
     info = doc0["metrics"]
@@ -141,8 +143,11 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
                  + " | ".join(f"{_heading(m, info[m])} ({info[m]['units']})" for m in metrics) + " |")
     lines.append("|" + "---|" * (len(varying) + len(metrics)))
 
+    def result(p, m):
+        return p["doc"]["results"][p["cond"]][m]
+
     def val(p, m):
-        r = p["doc"]["results"][p["cond"]][m]
+        r = result(p, m)
         return r["mean"] if r["mean"] is not None else float("nan")
 
     for p in sorted(points, key=lambda p: [_order(p["params"].get(k, "")) for k in varying]):
@@ -160,6 +165,12 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
         else:
             heat_metrics.append(m)
     pairs = list(combinations(varying, 2))
+    # what every figure was measured on, in its title (a review: a sweep PNG in a paper could not be traced back)
+    title = (f"{doc0['experiment']} sweep: each point the mean of {per_text} trial{'' if per == [1] else 's'}"
+             + (" of each condition" if len(conds) > 1 else f" of condition {conds[0]}")
+             + f" (profiles {', '.join(doc0['corpus']['profiles'])}; seeds {', '.join(map(str, seeds))})"
+             + (f"; fixed: {', '.join(fixed)}" if fixed else "")
+             + (f"; PARTIAL: {len(state[1])} of {state[0]} points unfinished" if state and state[1] else ""))
     if pairs:
         lines += ["## Heatmaps", "", "Each cell: the metric's mean over the sweep points with those two values "
                   "(averaged over the other swept parameters). In every heatmap the bright (yellow) end is the "
@@ -169,64 +180,11 @@ def sweep_report(root: Path, out: Path, command: str) -> Path:
         lines += ["No figure for " + ", ".join(flat) + ": the sweep did not change it.", ""]
     for a, b in (pairs if heat_metrics else []):
         name = f"heatmap_{a}_{b}.png".replace("/", "_")
-        _heatmaps(points, a, b, heat_metrics, val, figs / name, doc0["metrics"])
-        lines += [f"![{a} x {b}](figures/{name})", ""]
+        heatmaps(points, a, b, heat_metrics, result, figs / name, doc0["metrics"], title)
+        lines += [f"![{a} x {b}](figures/{name})", "", vector_link(name), ""]
     if len(varying) == 1 and heat_metrics:
         name = f"line_{varying[0]}.png"
-        _lines(points, varying[0], heat_metrics, val, figs / name, doc0["metrics"])
-        lines += [f"![{varying[0]}](figures/{name})", ""]
+        line_plots(points, varying[0], heat_metrics, result, figs / name, doc0["metrics"], title)
+        lines += [f"![{varying[0]}](figures/{name})", "", vector_link(name), ""]
     (out / "README.md").write_text("\n".join(lines) + "\n")
     return out / "README.md"
-
-
-def _heatmaps(points, a, b, metrics, val, path, info) -> None:
-    """One heatmap per metric over parameters ``a`` (x) and ``b`` (y); bright is better in each."""
-    xs = sorted({p["params"].get(a, "") for p in points}, key=_order)
-    ys = sorted({p["params"].get(b, "") for p in points}, key=_order)
-    fig, axes = _panel_grid(len(metrics), 3.4, 2.7)
-    for ax, m in zip(axes, metrics):
-        grid = np.full((len(ys), len(xs)), np.nan)
-        for i, y in enumerate(ys):
-            for j, x in enumerate(xs):
-                v = [val(p, m) for p in points if p["params"].get(a, "") == x and p["params"].get(b, "") == y]
-                v = [u for u in v if math.isfinite(u)]
-                grid[i, j] = np.mean(v) if v else np.nan
-        hib = info[m]["higher_is_better"]
-        # bright (yellow) is the better end: viridis runs dark to bright with the value, so flip it when lower is better
-        im = ax.imshow(grid, origin="lower", cmap="viridis" if hib is not False else "viridis_r", aspect="auto")
-        for i in range(len(ys)):
-            for j in range(len(xs)):
-                bright = np.mean(im.cmap(im.norm(grid[i, j]))[:3]) > 0.5
-                colour = ("0.35" if not math.isfinite(grid[i, j])   # n/a on the blank cell, not white on white
-                          else "k" if bright else "w")
-                ax.text(j, i, _fmt(grid[i, j], 2), ha="center", va="center", fontsize=6, color=colour)
-        ax.set_xticks(range(len(xs)), xs, fontsize=7)
-        ax.set_yticks(range(len(ys)), ys, fontsize=7)
-        ax.set_xlabel(param_label(a), fontsize=7)
-        ax.set_ylabel(param_label(b), fontsize=7)
-        ax.set_title(_heading(m, info[m]), fontsize=8)
-        cb = fig.colorbar(im, ax=ax, shrink=0.9)
-        if hib is False:
-            cb.ax.invert_yaxis()  # the better (lower) end at the top, as on every other bar
-        cb.set_label(better_label(hib, info[m]["units"]), fontsize=6.5)
-        cb.ax.tick_params(labelsize=6)
-    fig.savefig(path)
-    plt.close(fig)
-
-
-def _lines(points, a, metrics, val, path, info) -> None:
-    """One panel per metric against the one swept parameter ``a``."""
-    xs = sorted({p["params"].get(a, "") for p in points}, key=_order)
-    fig, axes = _panel_grid(len(metrics), 3.0, 2.3)
-    for ax, m in zip(axes, metrics):
-        ys = [np.nanmean([val(p, m) for p in points if p["params"].get(a, "") == x]) for x in xs]
-        ax.plot([_num(x) for x in xs], ys, "o-")
-        ax.set_xlabel(param_label(a), fontsize=7)
-        hib = info[m]["higher_is_better"]
-        way = {True: " (higher is better)", False: " (lower is better)"}.get(hib, "")
-        ax.set_ylabel(info[m]["units"] + way, fontsize=6)
-        ax.tick_params(labelsize=6)
-        ax.set_title(_heading(m, info[m]), fontsize=8)
-        ax.spines[["top", "right"]].set_visible(False)
-    fig.savefig(path)
-    plt.close(fig)

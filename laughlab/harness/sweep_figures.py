@@ -1,0 +1,156 @@
+"""A sweep report's figures (:mod:`laughlab.harness.sweep_report`): heatmaps over two swept parameters and line
+plots over one, each with its 95 % intervals, a title saying what it was measured on and a caption saying how to
+read it (a review: bare means, no n, no setting, and value ranges that made a difference of 0.05 fill the scale).
+
+Every figure is written as a PNG and, beside it, a PDF (vector; no creation date: the same data, the same bytes).
+"""
+from __future__ import annotations
+
+import math
+import textwrap
+
+import numpy as np
+
+from laughlab.harness.report_format import better_label, fmt, heading, panel_grid, param_label, plt
+from laughlab.harness.report_format import save_figure
+
+
+def _num(v: str):
+    try:
+        return float(v)
+    except ValueError:
+        return v
+
+
+def order(v: str):
+    """A sort key for a swept value: numbers by value, then words (a point without the parameter: "")."""
+    x = _num(v)
+    return (0, x, "") if isinstance(x, float) else (1, 0.0, x)
+
+
+def distinct_labels(values, digits: int = 3, most: int = 6) -> list[str]:
+    """``values`` written with ``digits`` significant figures, or as many more (up to ``most``) as it takes for two
+    different values to read differently (a review: 2 figures showed cells of clearly different colour alike)."""
+    finite = sorted({float(v) for v in values if v is not None and math.isfinite(v)})
+    for d in range(digits, most + 1):
+        shown = [fmt(v, d) for v in finite]
+        if len(set(shown)) == len(shown):
+            break
+    return [fmt(v, d) for v in values]
+
+
+def _ci(r: dict) -> tuple[float, float, float]:
+    """A point's (mean, low, high); NaN where it has none (a bound missing: the mean)."""
+    m = r["mean"] if r["mean"] is not None else math.nan
+    lo, hi = r["ci95"] if r["ci95"] and r["ci95"][0] is not None else (m, m)
+    return m, lo, hi
+
+
+def _caption(fig, title: str, notes: list[str], width_in: float) -> None:
+    """The figure's title (what it was measured on) above the panels and its notes (how to read it) below."""
+    fig.suptitle("\n".join(textwrap.wrap(title, int(width_in * 12))), fontsize=8)
+    fig.supxlabel("\n".join(line for note in notes for line in textwrap.wrap(note, int(width_in * 15))),
+                  fontsize=6.5, color="0.3")
+
+
+def heatmaps(points, a, b, metrics, result, path, info, title: str) -> None:
+    """One heatmap per metric over parameters ``a`` (x) and ``b`` (y); bright is better in each.
+
+    A cell is the mean of its points' means (over the other swept parameters) and, under it, ``±h``: the mean
+    half-width of those points' 95 % bootstrap intervals.  The colour range spans the cells' means, widened to a
+    point's median interval width where the means differ by less, so that noise does not fill the scale."""
+    xs = sorted({p["params"].get(a, "") for p in points}, key=order)
+    ys = sorted({p["params"].get(b, "") for p in points}, key=order)
+    fig, axes = panel_grid(len(metrics), 3.4, 2.9)
+    widened, most = [], 1
+    for ax, m in zip(axes, metrics):
+        grid, half = np.full((len(ys), len(xs)), np.nan), np.full((len(ys), len(xs)), np.nan)
+        widths, lows, highs = [], [], []
+        for i, y in enumerate(ys):
+            for j, x in enumerate(xs):
+                cis = [_ci(result(p, m)) for p in points if p["params"].get(a, "") == x and p["params"].get(b, "") == y]
+                cis = [c for c in cis if math.isfinite(c[0])]
+                most = max(most, len(cis))
+                if cis:
+                    grid[i, j] = np.mean([c[0] for c in cis])
+                    half[i, j] = np.mean([(c[2] - c[1]) / 2 for c in cis])
+                    widths += [c[2] - c[1] for c in cis]
+                    lows += [c[1] for c in cis]
+                    highs += [c[2] for c in cis]
+        lo, hi = np.nanmin(grid), np.nanmax(grid)
+        noise = float(np.median(widths)) if widths else 0.0
+        if hi - lo < noise:   # the cells differ by less than one point's interval: do not stretch that over the scale
+            mid = (lo + hi) / 2   # ... nor past the intervals' own ends (a fraction's scale below 0)
+            lo, hi = max(mid - noise / 2, min(lows)), min(mid + noise / 2, max(highs))
+            widened.append(m)
+        hib = info[m]["higher_is_better"]
+        # bright (yellow) is the better end: viridis runs dark to bright with the value, so flip it when lower is better
+        im = ax.imshow(grid, origin="lower", cmap="viridis" if hib is not False else "viridis_r", aspect="auto",
+                       vmin=lo, vmax=hi if hi > lo else None)
+        labels = distinct_labels(grid.ravel())
+        for k, text in enumerate(labels):
+            i, j = divmod(k, len(xs))
+            bright = np.mean(im.cmap(im.norm(grid[i, j]))[:3]) > 0.5
+            colour = ("0.35" if not math.isfinite(grid[i, j])   # n/a on the blank cell, not white on white
+                      else "k" if bright else "w")
+            spread = f"\n±{fmt(half[i, j], 2)}" if math.isfinite(half[i, j]) else ""
+            ax.text(j, i, text + spread, ha="center", va="center", fontsize=6, color=colour, linespacing=1.1)
+        ax.set_xticks(range(len(xs)), xs, fontsize=7)
+        ax.set_yticks(range(len(ys)), ys, fontsize=7)
+        ax.set_xlabel(param_label(a), fontsize=7)
+        ax.set_ylabel(param_label(b), fontsize=7)
+        ax.set_title(heading(m, info[m]), fontsize=8)
+        cb = fig.colorbar(im, ax=ax, shrink=0.9)
+        if hib is False:
+            cb.ax.invert_yaxis()  # the better (lower) end at the top, as on every other bar
+        cb.set_label(better_label(hib, info[m]["units"]), fontsize=6.5)
+        cb.ax.tick_params(labelsize=6)
+    notes = ["Each cell: the mean of its point's trials"
+             + (f" (averaged over the other swept parameters: up to {most} points a cell)" if most > 1 else "")
+             + "; under it ± the half-width of a point's 95% bootstrap CI (the mean over the cell's points)."]
+    if widened:
+        notes.append("Colour range widened to a point's median CI width, as the cells differ by less: "
+                     + ", ".join(widened) + ".")
+    _caption(fig, title, notes, fig.get_figwidth())
+    save_figure(fig, path)
+    plt.close(fig)
+
+
+def lines(points, a, metrics, result, path, info, title: str) -> None:
+    """One panel per metric against the one swept parameter ``a``: each point's mean with its 95 % CI as an error
+    bar; the value axis spans the intervals (not from 0, which the caption says)."""
+    xs = sorted({p["params"].get(a, "") for p in points}, key=order)
+    fig, axes = panel_grid(len(metrics), 3.0, 2.4)
+    zoomed, within = [], []
+    for ax, m in zip(axes, metrics):
+        cis = []
+        for x in xs:
+            at = [_ci(result(p, m)) for p in points if p["params"].get(a, "") == x]
+            cis.append(tuple(np.nanmean([c[k] for c in at]) if at else math.nan for k in range(3)))
+        mean, lo, hi = (np.array(v, dtype=float) for v in zip(*cis))
+        xv = [_num(x) for x in xs]
+        ax.errorbar(xv, mean, yerr=[mean - lo, hi - mean], fmt="o-", capsize=3, lw=1, ms=4)
+        ends = np.concatenate([lo[np.isfinite(lo)], hi[np.isfinite(hi)]])
+        if ends.size:
+            bottom, top = float(ends.min()), float(ends.max())
+            pad = 0.08 * (top - bottom) if top > bottom else 0.05 * max(abs(top), 1.0)
+            ax.set_ylim(bottom - pad, top + pad)
+            if bottom - pad > 0 or top + pad < 0:
+                zoomed.append(m)
+            if np.isfinite(lo).all() and np.isfinite(hi).all() and lo.max() <= hi.min():
+                within.append(m)   # one value lies inside every point's interval: no difference shown
+        ax.set_xlabel(param_label(a), fontsize=7)
+        hib = info[m]["higher_is_better"]
+        way = {True: " (higher is better)", False: " (lower is better)"}.get(hib, "")
+        ax.set_ylabel(info[m]["units"] + way, fontsize=6)
+        ax.tick_params(labelsize=6)
+        ax.set_title(heading(m, info[m]), fontsize=8)
+        ax.spines[["top", "right"]].set_visible(False)
+    notes = ["Error bars: each point's 95% bootstrap CI over its trials."]
+    if zoomed:
+        notes.append("Value axis zoomed to the CIs (not from 0): " + ", ".join(zoomed) + ".")
+    if within:
+        notes.append("Every point's CI overlaps every other's (no difference shown): " + ", ".join(within) + ".")
+    _caption(fig, title, notes, fig.get_figwidth())
+    save_figure(fig, path)
+    plt.close(fig)
