@@ -132,6 +132,11 @@ def bad_files(tmp_path_factory):
     (["experiment=smoke", "+harness.conditions.mine=[face=facs,body=hill]"], "in a list, items with characters "
      "such as = ( ) or letters outside ASCII are quoted one by one: \"+harness.conditions.mine=['face=facs',"
      "'body=hill']\""),
+    (["experiment=smoke", "harness.conditions={a:['face=facs']}"], "harness.conditions={a:['face=facs']} would merge "
+     "into the experiment's conditions, which takes no new names: replace them with '~harness.conditions' "
+     "\"+harness.conditions={a:['face=facs']}\", or add one with \"+harness.conditions.NAME=['face=facs']\""),
+    (["experiment=smoke", "harness.conditions={a:[face=facs],b:[face=smile,body=hill]}"], "quoted one by one: "
+     "\"harness.conditions={a:['face=facs'],b:['face=smile','body=hill']}\""),   # a diff review: a mapping
     (["seed=2", "input.path=x[1].wav"], "cannot read the setting input.path=x[1].wav: "),
     (["input.path=it's.wav"], "must be quoted: \"input.path='it\\'s.wav'\" (the double quotes for the shell)"),
     (["-m", "seed=1,2", "input.path=a (1).wav"], "cannot read the setting input.path=a (1).wav: "),

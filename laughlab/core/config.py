@@ -178,6 +178,11 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
                 valid = "; valid: " + ", ".join(keys) if keys else f"; this {group} takes no parameters"
             except Exception:  # listing the keys is a courtesy
                 valid = ""
+        given = next((o.split("=", 1)[1] for o in overrides if o.split("=", 1)[0] == key), "")
+        if key == "harness.conditions" and given.startswith("{"):   # a mapping merged into the experiment's
+            return (f"{key}={given} would merge into the experiment's conditions, which takes no new names: replace "
+                    f"them with '~{key}' \"+{key}={given}\", or add one with \"+{key}.NAME=['face=facs']\" "
+                    "(docs/experiments.md)")
         if key.startswith("hydra.launcher."):   # the basic launcher has no n_jobs (a review)
             return (f"unknown parameter {key} of this launcher; Hydra's basic launcher runs one job at a time, "
                     f"hydra/launcher=joblib takes n_jobs")
@@ -239,11 +244,13 @@ def unreadable_override(text: str, overrides=()) -> str | None:
     key, value = line.split("=", 1)
     if not re.fullmatch(r"[\w.+~/@-]+", key):
         return None
-    if value.startswith("[") and value.endswith("]") and "'" not in value and '"' not in value:
-        # a list (a condition's overrides): its items are quoted, not the list, which would be one string
-        items = ",".join(f"'{item.strip()}'" for item in value[1:-1].split(",") if item.strip())
+    if value[:1] + value[-1:] in ("[]", "{}") and "'" not in value and '"' not in value:
+        # a list (a condition's overrides) or a mapping of lists: the items are quoted, not the whole value, which
+        # would be one string the harness refuses (a diff review: the mapping got that hint)
+        items = re.sub(r"\[([^\[\]]*)\]", lambda m: "[" + ",".join(f"'{i.strip()}'" for i in m.group(1).split(",")
+                                                                if i.strip()) + "]", value)
         return (f"cannot read the setting {line}: in a list, items with characters such as = ( ) or letters "
-                f"outside ASCII are quoted one by one: \"{key}=[{items}]\" (the double quotes for the shell)")
+                f"outside ASCII are quoted one by one: \"{key}={items}\" (the double quotes for the shell)")
     quoted = value.replace("'", "\\'")   # Hydra's quoted values: a backslash escapes the quote after it
     return (f"cannot read the setting {line}: a value with characters such as ( ) [ ] = , ' or letters outside "
             f"ASCII must be quoted: \"{key}='{quoted}'\" (the double quotes for the shell)")
