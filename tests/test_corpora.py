@@ -387,3 +387,30 @@ def test_input_truth_is_checked_and_written_into_the_run(tmp_path):
                  "~output.plots", f"hydra.run.dir={tmp_path / 'run'}")
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "run" / "truth.csv").read_text() == (tmp_path / "l.truth.csv").read_text()
+
+
+@pytest.mark.parametrize("ext", ["TextGrid", "eaf"])
+def test_the_two_tier_readers_label_alike(tmp_path, ext):
+    """A diff review: ELAN's reader took 'laughter' as a label in any tier (a call in the calls tier), the TextGrid
+    reader refused it everywhere.  Now both: 'laughter' is a laugh in the bouts tier and refused in the calls tier."""
+    from laughlab.io.textgrid import write_textgrid
+
+    def write(calls_text):
+        p = tmp_path / f"a.{ext}"
+        if ext == "eaf":
+            p.write_text(EAF.format(bouts="laughter", slot4='TIME_VALUE="400"').replace(
+                "<ANNOTATION_VALUE>laugh</ANNOTATION_VALUE>", "<ANNOTATION_VALUE>laughter</ANNOTATION_VALUE>").replace(
+                "<ANNOTATION_VALUE></ANNOTATION_VALUE>", f"<ANNOTATION_VALUE>{calls_text}</ANNOTATION_VALUE>"))
+        else:
+            write_textgrid(p, [(0.0, 0.2, ""), (0.2, 1.0, "laughter"), (1.0, 2.0, "")], tier="laughter")
+            from praatio import textgrid
+
+            tg = textgrid.openTextgrid(str(p), includeEmptyIntervals=False)
+            tg.addTier(textgrid.IntervalTier("calls", [(0.25, 0.4, calls_text)], 0, 2.0))
+            tg.save(str(p), format="long_textgrid", includeBlankSpaces=True)
+        return p
+
+    a = A.read(write("x"), 2.0)
+    assert a.bouts == [(0.2, 1.0)] and a.calls == [(0.25, 0.4)]
+    with pytest.raises(LaughlabError, match=r"calls #1: unknown label 'laughter'"):
+        A.read(write("laughter"), 2.0)

@@ -109,14 +109,19 @@ def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) 
     if bouts is None:   # a tier 'laughter' alone: what `laughlab detect` writes, corrected in Praat
         raise LaughlabError(f"bad TextGrid {path}: it has no tier 'bouts' (nor 'laughter', as laughlab detect "
                             f"writes) (tiers: {', '.join(tg.tierNames)})")
-    labels = []
-    for tier, want in ((bouts, "laugh"), ("calls", "call")):
-        if tier not in tg.tierNames:
-            continue
-        for i, (a, b, t) in enumerate(tg.getTier(tier).entries, 1):
-            text = t.strip().lower()
-            labels.append(Label(float(a), float(b), want if text in (want, "x", "") else text, f"{tier} #{i}"))
+    labels = [_tier_label(tier, i, a, b, t) for tier in (bouts, "calls") if tier in tg.tierNames
+              for i, (a, b, t) in enumerate(tg.getTier(tier).entries, 1)]
     return check(Annotation(str(path), labels), duration_s)
+
+
+def _tier_label(tier: str, i: int, start: float, end: float, text: str) -> Label:
+    """Interval ``i`` of a TextGrid's or an ELAN file's tier as a label: the bouts tier's (``bouts``, or detect's
+    ``laughter``) ``laugh``, ``laughter``, ``x`` or empty text is a laugh; the calls tier's ``call``, ``x`` or
+    empty text a call; any other text is checked as it is (the same in both readers: a diff review)."""
+    want = "call" if tier == "calls" else "laugh"
+    text = text.strip().lower()
+    ok = (want, "x", "") + (("laughter",) if want == "laugh" else ())
+    return Label(float(start), float(end), want if text in ok else text, f"{tier} #{i}")
 
 
 def read_eaf_annotation(path: str | Path, duration_s: float | None = None) -> Annotation:
@@ -142,13 +147,12 @@ def read_eaf_annotation(path: str | Path, duration_s: float | None = None) -> An
         raise LaughlabError(f"bad ELAN file {path}: it has no tier 'bouts' (nor 'laughter', as laughlab detect "
                             f"writes) (tiers: {', '.join(str(t) for t in tiers)})")
     labels = []
-    for tier, want in ((bouts, "laugh"), ("calls", "call")):
+    for tier in (bouts, "calls"):
         for i, ann in enumerate(tiers[tier].iter("ALIGNABLE_ANNOTATION") if tier in tiers else (), 1):
             a, b = slots.get(ann.get("TIME_SLOT_REF1")), slots.get(ann.get("TIME_SLOT_REF2"))
             if a is None or b is None:   # an unaligned slot (ELAN allows them): no time to check against
                 raise LaughlabError(f"{path}:{tier} #{i}: the annotation has no time (an unaligned time slot)")
-            text = (ann.findtext("ANNOTATION_VALUE") or "").strip().lower()
-            labels.append(Label(a, b, want if text in (want, "x", "", "laughter") else text, f"{tier} #{i}"))
+            labels.append(_tier_label(tier, i, a, b, ann.findtext("ANNOTATION_VALUE") or ""))
     return check(Annotation(str(path), labels), duration_s)
 
 

@@ -66,7 +66,7 @@ REAL = (("sets", _list_of(lambda s: isinstance(s, str)), "a list of sets, e.g. [
         ("scenes", lambda v: _is_int(v) and v >= 0, "a whole number of scenes"),
         ("duration_s", _seconds, "a finite duration in seconds, above 0"),
         ("snr_db", _list_of(_is_number), "a list of signal-to-noise ratios in dB, e.g. [20, 10]"),
-        ("seed", _is_int, "a whole number"),
+        ("seed", _seed, "a whole number >= 0"),
         ("if_missing", lambda v: v in ("stop", "skip"), "stop or skip"))
 
 
