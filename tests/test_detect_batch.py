@@ -194,9 +194,12 @@ def test_the_same_file_twice_is_read_once_and_unread_formats_are_named(tmp_path,
     (rec / "sub").mkdir()
     (rec / "sub" / "c.wma").write_bytes(b"x")
     (rec / "notes.txt").write_text("mine")
-    assert [n for _, n in inputs([str(rec)])] == ["a", "b"]
+    assert [n for _, n in inputs([str(rec), str(rec)])] == ["a", "b"]   # the folder twice: its files counted once
     assert capsys.readouterr().err == ("laughlab: not read: 2 file(s) (.m4a, .wma: formats laughlab does not read; "
                                        "convert them to WAV, e.g. ffmpeg -i IN.m4a OUT.wav)\n")
+    r = laughlab("detect", str(rec / "phone.m4a"), "--out", str(tmp_path / "o"))   # given by itself: the same advice
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and \
+        "(.m4a: a format laughlab does not read; convert it to WAV, e.g. ffmpeg -i IN.m4a OUT.wav)" in r.stderr
     (rec / "a.wav").unlink()
     (rec / "b.wav").unlink()
     with pytest.raises(LaughlabError, match=r"^no audio files in folder .*in that laughlab reads: 2 file\(s\) "

@@ -21,8 +21,6 @@ from laughlab.core.outfiles import unwrite
 from laughlab.core.summary import duration_text, factor_text
 
 AUDIO_SUFFIXES = {".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif", ".opus"}
-#: recordings in formats soundfile does not read (phones', video's): a folder's are named, not passed over in silence
-OTHER_MEDIA = {".m4a", ".aac", ".wma", ".mp4", ".m4b", ".3gp", ".amr", ".caf", ".webm", ".mka", ".mov", ".mkv", ".avi"}
 FORMATS = ("csv", "audacity", "textgrid", "elan")
 
 
@@ -30,14 +28,16 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
     """The audio files of ``paths`` with the name each one's outputs take: a file given by itself, its stem; a
     file found in a given folder, its path from that folder without the suffix (``day1/take1``), so a tree of
     recordings keeps its layout in ``--out`` and repeated take names in different folders do not collide."""
-    out, seen, other = [], set(), []
+    from laughlab.io.audio import OTHER_MEDIA
+
+    out, seen, other = [], set(), {}   # other: a folder's recordings laughlab does not read, once each
     for p in paths:
         q = Path(p).expanduser()
         if q.is_dir():
             files = sorted(f for f in q.rglob("*") if f.is_file())
             found = [f for f in files if f.suffix.lower() in AUDIO_SUFFIXES]
             media = [f for f in files if f.suffix.lower() in OTHER_MEDIA]
-            other += media
+            other.update((f.resolve(), f) for f in media)
             if not found:
                 raise LaughlabError(f"no audio files in folder {p}" + (f" that laughlab reads: {_unread(media)}"
                                                                         if media else ""))
@@ -51,7 +51,7 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
                 seen.add(f.resolve())
                 out.append((f, name))
     if other:   # a review: a folder's .m4a recordings were left out without a word
-        print(f"laughlab: not read: {_unread(other)}", file=sys.stderr)
+        print(f"laughlab: not read: {_unread(list(other.values()))}", file=sys.stderr)
     names = [n for _, n in out]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
@@ -63,9 +63,9 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
 
 def _unread(files: list[Path]) -> str:
     """What a folder held that detect does not read, and how to read it, in a few words."""
-    kinds = sorted({f.suffix.lower() for f in files})
-    return (f"{len(files)} file(s) ({', '.join(kinds)}: formats laughlab does not read; convert them to WAV, e.g. "
-            "ffmpeg -i IN.m4a OUT.wav)")
+    from laughlab.io.audio import convert_hint
+
+    return f"{len(files)} file(s){convert_hint(files)}"
 
 
 #: in --out, the names of the files the last ``detect`` wrote there (so that ``--overwrite`` removes only those)

@@ -79,7 +79,7 @@ def probe_file(path: str | Path):
         info = sf.info(str(p))
     except Exception as exc:
         reason = first_line(exc)
-        raise LaughlabError(f"cannot read audio from {path}: {reason}") from None
+        raise LaughlabError(f"cannot read audio from {path}: {reason}{convert_hint([p])}") from None
     if info.frames <= 0:
         raise LaughlabError(f"input file has no audio samples: {path}")
     if info.format == "WAV":
@@ -218,3 +218,17 @@ class FloatWavWriter:
 
     def __exit__(self, *exc):
         self.close()
+
+
+#: recordings in formats libsndfile does not read (phones', video's): their lines say how to convert them
+OTHER_MEDIA = {".m4a", ".aac", ".wma", ".mp4", ".m4b", ".3gp", ".amr", ".caf", ".webm", ".mka", ".mov", ".mkv", ".avi"}
+
+
+def convert_hint(files) -> str:
+    """`` (.m4a: a format laughlab does not read; convert it to WAV, e.g. ffmpeg -i IN.m4a OUT.wav)`` for files
+    of :data:`OTHER_MEDIA`, else empty."""
+    kinds = sorted({Path(f).suffix.lower() for f in files} & OTHER_MEDIA)
+    if not kinds:
+        return ""
+    return (f" ({', '.join(kinds)}: {'a format' if len(kinds) == 1 else 'formats'} laughlab does not read; convert "
+            f"{'it' if len(files) == 1 else 'them'} to WAV, e.g. ffmpeg -i IN{kinds[0]} OUT.wav)")
