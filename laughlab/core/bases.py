@@ -9,6 +9,7 @@ Rates are per second, so results do not depend on the frame rate.
 """
 from __future__ import annotations
 
+import sys
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -323,3 +324,26 @@ class Sink(Plugin):
 
     def abort(self) -> None:
         """Remove partial output after a failure."""
+
+
+#: the channels each stage writes at least (docs/architecture.md, "Writing a plugin"): what every sink and metric
+#: reads (a plugin authors' review: a face without jaw, or a face registered as a body, ran without a word and the
+#: experiment's jaw metrics went "n/a")
+REQUIRED = {"face": ("smile", "jaw", "blink", "eyes_closed"), "body": ("chest", "belly")}
+
+
+_WARNED: set = set()
+
+
+def check_contract(channels, names: dict) -> None:
+    """On a run's first frame: the face and the body (``names``: stage -> plugin name) wrote their channels; if
+    not, one warning line on stderr (once per plugin in a process: an experiment's trials, each of its worker
+    processes once), as a face that drives only the jaw is a fair experiment, but the character's other shapes
+    then stay at rest and metrics that read them are n/a."""
+    for stage, needed in REQUIRED.items():
+        missing = [c for c in needed if c not in channels]
+        if missing and (stage, names.get(stage)) not in _WARNED:
+            _WARNED.add((stage, names.get(stage)))
+            print(f"laughlab: warning: {stage} {names.get(stage)!r} writes no {', '.join(missing)} (a {stage} writes "
+                  f"{', '.join(needed)}: docs/architecture.md); the character's {'/'.join(missing)} stay at rest "
+                  "and the metrics that read them are n/a", file=sys.stderr)

@@ -10,7 +10,6 @@ process keeps them); the command line then prints the traceback from the plugin'
 from __future__ import annotations
 
 import inspect
-import sys
 import traceback
 
 from laughlab.core.errors import LaughlabError
@@ -93,29 +92,6 @@ class PluginBug(LaughlabError):
     laughlab: the plugin authors' review)."""
 
     exit_code = 1
-
-
-#: the channels each stage writes at least (docs/architecture.md, "Writing a plugin"): what every sink and metric
-#: reads (a plugin authors' review: a face without jaw, or a face registered as a body, ran without a word and the
-#: experiment's jaw metrics went "n/a")
-REQUIRED = {"face": ("smile", "jaw", "blink", "eyes_closed"), "body": ("chest", "belly")}
-
-
-_WARNED: set = set()
-
-
-def check_contract(channels, names: dict) -> None:
-    """On a run's first frame: the face and the body (``names``: stage -> plugin name) wrote their channels; if
-    not, one warning line on stderr (once per plugin in a process: an experiment's trials), as a face that drives
-    only the jaw is a fair experiment, but the character's other shapes then stay at rest and metrics that read
-    them are n/a."""
-    for stage, needed in REQUIRED.items():
-        missing = [c for c in needed if c not in channels]
-        if missing and (stage, names.get(stage)) not in _WARNED:
-            _WARNED.add((stage, names.get(stage)))
-            print(f"laughlab: warning: {stage} {names.get(stage)!r} writes no {', '.join(missing)} (a {stage} writes "
-                  f"{', '.join(needed)}: docs/architecture.md); the character's {'/'.join(missing)} stay at rest "
-                  "and the metrics that read them are n/a", file=sys.stderr)
 
 
 #: what the line asks of the user: the plugin is theirs, or laughlab's

@@ -19,7 +19,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from laughlab.core import blame, plugins
-from laughlab.core.bases import Chunk, Context, RunInfo
+from laughlab.core.bases import Chunk, Context, RunInfo, check_contract
 from laughlab.core.errors import LaughlabError, UnknownParameter
 from laughlab.core.frame import Frame
 from laughlab.core.mixer import Mixer
@@ -209,7 +209,7 @@ class _Recorder:
     def add(self, frame: Frame, capture_ns: int = 0) -> None:
         if self.keys is None:
             if self.names is not None:
-                blame.check_contract(frame.channels, self.names)
+                check_contract(frame.channels, self.names)
             self.keys = (tuple(frame.control), tuple(frame.channels))
         self.capture.append(capture_ns)
         self.controls.append(frame.control)
