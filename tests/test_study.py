@@ -240,6 +240,24 @@ def test_answers_another_tab_gave_first_are_not_said_to_be_saved(study, tmp_path
                                "the first ones given are kept, and the rest are saved."), given[1].status
     assert "All your answers are saved" not in given[1].status
 
+    # the page's own answer stored, its reply lost (the connection closed): the retry's 409 is no other tab's
+    # (a diff review: a flaky network was told "given in another tab", and data-saved was false)
+    lost = []
+
+    def reply_lost(path, rows):
+        real(path, rows)
+        if any(r["trial"] == 2 for r in rows) and not lost:
+            lost.append(1)
+            raise ConnectionAbortedError("the reply is lost")
+
+    monkeypatch.setattr(DB, "insert_answers", reply_lost)
+    srv = Served(study, tmp_path / "responses2.sqlite")
+    try:
+        given = S.run_sync(srv.url, d, [1], S.planted(d, {}, seed=3))
+    finally:
+        srv.close()
+    assert lost and given[1].saved is True and given[1].status == "All your answers are saved.", given[1].status
+
 
 def test_every_study_command_fails_in_one_line(study, tmp_path):
     bad = tmp_path / "bad.csv"

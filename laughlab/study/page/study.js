@@ -44,18 +44,24 @@
   }
   function send(path, body) {  // queued in order; a network failure is retried with the next post
     if (!state.server) return Promise.resolve(true);
-    state.pending.push([path, body]);
+    state.pending.push({path: path, body: body, tried: false});
     return flush();
   }
   function flush() {
     if (state.flushing) return state.flushing.then(() => (state.pending.length ? flush() : true));
     state.flushing = (async () => {
       while (state.pending.length) {
-        const [path, body] = state.pending[0];
-        const r = await api(path, body);
-        if (r.status === 0 || r.status >= 500) return false;  // keep it for the next try
-        if (!r.ok) {  // not stored: the end page says so (a review: it said "All your answers are saved")
-          console.warn(`laughlab study: ${path} refused (${r.status}): ${r.data && r.data.error}`);
+        const post = state.pending[0];
+        const r = await api(post.path, post.body);
+        if (r.status === 0 || r.status >= 500) {  // keep it for the next try; the server may have stored it
+          post.tried = true;
+          return false;
+        }
+        // a 409 on a retry: the first try reached the server and only its reply was lost (a diff review: it was
+        // called another tab's answer); otherwise not stored, and the end page says so (a review: it said "All
+        // your answers are saved")
+        if (!r.ok && !(r.status === 409 && post.tried)) {
+          console.warn(`laughlab study: ${post.path} refused (${r.status}): ${r.data && r.data.error}`);
           if (r.status === 409) state.given += 1; else state.refused += 1;
         }
         state.pending.shift();
