@@ -248,6 +248,24 @@ def test_a_new_report_keeps_the_users_files_in_figures(tiny_run, tmp_path):
     assert (figs / "metrics.png").read_bytes() == b"mine"
 
 
+def test_a_report_edited_in_place_is_not_replaced_without_asking(tiny_run, tmp_path):
+    """A diff review: notes added to a report's README, or one of its figures retouched in place, were replaced
+    by the next report without a word (only other names were kept).  The manifest holds each file's sha256: an
+    edited one is refused in one line and kept; --overwrite replaces it."""
+    rep = tmp_path / "rep"
+    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0
+    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0   # unchanged: replaced as before
+    readme = rep / "README.md"
+    mine = readme.read_text() + "\nMy notes on this run.\n"
+    readme.write_text(mine)
+    r = laughlab("report", tiny_run[0], "--out", rep)
+    assert r.returncode == 2 and r.stderr == (f"laughlab: error: {rep}: README.md changed since the report wrote "
+                                              "them; choose another --out, or add --overwrite to replace them\n")
+    assert readme.read_text() == mine
+    r = laughlab("report", tiny_run[0], "--out", rep, "--overwrite")
+    assert r.returncode == 0 and "My notes" not in readme.read_text()
+
+
 def test_a_report_replaces_only_a_report_and_goes_with_its_run(tiny_run, tmp_path):
     """``report --out`` into a folder of the user's is refused (their README kept); into an earlier report it
     replaces it; the report beside a finished run counts among the run's files, so overwriting the run

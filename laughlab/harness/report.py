@@ -459,7 +459,7 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
         write(root, staging, command or f"python -m laughlab report {run_dir}", *args)
         from laughlab.harness.report_files import replace_report
 
-        replace_report(staging, target)
+        replace_report(staging, target, overwrite)
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     if target == root / "report":

@@ -11,17 +11,27 @@ from laughlab.core.errors import LaughlabError, shown_names
 MANIFEST = ".laughlab-report.json"
 
 
-def replace_report(staging: Path, target: Path) -> None:
+def _sha(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def replace_report(staging: Path, target: Path, overwrite: bool = False) -> None:
     """Move the new report's files from ``staging`` into ``target``; remove the files only the earlier report wrote
     (its manifest; a report without one: its README and the figures it names) and keep the user's (a review: a
-    caption and an edited figure in figures/ were deleted).  A file of the user's in the way is refused."""
+    caption and an edited figure in figures/ were deleted).  A file of the user's in the way is refused, and so,
+    without ``overwrite``, is a file of the earlier report edited since (its sha256 in the manifest: notes added
+    to the README, a figure retouched in place; a diff review: they were replaced without a word)."""
     import json
     import re
 
     new = sorted(p.relative_to(staging).as_posix() for p in staging.rglob("*") if p.is_file())
+    sums: dict = {}
     try:
-        old = set(json.loads((target / MANIFEST).read_text(encoding="utf-8"))["files"])
-    except (OSError, ValueError, KeyError, TypeError):
+        doc = json.loads((target / MANIFEST).read_text(encoding="utf-8"))
+        old, sums = set(doc["files"]), doc.get("sha256") or {}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
         readme = target / "README.md"
         text = readme.read_text(encoding="utf-8", errors="replace") if readme.is_file() else ""
         old = {"README.md"} | {f"figures/{n}" for n in re.findall(r"\]\(figures/([^)\s]+)\)", text)}
@@ -30,9 +40,15 @@ def replace_report(staging: Path, target: Path) -> None:
     if theirs:
         raise LaughlabError(f"{target} holds {shown_names(theirs)}, which no earlier report wrote and this one would "
                             "replace; move them, or choose another --out")
+    edited = [n for n in sorted(old) if isinstance(sums, dict) and n in sums and (target / n).is_file()
+              and _sha(target / n) != sums[n]]
+    if edited and not overwrite:
+        raise LaughlabError(f"{target}: {shown_names(edited)} changed since the report wrote them; choose another "
+                            "--out, or add --overwrite to replace them")
     for name in new:
         (target / name).parent.mkdir(parents=True, exist_ok=True)
         os.replace(staging / name, target / name)
     for name in sorted(old - set(new)):
         (target / name).unlink(missing_ok=True)
-    (target / MANIFEST).write_text(json.dumps({"files": new}, indent=1) + "\n", encoding="utf-8")
+    (target / MANIFEST).write_text(json.dumps({"files": new, "sha256": {n: _sha(target / n) for n in new}},
+                                              indent=1) + "\n", encoding="utf-8")
