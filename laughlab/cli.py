@@ -74,7 +74,7 @@ def preflight(argv: list[str]):
         from laughlab.harness.settings import check_harness
 
         harness = resolved_harness(cfg)
-        check_harness(harness)
+        check_harness(harness, {o.split("=", 1)[0].split(".")[1] for o in overrides if o.startswith("+harness.")})
         module = experiment_module(cfg.harness.get("module"))
         if hasattr(module, "check"):   # the keys the experiment adds (experiments/stimuli.py: preset, loudness...)
             module.check(harness)
@@ -152,7 +152,7 @@ def _task(cfg, out_dir: Path, t0: float, cfg_hash: str) -> dict:
             from laughlab.harness.experiment import experiment_module, run_experiment
             from laughlab.harness.settings import check_harness
 
-            check_harness(OmegaConf.to_container(cfg.harness, resolve=True))
+            check_harness(OmegaConf.to_container(cfg.harness, resolve=True), added=set())   # + keys: preflight
             module = experiment_module(cfg.harness.get("module"))
             if module is not None and hasattr(module, "run"):  # an experiment with its own procedure
                 doc = module.run(cfg, out_dir)

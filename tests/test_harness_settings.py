@@ -104,3 +104,15 @@ def test_any_values_pass_or_are_one_error_naming_a_key(picks):
     for key in ("duration_s",):
         v = c.get(key, 1.0)
         assert isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v < float("inf")
+
+
+def test_an_experiments_own_key_near_a_shared_name_is_not_refused():
+    """A diff review: the near-miss check of top-level harness keys ran on the composed section, so an experiment of
+    one's own with a key ``condition`` or ``plot`` could not run at all.  It now runs on the keys the command line
+    added with + (``+harness.showcas``, above); the experiment's own keys are its module's to check."""
+    h = {"name": "x", "conditions": {"a": ["face=smile"]}, "condition": 1, "plot": True}
+    check_harness(h, added=set())
+    with pytest.raises(LaughlabError, match=r"^unknown parameter harness\.condition: .*did you mean harness\.conditions\?$"):
+        check_harness(h, added={"condition"})
+    with pytest.raises(LaughlabError, match=r"did you mean harness\.conditions\?"):
+        check_harness(h)   # no command line: every key

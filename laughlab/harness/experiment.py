@@ -109,7 +109,7 @@ def showcase_item(h: dict, items: list[Item]) -> Item | None:
 def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, progress: bool = True) -> dict:
     """Run the experiment described by ``cfg.harness`` into ``out_dir``; return results.json's content."""
     h = OmegaConf.to_container(cfg.harness, resolve=True)
-    check_harness(h)
+    check_harness(h, added=set())   # the command line's + keys were checked before it ran (cli.preflight)
     name = h.get("name") or "experiment"
     conditions = check_conditions(h.get("conditions"))
     skipped: list = []  # corpus files left out (harness.corpus.on_bad=skip), with the reason

@@ -89,9 +89,11 @@ def _unknown(spec: dict, known, prefix: str, near_only: bool = False) -> None:
             raise LaughlabError(f"unknown parameter harness.{prefix}{key}: {where} takes {', '.join(known)}{hint}")
 
 
-def check_harness(h: dict) -> None:
+def check_harness(h: dict, added=None) -> None:
     """Raise one ``LaughlabError`` line for the first shared ``harness`` setting of the wrong type or range
-    (``h``: the resolved ``harness`` section as plain containers)."""
+    (``h``: the resolved ``harness`` section as plain containers).  ``added``: the top-level keys the command line
+    added with ``+harness.KEY``; only those are checked for a near-miss of a shared name (an experiment's YAML may
+    add keys of its own, ``plot`` or ``condition`` among them: a diff review); None checks every key."""
     if not isinstance(h, dict):
         raise LaughlabError(f"harness must be a mapping of settings (got {h!r})")
     _check(h, "name", _str_or_none, "a name")
@@ -104,7 +106,7 @@ def check_harness(h: dict) -> None:
     _check(h, "jobs", lambda v: _is_int(v) and v >= 1, "a whole number of parallel trial processes, at least 1")
     for flag in ("keep_trials", "plots"):
         _check(h, flag, lambda v: isinstance(v, bool), "true or false")
-    _unknown(h, SHARED, "", near_only=True)
+    _unknown(h if added is None else {k: v for k, v in h.items() if k in added}, SHARED, "", near_only=True)
     corpus = _section(h, "corpus", "", "a mapping (profiles, seeds, duration_s, folder, on_bad, real)")
     if corpus is None:
         return
