@@ -119,6 +119,12 @@ def test_mouth_close_closes_the_lips_over_the_open_jaw(tmp_path):
     arkit = np.genfromtxt(out / "face_arkit.csv", delimiter=",", names=True)
     np.testing.assert_allclose(weights[:240, MORPHS.index("mouthClose")], arkit["mouthClose"], atol=1e-5)
     assert arkit["mouthClose"].max() > 0.05   # the run closes the lips somewhere
+    # the lips the run draws: every frame's moved vertices (jaw and close weights applied to the rest positions)
+    # stay at or below their rest height, never pushed up past the closed mouth (face=cgm writes close <= jaw)
+    w_jaw, w_close = weights[:240, MORPHS.index("jawOpen")], weights[:240, MORPHS.index("mouthClose")]
+    dy = w_jaw[:, None] * jaw[None, moved, 1] + w_close[:, None] * close[None, moved, 1]
+    assert (dy <= 1e-6).all() and (w_close <= w_jaw + 1e-6).all()
+    assert (dy[w_close > 0.05] > -0.032 * w_jaw[w_close > 0.05, None]).all()   # and above the open jaw's drop
 
 
 def test_the_glb_is_byte_identical_for_the_same_run(tmp_path, facs_run):
