@@ -205,3 +205,24 @@ def test_the_same_file_twice_is_read_once_and_unread_formats_are_named(tmp_path,
     with pytest.raises(LaughlabError, match=r"^no audio files in folder .*in that laughlab reads: 2 file\(s\) "
                                             r"\(\.m4a, \.wma: formats"):
         inputs([str(rec)])
+
+
+def test_labels_corrected_in_place_are_not_replaced_by_overwrite(tmp_path):
+    """A diff review: detect, correct, evaluate is the documented loop, yet a TextGrid corrected in place in the
+    --out folder was replaced by the next ``detect --overwrite`` without a word.  detect's record holds each file's
+    sha256: an edited one is the user's now, refused in one line and kept; unedited files are replaced as before."""
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    t = np.arange(32000) / 16000
+    sf.write(rec / "a.wav", 0.1 * np.sin(2 * np.pi * 220 * t), 16000)
+    out = tmp_path / "out"
+    assert laughlab("detect", str(rec), "--out", str(out)).returncode == 0
+    assert laughlab("detect", str(rec), "--out", str(out), "--overwrite").returncode == 0   # unedited: replaced
+    grid = out / "a.TextGrid"
+    mine = grid.read_text().replace('text = ""', 'text = "laugh"', 1)
+    grid.write_text(mine)
+    r = laughlab("detect", str(rec), "--out", str(out), "--overwrite")
+    assert r.returncode == 2 and r.stderr == (
+        f"laughlab: error: {out} holds a.TextGrid, edited since detect wrote it, and this run would replace it; move "
+        "it or choose another --out (--overwrite replaces only detect's own files, unedited)\n"), r.stderr
+    assert grid.read_text() == mine

@@ -671,8 +671,7 @@ def test_detect_replaces_nothing_without_asking_and_leaves_no_stale_segments(tmp
         sf.write(tmp_path / "in" / f"{name}.wav", np.zeros(1600), 16000)
     out = tmp_path / "out"
     assert laughlab("detect", str(tmp_path / "in"), "--out", str(out)).returncode == 0
-    (out / "a.txt").write_text("my own labels\n")
-    (out / "notes.md").write_text("mine\n")
+    (out / "notes.md").write_text("mine\n")   # (a label file of detect's edited in place: test_detect_batch)
     (out / "notes.txt").write_text("mine too\n")                # named like a label file, but not detect's
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     r = laughlab("detect", str(tmp_path / "in" / "a.wav"), "--out", str(out))

@@ -85,16 +85,29 @@ def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Pat
         raise LaughlabError(f"{out} already holds files ({shown_names(held)}); choose another --out or add --overwrite "
                             f"(replaces the segment files an earlier detect wrote there, keeps the rest)")
     try:
-        names = json.loads((out / MANIFEST).read_text(encoding="utf-8"))["files"]
+        doc = json.loads((out / MANIFEST).read_text(encoding="utf-8"))
+        names, sums = doc["files"], doc.get("sha256") or {}
         names = {n for n in names if isinstance(n, str) and _inside(n)}
-    except (OSError, ValueError, KeyError, TypeError):
-        names = set()
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        names, sums = set(), {}
+    # a label file edited since detect wrote it (corrected in Praat or Audacity: the documented loop) is the user's
+    # now (a diff review: --overwrite replaced the corrections without a word)
+    edited = {n for n in names if isinstance(sums, dict) and n in sums and (out / n).is_file()
+              and _sha(out / n) != sums[n]}
+    names -= edited
     there = {n for n in set(planned) | names if (out / n).is_file()}
-    theirs = sorted(set(planned) & there - names)
+    theirs = sorted(set(planned) & (there | edited) - names)
     if theirs:
-        raise LaughlabError(f"{out} holds {shown_names(theirs)}, which no earlier detect wrote there and this run "
-                            f"would replace; choose another --out (--overwrite replaces only detect's own files)")
+        why = "edited since detect wrote it" if set(theirs) <= edited else "which no earlier detect wrote there"
+        raise LaughlabError(f"{out} holds {shown_names(theirs)}, {why}, and this run would replace it; move it or "
+                            f"choose another --out (--overwrite replaces only detect's own files, unedited)")
     return [out / n for n in sorted(names & there)]
+
+
+def _sha(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def _inside(name: str) -> bool:
@@ -220,7 +233,8 @@ def main(argv: list[str]) -> None:
     theirs = set(S.output_names(gone, formats)) - rel(written)
     kept_old = {p for p in stale if p.relative_to(out).as_posix() in theirs}
     unwrite(sorted(set(stale) - set(written) - kept_old), out)   # --overwrite: an earlier detect's files not written now
-    S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(rel(written) | rel(kept_old))}) + "\n")
+    done = sorted(rel(written) | rel(kept_old))
+    S.atomic_write(out / MANIFEST, json.dumps({"files": done, "sha256": {n: _sha(out / n) for n in done}}) + "\n")
     wall = time.perf_counter() - t0
     print(summary_line(results, gone, wall, out))
 
