@@ -113,6 +113,8 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
+from laughlab.core.outfiles import file_sha256 as _sha256   # the manifest's hashes
+
 MANIFEST_COLUMNS = ("stimulus_id", "file", "sha256", "condition", "audio_id", "duration_s", "seed", "fps")
 AUDIO_COLUMNS = ("audio_id", "source", "sample_rate", "duration_s", "loudness_in_lufs", "gain_db",
                  "loudness_out_lufs", "peak_out_dbfs", "limited")
@@ -220,14 +222,6 @@ def normalise_loudness(samples: np.ndarray, sample_rate: int, target_lufs: float
 
 
 # -- the procedure ------------------------------------------------------------------------------------------------
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
 
 def _write_text(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -11,6 +11,18 @@ import shutil
 from pathlib import Path
 
 
+def file_sha256(path) -> str:
+    """The sha256 of a file's bytes, read 1 MiB at a time (the records of the files a command wrote: ``detect``,
+    ``report``, ``study analyze``; the stimuli manifest; a run's ``input_sha256``)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with open(Path(path).expanduser(), "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 def remove(p: Path) -> None:
     """Remove a file, a link (not what it points to) or a folder with its contents, if it is there."""
     if p.is_dir() and not p.is_symlink():

@@ -182,14 +182,10 @@ def _check_class(kind: str, name: str, cls: type, origin: str) -> None:
     parameters were then called another plugin's)."""
     import inspect
 
-    from laughlab.core import bases
-
-    base = {"source": bases.Source, "extractor": bases.Extractor, "detector": bases.Detector,
-            "scheduler": bases.Scheduler, "body": bases.Body, "face": bases.Face, "sink": bases.Sink}
-    other = [k for k, b in base.items() if k != kind and issubclass(cls, b) and not issubclass(cls, base.get(kind, b))]
-    if other:   # a plugin authors' review: a Face registered by register_bodies ran as the body, no chest or belly
-        raise LaughlabError(f"{kind} plugin {name!r} ({cls.__name__}, {origin}) is a {other[0].capitalize()}: register "
-                            f"it with {KINDS[other[0]]}")
+    own = getattr(cls, "kind", "")   # each base class names its kind (laughlab.core.bases: Face.kind == "face")
+    if own in KINDS and own != kind:   # a plugin authors' review: a Face registered by register_bodies ran as the body
+        raise LaughlabError(f"{kind} plugin {name!r} ({cls.__name__}, {origin}) is a {own.capitalize()}: register "
+                            f"it with {KINDS[own]}")
     if inspect.isabstract(cls):
         missing = ", ".join(f"{m}()" for m in sorted(cls.__abstractmethods__))
         raise LaughlabError(f"{kind} plugin {name!r} ({cls.__name__}, {origin}) does not define {missing}")
@@ -270,10 +266,10 @@ def make_params(cls: type, values: Any, where: str) -> Any:
     merged = None
     try:
         merged = OmegaConf.merge(_schema(params_cls), values)
-        bad = first_nonfinite(OmegaConf.to_container(merged, resolve=True), nonfinite_ok(params_cls),
-                              large=large_ok(params_cls))
+        large = large_ok(params_cls)
+        bad = first_nonfinite(OmegaConf.to_container(merged, resolve=True), nonfinite_ok(params_cls), large=large)
         if bad is not None:
-            bound = "" if bad[0] in large_ok(params_cls) else f" of magnitude at most {MAX_MAGNITUDE:g}"
+            bound = "" if bad[0] in large else f" of magnitude at most {MAX_MAGNITUDE:g}"
             raise LaughlabError(f"bad parameter {typed(where, bad[0])}: it must be a finite number{bound} (got {bad[1]})")
         return OmegaConf.to_object(merged)
     except OmegaConfBaseException as exc:

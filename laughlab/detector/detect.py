@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_names
-from laughlab.core.outfiles import unwrite
+from laughlab.core.outfiles import file_sha256, unwrite
 from laughlab.core.summary import duration_text, factor_text
 
 AUDIO_SUFFIXES = {".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif", ".opus"}
@@ -93,7 +93,7 @@ def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Pat
     # a label file edited since detect wrote it (corrected in Praat or Audacity: the documented loop) is the user's
     # now (a diff review: --overwrite replaced the corrections without a word)
     edited = {n for n in names if isinstance(sums, dict) and n in sums and (out / n).is_file()
-              and _sha(out / n) != sums[n]}
+              and file_sha256(out / n) != sums[n]}
     names -= edited
     there = {n for n in set(planned) | names if (out / n).is_file()}
     theirs = sorted(set(planned) & (there | edited) - names)
@@ -102,12 +102,6 @@ def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Pat
         raise LaughlabError(f"{out} holds {shown_names(theirs)}, {why}, and this run would replace it; move it or "
                             f"choose another --out (--overwrite replaces only detect's own files, unedited)")
     return [out / n for n in sorted(names & there)]
-
-
-def _sha(path: Path) -> str:
-    import hashlib
-
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def _inside(name: str) -> bool:
@@ -234,7 +228,7 @@ def main(argv: list[str]) -> None:
     kept_old = {p for p in stale if p.relative_to(out).as_posix() in theirs}
     unwrite(sorted(set(stale) - set(written) - kept_old), out)   # --overwrite: an earlier detect's files not written now
     done = sorted(rel(written) | rel(kept_old))
-    S.atomic_write(out / MANIFEST, json.dumps({"files": done, "sha256": {n: _sha(out / n) for n in done}}) + "\n")
+    S.atomic_write(out / MANIFEST, json.dumps({"files": done, "sha256": {n: file_sha256(out / n) for n in done}}) + "\n")
     wall = time.perf_counter() - t0
     print(summary_line(results, gone, wall, out))
 

@@ -6,15 +6,10 @@ import os
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, shown_names
+from laughlab.core.outfiles import file_sha256
 
 #: in a report folder, the files the report wrote there (so that a new report replaces only those)
 MANIFEST = ".laughlab-report.json"
-
-
-def _sha(path: Path) -> str:
-    import hashlib
-
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def replace_report(staging: Path, target: Path, overwrite: bool = False) -> None:
@@ -41,7 +36,7 @@ def replace_report(staging: Path, target: Path, overwrite: bool = False) -> None
         raise LaughlabError(f"{target} holds {shown_names(theirs)}, which no earlier report wrote and this one would "
                             "replace; move them, or choose another --out")
     edited = [n for n in sorted(old) if isinstance(sums, dict) and n in sums and (target / n).is_file()
-              and _sha(target / n) != sums[n]]
+              and file_sha256(target / n) != sums[n]]
     if edited and not overwrite:
         raise LaughlabError(f"{target}: {shown_names(edited)} changed since the report wrote them; choose another "
                             "--out, or add --overwrite to replace them")
@@ -50,5 +45,5 @@ def replace_report(staging: Path, target: Path, overwrite: bool = False) -> None
         os.replace(staging / name, target / name)
     for name in sorted(old - set(new)):
         (target / name).unlink(missing_ok=True)
-    (target / MANIFEST).write_text(json.dumps({"files": new, "sha256": {n: _sha(target / n) for n in new}},
+    (target / MANIFEST).write_text(json.dumps({"files": new, "sha256": {n: file_sha256(target / n) for n in new}},
                                               indent=1) + "\n", encoding="utf-8")

@@ -132,15 +132,9 @@ def versions() -> dict:
 def provenance(input_path: str | None = None) -> dict:
     """What a single run's ``metrics.json`` records to be made again: laughlab's commit and the versions (as an
     experiment's ``results.json``), and the sha256 of the input file (None for synthetic or live input)."""
-    import hashlib
+    from laughlab.core.outfiles import file_sha256
 
-    digest = None
-    if input_path:
-        h = hashlib.sha256()
-        with open(Path(input_path).expanduser(), "rb") as f:
-            for block in iter(lambda: f.read(1 << 20), b""):
-                h.update(block)
-        digest = h.hexdigest()
+    digest = file_sha256(input_path) if input_path else None
     return {"git_hash": git_hash(), "versions": versions(), "input_sha256": digest}
 
 

@@ -142,7 +142,7 @@ def build(run_dir, out=None, questions: str | None = None, overwrite: bool = Fal
     preset = D.load_preset(preset_name)
     out = Path(out).expanduser() if out else default_out(run_dir)
     check_out(out, overwrite)
-    from laughlab_experiments.stimuli import _sha256 as file_sha256  # the manifest's own hashing
+    from laughlab.core.outfiles import file_sha256   # as the stimuli manifest hashes
 
     mods = vendor.install()
     tmp = out.with_name(f".{out.name}.part")

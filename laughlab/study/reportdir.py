@@ -13,6 +13,7 @@ import shutil
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
+from laughlab.core.outfiles import file_sha256
 
 REPORT_FILES = {"README.md", "report.json", "tidy.csv", "exclusions.csv", "means.csv", "model.csv", "variance.csv",
                 "contrasts.csv", "fig_means.png", "fig_participants.png", "fig_means.pdf", "fig_participants.pdf"}
@@ -20,12 +21,6 @@ REPORT_FILES = {"README.md", "report.json", "tidy.csv", "exclusions.csv", "means
 
 #: the report's record of what it wrote (name: sha256), to tell the researcher's changes from its own files
 STAMP = ".study-report.json"
-
-
-def _sha(path: Path) -> str:
-    import hashlib
-
-    return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
 def check_out(out: Path, overwrite: bool = False) -> None:
@@ -54,7 +49,7 @@ def check_out(out: Path, overwrite: bool = False) -> None:
         stamp = None   # a report written before the record (2026-11-27): replaced as it was then (a diff review:
         # every one was refused as "changed since it was written", the committed demo's command among them)
     changed = [] if stamp is None else \
-        sorted(n for n in held & REPORT_FILES if not isinstance(stamp, dict) or stamp.get(n) != _sha(out / n))
+        sorted(n for n in held & REPORT_FILES if not isinstance(stamp, dict) or stamp.get(n) != file_sha256(out / n))
     added = sorted(held - REPORT_FILES)
     if (changed or added) and not overwrite:
         what = ([f"changed since it was written: {', '.join(changed[:3])}"] if changed else []) + \
@@ -66,7 +61,7 @@ def check_out(out: Path, overwrite: bool = False) -> None:
 def put(tmp: Path, out: Path) -> None:
     """Move the report written in ``tmp`` to ``out`` (checked by :func:`check_out`), stamped with its files' sha256;
     of an earlier report in ``out`` only its own files are replaced or removed."""
-    stamp = {f.name: _sha(f) for f in sorted(tmp.iterdir())}
+    stamp = {f.name: file_sha256(f) for f in sorted(tmp.iterdir())}
     (tmp / STAMP).write_text(json.dumps(stamp, indent=1) + "\n")
     if not out.exists():
         tmp.rename(out)
