@@ -20,7 +20,8 @@ from laughlab.core.errors import LaughlabError
 NOT_PARAMS = ("experiment", "hydra")
 
 
-def _multirun(root: Path) -> dict | None:
+def multirun(root: Path) -> dict | None:
+    """The ``hydra`` section of the sweep's ``multirun.yaml`` in ``root``; None when it has none readable."""
     import yaml
 
     path = root / "multirun.yaml"
@@ -37,7 +38,7 @@ def planned_points(root: Path) -> list[dict[str, str]] | None:
     sweeper's order; None when ``root`` has no readable ``multirun.yaml`` or a sweep the parser cannot list."""
     from laughlab.core.sweepcheck import sweep_values
 
-    hydra = _multirun(Path(root))
+    hydra = multirun(Path(root))
     if hydra is None:
         return None
     task = [str(o) for o in ((hydra.get("overrides") or {}).get("task") or [])]
@@ -109,7 +110,7 @@ def missing_text(root: Path, planned: int, missing: list[str]) -> str:
 
 def sweep_command(root: Path) -> str:
     """The sweep's own command, from ``multirun.yaml`` (empty when there is none)."""
-    hydra = _multirun(Path(root))
+    hydra = multirun(Path(root))
     if hydra is None:
         return ""
     task = [str(o) for o in ((hydra.get("overrides") or {}).get("task") or [])]

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
 from laughlab.harness.results import read_results
-from laughlab.harness.sweep_plan import swept_keys, sweep_command, unfinished
+from laughlab.harness.sweep_plan import multirun, swept_keys, sweep_command, unfinished
 from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, vector_link
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
@@ -33,12 +33,10 @@ def _sweep_points(root: Path) -> list[dict]:
 def _sweep_command(root: Path) -> list[str]:
     """The sweep's own command, from Hydra's ``multirun.yaml``: its overrides and the values an experiment's
     ``hydra.sweeper.params`` swept (a reader reruns the sweep from these lines)."""
-    import yaml
-
     command = sweep_command(root)
     if not command:
         return []
-    hydra = (yaml.safe_load((root / "multirun.yaml").read_text()) or {}).get("hydra") or {}
+    hydra = multirun(root) or {}
     task = list((hydra.get("overrides") or {}).get("task") or [])
     out = [f"- the sweep: `{command}`"]
     given = {str(o).split("=", 1)[0] for o in task}
