@@ -531,3 +531,27 @@ def test_ctrl_c_in_a_sweep_is_one_line(tmp_path, launcher):
     out, err = p.communicate(timeout=90)
     assert p.returncode == 130
     assert err == "laughlab: error: interrupted: 0 of 2 points finished; run the same command again to resume\n", err
+
+
+def test_a_stop_while_the_marker_is_written_leaves_no_part_file(tmp_path, monkeypatch):
+    """A clean clone's fuzz run (SIGTERM 1.42 s into a run) found ``.laughlab-run.json.part`` left behind: the
+    signal came between the marker's temporary file and its move into place, and abandon() removed only the
+    marker.  Here the move is interrupted as that signal would; the folder this run made goes whole."""
+    from laughlab.core import rundir
+
+    run = tmp_path / "run"
+    claim = rundir.claim(run)
+    real = rundir.os.replace
+
+    def stopped(src, dst):
+        if str(dst).endswith(rundir.MARKER):
+            raise KeyboardInterrupt
+        real(src, dst)
+
+    monkeypatch.setattr(rundir.os, "replace", stopped)
+    with pytest.raises(KeyboardInterrupt):
+        claim.finish("abc")
+    assert (run / rundir.MARKER_PART).exists()
+    claim.abandon()
+    claim.release()
+    assert not run.exists()

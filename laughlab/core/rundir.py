@@ -71,8 +71,10 @@ class Claim:
 
     def abandon(self) -> None:
         """After a failure: remove the marker and put back the earlier run this one was replacing (or remove
-        the folder if this run created it and it is empty)."""
-        (self.path / MARKER).unlink(missing_ok=True)
+        the folder if this run created it and it is empty).  The marker's temporary file goes too: a stop signal
+        that came while the marker was written left it (a clean clone's fuzz run hit it, SIGTERM at 1.42 s)."""
+        for name in (MARKER, MARKER_PART):
+            (self.path / name).unlink(missing_ok=True)
         if _put_back(self.path):
             return
         if self.lock_made and not self.created:   # a folder of the user's: left as it was
