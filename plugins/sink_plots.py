@@ -1,4 +1,5 @@
-"""Sink ``plots``: the run's Figure 3.1-, 3.2-, 4.1- and 4.2-style plots in ``plots/``."""
+"""Sink ``plots``: the run's Figure 3.1-, 3.2-, 4.1- and 4.2-style plots in ``plots/`` (PNG; with
+``output.plots.pdf=true`` a vector PDF of each beside it)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -29,11 +30,15 @@ class PlotsParams:
         yet, all at different times, in time order
         (:func:`laughlab.render.plots.filmstrip_moments`); under each, the clip
         playing then and the smile and jaw weights.
+    pdf : bool
+        Also write each figure as a vector PDF beside its PNG (``fig4_2_energy.pdf``...), for print; an
+        experiment's showcase runs do (their report links them).
     """
 
     max_seconds: float = 60.0
     power: float = 2.0
     filmstrip_frames: int = 8
+    pdf: bool = False
 
     def __post_init__(self) -> None:
         check_range("max_seconds", self.max_seconds, 0, lo_open=True)
@@ -100,29 +105,34 @@ class PlotsSink(Sink):
                 if self.n > self.limit else "")
         jobs = []
         if "mcs_raw" in data:
-            path = self.staging.path(out / "fig3_2_mcs.png")
+            path, pdf = self._paths(out / "fig3_2_mcs.png")
             jobs.append(lambda: plots.figure_3_2(path, t, data["mcs_raw"], 1.0 / self.run.fps, self.params.power,
-                                                 bouts, note=note))
+                                                 bouts, note=note, pdf=pdf))
         if "mcs" in data and "energy" in data:
-            path42 = self.staging.path(out / "fig4_2_energy.png")
+            path42, pdf42 = self._paths(out / "fig4_2_energy.png")
             scheduler = (self.run.config or {}).get("scheduler") or {}
             label = {"energy": "laughing energy L", "concat": "energy (40 MCS, 0.5 s low-pass)"}.get(
                 scheduler.get("name"), "energy channel")
             jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts,
-                                                 note=note, energy_label=label))
+                                                 note=note, energy_label=label, pdf=pdf42))
             if scheduler.get("name") == "energy":
-                path41 = self.staging.path(out / "fig4_1_energy.png")
+                path41, pdf41 = self._paths(out / "fig4_1_energy.png")
                 jobs.append(lambda: plots.figure_4_1(path41, t, data["mcs"], data["energy"], self.events,
-                                                     float(scheduler.get("gain_per_s", 60.0)), bouts, note=note))
+                                                     float(scheduler.get("gain_per_s", 60.0)), bouts, note=note,
+                                                     pdf=pdf41))
         fig31 = self._figure_3_1_args(data)
         if fig31 is not None:
-            path31 = self.staging.path(out / "fig3_1_calibration.png")
-            jobs.append(lambda: plots.figure_3_1(path31, t, **fig31, bouts=bouts, note=note))
+            path31, pdf31 = self._paths(out / "fig3_1_calibration.png")
+            jobs.append(lambda: plots.figure_3_1(path31, t, **fig31, bouts=bouts, note=note, pdf=pdf31))
         if self.params.filmstrip_frames and self.poses:
-            strip = self.staging.path(out / "filmstrip.png")
-            jobs.append(lambda: self._filmstrip(strip, data, note))
+            strip, strip_pdf = self._paths(out / "filmstrip.png")
+            jobs.append(lambda: self._filmstrip(strip, data, note, strip_pdf))
         parallel(jobs)  # side by side in the helper process, one by one otherwise
         return self.staging.commit()
+
+    def _paths(self, png):
+        """The staging paths of a figure's PNG and, with ``pdf``, of its PDF (None without)."""
+        return self.staging.path(png), self.staging.path(png.with_suffix(".pdf")) if self.params.pdf else None
 
     def _figure_3_1_args(self, data) -> dict | None:
         """Fig. 3.1's amplitudes, rms parameters, fps, calibration length and title, or None without ``rms``."""
@@ -139,7 +149,7 @@ class PlotsSink(Sink):
         return dict(amp=amp, params=RmsParams(), fps=self.run.fps,
                     title=f"The thesis' min/max mapping of this run's sound (its MCS: extractor={name}; cf. Fig. 3.1)")
 
-    def _filmstrip(self, path, data, note: str = "") -> None:
+    def _filmstrip(self, path, data, note: str = "", pdf=None) -> None:
         from laughlab.motion.skeleton import forward_kinematics
         from laughlab.render import plots
 
@@ -157,7 +167,7 @@ class PlotsSink(Sink):
             caps.append(f"{playing[-1] if playing else 'no clip'}\n{face}")
         plots.filmstrip(path, self.run.skeleton, times[pick], poses[pick], caps, note=note,
                         title="The character over the run: each clip's most pronounced pose, then the run's "
-                              "(skeleton from motion.bvh)")
+                              "(skeleton from motion.bvh)", pdf=pdf)
 
     def abort(self) -> None:
         self.staging.abort()

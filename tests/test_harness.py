@@ -195,6 +195,10 @@ def test_report_tables_and_figures(tiny_run, tmp_path):
     assert "(n=K): a mean of fewer than 10 trials" in text
     assert (tmp_path / "rep" / "figures" / "metrics.png").exists()
     assert (tmp_path / "rep" / "figures" / "energy_fig4_2_energy.png").exists()
+    # the showcase's run figures come with their PDFs, for print (PNG only before), and the README says so
+    for png in (tmp_path / "rep" / "figures").glob("*_*.png"):
+        assert png.with_suffix(".pdf").read_bytes().startswith(b"%PDF-"), png.name
+    assert "vector PDF of the same name beside it in `figures/`" in text
     # every figure in figures/ is shown or linked (a review found Fig. 3.2 and the filmstrips there unmentioned)
     for png in (tmp_path / "rep" / "figures").glob("*.png"):
         assert f"(figures/{png.name})" in text, png.name

@@ -348,6 +348,35 @@ def test_the_thesis_figures_each_run_draws(tmp_path, overrides, wanted):
     assert {p.name for p in (tmp_path / "plots").iterdir()} == wanted | {"filmstrip.png"}
 
 
+def test_plots_pdf_writes_a_vector_pdf_of_each_figure_with_the_same_bytes_each_time(tmp_path):
+    """``output.plots.pdf=true``: each PNG has its PDF beside it (for print), dated nowhere inside, so the same
+    seed gives the same bytes; without it (the default) no PDF."""
+    runs = []
+    for k, extra in enumerate((("output.plots.pdf=true",), ("output.plots.pdf=true",), ())):
+        out = tmp_path / str(k)
+        pipeline.execute(pipeline.build(cfg_for("input.duration_s=3", "~output.csv", "~output.bvh", *extra)), out)
+        runs.append({p.name: p.read_bytes() for p in (out / "plots").iterdir()})
+    pngs = {n for n in runs[2] if n.endswith(".png")}
+    assert set(runs[2]) == pngs and len(pngs) == 5
+    assert set(runs[0]) == pngs | {n[:-4] + ".pdf" for n in pngs}
+    assert all(runs[0][n].startswith(b"%PDF-") and b"CreationDate" not in runs[0][n] for n in runs[0] if
+               n.endswith(".pdf"))
+    assert runs[0] == runs[1] and all(runs[0][n] == runs[2][n] for n in pngs)
+
+
+def test_every_sink_parameter_is_listed_under_each_output_that_has_the_sink():
+    """``output.csv.precision=3`` and ``output.plots.filmstrip_frames=4`` were refused (a plugin sink's ``+`` hint)
+    because the outputs' YAML did not list them: a sink's parameters are all in each output that has it
+    (``output.gltf.character``, set by the top-level ``character``, apart)."""
+    sinks = plugins.registry()["sink"]
+    for f in _conf_dir().joinpath("output").iterdir():
+        if f.name.endswith(".yaml"):
+            for sink, node in (yaml.safe_load(f.read_text()) or {}).items():
+                params = getattr(sinks[sink].obj, "Params", None)
+                wanted = {x.name for x in fields(params)} - {"character"} if params else set()
+                assert wanted <= set(node or {}), (f.name, sink, wanted - set(node or {}))
+
+
 @pytest.mark.parametrize("group", ["input", "extractor", "face", "body", "scheduler", "output"])
 def test_every_config_option_composes(group):
     for f in _conf_dir().joinpath(group).iterdir():

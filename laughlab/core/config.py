@@ -302,10 +302,15 @@ def _plugin_sink_key(rest: str, overrides: list[str]) -> str | None:
     listed the plots' parameters as the valid ones)."""
     from laughlab.core import plugins
 
+    from laughlab.core import keyhints
+
     sink, _, param = rest.partition(".")
     if not param or conf_dir().joinpath("output", f"{sink}.yaml").is_file() \
             or sink not in plugins.registry()["sink"]:
         return None
+    outputs = keyhints.option_keys(conf_dir().joinpath("output"), None).values()
+    if any(k == sink or k.startswith(sink + ".") for keys in outputs for k in keys):
+        return None   # a sink the outputs list (output.plots.KEY): not a plugin's (a review: it said so)
     value = next((o.split("=", 1)[1] for o in overrides if o.lstrip("+").split("=", 1)[0] == f"output.{rest}"), "V")
     return (f"output.{sink} is a plugin's sink, which has no output option: its parameters are added with +, "
             f"+output.{rest}={value} (that also adds the sink)")

@@ -164,8 +164,8 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
                        str(out_dir / "showcase" / c), keep=True, plots=True) for c, ov in conditions.items()]
         for rec in run_trials(shows, jobs, progress, desc="showcase"):
             run.showcase[rec["condition"]] = rec["run_dir"]
-            for png in Path(rec["run_dir"], "plots").glob("*.png"):
-                shutil.copyfile(png, plots / f"{rec['condition']}_{png.name}")
+            for fig in sorted(Path(rec["run_dir"], "plots").glob("*.p[nd][gf]")):   # the PNGs and their PDFs
+                shutil.copyfile(fig, plots / f"{rec['condition']}_{fig.name}")
 
     metric_info = {n: {"higher_is_better": m.higher_is_better, "units": m.units, "description": m.description,
                        **({"search": list(m.search)} if getattr(m, "search", None) else {})}

@@ -67,15 +67,6 @@ def param_label(key: str) -> str:
     return f"{key} ({unit})" if unit else key
 
 
-def save_figure(fig, path) -> None:
-    """``path`` (a PNG) and the same figure as a vector PDF beside it, for print (a review: 130 dpi PNGs only); no
-    creation or modification date inside, so that the same data give the same bytes."""
-    from pathlib import Path
-
-    fig.savefig(path)
-    fig.savefig(Path(path).with_suffix(".pdf"), metadata={"CreationDate": None, "ModDate": None})
-
-
 def vector_link(name: str) -> str:
     """The README's line under a figure ``figures/NAME.png``: its PDF beside it."""
     pdf = name.rsplit(".", 1)[0] + ".pdf"

@@ -54,7 +54,9 @@ def run_trial(trial: Trial) -> dict:
     from laughlab.harness.trialdata import TrialData
 
     out = Path(trial.out_dir)
-    cfg = _compose([*trial.overrides, "output=files" if trial.plots else "output=trial"])
+    # a showcase run's figures go into the report, for print too: PDFs beside the PNGs
+    outputs = ("output=files", "output.plots.pdf=true") if trial.plots else ("output=trial",)
+    cfg = _compose([*trial.overrides, *outputs])
     if out.exists():
         shutil.rmtree(out)
     out.mkdir(parents=True)

@@ -12,7 +12,7 @@ import textwrap
 import numpy as np
 
 from laughlab.harness.report_format import better_label, fmt, heading, panel_grid, param_label, plt
-from laughlab.harness.report_format import save_figure
+from laughlab.render.savefig import save_figure
 
 
 def _num(v: str):

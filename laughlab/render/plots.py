@@ -1,4 +1,7 @@
-"""Figures in the style of the thesis (van Duijn 2014): Figs. 3.1, 3.2, 4.1 and 4.2."""
+"""Figures in the style of the thesis (van Duijn 2014): Figs. 3.1, 3.2, 4.1 and 4.2.
+
+Each figure function writes a PNG at ``path`` and, with ``pdf`` (True: ``NAME.pdf`` beside it, or a path), the
+same figure as a vector PDF for print (:func:`laughlab.render.savefig.save_figure`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,6 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from laughlab.core.frame import clip_blocks  # noqa: E402,F401 (used here and by the plots sink)
+from laughlab.render.savefig import save_figure  # noqa: E402
 from laughlab.signals.smoothing import THESIS_TICK_HZ, rate_limit_series  # noqa: E402
 
 #: the two rise/fall settings of the thesis' Fig. 3.2 (per tick): green 0.5/0.3, blue 0.2/0.1
@@ -56,7 +60,8 @@ def _titled(title: str, note: str) -> str:
 
 
 def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, power: float = 2.0,
-               bouts: Sequence | None = None, title: str = "", window_s: float = 4.0, note: str = "") -> Path:
+               bouts: Sequence | None = None, title: str = "", window_s: float = 4.0, note: str = "",
+               pdf=False) -> Path:
     """Fig. 3.2: the MCS unfiltered and with two rise/fall settings (Eq. 3.2).
 
     Rates are the thesis' per-tick values converted at 60 ticks/s; all three
@@ -95,7 +100,7 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
                  fontsize=9)
     fig.legend(*ax_zoom.get_legend_handles_labels(), fontsize=7, loc="outside lower center", ncols=4,
                frameon=False)
-    fig.savefig(path, format="png")
+    save_figure(fig, path, pdf)
     plt.close(fig)
     return path
 
@@ -214,7 +219,7 @@ def _label_blocks(fig, ax, blocks, lines, top: float) -> list:
 
 
 def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: float, calibration_s: float = 0.0,
-               bouts: Sequence | None = None, title: str = "", note: str = "") -> Path:
+               bouts: Sequence | None = None, title: str = "", note: str = "", pdf=False) -> Path:
     """Fig. 3.1: the MCS with min/max amplitude fixed after calibration (left) and drifting (right).
 
     Both columns run the rms extractor (listing 5.2) again on the run's
@@ -264,13 +269,14 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
         for h, lab in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(lab, h)
     fig.legend(list(handles.values()), list(handles), fontsize=7, loc="outside lower center", ncols=5, frameon=False)
-    fig.savefig(path, format="png")
+    save_figure(fig, path, pdf)
     plt.close(fig)
     return path
 
 
 def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
-               gain_per_s: float, bouts: Sequence | None = None, title: str = "", note: str = "") -> Path:
+               gain_per_s: float, bouts: Sequence | None = None, title: str = "", note: str = "",
+               pdf=False) -> Path:
     """Fig. 4.1: MCS (top); the primitive of the MCS, the actual laughing energy and the clips (bottom).
 
     The primitive ``sum(gain_per_s * MCS * dt)`` is the laughing energy with no
@@ -306,7 +312,7 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     ax1.set_title(_titled(title or "The laughing energy process (cf. van Duijn 2014, Fig. 4.1)", note), fontsize=9)
     _legend_with_clip_key(fig, [ax2, axp], blocks)
     _label_blocks(fig, ax2, blocks, [line, prim], top)
-    fig.savefig(path, format="png")
+    save_figure(fig, path, pdf)
     plt.close(fig)
     return path
 
@@ -334,7 +340,7 @@ def _legend_with_clip_key(fig, axes, blocks, max_cols: int = 7) -> None:
 
 def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
                bouts: Sequence | None = None, title: str = "", note: str = "",
-               energy_label: str = "laughing energy L") -> Path:
+               energy_label: str = "laughing energy L", pdf=False) -> Path:
     """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom).
 
     ``energy_label`` names the green line: the thesis' L under the energy scheduler; another scheduler's
@@ -363,7 +369,7 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     if not blocks and not (len(energy) and np.any(energy)):   # scheduler=none: an empty panel said nothing
         ax2.text(0.5, 0.5, "no laughing energy and no clip in this run", transform=ax2.transAxes,
                  ha="center", va="center", fontsize=8, color="0.35")
-    fig.savefig(path, format="png")
+    save_figure(fig, path, pdf)
     plt.close(fig)
     return path
 
@@ -439,7 +445,7 @@ def filmstrip_moments(times: np.ndarray, positions: np.ndarray, n: int, blocks: 
 
 
 def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captions: Sequence[str],
-              title: str = "", note: str = "") -> Path:
+              title: str = "", note: str = "", pdf=False) -> Path:
     """A row of stick figures (the run's skeleton at chosen frames) with a caption under each."""
     from laughlab.render.figure import draw_skeleton
     from laughlab.motion.skeleton import forward_kinematics
@@ -459,6 +465,6 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
         ax.text(0.5, -0.02, captions[k], transform=ax.transAxes, ha="center", va="top", fontsize=5.5)
     fig.suptitle(_titled(title or "The character over the run (skeleton from motion.bvh)", note), fontsize=8)
     fig.subplots_adjust(left=0.01, right=0.99, top=0.76 if note else 0.84, bottom=0.2, wspace=0.05)
-    fig.savefig(path, format="png")
+    save_figure(fig, path, pdf)
     plt.close(fig)
     return path

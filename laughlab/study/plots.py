@@ -14,6 +14,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from laughlab.render.savefig import save_figure
+
 
 def _panels(n: int, height: float = 3.4):
     cols = min(n, 3)
@@ -24,12 +26,6 @@ def _panels(n: int, height: float = 3.4):
     for ax in axes[n:]:
         ax.set_visible(False)
     return fig, axes[:n]
-
-
-def save(fig, path: Path) -> None:
-    """``path`` (a PNG at 300 dpi) and the same figure as a PDF beside it; no date inside, so the same bytes."""
-    fig.savefig(path, dpi=300)
-    fig.savefig(Path(path).with_suffix(".pdf"), metadata={"CreationDate": None, "ModDate": None})
 
 
 def off_axis(low, high, ylim: tuple[float, float]) -> list[tuple[int, float, int]]:
@@ -105,7 +101,7 @@ def means_plot(path: Path, means, tidy, questions: list[str], conditions: list[s
     who = "simulated participants" if simulated else "participants"
     fig.suptitle(f"Condition means, {tidy['participant'].nunique()} {who} (dots: each participant's mean)",
                  fontsize=10)
-    save(fig, path)
+    save_figure(fig, path, dpi=300)   # and its PDF
 
 
 def participant_lines(path: Path, tidy, means, questions: list[str], conditions: list[str], design=None,
@@ -128,4 +124,4 @@ def participant_lines(path: Path, tidy, means, questions: list[str], conditions:
         _ylim(ax, design, tidy)
     fig.suptitle("Each simulated participant's ratings across the conditions" if simulated
                  else "Each participant's ratings across the conditions", fontsize=10)
-    save(fig, path)
+    save_figure(fig, path, dpi=300)   # and its PDF

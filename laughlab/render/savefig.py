@@ -1,0 +1,21 @@
+"""Writing a matplotlib figure: a PNG and, for print, the same figure as a vector PDF.
+
+One function for the run's plots, the experiment and sweep reports and the perception study's figures. It
+imports neither pyplot nor a backend, so a module that draws on a bare ``Figure`` (the study's) can use it too.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+#: no creation or modification date inside a PDF: the same data give the same bytes
+PDF_METADATA = {"CreationDate": None, "ModDate": None}
+
+
+def save_figure(fig, path, pdf: bool | str | Path = True, dpi: float | None = None) -> Path:
+    """Write ``fig`` to ``path`` as a PNG (at ``dpi``; None: the figure's own) and, for print, as a PDF:
+    ``pdf`` True writes ``NAME.pdf`` beside it, a path writes there (a staging file), False writes none."""
+    path = Path(path)
+    fig.savefig(path, format="png", **({"dpi": dpi} if dpi else {}))
+    if pdf:
+        fig.savefig(path.with_suffix(".pdf") if pdf is True else Path(pdf), format="pdf", metadata=PDF_METADATA)
+    return path
