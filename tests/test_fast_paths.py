@@ -136,14 +136,14 @@ def test_a_channel_missing_in_some_frames_is_one_clear_error():
 
     from laughlab.core.errors import LaughlabError
     from laughlab.core.frame import Frame
-    from laughlab.core.pipeline import _Recorder
+    from laughlab.core.recorder import Recorder
 
-    rec = _Recorder(4, 3)
+    rec = Recorder(4, 3)
     rec.add(Frame(0, 0.0, 1 / 60, {"mcs": 0.1}, None, {"smile": 0.2}))
     rec.add(Frame(1, 1 / 60, 1 / 60, {"mcs": 0.3}, None, {}))
     with pytest.raises(LaughlabError, match="do not all write the same channels"):
         rec.take(np.zeros((2, 3)))
-    rec = _Recorder(4, 3)
+    rec = Recorder(4, 3)
     rec.add(Frame(0, 0.0, 1 / 60, {"mcs": 0.1}, None, {"smile": 0.2}))
     rec.add(Frame(1, 1 / 60, 1 / 60, {"mcs": 0.3}, None, {"smile": 0.4}))
     chunk = rec.take(np.zeros((2, 3)))

@@ -1,0 +1,71 @@
+"""Frames collected into chunks of arrays for the sinks (:func:`laughlab.core.pipeline.execute`)."""
+from __future__ import annotations
+
+import numpy as np
+
+from laughlab.core import blame
+from laughlab.core.bases import Chunk, check_contract
+from laughlab.core.errors import LaughlabError
+from laughlab.core.frame import Frame
+
+
+class Recorder:
+    """Collects frames into chunks of arrays for the sinks.
+
+    A frame's dictionaries are kept as they are and turned into one array per channel once
+    per chunk (a list comprehension per channel costs a fraction of per-frame assignments);
+    the floats are the same.
+    """
+
+    def __init__(self, n: int, n_channels: int, names: dict | None = None):
+        self.n, self.n_channels, self.names = n, n_channels, names   # names: stage -> plugin, for the contract
+        self.keys: tuple | None = None
+        self.done = 0  # frames handed out in earlier chunks
+        self._reset()
+
+    def _reset(self) -> None:
+        self.times: list = []
+        self.controls: list = []
+        self.outputs: list = []
+        self.capture: list = []
+        self.labels: list = []
+        self.events: list = []
+        self.i = 0
+
+    def add(self, frame: Frame, capture_ns: int = 0) -> None:
+        if self.keys is None:
+            if self.names is not None:
+                check_contract(frame.channels, self.names)
+            self.keys = (tuple(frame.control), tuple(frame.channels))
+        self.capture.append(capture_ns)
+        self.controls.append(frame.control)
+        self.outputs.append(frame.channels)
+        self.times.append(frame.time_s)
+        self.labels.append(frame.label)
+        if frame.events:
+            self.events.extend(frame.events)
+        self.i += 1
+
+    def take(self, poses: np.ndarray) -> Chunk:
+        """The recorded frames with their ``poses`` (the mixer renders them per chunk)."""
+        i = self.i
+        if len(poses) != i:
+            raise LaughlabError(f"{len(poses)} poses for {i} frames")
+        vals = {}
+        for keys, dicts in zip(self.keys or ((), ()), (self.controls, self.outputs)):
+            if sum(map(len, dicts)) != len(keys) * i:  # (a frame missing a channel raises KeyError below)
+                raise LaughlabError(f"the frames do not all write the same channels (first frame: {', '.join(keys)})")
+            for k in keys:
+                try:
+                    vals[k] = np.fromiter([d[k] for d in dicts], dtype=np.float64, count=i)
+                except KeyError:
+                    raise LaughlabError(f"channel {k!r} is not written every frame") from None
+                except (TypeError, ValueError):   # a value that is not a number: say which and where
+                    raise blame.PluginBug(blame.not_a_number(k, [d[k] for d in dicts], self.done)) from None
+        blame.check_finite(vals, poses, self.done, raw=lambda k, j: next(  # the value as given (None), on failure
+            ds[j][k] for keys, ds in zip(self.keys, (self.controls, self.outputs)) if k in keys))
+        chunk = Chunk(np.array(self.times, dtype=np.float64), vals, poses, self.events, self.labels,
+                      np.array(self.capture, dtype=np.int64))
+        self.done += i
+        self._reset()
+        return chunk
