@@ -16,6 +16,8 @@ from laughlab.avatar.errors import AvatarError
 
 #: bytes of one component (glTF 2.0, 3.6.2.2) and components of one element (3.6.2.3)
 COMPONENT_BYTES = {5120: 1, 5121: 1, 5122: 2, 5123: 2, 5125: 4, 5126: 4}
+#: each component type's numpy type (3.6.2.2)
+COMPONENT_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 TYPE_COMPONENTS = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 
 

@@ -2,7 +2,8 @@
 
 Accepted: a VRM 0.x file (``VRM`` extension), a VRM 1.0 file (``VRMC_vrm``), or a glTF 2.0
 (``.glb``, or ``.gltf`` with embedded or neighbouring buffers) whose node names follow
-:data:`laughlab.avatar.names.NODE_NAMES` (Mixamo, Ready Player Me, VRM or Unity names).
+:data:`laughlab.avatar.names.NODE_NAMES` (Mixamo, Ready Player Me, VRM or Unity names); meshes compressed
+with Draco or meshopt are decoded as the file is loaded (:mod:`laughlab.avatar.compressed`).
 Anything else raises :class:`AvatarError` (a ``ValueError``) whose one line names the file and
 what is missing.  A file over :data:`MAX_BYTES` is refused from its size alone, before it is read.
 """
@@ -17,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from laughlab.avatar.check import check_bones, check_structure
+from laughlab.avatar.compressed import DRACO, MESHOPT, decompress, is_fallback
 from laughlab.avatar.errors import AvatarError
 from laughlab.avatar.images import beside, read_images
 from laughlab.avatar.names import REQUIRED, bones_by_name, node_ranks
@@ -25,15 +27,14 @@ MAX_BYTES = 100 * 1024 * 1024
 """The largest avatar file laughlab loads (100 MB)."""
 
 #: extensions an avatar may list in ``extensionsRequired`` that laughlab reads (or may ignore without drawing
-#: anything wrong): integer vertex attributes, and material looks (the video uses the base colour; three.js
-#: renders them); any other required extension is refused: glTF 2.0 (3.12 *Specifying Extensions*) lists in
+#: anything wrong): integer vertex attributes, material looks (the video uses the base colour; three.js
+#: renders them), and Draco and meshopt mesh compression (decoded at load, :mod:`laughlab.avatar.compressed`);
+#: any other required extension is refused: glTF 2.0 (3.12 *Specifying Extensions*) lists in
 #: ``extensionsRequired`` the extensions an asset cannot be loaded without
-READS_REQUIRED = ("KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_")
+READS_REQUIRED = ("KHR_mesh_quantization", "KHR_texture_transform", "KHR_materials_", DRACO, MESHOPT)
 
 #: required extensions laughlab cannot read -> what to do instead
 NOT_READ = {
-    "KHR_draco_mesh_compression": "export it without mesh compression (Draco)",
-    "EXT_meshopt_compression": "export it without mesh compression (meshopt)",
     "KHR_texture_basisu": "export its textures as PNG or JPEG (not KTX2/Basis)",
 }
 
@@ -48,9 +49,9 @@ class Avatar:
     kind : str
         ``vrm0``, ``vrm1`` or ``gltf`` (bones recognised by name).
     doc : dict
-        The glTF JSON document (as read; the exporters copy it).
+        The glTF JSON document (as read, its Draco or meshopt compressed meshes decoded; the exporters copy it).
     binary : bytes
-        The binary buffer (buffer 0).
+        The binary buffer (buffer 0; with the decoded data of a compressed avatar).
     bones : dict
         VRM humanoid bone name -> node index.
     parents : ndarray (N,) int
@@ -187,7 +188,7 @@ def _read_gltf(path: Path) -> tuple[dict, bytes]:
         raise _fail(path, "is JSON but not glTF (no 'asset')")
     buffers = doc.get("buffers") or []
     binary = b""
-    if len(buffers) > 1:
+    if len([b for b in buffers if not is_fallback(b)]) > 1:   # a meshopt fallback holds nothing to read
         raise _fail(path, f"has {len(buffers)} buffers; laughlab reads avatars with one (a .glb, or a .gltf "
                           "with one .bin)")
     if buffers:
@@ -406,6 +407,7 @@ def load_avatar(path: str | Path) -> Avatar:
     if not nodes:
         raise _fail(path, "has no nodes, so no skeleton")
     _check_required(path, doc)
+    doc, binary = decompress(path, doc, binary)
     check_structure(path, doc, binary)
     kind, bones = _humanoid(path, doc)
     n = len(nodes)

@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from laughlab.avatar.check import COMPONENT_DTYPES as _DTYPES
 from laughlab.avatar.load import Avatar
 
-_DTYPES = {5120: np.int8, 5121: np.uint8, 5122: np.int16, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT4": 16}
 _NORM = {5120: 127.0, 5121: 255.0, 5122: 32767.0, 5123: 65535.0}
 
