@@ -5,7 +5,7 @@ import numpy as np
 
 from laughlab import hookimpl
 from laughlab.core.bases import Sink
-from laughlab.io.bvh import format_frames, hierarchy_lines
+from laughlab.io.bvh import format_frames, frame_time_line, hierarchy_lines
 from laughlab.core.outfiles import Staging
 
 _COUNT_WIDTH = 12  # room for the frame count, patched in when the run ends
@@ -29,7 +29,7 @@ class BvhSink(Sink):
         self._f = open(self.staging.path(run.out_dir / "motion.bvh"), "w", encoding="ascii", newline="\n")
         self._f.write("\n".join(hierarchy_lines(run.skeleton)) + "\nMOTION\n")
         self._count_at = self._f.tell() + len("Frames: ")
-        self._f.write(f"Frames: {'0':<{_COUNT_WIDTH}}\nFrame Time: {1.0 / run.fps:.7f}\n")
+        self._f.write(f"Frames: {'0':<{_COUNT_WIDTH}}\n{frame_time_line(1.0 / run.fps)}\n")
         self.n = 0
 
     def write(self, chunk) -> None:

@@ -101,6 +101,34 @@ def test_bvh_parses_with_pypi_bvh(tmp_path):
     assert mocap.joint_offset("left_forearm") == (28.0, 0.0, 0.0)
 
 
+def _blender_scene_rate(frame_time: float) -> tuple[int, float]:
+    """What Blender's BVH importer sets with Update Scene FPS (io_anim_bvh ``_update_scene_fps``): the scene's
+    ``fps`` (an int) and ``fps_base`` (a 32-bit float), from ``1 / Frame Time``."""
+    new_fps = 1.0 / frame_time
+    fps = int(round(new_fps))
+    return fps, float(np.float32(fps / new_fps))
+
+
+@pytest.mark.parametrize("fps", [24, 25, 30, 50, 60, 120, 240])
+def test_the_frame_time_gives_blender_the_runs_frame_rate_exactly(tmp_path, fps):
+    """Blender's BVH importer takes the scene rate from ``1 / Frame Time``: 7 decimals (0.0166667) gave a
+    60 fps run ``fps_base`` 1.000002, a scene at 59.99988 fps.  Both writers (``write_bvh``, the run's
+    streaming ``bvh`` sink) write the same line, read here by laughlab's reader and PyPI's ``bvh``."""
+    from types import SimpleNamespace
+
+    from laughlab_plugins.sink_bvh import BvhSink
+
+    write_bvh(tmp_path / "w.bvh", SK, np.tile(rest_pose(SK), (2, 1)), 1 / fps)
+    sink = BvhSink()
+    sink.open(SimpleNamespace(out_dir=tmp_path / "run", fps=float(fps), skeleton=SK, n_frames=None))
+    sink.write(SimpleNamespace(poses=np.tile(rest_pose(SK), (2, 1))))
+    sink.close()
+    for path in (tmp_path / "w.bvh", tmp_path / "run" / "motion.bvh"):
+        frame_time = read_bvh(path)[2]
+        assert Bvh(path.read_text()).frame_time == frame_time
+        assert _blender_scene_rate(frame_time) == (fps, 1.0), path.name
+
+
 def test_non_dfs_order_round_trips_by_name(tmp_path):
     sk = Skeleton(("root", "a", "b", "a_tip"), (-1, 0, 0, 1), [[0, 0, 0], [10, 0, 0], [-10, 0, 0], [0, 5, 0]])
     motion = np.array([[1, 2, 3, 0, 0, 0, 90, 0, 0, 0, 30, 0, 0, 0, 45]], float)

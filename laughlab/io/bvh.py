@@ -20,7 +20,7 @@ import numpy as np
 
 from laughlab.motion.skeleton import Skeleton, euler_to_matrix, matrix_to_euler
 
-__all__ = ["write_bvh", "read_bvh", "hierarchy_lines", "format_frames"]
+__all__ = ["write_bvh", "read_bvh", "hierarchy_lines", "format_frames", "frame_time_line"]
 
 _ROOT_CHANNELS = "Xposition Yposition Zposition Zrotation Xrotation Yrotation"
 _JOINT_CHANNELS = "Zrotation Xrotation Yrotation"
@@ -66,6 +66,17 @@ def hierarchy_lines(skeleton: Skeleton) -> list[str]:
 
     emit(0, 0)
     return lines
+
+
+def frame_time_line(frame_time_s: float) -> str:
+    """The ``Frame Time:`` line (no newline), with 10 decimals.
+
+    Readers take the frame rate as ``1 / Frame Time``: Blender's BVH importer (``Update Scene FPS``) sets
+    the scene's rate to ``round(1 / t)`` and its ``fps_base`` to the ratio, a 32-bit float.  Seven decimals
+    (``0.0166667``) gave 59.99988 fps there (``fps_base`` 1.000002); ten give the run's rate exactly at
+    every rate up to 1000 fps.
+    """
+    return f"Frame Time: {frame_time_s:.10f}"
 
 
 def format_frames(skeleton: Skeleton, motion: np.ndarray) -> str:
@@ -148,7 +159,7 @@ def write_bvh(path: str | os.PathLike, skeleton: Skeleton, motion: np.ndarray, f
     """
     motion = np.atleast_2d(np.asarray(motion, dtype=np.float64))
     text = "\n".join(hierarchy_lines(skeleton) + ["MOTION", f"Frames: {len(motion)}",
-                                                  f"Frame Time: {frame_time_s:.7f}", ""])
+                                                  frame_time_line(frame_time_s), ""])
     body = format_frames(skeleton, motion)
     path = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
