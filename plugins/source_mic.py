@@ -89,8 +89,16 @@ class MicSource(Source):
             sd.check_input_settings(device=device, channels=1, samplerate=self.params.sample_rate,
                                     dtype="float32")
         except Exception as exc:
+            cause = str(exc).splitlines()[0]
+            if _rate_refused(exc, cause):   # the microphone is there: it does not record at that rate
+                which = "the default audio input" if device is None else f"input.device={device!r}"
+                own = _own_rate(sd, device)
+                fix = f"add input.sample_rate={own}, its own rate" if own else \
+                    "set input.sample_rate to a rate it records at (python -m sounddevice lists the devices)"
+                raise LaughlabError(f"{which} cannot record at input.sample_rate={self.params.sample_rate} "
+                                    f"({cause}): {fix}") from None
             which = "no default audio input device" if device is None else f"input.device={device!r} cannot record"
-            raise LaughlabError(f"no usable microphone: {which} ({str(exc).splitlines()[0]}); connect one, or name "
+            raise LaughlabError(f"no usable microphone: {which} ({cause}); connect one, or name "
                                 "it with input.device=NAME_OR_INDEX (python -m sounddevice lists them)") from None
         self._sd, self._device = sd, device
         self.sample_rate = self.params.sample_rate
@@ -234,6 +242,24 @@ class InputHealth:
         if overflowed:
             self.overflows += 1
         return bool(overflowed) and self.overflows == 1
+
+
+#: PortAudio's paInvalidSampleRate
+PA_INVALID_SAMPLE_RATE = -9997
+
+
+def _rate_refused(exc: Exception, cause: str) -> bool:
+    """Whether ``check_input_settings`` refused the sample rate (not the device): sounddevice's
+    ``PortAudioError(text, code)``; the text is said 'Invalid sample rate [PaErrorCode -9997]'."""
+    return PA_INVALID_SAMPLE_RATE in getattr(exc, "args", ())[1:2] or f"[PaErrorCode {PA_INVALID_SAMPLE_RATE}]" in cause
+
+
+def _own_rate(sd, device) -> int | None:
+    """The input device's own sample rate (Hz), or None where PortAudio does not say."""
+    try:
+        return int(round(float(sd.query_devices(device, "input")["default_samplerate"])))
+    except Exception:
+        return None
 
 
 def _backlog(stream, sd):
