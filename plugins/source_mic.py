@@ -173,7 +173,7 @@ class MicSource(Source):
             return None
 
     def metrics(self) -> dict:
-        """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``device`` or None: its end),
+        """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``SIGHUP``, ``device`` or None: its end),
         the reads the device flagged as overflowed, and the worst lag behind the microphone (s)."""
         h = self.health or InputHealth(self.sample_rate, self.clock)
         return {"input_stopped_by": self.stopped_by, "input_overflows": int(h.overflows),
