@@ -337,6 +337,24 @@ def test_bad_parameters(bad):
         plugins.create("sink", "vmc", bad, Context())
 
 
+@pytest.mark.parametrize("host, said", [
+    ("127.0.0.1:39540", "host is an address or a name alone (got '127.0.0.1:39540'): write "
+                        "output.vmc.host=127.0.0.1 output.vmc.port=39540"),
+    ("avatar-pc:39539", "host is an address or a name alone (got 'avatar-pc:39539'): write "
+                        "output.vmc.host=avatar-pc output.vmc.port=39539"),
+    ("http://192.168.1.20", "host is an address or a name alone (got 'http://192.168.1.20'): write "
+                            "output.vmc.host=192.168.1.20 (VMC is OSC over UDP, no URL)"),
+])
+def test_a_host_written_with_its_port_or_as_a_url_says_how_to_write_it(host, said):
+    """VSeeFace and Warudo show their receiver as IP:port, and output.vmc.host=127.0.0.1:39540 was 'cannot reach
+    host '127.0.0.1:39540': [Errno -2] Name or service not known', at the first frame (review-live-2 5)."""
+    with pytest.raises(LaughlabError) as e:
+        plugins.create("sink", "vmc", {"host": host}, Context())
+    assert str(e.value) == f"bad parameter in output.vmc: {said}"
+    for fine in ("::1", "fe80::1%eth0", "192.168.1.20", "avatar-pc.local"):   # IPv6 has colons of its own
+        plugins.create("sink", "vmc", {"host": fine}, Context())
+
+
 def test_unresolvable_host(tmp_path):
     pipe = pipeline.build(config(39539, "input.duration_s=0.2", host="no-such-host.invalid"))
     with pytest.raises(LaughlabError, match="cannot reach host"):
