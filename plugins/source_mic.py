@@ -65,6 +65,8 @@ class MicSource(Source):
     Params = MicParams
     live = True
     stopped_by: str | None = None
+    #: the loudest sample read (1 is full scale): a session that stays silent says so in the run's line
+    peak: float = 0.0
     #: how the reading went (:class:`InputHealth`: overflows, the worst lag), for metrics.json
     health: "InputHealth | None" = None
     clock = staticmethod(time.perf_counter)
@@ -142,6 +144,8 @@ class MicSource(Source):
                     return
                 data, overflowed = block
                 got += len(data)
+                if len(data):
+                    self.peak = max(self.peak, float(np.abs(data).max()))
                 if health.read(got, overflowed, clocked=waiting is None):
                     self._say(f"laughlab: warning: the microphone's buffer overflowed after "
                               f"{got / self.sample_rate:.1f} s: laughlab fell behind the microphone and audio was "
@@ -174,10 +178,11 @@ class MicSource(Source):
 
     def metrics(self) -> dict:
         """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``SIGHUP``, ``device`` or None: its end),
-        the reads the device flagged as overflowed, and the worst lag behind the microphone (s)."""
+        the reads the device flagged as overflowed, the worst lag behind the microphone (s) and the loudest
+        sample read (``input_peak``, as a file's: a muted microphone says so in the run's line)."""
         h = self.health or InputHealth(self.sample_rate, self.clock)
         return {"input_stopped_by": self.stopped_by, "input_overflows": int(h.overflows),
-                "input_lag_s_max": float(h.lag_s_max)}
+                "input_lag_s_max": float(h.lag_s_max), "input_peak": float(self.peak)}
 
     def close(self) -> None:
         """The frame loop ended (or failed): its generators are closed, so the stream is closed and the signal

@@ -501,3 +501,21 @@ def _drain(fd: int) -> None:
             pass
     except OSError:
         pass
+
+
+@pytest.mark.parametrize("gain, said", [(0.0, "2.0 s of mic input (silent: its loudest sample is 0; is the microphone "
+                                              "muted? input.device=NAME_OR_INDEX chooses another), rms"),
+                                        (0.3, "2.0 s of mic input, rms")])
+def test_a_silent_microphone_says_so_in_the_closing_line(monkeypatch, tmp_path, gain, said):
+    """A muted microphone (or the wrong one) gave a session in which nothing moved and nothing was said, where a
+    silent file says so in the run's line (review-live-2 6): the microphone's loudest sample is input_peak too."""
+    from laughlab.core.summary import summary_line
+
+    audio = noise(3) / 0.4 * gain
+    monkeypatch.setitem(sys.modules, "sounddevice", FakeSoundDevice(audio))
+    cfg = compose_config(["input=mic", "input.calibration_s=0", "input.duration_s=2"])
+    run_cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    run_cfg.output = {"csv": {}}
+    metrics = pipeline.execute(pipeline.build(run_cfg), tmp_path)
+    assert metrics["input_peak"] == pytest.approx(float(np.abs(audio[:32000]).max()))
+    assert f"laughlab: {said}" in summary_line(cfg, metrics, tmp_path, 2.5)
