@@ -7,6 +7,7 @@ conversion: :mod:`laughlab.io.vmc`.
 """
 from __future__ import annotations
 
+import os
 import sys
 import time
 from dataclasses import dataclass
@@ -214,9 +215,14 @@ class VmcSink(Sink):
             how = "paced at the frame clock" if self.paced else \
                 ("live" if self.live else "not paced: as fast as computed")
             dropped = f", {self.sender.dropped} datagrams dropped" if self.sender.dropped else ""
-            print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}{dropped}); latency audio "
-                  f"block -> OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max {s['max']:.2f} ms",
-                  file=sys.stdout, flush=True)
+            try:
+                print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}{dropped}); latency "
+                      f"audio block -> OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max "
+                      f"{s['max']:.2f} ms", file=sys.stdout, flush=True)
+            except BrokenPipeError:   # stdout closed (| head): no fault of the session, which is kept (review-live-2 7)
+                null = os.open(os.devnull, os.O_WRONLY)   # what is still buffered goes nowhere
+                os.dup2(null, sys.stdout.fileno())
+                os.close(null)
         return []
 
     def abort(self) -> None:

@@ -1,6 +1,7 @@
 """The ``vmc`` sink: the VMC protocol over OSC, received by a real python-osc server on loopback."""
 from __future__ import annotations
 
+import json
 import socket
 import sys
 import threading
@@ -449,3 +450,23 @@ def test_the_streaming_sink_gets_each_frame_before_the_file_writers(tmp_path):
             sink.write = (lambda w, name: lambda chunk: (calls.append(name), w(chunk)))(sink.write, sink.name)
         pipeline.execute(pipe, tmp_path, {})
     assert calls == ["vmc", "csv"] * 6
+
+
+def test_a_closed_stdout_keeps_the_streamed_session(tmp_path):
+    """``python -m laughlab ... output=vmc | head -1`` (or a log reader that went away): the sink's 'vmc: N
+    frames' line met the broken pipe while the sinks closed, and the session was removed as 'cannot write RUN:
+    Broken pipe' (review-live-2 7), where the run's own closing line lets a closed stdout pass."""
+    import os
+    import subprocess
+
+    read, write = os.pipe()
+    os.close(read)   # nobody reads the command's stdout
+    try:
+        p = subprocess.run([sys.executable, "-m", "laughlab", "input.duration_s=0.3", "output=vmc",
+                            "output.vmc.realtime=off", "output.vmc.port=39593", "detector=none",
+                            f"hydra.run.dir={tmp_path / 'run'}"], stdout=write, stderr=subprocess.PIPE, text=True,
+                           timeout=120)
+    finally:
+        os.close(write)
+    assert p.returncode == 0 and p.stderr == "", p.stderr
+    assert json.loads((tmp_path / "run" / "metrics.json").read_text())["vmc_frames"] == 18
