@@ -177,9 +177,9 @@ class MicSource(Source):
             return None
 
     def metrics(self) -> dict:
-        """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``SIGHUP``, ``device`` or None: its end),
-        the reads the device flagged as overflowed, the worst lag behind the microphone (s) and the loudest
-        sample read (``input_peak``, as a file's: a muted microphone says so in the run's line)."""
+        """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``SIGHUP``, ``device`` or None:
+        its end), the reads the device flagged as overflowed, the worst lag behind the microphone (s) and the
+        loudest sample read (``input_peak``, as a file's: a muted microphone says so in the run's line)."""
         h = self.health or InputHealth(self.sample_rate, self.clock)
         return {"input_stopped_by": self.stopped_by, "input_overflows": int(h.overflows),
                 "input_lag_s_max": float(h.lag_s_max), "input_peak": float(self.peak)}

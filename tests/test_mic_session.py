@@ -199,7 +199,8 @@ def test_a_line_during_the_calibration_starts_a_line_of_its_own(monkeypatch, tmp
 
 FAKE_MODULE = '''
 """A fake sounddevice: noise as fast as it is read; read SIGNAL_AT sends the signal FAKE_SD_SIGNAL to this process
-(with FAKE_SD_READY: after saying so in that file and waiting for the file FAKE_SD_CLOSED, a terminal the test closed)."""
+(with FAKE_SD_READY: after saying so in that file and waiting for the file FAKE_SD_CLOSED: a terminal the test
+closed)."""
 import os, signal, time
 import numpy as np
 
