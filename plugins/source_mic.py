@@ -95,7 +95,7 @@ class MicSource(Source):
             if _rate_refused(exc, cause):   # the microphone is there: it does not record at that rate
                 which = "the default audio input" if device is None else f"input.device={device!r}"
                 own = _own_rate(sd, device)
-                fix = f"add input.sample_rate={own}, its own rate" if own else \
+                fix = f"add input.sample_rate={own}, its own rate" if own and own != self.params.sample_rate else \
                     "set input.sample_rate to a rate it records at (python -m sounddevice lists the devices)"
                 raise LaughlabError(f"{which} cannot record at input.sample_rate={self.params.sample_rate} "
                                     f"({cause}): {fix}") from None
@@ -260,11 +260,12 @@ def _rate_refused(exc: Exception, cause: str) -> bool:
 
 
 def _own_rate(sd, device) -> int | None:
-    """The input device's own sample rate (Hz), or None where PortAudio does not say."""
+    """The input device's own sample rate (Hz), or None where PortAudio does not say one input.sample_rate takes."""
     try:
-        return int(round(float(sd.query_devices(device, "input")["default_samplerate"])))
+        rate = int(round(float(sd.query_devices(device, "input")["default_samplerate"])))
     except Exception:
         return None
+    return rate if 8000 <= rate <= 192000 else None
 
 
 def _backlog(stream, sd):

@@ -151,6 +151,10 @@ def test_a_microphone_that_cannot_record_at_the_rate_says_the_rate_it_can(monkey
                                             r"sample rate \[PaErrorCode -9997\]\): add input.sample_rate=48000, "):
         _build_mic("input.device=2", "input.sample_rate=44100")
     _build_mic("input.sample_rate=48000")
+    monkeypatch.setattr(Only48k, "query_devices", lambda self, device=None, kind=None: {"default_samplerate": 16000.0})
+    with pytest.raises(LaughlabError, match=r": set input.sample_rate to a rate it records at \(python -m sounddevice "
+                                            r"lists the devices\)$"):   # its 'own' rate is the one refused
+        _build_mic()
 
 
 class FakeSoundDevice:
