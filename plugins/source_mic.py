@@ -161,7 +161,8 @@ class MicSource(Source):
             if not got:   # pipeline.execute would fail on no frames after a line saying 'kept'
                 raise StoppedBySignal(f"{key}: stopped before any audio was read; nothing to keep")
             self._say(f"laughlab: {key}: the input ended after {got / self.sample_rate:.1f} s and the session is "
-                      f"kept ({key} again aborts it and removes what it wrote)")
+                      "kept" + (" (the terminal hung up)" if key == "SIGHUP" else
+                                f" ({key} again aborts it and removes what it wrote)"))
             return None
         if waiting is not None:
             self.health.waiting(waiting())

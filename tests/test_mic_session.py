@@ -233,7 +233,8 @@ class InputStream:
         self.k += 1
         if self.k == int(os.environ["FAKE_SD_SIGNAL_AT"]):
             wait_for_the_test()
-            os.kill(os.getpid(), getattr(signal, os.environ["FAKE_SD_SIGNAL"]))
+            for _ in range(int(os.environ.get("FAKE_SD_SIGNAL_TIMES", "1"))):
+                os.kill(os.getpid(), getattr(signal, os.environ["FAKE_SD_SIGNAL"]))
         if self.k > 3000:   # a signal that did not end the input: the test fails, it does not hang
             raise PortAudioError("the fake ran out")
         return self.rng.normal(0, 0.1, (n, 1)).astype(np.float32), False
@@ -440,7 +441,8 @@ def test_a_terminal_that_closes_ends_the_session_and_keeps_it(tmp_path):
     """The terminal of a live session closed (its window, an ssh connection dropped): SIGHUP killed the process
     where it stood (review-live-2 3): the avatar stayed frozen mid-laugh (no frame at rest), the session was lost
     and the run folder kept its .part files.  SIGHUP now ends the input as SIGTERM does; the lines that would go
-    to the terminal that is gone go nowhere (a write to it fails), and the session is kept."""
+    to the terminal that is gone go nowhere (a write to it fails), and the session is kept, a hang-up that comes
+    twice (the kernel's, the shell's to its jobs) too."""
     import pty
     import threading
 
@@ -464,7 +466,8 @@ def test_a_terminal_that_closes_ends_the_session_and_keeps_it(tmp_path):
 
     master, slave = pty.openpty()
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path / "fake"), str(ROOT)]),
-           "FAKE_SD_SIGNAL_AT": "90", "FAKE_SD_SIGNAL": "SIGHUP", "FAKE_SD_READY": str(ready),
+           "FAKE_SD_SIGNAL_AT": "90", "FAKE_SD_SIGNAL": "SIGHUP", "FAKE_SD_SIGNAL_TIMES": "2",
+           "FAKE_SD_READY": str(ready),
            "FAKE_SD_CLOSED": str(closed)}
     p = subprocess.Popen([sys.executable, "-m", "laughlab", "input=mic", "input.calibration_s=0", "output=[files,vmc]",
                           "~output.plots", f"output.vmc.port={receiver.getsockname()[1]}", f"hydra.run.dir={run}"],

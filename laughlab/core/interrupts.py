@@ -88,7 +88,7 @@ def finish(whole_process: bool = True) -> None:
         return
     finished = True
     try:   # and ignored outright: Python puts the default handlers back while it shuts down (exit by SIGTERM)
-        for sig in STOP_SIGNALS + ((_HUP,) if _HUP is not None else ()):   # SIGHUP's: a live session's
+        for sig in STOP_SIGNALS:
             if signal.getsignal(sig) is _handler:
                 signal.signal(sig, signal.SIG_IGN)
                 _ignored = True
@@ -165,8 +165,9 @@ class StopOnSignal:
     SIGHUP (the session's terminal closed: its window, a dropped ssh connection) ends the input too, where
     laughlab's handler has SIGTERM and SIGHUP has its default (not ``nohup``): the default killed the process
     where it stood, the avatar frozen mid-laugh and the session lost (review-live-2 3).  Standard output and
-    error on the terminal that hung up go to /dev/null from then on (a write to it fails); a second SIGHUP, until
-    the command ends, aborts as a second SIGTERM does (laughlab's handler takes it, and :func:`finish` lets it go)."""
+    error on the terminal that hung up go to /dev/null from then on (a write to it fails), and a SIGHUP after it is
+    ignored until the command ends: a hang-up comes more than once (the kernel's, the shell's to its jobs), and it
+    would have aborted the session it had just kept."""
 
     def __init__(self):
         self.signum: int | None = None
@@ -181,13 +182,16 @@ class StopOnSignal:
                     signal.signal(sig, self._on_signal)
             if _HUP is not None and signal.getsignal(_HUP) == signal.SIG_DFL and \
                     self._old.get(signal.SIGTERM) is _handler:
-                self._old[_HUP] = _handler
+                self._old[_HUP] = signal.SIG_DFL
                 signal.signal(_HUP, self._on_signal)
         return self
 
     def _on_signal(self, signum, frame) -> None:
         if signum == _HUP:
             _away_from_the_terminal()
+            self._old[_HUP] = signal.SIG_IGN   # the rest of the command: the terminal is gone, its repeats too
+            if self.signum is not None:
+                return
         if self.signum is None:
             self.signum = signum   # the read loop ends the input at its next block
             return
