@@ -7,6 +7,7 @@ conversion: :mod:`laughlab.io.vmc`.
 """
 from __future__ import annotations
 
+import os
 import sys
 import time
 from dataclasses import dataclass
@@ -70,6 +71,7 @@ class VmcParams:
     def __post_init__(self) -> None:
         if not self.host:
             raise ValueError("host must not be empty")
+        _check_host(self.host)
         check_range("port", self.port, 1, 65535)
         if self.realtime not in ("auto", "on", "off"):
             raise ValueError(f"realtime must be auto, on or off (got {self.realtime!r})")
@@ -77,6 +79,20 @@ class VmcParams:
             check_range("max_packet_bytes", self.max_packet_bytes, 512, 65000)
         if self.blend_case not in ("arkit", "capitalized"):
             raise ValueError(f"blend_case must be arkit or capitalized (got {self.blend_case!r})")
+
+
+def _check_host(host: str) -> None:
+    """A host written as VSeeFace and Warudo show their receiver, ``IP:port``, or as a URL, is said with how to write
+    it (it was 'Name or service not known' at the first frame, review-live-2 5); an IPv6 address has colons of its
+    own and passes."""
+    url = "://" in host
+    bare = host.split("://", 1)[1].split("/", 1)[0] if url else host
+    name, _, port = bare.rpartition(":") if bare.count(":") == 1 else ("", "", "")
+    how = f"output.vmc.host={name} output.vmc.port={port}" if name and port.isdigit() else \
+        f"output.vmc.host={bare}" if url else None
+    if how is not None:
+        raise ValueError(f"host is an address or a name alone (got {host!r}): write {how}"
+                         + (" (VMC is OSC over UDP, no URL)" if url else ""))
 
 
 class VmcSink(Sink):
@@ -199,9 +215,14 @@ class VmcSink(Sink):
             how = "paced at the frame clock" if self.paced else \
                 ("live" if self.live else "not paced: as fast as computed")
             dropped = f", {self.sender.dropped} datagrams dropped" if self.sender.dropped else ""
-            print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}{dropped}); latency audio "
-                  f"block -> OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max {s['max']:.2f} ms",
-                  file=sys.stdout, flush=True)
+            try:
+                print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}{dropped}); latency "
+                      f"audio block -> OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max "
+                      f"{s['max']:.2f} ms", file=sys.stdout, flush=True)
+            except BrokenPipeError:   # stdout closed (| head): no fault of the session, which is kept (review-live-2 7)
+                null = os.open(os.devnull, os.O_WRONLY)   # what is still buffered goes nowhere
+                os.dup2(null, sys.stdout.fileno())
+                os.close(null)
         return []
 
     def abort(self) -> None:

@@ -65,6 +65,8 @@ class MicSource(Source):
     Params = MicParams
     live = True
     stopped_by: str | None = None
+    #: the loudest sample read (1 is full scale): a session that stays silent says so in the run's line
+    peak: float = 0.0
     #: how the reading went (:class:`InputHealth`: overflows, the worst lag), for metrics.json
     health: "InputHealth | None" = None
     clock = staticmethod(time.perf_counter)
@@ -89,8 +91,16 @@ class MicSource(Source):
             sd.check_input_settings(device=device, channels=1, samplerate=self.params.sample_rate,
                                     dtype="float32")
         except Exception as exc:
+            cause = str(exc).splitlines()[0]
+            if _rate_refused(exc, cause):   # the microphone is there: it does not record at that rate
+                which = "the default audio input" if device is None else f"input.device={device!r}"
+                own = _own_rate(sd, device)
+                fix = f"add input.sample_rate={own}, its own rate" if own and own != self.params.sample_rate else \
+                    "set input.sample_rate to a rate it records at (python -m sounddevice lists the devices)"
+                raise LaughlabError(f"{which} cannot record at input.sample_rate={self.params.sample_rate} "
+                                    f"({cause}): {fix}") from None
             which = "no default audio input device" if device is None else f"input.device={device!r} cannot record"
-            raise LaughlabError(f"no usable microphone: {which} ({str(exc).splitlines()[0]}); connect one, or name "
+            raise LaughlabError(f"no usable microphone: {which} ({cause}); connect one, or name "
                                 "it with input.device=NAME_OR_INDEX (python -m sounddevice lists them)") from None
         self._sd, self._device = sd, device
         self.sample_rate = self.params.sample_rate
@@ -134,6 +144,8 @@ class MicSource(Source):
                     return
                 data, overflowed = block
                 got += len(data)
+                if len(data):
+                    self.peak = max(self.peak, float(np.abs(data).max()))
                 if health.read(got, overflowed, clocked=waiting is None):
                     self._say(f"laughlab: warning: the microphone's buffer overflowed after "
                               f"{got / self.sample_rate:.1f} s: laughlab fell behind the microphone and audio was "
@@ -149,7 +161,8 @@ class MicSource(Source):
             if not got:   # pipeline.execute would fail on no frames after a line saying 'kept'
                 raise StoppedBySignal(f"{key}: stopped before any audio was read; nothing to keep")
             self._say(f"laughlab: {key}: the input ended after {got / self.sample_rate:.1f} s and the session is "
-                      f"kept ({key} again aborts it and removes what it wrote)")
+                      "kept" + (" (the terminal hung up)" if key == "SIGHUP" else
+                                f" ({key} again aborts it and removes what it wrote)"))
             return None
         if waiting is not None:
             self.health.waiting(waiting())
@@ -165,11 +178,12 @@ class MicSource(Source):
             return None
 
     def metrics(self) -> dict:
-        """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``device`` or None: its end),
-        the reads the device flagged as overflowed, and the worst lag behind the microphone (s)."""
+        """For ``metrics.json``: what ended the input (``SIGINT``, ``SIGTERM``, ``SIGHUP``, ``device`` or None:
+        its end), the reads the device flagged as overflowed, the worst lag behind the microphone (s) and the
+        loudest sample read (``input_peak``, as a file's: a muted microphone says so in the run's line)."""
         h = self.health or InputHealth(self.sample_rate, self.clock)
         return {"input_stopped_by": self.stopped_by, "input_overflows": int(h.overflows),
-                "input_lag_s_max": float(h.lag_s_max)}
+                "input_lag_s_max": float(h.lag_s_max), "input_peak": float(self.peak)}
 
     def close(self) -> None:
         """The frame loop ended (or failed): its generators are closed, so the stream is closed and the signal
@@ -234,6 +248,25 @@ class InputHealth:
         if overflowed:
             self.overflows += 1
         return bool(overflowed) and self.overflows == 1
+
+
+#: PortAudio's paInvalidSampleRate
+PA_INVALID_SAMPLE_RATE = -9997
+
+
+def _rate_refused(exc: Exception, cause: str) -> bool:
+    """Whether ``check_input_settings`` refused the sample rate (not the device): sounddevice's
+    ``PortAudioError(text, code)``; the text is said 'Invalid sample rate [PaErrorCode -9997]'."""
+    return PA_INVALID_SAMPLE_RATE in getattr(exc, "args", ())[1:2] or f"[PaErrorCode {PA_INVALID_SAMPLE_RATE}]" in cause
+
+
+def _own_rate(sd, device) -> int | None:
+    """The input device's own sample rate (Hz), or None where PortAudio does not say one input.sample_rate takes."""
+    try:
+        rate = int(round(float(sd.query_devices(device, "input")["default_samplerate"])))
+    except Exception:
+        return None
+    return rate if 8000 <= rate <= 192000 else None
 
 
 def _backlog(stream, sd):

@@ -8,9 +8,11 @@ import json
 import math
 import os
 import signal
+import socket
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import numpy as np
@@ -196,9 +198,19 @@ def test_a_line_during_the_calibration_starts_a_line_of_its_own(monkeypatch, tmp
 
 
 FAKE_MODULE = '''
-"""A fake sounddevice: noise as fast as it is read; read SIGNAL_AT sends the signal FAKE_SD_SIGNAL to this process."""
-import os, signal
+"""A fake sounddevice: noise as fast as it is read; read SIGNAL_AT sends the signal FAKE_SD_SIGNAL to this process
+(with FAKE_SD_READY: after saying so in that file and waiting for the file FAKE_SD_CLOSED: a terminal the test
+closed)."""
+import os, signal, time
 import numpy as np
+
+def wait_for_the_test():
+    if "FAKE_SD_READY" in os.environ:
+        open(os.environ["FAKE_SD_READY"], "w").close()
+        for _ in range(300):
+            if os.path.exists(os.environ["FAKE_SD_CLOSED"]):
+                return
+            time.sleep(0.05)
 
 class PortAudioError(Exception):
     pass
@@ -220,7 +232,9 @@ class InputStream:
     def read(self, n):
         self.k += 1
         if self.k == int(os.environ["FAKE_SD_SIGNAL_AT"]):
-            os.kill(os.getpid(), getattr(signal, os.environ["FAKE_SD_SIGNAL"]))
+            wait_for_the_test()
+            for _ in range(int(os.environ.get("FAKE_SD_SIGNAL_TIMES", "1"))):
+                os.kill(os.getpid(), getattr(signal, os.environ["FAKE_SD_SIGNAL"]))
         if self.k > 3000:   # a signal that did not end the input: the test fails, it does not hang
             raise PortAudioError("the fake ran out")
         return self.rng.normal(0, 0.1, (n, 1)).astype(np.float32), False
@@ -420,3 +434,92 @@ def test_laughlabs_own_handler_is_stood_in_for_by_identity_not_by_its_module_nam
         assert signal.getsignal(signal.SIGTERM) is interrupts._handler
     finally:
         signal.signal(signal.SIGTERM, old)
+
+
+
+def test_a_terminal_that_closes_ends_the_session_and_keeps_it(tmp_path):
+    """The terminal of a live session closed (its window, an ssh connection dropped): SIGHUP killed the process
+    where it stood (review-live-2 3): the avatar stayed frozen mid-laugh (no frame at rest), the session was lost
+    and the run folder kept its .part files.  SIGHUP now ends the input as SIGTERM does; the lines that would go
+    to the terminal that is gone go nowhere (a write to it fails), and the session is kept, a hang-up that comes
+    twice (the kernel's, the shell's to its jobs) too."""
+    import pty
+    import threading
+
+    from pythonosc.osc_packet import OscPacket
+
+    (tmp_path / "fake").mkdir()
+    (tmp_path / "fake" / "sounddevice.py").write_text(textwrap.dedent(FAKE_MODULE))
+    run, ready, closed = tmp_path / "run", tmp_path / "ready", tmp_path / "closed"
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    receiver.bind(("127.0.0.1", 0))
+    receiver.settimeout(0.5)
+    got: list[bytes] = []
+
+    def listen():
+        while True:
+            try:
+                got.append(receiver.recv(65536))
+            except OSError:   # timed out after the last datagram, or closed
+                if p.poll() is not None:
+                    return
+
+    master, slave = pty.openpty()
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path / "fake"), str(ROOT)]),
+           "FAKE_SD_SIGNAL_AT": "90", "FAKE_SD_SIGNAL": "SIGHUP", "FAKE_SD_SIGNAL_TIMES": "2",
+           "FAKE_SD_READY": str(ready),
+           "FAKE_SD_CLOSED": str(closed)}
+    p = subprocess.Popen([sys.executable, "-m", "laughlab", "input=mic", "input.calibration_s=0", "output=[files,vmc]",
+                          "~output.plots", f"output.vmc.port={receiver.getsockname()[1]}", f"hydra.run.dir={run}"],
+                         cwd=ROOT, env=env, stdin=subprocess.DEVNULL, stdout=slave, stderr=slave)
+    os.close(slave)
+    drain = threading.Thread(target=lambda: _drain(master), daemon=True)
+    drain.start()
+    listener = threading.Thread(target=listen, daemon=True)
+    listener.start()
+    try:
+        for _ in range(1200):
+            if ready.exists() or p.poll() is not None:
+                break
+            time.sleep(0.05)
+        os.close(master)   # the terminal is gone: a write to it fails (EIO)
+        closed.touch()
+        assert p.wait(timeout=120) == 0
+    finally:
+        if p.poll() is None:
+            p.kill()
+        listener.join(timeout=10)
+        receiver.close()
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["input_stopped_by"] == "SIGHUP" and metrics["n_frames"] == 91 == metrics["vmc_frames"]
+    assert len(pd.read_csv(run / "channels.csv")) == 91 and not list(run.glob(".*.part"))
+    last = [m.message for m in OscPacket(got[-1]).messages]   # the frame at rest: the avatar is not left mid-laugh
+    assert last[-1].address == "/VMC/Ext/Blend/Apply"
+    assert all(m.params[1] == 0.0 for m in last if m.address == "/VMC/Ext/Blend/Val")
+
+
+def _drain(fd: int) -> None:
+    """Read a pty's output until it is closed (a terminal shows what it is sent)."""
+    try:
+        while os.read(fd, 4096):
+            pass
+    except OSError:
+        pass
+
+
+@pytest.mark.parametrize("gain, said", [(0.0, "2.0 s of mic input (silent: its loudest sample is 0; is the microphone "
+                                              "muted? input.device=NAME_OR_INDEX chooses another), rms"),
+                                        (0.3, "2.0 s of mic input, rms")])
+def test_a_silent_microphone_says_so_in_the_closing_line(monkeypatch, tmp_path, gain, said):
+    """A muted microphone (or the wrong one) gave a session in which nothing moved and nothing was said, where a
+    silent file says so in the run's line (review-live-2 6): the microphone's loudest sample is input_peak too."""
+    from laughlab.core.summary import summary_line
+
+    audio = noise(3) / 0.4 * gain
+    monkeypatch.setitem(sys.modules, "sounddevice", FakeSoundDevice(audio))
+    cfg = compose_config(["input=mic", "input.calibration_s=0", "input.duration_s=2"])
+    run_cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    run_cfg.output = {"csv": {}}
+    metrics = pipeline.execute(pipeline.build(run_cfg), tmp_path)
+    assert metrics["input_peak"] == pytest.approx(float(np.abs(audio[:32000]).max()))
+    assert f"laughlab: {said}" in summary_line(cfg, metrics, tmp_path, 2.5)

@@ -125,6 +125,38 @@ def test_microphone_without_an_input_device_says_how_to_choose_one(monkeypatch):
         _build_mic("input.device=3")
 
 
+def test_a_microphone_that_cannot_record_at_the_rate_says_the_rate_it_can(monkeypatch):
+    """A device that does not take 16 kHz (many ALSA hw devices, some USB microphones: 48 kHz only) was said to be
+    'no default audio input device (Invalid sample rate [PaErrorCode -9997])': the microphone was there, and the
+    fix, input.sample_rate=48000, was named nowhere (review-live-2 2).  sounddevice's check_input_settings raises
+    PortAudioError(text, code), whose str is 'TEXT [PaErrorCode CODE]'."""
+    class Only48k:
+        class PortAudioError(Exception):
+            def __str__(self):
+                return f"{self.args[0]} [PaErrorCode {self.args[1]}]"
+
+        def check_input_settings(self, device=None, samplerate=None, **kw):
+            if samplerate != 48000:
+                raise self.PortAudioError("Invalid sample rate", -9997)
+
+        def query_devices(self, device=None, kind=None):
+            return {"name": "USB Mic", "default_samplerate": 48000.0, "max_input_channels": 1}
+
+    monkeypatch.setitem(sys.modules, "sounddevice", Only48k())
+    with pytest.raises(LaughlabError) as e:
+        _build_mic()
+    assert str(e.value) == ("the default audio input cannot record at input.sample_rate=16000 (Invalid sample rate "
+                            "[PaErrorCode -9997]): add input.sample_rate=48000, its own rate")
+    with pytest.raises(LaughlabError, match=r"^input.device=2 cannot record at input.sample_rate=44100 \(Invalid "
+                                            r"sample rate \[PaErrorCode -9997\]\): add input.sample_rate=48000, "):
+        _build_mic("input.device=2", "input.sample_rate=44100")
+    _build_mic("input.sample_rate=48000")
+    monkeypatch.setattr(Only48k, "query_devices", lambda self, device=None, kind=None: {"default_samplerate": 16000.0})
+    with pytest.raises(LaughlabError, match=r": set input.sample_rate to a rate it records at \(python -m sounddevice "
+                                            r"lists the devices\)$"):   # its 'own' rate is the one refused
+        _build_mic()
+
+
 class FakeSoundDevice:
     """Stands in for the ``sounddevice`` module: an input stream that plays back an array (not at real time).
 

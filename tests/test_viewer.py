@@ -1,6 +1,7 @@
 """``python -m laughlab view``: the character in a real headless Chromium, in sync with the audio (issue 13, item 3)."""
 import io
 import json
+import os
 import threading
 from pathlib import Path
 
@@ -256,6 +257,32 @@ def test_viewing_a_run_without_animation_files_says_why(tmp_path):
     r = laughlab("view", str(tmp_path / "half"), "--out", str(tmp_path / "s"))
     assert r.returncode == 2 and "is not a finished run: it has no motion.bvh" in r.stderr
     assert not (tmp_path / "s").exists()
+
+
+def test_viewing_a_run_still_going_says_so(tmp_path):
+    """A live session with output=[files,vmc] viewed while it runs was 'not a finished run: it has no motion.bvh,
+    ...' (review-live-2 4): the viewer has no live mode, and the line said neither that the run was still going nor
+    when it could be viewed.  The run's lock (rundir: an OS lock held for its whole life) says who holds it."""
+    import fcntl
+
+    from laughlab.core import rundir
+
+    live = tmp_path / "live"
+    live.mkdir()
+    (live / ".motion.bvh.part").write_text("")
+    fd = os.open(live / rundir.LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)   # as a running laughlab holds it
+        os.write(fd, b"4242\n")
+        r = laughlab("view", str(live), "--out", str(tmp_path / "s"))
+    finally:
+        os.close(fd)
+    assert r.returncode == 2 and r.stderr == (
+        f"laughlab: error: {live} is a run still going (pid 4242): the viewer plays a finished run; view it when it "
+        "ends (Ctrl-C ends a live session and keeps it); a live one shows as it goes on a VMC receiver "
+        "(output=[files,vmc], docs/latency.md)\n")
+    r = laughlab("view", str(live), "--out", str(tmp_path / "s"))   # the lock let go: a run that did not finish
+    assert r.returncode == 2 and "is not a finished run: it has no motion.bvh" in r.stderr
 
 
 def test_view_out_overwrite_replaces_only_an_earlier_page(run_dir, tmp_path):

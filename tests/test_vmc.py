@@ -1,6 +1,7 @@
 """The ``vmc`` sink: the VMC protocol over OSC, received by a real python-osc server on loopback."""
 from __future__ import annotations
 
+import json
 import socket
 import sys
 import threading
@@ -337,6 +338,24 @@ def test_bad_parameters(bad):
         plugins.create("sink", "vmc", bad, Context())
 
 
+@pytest.mark.parametrize("host, said", [
+    ("127.0.0.1:39540", "host is an address or a name alone (got '127.0.0.1:39540'): write "
+                        "output.vmc.host=127.0.0.1 output.vmc.port=39540"),
+    ("avatar-pc:39539", "host is an address or a name alone (got 'avatar-pc:39539'): write "
+                        "output.vmc.host=avatar-pc output.vmc.port=39539"),
+    ("http://192.168.1.20", "host is an address or a name alone (got 'http://192.168.1.20'): write "
+                            "output.vmc.host=192.168.1.20 (VMC is OSC over UDP, no URL)"),
+])
+def test_a_host_written_with_its_port_or_as_a_url_says_how_to_write_it(host, said):
+    """VSeeFace and Warudo show their receiver as IP:port, and output.vmc.host=127.0.0.1:39540 was 'cannot reach
+    host '127.0.0.1:39540': [Errno -2] Name or service not known', at the first frame (review-live-2 5)."""
+    with pytest.raises(LaughlabError) as e:
+        plugins.create("sink", "vmc", {"host": host}, Context())
+    assert str(e.value) == f"bad parameter in output.vmc: {said}"
+    for fine in ("::1", "fe80::1%eth0", "192.168.1.20", "avatar-pc.local"):   # IPv6 has colons of its own
+        plugins.create("sink", "vmc", {"host": fine}, Context())
+
+
 def test_unresolvable_host(tmp_path):
     pipe = pipeline.build(config(39539, "input.duration_s=0.2", host="no-such-host.invalid"))
     with pytest.raises(LaughlabError, match="cannot reach host"):
@@ -431,3 +450,23 @@ def test_the_streaming_sink_gets_each_frame_before_the_file_writers(tmp_path):
             sink.write = (lambda w, name: lambda chunk: (calls.append(name), w(chunk)))(sink.write, sink.name)
         pipeline.execute(pipe, tmp_path, {})
     assert calls == ["vmc", "csv"] * 6
+
+
+def test_a_closed_stdout_keeps_the_streamed_session(tmp_path):
+    """``python -m laughlab ... output=vmc | head -1`` (or a log reader that went away): the sink's 'vmc: N
+    frames' line met the broken pipe while the sinks closed, and the session was removed as 'cannot write RUN:
+    Broken pipe' (review-live-2 7), where the run's own closing line lets a closed stdout pass."""
+    import os
+    import subprocess
+
+    read, write = os.pipe()
+    os.close(read)   # nobody reads the command's stdout
+    try:
+        p = subprocess.run([sys.executable, "-m", "laughlab", "input.duration_s=0.3", "output=vmc",
+                            "output.vmc.realtime=off", "output.vmc.port=39593", "detector=none",
+                            f"hydra.run.dir={tmp_path / 'run'}"], stdout=write, stderr=subprocess.PIPE, text=True,
+                           timeout=120)
+    finally:
+        os.close(write)
+    assert p.returncode == 0 and p.stderr == "", p.stderr
+    assert json.loads((tmp_path / "run" / "metrics.json").read_text())["vmc_frames"] == 18

@@ -169,3 +169,36 @@ def test_an_error_that_cannot_pass_at_the_frame_at_rest_keeps_the_session(tmp_pa
     err = capsys.readouterr().err
     assert err == ("laughlab: warning: output.vmc: cannot send to 127.0.0.1:39539 (Message too long); its datagrams "
                    "are dropped and counted (the vmc line, metrics.json: vmc_dropped_datagrams)\n"), err
+
+
+def test_a_host_name_that_resolves_to_ipv6_first_is_sent_to_over_ipv4(monkeypatch):
+    """``output.vmc.host=localhost`` where the system resolves it to ::1 first (Debian's and Ubuntu's /etc/hosts,
+    Windows): VSeeFace, Warudo and EVMC4U listen on IPv4 only, so the stream went to ::1, where nobody listens, and
+    UDP said nothing (review-live-2 1).  A name with an IPv4 address goes to it; an IPv6 literal stays IPv6."""
+    real = socket.getaddrinfo
+
+    def v6_first(host, port, *a, **kw):
+        if host == "localhost":
+            return [(socket.AF_INET6, socket.SOCK_DGRAM, 17, "", ("::1", port, 0, 0)),
+                    (socket.AF_INET, socket.SOCK_DGRAM, 17, "", ("127.0.0.1", port))]
+        return real(host, port, *a, **kw)
+
+    monkeypatch.setattr(socket, "getaddrinfo", v6_first)
+    receiver = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)   # a receiver as VSeeFace's: IPv4, any address
+    receiver.bind(("127.0.0.1", 0))
+    receiver.settimeout(5)
+    port = receiver.getsockname()[1]
+    s = VmcSender("localhost", port)
+    try:
+        s.send([b"#bundle\0"])
+        assert receiver.recvfrom(64)[0] == b"#bundle\0"
+        assert s.sock.family == socket.AF_INET
+    finally:
+        s.close()
+        receiver.close()
+    if socket.has_ipv6:
+        s = VmcSender("::1", port)
+        try:
+            assert s.sock.family == socket.AF_INET6
+        finally:
+            s.close()

@@ -15,6 +15,8 @@ import threading
 
 #: the signals that stop a command: Ctrl-C, and SIGTERM (a killed job, a cluster's pre-emption)
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: the terminal hung up (none on Windows): it ends a live session's input too (:class:`StopOnSignal`)
+_HUP = getattr(signal, "SIGHUP", None)
 #: the first stop signal received by this process, or None
 received: int | None = None
 
@@ -158,11 +160,18 @@ class StopOnSignal:
     Only laughlab's own handler (:func:`install`'s, by identity: it recognised it by its module's name, which
     a rename or a wrapper would have quietly defeated, diff-review 18) and Python's default Ctrl-C handler are
     stood in for, on the main thread; an ignored signal or another program's handler is left alone.  The input
-    source (``input=mic``) enters it."""
+    source (``input=mic``) enters it.
+
+    SIGHUP (the session's terminal closed: its window, a dropped ssh connection) ends the input too, where
+    laughlab's handler has SIGTERM and SIGHUP has its default (not ``nohup``): the default killed the process
+    where it stood, the avatar frozen mid-laugh and the session lost (review-live-2 3).  Standard output and
+    error on the terminal that hung up go to /dev/null from then on (a write to it fails), and a SIGHUP after it is
+    ignored until the command ends: a hang-up comes more than once (the kernel's, the shell's to its jobs), and it
+    would have aborted the session it had just kept."""
 
     def __init__(self):
         self.signum: int | None = None
-        self._old: dict = {}
+        self._old: dict = {}    # the handler to put back, by signal
 
     def __enter__(self) -> "StopOnSignal":
         if threading.current_thread() is threading.main_thread():
@@ -171,9 +180,18 @@ class StopOnSignal:
                 if old is signal.default_int_handler or old is _handler:
                     self._old[sig] = old
                     signal.signal(sig, self._on_signal)
+            if _HUP is not None and signal.getsignal(_HUP) == signal.SIG_DFL and \
+                    self._old.get(signal.SIGTERM) is _handler:
+                self._old[_HUP] = signal.SIG_DFL
+                signal.signal(_HUP, self._on_signal)
         return self
 
     def _on_signal(self, signum, frame) -> None:
+        if signum == _HUP:
+            _away_from_the_terminal()
+            self._old[_HUP] = signal.SIG_IGN   # the rest of the command: the terminal is gone, its repeats too
+            if self.signum is not None:
+                return
         if self.signum is None:
             self.signum = signum   # the read loop ends the input at its next block
             return
@@ -189,3 +207,15 @@ class StopOnSignal:
     def __exit__(self, *exc) -> bool:
         self.restore()
         return False
+
+
+def _away_from_the_terminal() -> None:
+    """Standard output and error that are a terminal go to /dev/null: it hung up, and a write to it fails (EIO)."""
+    for fd in (1, 2):
+        try:
+            if os.isatty(fd):
+                null = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(null, fd)
+                os.close(null)
+        except OSError:
+            pass

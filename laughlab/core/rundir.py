@@ -276,6 +276,25 @@ def record(path: str | Path, name: str) -> None:
         _write_marker(Path(path), marker)
 
 
+def holder(path: str | Path) -> str | None:
+    """The pid of the laughlab run that holds ``path``'s lock now (a run still going), or None."""
+    import fcntl
+
+    try:
+        fd = os.open(Path(path) / LOCK, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        return None
+    except BlockingIOError:
+        return os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+    except OSError:
+        return None
+    finally:
+        os.close(fd)   # and the shared lock with it
+
+
 def finished(path: Path) -> bool:
     """Whether ``path`` holds a finished run (its marker says complete): a plain run's, an experiment's, a sweep
     job's alike (a sweep's report and its Ctrl-C line count its points by it)."""

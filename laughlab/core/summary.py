@@ -34,7 +34,8 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
     peak = metrics.get("input_peak")
     if peak is not None and peak < 10 ** (SILENT_DBFS / 20):   # a review: a silent file ran without a word
-        what += " (silent: its loudest sample " + (f"{20 * math.log10(peak):.0f} dBFS" if peak > 0 else "is 0") + ")"
+        what += " (silent: its loudest sample " + (f"{20 * math.log10(peak):.0f} dBFS" if peak > 0 else "is 0") + \
+            ("; is the microphone muted? input.device=NAME_OR_INDEX chooses another" if src == "mic" else "") + ")"
     chain = " > ".join(str(cfg[g].name) + (" (fused)" if g == "detector" and cfg[g].get("fuse") else "")
                        for g in CHAIN
                        if g in cfg and cfg[g] is not None and "name" in cfg[g])   # fused: detector=yamnet_fused

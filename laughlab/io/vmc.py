@@ -360,13 +360,17 @@ class VmcSender:
     would come back on every send (an IPv6 link-local address without its scope, a datagram too large for
     the path) raises :class:`VmcSendError`, one line with the address and the cause: the run stops rather
     than run to its end sending nothing (diff-review 7).  ``SO_BROADCAST`` is set on IPv4, so a broadcast
-    address (255.255.255.255, or the LAN's) reaches every receiver on it.
+    address (255.255.255.255, or the LAN's) reaches every receiver on it.  A host name that resolves to both
+    families is sent to over IPv4 (VSeeFace, Warudo and EVMC4U listen on IPv4); an IPv6 address stays IPv6.
 
     Raises ``OSError`` (from ``socket.getaddrinfo``) if the host does not resolve.
     """
 
     def __init__(self, host: str, port: int):
-        info = socket.getaddrinfo(host, int(port), type=socket.SOCK_DGRAM)[0]
+        infos = socket.getaddrinfo(host, int(port), type=socket.SOCK_DGRAM)
+        # a name with an IPv4 address goes to it: VMC receivers listen on IPv4 only, and 'localhost' resolved to
+        # ::1 first (Debian's /etc/hosts, Windows) sent the stream where nobody listens, silently (review-live-2 1)
+        info = next((i for i in infos if i[0] == socket.AF_INET), infos[0])
         self.address = info[4]
         self.where = f"{host}:{port}"
         self.sock = socket.socket(info[0], socket.SOCK_DGRAM)

@@ -172,6 +172,13 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
         raise LaughlabError(f"{run_dir} holds no {', '.join(missing)}: its run wrote no animation files (output=vmc "
                             f"alone streams only); run it with output=[files,vmc] to keep them")
     if missing:
+        from laughlab.core.rundir import holder
+
+        pid = holder(run_dir)
+        if pid is not None:   # the viewer has no live mode (review-live-2 4)
+            raise LaughlabError(f"{run_dir} is a run still going (pid {pid}): the viewer plays a finished run; view "
+                                "it when it ends (Ctrl-C ends a live session and keeps it); a live one shows as it "
+                                "goes on a VMC receiver (output=[files,vmc], docs/latency.md)")
         raise LaughlabError(f"{run_dir} is not a finished run: it has no {', '.join(missing)}")
     from laughlab.io.bvh import read_bvh
 
