@@ -301,9 +301,11 @@ def test_an_unwritable_run_directory(path):
 
 
 #: moments from start-up (imports: an interrupt there once surfaced as "ImportError: initialization failed"
-#: or as a plugin that "failed to load") through composition to the frame loop and the writers
-MOMENTS = [(signal.SIGINT if i % 2 else signal.SIGTERM, round(d, 2))
-           for i, d in enumerate(np.random.default_rng(19).uniform(0.05, 1.8, 10))]
+#: or as a plugin that "failed to load") through composition to the frame loop and the writers; SIGHUP (the
+#: terminal closed) too, to the whole process group as a terminal sends it (it killed the run and its sink
+#: helper where they stood, leaving .part files: a live review)
+STOP = (signal.SIGTERM, signal.SIGINT, *((signal.SIGHUP,) if hasattr(signal, "SIGHUP") else ()))
+MOMENTS = [(STOP[i % len(STOP)], round(d, 2)) for i, d in enumerate(np.random.default_rng(19).uniform(0.05, 1.8, 12))]
 
 
 def _wait_until_it_handles_signals(pid: int, timeout: float = 60.0) -> None:

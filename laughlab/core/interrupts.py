@@ -1,4 +1,9 @@
-"""Ctrl-C and SIGTERM end a command in one line and exit status 130, whatever they interrupt.
+"""Ctrl-C, SIGTERM and SIGHUP end a command in one line and exit status 130, whatever they interrupt.
+
+SIGHUP (the command's terminal closed: its window, a dropped ssh connection) is handled where it has its
+default: the default killed the process where it stood, leaving ``.part`` files and a run folder marked in use
+(a live review); the line then goes nowhere (the terminal is gone), but the clean-up is the same.  ``nohup``'s
+ignored SIGHUP is left alone.
 
 A signal raises ``KeyboardInterrupt`` wherever the program happens to be, and a few places turn it
 into another exception: an extension module interrupted while it is imported reports
@@ -13,10 +18,10 @@ import signal
 import sys
 import threading
 
-#: the signals that stop a command: Ctrl-C, and SIGTERM (a killed job, a cluster's pre-emption)
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
-#: the terminal hung up (none on Windows): it ends a live session's input too (:class:`StopOnSignal`)
+#: the terminal hung up (none on Windows): it stops a command, and ends a live session's input (:class:`StopOnSignal`)
 _HUP = getattr(signal, "SIGHUP", None)
+#: the signals that stop a command: Ctrl-C, SIGTERM (a killed job, a cluster's pre-emption) and SIGHUP
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, *((_HUP,) if _HUP is not None else ()))
 #: the first stop signal received by this process, or None
 received: int | None = None
 
@@ -48,6 +53,8 @@ def _handler(signum, frame):
     global received, _pending, _ignored
     if finished:
         return
+    if signum == _HUP:
+        _away_from_the_terminal()
     received = received or signum
     # the command is stopping: another stop signal would cut its clean-up in two, and the processes the clean-up
     # starts inherit the signal ignored (the terminal's Ctrl-C reaches every process of the command: loky's pgrep,
@@ -121,7 +128,7 @@ def worker_job():
 
 
 def install() -> None:
-    """Handle both stop signals, unless someone (an embedding program, a test runner) set their own."""
+    """Handle the stop signals, unless someone (an embedding program, a test runner, ``nohup``) set their own."""
     global main_pid
     main_pid = os.getpid()
     for sig in STOP_SIGNALS:
@@ -163,7 +170,7 @@ class StopOnSignal:
     source (``input=mic``) enters it.
 
     SIGHUP (the session's terminal closed: its window, a dropped ssh connection) ends the input too, where
-    laughlab's handler has SIGTERM and SIGHUP has its default (not ``nohup``): the default killed the process
+    laughlab's handler has it (:func:`install`: not under ``nohup``): the default killed the process
     where it stood, the avatar frozen mid-laugh and the session lost (review-live-2 3).  Standard output and
     error on the terminal that hung up go to /dev/null from then on (a write to it fails), and a SIGHUP after it is
     ignored until the command ends: a hang-up comes more than once (the kernel's, the shell's to its jobs), and it
@@ -180,10 +187,6 @@ class StopOnSignal:
                 if old is signal.default_int_handler or old is _handler:
                     self._old[sig] = old
                     signal.signal(sig, self._on_signal)
-            if _HUP is not None and signal.getsignal(_HUP) == signal.SIG_DFL and \
-                    self._old.get(signal.SIGTERM) is _handler:
-                self._old[_HUP] = signal.SIG_DFL
-                signal.signal(_HUP, self._on_signal)
         return self
 
     def _on_signal(self, signum, frame) -> None:
