@@ -254,8 +254,9 @@ def test_file_input_is_paced_at_the_frame_clock(tmp_path):
     frames = rx.frames()
     assert len(frames) == 15
     arrival = np.array([f[-1][0] - t0 for f in frames]) / 1e9
-    # frame k goes out (k + 1) / fps after the first: 15 frames span 14/30 s
-    assert arrival[-1] - arrival[0] == pytest.approx(14 / 30, abs=0.05)
+    # frame k goes out (k + 1) / fps after the first: 15 frames span 14/30 s, never less (unpaced: a few ms);
+    # a busy machine may send the last ones late (the full suite beside other work: 0.05 s was not enough)
+    assert 14 / 30 - 0.02 <= arrival[-1] - arrival[0] <= 14 / 30 + 0.5
     names = {m[2][0] for m in frames[0] if m[1] == "/VMC/Ext/Blend/Val"}
     assert {"JawOpen", "MouthSmileLeft", "A", "Joy", "Blink_L", "Blink_R"} <= names
     check_frames(frames, len(SMILE_TO_ARKIT) + 4)
