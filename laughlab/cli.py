@@ -8,6 +8,7 @@ what the run wrote.
 """
 from __future__ import annotations
 
+import shlex
 import shutil
 import sys
 import time
@@ -162,7 +163,7 @@ def _task(cfg, out_dir: Path, t0: float, cfg_hash: str) -> dict:
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
             _CLAIM.finish(cfg_hash)
             _finished()
-            hint = "" if _in_sweep() else f"; report: python -m laughlab report {out_dir}"   # a sweep: one at its end
+            hint = "" if _in_sweep() else f"; report: python -m laughlab report {shlex.quote(str(out_dir))}"   # a sweep: one at its end
             _done_line(f"{doc['experiment']}: {doc['n_trials']} trials in {duration_text(time.monotonic() - t0)} -> "
                        f"{out_dir / 'results.json'}{hint}")
             return doc
