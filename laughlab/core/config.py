@@ -55,9 +55,23 @@ def load_plugin_dirs(overrides) -> None:
     one_plugins_dir(overrides)
     for ov in overrides:
         key, _, value = str(ov).partition("=")
+        value = unquoted(value)
         if key.lstrip("+~") == "plugins_dir" and value and value != "null":
             plugins.load_plugin_dir(value)
             _load_experiments(Path(value).expanduser() / "experiment")
+
+
+def unquoted(value: str) -> str:
+    """A value as Hydra reads it: ``plugins_dir='my plugins'`` is the folder ``my plugins`` (a review: the quotes
+    Hydra asks for around a path with spaces stayed part of the folder's name, which was then not found)."""
+    if len(value) >= 2 and value[0] == value[-1] and value[0] in "'\"":
+        from hydra.core.override_parser.overrides_parser import OverridesParser
+
+        try:
+            return str(OverridesParser.create().parse_override(f"k={value}").value())
+        except Exception:   # noqa: BLE001 - not Hydra's quoting after all: the value as typed
+            return value
+    return value
 
 
 def one_plugins_dir(overrides) -> None:
