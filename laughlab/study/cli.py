@@ -152,6 +152,11 @@ def simulate(ns) -> None:
     if not 1 <= ns.participants <= len(design["participants"]):
         raise LaughlabError(f"--participants must be 1..{len(design['participants'])} (the design's rows)")
     effects = S.parse_effects(ns.effects, design)
+    from laughlab.study import db as DB
+
+    target = Path(ns.db).expanduser() if ns.db else study / DB.DEFAULT_NAMES["simulated"]
+    made = [target.with_name(target.name + end) for end in ("", "-journal", "-wal", "-shm", ".rejected.log")]
+    made = [f for f in made if not f.exists()]   # what this simulation creates; anything there before is kept
     httpd = server(study, ns.db, 0, quiet=True, participants="simulated")
     from laughlab.study.db import participants_stored
 
@@ -165,9 +170,14 @@ def simulate(ns) -> None:
     try:
         url = f"http://127.0.0.1:{httpd.server_address[1]}"
         given = S.run_sync(url, design, list(range(1, ns.participants + 1)), S.planted(design, effects, seed=ns.seed))
-    finally:
+    except BaseException:   # Ctrl-C, Chromium gone: a review found the part-done database refusing the command again
         httpd.shutdown()
         httpd.server_close()
+        for f in made:
+            f.unlink(missing_ok=True)
+        raise
+    httpd.shutdown()
+    httpd.server_close()
     n = sum(len(g.answers) for g in given.values())
     from laughlab.study.db import store   # what was planted, so that the analysis can say what it should recover
 
