@@ -113,6 +113,12 @@ def bad_files(tmp_path_factory):
     # a review: a file of NaN and infinities ran as a silence of its length, exit 0
     (["input=file", "input.path=allnan.wav"], "allnan.wav holds no finite samples (every one is NaN or infinite)"),
     (["extractor=nope"], "unknown extractor 'nope'; choose one of: phoneme, pressure, rms"),
+    # a review: Hydra's own lines, "In 'config': Could not find 'face/'", "Multiple values for face. To override a
+    # value use 'override face: facs'" and "Config group override must be a string or a list. Got NoneType"
+    (["face="], "face= needs an option: choose one of: cgm, facs, smile"),
+    (["+face=facs"], "write face=facs without +: face is in the defaults already"),
+    (["+experiment=smoke"], "write experiment=smoke without +: experiment is in the defaults already"),
+    (["face=null"], "face=null needs an option: choose one of: cgm, facs, smile"),
     (["extractor.bogus=1"], "unknown parameter extractor.bogus; valid: scale"),
     (["extractor.rise_per_s=-1"], "rise_per_s must be > 0"),
     (["fps=0"], "fps must be a positive number"),
