@@ -183,6 +183,8 @@ def _task(cfg, out_dir: Path, t0: float, cfg_hash: str) -> dict:
         if cfg.get("harness") and _CLAIM is not None and (out_dir / "metrics.jsonl").exists() \
                 and not isinstance(exc, RefusedFolder):
             fail(_stopped(cfg, out_dir, str(exc)), code=exc.exit_code)   # after trials: kept, resumable
+        if isinstance(exc, RefusedFolder) and _CLAIM is not None and _CLAIM.resumed:   # another experiment's journal:
+            fail(str(exc), code=exc.exit_code)   # its folder stays for its own command (a review: the marker went)
         # a sweep job refused by a finished run: Hydra wrote this job's .hydra/ over that run's; put it back
         if _CLAIM is not None or not rundir.restore_hydra(out_dir):
             _remove_new_run_dir(out_dir)
