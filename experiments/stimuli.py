@@ -105,6 +105,7 @@ import hashlib
 import io
 import json
 import math
+import shlex
 import shutil
 import sys
 import tempfile
@@ -522,7 +523,7 @@ def run(cfg, out_dir) -> dict:
                         if character else "mannequin")  # which body the participants saw
     _write_text(out_dir / "stimuli.json", json.dumps(doc, indent=2, sort_keys=True) + "\n")
     print(f"stimuli: {len(manifest)} videos -> {out_dir / 'manifest.csv'}; orders for {n_participants} "
-          f"participants in {out_dir / 'orders'}; the study page: python -m laughlab study build {out_dir}")
+          f"participants in {out_dir / 'orders'}; the study page: python -m laughlab study build {shlex.quote(str(out_dir))}")
     return doc
 
 

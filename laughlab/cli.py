@@ -8,6 +8,7 @@ what the run wrote.
 """
 from __future__ import annotations
 
+import shlex
 import shutil
 import sys
 import time
@@ -162,7 +163,7 @@ def _task(cfg, out_dir: Path, t0: float, cfg_hash: str) -> dict:
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
             _CLAIM.finish(cfg_hash)
             _finished()
-            hint = "" if _in_sweep() else f"; report: python -m laughlab report {out_dir}"   # a sweep: one at its end
+            hint = "" if _in_sweep() else f"; report: python -m laughlab report {shlex.quote(str(out_dir))}"   # a sweep: one at its end
             _done_line(f"{doc['experiment']}: {doc['n_trials']} trials in {duration_text(time.monotonic() - t0)} -> "
                        f"{out_dir / 'results.json'}{hint}")
             return doc
@@ -182,6 +183,8 @@ def _task(cfg, out_dir: Path, t0: float, cfg_hash: str) -> dict:
         if cfg.get("harness") and _CLAIM is not None and (out_dir / "metrics.jsonl").exists() \
                 and not isinstance(exc, RefusedFolder):
             fail(_stopped(cfg, out_dir, str(exc)), code=exc.exit_code)   # after trials: kept, resumable
+        if isinstance(exc, RefusedFolder) and _CLAIM is not None and _CLAIM.resumed:   # another experiment's journal:
+            fail(str(exc), code=exc.exit_code)   # its folder stays for its own command (a review: the marker went)
         # a sweep job refused by a finished run: Hydra wrote this job's .hydra/ over that run's; put it back
         if _CLAIM is not None or not rundir.restore_hydra(out_dir):
             _remove_new_run_dir(out_dir)

@@ -5,6 +5,8 @@ Named in ``conf/config.yaml`` (``hydra.callbacks``).  A sweep's jobs print their
 """
 from __future__ import annotations
 
+import shlex
+
 from hydra.experimental.callback import Callback
 
 
@@ -16,4 +18,4 @@ class SweepReportHint(Callback):
 
         module = experiment_module(config.harness.get("module"))
         if module is None or not hasattr(module, "run"):  # trial experiments: the report reads their results
-            print(f"report: python -m laughlab report {config.hydra.sweep.dir}")
+            print(f"report: python -m laughlab report {shlex.quote(str(config.hydra.sweep.dir))}")

@@ -116,6 +116,22 @@ def test_corpus_profiles_seeds_and_folder(tmp_path):
         folder_items(_empty(tmp_path))
 
 
+def test_a_corpus_folder_with_one_name_in_two_formats_is_one_line_before_any_trial(tmp_path):
+    """A review: ``take.flac`` beside ``take.mp3`` (one recording exported twice) ran both as the trial
+    ``rec-take``, into the same folder, and the experiment stopped part way on ``cannot write ...``."""
+    from inprocess import laughlab
+
+    sf.write(tmp_path / "take.wav", np.zeros(8000), 8000)
+    sf.write(tmp_path / "take.flac", np.zeros(8000), 8000)
+    with pytest.raises(LaughlabError, match=r"two recordings share the name 'take' \(take.flac, take.wav\)"):
+        folder_items(tmp_path)
+    r = laughlab("experiment=smoke", f"harness.corpus.folder={tmp_path}", "harness.corpus.seeds=1",
+                 "harness.corpus.profiles=[mild]", "harness.showcase=null", "harness.plots=false", "progress=off",
+                 f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 2 and not (tmp_path / "run").exists()
+    assert r.stderr.startswith("laughlab: error: corpus folder ") and r.stderr.count("\n") == 1, r.stderr
+
+
 def _empty(tmp_path):
     d = tmp_path / "empty"
     d.mkdir()

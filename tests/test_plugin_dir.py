@@ -416,3 +416,19 @@ def test_a_face_that_writes_only_the_jaw_runs_with_one_warning(tmp_path):
         "laughlab: warning: face 'gape' writes no blink, eyes_closed (a face writes smile, jaw, blink, eyes_closed: "
         "docs/architecture.md); the character's blink/eyes_closed stay at rest and the metrics that read them are "
         "n/a\n"), r.stderr
+
+
+def test_a_plugins_dir_with_a_space_quoted_as_hydra_asks(tmp_path):
+    """``plugins_dir='my plugins'``, quoted as Hydra asks for a value with a space (and as ``hydra.run.dir=`` takes
+    it), is the folder ``my plugins`` for a run, ``plugins`` and ``--help`` (a review: the quotes stayed part of
+    the name, ``plugins_dir "'my plugins'" is not a folder``)."""
+    (tmp_path / "my plugins").mkdir()
+    (tmp_path / "my plugins" / "gape.py").write_text(PLUGIN)
+    r = run("plugins_dir='my plugins'", "face=gape", "input.duration_s=1", "detector=none", "output=[files]",
+            "hydra.run.dir='my run'", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert " > gape > " in r.stdout and (tmp_path / "my run" / "channels.csv").exists()
+    listed = run("plugins", 'plugins_dir="my plugins"', cwd=tmp_path)
+    assert listed.returncode == 0 and "gape" in listed.stdout, listed.stderr
+    missing = run("plugins_dir='no such'", cwd=tmp_path)
+    assert missing.returncode == 2 and missing.stderr == "laughlab: error: plugins_dir 'no such' is not a folder\n"

@@ -233,6 +233,12 @@ def test_a_changed_config_does_not_mix_into_an_interrupted_experiment(tmp_path):
     assert "interrupted experiment with another configuration" in other.stderr
     # a refusal, not a stop: no "run the same command again to resume" after it (a review: it contradicted itself)
     assert other.stderr.rstrip().endswith("or add overwrite=true") and "to resume" not in other.stderr
+    # the refusal leaves the interrupted experiment to its own command, as it says (a review: it removed the
+    # folder's marker, and the own command was then refused, "files ... no laughlab run recorded writing")
+    done = len(journal_records(journal))
+    again = run(*SMOKE, f"hydra.run.dir={d}")
+    assert again.returncode == 0, again.stderr
+    assert (d / "results.json").exists() and (not done or f"resuming: {done} of 8 trials were done" in again.stderr)
 
 
 def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):

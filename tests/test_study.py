@@ -729,3 +729,26 @@ def test_the_page_hashes_a_word_as_the_build_does(words):
     out = subprocess.run([node, "-e", script], input=json.dumps(words), capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert json.loads(out.stdout) == [word_check(w) for w in words]
+
+
+def test_an_interrupted_simulation_leaves_no_database_behind(study, tmp_path, monkeypatch):
+    """Ctrl-C (or Chromium gone) in ``study simulate``: the database it had started is removed, so the same command
+    runs again (a review: the part-done simulated.sqlite then refused it, 'already holds 4 simulated
+    participants' answers'); a database that was there before is left as it was."""
+    from laughlab.study import db as DB
+    from laughlab.study import simulate as S
+
+    def stopped(url, design, participants, plant):   # a post the server refuses (its log), then Ctrl-C
+        with pytest.raises(urllib.error.HTTPError):
+            urllib.request.urlopen(urllib.request.Request(f"{url}/answer", data=b"{}", method="POST"))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(S, "run_sync", stopped)
+    db = tmp_path / "sim.sqlite"
+    out = fuzz.run_cli(["study", "simulate", str(study), "--db", str(db), "--participants", "1"])
+    assert out.code == 130 and out.stderr == "laughlab: error: interrupted\n", out.stderr
+    assert sorted(tmp_path.iterdir()) == []
+    DB.open_db(db, design_of(study), "simulated")   # an empty database of one's own: kept
+    before = db.read_bytes()
+    out = fuzz.run_cli(["study", "simulate", str(study), "--db", str(db), "--participants", "1"])
+    assert out.code == 130 and db.read_bytes() == before

@@ -55,9 +55,23 @@ def load_plugin_dirs(overrides) -> None:
     one_plugins_dir(overrides)
     for ov in overrides:
         key, _, value = str(ov).partition("=")
+        value = unquoted(value)
         if key.lstrip("+~") == "plugins_dir" and value and value != "null":
             plugins.load_plugin_dir(value)
             _load_experiments(Path(value).expanduser() / "experiment")
+
+
+def unquoted(value: str) -> str:
+    """A value as Hydra reads it: ``plugins_dir='my plugins'`` is the folder ``my plugins`` (a review: the quotes
+    Hydra asks for around a path with spaces stayed part of the folder's name, which was then not found)."""
+    if len(value) < 2 or value[0] != value[-1] or value[0] not in "'\"":
+        return value
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    try:
+        return str(OverridesParser.create().parse_override(f"k={value}").value())
+    except Exception:   # noqa: BLE001 - not Hydra's quoting after all: the value as typed
+        return value
 
 
 def one_plugins_dir(overrides) -> None:
@@ -477,8 +491,10 @@ def check_overrides(overrides: list[str]) -> None:
         if not m or m.group(1) not in (*GROUP_KINDS, "experiment"):
             continue
         group, value = m.groups()
-        choices = [v.strip() for v in value.strip("[]").split(",")] if value not in ("null", "") else []
-        options = group_options(group)
+        choices, options = [v.strip() for v in value.strip("[]").split(",")], group_options(group)
+        if value in ("", "null") or ov[:1] == "+":   # Hydra's lines for these spoke of its own syntax (a review)
+            raise LaughlabError(f"write {ov[1:]} without +: {group} is in the defaults already" if ov[:1] == "+"
+                                else f"{group}={value} needs an option: choose one of: {', '.join(options)}")
         for choice in choices:
             if group == "experiment" and choice in _BAD_EXPERIMENTS:
                 raise LaughlabError(_BAD_EXPERIMENTS[choice])

@@ -154,6 +154,14 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
     files = sorted(p for p in d.iterdir() if p.suffix.lower() in AUDIO_SUFFIXES)
     if not files:
         raise LaughlabError(f"corpus folder {folder} holds no audio files ({', '.join(AUDIO_SUFFIXES)})")
+    stems: dict[str, list[str]] = {}
+    for f in files:
+        stems.setdefault(f.stem, []).append(f.name)
+    for stem, names in stems.items():   # a review: NAME.flac beside NAME.mp3 ran both as trial rec-NAME, into one
+        if len(names) > 1:              # folder, and the second stopped the experiment with an OSError
+            raise LaughlabError(f"corpus folder {folder}: two recordings share the name {stem!r} ({', '.join(names)}): "
+                                f"their trials (rec-{stem}) and their annotation ({stem}.truth.csv, {stem}.txt, ...) "
+                                "would collide; keep one of them in the folder")
     items, bad = [], []
     for f in files:
         try:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import math
+import shlex
 import shutil
 import textwrap
 from pathlib import Path
@@ -459,7 +460,7 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     staging.mkdir(parents=True)
     try:
         args = (metrics,) if write is sweep_report else ()   # an experiment's report shows every metric
-        write(root, staging, command or f"python -m laughlab report {run_dir}", *args)
+        write(root, staging, command or f"python -m laughlab report {shlex.quote(str(run_dir))}", *args)
         from laughlab.harness.report_files import replace_report
 
         replace_report(staging, target, overwrite)

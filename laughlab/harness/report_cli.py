@@ -1,6 +1,7 @@
 """``python -m laughlab report RUN_DIR [--out DIR]``: the command line of :mod:`laughlab.harness.report`."""
 from __future__ import annotations
 
+import shlex
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, one_line_parser, os_error_line
@@ -22,7 +23,7 @@ def main(args: list[str]) -> None:
     parser.add_argument("--metrics", help="a sweep's table and figures also show these metrics (NAME,NAME; "
                                           "besides the key ones and every metric a plugin registered)")
     ns = parser.parse_args(args)
-    command = "python -m laughlab report " + " ".join(args)
+    command = "python -m laughlab report " + shlex.join(args)
     try:
         path = write_report(ns.run_dir, ns.out, command, overwrite=ns.overwrite,
                             metrics=[m.strip() for m in (ns.metrics or "").split(",") if m.strip()])

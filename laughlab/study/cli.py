@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 from pathlib import Path
 
@@ -99,7 +100,7 @@ def _run(ns) -> None:
             print(f"study: note: {', '.join(f'{a} and {b}' for a, b in same)} show the same videos and the page does "
                   "not present what tells them apart (the riddle's Speaks/Listens role): study analyze will not test "
                   "their difference", file=sys.stderr)
-        print(f"laughlab: study written to {out}/; serve it with: python -m laughlab study serve {out}")
+        print(f"laughlab: study written to {out}/; serve it with: python -m laughlab study serve {shlex.quote(str(out))}")
     elif ns.cmd == "serve":
         serve(ns)
     elif ns.cmd == "simulate":
@@ -151,6 +152,11 @@ def simulate(ns) -> None:
     if not 1 <= ns.participants <= len(design["participants"]):
         raise LaughlabError(f"--participants must be 1..{len(design['participants'])} (the design's rows)")
     effects = S.parse_effects(ns.effects, design)
+    from laughlab.study import db as DB
+
+    target = Path(ns.db).expanduser() if ns.db else study / DB.DEFAULT_NAMES["simulated"]
+    made = [target.with_name(target.name + end) for end in ("", "-journal", "-wal", "-shm", ".rejected.log")]
+    made = [f for f in made if not f.exists()]   # what this simulation creates; anything there before is kept
     httpd = server(study, ns.db, 0, quiet=True, participants="simulated")
     from laughlab.study.db import participants_stored
 
@@ -164,16 +170,21 @@ def simulate(ns) -> None:
     try:
         url = f"http://127.0.0.1:{httpd.server_address[1]}"
         given = S.run_sync(url, design, list(range(1, ns.participants + 1)), S.planted(design, effects, seed=ns.seed))
-    finally:
+    except BaseException:   # Ctrl-C, Chromium gone: a review found the part-done database refusing the command again
         httpd.shutdown()
         httpd.server_close()
+        for f in made:
+            f.unlink(missing_ok=True)
+        raise
+    httpd.shutdown()
+    httpd.server_close()
     n = sum(len(g.answers) for g in given.values())
     from laughlab.study.db import store   # what was planted, so that the analysis can say what it should recover
 
     store(_handler(httpd).db, "simulation", {"effects": effects, "seed": ns.seed, "participants": len(given),
                                              **S.PLANTED_SPREAD})
     print(f"laughlab: {len(given)} simulated participants finished ({n} answers, planted {ns.effects or 'no effect'})"
-          f" -> {_handler(httpd).db}; analyze it with: python -m laughlab study analyze {_handler(httpd).db}")
+          f" -> {_handler(httpd).db}; analyze it with: python -m laughlab study analyze {shlex.quote(str(_handler(httpd).db))}")
 
 
 def run_power(ns) -> None:

@@ -1,6 +1,8 @@
 """``python -m laughlab view RUN_DIR [--port N] [--out DIR] [--character PATH]``: the run in a browser."""
 from __future__ import annotations
 
+import shlex
+
 from laughlab.core.errors import LaughlabError, one_line_parser, port_number
 
 
@@ -27,7 +29,7 @@ def main(args: list[str]) -> None:
         raise LaughlabError("view: --overwrite goes with --out FOLDER (see --help)")
     if ns.out:
         out, opens = V.write(ns.run_dir, ns.out, ns.character, overwrite=ns.overwrite)
-        serve = f"python -m http.server -d {out}"
+        serve = f"python -m http.server -d {shlex.quote(str(out))}"
         print(f"laughlab: viewer of {ns.run_dir} written to {out}/: open {out / 'index.html'} in a browser, or put "
               f"the folder on any web server (e.g. {serve})" if opens else
               f"laughlab: viewer of {ns.run_dir} written to {out}/: too large to open as a file; serve the folder "
