@@ -126,12 +126,15 @@ def bad_files(tmp_path_factory):
     (["fps=0.5"], "fps must be 1-1000 animation frames a second (got 0.5)"),   # a review: ran, no events
     (["fps=1001"], "fps must be 1-1000 animation frames a second (got 1001)"),
     (["experiment=nope"], "unknown experiment 'nope'"),
-    (["input=file", "input.path=rire_é.wav"], "a value with characters such as ( ) [ ] = , ' or letters outside "
+    (["input=file", "input.path=rire_é.wav"], "a value with characters such as ( ) [ ] = , ' ~ or letters outside "
                                               "ASCII must be quoted: \"input.path='rire_é.wav'\""),
     # a review: a browser download's name "Avatar (1).vrm", "=" and "[" gave Hydra's "mismatched input ' ('
     # expecting <EOF>" without the setting; a quote was hinted inside the very quotes it ends
     (["input=file", "character=Avatar (1).vrm"], "cannot read the setting character=Avatar (1).vrm: a value with "
-     "characters such as ( ) [ ] = , ' or letters outside ASCII must be quoted: \"character='Avatar (1).vrm'\""),
+     "characters such as ( ) [ ] = , ' ~ or letters outside ASCII must be quoted: \"character='Avatar (1).vrm'\""),
+    # a first-contact review: a home folder written ~/ (a shell expands it only at a word's start) was not named
+    (["input=file", "input.path=~/laugh.wav"], "characters such as ( ) [ ] = , ' ~ or letters outside ASCII must be "
+     "quoted: \"input.path='~/laugh.wav'\""),
     (["input.path=a=b.wav"], "cannot read the setting input.path=a=b.wav: a value with characters such as"),
     (["input=file", "input.path=a,b.wav"], "one value with a comma in it is quoted: \"input.path='a,b.wav'\""),
     # a plugin authors' review: the list was quoted whole (a string), which the harness then refused

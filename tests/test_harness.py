@@ -280,7 +280,7 @@ def test_a_report_edited_in_place_is_not_replaced_without_asking(tiny_run, tmp_p
     readme.write_text(mine)
     r = laughlab("report", tiny_run[0], "--out", rep)
     assert r.returncode == 2 and r.stderr == (f"laughlab: error: {rep}: README.md changed since the report wrote "
-                                              "them; choose another --out, or add --overwrite to replace them\n")
+                                              "it; choose another --out, or add --overwrite to replace it\n")
     assert readme.read_text() == mine
     r = laughlab("report", tiny_run[0], "--out", rep, "--overwrite")
     assert r.returncode == 0 and "My notes" not in readme.read_text()

@@ -257,6 +257,14 @@ def test_viewing_a_run_without_animation_files_says_why(tmp_path):
     r = laughlab("view", str(tmp_path / "half"), "--out", str(tmp_path / "s"))
     assert r.returncode == 2 and "is not a finished run: it has no motion.bvh" in r.stderr
     assert not (tmp_path / "s").exists()
+    # an experiment's folder (a first-contact review: "not a finished run", its showcase runs not named)
+    for cond in ("energy", "concat"):
+        (tmp_path / "exp" / "showcase" / cond).mkdir(parents=True)
+        (tmp_path / "exp" / "showcase" / cond / "motion.bvh").write_text("")
+    r = laughlab("view", str(tmp_path / "exp"), "--out", str(tmp_path / "s"))
+    assert r.returncode == 2 and r.stderr == (
+        f"laughlab: error: {tmp_path / 'exp'} is an experiment, not a run: view one of its showcase runs, e.g. python "
+        f"-m laughlab view {tmp_path / 'exp' / 'showcase' / 'concat'} (conditions: concat, energy)\n")
 
 
 def test_viewing_a_run_still_going_says_so(tmp_path):

@@ -266,7 +266,7 @@ def unreadable_override(text: str, overrides=()) -> str | None:
         return (f"cannot read the setting {line}: in a list, items with characters such as = ( ) or letters "
                 f"outside ASCII are quoted one by one: \"{key}={items}\" (the double quotes for the shell)")
     quoted = value.replace("'", "\\'")   # Hydra's quoted values: a backslash escapes the quote after it
-    return (f"cannot read the setting {line}: a value with characters such as ( ) [ ] = , ' or letters outside "
+    return (f"cannot read the setting {line}: a value with characters such as ( ) [ ] = , ' ~ or letters outside "
             f"ASCII must be quoted: \"{key}='{quoted}'\" (the double quotes for the shell)")
 
 

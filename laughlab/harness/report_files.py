@@ -38,8 +38,9 @@ def replace_report(staging: Path, target: Path, overwrite: bool = False) -> None
     edited = [n for n in sorted(old) if isinstance(sums, dict) and n in sums and (target / n).is_file()
               and file_sha256(target / n) != sums[n]]
     if edited and not overwrite:
-        raise LaughlabError(f"{target}: {shown_names(edited)} changed since the report wrote them; choose another "
-                            "--out, or add --overwrite to replace them")
+        them = "them" if len(edited) > 1 else "it"
+        raise LaughlabError(f"{target}: {shown_names(edited)} changed since the report wrote {them}; choose another "
+                            f"--out, or add --overwrite to replace {them}")
     for name in new:
         (target / name).parent.mkdir(parents=True, exist_ok=True)
         os.replace(staging / name, target / name)

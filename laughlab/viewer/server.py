@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shlex
 import shutil
 import socket
 from functools import partial
@@ -179,6 +180,12 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
             raise LaughlabError(f"{run_dir} is a run still going (pid {pid}): the viewer plays a finished run; view "
                                 "it when it ends (Ctrl-C ends a live session and keeps it); a live one shows as it "
                                 "goes on a VMC receiver (output=[files,vmc], docs/latency.md)")
+        shows = sorted(p.name for p in (run_dir / "showcase").iterdir() if (p / "motion.bvh").is_file()) \
+            if (run_dir / "showcase").is_dir() else []
+        if shows:   # an experiment's folder: its showcase runs are the ones to watch (a first-contact review)
+            raise LaughlabError(f"{run_dir} is an experiment, not a run: view one of its showcase runs, e.g. python -m "
+                                f"laughlab view {shlex.quote(str(run_dir / 'showcase' / shows[0]))} (conditions: "
+                                f"{', '.join(shows)})")
         raise LaughlabError(f"{run_dir} is not a finished run: it has no {', '.join(missing)}")
     from laughlab.io.bvh import read_bvh
 
