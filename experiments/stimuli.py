@@ -523,7 +523,8 @@ def run(cfg, out_dir) -> dict:
                         if character else "mannequin")  # which body the participants saw
     _write_text(out_dir / "stimuli.json", json.dumps(doc, indent=2, sort_keys=True) + "\n")
     print(f"stimuli: {len(manifest)} videos -> {out_dir / 'manifest.csv'}; orders for {n_participants} "
-          f"participants in {out_dir / 'orders'}; the study page: python -m laughlab study build {shlex.quote(str(out_dir))}")
+          f"participants in {out_dir / 'orders'}; the study page: python -m laughlab study build "
+          f"{shlex.quote(str(out_dir))}")
     return doc
 
 

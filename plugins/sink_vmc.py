@@ -7,7 +7,6 @@ conversion: :mod:`laughlab.io.vmc`.
 """
 from __future__ import annotations
 
-import os
 import sys
 import time
 from dataclasses import dataclass
@@ -18,6 +17,7 @@ from laughlab import hookimpl
 from laughlab.core.bases import Sink
 from laughlab.core.errors import LaughlabError
 from laughlab.core.plugins import check_range
+from laughlab.core.quiet import to_devnull
 from laughlab.core.framesample import FrameSample
 from laughlab.io.vmc import (DEFAULT_PORT, VRM_PRESETS, BoneMap, VmcEncoder, VmcSender, arkit_weights,
                           latency_summary)
@@ -220,9 +220,7 @@ class VmcSink(Sink):
                       f"audio block -> OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max "
                       f"{s['max']:.2f} ms", file=sys.stdout, flush=True)
             except BrokenPipeError:   # stdout closed (| head): no fault of the session, which is kept (review-live-2 7)
-                null = os.open(os.devnull, os.O_WRONLY)   # what is still buffered goes nowhere
-                os.dup2(null, sys.stdout.fileno())
-                os.close(null)
+                to_devnull(sys.stdout.fileno())   # what is still buffered goes nowhere
         return []
 
     def abort(self) -> None:

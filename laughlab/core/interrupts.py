@@ -214,11 +214,11 @@ class StopOnSignal:
 
 def _away_from_the_terminal() -> None:
     """Standard output and error that are a terminal go to /dev/null: it hung up, and a write to it fails (EIO)."""
+    from laughlab.core.quiet import to_devnull
+
     for fd in (1, 2):
         try:
             if os.isatty(fd):
-                null = os.open(os.devnull, os.O_WRONLY)
-                os.dup2(null, fd)
-                os.close(null)
+                to_devnull(fd)
         except OSError:
             pass

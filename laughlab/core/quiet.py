@@ -53,3 +53,13 @@ def say(line: str) -> None:
             os.write(_STATE["saved"], (line + "\n").encode(errors="replace"))
         else:
             print(line, file=sys.stderr, flush=True)
+
+
+def to_devnull(fd: int) -> None:
+    """File descriptor ``fd`` goes to /dev/null for the rest of the process: standard output after a broken pipe
+    (``... | head``), or standard output and error on a terminal that hung up (SIGHUP; a write there fails)."""
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, fd)
+    finally:
+        os.close(null)

@@ -29,7 +29,7 @@ def sweep_values(overrides: list[str]) -> tuple[list[str], dict[str, list[str]]]
     try:
         parsed = OverridesParser.create().parse_overrides(overrides)
     except HydraException as exc:
-        from laughlab.core.config import unreadable_override
+        from laughlab.core.overridehints import unreadable_override
 
         raise LaughlabError(unreadable_override(str(exc), overrides)
                             or f"cannot read the overrides: {str(exc).splitlines()[0]}") from None

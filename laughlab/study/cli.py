@@ -100,7 +100,8 @@ def _run(ns) -> None:
             print(f"study: note: {', '.join(f'{a} and {b}' for a, b in same)} show the same videos and the page does "
                   "not present what tells them apart (the riddle's Speaks/Listens role): study analyze will not test "
                   "their difference", file=sys.stderr)
-        print(f"laughlab: study written to {out}/; serve it with: python -m laughlab study serve {shlex.quote(str(out))}")
+        print(f"laughlab: study written to {out}/; serve it with: python -m laughlab study serve "
+              f"{shlex.quote(str(out))}")
     elif ns.cmd == "serve":
         serve(ns)
     elif ns.cmd == "simulate":
@@ -184,7 +185,8 @@ def simulate(ns) -> None:
     store(_handler(httpd).db, "simulation", {"effects": effects, "seed": ns.seed, "participants": len(given),
                                              **S.PLANTED_SPREAD})
     print(f"laughlab: {len(given)} simulated participants finished ({n} answers, planted {ns.effects or 'no effect'})"
-          f" -> {_handler(httpd).db}; analyze it with: python -m laughlab study analyze {shlex.quote(str(_handler(httpd).db))}")
+          f" -> {_handler(httpd).db}; analyze it with: python -m laughlab study analyze "
+          f"{shlex.quote(str(_handler(httpd).db))}")
 
 
 def run_power(ns) -> None:
