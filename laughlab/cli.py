@@ -163,7 +163,8 @@ def _task(cfg, out_dir: Path, t0: float, cfg_hash: str) -> dict:
             doc = run_experiment(cfg, out_dir, progress=cfg.get("progress", "auto") != "off")
             _CLAIM.finish(cfg_hash)
             _finished()
-            hint = "" if _in_sweep() else f"; report: python -m laughlab report {shlex.quote(str(out_dir))}"   # a sweep: one at its end
+            # a sweep: one hint at its end
+            hint = "" if _in_sweep() else f"; report: python -m laughlab report {shlex.quote(str(out_dir))}"
             _done_line(f"{doc['experiment']}: {doc['n_trials']} trials in {duration_text(time.monotonic() - t0)} -> "
                        f"{out_dir / 'results.json'}{hint}")
             return doc
@@ -275,6 +276,8 @@ def _stopped(cfg, out_dir: Path, what: str) -> str:
         from laughlab.core import rundir
 
         (out_dir / "results.json").unlink(missing_ok=True)
+        if _CLAIM is not None:
+            _CLAIM.keep()   # what it has written so far: a file the user adds now stays theirs
         aside = out_dir / rundir.PREVIOUS
         kept = f" (the run it replaces is kept in {aside} until it finishes)" if aside.is_dir() else ""
         return f"{what}; the finished trials are kept: run the same command again to resume{kept}"
@@ -473,6 +476,6 @@ def _absolute_plugins_dir(argv: list[str]) -> list[str]:
 
 def _quiet_stdout() -> None:
     """After a broken pipe (``... | head``): what is still buffered for stdout goes nowhere, silently."""
-    import os
+    from laughlab.core.quiet import to_devnull
 
-    os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    to_devnull(sys.stdout.fileno())

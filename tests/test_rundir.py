@@ -218,14 +218,21 @@ def test_an_experiment_killed_after_some_trials_resumes_to_the_same_results(tmp_
     assert leftovers == []  # the killed trial's half-written folder went with the rerun
 
 
-def test_a_changed_config_does_not_mix_into_an_interrupted_experiment(tmp_path):
-    d = tmp_path / "D"
+def _experiment_with_a_trial_in(d):
+    """The smoke experiment started into ``d`` in a child process, once its first trial is journaled."""
     p = laughlab(*SMOKE, f"hydra.run.dir={d}")
     journal = d / "metrics.jsonl"
     deadline = time.time() + 120
     while not (journal.exists() and journal.read_text().strip()):
         assert time.time() < deadline and p.poll() is None
         time.sleep(0.05)
+    return p
+
+
+def test_a_changed_config_does_not_mix_into_an_interrupted_experiment(tmp_path):
+    d = tmp_path / "D"
+    journal = d / "metrics.jsonl"
+    p = _experiment_with_a_trial_in(d)
     p.kill()
     p.wait()
     other = run(*SMOKE, "harness.corpus.duration_s=7", f"hydra.run.dir={d}")
@@ -239,6 +246,29 @@ def test_a_changed_config_does_not_mix_into_an_interrupted_experiment(tmp_path):
     again = run(*SMOKE, f"hydra.run.dir={d}")
     assert again.returncode == 0, again.stderr
     assert (d / "results.json").exists() and (not done or f"resuming: {done} of 8 trials were done" in again.stderr)
+
+
+def _interrupted_experiment(d):
+    """An experiment stopped by Ctrl-C once its first trial is in: kept for its command to resume."""
+    p = _experiment_with_a_trial_in(d)
+    p.send_signal(signal.SIGINT)
+    assert p.wait(timeout=120) == 130
+
+
+@pytest.mark.parametrize("then", ["overwrite", "resume, then overwrite"])
+def test_a_file_put_into_an_interrupted_experiment_stays_the_users(tmp_path, then):
+    """A first-contact review: notes.txt put into an experiment's folder after a Ctrl-C was counted as the run's (an
+    interrupted run's files were every entry but the user's), so overwrite=true deleted it, and a resumed run's end
+    listed it among its files for a later overwrite=true to delete.  A kept experiment records its files."""
+    d = tmp_path / "D"
+    _interrupted_experiment(d)
+    (d / "notes.txt").write_text("my notes")
+    if then.startswith("resume"):
+        assert run(*SMOKE, f"hydra.run.dir={d}").returncode == 0
+        assert "notes.txt" not in json.loads((d / rundir.MARKER).read_text())["files"]
+    again = run(*SMOKE, f"hydra.run.dir={d}", "overwrite=true")
+    assert again.returncode == 0, again.stderr
+    assert (d / "notes.txt").read_text() == "my notes" and (d / "results.json").exists()
 
 
 def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):

@@ -69,6 +69,16 @@ class Claim:
                                   "user_files": sorted(self.user_files), "hydra": _hydra_files(self.path)})
         _remove(self.path / PREVIOUS)
 
+    def keep(self) -> None:
+        """An experiment stopped part way and kept for its command to resume: record the files it has written so
+        far (every entry but the user's and ours), so that a file the user puts in the folder afterwards (notes)
+        is theirs, never the run's: ``overwrite=true`` and a resumed run's end removed it (a first-contact review).
+        Not called where a run is killed (SIGKILL): then every entry but the user's counts as the run's."""
+        marker = _read_marker(self.path) or {}
+        files = sorted(p.name for p in self.path.iterdir() if p.name not in self.user_files | OWN)
+        _write_marker(self.path, {**marker, "pid": os.getpid(), "complete": False, "files": files,
+                                  "user_files": sorted(self.user_files), "kept": True})
+
     def abandon(self) -> None:
         """After a failure: remove the marker and put back the earlier run this one was replacing (or remove
         the folder if this run created it and it is empty).  The marker's temporary file goes too: a stop signal
@@ -158,14 +168,16 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
             earlier = set()
         elif complete:
             earlier = set(marker.get("files", []))
-        else:   # an interrupted run lists no files yet: all but the user's are its own
+        elif marker.get("kept"):   # an interrupted experiment kept to resume: the files it had written then
+            earlier = set(marker.get("files", [])) & entries
+        else:   # a killed run lists no files yet: all but the user's are its own
             earlier = entries - set(marker.get("user_files", [])) - {MARKER}
         if marker is not None and marker.get("complete") and done_if is not None and not overwrite \
                 and marker.get("config_hash") == done_if:
             return Claim(path, fd, created, set(marker.get("user_files", [])), done=True)
         if marker is not None and not complete and (not overwrite or aside):
             # an interrupted run: the same command may take it up again (an experiment resumes)
-            user = set(marker.get("user_files", entries - {MARKER}))
+            user = set(marker.get("user_files", entries - {MARKER})) | (entries - earlier - {MARKER})
             _mark_running(path, user, ours)
             return Claim(path, fd, created, user, resumed=True, lock_made=lock_made)
         # files no run recorded writing (the user's, or a marker-less 0.1 run's: they cannot be told apart) named
