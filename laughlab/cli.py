@@ -435,10 +435,16 @@ def _main(argv: list[str]) -> None:
     sys.argv = [sys.argv[0], *argv]
     from laughlab.core import rundir
 
+    from laughlab.core.launchers import JobLost, guard_submitit
+    from laughlab.harness.sweep_plan import progress_words
+
     before = rundir.sweep_state(argv) if multirun else None
+    guard_submitit(lambda: progress_words(argv))   # a submitit job without a result: one line, not a traceback
     try:
         hydra.main(config_path=f"pkg://{CONFIG_MODULE}", config_name="config", version_base="1.3")(task)()
     except BaseException as exc:   # one line for the whole sweep: how far it got (its jobs say nothing, fail())
+        if isinstance(exc, JobLost) and not interrupts.received:
+            fail(str(exc))
         if isinstance(exc, SystemExit) or not interrupts.interrupted(exc):
             raise
         from laughlab.harness.sweep_plan import interrupted_line

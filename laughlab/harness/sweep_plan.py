@@ -122,14 +122,20 @@ def sweep_command(root: Path) -> str:
 def interrupted_line(argv: list[str]) -> str:
     """The one line of a sweep stopped by Ctrl-C: how many of its points finished, and how to resume it (a sweep
     into a folder of its own, ``hydra.sweep.dir=``, resumes by the same command)."""
+    words = progress_words(argv)
+    return f"interrupted{';' if words.startswith('the ') else ':'} {words}"
+
+
+def progress_words(argv: list[str]) -> str:
+    """How far the sweep of ``argv`` got and how to resume it: ``2 of 9 points finished; run the same command again
+    to resume`` (also a sweep whose job ended without a result, :mod:`laughlab.core.launchers`)."""
     given = next((a.split("=", 1)[1] for a in argv if a.startswith("hydra.sweep.dir=")), None)
     state = unfinished(Path(given).expanduser()) if given else None
     if state is None:
-        return ("interrupted; the finished points are kept in the sweep's folder (a sweep resumes into its own "
+        return ("the finished points are kept in the sweep's folder (a sweep resumes into its own "
                 "hydra.sweep.dir=DIR, given again with the same command)")
     planned, missing = state
-    return (f"interrupted: {planned - len(missing)} of {planned} points finished; run the same command again to "
-            "resume")
+    return f"{planned - len(missing)} of {planned} points finished; run the same command again to resume"
 
 
 def partial_warning(root: Path) -> None:
