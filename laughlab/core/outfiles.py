@@ -23,6 +23,36 @@ def file_sha256(path) -> str:
     return h.hexdigest()
 
 
+def read_record(path) -> tuple[set, dict] | None:
+    """A command's record of the files it wrote into a folder (``{"files": [...], "sha256": {name: hash}}``, as
+    ``detect`` and ``report`` keep it): the names that stay inside the folder (relative, no ``..``: no other file
+    is ever removed) and their hashes; None if there is no readable record."""
+    import json
+
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+        names, sums = doc["files"], doc.get("sha256") or {}
+        names = {n for n in names if isinstance(n, str) and n and not Path(n).is_absolute() and ".." not in
+                 Path(n).parts}
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return None
+    return names, sums if isinstance(sums, dict) else {}
+
+
+def edited_since(folder: Path, names, sums: dict) -> list[str]:
+    """Of ``names`` (files a command wrote into ``folder``), those whose bytes differ from the record's hash: edited
+    by the user since (the user's now)."""
+    return sorted(n for n in names if n in sums and (folder / n).is_file() and file_sha256(folder / n) != sums[n])
+
+
+def record_text(folder: Path, names) -> str:
+    """The record (:func:`read_record`) of the files ``names`` in ``folder`` as written now."""
+    import json
+
+    names = sorted(names)
+    return json.dumps({"files": names, "sha256": {n: file_sha256(folder / n) for n in names}}, indent=1) + "\n"
+
+
 def remove(p: Path) -> None:
     """Remove a file, a link (not what it points to) or a folder with its contents, if it is there."""
     if p.is_dir() and not p.is_symlink():

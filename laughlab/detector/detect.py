@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_names
-from laughlab.core.outfiles import file_sha256, unwrite
+from laughlab.core.outfiles import edited_since, read_record, record_text, unwrite
 from laughlab.core.summary import duration_text, factor_text
 
 AUDIO_SUFFIXES = {".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif", ".opus"}
@@ -84,16 +84,10 @@ def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Pat
     if held and not overwrite:
         raise LaughlabError(f"{out} already holds files ({shown_names(held)}); choose another --out or add --overwrite "
                             f"(replaces the segment files an earlier detect wrote there, keeps the rest)")
-    try:
-        doc = json.loads((out / MANIFEST).read_text(encoding="utf-8"))
-        names, sums = doc["files"], doc.get("sha256") or {}
-        names = {n for n in names if isinstance(n, str) and _inside(n)}
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
-        names, sums = set(), {}
+    names, sums = read_record(out / MANIFEST) or (set(), {})
     # a label file edited since detect wrote it (corrected in Praat or Audacity: the documented loop) is the user's
     # now (a diff review: --overwrite replaced the corrections without a word)
-    edited = {n for n in names if isinstance(sums, dict) and n in sums and (out / n).is_file()
-              and file_sha256(out / n) != sums[n]}
+    edited = set(edited_since(out, names, sums))
     names -= edited
     there = {n for n in set(planned) | names if (out / n).is_file()}
     theirs = sorted(set(planned) & (there | edited) - names)
@@ -102,12 +96,6 @@ def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Pat
         raise LaughlabError(f"{out} holds {shown_names(theirs)}, {why}, and this run would replace it; move it or "
                             f"choose another --out (--overwrite replaces only detect's own files, unedited)")
     return [out / n for n in sorted(names & there)]
-
-
-def _inside(name: str) -> bool:
-    """A manifest's name that stays inside ``--out`` (relative, no ``..``): no other file is ever removed."""
-    p = Path(name)
-    return bool(name) and not p.is_absolute() and ".." not in p.parts
 
 
 def read_mono(path: Path):
@@ -228,7 +216,7 @@ def main(argv: list[str]) -> None:
     kept_old = {p for p in stale if p.relative_to(out).as_posix() in theirs}
     unwrite(sorted(set(stale) - set(written) - kept_old), out)   # --overwrite: an earlier detect's files not written now
     done = sorted(rel(written) | rel(kept_old))
-    S.atomic_write(out / MANIFEST, json.dumps({"files": done, "sha256": {n: file_sha256(out / n) for n in done}}) + "\n")
+    S.atomic_write(out / MANIFEST, record_text(out, done))
     wall = time.perf_counter() - t0
     print(summary_line(results, gone, wall, out))
 

@@ -6,7 +6,7 @@ import os
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, shown_names
-from laughlab.core.outfiles import file_sha256
+from laughlab.core.outfiles import edited_since, read_record, record_text
 
 #: in a report folder, the files the report wrote there (so that a new report replaces only those)
 MANIFEST = ".laughlab-report.json"
@@ -18,25 +18,22 @@ def replace_report(staging: Path, target: Path, overwrite: bool = False) -> None
     caption and an edited figure in figures/ were deleted).  A file of the user's in the way is refused, and so,
     without ``overwrite``, is a file of the earlier report edited since (its sha256 in the manifest: notes added
     to the README, a figure retouched in place; a diff review: they were replaced without a word)."""
-    import json
     import re
 
     new = sorted(p.relative_to(staging).as_posix() for p in staging.rglob("*") if p.is_file())
-    sums: dict = {}
-    try:
-        doc = json.loads((target / MANIFEST).read_text(encoding="utf-8"))
-        old, sums = set(doc["files"]), doc.get("sha256") or {}
-    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+    record = read_record(target / MANIFEST)
+    if record is not None:
+        old, sums = record
+    else:
         readme = target / "README.md"
         text = readme.read_text(encoding="utf-8", errors="replace") if readme.is_file() else ""
         old = {"README.md"} | {f"figures/{n}" for n in re.findall(r"\]\(figures/([^)\s]+)\)", text)}
-    old = {n for n in old if isinstance(n, str) and n and ".." not in Path(n).parts and not Path(n).is_absolute()}
+        old, sums = {n for n in old if ".." not in Path(n).parts}, {}
     theirs = [n for n in new if (target / n).exists() and n not in old]
     if theirs:
         raise LaughlabError(f"{target} holds {shown_names(theirs)}, which no earlier report wrote and this one would "
                             "replace; move them, or choose another --out")
-    edited = [n for n in sorted(old) if isinstance(sums, dict) and n in sums and (target / n).is_file()
-              and file_sha256(target / n) != sums[n]]
+    edited = edited_since(target, old, sums)
     if edited and not overwrite:
         them = "them" if len(edited) > 1 else "it"
         raise LaughlabError(f"{target}: {shown_names(edited)} changed since the report wrote {them}; choose another "
@@ -46,5 +43,4 @@ def replace_report(staging: Path, target: Path, overwrite: bool = False) -> None
         os.replace(staging / name, target / name)
     for name in sorted(old - set(new)):
         (target / name).unlink(missing_ok=True)
-    (target / MANIFEST).write_text(json.dumps({"files": new, "sha256": {n: file_sha256(target / n) for n in new}},
-                                              indent=1) + "\n", encoding="utf-8")
+    (target / MANIFEST).write_text(record_text(target, new), encoding="utf-8")
