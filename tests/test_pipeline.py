@@ -350,7 +350,8 @@ def test_the_thesis_figures_each_run_draws(tmp_path, overrides, wanted):
 
 def test_plots_pdf_writes_a_vector_pdf_of_each_figure_with_the_same_bytes_each_time(tmp_path):
     """``output.plots.pdf=true``: each PNG has its PDF beside it (for print), dated nowhere inside, so the same
-    seed gives the same bytes; without it (the default) no PDF."""
+    seed gives the same bytes, its text in embedded TrueType, not Type 3 (which IEEE PDF eXpress and ACM's
+    production reject); without it (the default) no PDF."""
     runs = []
     for k, extra in enumerate((("output.plots.pdf=true",), ("output.plots.pdf=true",), ())):
         out = tmp_path / str(k)
@@ -361,6 +362,7 @@ def test_plots_pdf_writes_a_vector_pdf_of_each_figure_with_the_same_bytes_each_t
     assert set(runs[0]) == pngs | {n[:-4] + ".pdf" for n in pngs}
     assert all(runs[0][n].startswith(b"%PDF-") and b"CreationDate" not in runs[0][n] for n in runs[0] if
                n.endswith(".pdf"))
+    assert all(b"/Type3" not in runs[0][n] and b"/FontFile2" in runs[0][n] for n in runs[0] if n.endswith(".pdf"))
     assert runs[0] == runs[1] and all(runs[0][n] == runs[2][n] for n in pngs)
 
 
