@@ -23,6 +23,7 @@ from laughlab.core.bases import Source
 from laughlab.core.errors import LaughlabError, StoppedBySignal, first_line
 from laughlab.core.interrupts import StopOnSignal
 from laughlab.core.plugins import check_range
+from laughlab.core.summary import SILENT_DBFS, silent_text
 
 
 @dataclass
@@ -124,6 +125,8 @@ class MicSource(Source):
         n = block_samples(self.sample_rate, self.ctx.fps, self.params.block_frames)
         total = None if self.params.duration_s is None else int(self.params.duration_s * self.sample_rate)
         got = 0
+        # a session silent this long says so while it runs (once), not only in its closing line
+        silent_n, silent_peak, warned_silent = int(SILENT_WARN_S * self.sample_rate), 10 ** (SILENT_DBFS / 20), False
         sd = self._sd
         health = self.health = InputHealth(self.sample_rate, self.clock)
         with contextlib.ExitStack() as stack:
@@ -146,6 +149,11 @@ class MicSource(Source):
                 got += len(data)
                 if len(data):
                     self.peak = max(self.peak, float(np.abs(data).max()))
+                if not warned_silent and got >= silent_n and self.peak < silent_peak:
+                    warned_silent = True   # said at the end only, a muted microphone left a user waiting (a review)
+                    self._say(f"laughlab: warning: the microphone has been silent for {got / self.sample_rate:.1f} s "
+                              f"({silent_text(self.peak)}): is it muted? input.device=NAME_OR_INDEX chooses another "
+                              "(python -m sounddevice lists them)")
                 if health.read(got, overflowed, clocked=waiting is None):
                     self._say(f"laughlab: warning: the microphone's buffer overflowed after "
                               f"{got / self.sample_rate:.1f} s: laughlab fell behind the microphone and audio was "
@@ -313,6 +321,8 @@ def _running(stream, sd):
 METER_FLOOR_DB = -60.0
 #: a calibration burst quieter than this (dBFS) maps laughter to a small range: say so
 QUIET_BURST_DB = -35.0
+#: a session whose loudest sample stays under SILENT_DBFS this long (s) is warned, once, while it runs
+SILENT_WARN_S = 5.0
 
 
 def meter_line(level_db: float, peak_db: float, left_s: float, width: int = 30) -> str:
@@ -361,7 +371,8 @@ def calibration_meter(frames, n: int, fps: float, out=None, line: MeterLine | No
                     line.out = out
                 if k == n - 1:
                     line.end()
-                    hint = ("; the burst was quiet, so laughter will move the character little: run again closer "
+                    hint = ("; it heard nothing" if peak <= METER_FLOOR_DB else
+                            "; the burst was quiet, so laughter will move the character little: run again closer "
                             "to the microphone" if peak < QUIET_BURST_DB else "; go ahead and laugh")
                     print(f"laughlab: calibrated (peak {peak:.1f} dBFS){hint}", file=out, flush=True)
             yield block

@@ -523,3 +523,23 @@ def test_a_silent_microphone_says_so_in_the_closing_line(monkeypatch, tmp_path, 
     metrics = pipeline.execute(pipeline.build(run_cfg), tmp_path)
     assert metrics["input_peak"] == pytest.approx(float(np.abs(audio[:32000]).max()))
     assert f"laughlab: {said}" in summary_line(cfg, metrics, tmp_path, 2.5)
+
+
+@pytest.mark.parametrize("gain", [0.0, 1e-4, 0.3])
+def test_a_silent_microphone_is_warned_once_while_the_session_runs(monkeypatch, tmp_path, capsys, gain):
+    """A muted microphone was said only in the closing line, after a session of any length in which nothing
+    moved (a review): 5 s of input whose loudest sample stays under -60 dBFS are warned once, as they happen;
+    a microphone that hears something is not; the calibration's line says it heard nothing."""
+    audio = noise(12) / 0.4 * gain
+    monkeypatch.setitem(sys.modules, "sounddevice", FakeSoundDevice(audio))
+    pipe = mic_pipe(monkeypatch, FakeSoundDevice(audio), "input.duration_s=11", calibration_s=1)
+    pipeline.execute(pipe, tmp_path)
+    err = capsys.readouterr().err
+    warned = [x for x in err.splitlines() if "the microphone has been silent" in x]
+    if gain > 0.01:
+        assert not warned and "heard nothing" not in err
+    else:
+        said = "is 0" if gain == 0 else f"{20 * math.log10(float(np.abs(audio[:80000]).max())):.0f} dBFS"
+        assert warned == [f"laughlab: warning: the microphone has been silent for 5.0 s (its loudest sample {said}): "
+                          "is it muted? input.device=NAME_OR_INDEX chooses another (python -m sounddevice lists them)"]
+        assert "laughlab: calibrated (peak" in err and "; it heard nothing" in err

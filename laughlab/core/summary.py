@@ -34,7 +34,7 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
     peak = metrics.get("input_peak")
     if peak is not None and peak < 10 ** (SILENT_DBFS / 20):   # a review: a silent file ran without a word
-        what += " (silent: its loudest sample " + (f"{20 * math.log10(peak):.0f} dBFS" if peak > 0 else "is 0") + \
+        what += f" (silent: {silent_text(peak)}" + \
             ("; is the microphone muted? input.device=NAME_OR_INDEX chooses another" if src == "mic" else "") + ")"
     chain = " > ".join(str(cfg[g].name) + (" (fused)" if g == "detector" and cfg[g].get("fuse") else "")
                        for g in CHAIN
@@ -49,6 +49,11 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     watch = (f"; watch it: python -m laughlab view {shlex.quote(str(out_dir))}"
              if all(n in files for n in VIEWER_NEEDS) else "")
     return f"laughlab: {length} s of {what}, {chain}, {took} -> {out_dir}/: {', '.join(files)}{watch}"
+
+
+def silent_text(peak: float) -> str:
+    """``its loudest sample -72 dBFS`` (``peak``: the largest absolute sample, 1 full scale), or ``... is 0``."""
+    return "its loudest sample " + (f"{20 * math.log10(peak):.0f} dBFS" if peak > 0 else "is 0")
 
 
 def speed(cfg, metrics: dict, seconds: float) -> str:
