@@ -8,6 +8,7 @@ what the run wrote.
 """
 from __future__ import annotations
 
+import os
 import shlex
 import shutil
 import sys
@@ -242,8 +243,10 @@ def _fault(exc: BaseException, where: Path | str, cfg) -> tuple[str, int]:
     leaves it (an earlier run it was replacing put back)."""
     if interrupts.interrupted(exc):
         return "interrupted", 130
-    if isinstance(exc, OSError):
-        return os_error_line(exc, where), 2
+    if isinstance(exc, OSError):   # outside the run's folder: read or written (an input gone from a node)
+        outside = exc.filename is not None and not Path(os.path.abspath(str(exc.filename))).is_relative_to(
+            os.path.abspath(str(where)))
+        return os_error_line(exc, where, verb="cannot use" if outside else "cannot write"), 2
     if blame.line(exc):   # a plugin's bug: its own lines of the traceback, then the line naming it
         print(blame.trace(exc), file=sys.stderr)
         return blame.line(exc), 1

@@ -619,3 +619,22 @@ def test_the_next_commands_it_prints_quote_a_folder_with_a_space(tmp_path):
     assert page.returncode == 0, page.stderr
     serve = page.stdout.split("(e.g. ")[1].rsplit(")", 1)[0]
     assert shlex.split(serve) == ["python", "-m", "http.server", "-d", str(tmp_path / "my site")]
+
+
+def test_a_file_fault_outside_the_runs_folder_is_not_called_a_write(tmp_path):
+    """A sweep job whose input had gone from the node said 'cannot write /data/in.wav: No such file or directory'
+    (the cluster review): a fault on a file outside the run's folder says 'cannot use'; one inside, or a full disk
+    with no file named, 'cannot write'."""
+    import errno
+    from laughlab import cli
+
+    run = tmp_path / "run"
+    inside = OSError(errno.ENOSPC, "No space left on device", str(run / "motion.bvh"))
+    assert cli._fault(inside, run, {}) == (f"cannot write {run / 'motion.bvh'}: No space left on device "
+                                           "(the disk is full)", 2)
+    gone = FileNotFoundError(errno.ENOENT, "No such file or directory", str(tmp_path / "data" / "in.wav"))
+    assert cli._fault(gone, run, {}) == (f"cannot use {tmp_path / 'data' / 'in.wav'}: No such file or directory", 2)
+    assert cli._fault(OSError(errno.EFBIG, "File too large"), "runs/x", {}) == \
+        ("cannot write runs/x: File too large (a file size limit: ulimit -f)", 2)
+    assert cli._fault(FileNotFoundError(errno.ENOENT, "No such file", "runs/x/a.csv"), "runs/x", {})[0] == \
+        "cannot write runs/x/a.csv: No such file"
