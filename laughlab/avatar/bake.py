@@ -25,6 +25,22 @@ from laughlab.io.gltf import Buffer, glb_bytes, hold_to_end
 from laughlab.motion.skeleton import Skeleton
 
 
+def avatar_tracks(avatar: Avatar, skeleton: Skeleton, poses: np.ndarray, arkit: Mapping[str, np.ndarray],
+                  breath: Mapping[str, np.ndarray]) -> list[tuple[int, str, np.ndarray]]:
+    """The run on the avatar as ``(node, path, values per frame)``: the hips' translation (m), the humanoid bones'
+    local rotations (quaternions x, y, z, w) and the weights of every mesh node with a target the run drives
+    (its others keep the avatar's defaults; a node with none driven gets no track); what :func:`baked_glb`
+    bakes and the live viewer sends."""
+    poses = breathing_pose(poses, breath_on_bones(avatar, breath), skeleton)
+    moved = retarget(avatar, poses, skeleton)
+    out = [(avatar.bones["hips"], "translation", moved.hips_translation)]
+    out += [(node, "rotation", moved.rotations[:, k]) for k, node in enumerate(moved.nodes)]
+    driven = driven_morphs(avatar, arkit, breath)
+    out += [(node, "weights", w) for node, w in sorted(morph_weights(avatar, arkit, breath, len(poses)).items())
+            if driven.get(node)]   # a node none of whose targets the run drives keeps its own weights
+    return out
+
+
 def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np.ndarray,
               arkit: Mapping[str, np.ndarray], breath: Mapping[str, np.ndarray], audio_duration_s: float,
               fps: float) -> bytes:
@@ -36,8 +52,6 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
         raise ValueError(f"the baked avatar needs F times and (F, {skeleton.n_channels}) poses; got {f}, "
                          f"{poses.shape}")
     times, poses, arkit, breath = hold_to_end(times, audio_duration_s, poses, arkit, breath)
-    poses = breathing_pose(poses, breath_on_bones(avatar, breath), skeleton)
-    moved = retarget(avatar, poses, skeleton)
     doc = copy.deepcopy(avatar.doc)
     buf = Buffer(avatar.binary, doc.get("bufferViews"), doc.get("accessors"))
     embed_images(doc, avatar.images, buf)   # a .gltf's texture files: into the file, which goes elsewhere
@@ -49,13 +63,8 @@ def baked_glb(avatar: Avatar, skeleton: Skeleton, times_s: np.ndarray, poses: np
                          "interpolation": "LINEAR"})
         channels.append({"sampler": len(samplers) - 1, "target": {"node": int(node), "path": path}})
 
-    track(avatar.bones["hips"], "translation", moved.hips_translation)
-    for k, node in enumerate(moved.nodes):
-        track(node, "rotation", moved.rotations[:, k])
-    driven = driven_morphs(avatar, arkit, breath)
-    for node, w in sorted(morph_weights(avatar, arkit, breath, len(times)).items()):
-        if driven.get(node):   # a node none of whose targets the run drives keeps its own weights: no channel
-            track(node, "weights", w.reshape(-1))
+    for node, path, values in avatar_tracks(avatar, skeleton, poses, arkit, breath):
+        track(node, path, values if path != "weights" else values.reshape(-1))
     doc.setdefault("animations", []).insert(0, {"name": "laugh", "samplers": samplers, "channels": channels})
     scene = doc.get("scene", 0)
     if doc.get("scenes"):

@@ -72,6 +72,17 @@ def hold_to_end(times: np.ndarray, end_s: float, poses: np.ndarray, *tables: Map
     return (np.append(times, end), np.concatenate([poses, poses[-1:]]), *held)
 
 
+def mannequin_tracks(sk, poses: np.ndarray, weights: np.ndarray) -> list[tuple[int, str, np.ndarray]]:
+    """The animation of laughlab's character as ``(node, path, values per frame)``: the root's translation (m),
+    each joint's rotation (unit quaternion x, y, z, w) from ``poses`` (BVH channel vectors, cm and degrees),
+    and the mesh node's morph ``weights`` (F, M); what ``character_glb`` bakes and the live viewer sends."""
+    jn = sk.n_joints
+    root = (sk.offsets[0] + poses[:, :3]) * 0.01
+    quats = euler_zxy_to_quat(poses[:, 3:].reshape(len(poses), jn, 3))
+    quats /= np.linalg.norm(quats, axis=-1, keepdims=True)
+    return [(0, "translation", root), *((j, "rotation", quats[:, j]) for j in range(jn)), (jn, "weights", weights)]
+
+
 def character_glb(character, times_s: np.ndarray, poses: np.ndarray, morph_weights: np.ndarray,
                   audio_duration_s: float, fps: float, generator: str = "laughlab") -> bytes:
     """The ``.glb`` bytes of ``character`` animated by ``poses`` (BVH channel vectors, cm and degrees).
@@ -129,17 +140,11 @@ def character_glb(character, times_s: np.ndarray, poses: np.ndarray, morph_weigh
     skin = {"joints": list(range(jn)), "skeleton": 0, "inverseBindMatrices": buf.accessor(ibm.reshape(jn, 16))}
     # the animation
     t_in = buf.accessor(times, minmax=True)
-    root = (sk.offsets[0] + poses[:, :3]) * 0.01
-    samplers = [{"input": t_in, "output": buf.accessor(root.astype(np.float32)), "interpolation": "LINEAR"}]
-    channels = [{"sampler": 0, "target": {"node": 0, "path": "translation"}}]
-    quats = euler_zxy_to_quat(poses[:, 3:].reshape(len(times), jn, 3))
-    quats /= np.linalg.norm(quats, axis=-1, keepdims=True)
-    for j in range(jn):
-        samplers.append({"input": t_in, "output": buf.accessor(quats[:, j].astype(np.float32)),
-                         "interpolation": "LINEAR"})
-        channels.append({"sampler": len(samplers) - 1, "target": {"node": j, "path": "rotation"}})
-    samplers.append({"input": t_in, "output": buf.accessor(weights.reshape(-1)), "interpolation": "LINEAR"})
-    channels.append({"sampler": len(samplers) - 1, "target": {"node": jn, "path": "weights"}})
+    samplers, channels = [], []
+    for node, path, values in mannequin_tracks(sk, poses, weights):
+        samplers.append({"input": t_in, "output": buf.accessor(values.astype(np.float32).reshape(
+            len(times), -1) if path != "weights" else values.reshape(-1)), "interpolation": "LINEAR"})
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": node, "path": path}})
     doc = {
         "asset": {"version": "2.0", "generator": generator},
         "scene": 0,
