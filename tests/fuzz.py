@@ -217,4 +217,6 @@ def overrides_for(choices: tuple, key: str, value: str) -> list[str]:
         base = [b for b in base if not b.startswith("input.duration_s")]
         if "input=mic" in choices:
             base.append("input.duration_s=0.3")
+    if "output=viewer" in choices:   # the live viewer would wait for a page to open, on a port others may hold
+        base += ["output.viewer.wait=off", "output.viewer.realtime=off", "output.viewer.port=0"]
     return [*choices, *base, f"{key}={value}"]

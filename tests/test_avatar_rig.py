@@ -108,7 +108,7 @@ def test_the_video_and_the_viewer_turn_it_to_the_camera_alike(tmp_path):
     """The video's vertices of the turned avatar are the unturned one's; the viewer turns its root by the same
     angle (run.json's avatar.turn, radians about Y)."""
     from laughlab.render.avatar_view import AvatarRenderer
-    from laughlab.viewer.server import _view_of
+    from laughlab.viewer.server import view_of
 
     plain = tmp_path / "plain.glb"
     plain.write_bytes(mannequin_arkit_glb())
@@ -118,8 +118,8 @@ def test_the_video_and_the_viewer_turn_it_to_the_camera_alike(tmp_path):
     va, _ = a.vertices(a.worlds(pose)[0], {})
     vb, _ = b.vertices(b.worlds(pose)[0], {})
     np.testing.assert_allclose(vb, va, atol=1e-6)
-    assert _view_of(load_avatar(path))["turn"] == pytest.approx(-np.pi / 2)
-    assert _view_of(load_avatar(plain))["turn"] == 0.0
+    assert view_of(load_avatar(path))["turn"] == pytest.approx(-np.pi / 2)
+    assert view_of(load_avatar(plain))["turn"] == 0.0
 
 
 def test_arms_one_above_the_other_are_one_line(tmp_path):

@@ -221,7 +221,7 @@ def test_a_parameter_of_another_plugin_says_what_to_add(tmp_path, args, message)
     (["face.bogus=1"], "unknown parameter face.bogus; valid: smile, jaw, blink_mean_s"),   # no plugin has it
     # an output's parameter without its node (was "unknown parameter output.port", no hint)
     (["output.port=9000"], "there is no parameter output.port: an output's parameters go under its name, "
-                           "output.vmc.port (with output=vmc)"),
+                           "output.viewer.port or output.vmc.port (with output=viewer)"),
     (["output=vmc", "output.port=9000"], "there is no parameter output.port: an output's parameters go under "
                                          "its name, output.vmc.port"),
     (["output.max_seconds=5"], "there is no parameter output.max_seconds: an output's parameters go under its "
@@ -405,6 +405,7 @@ SPEEDS = {
     "trial": "8.8x real time; frame loop 219x",
     "video": "8.8x real time; video: 900 frames rendered at 4.5 frames/s",
     "vmc": "paced at the frame clock for the vmc stream",
+    "viewer": "paced at the frame clock for the live viewer",
 }
 
 

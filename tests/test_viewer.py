@@ -287,8 +287,8 @@ def test_viewing_a_run_still_going_says_so(tmp_path):
         os.close(fd)
     assert r.returncode == 2 and r.stderr == (
         f"laughlab: error: {live} is a run still going (pid 4242): the viewer plays a finished run; view it when it "
-        "ends (Ctrl-C ends a live session and keeps it); a live one shows as it goes on a VMC receiver "
-        "(output=[files,vmc], docs/latency.md)\n")
+        "ends (Ctrl-C ends a live session and keeps it); to watch a run as it goes, give it "
+        "output=[files,viewer] (docs/pipeline.md)\n")
     r = laughlab("view", str(live), "--out", str(tmp_path / "s"))   # the lock let go: a run that did not finish
     assert r.returncode == 2 and "is not a finished run: it has no motion.bvh" in r.stderr
 

@@ -99,6 +99,8 @@ def under_output(path: str, options: dict[str, set], current) -> str:
     found = sorted((o, k) for o, keys in options.items() for k in keys
                    if "." in k and k.split(".", 1)[1] == path)
     if found:
+        mine = [(o, k) for o, k in found if o in chosen]   # an output chosen has it: that one's key only
+        found = mine or found
         keys = " or ".join(f"output.{k}" for k in sorted({k for _, k in found}))
         owners = sorted({o for o, _ in found})
         add = "" if chosen & set(owners) else f" (with output={owners[0]})"

@@ -75,9 +75,10 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
         if lag > BEHIND_S or lost:   # the compute kept up, the session did not: a sink or a stall held it up
             said += f"; fell behind the microphone by {lag:.2f} s" + (f", audio lost {lost} times" if lost else "")
         return said
-    vmc = (cfg.get("output") or {}).get("vmc")
-    if vmc is not None and str(vmc.get("realtime", "auto")) in ("auto", "on"):
-        return "paced at the frame clock for the vmc stream"
+    for sink, what in (("vmc", "the vmc stream"), ("viewer", "the live viewer")):
+        node = (cfg.get("output") or {}).get(sink)
+        if node is not None and str(node.get("realtime", "auto")) in ("auto", "on"):
+            return f"paced at the frame clock for {what}"
     dur = float(metrics.get("duration_s") or 0.0)
     parts = [f"{factor_text(dur / seconds)}x real time" if seconds > 0 else "instant"]
     if metrics.get("video_frames"):

@@ -153,7 +153,7 @@ def _baked_avatar(path: Path):
         raise LaughlabError(f"{path}: cannot read the character baked into the run ({exc})") from None
 
 
-def _view_of(avatar) -> dict:
+def view_of(avatar) -> dict:
     """What the page needs to know of an avatar: VRM or not, its facing, its humanoid bones' nodes."""
     if avatar is None:
         return {"vrm": False, "facing": 1, "bones": {}}
@@ -178,8 +178,8 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
         pid = holder(run_dir)
         if pid is not None:   # the viewer has no live mode (review-live-2 4)
             raise LaughlabError(f"{run_dir} is a run still going (pid {pid}): the viewer plays a finished run; view "
-                                "it when it ends (Ctrl-C ends a live session and keeps it); a live one shows as it "
-                                "goes on a VMC receiver (output=[files,vmc], docs/latency.md)")
+                                "it when it ends (Ctrl-C ends a live session and keeps it); to watch a run as it "
+                                "goes, give it output=[files,viewer] (docs/pipeline.md)")
         shows = sorted(p.name for p in (run_dir / "showcase").iterdir() if (p / "motion.bvh").is_file()) \
             if (run_dir / "showcase").is_dir() else []
         if shows:   # an experiment's folder: its showcase runs are the ones to watch (a first-contact review)
@@ -219,10 +219,14 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
     run = {"name": run_dir.resolve().name, "fps": fps, "duration": duration,
            "audio": ("audio" + audio.suffix.lower()) if audio is not None else None, "channels": pick,
            "clips": clips, "energy_max": max([c["energy"] for c in clips] + [max(pick.get("energy", [1.0]))]),
-           "avatar": _view_of(avatar)}
+           "avatar": view_of(avatar)}
     files["run.json"] = json.dumps(run, separators=(",", ":")).encode()
-    files["index.html"] = page.served(run["name"])
-    files["viewer.js"] = page.viewer_js()
+    return {**files, **page_files(run["name"])}
+
+
+def page_files(name: str) -> dict[str, bytes | Path]:
+    """The served page, its script and three.js (by URL path), for a run named ``name`` (also the live viewer's)."""
+    files: dict[str, bytes | Path] = {"index.html": page.served(name), "viewer.js": page.viewer_js()}
     vendor = page.vendor_dir()
     for f in sorted(vendor.rglob("*")):
         if f.is_file():

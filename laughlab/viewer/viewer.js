@@ -3,6 +3,8 @@
 // The audio element is the clock: the animation shows audio.currentTime; without audio a wall clock does.
 // Served (python -m laughlab view RUN), the page fetches run.json and character.glb; written with --out, the
 // page carries them inline (script elements laughlab-run and laughlab-glb) so that it also works opened as a file.
+// Live (output=viewer: run.json's live), it applies each frame laughlab sends over Server-Sent Events (./events:
+// the tracks' layout, then per frame the values character.glb would hold; laughlab/viewer/live.py) instead.
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
@@ -36,6 +38,7 @@ async function loadCharacter(avatar) {
 }
 
 const run = await loadRun();
+const live = !!run.live;
 const audio = $('audio');
 const hasAudio = run.audio !== null;
 if (hasAudio) audio.src = './' + run.audio;
@@ -98,7 +101,7 @@ root.traverse((o) => { if (o.isMesh && o.geometry && o.geometry.attributes.posit
 let lastT = 0;
 
 function pose(t) {
-  mixer.setTime(t);
+  if (!live) mixer.setTime(t);
   root.updateMatrixWorld(true);
   for (const m of meshes) if (m.isSkinnedMesh) m.skeleton.update();
 }
@@ -122,6 +125,11 @@ for (let k = 0; k <= 16; k++) {
   eachVertex((v) => { reach.expandByPoint(v); if (i++ % stride === 0) points.push(v.clone()); });
 }
 pose(0);
+if (live) {   // only the rest pose is known: leave room for a laugh's bend and sway
+  const size = reach.getSize(new THREE.Vector3()), c = reach.getCenter(new THREE.Vector3());
+  reach.expandByVector(new THREE.Vector3(0.15 * size.y, 0.05 * size.y, 0.15 * size.y));
+  for (const dx of [-1, 1]) for (const dz of [-1, 1]) points.push(new THREE.Vector3(c.x + dx * size.x, c.y, c.z + dz * size.z));
+}
 
 // node index -> its object, for the tests' check of the joints' world positions
 const nodes = {};
@@ -217,6 +225,7 @@ window.addEventListener('resize', resize);
 resize();
 
 function frame() {
+  if (live) { liveFrame(); return; }
   const t = Math.min(now(), run.duration);
   mixer.setTime(t);
   if (vrm && vrm.springBoneManager) { vrm.scene.updateMatrixWorld(true); vrm.springBoneManager.update(Math.max(0, Math.min(0.1, t - lastT))); }
@@ -254,7 +263,61 @@ state.onScreen = () => {
   return { lowest, highest, feet: Math.max(...feet), viewTop: rect.top, viewBottom: rect.bottom,
            barTop: $('bar').getBoundingClientRect().top };
 };
-for (const id of ['play', 'seek']) $(id).disabled = false;
+// live: the newest frame laughlab sent is applied on each animation frame; the strip scrolls with it
+const feed = { frames: 0, k: -1, t: 0, layout: null, pending: null, last: null, ended: false, lost: false };
+state.live = feed;
+function meshesOf(i) {   // the meshes of node i (a glTF mesh of several primitives is a group of meshes)
+  const o = nodes[i];
+  if (!o) return [];
+  return o.isMesh ? [o] : o.children.filter((c) => c.isMesh && c.morphTargetInfluences);
+}
+function applyFrame(f) {
+  let i = 0;
+  for (const tr of feed.layout) {
+    const v = f.v;
+    if (tr.path === 'rotation') tr.obj.quaternion.set(v[i], v[i + 1], v[i + 2], v[i + 3]);
+    else if (tr.path === 'translation') tr.obj.position.set(v[i], v[i + 1], v[i + 2]);
+    else for (const m of tr.meshes) for (let j = 0; j < tr.size; j++) m.morphTargetInfluences[j] = v[i + j];
+    i += tr.size;
+  }
+}
+// for tests: nodes' local rotation and translation and their meshes' morph weights, as the page holds them now
+state.localOf = (indices) => indices.map((i) => ({ q: nodes[i].quaternion.toArray(), p: nodes[i].position.toArray(),
+                                                   w: meshesOf(i).map((m) => Array.from(m.morphTargetInfluences)) }));
+let wallLast = performance.now();
+function liveFrame() {
+  const f = feed.pending;
+  if (f && feed.layout) { applyFrame(f); feed.pending = null; feed.last = f; feed.k = f.k; feed.t = f.t; }
+  const wall = performance.now(), dt = Math.max(0, Math.min(0.1, (wall - wallLast) / 1000));
+  wallLast = wall;
+  if (vrm && vrm.springBoneManager) { vrm.scene.updateMatrixWorld(true); vrm.springBoneManager.update(dt); }
+  state.frames += 1;
+  renderer.render(scene, camera);
+  drawStrip(feed.t);
+  $('time').textContent = feed.ended ? `ended at ${feed.t.toFixed(2)} s` : feed.lost ? 'laughlab is gone'
+    : feed.k < 0 ? 'waiting for laughlab\u2026' : `live ${feed.t.toFixed(2)} s`;
+}
+if (live) {
+  for (const id of ['play', 'seek', 'speed']) $(id).hidden = true;
+  $('speed').parentElement.hidden = true;
+  const es = new EventSource('./events');
+  es.addEventListener('layout', (e) => {
+    feed.layout = JSON.parse(e.data).map(([node, path, size]) => ({ obj: nodes[node], path, size,
+                                                                    meshes: path === 'weights' ? meshesOf(node) : [] }));
+  });
+  es.onmessage = (e) => {
+    const f = JSON.parse(e.data);
+    feed.pending = f;
+    feed.frames += 1;
+    run.channels.mcs = run.channels.mcs || [];
+    run.channels.energy = run.channels.energy || [];
+    run.channels.mcs[f.k] = f.mcs;
+    run.channels.energy[f.k] = f.energy;
+    run.energy_max = Math.max(run.energy_max, f.energy);
+  };
+  es.addEventListener('end', () => { feed.ended = true; es.close(); });
+  es.onerror = () => { if (!feed.ended) { feed.lost = true; es.close(); } };
+} else for (const id of ['play', 'seek']) $(id).disabled = false;
 state.ready = true;
 state.audioTime = () => (hasAudio ? audio.currentTime : now());
 state.seek = seek;

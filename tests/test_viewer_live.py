@@ -1,0 +1,166 @@
+"""``output=viewer``: the run on the character in the browser, live (a live session without a VMC receiver).
+
+The page applies what laughlab sends over Server-Sent Events; checked in a real headless Chromium against the
+``character.glb`` the same run bakes, on the mannequin and on a VRM avatar; the stream itself with a plain HTTP
+client."""
+import json
+import threading
+import time
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+from omegaconf import OmegaConf
+
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
+from laughlab.core import pipeline
+from laughlab.core.config import compose_config
+from laughlab.io.gltf import accessor_array, read_glb
+from laughlab.viewer.live import BACKLOG, LiveServer
+
+ASSETS = Path(__file__).parent / "assets" / "avatars"
+
+
+def live_run(out, *overrides, viewer=None):
+    """Build the run with the live viewer on a free port; its thread starts it (it waits for a page)."""
+    cfg = compose_config(["face=facs", "input.duration_s=2", *overrides])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+    cfg.output = {"csv": {}, "bvh": {}, "gltf": dict(cfg.output.get("gltf") or {}),
+                  "viewer": {"port": 0, "wait": "on", "realtime": "on", **(viewer or {}),
+                             "character": cfg.get("character")}}
+    if cfg.get("character"):
+        cfg.output.gltf.character = cfg.character
+    pipe = pipeline.build(cfg)
+    result = {}
+    thread = threading.Thread(target=lambda: result.update(pipeline.execute(pipe, out)), daemon=True)
+    return pipe, thread, result
+
+
+def url_of(pipe, thread, timeout_s=60.0) -> str:
+    thread.start()
+    sink = next(s for s in pipe.sinks if s.name == "viewer")
+    t0 = time.time()
+    while not hasattr(sink, "url"):
+        assert time.time() - t0 < timeout_s, "the live viewer did not start"
+        time.sleep(0.05)
+    return sink.url
+
+
+def baked_at(glb: Path, frame: int) -> dict:
+    """node -> {path: values} of ``character.glb``'s animation at ``frame``."""
+    doc, binary = read_glb(glb)
+    anim = doc["animations"][0]
+    out: dict = {}
+    for ch in anim["channels"]:
+        values = accessor_array(doc, binary, anim["samplers"][ch["sampler"]]["output"])
+        node, path = ch["target"]["node"], ch["target"]["path"]
+        per_frame = values.reshape(len(accessor_array(doc, binary, anim["samplers"][ch["sampler"]]["input"])), -1)
+        out.setdefault(node, {})[path] = per_frame[frame]
+    return out
+
+
+@pytest.mark.browser
+@pytest.mark.parametrize("character", [None, "Godette_vrm_v4.vrm"], ids=["mannequin", "godette-vrm0"])
+def test_the_page_shows_each_frame_as_the_glb_of_the_same_run_holds_it(tmp_path, character):
+    from laughlab.viewer.browser import Page
+
+    extra = [f"character={ASSETS / character}"] if character else []
+    pipe, thread, result = live_run(tmp_path / "run", *extra)
+    page = Page(url_of(pipe, thread))
+    try:
+        page.wait_ready(120)
+        t0 = time.time()
+        while not page.eval("window.laughlab.live.ended"):
+            assert time.time() - t0 < 60, "the session did not end on the page"
+            time.sleep(0.1)
+        thread.join(30)
+        time.sleep(0.3)   # an animation frame or two: the last frame applied
+        feed = page.eval("({frames: window.laughlab.live.frames, k: window.laughlab.live.k, "
+                         "layout: window.laughlab.live.layout.length})")
+        assert feed["k"] == 119 and feed["frames"] >= 100 and result["viewer_frames"] == 120
+        baked = baked_at(tmp_path / "run" / "character.glb", feed["k"])
+        nodes = sorted(baked)
+        shown = dict(zip(nodes, page.eval(f"window.laughlab.localOf({json.dumps(nodes)})")))
+        for node, tracks in baked.items():
+            for path, want in tracks.items():
+                got = {"rotation": shown[node]["q"], "translation": shown[node]["p"]}.get(path)
+                if path == "rotation" and np.dot(got, want) < 0:
+                    got = -np.asarray(got)   # q and -q are one rotation
+                if path == "weights":
+                    got = shown[node]["w"][0]
+                np.testing.assert_allclose(got, want, atol=2e-5, err_msg=f"node {node} {path}")
+        assert [p for p in page.problems() if "LookAtDegreeMap" not in p] == []
+    finally:
+        page.close()
+
+
+def read_events(url: str, n: int) -> list[tuple[str, str]]:
+    """The first ``n`` events of a Server-Sent Events stream (event name, data)."""
+    out, event = [], "message"
+    with urllib.request.urlopen(url, timeout=30) as r:
+        assert r.headers["Content-Type"] == "text/event-stream"
+        for raw in r:
+            line = raw.decode().rstrip("\n")
+            if line.startswith("event: "):
+                event = line[7:]
+            elif line.startswith("data: "):
+                out.append((event, line[6:]))
+                event = "message"
+                if len(out) == n or out[-1][0] == "end":
+                    return out
+    return out
+
+
+def test_the_stream_sends_the_layout_then_frames_then_end_and_a_late_page_gets_the_layout(tmp_path):
+    pipe, thread, result = live_run(tmp_path / "run", viewer={"realtime": "off", "wait": "on"})
+    url = url_of(pipe, thread)
+    first = read_events(url + "events", 10_000)
+    thread.join(30)
+    names = [e for e, _ in first]
+    assert names[0] == "layout" and names[-1] == "end" and set(names[1:-1]) == {"message"}
+    frames = [json.loads(d) for e, d in first if e == "message"]
+    assert [f["k"] for f in frames] == list(range(120)) and result["viewer_pages"] == 1
+    layout = json.loads(first[0][1])
+    assert all(len(f["v"]) == sum(size for _, _, size in layout) for f in frames)
+    # the values are the channels' own: the mcs sent is channels.csv's
+    mcs = np.loadtxt(tmp_path / "run" / "channels.csv", delimiter=",", skiprows=1,
+                     usecols=open(tmp_path / "run" / "channels.csv").readline().strip().split(",").index("mcs"))
+    np.testing.assert_allclose([f["mcs"] for f in frames], mcs, atol=1e-5)
+
+
+def test_a_page_that_cannot_keep_up_loses_its_oldest_frames_not_the_newest():
+    live = LiveServer({"index.html": b"x"}, "127.0.0.1", 0)
+    try:
+        q = live.join()
+        live.push("layout", "[]")
+        for k in range(BACKLOG + 50):
+            live.push("frame", str(k))
+        got = [q.get_nowait() for _ in range(q.qsize())]
+        assert len(got) == BACKLOG and got[-1] == ("frame", str(BACKLOG + 49))
+        late = live.join()
+        assert late.get_nowait() == ("layout", "[]") and late.empty()
+    finally:
+        live.stop()
+
+
+def test_bad_settings_are_one_line(tmp_path):
+    r = laughlab("output=viewer", "output.viewer.wait=maybe", f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 2 and r.stderr.strip().splitlines() == [
+        "laughlab: error: bad parameter in output.viewer: wait must be auto, on or off (got 'maybe')"]
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_microphone_session_does_not_wait_for_a_page_and_sends_every_frame(monkeypatch, tmp_path, capsys):
+    """Live input is sent as it comes (not paced, no wait for a page): the session starts at once."""
+    from test_mic_session import mic_pipe, noise
+    from test_sources import FakeSoundDevice
+
+    pipe = mic_pipe(monkeypatch, FakeSoundDevice(noise(2)), "input.duration_s=1",
+                    outputs={"csv": {}, "viewer": {"port": 0}})
+    sink = next(s for s in pipe.sinks if s.name == "viewer")
+    metrics = pipeline.execute(pipe, tmp_path)
+    assert metrics["viewer_frames"] == 60 and not sink.paced
+    err = capsys.readouterr().err
+    assert f"laughlab: watch it live at {sink.url}\n" in err and "the run starts when the page opens" not in err
+    assert f"viewer: 60 frames sent to no page at {sink.url}" in err
