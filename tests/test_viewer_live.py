@@ -164,3 +164,12 @@ def test_a_microphone_session_does_not_wait_for_a_page_and_sends_every_frame(mon
     err = capsys.readouterr().err
     assert f"laughlab: watch it live at {sink.url}\n" in err and "the run starts when the page opens" not in err
     assert f"viewer: 60 frames sent to no page at {sink.url}" in err
+
+
+def test_a_host_that_is_not_an_address_is_one_line_naming_the_setting(tmp_path):
+    r = laughlab("output=viewer", "output.viewer.host=not-an-address.invalid", "input.duration_s=0.5",
+                 f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert r.stderr.startswith("laughlab: error: cannot listen on output.viewer.host=not-an-address.invalid: it is not "
+                               "an address")
+    assert not (tmp_path / "r").exists()

@@ -72,7 +72,7 @@ class LiveServer:
         self.layout: str | None = None
         self.pages = 0
         self.opened = threading.Event()
-        self.httpd = http_server(files, port, base=_LiveHandler, host=host, live=self)
+        self.httpd = http_server(files, port, base=_LiveHandler, host=host, flag="output.viewer.host=", live=self)
         self.thread = threading.Thread(target=self.httpd.serve_forever, name="laughlab-viewer", daemon=True)
         self.thread.start()
 

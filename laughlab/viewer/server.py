@@ -394,10 +394,11 @@ def server(run_dir: str | Path, port: int = DEFAULT_PORT, character: str | Path 
 
 
 def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: str = "127.0.0.1",
-                **attrs) -> ThreadingHTTPServer:
+                flag: str = "--host ", **attrs) -> ThreadingHTTPServer:
     """A threaded server of ``files`` (URL path -> bytes or a path) with byte ranges, on ``host``:``port``
     (a free port if that one is taken); ``base`` a subclass of the handler adding routes, ``attrs`` its
-    class attributes (also used by ``laughlab.study.server``)."""
+    class attributes (also used by ``laughlab.study.server``); ``flag``: how the user set the host, for the
+    error line (``output.viewer.host=`` for the live viewer)."""
     handler = type("Handler", (base or _Handler,), {"files": files, **attrs})
     handler.extensions_map = {**SimpleHTTPRequestHandler.extensions_map, ".js": "text/javascript",
                               ".glb": "model/gltf-binary", ".json": "application/json", ".wav": "audio/wav",
@@ -415,10 +416,10 @@ def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: 
                 raise
             return cls((host, 0), partial(handler))  # the port is taken: the system picks one
     except (socket.gaierror, OverflowError) as exc:
-        raise LaughlabError(f"cannot listen on --host {host}: it is not an address ({exc.args[-1]}); use 127.0.0.1 "
+        raise LaughlabError(f"cannot listen on {flag}{host}: it is not an address ({exc.args[-1]}); use 127.0.0.1 "
                             "(this computer), 0.0.0.0 (every network) or one of this computer's addresses") from None
     except OSError as exc:
-        raise LaughlabError(f"cannot listen on --host {host}: {exc.strerror or exc} (not an address of this "
+        raise LaughlabError(f"cannot listen on {flag}{host}: {exc.strerror or exc} (not an address of this "
                             "computer?); use 127.0.0.1 (this computer), 0.0.0.0 (every network) or one of "
                             "this computer's addresses") from None
 
