@@ -123,6 +123,9 @@ class ViewerSink(Sink):
             self.server.push("layout", json.dumps(layout, separators=(",", ":")))
         mcs = np.asarray(chunk.channels.get("mcs", np.zeros(n)), dtype=np.float64).reshape(-1)
         energy = np.asarray(chunk.channels.get("energy", np.zeros(n)), dtype=np.float64).reshape(-1)
+        events = [[] for _ in range(n)]   # each clip event on the frame whose time it falls within
+        for e in chunk.events:
+            events[min(n - 1, int(np.searchsorted(chunk.times, e.time_s - 0.5 / self.run.fps)))].append(e)
         for i in range(n):
             if self.paced:   # frame k is due (k + 1) / fps after the start, when its audio would have been heard
                 if self.origin_ns is None:
@@ -130,7 +133,8 @@ class ViewerSink(Sink):
                 wait = self.origin_ns + (self.n + 1) * self.dt_ns - time.perf_counter_ns()
                 if wait > 0:
                     time.sleep(wait / 1e9)
-            self.server.push("frame", frame_message(self.n, float(chunk.times[i]), values[i], mcs[i], energy[i]))
+            self.server.push("frame", frame_message(self.n, float(chunk.times[i]), values[i], mcs[i], energy[i],
+                                                      events[i]))
             self.n += 1
 
     def metrics(self) -> dict:

@@ -113,20 +113,27 @@ def read_events(url: str, n: int) -> list[tuple[str, str]]:
 
 
 def test_the_stream_sends_the_layout_then_frames_then_end_and_a_late_page_gets_the_layout(tmp_path):
-    pipe, thread, result = live_run(tmp_path / "run", viewer={"realtime": "off", "wait": "on"})
+    pipe, thread, result = live_run(tmp_path / "run", "input.duration_s=3", viewer={"realtime": "off", "wait": "on"})
     url = url_of(pipe, thread)
     first = read_events(url + "events", 10_000)
     thread.join(30)
     names = [e for e, _ in first]
     assert names[0] == "layout" and names[-1] == "end" and set(names[1:-1]) == {"message"}
     frames = [json.loads(d) for e, d in first if e == "message"]
-    assert [f["k"] for f in frames] == list(range(120)) and result["viewer_pages"] == 1
+    assert [f["k"] for f in frames] == list(range(180)) and result["viewer_pages"] == 1
     layout = json.loads(first[0][1])
     assert all(len(f["v"]) == sum(size for _, _, size in layout) for f in frames)
     # the values are the channels' own: the mcs sent is channels.csv's
     mcs = np.loadtxt(tmp_path / "run" / "channels.csv", delimiter=",", skiprows=1,
                      usecols=open(tmp_path / "run" / "channels.csv").readline().strip().split(",").index("mcs"))
     np.testing.assert_allclose([f["mcs"] for f in frames], mcs, atol=1e-5)
+    # the clips on the frames events.csv puts them: the strip's blocks
+    import csv
+
+    with open(tmp_path / "run" / "events.csv", newline="") as fh:
+        wanted = [(e["event"], e["clip"], round(float(e["time"]) * 60)) for e in csv.DictReader(fh)]
+    sent = [(kind, clip, f["k"]) for f in frames for kind, clip, _ in f.get("clips", [])]
+    assert sent == wanted and any(kind == "start" for kind, _, _ in sent)
 
 
 def test_a_page_that_cannot_keep_up_loses_its_oldest_frames_not_the_newest():

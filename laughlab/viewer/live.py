@@ -5,7 +5,8 @@ playing the animation baked into ``character.glb`` it applies, frame by frame, t
 hold (:func:`laughlab.io.gltf.mannequin_tracks`, or :func:`laughlab.avatar.bake.avatar_tracks` on a user's
 avatar), sent over Server-Sent Events (``/events``; WHATWG HTML Living Standard, 9.2). Messages: ``layout``
 (the tracks, ``[node, path, size]``, when they start or change), a frame (``{"k", "t", "v", "mcs",
-"energy"}``: its index, time in s, the tracks' values in order, and the strip's two channels), ``end``.
+"energy"}``: its index, time in s, the tracks' values in order, the strip's two channels, and ``clips``, the
+clips that start or stop on it), ``end``.
 A page opened late gets the layout, then the frames from then on; a page that cannot keep up loses its oldest
 frames (each frame is a whole pose: nothing accumulates).
 """
@@ -54,13 +55,16 @@ class Tracks:
         return layout, np.concatenate(columns, axis=1) if columns else np.zeros((n, 0))
 
 
-def frame_message(k: int, t: float, values: np.ndarray, mcs: float, energy: float) -> str:
-    """One frame's event data (JSON; values to 5 decimals, about 0.3 kB for the mannequin)."""
+def frame_message(k: int, t: float, values: np.ndarray, mcs: float, energy: float, events=()) -> str:
+    """One frame's event data (JSON; values to 5 decimals, about 0.3 kB for the mannequin); ``events``: the clips
+    that start or stop on it (:class:`laughlab.core.frame.ClipEvent`), as ``[kind, clip, energy]``."""
     def num(x: float) -> float:
         return round(float(x), 5) if math.isfinite(x) else 0.0
 
-    return json.dumps({"k": k, "t": round(t, 6), "v": [num(x) for x in values], "mcs": num(mcs),
-                       "energy": num(energy)}, separators=(",", ":"))
+    msg = {"k": k, "t": round(t, 6), "v": [num(x) for x in values], "mcs": num(mcs), "energy": num(energy)}
+    if events:
+        msg["clips"] = [[e.kind, e.clip, num(e.energy)] for e in events]
+    return json.dumps(msg, separators=(",", ":"))
 
 
 class LiveServer:

@@ -176,12 +176,15 @@ const strip = $('strip');
 const sctx = strip.getContext('2d');
 const fps = run.fps;
 const colours = ['#6fa8dc', '#e69138', '#93c47d', '#c27ba0', '#ffd966', '#76a5af', '#e06666', '#8e7cc3'];
+// now at the middle (a recorded run), or at 85% (live: nothing after it is known yet)
+const nowAt = live ? 0.85 : 0.5;
 function drawStrip(t) {
   const w = strip.width, h = strip.height, span = 8;
   sctx.clearRect(0, 0, w, h);
-  const x = (s) => (s - (t - span / 2)) / span * w;
+  const from = t - span * nowAt, to = from + span;
+  const x = (s) => (s - from) / span * w;
   const eMax = Math.max(1, ...run.clips.map((c) => c.energy), run.energy_max || 1);
-  const shown = run.clips.filter((c) => !(c.stop < t - span / 2 || c.start > t + span / 2));
+  const shown = run.clips.filter((c) => !(c.stop < from || c.start > to));
   const topOf = (c) => h - 18 - (h - 36) * c.energy / eMax;
   for (const c of shown) {
     sctx.fillStyle = colours[c.index % colours.length] + '88';
@@ -190,7 +193,7 @@ function drawStrip(t) {
   const line = (values, colour, scale) => {
     if (!values) return;
     sctx.strokeStyle = colour; sctx.lineWidth = 1.5; sctx.beginPath();
-    const i0 = Math.max(0, Math.floor((t - span / 2) * fps)), i1 = Math.min(values.length - 1, Math.ceil((t + span / 2) * fps));
+    const i0 = Math.max(0, Math.floor(from * fps)), i1 = Math.min(values.length - 1, Math.ceil(to * fps));
     for (let i = i0; i <= i1; i++) {
       const y = h - 18 - (h - 36) * Math.max(0, values[i]) / scale;
       i === i0 ? sctx.moveTo(x(i / fps), y) : sctx.lineTo(x(i / fps), y);
@@ -207,10 +210,10 @@ function drawStrip(t) {
     sctx.fillStyle = '#ccd';
     sctx.fillText(c.clip, x(c.start) + 3, y);
   }
-  sctx.strokeStyle = '#fff'; sctx.beginPath(); sctx.moveTo(w / 2, 0); sctx.lineTo(w / 2, h); sctx.stroke();
+  sctx.strokeStyle = '#fff'; sctx.beginPath(); sctx.moveTo(w * nowAt, 0); sctx.lineTo(w * nowAt, h); sctx.stroke();
   sctx.fillStyle = '#aab';
   sctx.fillText('MCS (red), laughing energy (green), clips (blocks of height e)', 8, 14);
-  for (let s = Math.ceil(t - span / 2); s <= t + span / 2; s++) sctx.fillText(s + ' s', x(s) + 2, h - 4);
+  for (let s = Math.ceil(from); s <= to; s++) sctx.fillText(s + ' s', x(s) + 2, h - 4);
 }
 
 function resize() {
@@ -300,6 +303,7 @@ function liveFrame() {
 if (live) {
   for (const id of ['play', 'seek', 'speed']) $(id).hidden = true;
   $('speed').parentElement.hidden = true;
+  const clipIndex = {};
   const es = new EventSource('./events');
   es.addEventListener('layout', (e) => {
     feed.layout = JSON.parse(e.data).map(([node, path, size]) => ({ obj: nodes[node], path, size,
@@ -314,6 +318,13 @@ if (live) {
     run.channels.mcs[f.k] = f.mcs;
     run.channels.energy[f.k] = f.energy;
     run.energy_max = Math.max(run.energy_max, f.energy);
+    for (const c of run.clips) if (c.open) c.stop = f.t;
+    for (const [kind, clip, energy] of f.clips || []) {
+      if (kind === 'start') {
+        if (!(clip in clipIndex)) clipIndex[clip] = Object.keys(clipIndex).length;
+        run.clips.push({ clip, start: f.t, stop: f.t, energy, index: clipIndex[clip], open: true });
+      } else for (const c of run.clips) if (c.open && c.clip === clip) c.open = false;
+    }
   };
   es.addEventListener('end', () => { feed.ended = true; es.close(); });
   es.onerror = () => { if (!feed.ended) { feed.lost = true; es.close(); } };
