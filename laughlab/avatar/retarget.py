@@ -151,17 +151,26 @@ def leg_height_cm(skeleton: Skeleton = HUMANOID) -> float:
     return float(rest[0, 1] - rest[feet, 1].min())
 
 
+def _constants(avatar: Avatar, skeleton: Skeleton) -> tuple:
+    """What :func:`retarget` needs of the avatar and the skeleton alone, computed once per pair and kept on the
+    avatar (the live viewer retargets one frame at a time: recomputed, they were half of a frame's 3 ms)."""
+    cache = avatar.__dict__.setdefault("_retarget_constants", {})
+    if id(skeleton) not in cache:
+        drive = drivers(avatar, skeleton)
+        rest_root = forward_kinematics(skeleton, rest_pose(skeleton)[None])[0, 0]
+        scale = avatar.leg_height_m() / (leg_height_cm(skeleton) * 0.01)
+        cache[id(skeleton)] = (skeleton, facing_matrix(avatar), drive, corrections(avatar, skeleton),
+                               {avatar.bones[b]: b for b in drive}, _rot(avatar.rest_world), _rot(avatar.rest_local),
+                               rest_root, scale)   # the skeleton kept: its id stays its own
+    return cache[id(skeleton)][1:]
+
+
 def retarget(avatar: Avatar, poses: np.ndarray, skeleton: Skeleton = HUMANOID) -> Retargeted:
     """The avatar's humanoid bones' local rotations and the hips' translation for ``poses`` (F, 3 + 3J)."""
     poses = np.atleast_2d(np.asarray(poses, dtype=np.float64))
     f = len(poses)
     _, G = global_transforms(skeleton, poses)  # (F, J, 3, 3)
-    F = facing_matrix(avatar)
-    drive = drivers(avatar, skeleton)
-    D = corrections(avatar, skeleton)
-    node_bone = {avatar.bones[b]: b for b in drive}
-    A = _rot(avatar.rest_world)
-    L_rest = _rot(avatar.rest_local)
+    F, drive, D, node_bone, A, L_rest, rest_root, scale = _constants(avatar, skeleton)
     world: dict[int, np.ndarray] = {}
     local: dict[int, np.ndarray] = {}
     for i in avatar.order:
@@ -182,9 +191,7 @@ def retarget(avatar: Avatar, poses: np.ndarray, skeleton: Skeleton = HUMANOID) -
     q[1:] *= flip  # no sign jumps between frames (LINEAR interpolation takes the short way)
     # the hips: world position, then in the hips' parent's frame
     hips = avatar.bones["hips"]
-    rest_root = forward_kinematics(skeleton, rest_pose(skeleton)[None])[0, 0]
     root = skeleton.offsets[0] + poses[:, :3]
-    scale = avatar.leg_height_m() / (leg_height_cm(skeleton) * 0.01)
     P = avatar.rest_world[hips, :3, 3] + ((root - rest_root) * 0.01 * scale) @ F.T
     p = int(avatar.parents[hips])
     if p >= 0:

@@ -350,8 +350,9 @@ def morph_weights(channels, n: int) -> np.ndarray:
     from laughlab.io.vmc import arkit_weights
 
     face = arkit_weights(channels)
-    cols = []
-    for name in MORPHS:
-        src = face[name] if name in face else channels.get(name)
-        cols.append(np.zeros(n) if src is None else np.clip(np.nan_to_num(np.asarray(src, float)), 0.0, 1.0))
-    return np.stack(cols, axis=1).astype(np.float32)
+    srcs = [face[name] if name in face else channels.get(name) for name in MORPHS]
+    have = [i for i, src in enumerate(srcs) if src is not None]
+    out = np.zeros((n, len(MORPHS)))
+    if have:   # clipped together: one call, not one per shape (a live frame's cost was numpy's call overhead)
+        out[:, have] = np.clip(np.nan_to_num(np.stack([np.asarray(srcs[i], float) for i in have], axis=1)), 0.0, 1.0)
+    return out.astype(np.float32)

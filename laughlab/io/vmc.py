@@ -136,7 +136,11 @@ def arkit_weights(channels: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     """
     names = [k for k in channels if k.startswith(ARKIT_PREFIX)]
     if names:
-        return {k[len(ARKIT_PREFIX):]: _unit(channels[k]) for k in names}
+        try:   # one clip of them all: per name, it cost a live frame 0.8 ms in numpy's call overhead
+            block = _unit(np.stack([np.asarray(channels[k], dtype=np.float64) for k in names]))
+        except ValueError:   # channels of different shapes
+            return {k[len(ARKIT_PREFIX):]: _unit(channels[k]) for k in names}
+        return {k[len(ARKIT_PREFIX):]: block[i] for i, k in enumerate(names)}
     src = dict(channels)
     if "eyes_closed" not in src and "blink" in src:
         src["eyes_closed"] = src["blink"]

@@ -61,7 +61,9 @@ def frame_message(k: int, t: float, values: np.ndarray, mcs: float, energy: floa
     def num(x: float) -> float:
         return round(float(x), 5) if math.isfinite(x) else 0.0
 
-    msg = {"k": k, "t": round(t, 6), "v": [num(x) for x in values], "mcs": num(mcs), "energy": num(energy)}
+    v = np.asarray(values, dtype=np.float64)
+    msg = {"k": k, "t": round(t, 6), "v": np.where(np.isfinite(v), np.round(v, 5), 0.0).tolist(), "mcs": num(mcs),
+           "energy": num(energy)}
     if events:
         msg["clips"] = [[e.kind, e.clip, num(e.energy)] for e in events]
     return json.dumps(msg, separators=(",", ":"))
