@@ -139,6 +139,15 @@ def textgrid_text(segs: list[Segment], duration_s: float) -> str:
 MIME_TYPES = {".wav": "audio/x-wav", ".mp3": "audio/mpeg"}
 
 
+def elan_url(path: Path) -> str:
+    """``path`` (absolute) as ELAN's own MEDIA_URL: ``file:///`` and the path with forward slashes, not
+    percent-encoded; a path starting with two slashes (a network share) keeps ``file://`` (ELAN's
+    ``FileUtility.pathToURLString``)."""
+    p = path.as_posix()
+    rest = p.lstrip("/")
+    return ("file://" if len(p) - len(rest) == 2 else "file:///") + rest
+
+
 def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None = None,
              duration_s: float = math.inf) -> str:
     """An ELAN annotation document (EAF 3.0): one time-alignable tier ``laughter``, ``laugh`` per segment.
@@ -148,7 +157,6 @@ def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None
     ``beside``, the EAF's folder, which ELAN tries when the folders have moved together); None: no link, and
     ELAN asks for the recording when the file is opened.  No time past ``duration_s`` (whole ms, rounded down)."""
     import os
-    from urllib.parse import quote
     from xml.sax.saxutils import quoteattr
 
     header = ['    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds"/>']
@@ -156,10 +164,13 @@ def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None
         media = Path(media).resolve()
         rel = Path(os.path.relpath(media, Path(beside).resolve())).as_posix() if beside is not None else media.name
         rel = rel if rel.startswith("..") else f"./{rel}"
+        # both links as ELAN writes and reads them: the path itself, not percent-encoded (ELAN's
+        # FileUtility.pathToURLString; its checkMedia opens what follows "file:" as it stands, so "day%201" or
+        # "M%C3%BCller" is a file it does not find and it asks for the recording)
         header = ['    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds">',
-                  f"        <MEDIA_DESCRIPTOR MEDIA_URL={quoteattr(media.as_uri())} "
+                  f"        <MEDIA_DESCRIPTOR MEDIA_URL={quoteattr(elan_url(media))} "
                   f"MIME_TYPE={quoteattr(MIME_TYPES.get(media.suffix.lower(), 'audio/*'))} "
-                  f"RELATIVE_MEDIA_URL={quoteattr(quote(rel))}/>",
+                  f"RELATIVE_MEDIA_URL={quoteattr(rel)}/>",
                   "    </HEADER>"]
 
     slots, anns = [], []
