@@ -226,3 +226,23 @@ def test_labels_corrected_in_place_are_not_replaced_by_overwrite(tmp_path):
         f"laughlab: error: {out} holds a.TextGrid, edited since detect wrote it, and this run would replace it; move "
         "it or choose another --out (--overwrite replaces only detect's own files, unedited)\n"), r.stderr
     assert grid.read_text() == mine
+
+
+def test_a_folders_hidden_files_and_folders_are_not_inputs(tmp_path):
+    """A review: recordings copied from a Mac to a USB drive have a ``._take1.wav`` beside each (AppleDouble, not
+    audio; hidden by ls and Finder), and the batch stopped on it; a hidden folder's copies (``.Trashes``) were
+    taken as takes. A folder's hidden files and folders are left out; a hidden file given by itself is read."""
+    rec = tmp_path / "rec"
+    (rec / "day1").mkdir(parents=True)
+    (rec / ".Trashes").mkdir()
+    t = np.arange(16000) / 16000
+    sf.write(rec / "day1" / "take1.wav", 0.1 * np.sin(2 * np.pi * 220 * t), 16000)
+    sf.write(rec / ".Trashes" / "old.wav", 0.1 * np.sin(2 * np.pi * 220 * t), 16000)
+    (rec / "day1" / "._take1.wav").write_bytes(b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X        ")
+    out = tmp_path / "out"
+    r = laughlab("detect", str(rec), "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.name[0] != ".") == \
+        ["day1", "day1/take1.TextGrid", "day1/take1.txt", "segments.csv"]
+    r = laughlab("detect", str(rec / "day1" / "._take1.wav"), "--out", str(tmp_path / "o2"))
+    assert r.returncode == 2 and "._take1.wav" in r.stderr

@@ -25,7 +25,8 @@ FORMATS = ("csv", "audacity", "textgrid", "elan")
 
 
 def inputs(paths: list[str]) -> list[tuple[Path, str]]:
-    """The audio files of ``paths`` with the name each one's outputs take: a file given by itself, its stem; a
+    """The audio files of ``paths`` (a folder's hidden files and folders left out) with the name each one's
+    outputs take: a file given by itself, its stem; a
     file found in a given folder, its path from that folder without the suffix (``day1/take1``), so a tree of
     recordings keeps its layout in ``--out`` and repeated take names in different folders do not collide."""
     from laughlab.io.audio import OTHER_MEDIA
@@ -34,7 +35,10 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
     for p in paths:
         q = Path(p).expanduser()
         if q.is_dir():
-            files = sorted(f for f in q.rglob("*") if f.is_file())
+            # not a hidden file or one in a hidden folder: macOS's "._take1.wav" beside each recording copied to a
+            # USB drive is not audio and stopped the batch; .Trashes, .git hold no takes (a review)
+            files = sorted(f for f in q.rglob("*") if f.is_file()
+                           and not any(part.startswith(".") for part in f.relative_to(q).parts))
             found = [f for f in files if f.suffix.lower() in AUDIO_SUFFIXES]
             media = [f for f in files if f.suffix.lower() in OTHER_MEDIA]
             other.update((f.resolve(), f) for f in media)
