@@ -333,6 +333,17 @@ def test_a_folder_recording_takes_its_audacity_labels_as_truth(tmp_path):
     assert list(t.bouts.onset_s) == [0.1] and list(t.calls.offset_s) == [0.3]
 
 
+def test_a_folders_hidden_macos_companions_are_not_recordings(tmp_path):
+    """A detect review: a corpus folder copied from a Mac to a USB drive holds "._l.wav" (AppleDouble, not audio,
+    hidden by ls and Finder) beside each recording; the experiment stopped on it as a bad recording."""
+    from laughlab.harness.corpus import folder_items
+
+    sf.write(tmp_path / "l.wav", np.zeros(16000), 16000)
+    (tmp_path / "._l.wav").write_bytes(b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X        ")
+    (item,) = folder_items(tmp_path)
+    assert item.id == "rec-l"
+
+
 def test_a_bad_label_stops_the_experiment_with_one_line(tmp_path):
     from laughlab.harness.corpus import folder_items
 
