@@ -2,6 +2,7 @@
 nothing written; with ``--skip-unreadable`` each damaged file is left out in one line on stderr and the rest is
 written, and the closing line says how many were skipped and how many had no laughter."""
 import csv
+import re
 
 import numpy as np
 import pytest
@@ -135,6 +136,14 @@ def test_two_inputs_of_one_name_are_both_named(tmp_path):
         inputs([str(tmp_path)])
     assert str(e.value) == (f"two inputs share the name 'a' ({tmp_path / 'a.flac'}, {tmp_path / 'a.wav'}): their "
                             "label files would collide; run them separately (--out)")
+    # the same take name in two folders, given file by file (a shell glob, rec/*/*.wav; the detect review): their
+    # folder names each by its path from it, and the line says so
+    for day in ("day1", "day2"):
+        (tmp_path / "rec" / day).mkdir(parents=True)
+        (tmp_path / "rec" / day / "take1.wav").write_bytes(b"x")
+    with pytest.raises(LaughlabError, match=r"give their folder instead \(" + re.escape(str((tmp_path / "rec").resolve()))
+                       + r": each file found in it is named by its path from it\)"):
+        inputs([str(tmp_path / "rec" / "day1" / "take1.wav"), str(tmp_path / "rec" / "day2" / "take1.wav")])
 
 
 def test_a_stopped_detect_closes_its_progress_before_the_error_line(tmp_path, monkeypatch):

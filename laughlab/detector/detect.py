@@ -12,6 +12,7 @@ written, or with ``--skip-unreadable`` is left out in one line on stderr.
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -59,9 +60,14 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
     names = [n for _, n in out]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        both = [str(f) for f, n in out if n == dup[0]]
-        raise LaughlabError(f"two inputs share the name {dup[0]!r} ({', '.join(both)}): their label files would "
-                            "collide; run them separately (--out)")
+        both = [f for f, n in out if n == dup[0]]
+        # files of one name in different folders (a shell glob, rec/*/*.wav): their common folder names each by its
+        # path from it (a review: the line only said to run them separately)
+        common = os.path.commonpath([str(f.resolve().parent) for f in both])
+        fix = (f"give their folder instead ({common}: each file found in it is named by its path from it) or run "
+               "them separately (--out)" if len({f.resolve().parent for f in both}) > 1 else "run them separately (--out)")
+        raise LaughlabError(f"two inputs share the name {dup[0]!r} ({', '.join(map(str, both))}): their label files "
+                            f"would collide; {fix}")
     return out
 
 
