@@ -344,6 +344,27 @@ def test_a_folders_hidden_macos_companions_are_not_recordings(tmp_path):
     assert item.id == "rec-l"
 
 
+def test_a_textgrid_saved_by_praat_as_binary_is_refused_saying_so(tmp_path):
+    """A detect review: detect's TextGrid corrected in Praat and saved with "Save as binary file" stopped the corpus
+    with praatio's "'utf-8' codec can't decode byte 0xa0"; the line now says what the file is and what to do."""
+    pytest.importorskip("parselmouth")
+    from parselmouth.praat import call
+
+    from laughlab.harness.corpus import folder_items
+
+    sf.write(tmp_path / "l.wav", np.zeros(16000), 16000)
+    tg = call("Create TextGrid", 0.0, 1.0, "laughter", "")
+    call(tg, "Insert boundary", 1, 0.3)
+    call(tg, "Set interval text", 1, 2, "laugh")
+    call(tg, "Save as binary file", str(tmp_path / "l.TextGrid"))
+    with pytest.raises(LaughlabError, match=r"l\.TextGrid: binary Praat files are not read; save it in Praat as a "
+                                            r"text file\)"):
+        folder_items(tmp_path)
+    call(tg, "Save as text file", str(tmp_path / "l.TextGrid"))   # the same grid as text: read
+    (item,) = folder_items(tmp_path)
+    assert item.truth is not None
+
+
 def test_a_bad_label_stops_the_experiment_with_one_line(tmp_path):
     from laughlab.harness.corpus import folder_items
 
