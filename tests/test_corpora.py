@@ -333,6 +333,20 @@ def test_a_folder_recording_takes_its_audacity_labels_as_truth(tmp_path):
     assert list(t.bouts.onset_s) == [0.1] and list(t.calls.offset_s) == [0.3]
 
 
+def test_a_folder_recording_takes_its_elan_document_as_truth(tmp_path):
+    """A detect review: detect's NAME.eaf (corrected in ELAN) beside its recording passed the corpus' check, and then
+    every trial stopped in a pandas traceback: the runner's Truth.load read the .eaf as a CSV."""
+    from laughlab.detector.segments import Segment, eaf_text
+    from laughlab.harness.corpus import folder_items
+    from laughlab.harness.trialdata import Truth
+
+    sf.write(tmp_path / "l.wav", np.zeros(16000), 16000)
+    (tmp_path / "l.eaf").write_text(eaf_text([Segment(0.1, 0.8, 0.9)], tmp_path / "l.wav", tmp_path, 1.0))
+    (item,) = folder_items(tmp_path)
+    t = Truth.load(item.truth)
+    assert list(t.bouts.onset_s) == [0.1] and list(t.bouts.offset_s) == [0.8] and t.calls.empty
+
+
 def test_a_folders_hidden_macos_companions_are_not_recordings(tmp_path):
     """A detect review: a corpus folder copied from a Mac to a USB drive holds "._l.wav" (AppleDouble, not audio,
     hidden by ls and Finder) beside each recording; the experiment stopped on it as a bad recording."""
