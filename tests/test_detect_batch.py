@@ -255,3 +255,19 @@ def test_a_folders_hidden_files_and_folders_are_not_inputs(tmp_path):
         ["day1", "day1/take1.TextGrid", "day1/take1.txt", "segments.csv"]
     r = laughlab("detect", str(rec / "day1" / "._take1.wav"), "--out", str(tmp_path / "o2"))
     assert r.returncode == 2 and "._take1.wav" in r.stderr
+
+
+def test_a_linked_session_folder_is_searched_once_and_a_link_loop_ends(tmp_path):
+    """The detect review: a folder of recordings whose sessions are links to folders elsewhere (another drive) gave
+    only the real folders' files, the linked ones left out without a word (rglob does not follow links). Linked
+    folders are searched, each real folder once (a link back to a parent is no loop)."""
+    from laughlab.detector.detect import inputs
+
+    rec, elsewhere = tmp_path / "rec", tmp_path / "drive" / "s2"
+    (rec / "s1").mkdir(parents=True)
+    elsewhere.mkdir(parents=True)
+    for f in (rec / "s1" / "take.wav", elsewhere / "take.wav"):
+        f.write_bytes(b"x")
+    (rec / "s2").symlink_to(elsewhere, target_is_directory=True)
+    (rec / "s1" / "up").symlink_to(rec, target_is_directory=True)   # a loop
+    assert [n for _, n in inputs([str(rec)])] == ["s1/take", "s2/take"]

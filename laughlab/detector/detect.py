@@ -36,10 +36,7 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
     for p in paths:
         q = Path(p).expanduser()
         if q.is_dir():
-            # not a hidden file or one in a hidden folder: macOS's "._take1.wav" beside each recording copied to a
-            # USB drive is not audio and stopped the batch; .Trashes, .git hold no takes (a review)
-            files = sorted(f for f in q.rglob("*") if f.is_file()
-                           and not any(part.startswith(".") for part in f.relative_to(q).parts))
+            files = _folder_files(q)
             found = [f for f in files if f.suffix.lower() in AUDIO_SUFFIXES]
             media = [f for f in files if f.suffix.lower() in OTHER_MEDIA]
             other.update((f.resolve(), f) for f in media)
@@ -69,6 +66,24 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
         raise LaughlabError(f"two inputs share the name {dup[0]!r} ({', '.join(map(str, both))}): their label files "
                             f"would collide; {fix}")
     return out
+
+
+def _folder_files(folder: Path) -> list[Path]:
+    """The files below ``folder``, sorted, through linked folders too (each real folder once: a link to a parent is
+    no loop), and not its hidden files and folders: macOS's "._take1.wav" beside each recording copied to a USB
+    drive is not audio and stopped the batch; .Trashes, .git hold no takes (the detect review, as was a linked
+    session folder left out without a word: rglob does not follow links)."""
+    out, real = [], {os.path.realpath(folder)}
+    for d, dirs, names in os.walk(folder, followlinks=True):
+        keep = []
+        for sub in sorted(dirs):
+            r = os.path.realpath(os.path.join(d, sub))
+            if not sub.startswith(".") and r not in real:
+                real.add(r)
+                keep.append(sub)
+        dirs[:] = keep
+        out += [Path(d, n) for n in names if not n.startswith(".") and os.path.isfile(os.path.join(d, n))]
+    return sorted(out)
 
 
 def _unread(files: list[Path]) -> str:
