@@ -663,6 +663,12 @@ def test_elan_file_holds_the_segments_in_milliseconds(tmp_path):
     assert Path(media.get("MEDIA_URL").split(":", 1)[1]).is_file()
     assert (out / media.get("RELATIVE_MEDIA_URL")).resolve() == rec.resolve()
     assert S.elan_url(Path("//server/share/a.wav")) == "file://server/share/a.wav"   # ELAN's form of a share
+    for ext in ("mp3", "flac"):   # ELAN's generic audio type (an mp3's "audio/mpeg" was none of ELAN's: a video to it)
+        rec2 = rec.with_suffix("." + ext)
+        rec2.write_bytes(b"")
+        S.write_outputs(out, [("rec", 3.0, segs, rec2)], ("elan",))
+        media = ET.fromstring((out / "rec.eaf").read_text()).find("HEADER").find("MEDIA_DESCRIPTOR")
+        assert media.get("MIME_TYPE") == "audio/*"
 
 
 def test_detect_replaces_nothing_without_asking_and_leaves_no_stale_segments(tmp_path):

@@ -135,8 +135,9 @@ def textgrid_text(segs: list[Segment], duration_s: float) -> str:
     return "\n".join(lines) + "\n"
 
 
-#: ELAN's MIME types of the recordings it links (any other audio: ``audio/*``)
-MIME_TYPES = {".wav": "audio/x-wav", ".mp3": "audio/mpeg"}
+#: ELAN's MIME types of the recordings it links (any other audio: ``audio/*``, ELAN's GENERIC_AUDIO_TYPE, which it
+#: gives an mp3 too: "audio/mpeg" is none of ELAN's types, and it took such an mp3 for a video, not audio)
+MIME_TYPES = {".wav": "audio/x-wav"}
 
 
 def elan_url(path: Path) -> str:
