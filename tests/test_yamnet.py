@@ -722,6 +722,7 @@ def test_detect_overwrite_refuses_files_no_detect_wrote(tmp_path):
     (["nothing.wav"], "input not found: nothing.wav"),
     (["--threshold", "2", "x"], "--threshold must be in [0, 1]"),
     (["--formats", "eaf", "x"], "unknown format eaf"),
+    (["--smooth", "4", "x"], "--smooth must be an odd number of windows (a centred average: 1, 3, 5, ...; got 4)"),
 ])
 def test_detect_bad_input_is_one_line(tmp_path, args, message):
     if "x" in args:

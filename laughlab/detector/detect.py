@@ -61,8 +61,9 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
         # files of one name in different folders (a shell glob, rec/*/*.wav): their common folder names each by its
         # path from it (a review: the line only said to run them separately)
         common = os.path.commonpath([str(f.resolve().parent) for f in both])
+        apart = len({f.resolve().parent for f in both}) > 1
         fix = (f"give their folder instead ({common}: each file found in it is named by its path from it) or run "
-               "them separately (--out)" if len({f.resolve().parent for f in both}) > 1 else "run them separately (--out)")
+               "them separately (--out)" if apart else "run them separately (--out)")
         raise LaughlabError(f"two inputs share the name {dup[0]!r} ({', '.join(map(str, both))}): their label files "
                             f"would collide; {fix}")
     return out
@@ -147,7 +148,8 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--threshold", type=float, default=0.5, help="laughter probability threshold (default 0.5)")
     ap.add_argument("--min-length", type=float, default=0.2, help="shortest segment kept (s, default 0.2)")
     ap.add_argument("--hop", type=float, default=0.5, help="time between model windows (s, default 0.5)")
-    ap.add_argument("--smooth", type=int, default=3, help="centred moving average over this many windows (default 3)")
+    ap.add_argument("--smooth", type=int, default=3,
+                    help="centred moving average over this many windows, odd (default 3)")
     ap.add_argument("--formats", default="csv,audacity,textgrid", help="comma-separated: csv, audacity, textgrid, elan (default: the first three)")
     ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto")
     ap.add_argument("--overwrite", action="store_true",
@@ -164,8 +166,11 @@ def main(argv: list[str]) -> None:
         raise LaughlabError(f"--min-length must be >= 0 (got {ns.min_length})")
     if not 0.05 <= ns.hop <= 2.0:
         raise LaughlabError(f"--hop must be in [0.05, 2] s (got {ns.hop})")
-    if ns.smooth < 1:
-        raise LaughlabError(f"--smooth must be >= 1 (got {ns.smooth})")
+    if ns.smooth < 1 or ns.smooth % 2 == 0:   # an even count is not centred: 4 looked a window further ahead than back,
+        # its segments half a hop late (the detect review: --hop 0.1 --smooth 4 started where --smooth 1 did, 3 and 5 a
+        # window earlier)
+        raise LaughlabError(f"--smooth must be an odd number of windows (a centred average: 1, 3, 5, ...; got "
+                            f"{ns.smooth})")
     formats = tuple(f.strip() for f in ns.formats.split(",") if f.strip())
     bad = [f for f in formats if f not in FORMATS]
     if bad or not formats:
