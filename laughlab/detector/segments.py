@@ -163,15 +163,18 @@ def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None
     header = ['    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds"/>']
     if media is not None:
         media = Path(media).resolve()
-        rel = Path(os.path.relpath(media, Path(beside).resolve())).as_posix() if beside is not None else media.name
-        rel = rel if rel.startswith("..") else f"./{rel}"
+        try:
+            rel = Path(os.path.relpath(media, Path(beside).resolve())).as_posix() if beside is not None else media.name
+            rel = rel if rel.startswith("..") else f"./{rel}"
+        except ValueError:   # on Windows, another drive than --out's: no relative path (ELAN's getRelativePath: null)
+            rel = None
         # both links as ELAN writes and reads them: the path itself, not percent-encoded (ELAN's
         # FileUtility.pathToURLString; its checkMedia opens what follows "file:" as it stands, so "day%201" or
         # "M%C3%BCller" is a file it does not find and it asks for the recording)
         header = ['    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds">',
                   f"        <MEDIA_DESCRIPTOR MEDIA_URL={quoteattr(elan_url(media))} "
-                  f"MIME_TYPE={quoteattr(MIME_TYPES.get(media.suffix.lower(), 'audio/*'))} "
-                  f"RELATIVE_MEDIA_URL={quoteattr(rel)}/>",
+                  f"MIME_TYPE={quoteattr(MIME_TYPES.get(media.suffix.lower(), 'audio/*'))}"
+                  + (f" RELATIVE_MEDIA_URL={quoteattr(rel)}" if rel is not None else "") + "/>",
                   "    </HEADER>"]
 
     slots, anns = [], []
