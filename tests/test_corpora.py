@@ -333,6 +333,52 @@ def test_a_folder_recording_takes_its_audacity_labels_as_truth(tmp_path):
     assert list(t.bouts.onset_s) == [0.1] and list(t.calls.offset_s) == [0.3]
 
 
+def test_a_folder_recording_takes_its_elan_document_as_truth(tmp_path):
+    """A detect review: detect's NAME.eaf (corrected in ELAN) beside its recording passed the corpus' check, and then
+    every trial stopped in a pandas traceback: the runner's Truth.load read the .eaf as a CSV."""
+    from laughlab.detector.segments import Segment, eaf_text
+    from laughlab.harness.corpus import folder_items
+    from laughlab.harness.trialdata import Truth
+
+    sf.write(tmp_path / "l.wav", np.zeros(16000), 16000)
+    (tmp_path / "l.eaf").write_text(eaf_text([Segment(0.1, 0.8, 0.9)], tmp_path / "l.wav", tmp_path, 1.0))
+    (item,) = folder_items(tmp_path)
+    t = Truth.load(item.truth)
+    assert list(t.bouts.onset_s) == [0.1] and list(t.bouts.offset_s) == [0.8] and t.calls.empty
+
+
+def test_a_folders_hidden_macos_companions_are_not_recordings(tmp_path):
+    """A detect review: a corpus folder copied from a Mac to a USB drive holds "._l.wav" (AppleDouble, not audio,
+    hidden by ls and Finder) beside each recording; the experiment stopped on it as a bad recording."""
+    from laughlab.harness.corpus import folder_items
+
+    sf.write(tmp_path / "l.wav", np.zeros(16000), 16000)
+    (tmp_path / "._l.wav").write_bytes(b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X        ")
+    (item,) = folder_items(tmp_path)
+    assert item.id == "rec-l"
+
+
+def test_a_textgrid_saved_by_praat_as_binary_is_refused_saying_so(tmp_path):
+    """A detect review: detect's TextGrid corrected in Praat and saved with "Save as binary file" stopped the corpus
+    with praatio's "'utf-8' codec can't decode byte 0xa0"; the line now says what the file is and what to do."""
+    pytest.importorskip("parselmouth")
+    from parselmouth.praat import call
+
+    from laughlab.harness.corpus import folder_items
+
+    sf.write(tmp_path / "l.wav", np.zeros(16000), 16000)
+    tg = call("Create TextGrid", 0.0, 1.0, "laughter", "")
+    call(tg, "Insert boundary", 1, 0.3)
+    call(tg, "Set interval text", 1, 2, "laugh")
+    call(tg, "Save as binary file", str(tmp_path / "l.TextGrid"))
+    with pytest.raises(LaughlabError, match=r"l\.TextGrid: binary Praat files are not read; save it in Praat as a "
+                                            r"text file\)"):
+        folder_items(tmp_path)
+    call(tg, "Save as text file", str(tmp_path / "l.TextGrid"))   # the same grid as text: read
+    (item,) = folder_items(tmp_path)
+    assert item.truth is not None
+
+
 def test_a_bad_label_stops_the_experiment_with_one_line(tmp_path):
     from laughlab.harness.corpus import folder_items
 

@@ -2,6 +2,7 @@
 nothing written; with ``--skip-unreadable`` each damaged file is left out in one line on stderr and the rest is
 written, and the closing line says how many were skipped and how many had no laughter."""
 import csv
+import re
 
 import numpy as np
 import pytest
@@ -135,6 +136,14 @@ def test_two_inputs_of_one_name_are_both_named(tmp_path):
         inputs([str(tmp_path)])
     assert str(e.value) == (f"two inputs share the name 'a' ({tmp_path / 'a.flac'}, {tmp_path / 'a.wav'}): their "
                             "label files would collide; run them separately (--out)")
+    # the same take name in two folders, given file by file (a shell glob, rec/*/*.wav; the detect review): their
+    # folder names each by its path from it, and the line says so
+    for day in ("day1", "day2"):
+        (tmp_path / "rec" / day).mkdir(parents=True)
+        (tmp_path / "rec" / day / "take1.wav").write_bytes(b"x")
+    with pytest.raises(LaughlabError, match=r"give their folder instead \(" + re.escape(str((tmp_path / "rec").resolve()))
+                       + r": each file found in it is named by its path from it\)"):
+        inputs([str(tmp_path / "rec" / "day1" / "take1.wav"), str(tmp_path / "rec" / "day2" / "take1.wav")])
 
 
 def test_a_stopped_detect_closes_its_progress_before_the_error_line(tmp_path, monkeypatch):
@@ -226,3 +235,39 @@ def test_labels_corrected_in_place_are_not_replaced_by_overwrite(tmp_path):
         f"laughlab: error: {out} holds a.TextGrid, edited since detect wrote it, and this run would replace it; move "
         "it or choose another --out (--overwrite replaces only detect's own files, unedited)\n"), r.stderr
     assert grid.read_text() == mine
+
+
+def test_a_folders_hidden_files_and_folders_are_not_inputs(tmp_path):
+    """A review: recordings copied from a Mac to a USB drive have a ``._take1.wav`` beside each (AppleDouble, not
+    audio; hidden by ls and Finder), and the batch stopped on it; a hidden folder's copies (``.Trashes``) were
+    taken as takes. A folder's hidden files and folders are left out; a hidden file given by itself is read."""
+    rec = tmp_path / "rec"
+    (rec / "day1").mkdir(parents=True)
+    (rec / ".Trashes").mkdir()
+    t = np.arange(16000) / 16000
+    sf.write(rec / "day1" / "take1.wav", 0.1 * np.sin(2 * np.pi * 220 * t), 16000)
+    sf.write(rec / ".Trashes" / "old.wav", 0.1 * np.sin(2 * np.pi * 220 * t), 16000)
+    (rec / "day1" / "._take1.wav").write_bytes(b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X        ")
+    out = tmp_path / "out"
+    r = laughlab("detect", str(rec), "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.name[0] != ".") == \
+        ["day1", "day1/take1.TextGrid", "day1/take1.txt", "segments.csv"]
+    r = laughlab("detect", str(rec / "day1" / "._take1.wav"), "--out", str(tmp_path / "o2"))
+    assert r.returncode == 2 and "._take1.wav" in r.stderr
+
+
+def test_a_linked_session_folder_is_searched_once_and_a_link_loop_ends(tmp_path):
+    """The detect review: a folder of recordings whose sessions are links to folders elsewhere (another drive) gave
+    only the real folders' files, the linked ones left out without a word (rglob does not follow links). Linked
+    folders are searched, each real folder once (a link back to a parent is no loop)."""
+    from laughlab.detector.detect import inputs
+
+    rec, elsewhere = tmp_path / "rec", tmp_path / "drive" / "s2"
+    (rec / "s1").mkdir(parents=True)
+    elsewhere.mkdir(parents=True)
+    for f in (rec / "s1" / "take.wav", elsewhere / "take.wav"):
+        f.write_bytes(b"x")
+    (rec / "s2").symlink_to(elsewhere, target_is_directory=True)
+    (rec / "s1" / "up").symlink_to(rec, target_is_directory=True)   # a loop
+    assert [n for _, n in inputs([str(rec)])] == ["s1/take", "s2/take"]

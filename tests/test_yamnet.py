@@ -648,9 +648,10 @@ def test_elan_file_holds_the_segments_in_milliseconds(tmp_path):
     S.write_outputs(out, [("rec", 3.0, segs)], ("elan",))
     assert [p.name for p in out.iterdir()] == ["rec.eaf"] and (out / "rec.eaf").read_text() == S.eaf_text(segs)
     # with the recording (a second review: ELAN opened the files with no audio): linked by its absolute file URL
-    # and by its path from the EAF's folder, both of which lead to it
+    # and by its path from the EAF's folder, both of which lead to it the way ELAN follows them (its checkMedia
+    # opens what follows "file:" as it stands, and joins the relative path to the EAF's folder: no
+    # percent-decoding, so a space or an accent in a name is written as itself; a review found "day%201")
     from pathlib import Path
-    from urllib.parse import unquote, urlparse
 
     rec = tmp_path / "takes" / "day 1" / "rec é.wav"
     rec.parent.mkdir(parents=True)
@@ -658,8 +659,28 @@ def test_elan_file_holds_the_segments_in_milliseconds(tmp_path):
     S.write_outputs(out, [("rec", 3.0, segs, rec)], ("elan",))
     media = ET.fromstring((out / "rec.eaf").read_text()).find("HEADER").find("MEDIA_DESCRIPTOR")
     assert media.get("MIME_TYPE") == "audio/x-wav"
-    assert Path(unquote(urlparse(media.get("MEDIA_URL")).path)) == rec.resolve()
-    assert (out / unquote(media.get("RELATIVE_MEDIA_URL"))).resolve() == rec.resolve()
+    assert media.get("MEDIA_URL") == "file://" + rec.resolve().as_posix()
+    assert Path(media.get("MEDIA_URL").split(":", 1)[1]).is_file()
+    assert (out / media.get("RELATIVE_MEDIA_URL")).resolve() == rec.resolve()
+    assert S.elan_url(Path("//server/share/a.wav")) == "file://server/share/a.wav"   # ELAN's form of a share
+    # on Windows a recording on another drive than --out has no relative path (ntpath.relpath raises ValueError):
+    # the absolute link alone, as ELAN writes it then, not a traceback (the detect review)
+    import ntpath
+    import os
+
+    def other_drive(path, start):
+        return ntpath.relpath("D:\\rec\\a.wav", "C:\\out")
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(os.path, "relpath", other_drive)
+        media = ET.fromstring(S.eaf_text(segs, rec, out)).find("HEADER").find("MEDIA_DESCRIPTOR")
+    assert media.get("RELATIVE_MEDIA_URL") is None and media.get("MEDIA_URL") == S.elan_url(rec.resolve())
+    for ext in ("mp3", "flac"):   # ELAN's generic audio type (an mp3's "audio/mpeg" was none of ELAN's: a video to it)
+        rec2 = rec.with_suffix("." + ext)
+        rec2.write_bytes(b"")
+        S.write_outputs(out, [("rec", 3.0, segs, rec2)], ("elan",))
+        media = ET.fromstring((out / "rec.eaf").read_text()).find("HEADER").find("MEDIA_DESCRIPTOR")
+        assert media.get("MIME_TYPE") == "audio/*"
 
 
 def test_detect_replaces_nothing_without_asking_and_leaves_no_stale_segments(tmp_path):
@@ -713,6 +734,7 @@ def test_detect_overwrite_refuses_files_no_detect_wrote(tmp_path):
     (["nothing.wav"], "input not found: nothing.wav"),
     (["--threshold", "2", "x"], "--threshold must be in [0, 1]"),
     (["--formats", "eaf", "x"], "unknown format eaf"),
+    (["--smooth", "4", "x"], "--smooth must be an odd number of windows (a centred average: 1, 3, 5, ...; got 4)"),
 ])
 def test_detect_bad_input_is_one_line(tmp_path, args, message):
     if "x" in args:
@@ -812,7 +834,6 @@ def test_detect_keeps_a_trees_layout_and_its_repeated_take_names(tmp_path):
     layout in --out and in segments.csv's file column; --overwrite replaces them and removes a stale nested one."""
     import csv
     import xml.etree.ElementTree as ET
-    from urllib.parse import unquote
 
     rec = tmp_path / "rec"
     for day in ("day1", "day2"):
@@ -827,7 +848,7 @@ def test_detect_keeps_a_trees_layout_and_its_repeated_take_names(tmp_path):
                    "solo.TextGrid", "solo.eaf"]
     eaf = out / "day2" / "take1.eaf"   # its link to the recording works from its own folder
     media = ET.fromstring(eaf.read_text()).find("HEADER").find("MEDIA_DESCRIPTOR")
-    assert (eaf.parent / unquote(media.get("RELATIVE_MEDIA_URL"))).resolve() == (rec / "day2" / "take1.wav").resolve()
+    assert (eaf.parent / media.get("RELATIVE_MEDIA_URL")).resolve() == (rec / "day2" / "take1.wav").resolve()
     assert list(csv.DictReader((out / "segments.csv").open())) == []   # silence: no segment
     (rec / "day1" / "take1.wav").unlink()
     r = laughlab("detect", str(rec), "--out", str(out), "--formats", "csv,textgrid,elan", "--overwrite")

@@ -100,11 +100,15 @@ def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) 
     from praatio import textgrid
 
     try:
-        tg = textgrid.openTextgrid(str(path), includeEmptyIntervals=False)
+        with open(path, "rb") as fh:
+            head = fh.read(12)
+        tg = None if head == b"ooBinaryFile" else textgrid.openTextgrid(str(path), includeEmptyIntervals=False)
     except FileNotFoundError:
         raise LaughlabError(f"annotation not found: {path}") from None
     except Exception as exc:  # praatio raises many kinds on a malformed file
         raise LaughlabError(f"bad TextGrid {path}: {first_line(exc)}") from None
+    if tg is None:   # Praat's "Save as binary file" (a review: praatio's "'utf-8' codec can't decode byte 0xa0")
+        raise LaughlabError(f"bad TextGrid {path}: binary Praat files are not read; save it in Praat as a text file")
     bouts = "bouts" if "bouts" in tg.tierNames else "laughter" if "laughter" in tg.tierNames else None
     if bouts is None:   # a tier 'laughter' alone: what `laughlab detect` writes, corrected in Praat
         raise LaughlabError(f"bad TextGrid {path}: it has no tier 'bouts' (nor 'laughter', as laughlab detect "

@@ -12,6 +12,7 @@ written, or with ``--skip-unreadable`` is left out in one line on stderr.
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -25,7 +26,8 @@ FORMATS = ("csv", "audacity", "textgrid", "elan")
 
 
 def inputs(paths: list[str]) -> list[tuple[Path, str]]:
-    """The audio files of ``paths`` with the name each one's outputs take: a file given by itself, its stem; a
+    """The audio files of ``paths`` (a folder's hidden files and folders left out) with the name each one's
+    outputs take: a file given by itself, its stem; a
     file found in a given folder, its path from that folder without the suffix (``day1/take1``), so a tree of
     recordings keeps its layout in ``--out`` and repeated take names in different folders do not collide."""
     from laughlab.io.audio import OTHER_MEDIA
@@ -34,7 +36,7 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
     for p in paths:
         q = Path(p).expanduser()
         if q.is_dir():
-            files = sorted(f for f in q.rglob("*") if f.is_file())
+            files = _folder_files(q)
             found = [f for f in files if f.suffix.lower() in AUDIO_SUFFIXES]
             media = [f for f in files if f.suffix.lower() in OTHER_MEDIA]
             other.update((f.resolve(), f) for f in media)
@@ -55,10 +57,34 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
     names = [n for _, n in out]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        both = [str(f) for f, n in out if n == dup[0]]
-        raise LaughlabError(f"two inputs share the name {dup[0]!r} ({', '.join(both)}): their label files would "
-                            "collide; run them separately (--out)")
+        both = [f for f, n in out if n == dup[0]]
+        # files of one name in different folders (a shell glob, rec/*/*.wav): their common folder names each by its
+        # path from it (a review: the line only said to run them separately)
+        common = os.path.commonpath([str(f.resolve().parent) for f in both])
+        apart = len({f.resolve().parent for f in both}) > 1
+        fix = (f"give their folder instead ({common}: each file found in it is named by its path from it) or run "
+               "them separately (--out)" if apart else "run them separately (--out)")
+        raise LaughlabError(f"two inputs share the name {dup[0]!r} ({', '.join(map(str, both))}): their label files "
+                            f"would collide; {fix}")
     return out
+
+
+def _folder_files(folder: Path) -> list[Path]:
+    """The files below ``folder``, sorted, through linked folders too (each real folder once: a link to a parent is
+    no loop), and not its hidden files and folders: macOS's "._take1.wav" beside each recording copied to a USB
+    drive is not audio and stopped the batch; .Trashes, .git hold no takes (the detect review, as was a linked
+    session folder left out without a word: rglob does not follow links)."""
+    out, real = [], {os.path.realpath(folder)}
+    for d, dirs, names in os.walk(folder, followlinks=True):
+        keep = []
+        for sub in sorted(dirs):
+            r = os.path.realpath(os.path.join(d, sub))
+            if not sub.startswith(".") and r not in real:
+                real.add(r)
+                keep.append(sub)
+        dirs[:] = keep
+        out += [Path(d, n) for n in names if not n.startswith(".") and os.path.isfile(os.path.join(d, n))]
+    return sorted(out)
 
 
 def _unread(files: list[Path]) -> str:
@@ -122,7 +148,8 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--threshold", type=float, default=0.5, help="laughter probability threshold (default 0.5)")
     ap.add_argument("--min-length", type=float, default=0.2, help="shortest segment kept (s, default 0.2)")
     ap.add_argument("--hop", type=float, default=0.5, help="time between model windows (s, default 0.5)")
-    ap.add_argument("--smooth", type=int, default=3, help="centred moving average over this many windows (default 3)")
+    ap.add_argument("--smooth", type=int, default=3,
+                    help="centred moving average over this many windows, odd (default 3)")
     ap.add_argument("--formats", default="csv,audacity,textgrid", help="comma-separated: csv, audacity, textgrid, elan (default: the first three)")
     ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto")
     ap.add_argument("--overwrite", action="store_true",
@@ -139,8 +166,11 @@ def main(argv: list[str]) -> None:
         raise LaughlabError(f"--min-length must be >= 0 (got {ns.min_length})")
     if not 0.05 <= ns.hop <= 2.0:
         raise LaughlabError(f"--hop must be in [0.05, 2] s (got {ns.hop})")
-    if ns.smooth < 1:
-        raise LaughlabError(f"--smooth must be >= 1 (got {ns.smooth})")
+    if ns.smooth < 1 or ns.smooth % 2 == 0:   # an even count is not centred: 4 looked a window further ahead than back,
+        # its segments half a hop late (the detect review: --hop 0.1 --smooth 4 started where --smooth 1 did, 3 and 5 a
+        # window earlier)
+        raise LaughlabError(f"--smooth must be an odd number of windows (a centred average: 1, 3, 5, ...; got "
+                            f"{ns.smooth})")
     formats = tuple(f.strip() for f in ns.formats.split(",") if f.strip())
     bad = [f for f in formats if f not in FORMATS]
     if bad or not formats:

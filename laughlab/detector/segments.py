@@ -135,8 +135,18 @@ def textgrid_text(segs: list[Segment], duration_s: float) -> str:
     return "\n".join(lines) + "\n"
 
 
-#: ELAN's MIME types of the recordings it links (any other audio: ``audio/*``)
-MIME_TYPES = {".wav": "audio/x-wav", ".mp3": "audio/mpeg"}
+#: ELAN's MIME types of the recordings it links (any other audio: ``audio/*``, ELAN's GENERIC_AUDIO_TYPE, which it
+#: gives an mp3 too: "audio/mpeg" is none of ELAN's types, and it took such an mp3 for a video, not audio)
+MIME_TYPES = {".wav": "audio/x-wav"}
+
+
+def elan_url(path: Path) -> str:
+    """``path`` (absolute) as ELAN's own MEDIA_URL: ``file:///`` and the path with forward slashes, not
+    percent-encoded; a path starting with two slashes (a network share) keeps ``file://`` (ELAN's
+    ``FileUtility.pathToURLString``)."""
+    p = path.as_posix()
+    rest = p.lstrip("/")
+    return ("file://" if len(p) - len(rest) == 2 else "file:///") + rest
 
 
 def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None = None,
@@ -148,18 +158,23 @@ def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None
     ``beside``, the EAF's folder, which ELAN tries when the folders have moved together); None: no link, and
     ELAN asks for the recording when the file is opened.  No time past ``duration_s`` (whole ms, rounded down)."""
     import os
-    from urllib.parse import quote
     from xml.sax.saxutils import quoteattr
 
     header = ['    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds"/>']
     if media is not None:
         media = Path(media).resolve()
-        rel = Path(os.path.relpath(media, Path(beside).resolve())).as_posix() if beside is not None else media.name
-        rel = rel if rel.startswith("..") else f"./{rel}"
+        try:
+            rel = Path(os.path.relpath(media, Path(beside).resolve())).as_posix() if beside is not None else media.name
+            rel = rel if rel.startswith("..") else f"./{rel}"
+        except ValueError:   # on Windows, another drive than --out's: no relative path (ELAN's getRelativePath: null)
+            rel = None
+        # both links as ELAN writes and reads them: the path itself, not percent-encoded (ELAN's
+        # FileUtility.pathToURLString; its checkMedia opens what follows "file:" as it stands, so "day%201" or
+        # "M%C3%BCller" is a file it does not find and it asks for the recording)
         header = ['    <HEADER MEDIA_FILE="" TIME_UNITS="milliseconds">',
-                  f"        <MEDIA_DESCRIPTOR MEDIA_URL={quoteattr(media.as_uri())} "
-                  f"MIME_TYPE={quoteattr(MIME_TYPES.get(media.suffix.lower(), 'audio/*'))} "
-                  f"RELATIVE_MEDIA_URL={quoteattr(quote(rel))}/>",
+                  f"        <MEDIA_DESCRIPTOR MEDIA_URL={quoteattr(elan_url(media))} "
+                  f"MIME_TYPE={quoteattr(MIME_TYPES.get(media.suffix.lower(), 'audio/*'))}"
+                  + (f" RELATIVE_MEDIA_URL={quoteattr(rel)}" if rel is not None else "") + "/>",
                   "    </HEADER>"]
 
     slots, anns = [], []

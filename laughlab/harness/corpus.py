@@ -151,7 +151,9 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
     if not d.is_dir():   # a file named as the folder: said so (a review: "not found" of a file that is there)
         raise LaughlabError(f"harness.corpus.folder {folder} is a file, not a folder of recordings" if d.exists()
                             else f"corpus folder not found: {folder}")
-    files = sorted(p for p in d.iterdir() if p.suffix.lower() in AUDIO_SUFFIXES)
+    # not a hidden file: macOS's "._take1.wav" beside each recording on a USB drive is not audio, and stopped the
+    # experiment (a detect review: the same folder detect, corrections and the harness share)
+    files = sorted(p for p in d.iterdir() if p.suffix.lower() in AUDIO_SUFFIXES and not p.name.startswith("."))
     if not files:
         raise LaughlabError(f"corpus folder {folder} holds no audio files ({', '.join(AUDIO_SUFFIXES)})")
     stems: dict[str, list[str]] = {}

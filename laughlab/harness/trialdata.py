@@ -49,12 +49,14 @@ class Truth:
 
     @classmethod
     def load(cls, path: str | Path) -> "Truth":
-        """A ``truth.csv``, or an annotation (Audacity labels ``.txt``, Praat ``.TextGrid``)."""
+        """A ``truth.csv``, or an annotation (Audacity labels ``.txt``, Praat ``.TextGrid``, ELAN ``.eaf``)."""
         import pandas as pd
 
-        if str(path).lower().endswith((".txt", ".textgrid")):
-            from laughlab.corpora.annotations import read
+        from laughlab.corpora.annotations import SUFFIXES, read
 
+        # every annotation the corpus folder takes (a review: a NAME.eaf beside its recording, written by detect and
+        # corrected in ELAN, was read here as a CSV and every trial stopped in a pandas traceback)
+        if str(path).lower().endswith(SUFFIXES):
             rows = read(path).truth_rows()
             t = pd.DataFrame(rows, columns=["kind", "bout", "onset_s", "offset_s", "intensity"])
         else:
