@@ -271,3 +271,25 @@ def test_a_linked_session_folder_is_searched_once_and_a_link_loop_ends(tmp_path)
     (rec / "s2").symlink_to(elsewhere, target_is_directory=True)
     (rec / "s1" / "up").symlink_to(rec, target_is_directory=True)   # a loop
     assert [n for _, n in inputs([str(rec)])] == ["s1/take", "s2/take"]
+
+
+def test_a_subfolder_that_cannot_be_listed_is_one_line_not_left_out(tmp_path, monkeypatch):
+    """os.walk skips a folder it cannot list (permissions), so its recordings were left out without a word (noted
+    by the detect review, which ran as root): now one line naming it."""
+    import os
+
+    from laughlab.core.errors import LaughlabError
+    from laughlab.detector.detect import inputs
+
+    (tmp_path / "rec" / "locked").mkdir(parents=True)
+    (tmp_path / "rec" / "a.wav").write_bytes(b"x")
+    real = os.scandir
+
+    def scandir(path="."):
+        if str(path).endswith("locked"):
+            raise PermissionError(13, "Permission denied", str(path))
+        return real(path)
+
+    monkeypatch.setattr(os, "scandir", scandir)
+    with pytest.raises(LaughlabError, match=r"^cannot read the folder .*locked: Permission denied$"):
+        inputs([str(tmp_path / "rec")])

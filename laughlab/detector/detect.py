@@ -75,7 +75,13 @@ def _folder_files(folder: Path) -> list[Path]:
     drive is not audio and stopped the batch; .Trashes, .git hold no takes (the detect review, as was a linked
     session folder left out without a word: rglob does not follow links)."""
     out, real = [], {os.path.realpath(folder)}
-    for d, dirs, names in os.walk(folder, followlinks=True):
+
+    def unreadable(exc: OSError):   # os.walk skips a folder it cannot list, and its recordings went unsaid
+        from laughlab.core.errors import os_error_line
+
+        raise LaughlabError(os_error_line(exc, folder, verb="cannot read the folder"))
+
+    for d, dirs, names in os.walk(folder, onerror=unreadable, followlinks=True):
         keep = []
         for sub in sorted(dirs):
             r = os.path.realpath(os.path.join(d, sub))
