@@ -22,7 +22,7 @@ from laughlab.core import pipeline
 from laughlab.core.config import compose_config
 from laughlab.core.frame import ClipEvent, clip_blocks
 from laughlab.render.labels import (colorbars, colorbars_without_direction, drawn_texts, lines_told_apart_by_hue,
-                                     overlapping_texts)
+                                     overlapping_texts, texts_cut_off)
 
 
 def cfg_for(*overrides):
@@ -40,6 +40,7 @@ class Saved:
         self.overlaps = overlapping_texts(fig, drawn)
         self.undirected = colorbars_without_direction(fig)
         self.hue_only = lines_told_apart_by_hue(fig)
+        self.cut_off = texts_cut_off(fig, drawn)
         self.n_colorbars = len(colorbars(fig))
         # (label, colour map, values rising upwards) of each colour bar
         self.bars = [(cb.ax.get_ylabel(), cb.cmap.name, not cb.ax.yaxis_inverted()) for cb in colorbars(fig)]
@@ -69,6 +70,7 @@ def assert_readable(figures):
         assert not f.overlaps, f"{f.name}: overprinted texts {f.overlaps}"
         assert not f.undirected, f"{f.name}: colour bars that do not say which way is better: {f.undirected}"
         assert not f.hue_only, f"{f.name}: lines only their hue tells apart (greyscale, colour-blind): {f.hue_only}"
+        assert not f.cut_off, f"{f.name}: texts the figure's edge cuts: {f.cut_off}"
 
 
 def read_events(run: Path) -> list:
@@ -351,6 +353,17 @@ def test_the_checks_see_overprinting_and_a_colour_bar_that_does_not_say_which_wa
     fig.colorbar(im, ax=ax, label="miss_rate")
     assert overlapping_texts(fig) == [("lean_front2", "lean_back2")]
     assert colorbars_without_direction(fig) == ["miss_rate"]
+
+
+@pytest.mark.parametrize("frames", [3, 8])
+def test_the_filmstrip_keeps_its_title_inside_and_names_its_colours(tmp_path, saved, frames):
+    """A strip of 3 figures is 3.75 in wide: its one-line title was cut at both edges; it wraps now. The red and
+    blue limbs were named nowhere."""
+    pipeline.execute(pipeline.build(cfg_for("input.duration_s=6", f"output.plots.filmstrip_frames={frames}",
+                                            "~output.bvh")), tmp_path)
+    strip = [f for f in saved if f.name == "filmstrip.png"]
+    assert_readable(strip)
+    assert any("Blue: the left arm and leg; red: the right" in " ".join(t.split()) for t in strip[0].texts)
 
 
 def test_the_check_sees_lines_only_their_hue_tells_apart():

@@ -5,9 +5,9 @@ rendered figure, it stays inside its axes and clear of the labels already placed
 the given lines; when no spot is free it places nothing (the figure must then identify the
 thing another way, e.g. a colour key).  :func:`overlapping_texts` lists every pair of
 visible texts of a figure whose boxes overlap, and :func:`colorbars_without_direction`
-every colour bar whose label does not say which way is better, and :func:`lines_told_apart_by_hue`
-every pair of named lines only their hue tells apart (tests use all three on every figure laughlab
-draws).
+every colour bar whose label does not say which way is better, :func:`lines_told_apart_by_hue`
+every pair of named lines only their hue tells apart, and :func:`texts_cut_off` every text the
+figure's edge cuts (tests use them all on every figure laughlab draws).
 
 Positions are measured with the figure's own renderer (``fig.canvas.get_renderer()``),
 after the layout engine has run, so the check sees what the PNG shows.  Labels placed
@@ -149,6 +149,14 @@ def overlapping_texts(fig, drawn: list | None = None, tolerance_px: float = 0.5)
         if w > tolerance_px and h > tolerance_px:
             bad.append((sa, sb))
     return bad
+
+
+def texts_cut_off(fig, drawn: list | None = None, tolerance_px: float = 1.0) -> list[str]:
+    """The drawn texts of ``fig`` that reach past the figure's edge by more than ``tolerance_px`` (the PNG and
+    the PDF cut them)."""
+    w, h = fig.bbox.width, fig.bbox.height
+    return [t.get_text() for t, bb in (drawn if drawn is not None else drawn_texts(fig))
+            if bb.x0 < -tolerance_px or bb.y0 < -tolerance_px or bb.x1 > w + tolerance_px or bb.y1 > h + tolerance_px]
 
 
 def colorbars(fig) -> list:

@@ -453,8 +453,20 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
     from laughlab.render.figure import draw_skeleton
     from laughlab.motion.skeleton import forward_kinematics
 
+    import textwrap
+
+    from laughlab.render.figure import SIDE_KEY
+
     n = len(times)
-    fig, axes = plt.subplots(1, max(n, 1), figsize=(1.25 * max(n, 1), 2.0), dpi=150, squeeze=False)
+    width = 1.25 * max(n, 1)
+    # the title and the colours' key, wrapped to the figure's width (a strip of 3 cut a one-line title at both
+    # edges); each line more makes the figure taller, the panels keeping their size
+    chars = int(width * 72 / (0.6 * 8))   # DejaVu Sans at 8 pt: about 0.55 em a character on average
+    head = _titled(title or "The character over the run (skeleton from motion.bvh)", note) + f". {SIDE_KEY}"
+    lines = [w for para in head.split("\n") for w in textwrap.wrap(para, chars)]
+    extra = 0.14 * (len(lines) - 1)
+    height = 2.0 + extra
+    fig, axes = plt.subplots(1, max(n, 1), figsize=(width, height), dpi=150, squeeze=False)
     if n:
         pos = forward_kinematics(skeleton, np.asarray(poses), end_sites=True)
     for k, ax in enumerate(axes[0]):
@@ -466,8 +478,8 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
         ax.set_ylim(-8, 195)
         ax.set_title(f"{times[k]:.1f} s", fontsize=7, pad=1)
         ax.text(0.5, -0.02, captions[k], transform=ax.transAxes, ha="center", va="top", fontsize=5.5)
-    fig.suptitle(_titled(title or "The character over the run (skeleton from motion.bvh)", note), fontsize=8)
-    fig.subplots_adjust(left=0.01, right=0.99, top=0.76 if note else 0.84, bottom=0.2, wspace=0.05)
+    fig.suptitle("\n".join(lines), fontsize=8)
+    fig.subplots_adjust(left=0.01, right=0.99, top=1 - (0.32 + extra) / height, bottom=0.4 / height, wspace=0.05)
     save_figure(fig, path, pdf)
     plt.close(fig)
     return path
