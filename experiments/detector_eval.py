@@ -82,10 +82,46 @@ def pr_curve(score: np.ndarray, y: np.ndarray):
     return precision, recall, thr, ap
 
 
-def extra(run) -> dict:
+#: each score's line style: with the colour it tells the curves apart in greyscale and for red-green colour
+#: blindness (blue and red are about as light as each other)
+PR_STYLES = ("-", "--", "-.", ":")
+
+
+def pr_figure(scores: dict, y: np.ndarray):
+    """The precision-recall figure of ``scores`` (name: per-frame score, in :data:`SCORES`' order) against the
+    frames' truth ``y``, and its numbers (``detector_pr`` of the results)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    fig = Figure(figsize=(6.0, 5.2), dpi=150)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot(1, 1, 1)
+    out = {"what": "frame-level precision-recall of each detector's score on the held-out recordings with a "
+                   "truth (sets real, mixed and between), pooled over frames at 60 fps; a frame is laughter inside a bout",
+           "frames": int(len(y)), "laughter_share": float(y.mean()), "scores": {}}
+    for i, (name, s) in enumerate(scores.items()):
+        p, r, thr, ap = pr_curve(s, y)
+        line, = ax.plot(r, p, lw=1.6, ls=PR_STYLES[i % len(PR_STYLES)], label=f"{name}: AP {ap:.2f}")
+        at = SCORES[name][2]
+        k = np.flatnonzero(thr >= at)
+        op = {"threshold": at, "precision": float(p[k[-1]]) if len(k) else float("nan"),
+              "recall": float(r[k[-1]]) if len(k) else 0.0}
+        if len(k):
+            ax.plot([op["recall"]], [op["precision"]], "o", color=line.get_color(), ms=6)
+        out["scores"][name] = {"average_precision": ap, "at_gate_threshold": op}
+    ax.axhline(float(y.mean()), color="0.35", lw=1, ls=(0, (2, 4)), label=f"chance (laughter share {y.mean():.2f})")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1.02)
+    ax.set_xlabel("recall (share of laughter frames above the threshold)")
+    ax.set_ylabel("precision")
+    ax.set_title("Laughter scores per frame, held-out recordings (dots: the gates' thresholds)", fontsize=9)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    return fig, out
+
+
+def extra(run) -> dict:
     items = [i for i in run.items if i.truth and i.profile not in ("speech", "others")]  # frames with laughter
     wanted = {d for d, _, _ in SCORES.values() if d in {o.split("=", 1)[1] for ov in run.conditions.values()
                                                           for o in ov if o.startswith("detector=")}}
@@ -103,32 +139,7 @@ def extra(run) -> dict:
             d, key, _ = SCORES[name]
             pooled[name].append(got[d][0][key])
     y = np.concatenate(ys)
-    fig = Figure(figsize=(6.0, 5.2), dpi=150)
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot(1, 1, 1)
-    out = {"what": "frame-level precision-recall of each detector's score on the held-out recordings with a "
-                   "truth (sets real, mixed and between), pooled over frames at 60 fps; a frame is laughter inside a bout",
-           "frames": int(len(y)), "laughter_share": float(y.mean()), "scores": {}}
-    for name, parts in pooled.items():
-        s = np.nan_to_num(np.concatenate(parts), nan=0.0)
-        p, r, thr, ap = pr_curve(s, y)
-        line, = ax.plot(r, p, lw=1.6, label=f"{name}: AP {ap:.2f}")
-        at = SCORES[name][2]
-        k = np.flatnonzero(thr >= at)
-        op = {"threshold": at, "precision": float(p[k[-1]]) if len(k) else float("nan"),
-              "recall": float(r[k[-1]]) if len(k) else 0.0}
-        if len(k):
-            ax.plot([op["recall"]], [op["precision"]], "o", color=line.get_color(), ms=6)
-        out["scores"][name] = {"average_precision": ap, "at_gate_threshold": op}
-    ax.axhline(float(y.mean()), color="0.6", lw=1, ls="--", label=f"chance (laughter share {y.mean():.2f})")
-    ax.set_xlim(0, 1)
-    ax.set_ylim(0, 1.02)
-    ax.set_xlabel("recall (share of laughter frames above the threshold)")
-    ax.set_ylabel("precision")
-    ax.set_title("Laughter scores per frame, held-out recordings (dots: the gates' thresholds)", fontsize=9)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
+    fig, out = pr_figure({name: np.nan_to_num(np.concatenate(parts), nan=0.0) for name, parts in pooled.items()}, y)
     plots = Path(run.out_dir) / "plots"
     plots.mkdir(parents=True, exist_ok=True)
     fig.savefig(plots / "detector_pr.png")

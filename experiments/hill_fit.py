@@ -145,7 +145,8 @@ def figure_10(path: Path, res, truth=None) -> dict:
         f1 = min(len(res.target), res.calls[bout[-1]].call.end + int(0.3 * res.fps))
         t = (np.arange(f0, f1) + 1) / res.fps
         ax.plot(t, res.target[f0:f1], color="tab:blue", lw=1.8, label="target (from audio)")
-        ax.plot(t, res.simulated[f0:f1], color="tab:red", lw=1.8, label="simulated (fitted activations)")
+        ax.plot(t, res.simulated[f0:f1], color="tab:red", lw=1.8, ls="--",   # dashed: red is as light as blue
+                label="simulated (fitted activations)")
         top = max(float(res.target[f0:f1].max()), float(res.simulated[f0:f1].max()), 1e-6)
         for k, i in enumerate(bout):
             cf = res.calls[i]

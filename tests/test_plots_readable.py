@@ -1,5 +1,6 @@
 """Every figure laughlab draws can be read: no two texts overprint, every clip is named, every colour
-bar says which way is better (issue 26, item 5).
+bar says which way is better (issue 26, item 5), and no two named lines differ in hue alone (they would merge
+in greyscale and for colour blindness).
 
 Each figure is checked as it is saved (``Figure.savefig`` is watched), with matplotlib's own renderer
 (``laughlab.render.labels``): the figures of a default run and of a concatenation run, of an
@@ -20,7 +21,8 @@ from omegaconf import OmegaConf
 from laughlab.core import pipeline
 from laughlab.core.config import compose_config
 from laughlab.core.frame import ClipEvent, clip_blocks
-from laughlab.render.labels import colorbars, colorbars_without_direction, drawn_texts, overlapping_texts
+from laughlab.render.labels import (colorbars, colorbars_without_direction, drawn_texts, lines_told_apart_by_hue,
+                                     overlapping_texts, texts_cut_off)
 
 
 def cfg_for(*overrides):
@@ -37,6 +39,8 @@ class Saved:
         self.texts = [t.get_text() for t, _ in drawn]
         self.overlaps = overlapping_texts(fig, drawn)
         self.undirected = colorbars_without_direction(fig)
+        self.hue_only = lines_told_apart_by_hue(fig)
+        self.cut_off = texts_cut_off(fig, drawn)
         self.n_colorbars = len(colorbars(fig))
         # (label, colour map, values rising upwards) of each colour bar
         self.bars = [(cb.ax.get_ylabel(), cb.cmap.name, not cb.ax.yaxis_inverted()) for cb in colorbars(fig)]
@@ -65,6 +69,8 @@ def assert_readable(figures):
     for f in figures:
         assert not f.overlaps, f"{f.name}: overprinted texts {f.overlaps}"
         assert not f.undirected, f"{f.name}: colour bars that do not say which way is better: {f.undirected}"
+        assert not f.hue_only, f"{f.name}: lines only their hue tells apart (greyscale, colour-blind): {f.hue_only}"
+        assert not f.cut_off, f"{f.name}: texts the figure's edge cuts: {f.cut_off}"
 
 
 def read_events(run: Path) -> list:
@@ -347,6 +353,42 @@ def test_the_checks_see_overprinting_and_a_colour_bar_that_does_not_say_which_wa
     fig.colorbar(im, ax=ax, label="miss_rate")
     assert overlapping_texts(fig) == [("lean_front2", "lean_back2")]
     assert colorbars_without_direction(fig) == ["miss_rate"]
+
+
+@pytest.mark.parametrize("frames", [3, 8])
+def test_the_filmstrip_keeps_its_title_inside_and_names_its_colours(tmp_path, saved, frames):
+    """A strip of 3 figures is 3.75 in wide: its one-line title was cut at both edges; it wraps now. The red and
+    blue limbs were named nowhere."""
+    pipeline.execute(pipeline.build(cfg_for("input.duration_s=6", f"output.plots.filmstrip_frames={frames}",
+                                            "~output.bvh")), tmp_path)
+    strip = [f for f in saved if f.name == "filmstrip.png"]
+    assert_readable(strip)
+    assert any("Blue: the left arm and leg; red: the right" in " ".join(t.split()) for t in strip[0].texts)
+
+
+def test_the_check_sees_lines_only_their_hue_tells_apart():
+    """Solid red against solid blue (or green) merge in greyscale and for red-green colour blindness; a dash or a
+    clearly lighter colour tells them apart."""
+    fig = Figure()
+    ax = fig.subplots()
+    ax.plot([0, 1], color="tab:red", label="a")
+    ax.plot([1, 0], color="tab:blue", label="b")
+    ax.plot([0, 0], color="tab:green", ls="--", label="c")
+    ax.plot([1, 1], color="0.8", label="d")          # light grey: far lighter than red and blue
+    ax.plot([0.5, 0.5], color="tab:orange")            # unnamed: not in a legend
+    assert lines_told_apart_by_hue(fig) == [("a", "b")]
+
+
+def test_the_detector_pr_figure_tells_its_curves_apart_without_colour(tmp_path, saved):
+    """detector_eval's precision-recall curves: four scores and chance, each with a style of its own."""
+    from laughlab_experiments.detector_eval import SCORES, pr_figure
+
+    rng = np.random.default_rng(0)
+    y = rng.random(2000) < 0.2
+    fig, out = pr_figure({name: y * rng.random(2000) + rng.random(2000) for name in SCORES}, y)
+    assert set(out["scores"]) == set(SCORES)
+    fig.savefig(tmp_path / "detector_pr.png")
+    assert_readable(saved)
 
 
 @pytest.mark.parametrize("names", [["yamnet", "yamnet_fused", "laugh", "none"],

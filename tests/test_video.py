@@ -101,6 +101,39 @@ def test_failed_run_leaves_no_partial_mp4(tmp_path):
     assert not list(tmp_path.glob("*.mp4")) and not list(tmp_path.glob(".*"))
 
 
+def _decode_as(path: Path, matrix: str) -> np.ndarray:
+    """The video's frames as RGB, read with the YUV matrix ``matrix`` (bt709, bt601) in limited range: what a
+    player that assumes that matrix shows."""
+    import subprocess
+
+    from laughlab.io.video import ffmpeg_exe
+
+    r = subprocess.run([ffmpeg_exe(), "-v", "error", "-i", str(path), "-vf",
+                        f"scale=in_color_matrix={matrix}:in_range=tv,format=rgb24", "-f", "rawvideo", "-"],
+                       capture_output=True, check=True)
+    return np.frombuffer(r.stdout, np.uint8).reshape(-1, 48, 64, 3)
+
+
+def test_colours_are_bt709_and_the_stream_says_so(tmp_path):
+    """The RGB frames become YUV by BT.709 and the stream is tagged bt709 / tv range, so every player
+    shows the rendered colours (untagged BT.601 read as BT.709, as players do for HD video, was off by
+    up to 17 of 255 levels on saturated red and green)."""
+    from laughlab.io.video import VideoEncoder
+
+    colours = np.array([(200, 40, 40), (40, 160, 60), (60, 83, 120), (230, 180, 150), (20, 20, 200)], np.uint8)
+    mp4 = tmp_path / "c.mp4"
+    enc = VideoEncoder(mp4, 64, 48, 30.0)
+    for c in colours:
+        enc.write(np.tile(c, (48, 64, 1)))
+    enc.close()
+    assert probe(mp4)["color"] == "tv, bt709"   # matrix, primaries and transfer bt709, limited range
+    for frames in (decode_frames(mp4, 64, 48), _decode_as(mp4, "bt709")):   # as tagged; as an HD player assumes
+        assert np.abs(frames[:, 24, 32].astype(int) - colours).max() <= 3
+    data = mp4.read_bytes()
+    assert b"colrnclx\x00\x01\x00\x01\x00\x01" in data   # the MP4's own colour box (QuickTime reads it)
+    assert data.find(b"moov") < data.find(b"mdat")            # +faststart: plays while it downloads
+
+
 def _sink(tmp_path, anim_fps=30.0, **params) -> VideoSink:
     """A video sink drawing the schematic figure (its face inset is where these tests look)."""
     p = VideoParams(**{"width": 320, "height": 240, "fps": None, "supersample": 1, "audio": False,

@@ -2,7 +2,11 @@
 
 :class:`VideoEncoder` pipes raw RGB frames into ffmpeg (the binary shipped by
 imageio-ffmpeg): H.264 (libx264), yuv420p, constant frame rate, AAC audio
-from a WAV file, MP4 with ``+faststart``.  The flags ``-fflags +bitexact
+from a WAV file, MP4 with ``+faststart``.  The RGB frames become YUV with the BT.709 matrix in limited
+(tv) range, and the stream says so (colour matrix, primaries and transfer ``bt709``, range ``tv``): a
+player does not have to guess, and guesses differ (BT.601 for SD in ffmpeg, BT.709 for HD in most
+players; untagged, ffmpeg's default BT.601 conversion played as BT.709 shifted skin and shirt colours
+by up to 10 of 255 levels).  The flags ``-fflags +bitexact
 -flags:v +bitexact -flags:a +bitexact -map_metadata -1`` and a fixed x264
 thread count make repeated renders byte-identical (given the same ffmpeg build).
 """
@@ -26,6 +30,10 @@ def ffmpeg_exe() -> str:
         raise LaughlabError(f"video output needs imageio-ffmpeg (pip install imageio-ffmpeg): {exc}") from None
     return imageio_ffmpeg.get_ffmpeg_exe()
 
+
+#: RGB to YUV with the BT.709 matrix in limited range, and the stream tagged so (see the module docstring)
+COLOR = ["-vf", "scale=out_color_matrix=bt709:out_range=tv,"
+               "setparams=colorspace=bt709:color_primaries=bt709:color_trc=bt709:range=tv"]
 
 BITEXACT = ["-fflags", "+bitexact", "-flags:v", "+bitexact", "-flags:a", "+bitexact", "-map_metadata", "-1"]
 
@@ -57,8 +65,8 @@ class VideoEncoder:
         if audio is not None:
             cmd += ["-i", str(audio)]
         cmd += ["-map", "0:v:0"] + (["-map", "1:a:0"] if audio is not None else [])
-        cmd += ["-c:v", "libx264", "-preset", preset, "-crf", str(crf), "-pix_fmt", "yuv420p", "-threads", str(threads),
-                "-fps_mode", "cfr", "-r", rate, "-movflags", "+faststart"]
+        cmd += COLOR + ["-c:v", "libx264", "-preset", preset, "-crf", str(crf), "-pix_fmt", "yuv420p",
+                        "-threads", str(threads), "-fps_mode", "cfr", "-r", rate, "-movflags", "+faststart"]
         if audio is not None:
             cmd += ["-c:a", "aac", "-b:a", f"{audio_bitrate_k}k", "-ar", str(audio_rate)]
         cmd += BITEXACT + ["-f", "mp4", str(self.path)]
@@ -124,11 +132,12 @@ def probe(path: str | Path) -> dict:
     """Stream facts of a media file from ``ffmpeg -i`` (imageio-ffmpeg ships no ffprobe).
 
     Returns ``duration_s``, ``video`` (``codec``, ``pix_fmt``, ``width``,
-    ``height``, ``fps``) and ``audio`` (``codec``, ``sample_rate``) or None.
+    ``height``, ``fps``) and ``audio`` (``codec``, ``sample_rate``) or None, and ``color``: the
+    video's colour tags as ffmpeg prints them after the pixel format (``"tv, bt709"``), "" if none.
     """
     r = subprocess.run([ffmpeg_exe(), "-hide_banner", "-nostdin", "-i", str(path)], capture_output=True, text=True)
     err = r.stderr
-    out: dict = {"duration_s": None, "video": None, "audio": None}
+    out: dict = {"duration_s": None, "video": None, "audio": None, "color": ""}
     m = re.search(r"Duration: (\d+):(\d+):(\d+(?:\.\d+)?)", err)
     if m:
         out["duration_s"] = int(m.group(1)) * 3600 + int(m.group(2)) * 60 + float(m.group(3))
@@ -137,6 +146,8 @@ def probe(path: str | Path) -> dict:
     if m:
         out["video"] = {"codec": m.group(1), "pix_fmt": m.group(2), "width": int(m.group(3)),
                         "height": int(m.group(4)), "fps": float(m.group(5))}
+        tags = re.search(r"Video: .*?, " + m.group(2) + r"\(([^)]*)\)", err)
+        out["color"] = ", ".join(t for t in (tags.group(1).split(", ") if tags else []) if t != "progressive")
     m = re.search(r"Stream #\d+:\d+.*?: Audio: (\w+)[^,]*, (\d+) Hz", err)
     if m:
         out["audio"] = {"codec": m.group(1), "sample_rate": int(m.group(2))}

@@ -17,6 +17,8 @@ from laughlab.motion.skeleton import Skeleton, forward_kinematics
 __all__ = ["project", "draw_skeleton", "contact_sheet"]
 
 _SIDE_COLORS = {"left": "tab:blue", "right": "tab:red"}
+#: what the colours of :func:`draw_skeleton` mean, for a figure's title or caption
+SIDE_KEY = "Blue: the left arm and leg; red: the right"
 
 
 def project(points: np.ndarray, azimuth_deg: float = 35.0, elevation_deg: float = 10.0) -> tuple[np.ndarray, np.ndarray]:

@@ -5,8 +5,9 @@ rendered figure, it stays inside its axes and clear of the labels already placed
 the given lines; when no spot is free it places nothing (the figure must then identify the
 thing another way, e.g. a colour key).  :func:`overlapping_texts` lists every pair of
 visible texts of a figure whose boxes overlap, and :func:`colorbars_without_direction`
-every colour bar whose label does not say which way is better (tests use both on every
-figure laughlab draws).
+every colour bar whose label does not say which way is better, :func:`lines_told_apart_by_hue`
+every pair of named lines only their hue tells apart, and :func:`texts_cut_off` every text the
+figure's edge cuts (tests use them all on every figure laughlab draws).
 
 Positions are measured with the figure's own renderer (``fig.canvas.get_renderer()``),
 after the layout engine has run, so the check sees what the PNG shows.  Labels placed
@@ -150,6 +151,14 @@ def overlapping_texts(fig, drawn: list | None = None, tolerance_px: float = 0.5)
     return bad
 
 
+def texts_cut_off(fig, drawn: list | None = None, tolerance_px: float = 1.0) -> list[str]:
+    """The drawn texts of ``fig`` that reach past the figure's edge by more than ``tolerance_px`` (the PNG and
+    the PDF cut them)."""
+    w, h = fig.bbox.width, fig.bbox.height
+    return [t.get_text() for t, bb in (drawn if drawn is not None else drawn_texts(fig))
+            if bb.x0 < -tolerance_px or bb.y0 < -tolerance_px or bb.x1 > w + tolerance_px or bb.y1 > h + tolerance_px]
+
+
 def colorbars(fig) -> list:
     """The colour bars of a figure (``Colorbar`` objects)."""
     return [ax._colorbar for ax in fig.axes if getattr(ax, "_colorbar", None) is not None]
@@ -163,3 +172,40 @@ def colorbars_without_direction(fig) -> list[str]:
         if "better" not in label.lower():
             out.append(label)
     return out
+
+
+#: lightness (CIE L*, 0-100) two named lines of one axes differ by at least, when style does not tell them apart
+MIN_LIGHTNESS_STEP = 15.0
+
+
+def _lightness(color) -> float:
+    """CIE L* of a colour (sRGB), what a greyscale print keeps of it."""
+    from matplotlib.colors import to_rgb
+
+    c = np.asarray(to_rgb(color))
+    lin = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    y = float(lin @ (0.2126, 0.7152, 0.0722))
+    return 116 * y ** (1 / 3) - 16 if y > 0.008856 else 903.3 * y
+
+
+def lines_told_apart_by_hue(fig) -> list[tuple[str, str]]:
+    """Pairs of named lines (legend entries) on one axes, or on axes sharing a spot (twins), that differ
+    only in hue: the same line style and marker and lightness within :data:`MIN_LIGHTNESS_STEP`.
+
+    Such lines merge in a greyscale print and, for red against green, for the 1 in 12 men with a red-green
+    colour vision deficiency."""
+    groups: dict = {}
+    for ax in fig.axes:
+        if not ax.get_visible():
+            continue
+        key = tuple(np.round(ax.get_position().bounds, 3))
+        groups.setdefault(key, []).extend(
+            ln for ln in ax.get_lines() if ln.get_visible() and not ln.get_label().startswith("_"))
+    bad = []
+    for lines in groups.values():
+        for a, b in combinations(lines, 2):
+            if (a.get_linestyle(), a.get_marker()) != (b.get_linestyle(), b.get_marker()):
+                continue
+            if abs(_lightness(a.get_color()) - _lightness(b.get_color())) < MIN_LIGHTNESS_STEP:
+                bad.append((a.get_label(), b.get_label()))
+    return bad

@@ -18,7 +18,9 @@ from laughlab.render.savefig import save_figure  # noqa: E402
 from laughlab.signals.smoothing import THESIS_TICK_HZ, rate_limit_series  # noqa: E402
 
 #: the two rise/fall settings of the thesis' Fig. 3.2 (per tick): green 0.5/0.3, blue 0.2/0.1
-FIG32_SETTINGS = ((0.5, 0.3, "tab:green"), (0.2, 0.1, "tab:blue"))
+#: Fig. 3.2's rise/fall settings and their colours and line styles: the dashes tell the curves apart in greyscale and
+#: for red-green colour blindness (red, green and blue are about as light as each other)
+FIG32_SETTINGS = ((0.5, 0.3, "tab:green", "--"), (0.2, 0.1, "tab:blue", ":"))
 
 
 def _shade_bouts(ax, bouts) -> None:
@@ -70,10 +72,10 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     individual calls and the effect of rise and fall can be seen.
     """
     raw = np.asarray(mcs_raw, float)
-    curves = [(raw ** power, "tab:red", 0.8, "MCS, no rise/fall")]
-    for rise, fall, color in FIG32_SETTINGS:
+    curves = [(raw ** power, "tab:red", 0.8, "-", "MCS, no rise/fall")]
+    for rise, fall, color, style in FIG32_SETTINGS:
         y = rate_limit_series(raw, rise * THESIS_TICK_HZ, fall * THESIS_TICK_HZ, dt) ** power
-        curves.append((y, color, 1.1, f"rise {rise}, fall {fall} per tick"))
+        curves.append((y, color, 1.3, style, f"rise {rise}, fall {fall} per tick"))
     fig, (ax_all, ax_zoom) = plt.subplots(1, 2, figsize=(8.0, 2.9), dpi=150, layout="constrained",
                                           width_ratios=(1, 1.6), sharey=True)
     # the zoom: the most laughter inside the truth's bouts when there are any (a review: on a scene of speech and
@@ -84,9 +86,9 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     t0, t1 = busiest_window(times, raw * inside if np.any(raw * inside > 0) else raw, window_s)
     for ax, lo, hi in ((ax_all, times[0] if len(times) else 0, times[-1] if len(times) else 1), (ax_zoom, t0, t1)):
         _shade_bouts(ax, bouts)
-        for k, (y, color, lw, label) in enumerate(curves if ax is ax_zoom else curves[:1]):
+        for k, (y, color, lw, style, label) in enumerate(curves if ax is ax_zoom else curves[:1]):
             # the unfiltered signal over the filtered ones, which otherwise hide it where they agree
-            ax.plot(times, y, color=color, lw=lw, label=label, zorder=3 if k == 0 else 2,
+            ax.plot(times, y, color=color, lw=lw, ls=style, label=label, zorder=3 if k == 0 else 2,
                     alpha=0.75 if k == 0 and ax is ax_zoom else 1.0)
         _set_xlim(ax, lo, hi)
         ax.set_xlabel("time (s)")
@@ -304,7 +306,8 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     ax2.set_ylabel("laughing energy L /\nclip energy e(a)")
     ax2.set_xlabel("time (s)")
     axp = ax2.twinx()
-    (prim,) = axp.plot(times, primitive, color="tab:blue", lw=1.0, label="primitive of the MCS (right axis)")
+    (prim,) = axp.plot(times, primitive, color="tab:blue", lw=1.0, ls="--",   # dashed: as light as the green
+                       label="primitive of the MCS (right axis)")
     axp.set_ylim(0, max(1.0, float(primitive[-1]) if len(primitive) else 1.0) * 1.05)
     axp.set_ylabel("primitive of MCS", color="tab:blue", fontsize=8)
     axp.tick_params(axis="y", colors="tab:blue", labelsize=7)
@@ -450,8 +453,20 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
     from laughlab.render.figure import draw_skeleton
     from laughlab.motion.skeleton import forward_kinematics
 
+    import textwrap
+
+    from laughlab.render.figure import SIDE_KEY
+
     n = len(times)
-    fig, axes = plt.subplots(1, max(n, 1), figsize=(1.25 * max(n, 1), 2.0), dpi=150, squeeze=False)
+    width = 1.25 * max(n, 1)
+    # the title and the colours' key, wrapped to the figure's width (a strip of 3 cut a one-line title at both
+    # edges); each line more makes the figure taller, the panels keeping their size
+    chars = int(width * 72 / (0.6 * 8))   # DejaVu Sans at 8 pt: about 0.55 em a character on average
+    head = _titled(title or "The character over the run (skeleton from motion.bvh)", note) + f". {SIDE_KEY}"
+    lines = [w for para in head.split("\n") for w in textwrap.wrap(para, chars)]
+    extra = 0.14 * (len(lines) - 1)
+    height = 2.0 + extra
+    fig, axes = plt.subplots(1, max(n, 1), figsize=(width, height), dpi=150, squeeze=False)
     if n:
         pos = forward_kinematics(skeleton, np.asarray(poses), end_sites=True)
     for k, ax in enumerate(axes[0]):
@@ -463,8 +478,8 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
         ax.set_ylim(-8, 195)
         ax.set_title(f"{times[k]:.1f} s", fontsize=7, pad=1)
         ax.text(0.5, -0.02, captions[k], transform=ax.transAxes, ha="center", va="top", fontsize=5.5)
-    fig.suptitle(_titled(title or "The character over the run (skeleton from motion.bvh)", note), fontsize=8)
-    fig.subplots_adjust(left=0.01, right=0.99, top=0.76 if note else 0.84, bottom=0.2, wspace=0.05)
+    fig.suptitle("\n".join(lines), fontsize=8)
+    fig.subplots_adjust(left=0.01, right=0.99, top=1 - (0.32 + extra) / height, bottom=0.4 / height, wspace=0.05)
     save_figure(fig, path, pdf)
     plt.close(fig)
     return path
