@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 import shutil
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -20,7 +19,7 @@ from laughlab.core.bases import Sink
 from laughlab.core.errors import LaughlabError
 from laughlab.core.outfiles import Staging
 from laughlab.core.plugins import check_range
-from laughlab.io.video import VideoEncoder, source_audio
+from laughlab.io.video import VideoEncoder, scratch_dir, source_audio
 from laughlab.render.scene import Camera, Renderer
 from laughlab.motion.skeleton import global_transforms
 from laughlab.io.vmc import arkit_weights
@@ -196,7 +195,7 @@ class VideoSink(Sink):
             raise LaughlabError(f"output.video.fps ({self.vfps:g}) must not exceed the animation fps ({run.fps:g})")
         self.ratio = run.fps / self.vfps
         self.staging = Staging()
-        self.tmp_dir = Path(tempfile.mkdtemp(prefix="laughlab-video-"))
+        self.tmp_dir = scratch_dir()
         self.encoder = None
         try:
             audio = None

@@ -284,3 +284,27 @@ def test_the_character_style_shows_the_skinned_character_and_its_face(tmp_path):
         assert changed[face].sum() > 20 and changed[face].sum() > 0.9 * changed.sum()  # the face, not the rest
     # jaw and eyes move different parts of the face
     assert np.argmax(jaw_diff[face].sum(axis=1)) > np.argmax(eye_diff[face].sum(axis=1))
+
+
+def test_scratch_folders_of_processes_that_are_gone_are_removed_others_kept(tmp_path, monkeypatch):
+    """A video run killed by SIGKILL left its laughlab-video-* folder in /tmp with the run's audio (the media review
+    found 107, 252 MB; every full test run added one): the next video run removes those of processes that are gone,
+    and keeps a living process' and a name it does not know."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    from laughlab.io.video import SCRATCH_PREFIX, scratch_dir
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    dead = tmp_path / f"{SCRATCH_PREFIX}{int(gone.stdout)}-abc"
+    alive = tmp_path / f"{SCRATCH_PREFIX}{os.getppid()}-def"
+    old = tmp_path / f"{SCRATCH_PREFIX}xyz123"
+    for d in (dead, alive, old):
+        d.mkdir()
+        (d / "input.wav").write_bytes(b"x" * 100)
+    mine = scratch_dir()
+    assert mine.parent == tmp_path and mine.name.startswith(f"{SCRATCH_PREFIX}{os.getpid()}-") and mine.is_dir()
+    assert not dead.exists() and alive.exists() and old.exists()

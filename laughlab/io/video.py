@@ -199,3 +199,27 @@ def source_audio(source, tmp_dir: Path) -> Path | None:
                 f.write(truth.render(start, min(block, truth.n_samples - start)))
         return wav
     return None
+
+
+#: the video sink's scratch folders in the system's temporary folder: ``laughlab-video-PID-XXXXXXXX``
+SCRATCH_PREFIX = "laughlab-video-"
+
+
+def scratch_dir() -> Path:
+    """A new scratch folder for a video run's audio, named by this process' id; first, those of processes that are
+    gone are removed (a run killed by SIGKILL or a power cut cannot clean up after itself: the media review found
+    107 of them, 252 MB, one more per full test run)."""
+    import os
+    import shutil
+
+    for d in Path(tempfile.gettempdir()).glob(SCRATCH_PREFIX + "*-*"):
+        pid = d.name[len(SCRATCH_PREFIX):].split("-", 1)[0]
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:   # gone: nothing will use its folder again
+            shutil.rmtree(d, ignore_errors=True)
+        except OSError:   # alive, another user's (PermissionError): theirs
+            pass
+    return Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{os.getpid()}-"))
