@@ -523,3 +523,32 @@ def test_a_silent_microphone_says_so_in_the_closing_line(monkeypatch, tmp_path, 
     metrics = pipeline.execute(pipeline.build(run_cfg), tmp_path)
     assert metrics["input_peak"] == pytest.approx(float(np.abs(audio[:32000]).max()))
     assert f"laughlab: {said}" in summary_line(cfg, metrics, tmp_path, 2.5)
+
+
+@pytest.mark.parametrize("duration, fps", [(8.3, 30), (1.1, 90), (2.0, 72), (1.37, 144)])
+def test_a_set_duration_declares_the_frames_it_yields(monkeypatch, tmp_path, duration, fps):
+    """The microphone's n_frames (RunInfo.n_frames, the progress bar's total) said ceil(duration * fps): 250 for
+    the 249 frames of 8.3 s at 30 fps (8.3 * 30 is 249.00000000000003) and 100 for the 99 of 1.1 s at 90 fps, as
+    the file source said one more at game rates (a game developer's review)."""
+    seen = []
+
+    class Count:
+        name, streaming = "count", False
+
+        def open(self, run):
+            seen.append(run.n_frames)
+
+        def write(self, chunk):
+            seen.append(len(chunk.times))
+
+        def close(self):
+            return []
+
+        def abort(self):
+            pass
+
+    pipe = mic_pipe(monkeypatch, FakeSoundDevice(noise(duration + 1)), f"input.duration_s={duration}", f"fps={fps}",
+                    outputs={})
+    pipe.sinks = [Count()]
+    metrics = pipeline.execute(pipe, tmp_path)
+    assert seen[0] == sum(seen[1:]) == metrics["n_frames"]
