@@ -54,7 +54,7 @@ class VmcParams:
         Print the frame count and the measured latency when the run ends.
     rest_on_stop : bool
         When the stream ends (the input's end, Ctrl-C, a failure) send one more frame at rest: every
-        blendshape sent at 0 and the skeleton's rest pose, then ``Blend/Apply``.  Receivers (VSeeFace,
+        blendshape sent at 0 and the neutral standing pose (arms down), then ``Blend/Apply``.  Receivers (VSeeFace,
         Warudo, EVMC4U) keep the last values they got, so without it the avatar stays frozen mid-laugh.
     """
 
@@ -189,11 +189,21 @@ class VmcSink(Sink):
             self.sender.close()
 
     def _send_rest(self) -> None:
-        """One frame at rest after the last: every blendshape sent at 0, the rest pose (``rest_pose``: the hips
-        standing, 95 cm up; a pose of zeros put them on the floor, diff-review 12), Blend/Apply."""
-        pos, rot = self.bones.local(rest_pose(self.bones.skeleton)[None])
+        """One frame at rest after the last: every blendshape sent at 0, the neutral standing pose every clip starts
+        and ends at (the idle clip's first frame: arms down, hips 95 cm up), Blend/Apply.  It was the skeleton's
+        T-pose (``rest_pose``), so every receiver's avatar ended a session with its arms straight out (a game
+        developer's review); a pose of zeros had put the hips on the floor (diff-review 12)."""
+        pos, rot = self.bones.local(self._neutral()[None])
         msgs = self.encoder.messages(self._t + 1.0 / self.run.fps, pos[0], rot[0], ((k, 0.0) for k in self._sent))
         self.sender.send(self.encoder.packets(msgs), strict=False)   # its error warned of: the frames went out
+
+    def _neutral(self) -> np.ndarray:
+        """The pose the character stands in at rest: the idle clip at its start (the run's clip library, which
+        the mixer plays), or the T-pose of a skeleton that is not the library's."""
+        library, skeleton = self.ctx.clips, self.bones.skeleton
+        if library.skeleton != skeleton:
+            return rest_pose(skeleton)
+        return np.asarray(library.idle.sample_rows(np.zeros(1)), dtype=np.float64)[0]
 
     def _latency(self) -> dict:
         s = latency_summary(self.lat_ms.array(np.float64))

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.io.audio import cut_frames
+from laughlab.io.audio import cut_frames, n_frames_for
 from laughlab.core.bases import Source
 from laughlab.core.errors import LaughlabError, StoppedBySignal, first_line
 from laughlab.core.interrupts import StopOnSignal
@@ -106,7 +106,9 @@ class MicSource(Source):
         self._sd, self._device = sd, device
         self.sample_rate = self.params.sample_rate
         d = self.params.duration_s
-        self.n_frames = None if d is None else int(np.ceil(d * self.ctx.fps))
+        # the frames of the samples read (int(d * sr), as _chunks reads them), cut as any input's: ceil(d * fps) said
+        # 250 for the 249 frames of 8.3 s at 30 fps (float rounding), 100 for the 99 of 1.1 s at 90 fps
+        self.n_frames = None if d is None else n_frames_for(int(d * self.sample_rate), self.sample_rate, self.ctx.fps)
         self.duration_s = d
         self.calibration_s = float(self.params.calibration_s)
 

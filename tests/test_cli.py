@@ -252,6 +252,27 @@ def test_an_unknown_key_names_the_plugins_that_have_it(args, message):
     assert str(err.value).startswith(message)
 
 
+
+@pytest.mark.parametrize("args, said, list_hint", [
+    # a game developer's two receivers: the line said to write output.vmc.host=[A,B], which then failed on
+    # OmegaConf's "Cannot convert 'ListConfig' to string"
+    (["output=vmc", "output.vmc.host=127.0.0.1,192.168.1.2"], "output.vmc.host takes one value", False),
+    (["seed=1,2"], "seed takes one value", False),
+    (["input=file", "input.path=a.wav,b.wav"], "input.path takes one value", False),
+    (["scheduler.clips=rofl,giggle"], "for a list write 'scheduler.clips=[rofl,giggle]'", True),   # a list[str]
+    (["face=facs,smile"], "for a list write 'face=[facs,smile]'", True),
+])
+def test_several_values_offer_a_list_only_to_a_parameter_that_takes_one(args, said, list_hint):
+    from laughlab.core.config import compose_config
+    from laughlab.core.errors import LaughlabError
+
+    with pytest.raises(LaughlabError) as err:
+        compose_config(args)
+    text = str(err.value)
+    assert "gives several values: to run each, add -m" in text and said in text
+    assert ("=[" in text) == list_hint
+
+
 def test_failure_during_the_run_leaves_nothing(tmp_path):
     plugdir = tmp_path / "plug"
     plugdir.mkdir()

@@ -543,3 +543,32 @@ def test_a_silent_microphone_is_warned_once_while_the_session_runs(monkeypatch, 
         assert warned == [f"laughlab: warning: the microphone has been silent for 5.0 s (its loudest sample {said}): "
                           "is it muted? input.device=NAME_OR_INDEX chooses another (python -m sounddevice lists them)"]
         assert "laughlab: calibrated (peak" in err and "; it heard nothing" in err
+
+
+@pytest.mark.parametrize("duration, fps", [(8.3, 30), (1.1, 90), (2.0, 72), (1.37, 144)])
+def test_a_set_duration_declares_the_frames_it_yields(monkeypatch, tmp_path, duration, fps):
+    """The microphone's n_frames (RunInfo.n_frames, the progress bar's total) said ceil(duration * fps): 250 for
+    the 249 frames of 8.3 s at 30 fps (8.3 * 30 is 249.00000000000003) and 100 for the 99 of 1.1 s at 90 fps, as
+    the file source said one more at game rates (a game developer's review)."""
+    seen = []
+
+    class Count:
+        name, streaming = "count", False
+
+        def open(self, run):
+            seen.append(run.n_frames)
+
+        def write(self, chunk):
+            seen.append(len(chunk.times))
+
+        def close(self):
+            return []
+
+        def abort(self):
+            pass
+
+    pipe = mic_pipe(monkeypatch, FakeSoundDevice(noise(duration + 1)), f"input.duration_s={duration}", f"fps={fps}",
+                    outputs={})
+    pipe.sinks = [Count()]
+    metrics = pipeline.execute(pipe, tmp_path)
+    assert seen[0] == sum(seen[1:]) == metrics["n_frames"]

@@ -289,3 +289,13 @@ def test_a_file_cut_short_is_one_line_before_any_work(tmp_path):
         assert not run.exists()
         p = laughlab("detect", str(cut), "--out", str(tmp_path / f"det_{subtype}_{ext}"))
         assert p.returncode == 2 and p.stderr.count("\n") == 1 and "Traceback" not in p.stderr, p.stderr
+
+
+@pytest.mark.parametrize("sr, fps, n", [(16000, 72, 253778), (8000, 30, 267), (48000, 144, 21667), (44100, 72, 1212138),
+                                        (48000, 90, 938667), (44100, 60, 44100), (16000, 60, 1)])
+def test_n_frames_is_the_number_of_frames_the_source_yields(sr, fps, n):
+    """A source's n_frames (RunInfo.n_frames, which a sink may allocate by) counted one frame more than cut_frames
+    cuts when the last frame's edge rounds to the input's end (a game developer's review at 72, 90 and 144 fps)."""
+    from laughlab.io.audio import cut_frames
+
+    assert n_frames_for(n, sr, fps) == sum(1 for _ in cut_frames([np.zeros(n, np.float32)], sr, fps))

@@ -416,16 +416,23 @@ def test_the_stream_ends_with_one_frame_at_rest(tmp_path, how):
     check_frames(frames, 20)
     last, rest = ({m[2][0]: m[2][1] for m in f if m[1] == "/VMC/Ext/Blend/Val"} for f in (frames[-2], frames[-1]))
     assert list(rest) == list(last) and max(last.values()) > 0.1 and set(rest.values()) == {0.0}
-    # the rest pose from the skeleton itself, not from the call the sink makes (diff-review 12): every rotation the
-    # identity, every bone below the hips at its offset from its parent, in Unity's frame ((-x, y, z) / 100), and
-    # the hips standing, 0.95 m up (skeleton.rest_pose), not on the floor as a pose of zeros put them
+    # the neutral standing pose every clip starts and ends at (the idle clip's first frame), not the T-pose, which
+    # left every receiver's avatar with its arms straight out (a game developer's review), nor a pose of zeros,
+    # which put the hips on the floor (diff-review 12): every bone below the hips at its offset from its parent,
+    # in Unity's frame ((-x, y, z) / 100), the hips standing, 0.95 m up
     sink = next(s for s in pipe.sinks if s.name == "vmc")
     skel = pipe.ctx.skeleton
     bones, moved = ([m[2] for m in f if m[1] == "/VMC/Ext/Bone/Pos"] for f in (frames[-1], frames[-2]))
     assert [b[0] for b in bones] == [b[0] for b in moved] == sink.bones.bones and bones[0][0] == "Hips"
     offsets = np.array([skel.offsets[j] for j in sink.bones.joints], dtype=np.float64) * [-0.01, 0.01, 0.01]
-    np.testing.assert_allclose([b[4:] for b in bones], [[0.0, 0.0, 0.0, 1.0]] * len(bones), atol=1e-6)
+    neutral = pipe.ctx.clips.idle.sample_rows(np.zeros(1))
+    np.testing.assert_allclose([b[4:] for b in bones], sink.bones.local(neutral)[1][0], atol=1e-6)
     np.testing.assert_allclose([b[1:4] for b in bones[1:]], offsets[1:], atol=1e-6)
+    rot = {b[0]: np.array(b[4:]) for b in bones}
+    for arm, side in (("LeftUpperArm", -1.0), ("RightUpperArm", 1.0)):   # the arms hang: the upper arm's axis,
+        x, y, z, w = rot[arm]                                             # Unity's +-X at rest, points down
+        down = 2 * (x * y + z * w) * side                                 # its world y (the shoulders unturned)
+        assert down < -0.9, (arm, down)
     np.testing.assert_allclose(bones[0][1:4], [0.0, 0.95, 0.0], atol=1e-6)
     assert np.abs(np.array([b[4:] for b in moved]) - [0.0, 0.0, 0.0, 1.0]).max() > 0.01   # the last frame was not
     assert abs(moved[0][2] - 0.95) < 0.05   # its hips about as high

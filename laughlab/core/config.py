@@ -215,9 +215,9 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
         if key == "output":
             return (f"output={value}: several outputs are a list, write 'output=[{value}]' (quoted for the shell); "
                     f"without brackets a comma means a sweep (-m)")
+        as_list = f"for a list write '{key}=[{value}]'" if not _one_value(key, overrides) else f"{key} takes one value"
         return (f"{key}={value} gives several values: to run each, add -m (a sweep: python -m laughlab -m "
-                f"{key}={value}); for a list write '{key}=[{value}]'; one value with a comma in it is quoted: "
-                f"\"{key}='{value}'\"")
+                f"{key}={value}); {as_list}; one value with a comma in it is quoted: \"{key}='{value}'\"")
     m = re.match(r"Error merging override (\S+)", text)
     if m and exc.__cause__ is not None:   # Hydra's line names the override, its cause says what is wrong with it
         cause = str(exc.__cause__).strip().splitlines()
@@ -232,6 +232,34 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
         return launcher_missing(m.group(1))
     lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
     return lines[0] if lines else type(exc).__name__
+
+
+def _one_value(key: str, overrides: list[str]) -> bool:
+    """Is ``key`` a parameter that takes one number, string or flag (``seed``, ``output.vmc.host``, ``input.path``)?
+    Then a list in brackets is no way to give it several (a game-developer review: for two VMC receivers the line
+    said to write 'output.vmc.host=[A,B]', which failed on OmegaConf's "Cannot convert 'ListConfig' to string")."""
+    from dataclasses import fields, is_dataclass
+
+    from laughlab.core import plugins
+
+    scalar = {"str", "int", "float", "bool", str, int, float, bool}
+    parts = key.lstrip("+~").split(".")
+    try:
+        if len(parts) == 1:   # a run's own parameter (seed, fps): its default's type
+            from hydra import compose
+
+            choices = [o for o in overrides if o.split("=")[0].lstrip("+~") in (*GROUP_KINDS, "experiment")]
+            return type(compose("config", overrides=choices).get(parts[0])) in scalar
+        if parts[0] == "output" and len(parts) == 3:
+            params, name = plugins.get("sink", parts[1]).obj.Params, parts[2]
+        elif parts[0] in GROUP_KINDS and parts[0] != "output" and len(parts) == 2:
+            params, name = plugins.get(GROUP_KINDS[parts[0]], chosen(overrides)[parts[0]]).obj.Params, parts[1]
+        else:
+            return False
+    except Exception:  # a hint is a courtesy: unknown, keep the list's
+        return False
+    found = [f for f in fields(params) if f.name == name] if is_dataclass(params) else []
+    return bool(found) and found[0].type in scalar
 
 
 def _owners(group: str, path: str) -> list[str]:

@@ -19,8 +19,15 @@ def frame_edges(n_frames: int, sample_rate: int, fps: float) -> np.ndarray:
 
 
 def n_frames_for(n_samples: int, sample_rate: int, fps: float) -> int:
-    """Number of whole-or-partial frames covering ``n_samples`` samples."""
-    return int(np.ceil(n_samples * fps / sample_rate - 1e-9)) if n_samples > 0 else 0
+    """Number of frames :func:`cut_frames` cuts ``n_samples`` samples into: the frames k whose first sample,
+    ``round(k * sr / fps)``, is a sample of the input (the last may be partial).  ``ceil(n * fps / sr)`` counted one
+    more when the last edge rounds to the input's end (16 kHz at 72 fps, 253778 samples: 1143 for 1142 frames)."""
+    if n_samples <= 0:
+        return 0
+    n = int(np.ceil(n_samples * fps / sample_rate - 1e-9))
+    while n > 1 and np.round((n - 1) * (sample_rate / fps)) >= n_samples:   # frame n - 1 starts past the end
+        n -= 1
+    return n
 
 
 def cut_frames(chunks: Iterable[np.ndarray], sample_rate: int, fps: float) -> Iterator[np.ndarray]:
