@@ -144,7 +144,7 @@ class ViewerSink(Sink):
     def close(self):
         self.server.close()
         pages = self.server.pages
-        self._say(f"viewer: {self.n} frames sent to " + ("no page" if not pages else "1 page" if pages == 1 else
+        self._say(f"viewer: {self.n} frame{'' if self.n == 1 else 's'} sent to " + ("no page" if not pages else "1 page" if pages == 1 else
                                                           f"{pages} pages") + f" at {self.url}")
         return []
 

@@ -226,7 +226,7 @@ class VmcSink(Sink):
                 ("live" if self.live else "not paced: as fast as computed")
             dropped = f", {self.sender.dropped} datagrams dropped" if self.sender.dropped else ""
             try:
-                print(f"vmc: {self.n} frames to {self.params.host}:{self.params.port} ({how}{dropped}); latency "
+                print(f"vmc: {self.n} frame{'' if self.n == 1 else 's'} to {self.params.host}:{self.params.port} ({how}{dropped}); latency "
                       f"audio block -> OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max "
                       f"{s['max']:.2f} ms", file=sys.stdout, flush=True)
             except BrokenPipeError:   # stdout closed (| head): no fault of the session, which is kept (review-live-2 7)

@@ -478,3 +478,20 @@ def test_a_closed_stdout_keeps_the_streamed_session(tmp_path):
         os.close(write)
     assert p.returncode == 0 and p.stderr == "", p.stderr
     assert json.loads((tmp_path / "run" / "metrics.json").read_text())["vmc_frames"] == 18
+
+
+def test_the_closing_line_of_one_frame_says_frame(tmp_path, capsys):
+    """'vmc: 1 frames' (the game-developer review): a 0.01 s file sends one frame, and says so."""
+    import soundfile as sf
+    from omegaconf import OmegaConf
+
+    from laughlab.core import pipeline
+    from laughlab.core.config import compose_config
+
+    sf.write(tmp_path / "tick.wav", np.zeros(160, np.float32), 16000)
+    cfg = compose_config(["input=file", f"input.path={tmp_path / 'tick.wav'}", "output=vmc",
+                          "output.vmc.realtime=off", "output.vmc.port=39599"])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+    (tmp_path / "run").mkdir()
+    pipeline.execute(pipeline.build(cfg), tmp_path / "run")
+    assert "vmc: 1 frame to 127.0.0.1:39599 (not paced" in capsys.readouterr().out
