@@ -10,15 +10,19 @@ from __future__ import annotations
 import collections
 import contextlib
 import math
+import os
+import shutil
 import signal
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from laughlab import hookimpl
-from laughlab.io.audio import cut_frames, n_frames_for
+from laughlab.io.audio import FloatWavWriter, cut_frames, n_frames_for
 from laughlab.core.bases import Source
 from laughlab.core.errors import LaughlabError, StoppedBySignal, first_line
 from laughlab.core.interrupts import StopOnSignal
@@ -43,6 +47,10 @@ class MicParams:
         Animation frames per audio block read from the device (1 = lowest latency).
     calibration_s : float
         Length of the calibration phase at the start (thesis 3.1.1), seconds; 0 = none.
+    save_audio : bool
+        Write the samples the session's frames read as ``input.wav`` (32-bit float) into the run directory, so the
+        session can be replayed offline: ``input=file input.path=RUN/input.wav extractor.calibration_s=3`` (the
+        calibration's length) gives its ``channels.csv``, ``events.csv`` and ``motion.bvh`` byte for byte.
     """
 
     device: str | None = None
@@ -50,6 +58,7 @@ class MicParams:
     duration_s: float | None = None
     block_frames: int = 1
     calibration_s: float = 3.0
+    save_audio: bool = False
 
     def __post_init__(self) -> None:
         check_range("sample_rate", self.sample_rate, 8000, 192000)
@@ -73,6 +82,7 @@ class MicSource(Source):
     clock = staticmethod(time.perf_counter)
     _gens: tuple = ()
     _line: "MeterLine | None" = None
+    _spool: "FloatWavWriter | None" = None   # input.save_audio: the frames' samples so far, in a temporary file
 
     def open(self) -> None:
         try:
@@ -202,6 +212,11 @@ class MicSource(Source):
         for gen in gens:
             with contextlib.suppress(Exception):   # cleanup, in the pipeline's finally: never hides its error
                 gen.close()
+        spool, self._spool = self._spool, None   # a run that failed: its audio is not kept
+        if spool is not None:
+            with contextlib.suppress(OSError):
+                spool.f.close()
+                os.unlink(spool.f.name)
 
     def blocks(self):
         reader = self._chunks()
@@ -209,8 +224,39 @@ class MicSource(Source):
         n = int(round(self.ctx.calibration_s * self.ctx.fps))
         self._line = MeterLine()
         outer = calibration_meter(frames, n, self.ctx.fps, line=self._line) if n > 0 else frames
+        if self.params.save_audio:
+            outer = self._recorded(outer)
         self._gens = (outer, frames, reader)   # closed outermost first
         return outer
+
+    def _recorded(self, frames):
+        """Pass ``frames`` through, writing each one's samples (the float32 read, exactly) to a temporary WAV
+        that :meth:`save_artifacts` puts into the run directory as ``input.wav``."""
+        fd, name = tempfile.mkstemp(prefix="laughlab-mic-", suffix=".wav")
+        os.close(fd)
+        self._spool = spool = FloatWavWriter(name, self.sample_rate)
+        for block in frames:
+            spool.write(block)
+            yield block
+
+    def save_artifacts(self, out_dir: Path) -> list[Path]:
+        """``input.wav``: the session's audio (``input.save_audio``), whole or not at all; nothing without it."""
+        spool, self._spool = self._spool, None
+        if spool is None:
+            return []
+        from laughlab.core.outfiles import Staging
+
+        staging = Staging()
+        try:
+            spool.close()
+            shutil.move(spool.f.name, staging.path(Path(out_dir) / "input.wav"))
+        except BaseException:
+            staging.abort()
+            raise
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(spool.f.name)
+        return staging.commit()
 
 
 class InputHealth:

@@ -213,6 +213,11 @@ def test_a_parameter_of_another_plugin_says_what_to_add(tmp_path, args, message)
      "input.profile is a parameter of input=synthetic, not of input=file: use input=synthetic instead"),
     (["output.video.fps=10"], "output.video.fps is a parameter of output=video, not of output=files: add output=video"),
     (["body.preset=deep_laugh"], "body.preset is a parameter of body=hill, not of body=shapes: add body=hill"),
+    # the chosen plugin has the setting one level down: named first (repro review: replaying a microphone session
+    # with extractor=phoneme, the line said to switch to extractor=rms, where extractor.rms.calibration_s was meant)
+    (["extractor=phoneme", "extractor.calibration_s=3"],
+     "extractor.calibration_s is not a parameter of extractor=phoneme, which has extractor.rms.calibration_s; "
+     "extractor.calibration_s is a parameter of extractor=rms"),
     (["mode=fast"], "there is no top-level parameter mode; scheduler=concat has scheduler.mode: "
                     "write scheduler=concat scheduler.mode=fast"),
     (["scheduler=concat", "mode=optimal"], "there is no top-level parameter mode; did you mean scheduler.mode=optimal?"),

@@ -647,6 +647,26 @@ def test_the_commit_stamp_is_dirty_only_when_code_differs(tmp_path):
     assert git_hash(tmp_path) == clean + "+dirty"
 
 
+def test_the_commit_stamp_is_not_the_commit_of_a_repository_laughlab_is_installed_inside(tmp_path):
+    """laughlab installed from PyPI into a project's own .venv: its folder is inside the project's repository, and
+    git_hash stamped the project's commit as laughlab's in metrics.json,
+    results.json and every report (repro review).  Only a checkout of laughlab itself is stamped."""
+    import subprocess
+
+    from laughlab.harness.results import git_hash
+
+    def git(*args):
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    git("init", "-q")
+    (tmp_path / "analysis.py").write_text("1\n")
+    site = tmp_path / ".venv" / "lib" / "python3.11" / "site-packages"
+    site.mkdir(parents=True)
+    git("add", "analysis.py")
+    git("-c", "user.email=a@b", "-c", "user.name=a", "commit", "-qm", "x")
+    assert git_hash(tmp_path) and git_hash(site) is None
+
+
 @pytest.mark.parametrize("text, message", [
     ("garbage\n", "tank.truth.csv: no column kind, onset_s, offset_s"),
     ("kind,bout,onset_s,offset_s,intensity\nbout,0,0.5,99,1\n", "tank.truth.csv, line 2: offset_s 99 is past the "

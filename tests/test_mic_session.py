@@ -11,6 +11,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import textwrap
 import time
 from pathlib import Path
@@ -572,3 +573,39 @@ def test_a_set_duration_declares_the_frames_it_yields(monkeypatch, tmp_path, dur
     pipe.sinks = [Count()]
     metrics = pipeline.execute(pipe, tmp_path)
     assert seen[0] == sum(seen[1:]) == metrics["n_frames"]
+
+
+@pytest.mark.parametrize("sr", [44100, 48000])
+def test_a_session_saved_with_its_audio_replays_offline_to_the_same_bytes(monkeypatch, tmp_path, sr):
+    """A live session kept no audio, so the promise that a live and an offline run agree could not be used on
+    a real session (repro review): ``input.save_audio=true`` writes the samples its frames read as input.wav,
+    and the file run of it, with the calibration's length, gives the same bytes."""
+    import soundfile as sf
+
+    audio = noise(3.0, sr)
+    (tmp_path / "tmp").mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / "tmp"))
+    mic = mic_pipe(monkeypatch, FakeSoundDevice(audio), "input.duration_s=2.5", f"input.sample_rate={sr}",
+                   "input.save_audio=true", calibration_s=1)
+    pipeline.execute(mic, tmp_path / "mic")
+    saved, rate = sf.read(tmp_path / "mic" / "input.wav", dtype="float32")
+    assert rate == sr and np.array_equal(saved, audio[: int(2.5 * sr)])
+    cfg = compose_config(["input=file", f"input.path={tmp_path / 'mic' / 'input.wav'}", "extractor.calibration_s=1"])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    cfg.output = {"csv": {}, "bvh": {}}
+    pipeline.execute(pipeline.build(cfg), tmp_path / "file")
+    for name in ("channels.csv", "events.csv", "motion.bvh"):
+        assert (tmp_path / "mic" / name).read_bytes() == (tmp_path / "file" / name).read_bytes(), name
+    assert not list((tmp_path / "tmp").iterdir())   # the spooled audio was moved into the run, none left behind
+
+
+def test_a_failed_session_leaves_no_spooled_audio(monkeypatch, tmp_path):
+    """The temporary file the audio is spooled to goes with a run that fails, and no input.wav is written."""
+    fake = FakeSoundDevice(noise(2.0), fail_at=30)
+    mic = mic_pipe(monkeypatch, fake, "input.save_audio=true")
+    blocks = mic.source.blocks()
+    next(blocks)
+    spool = Path(mic.source._spool.f.name)
+    assert spool.exists()
+    mic.source.close()
+    assert not spool.exists() and mic.source._spool is None

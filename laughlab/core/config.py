@@ -274,7 +274,9 @@ def misplaced_parameter(group: str, current: str, key: str, explicit: bool = Fal
     """``group.key`` is not a parameter of ``group=current``: the line naming the options that have it."""
     from laughlab.core import keyhints
 
-    return keyhints.elsewhere(group, key, current, _owners(group, key), explicit)
+    kind = GROUP_KINDS.get(group) if group != "output" else None
+    nested = keyhints.nested_in(conf_dir().joinpath(group), kind, current, key)
+    return keyhints.elsewhere(group, key, current, _owners(group, key), explicit, nested)
 
 
 def _nearest_top_level(key: str) -> str | None:

@@ -55,18 +55,33 @@ def options_with(folder, kind: str | None, path: str) -> list[str]:
         return []
 
 
+def nested_in(folder, kind: str | None, option: str | None, path: str) -> list[str]:
+    """The parameters of ``option`` that end in ``.path`` (``rms.calibration_s`` of ``extractor=phoneme`` for
+    ``calibration_s``), sorted: the same setting one level down."""
+    try:
+        return sorted(k for k in option_keys(folder, kind).get(option, ()) if k.endswith("." + path))
+    except Exception:  # a hint is a courtesy: never let it hide the error it explains
+        return []
+
+
 def _choices(owners: list[str], group: str) -> str:
     named = [f"{group}={o}" for o in owners]
     return named[0] if len(named) == 1 else ", ".join(named[:-1]) + " and " + named[-1]
 
 
-def elsewhere(group: str, path: str, current: str | None, owners: list[str], explicit: bool = False) -> str | None:
+def elsewhere(group: str, path: str, current: str | None, owners: list[str], explicit: bool = False,
+              nested: list[str] = ()) -> str | None:
     """``group.path`` is unknown for ``group=current`` but ``owners`` have it: the line saying which and what
     to add (None if no other option has it).  ``explicit``: the user chose ``group=current`` on the command
-    line (then the line says to switch rather than to add)."""
+    line (then the line says to switch rather than to add).  ``nested``: ``current``'s own parameters that end
+    in ``.path`` (:func:`nested_in`), named first: the user may want those rather than another option."""
     owners = [o for o in owners if o != current]
     if not owners:
         return None
+    if nested:
+        keys = " or ".join(f"{group}.{k}" for k in nested)
+        return (f"{group}.{path} is not a parameter of {group}={current}, which has {keys}; {group}.{path} is "
+                f"a parameter of {_choices(owners, group)}")
     now = f", not of {group}={current}" if current else ""
     if explicit:
         todo = f"use {group}={owners[0]} instead" if len(owners) == 1 else "use one of them instead"

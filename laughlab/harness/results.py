@@ -102,15 +102,20 @@ NOT_CODE = (":(exclude)reports", ":(exclude)docs", ":(exclude)*.md")
 
 def git_hash(root: Path | None = None) -> str | None:
     """The laughlab checkout's commit, with ``+dirty`` when a tracked file other than :data:`NOT_CODE` differs
-    from it; None outside a git checkout."""
-    root = root or Path(__file__).resolve().parents[2]
+    from it; None outside a git checkout, and None where ``root`` is only inside another repository (laughlab
+    installed into a virtual environment within the user's own project: its commit is not laughlab's)."""
+    root = Path(root or Path(__file__).resolve().parents[2]).resolve()
     try:
-        h = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
+        h = subprocess.run(["git", "rev-parse", "--show-toplevel", "HEAD"], cwd=root, capture_output=True, text=True,
+                           timeout=10)
         if h.returncode != 0:
+            return None
+        top, head = h.stdout.strip().splitlines()
+        if Path(top).resolve() != root:
             return None
         dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ".", *NOT_CODE],
                                cwd=root, capture_output=True, text=True, timeout=10).stdout.strip()
-        return h.stdout.strip() + ("+dirty" if dirty else "")
+        return head + ("+dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError):
         return None
 
