@@ -398,14 +398,14 @@ def _plan_offline(pipe: Pipeline) -> None:
     det.reset()
 
 
-def _offline_only(sch) -> str:
+def _offline_only(sch, source: str = "a live source (input=mic)") -> str:
     """The refusal of a scheduler that plans over the whole input on a live source, naming the setting to use:
     its ``mode`` parameter's default (``scheduler.mode=greedy``, the real-time mode)."""
     modes = [f.default for f in dataclasses.fields(sch.params) if f.name == "mode"] \
         if dataclasses.is_dataclass(sch.params) else []
     now = f" (scheduler.mode={sch.params.mode})" if modes else ""
     fix = f"scheduler.mode={modes[0]}, its real-time mode" if modes else "a real-time scheduler"
-    return (f"scheduler={sch.name}{now} plans over the whole input and cannot run on a live source (input=mic); "
+    return (f"scheduler={sch.name}{now} plans over the whole input and cannot run on {source}; "
             f"use {fix}")
 
 

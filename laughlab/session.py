@@ -1,0 +1,230 @@
+"""laughlab stepped from your own program: give it audio as it comes, take each frame as it is computed.
+
+    from laughlab.session import Session
+
+    with Session(["face=facs"], sample_rate=48000) as s:   # the command line's overrides, any rate from 8 kHz
+        for block in my_audio_blocks():                     # float32 mono samples in [-1, 1], any length
+            for frame in s.feed(block):                     # the frames these samples completed
+                frame.arkit["jawOpen"], frame.pose          # ARKit weights; the BVH channel vector (cm, degrees)
+
+The frames are the ones ``python -m laughlab input=file`` computes from the same samples (same seed, same
+bytes): the run is :func:`laughlab.core.pipeline.execute` itself, in a thread of its own, on a source fed by
+:meth:`Session.feed` and cut into frames as the file and microphone sources cut theirs
+(:func:`laughlab.io.audio.cut_frames`), with a sink that hands each frame back as soon as it is computed. Outputs
+(``outputs=["files"]``, ``"vmc"``, ``"viewer"``) write into ``out_dir`` or stream as they do from the command line.
+The input plugin of the overrides is not used; the session is the input (not live: ``body=hill`` fits in the
+frame, as for a file; the calibration of ``extractor=rms`` is ``calibration_s``, 0 as for a file).
+"""
+from __future__ import annotations
+
+import queue
+import tempfile
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from laughlab.core.errors import LaughlabError
+
+
+@dataclass
+class SessionFrame:
+    """One animation frame.
+
+    Attributes
+    ----------
+    index : int
+    time_s : float
+        The frame's time (s from the first sample fed).
+    channels : dict
+        Every channel of ``channels.csv`` for this frame (``mcs``, ``smile``, ``jaw``, ``energy``, ``arkit.*``...).
+    pose : ndarray
+        The skeleton's pose as ``motion.bvh`` holds it: root position (cm), then ZXY Euler angles (degrees) per
+        joint (``laughlab.motion.skeleton.HUMANOID``).
+    events : list
+        Clips that start or stop on this frame (:class:`laughlab.core.frame.ClipEvent`).
+    label : str
+        The extractor's pseudo-phoneme label, where it gives one.
+    """
+
+    index: int
+    time_s: float
+    channels: dict
+    pose: np.ndarray
+    events: list = field(default_factory=list)
+    label: str = ""
+
+    @property
+    def arkit(self) -> dict:
+        """The face as ARKit blendshape weights in [0, 1] (the names ``face_arkit.csv`` and the VMC stream use)."""
+        from laughlab.io.vmc import arkit_weights
+
+        weights = arkit_weights({k: np.asarray([v]) for k, v in self.channels.items()})
+        return {k: float(v[0]) for k, v in weights.items()}
+
+
+@dataclass
+class FedParams:
+    """What the session's input records in ``metrics.json``'s configuration: the rate fed (Hz), the calibration (s)."""
+
+    sample_rate: int
+    calibration_s: float
+
+
+class _FedSource:
+    """The session's input: the samples :meth:`Session.feed` queued, cut into frames."""
+
+    name = "session"
+    live = False
+    n_frames = None
+    truth = None
+
+    def __init__(self, sample_rate: int, calibration_s: float, fps: float):
+        self.sample_rate, self.calibration_s, self.fps = int(sample_rate), float(calibration_s), fps
+        self.params = FedParams(self.sample_rate, self.calibration_s)
+        self.samples: queue.Queue = queue.Queue()
+        self.hungry = threading.Event()   # every sample fed is cut into frames, and every whole frame computed
+
+    def _chunks(self):
+        while True:
+            if self.samples.empty():
+                self.hungry.set()
+            x = self.samples.get()
+            if x is None:
+                return
+            yield x
+
+    def blocks(self):
+        from laughlab.io.audio import cut_frames
+
+        return cut_frames(self._chunks(), self.sample_rate, self.fps)
+
+    def close(self) -> None:
+        pass
+
+
+class _Handback:
+    """A streaming sink: each frame back to the session as it is computed."""
+
+    name = "session"
+    streaming = True
+    background = False
+    files = ()
+
+    def __init__(self, out: list):
+        self.out = out
+
+    def open(self, run) -> None:
+        self.run = run
+
+    def write(self, chunk) -> None:
+        for i, t in enumerate(chunk.times):
+            events = [e for e in chunk.events if abs(e.time_s - t) < 0.5 / self.run.fps] if chunk.events else []
+            self.out.append(SessionFrame(len(self.out), float(t), {k: float(np.asarray(v)[i]) for k, v in
+                                                                 chunk.channels.items()},
+                                         np.array(chunk.poses[i], dtype=np.float64), events,
+                                         chunk.labels[i] if i < len(chunk.labels) else ""))
+
+    def close(self):
+        return []
+
+    def abort(self) -> None:
+        pass
+
+
+class Session:
+    """A laughlab run fed by your program (module docstring).
+
+    Parameters
+    ----------
+    overrides : list of str
+        As on the command line (``face=facs``, ``detector=none``, ``seed=3``...).
+    sample_rate : int
+        The rate of the samples you feed (Hz, 8000-192000).
+    outputs : list of str
+        Output groups to write or stream as well (``files``, ``gltf``, ``vmc``, ``viewer``...); none by default.
+    out_dir : path or None
+        Where outputs and ``metrics.json`` go (a new temporary folder, removed at :meth:`close`, when None).
+    calibration_s : float
+        The rms extractor's calibration phase at the start (s; van Duijn 2014, 3.1.1): 0, as for a file.
+    """
+
+    def __init__(self, overrides=(), sample_rate: int = 16000, outputs=(), out_dir=None, calibration_s: float = 0.0):
+        from omegaconf import OmegaConf
+
+        from laughlab.core import pipeline
+        from laughlab.core.config import compose_app
+
+        if not 8000 <= int(sample_rate) <= 192000:
+            raise LaughlabError(f"sample_rate must be 8000-192000 Hz (got {sample_rate})")
+        out = list(outputs)
+        cfg = compose_app([*overrides, "input=synthetic", f"input.sample_rate={int(sample_rate)}",
+                           f"output={out[0] if len(out) == 1 else '[' + ','.join(out) + ']'}" if out else "output=trial",
+                           "progress=off"])
+        cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+        if not out:
+            cfg.output = {}
+        pipe = pipeline.build(cfg)
+        pipe.source.close()
+        if getattr(pipe.scheduler, "offline_plan", False):
+            raise LaughlabError(pipeline._offline_only(pipe.scheduler, "a session fed as it goes"))
+        self._frames: list[SessionFrame] = []
+        self._taken = 0
+        pipe.ctx.calibration_s = float(calibration_s) if getattr(pipe.extractor, "calibrates", False) else 0.0
+        self._src = pipe.source = _FedSource(sample_rate, pipe.ctx.calibration_s, pipe.ctx.fps)
+        pipe.sinks.append(_Handback(self._frames))
+        self._tmp = None if out_dir is not None else tempfile.TemporaryDirectory(prefix="laughlab-session-")
+        self.out_dir = Path(out_dir if out_dir is not None else self._tmp.name)
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.metrics: dict | None = None
+        self._error: BaseException | None = None
+        self._closed = False
+
+        def run() -> None:
+            try:
+                self.metrics = pipeline.execute(pipe, self.out_dir)
+            except BaseException as exc:   # handed to the caller's thread by feed() or close()
+                self._error = exc
+            finally:
+                self._src.hungry.set()
+
+        self._thread = threading.Thread(target=run, name="laughlab-session", daemon=True)
+        self._thread.start()
+
+    def _new(self) -> list[SessionFrame]:
+        if self._error is not None:
+            raise self._error
+        frames, self._taken = self._frames[self._taken:], len(self._frames)
+        return frames
+
+    def feed(self, samples) -> list[SessionFrame]:
+        """Queue ``samples`` (mono, float in [-1, 1]); return the frames they completed, computed."""
+        if self._closed:
+            raise LaughlabError("the session is closed")
+        x = np.asarray(samples, dtype=np.float32).reshape(-1)
+        if len(x):
+            self._src.hungry.clear()
+            self._src.samples.put(x)
+            while not self._src.hungry.wait(0.05) and self._thread.is_alive():
+                pass
+        return self._new()
+
+    def close(self) -> list[SessionFrame]:
+        """End the input: the last, partial frame is computed and the outputs written; return the frames not
+        yet returned. ``metrics`` then holds ``metrics.json``'s numbers."""
+        if not self._closed:
+            self._closed = True
+            self._src.samples.put(None)
+            self._thread.join()
+            frames = self._new()
+            if self._tmp is not None:
+                self._tmp.cleanup()
+            return frames
+        return []
+
+    def __enter__(self) -> "Session":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,102 @@
+"""``laughlab.session.Session``: laughlab stepped from another program's loop (the game-developer review found no
+public way to). Fed any split of a recording, it gives the frames and files ``input=file`` gives (same bytes)."""
+import filecmp
+
+import numpy as np
+import pytest
+import soundfile as sf
+from hypothesis import given, settings, strategies as st
+
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
+from laughlab.core.errors import LaughlabError
+from laughlab.session import Session
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    """A real laugh at 44.1 kHz when the corpus is there (else the synthetic laughter), as a file."""
+    from scipy.signal import resample_poly
+
+    from laughlab.corpora.fetch import corpus_dir
+    from laughlab.synth.laughter import SyntheticLaughter
+
+    root = tmp_path_factory.mktemp("session")
+    laugh = corpus_dir() / "files" / "btanks" / "laugh01.ogg"
+    if laugh.exists():
+        x, sr = sf.read(laugh, dtype="float64")
+        x, sr = resample_poly(x, 44100, sr), 44100
+    else:
+        synth = SyntheticLaughter(seed=2, duration_s=4.0, sample_rate=44100, profile="intense")
+        x, sr = synth.render(0, synth.n_samples), 44100
+    sf.write(root / "laugh.wav", x, sr, subtype="FLOAT")
+    return root / "laugh.wav"
+
+
+def fed(path, overrides, pieces, **kw):
+    x, sr = sf.read(path, dtype="float32")
+    frames, i, k = [], 0, 0
+    with Session(overrides, sample_rate=sr, **kw) as s:
+        while i < len(x):
+            n = pieces[k % len(pieces)]
+            frames += s.feed(x[i:i + n])
+            i, k = i + n, k + 1
+        frames += s.close()
+    return frames
+
+
+def test_the_files_are_the_commands_byte_for_byte_and_the_frames_its_rows(recording, tmp_path):
+    frames = fed(recording, ["face=facs"], [1, 734, 2900, 17, 44100], outputs=["files"], out_dir=tmp_path / "s")
+    r = laughlab("input=file", f"input.path={recording}", "face=facs", f"hydra.run.dir={tmp_path / 'cli'}")
+    assert r.returncode == 0, r.stderr
+    for name in ("channels.csv", "events.csv", "motion.bvh", "face_arkit.csv"):
+        assert filecmp.cmp(tmp_path / "s" / name, tmp_path / "cli" / name, shallow=False), name
+    import pandas as pd
+
+    from laughlab.io.bvh import read_bvh
+
+    ch = pd.read_csv(tmp_path / "cli" / "channels.csv")
+    _, motion, _ = read_bvh(tmp_path / "cli" / "motion.bvh")
+    assert len(frames) == len(ch) == len(motion) and [f.index for f in frames] == list(range(len(frames)))
+    np.testing.assert_allclose([f.channels["mcs"] for f in frames], ch["mcs"], atol=1e-6)
+    np.testing.assert_allclose([f.time_s for f in frames], ch["time"], atol=1e-6)
+    np.testing.assert_allclose(np.array([f.pose for f in frames]), motion, atol=1e-4)
+    arkit = pd.read_csv(tmp_path / "cli" / "face_arkit.csv")
+    np.testing.assert_allclose([f.arkit["jawOpen"] for f in frames], arkit["jawOpen"], atol=1e-6)
+    starts = [(f.index, e.clip) for f in frames for e in f.events if e.kind == "start"]
+    ev = pd.read_csv(tmp_path / "cli" / "events.csv")
+    start = ev[ev["event"] == "start"]
+    assert starts == [(round(t * 60), c) for t, c in zip(start["time"], start["clip"])] and starts
+
+
+@settings(max_examples=6, deadline=None, derandomize=True)
+@given(st.lists(st.integers(1, 5000), min_size=1, max_size=6))
+def test_any_split_of_the_samples_gives_the_same_frames(recording, pieces):
+    frames = fed(recording, ["detector=none", "input.duration_s=1"], pieces)
+    whole = fed(recording, ["detector=none"], [10 ** 7])
+    assert [(f.channels, f.pose.tolist()) for f in frames] == [(f.channels, f.pose.tolist()) for f in whole]
+
+
+def test_each_feed_returns_the_frames_its_samples_completed():
+    with Session(["detector=none"], sample_rate=16000) as s:
+        assert s.feed(np.zeros(266, np.float32)) == []          # frame 0 ends at sample 267
+        assert [f.index for f in s.feed(np.zeros(1, np.float32))] == [0]
+        assert [f.index for f in s.feed(np.zeros(532, np.float32))] == [1]   # frame 2 ends at sample 800
+        assert [f.index for f in s.feed(np.zeros(1, np.float32))] == [2]
+        assert [f.index for f in s.feed(np.zeros(1, np.float32))] == []
+        assert [f.index for f in s.close()] == [3]              # the last, partial frame: sample 801
+    assert s.metrics["n_frames"] == 4
+
+
+def test_mistakes_are_one_line():
+    with pytest.raises(LaughlabError, match=r"^sample_rate must be 8000-192000 Hz \(got 4000\)$"):
+        Session([], sample_rate=4000)
+    with pytest.raises(LaughlabError, match=r"bad parameter"):
+        Session(["fps=0"])
+    with pytest.raises(LaughlabError, match=r"^scheduler=concat \(scheduler.mode=optimal\) plans over the whole "
+                                            r"input and cannot run on a session fed as it goes; use scheduler.mode=greedy"):
+        Session(["scheduler=concat", "scheduler.mode=optimal"])
+    s = Session(["detector=none"])
+    s.feed(np.zeros(1000, np.float32))
+    s.close()
+    with pytest.raises(LaughlabError, match=r"^the session is closed$"):
+        s.feed(np.zeros(10, np.float32))
