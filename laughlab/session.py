@@ -148,9 +148,13 @@ class Session:
         Where outputs and ``metrics.json`` go (a new temporary folder, removed at :meth:`close`, when None).
     calibration_s : float
         The rms extractor's calibration phase at the start (s; van Duijn 2014, 3.1.1): 0, as for a file.
+    overwrite : bool
+        Let the outputs replace files of theirs already in ``out_dir`` (refused otherwise: nothing of yours is
+        overwritten without asking).
     """
 
-    def __init__(self, overrides=(), sample_rate: int = 16000, outputs=(), out_dir=None, calibration_s: float = 0.0):
+    def __init__(self, overrides=(), sample_rate: int = 16000, outputs=(), out_dir=None, calibration_s: float = 0.0,
+                 overwrite: bool = False):
         from omegaconf import OmegaConf
 
         from laughlab.core import pipeline
@@ -165,6 +169,11 @@ class Session:
         cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
         if not out:
             cfg.output = {}
+        if out_dir is not None and out and not overwrite:
+            held = sorted(n for n in pipeline.planned_files(cfg) | {"metrics.json"} if (Path(out_dir) / n).exists())
+            if held:
+                raise LaughlabError(f"{out_dir} already holds {', '.join(held)}, which this session would replace; "
+                                    "choose another out_dir or pass overwrite=True")
         pipe = pipeline.build(cfg)
         pipe.source.close()
         if getattr(pipe.scheduler, "offline_plan", False):

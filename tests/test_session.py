@@ -100,3 +100,15 @@ def test_mistakes_are_one_line():
     s.close()
     with pytest.raises(LaughlabError, match=r"^the session is closed$"):
         s.feed(np.zeros(10, np.float32))
+
+
+def test_files_already_in_out_dir_are_not_replaced_without_asking(tmp_path):
+    (tmp_path / "channels.csv").write_text("mine\n")
+    with pytest.raises(LaughlabError, match=r"already holds channels.csv, which this session would replace; choose "
+                                            r"another out_dir or pass overwrite=True$"):
+        Session(["detector=none"], outputs=["files"], out_dir=tmp_path)
+    assert (tmp_path / "channels.csv").read_text() == "mine\n"
+    with Session(["detector=none"], outputs=["files"], out_dir=tmp_path, overwrite=True) as s:
+        s.feed(np.zeros(1000, np.float32))
+    assert (tmp_path / "channels.csv").read_text().startswith("time,")
+
