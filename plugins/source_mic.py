@@ -419,7 +419,7 @@ def calibration_meter(frames, n: int, fps: float, out=None, line: MeterLine | No
                     line.out = out
                 if k == n - 1:
                     line.end()
-                    hint = ("; it heard nothing" if peak <= METER_FLOOR_DB else
+                    hint = ("; it heard nothing" if peak < SILENT_DBFS else
                             "; the burst was quiet, so laughter will move the character little: run again closer "
                             "to the microphone" if peak < QUIET_BURST_DB else "; go ahead and laugh")
                     print(f"laughlab: calibrated (peak {peak:.1f} dBFS){hint}", file=out, flush=True)
