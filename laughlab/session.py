@@ -113,7 +113,8 @@ class _Handback:
     files = ()
 
     def __init__(self, out: list):
-        self.out = out
+        self.out = out   # the frames not yet taken by the session (emptied as it takes them: a session of hours)
+        self.n = 0
 
     def open(self, run) -> None:
         self.run = run
@@ -121,10 +122,11 @@ class _Handback:
     def write(self, chunk) -> None:
         for i, t in enumerate(chunk.times):
             events = [e for e in chunk.events if abs(e.time_s - t) < 0.5 / self.run.fps] if chunk.events else []
-            self.out.append(SessionFrame(len(self.out), float(t), {k: float(np.asarray(v)[i]) for k, v in
+            self.out.append(SessionFrame(self.n, float(t), {k: float(np.asarray(v)[i]) for k, v in
                                                                  chunk.channels.items()},
                                          np.array(chunk.poses[i], dtype=np.float64), events,
                                          chunk.labels[i] if i < len(chunk.labels) else ""))
+            self.n += 1
 
     def close(self):
         return []
@@ -179,7 +181,6 @@ class Session:
         if getattr(pipe.scheduler, "offline_plan", False):
             raise LaughlabError(pipeline._offline_only(pipe.scheduler, "a session fed as it goes"))
         self._frames: list[SessionFrame] = []
-        self._taken = 0
         pipe.ctx.calibration_s = float(calibration_s) if getattr(pipe.extractor, "calibrates", False) else 0.0
         self._src = pipe.source = _FedSource(sample_rate, pipe.ctx.calibration_s, pipe.ctx.fps)
         pipe.sinks.append(_Handback(self._frames))
@@ -204,7 +205,9 @@ class Session:
     def _new(self) -> list[SessionFrame]:
         if self._error is not None:
             raise self._error
-        frames, self._taken = self._frames[self._taken:], len(self._frames)
+        n = len(self._frames)   # the session's thread only appends; it is waiting now (or done)
+        frames = self._frames[:n]
+        del self._frames[:n]
         return frames
 
     def feed(self, samples) -> list[SessionFrame]:

@@ -112,3 +112,12 @@ def test_files_already_in_out_dir_are_not_replaced_without_asking(tmp_path):
         s.feed(np.zeros(1000, np.float32))
     assert (tmp_path / "channels.csv").read_text().startswith("time,")
 
+
+
+def test_a_long_session_keeps_no_frame_it_has_handed_back():
+    """A game's session runs for hours: the frames handed back are not kept (they were, 60 a second)."""
+    with Session(["detector=none"], sample_rate=16000) as s:
+        for _ in range(5):
+            assert len(s.feed(np.zeros(16000, np.float32))) == 60
+            assert s._frames == []
+    assert s.metrics["n_frames"] == 300
