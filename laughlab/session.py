@@ -164,6 +164,12 @@ class Session:
 
         if not 8000 <= int(sample_rate) <= 192000:
             raise LaughlabError(f"sample_rate must be 8000-192000 Hz (got {sample_rate})")
+        for o in overrides:
+            key = str(o).lstrip("+~").split("=", 1)[0]
+            if key == "output" or key.startswith("output."):
+                raise LaughlabError(f"{o}: a session's outputs are its outputs= argument (outputs=['files'])")
+            if key == "input" or key.startswith("input."):
+                raise LaughlabError(f"{o}: a session's input is what feed() is given (sample_rate= its rate)")
         out = list(outputs)
         cfg = compose_app([*overrides, "input=synthetic", f"input.sample_rate={int(sample_rate)}",
                            f"output={out[0] if len(out) == 1 else '[' + ','.join(out) + ']'}" if out else "output=trial",
