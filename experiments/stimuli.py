@@ -248,11 +248,14 @@ run resumes; removed when the manifest is written."""
 
 
 def render_key(overrides: list[str], spec: dict, keep_runs: bool) -> str:
-    """What a video is made of: the run's overrides, the video settings and the bytes of the audio muxed in
-    (its path is a temporary one: its sha256 instead)."""
+    """What a video is made of: the run's overrides, the video settings, the bytes of the audio muxed in
+    (its path is a temporary one: its sha256 instead) and the camera's framing (a video framed before the
+    look-ahead framing of 2026-11-27, with a raised hand cut by the top, is rendered again)."""
+    from laughlab.render.framing import VERSION
+
     video = {k: v for k, v in spec.items() if k != "audio_path"}
     doc = {"overrides": list(overrides), "video": video, "audio_sha256": _sha256(Path(spec["audio_path"])),
-           "keep_runs": keep_runs}
+           "keep_runs": keep_runs, "framing": VERSION}
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 

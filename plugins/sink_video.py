@@ -291,6 +291,11 @@ class VideoSink(Sink):
 
     def close(self):
         try:
+            if hasattr(self.renderer, "flush"):   # the frames the character's camera held to look ahead
+                t0 = time.perf_counter()
+                for frame in self.renderer.flush():
+                    self.encoder.write(frame)
+                self.render_s += time.perf_counter() - t0
             self.encoder.close()
         finally:
             shutil.rmtree(self.tmp_dir, ignore_errors=True)

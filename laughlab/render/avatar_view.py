@@ -8,9 +8,13 @@ facing any other way: :func:`laughlab.avatar.retarget.facing_matrix`, as in the 
 lit per vertex as the mannequin is, go through :func:`laughlab.render.raster.rasterise`.  The camera
 is the mannequin's, its distance scaled by the avatar's height (x 1.5: avatars often have big heads),
 or farther if the top of the mesh in the rest pose (hair above the head joint) would not fit within 85%
-of the half field of view, aimed at a point 70% of the way from the chest to the head joint.
+of the half field of view, aimed at a point 70% of the way from the chest to the head joint; it moves back,
+smoothly and ahead of time, when a raised arm or a bent body would reach the top or a side of the frame
+(:mod:`laughlab.render.framing`).
 """
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -18,6 +22,7 @@ from laughlab.avatar.load import Avatar
 from laughlab.avatar.mesh import parts
 from laughlab.avatar.retarget import animated_world, facing_matrix, retarget
 from laughlab.render.character_view import FILL, KEY, background, downsample
+from laughlab.render.framing import Framing
 from laughlab.render.raster import draw_frames, rasterise
 from laughlab.render.scene import Camera
 
@@ -49,6 +54,7 @@ class AvatarRenderer:
         self.follow = 1.0 - np.exp(-1.0 / 6.0)
         self.key, self.fill = KEY / np.linalg.norm(KEY), FILL / np.linalg.norm(FILL)
         self.background = background(height * supersample, width * supersample)
+        self.framing = Framing(self.camera, width, height)
 
     def worlds(self, poses: np.ndarray) -> np.ndarray:
         """The avatar's node world matrices ``(F, N, 4, 4)`` for ``poses`` (F, 3 + 3J), retargeted at once."""
@@ -82,15 +88,27 @@ class AvatarRenderer:
 
     def render(self, pose: np.ndarray, morphs: dict, world: np.ndarray | None = None) -> np.ndarray:
         """One frame ``(height, width, 3)`` uint8: ``pose`` (BVH channel vector), ``morphs`` mesh node -> weights
-        (``world``: the frame's node world matrices if :meth:`worlds` made them for a whole chunk)."""
+        (``world``: the frame's node world matrices if :meth:`worlds` made them for a whole chunk), framed on its
+        own (no frames ahead: the distance is this frame's :meth:`Framing.need`)."""
         world = self.worlds(pose)[0] if world is None else world
-        return self._draw(world, morphs, self._follow(world))
+        v, colour = self._mesh(world, morphs)
+        aim = self._follow(world)
+        return self._paint(v, colour, aim, self.framing.need(v, aim))
 
     def render_many(self, worlds: np.ndarray, morphs: list[dict], threads: int = 2) -> list[np.ndarray]:
-        """The frames of a chunk (``worlds`` from :meth:`worlds`, one ``morphs`` dict a frame), drawn by
-        ``threads`` threads at once: the camera follows frame by frame first (the only state), then each frame
-        is drawn on its own (the rasteriser releases the GIL), so the frames are the bytes :meth:`render` gives."""
-        return draw_frames(self._draw, [(w, m, self._follow(w)) for w, m in zip(worlds, morphs)], threads)
+        """The frames of a chunk that are ready (the camera's distance looks ahead: :mod:`laughlab.render.framing`;
+        the last ones come from :meth:`flush`; ``worlds`` from :meth:`worlds`, one ``morphs`` dict a frame), by
+        ``threads`` threads at once: the camera follows frame by frame first (the only state), then each frame is
+        skinned and drawn on its own, so the frames are the same bytes however the run is cut into chunks."""
+        aims = [self._follow(w) for w in worlds]
+        ready = []
+        for (v, colour), aim in zip(draw_frames(self._mesh, list(zip(worlds, morphs)), threads), aims):
+            ready += self.framing.push((v, colour, aim), self.framing.need(v, aim))
+        return draw_frames(self._paint, [(*job, d) for job, d in ready], threads)
+
+    def flush(self, threads: int = 2) -> list[np.ndarray]:
+        """The frames :meth:`render_many` still holds (the run has ended)."""
+        return draw_frames(self._paint, [(*job, d) for job, d in self.framing.flush()], threads)
 
     def _target(self, world: np.ndarray) -> np.ndarray:
         """The point 70% of the way from the chest to the head joint (cm, facing +Z)."""
@@ -104,9 +122,13 @@ class AvatarRenderer:
         self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
         return self.aim
 
-    def _draw(self, world: np.ndarray, morphs: dict, aim: np.ndarray) -> np.ndarray:
+    def _mesh(self, world: np.ndarray, morphs: dict) -> tuple[np.ndarray, np.ndarray]:
+        """The frame's vertices (cm, facing +Z) and their lit colours."""
         v, n = self.vertices(world, morphs)
         light = 0.45 + 0.6 * np.clip(n @ self.key, 0.0, None) + 0.2 * np.clip(n @ self.fill, 0.0, None)
-        colour = np.clip(self.albedo * light[:, None], 0.0, 255.0)
-        xy, depth = self.camera.projector(self.width * self.ss, self.height * self.ss, target=aim)(v)
+        return v, np.clip(self.albedo * light[:, None], 0.0, 255.0)
+
+    def _paint(self, v: np.ndarray, colour: np.ndarray, aim: np.ndarray, distance: float) -> np.ndarray:
+        cam = self.camera if distance == self.camera.distance_cm else replace(self.camera, distance_cm=distance)
+        xy, depth = cam.projector(self.width * self.ss, self.height * self.ss, target=aim)(v)
         return downsample(rasterise(xy, depth, colour, self.tris, self.background), self.ss)

@@ -3,7 +3,8 @@
 The camera follows the upper body: it looks at the point between the chest (``spine2``) and the
 head, smoothed over about a fifth of a second, from the azimuth, elevation and distance of
 ``camera`` (its ``target_height_cm`` is not used), so the face stays in frame when the character
-bends over or rolls on the floor.
+bends over or rolls on the floor; it moves back, smoothly and ahead of time, when a raised arm or a
+bent body would reach the top or a side of the frame (:mod:`laughlab.render.framing`).
 
 Per frame: the morph targets are added in the rest pose (face and breathing weights), the mesh
 is skinned by the pose's joint transforms (linear blend, as glTF does), lit by a key light, a
@@ -16,8 +17,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from dataclasses import replace
+
 from laughlab.character.body import build
 from laughlab.motion.skeleton import global_transforms, rest_pose
+from laughlab.render.framing import Framing
 from laughlab.render.raster import draw_frames, rasterise
 from laughlab.render.scene import Camera
 
@@ -48,20 +52,34 @@ class CharacterRenderer:
         key, fill = KEY / np.linalg.norm(KEY), FILL / np.linalg.norm(FILL)
         self.key, self.fill = key, fill
         self.background = background(height * supersample, width * supersample)
+        self.framing = Framing(self.camera, width, height)
 
     def render(self, pose: np.ndarray, morph_weights: np.ndarray) -> np.ndarray:
-        """One frame ``(height, width, 3)`` uint8 of ``pose`` (BVH channel vector) with ``morph_weights``."""
+        """One frame ``(height, width, 3)`` uint8 of ``pose`` (BVH channel vector) with ``morph_weights``, framed on
+        its own (no frames ahead: the distance is this frame's :meth:`Framing.need`)."""
         pos, rot = global_transforms(self.skeleton, np.asarray(pose, dtype=np.float64))
-        return self._draw(pos, rot, morph_weights, self._follow(pos))
+        v, colour = self._mesh(pos, rot, morph_weights)
+        aim = self._follow(pos)
+        return self._paint(v, colour, aim, self.framing.need(v, aim))
 
     def render_many(self, poses: np.ndarray, morph_weights: np.ndarray, threads: int = 2) -> list[np.ndarray]:
-        """The frames of a chunk, drawn by ``threads`` threads at once: the camera follows frame by frame
-        first (the only state), then each frame is drawn on its own, the bytes :meth:`render` gives."""
-        jobs = []
+        """The frames of a chunk that are ready (the camera's distance looks ahead: :mod:`laughlab.render.framing`;
+        the last ones come from :meth:`flush`), drawn by ``threads`` threads at once: the camera follows frame by
+        frame first (the only state), then each frame is skinned and drawn on its own, so the frames are the
+        same bytes however the run is cut into chunks."""
+        jobs, aims = [], []
         for pose, w in zip(np.asarray(poses, dtype=np.float64), morph_weights):
             pos, rot = global_transforms(self.skeleton, pose)   # frame by frame, as render does: the same bits
-            jobs.append((pos, rot, w, self._follow(pos)))
-        return draw_frames(self._draw, jobs, threads)
+            jobs.append((pos, rot, w))
+            aims.append(self._follow(pos))
+        ready = []
+        for (v, colour), aim in zip(draw_frames(self._mesh, jobs, threads), aims):
+            ready += self.framing.push((v, colour, aim), self.framing.need(v, aim))
+        return draw_frames(self._paint, [(*job, d) for job, d in ready], threads)
+
+    def flush(self, threads: int = 2) -> list[np.ndarray]:
+        """The frames :meth:`render_many` still holds (the run has ended)."""
+        return draw_frames(self._paint, [(*job, d) for job, d in self.framing.flush()], threads)
 
     def _follow(self, pos: np.ndarray) -> np.ndarray:
         """The camera's aim for a frame's joint positions: between the chest and the head, smoothed (cm)."""
@@ -70,7 +88,8 @@ class CharacterRenderer:
         self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
         return self.aim
 
-    def _draw(self, pos: np.ndarray, rot: np.ndarray, morph_weights: np.ndarray, aim: np.ndarray) -> np.ndarray:
+    def _mesh(self, pos: np.ndarray, rot: np.ndarray, morph_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The skinned vertices (cm) and their lit colours for a frame's joint positions and rotations."""
         v = self.base + np.tensordot(np.asarray(morph_weights, dtype=np.float64), self.morphs, axes=1)
         j, wt = self.char.joints, self.char.weights.astype(np.float64)
         out = np.zeros_like(v)
@@ -82,8 +101,11 @@ class CharacterRenderer:
             nrm += wt[:, k:k + 1] * np.einsum("vab,vb->va", r, self.normals)
         nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
         light = 0.30 + 0.75 * np.clip(nrm @ self.key, 0.0, None) + 0.25 * np.clip(nrm @ self.fill, 0.0, None)
-        colour = np.clip(self.albedo * light[:, None], 0.0, 255.0)
-        xy, depth = self.camera.projector(self.width * self.ss, self.height * self.ss, target=aim)(out)
+        return out, np.clip(self.albedo * light[:, None], 0.0, 255.0)
+
+    def _paint(self, v: np.ndarray, colour: np.ndarray, aim: np.ndarray, distance: float) -> np.ndarray:
+        cam = self.camera if distance == self.camera.distance_cm else replace(self.camera, distance_cm=distance)
+        xy, depth = cam.projector(self.width * self.ss, self.height * self.ss, target=aim)(v)
         return downsample(rasterise(xy, depth, colour, self.tris, self.background), self.ss)
 
 
