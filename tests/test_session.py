@@ -121,3 +121,66 @@ def test_a_long_session_keeps_no_frame_it_has_handed_back():
             assert len(s.feed(np.zeros(16000, np.float32))) == 60
             assert s._frames == []
     assert s.metrics["n_frames"] == 300
+
+
+def test_stereo_and_pcm_integers_are_read_as_input_file_reads_them(recording, tmp_path):
+    """A 2-D array was flattened (channels interleaved: twice the frames, at the wrong pitch), int16 went in
+    unscaled; now (frames, channels) is mixed by the mean and PCM integers are scaled, as for a file (same bytes)."""
+    x, sr = sf.read(recording, dtype="float32")
+    x = x[: sr * 2]
+    sf.write(tmp_path / "st.wav", np.stack([x, 0.5 * x], axis=1), sr, subtype="PCM_16")
+    pcm, _ = sf.read(tmp_path / "st.wav", dtype="int16")
+    r = laughlab("input=file", f"input.path={tmp_path / 'st.wav'}", "face=facs", f"hydra.run.dir={tmp_path / 'cli'}")
+    assert r.returncode == 0, r.stderr
+    for k, block in enumerate((pcm, pcm.astype(np.float32) / 32768)):
+        with Session(["face=facs"], sample_rate=sr, outputs=["files"], out_dir=tmp_path / f"s{k}") as s:
+            n = len(s.feed(block[:1000])) + len(s.feed(block[1000:]))
+            n += len(s.close())
+        assert n == len(x) // 735 == 120
+        for name in ("channels.csv", "motion.bvh"):
+            assert filecmp.cmp(tmp_path / f"s{k}" / name, tmp_path / "cli" / name, shallow=False), (k, name)
+
+
+@pytest.mark.parametrize("block, message", [
+    (np.zeros((2, 5000), np.float32), r"^feed \(frames, channels\) \(got shape \(2, 5000\): \(channels, frames\)\? "
+                                      r"pass its \.T\)$"),
+    (np.zeros((10, 2, 2), np.float32), r"^feed mono samples or \(frames, channels\) \(got shape \(10, 2, 2\)\)$"),
+    (np.array(["a", "b"]), r"^feed audio samples: floats in \[-1, 1\] or PCM integers \(got an array of <U1\)$"),
+])
+def test_a_block_it_cannot_read_is_one_clear_error_not_the_closing_one(block, message):
+    with pytest.raises(LaughlabError, match=message):
+        with Session(["detector=none"]) as s:
+            s.feed(block)
+
+
+def test_feeds_from_several_threads_each_get_the_frames_their_samples_completed():
+    """Two threads feeding at once could take each other's frames (0 or 3 back for one frame's samples)."""
+    import threading
+
+    counts = []
+    with Session(["detector=none"], sample_rate=16000) as s:
+        def feeder():
+            for _ in range(60):
+                counts.append(len(s.feed(np.zeros(800, np.float32))))   # three frames of 16 kHz at 60 fps
+
+        threads = [threading.Thread(target=feeder) for _ in range(3)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    assert counts == [3] * 180
+
+
+def test_a_session_dropped_unclosed_is_collected_and_its_thread_ends():
+    """Its thread held the session, so it was never collected: the thread and the temporary folder stayed."""
+    import gc
+    import threading
+
+    s = Session(["detector=none"], sample_rate=16000)
+    s.feed(np.zeros(16000, np.float32))
+    out, thread = s.out_dir, s._thread
+    del s
+    gc.collect()
+    thread.join(10)
+    assert not thread.is_alive() and not out.exists()
+    assert "laughlab-session" not in [t.name for t in threading.enumerate()]
