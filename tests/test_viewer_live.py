@@ -180,3 +180,32 @@ def test_a_host_that_is_not_an_address_is_one_line_naming_the_setting(tmp_path):
     assert r.stderr.startswith("laughlab: error: cannot listen on output.viewer.host=not-an-address.invalid: it is not "
                                "an address")
     assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.browser
+def test_a_laugh_on_the_floor_stays_in_the_view(tmp_path):
+    """The live page frames the rest pose with room for a laugh; the rofl clip's hands, on the floor in front of
+    the feet, went under the control bar (seen on a screenshot of btanks laugh01): every vertex of every pose
+    shown stays between the top of the view and the bar."""
+    from laughlab.viewer.browser import Page
+
+    cfg = compose_config(["face=facs", "input.duration_s=6", "input.profile=intense", "seed=0"])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+    cfg.output = {"csv": {}, "viewer": {"port": 0, "wait": "on", "realtime": "on"}}
+    pipe = pipeline.build(cfg)
+    thread = threading.Thread(target=lambda: pipeline.execute(pipe, tmp_path / "run"), daemon=True)
+    page = Page(url_of(pipe, thread))
+    try:
+        page.wait_ready(120)
+        seen, t0 = [], time.time()
+        while not page.eval("window.laughlab.live.ended"):
+            assert time.time() - t0 < 90, "the session did not end on the page"
+            seen.append(page.eval("({t: window.laughlab.live.t, ...window.laughlab.onScreen()})"))
+            time.sleep(0.1)
+        thread.join(30)
+        assert len(seen) > 30 and seen[-1]["t"] > 5, len(seen)
+        low = max(seen, key=lambda at: at["lowest"])
+        assert low["lowest"] < low["barTop"] - 4, low
+        assert all(at["highest"] > at["viewTop"] for at in seen)
+    finally:
+        page.close()

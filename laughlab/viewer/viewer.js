@@ -129,6 +129,8 @@ if (live) {   // only the rest pose is known: leave room for a laugh's bend and 
   const size = reach.getSize(new THREE.Vector3()), c = reach.getCenter(new THREE.Vector3());
   reach.expandByVector(new THREE.Vector3(0.15 * size.y, 0.05 * size.y, 0.15 * size.y));
   for (const dx of [-1, 1]) for (const dz of [-1, 1]) points.push(new THREE.Vector3(c.x + dx * size.x, c.y, c.z + dz * size.z));
+  // and at the feet, in front: a laugh on the floor (rofl) puts the hands there, under the view's edge before
+  for (const x of [reach.min.x, reach.max.x]) points.push(new THREE.Vector3(x, reach.min.y + 0.05 * size.y, reach.max.z));
 }
 
 // node index -> its object, for the tests' check of the joints' world positions
@@ -253,7 +255,7 @@ state.check = async (t) => { await seek(t); frame(); return { anim: state.animTi
 // where the character is drawn now, in CSS pixels of the page: its lowest and highest vertex, its feet (the
 // foot and toe joints), and the top of the control bar (for tests: nothing of the character under the bar)
 state.onScreen = () => {
-  pose(state.animTime);
+  if (!live) pose(state.animTime);   // live: the pose laughlab sent last
   const rect = canvas.getBoundingClientRect();
   const y = (v) => rect.top + (1 - (v.clone().project(camera).y + 1) / 2) * rect.height;
   let lowest = -Infinity, highest = Infinity;
