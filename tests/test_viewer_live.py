@@ -209,3 +209,29 @@ def test_a_laugh_on_the_floor_stays_in_the_view(tmp_path):
         assert all(at["highest"] > at["viewTop"] for at in seen)
     finally:
         page.close()
+
+
+@pytest.mark.browser
+def test_a_page_open_for_long_keeps_only_what_its_strip_can_show(tmp_path):
+    """The page kept every frame's MCS and energy and every clip (walked on each frame) for as long as it was
+    open: 60 values a second, for an always-on installation's days. It keeps 12 s now."""
+    from laughlab.viewer.browser import Page
+
+    pipe, thread, result = live_run(tmp_path / "run", "input.duration_s=150", "detector=none",
+                                    viewer={"realtime": "off"})
+    page = Page(url_of(pipe, thread))
+    try:
+        page.wait_ready(120)
+        t0 = time.time()
+        while not page.eval("window.laughlab.live.ended"):
+            assert time.time() - t0 < 300, "the session did not end on the page"
+            time.sleep(0.2)
+        thread.join(30)
+        held = page.eval("window.laughlab.live.held()")
+        frames = page.eval("window.laughlab.live.frames")
+        assert frames > 3000 and held["mcs"] <= 2 * 720 and held["clips"] <= 64, (frames, held)
+        time.sleep(0.3)
+        assert page.eval("window.laughlab.live.t") == pytest.approx(149.98, abs=0.02)
+        assert [p for p in page.problems() if "LookAtDegreeMap" not in p] == []
+    finally:
+        page.close()
