@@ -47,6 +47,19 @@ def url_of(pipe, thread, timeout_s=60.0) -> str:
     return sink.url
 
 
+def until_ended(page, thread, timeout_s: float, each=None) -> list:
+    """Wait for the page to say the session ended (and the run's thread to finish); ``each()``'s value on every
+    look at the page meanwhile."""
+    seen, t0 = [], time.time()
+    while not page.eval("window.laughlab.live.ended"):
+        assert time.time() - t0 < timeout_s, "the session did not end on the page"
+        if each is not None:
+            seen.append(each())
+        time.sleep(0.1)
+    thread.join(30)
+    return seen
+
+
 def baked_at(glb: Path, frame: int) -> dict:
     """node -> {path: values} of ``character.glb``'s animation at ``frame``."""
     doc, binary = read_glb(glb)
@@ -70,11 +83,7 @@ def test_the_page_shows_each_frame_as_the_glb_of_the_same_run_holds_it(tmp_path,
     page = Page(url_of(pipe, thread))
     try:
         page.wait_ready(120)
-        t0 = time.time()
-        while not page.eval("window.laughlab.live.ended"):
-            assert time.time() - t0 < 60, "the session did not end on the page"
-            time.sleep(0.1)
-        thread.join(30)
+        until_ended(page, thread, 60)
         time.sleep(0.3)   # an animation frame or two: the last frame applied
         feed = page.eval("({frames: window.laughlab.live.frames, k: window.laughlab.live.k, "
                          "layout: window.laughlab.live.layout.length})")
@@ -197,12 +206,8 @@ def test_a_laugh_on_the_floor_stays_in_the_view(tmp_path):
     page = Page(url_of(pipe, thread))
     try:
         page.wait_ready(120)
-        seen, t0 = [], time.time()
-        while not page.eval("window.laughlab.live.ended"):
-            assert time.time() - t0 < 90, "the session did not end on the page"
-            seen.append(page.eval("({t: window.laughlab.live.t, ...window.laughlab.onScreen()})"))
-            time.sleep(0.1)
-        thread.join(30)
+        seen = until_ended(page, thread, 90,
+                           lambda: page.eval("({t: window.laughlab.live.t, ...window.laughlab.onScreen()})"))
         assert len(seen) > 30 and seen[-1]["t"] > 5, len(seen)
         low = max(seen, key=lambda at: at["lowest"])
         assert low["lowest"] < low["barTop"] - 4, low
@@ -222,11 +227,7 @@ def test_a_page_open_for_long_keeps_only_what_its_strip_can_show(tmp_path):
     page = Page(url_of(pipe, thread))
     try:
         page.wait_ready(120)
-        t0 = time.time()
-        while not page.eval("window.laughlab.live.ended"):
-            assert time.time() - t0 < 300, "the session did not end on the page"
-            time.sleep(0.2)
-        thread.join(30)
+        until_ended(page, thread, 300)
         held = page.eval("window.laughlab.live.held()")
         frames = page.eval("window.laughlab.live.frames")
         assert frames > 3000 and held["mcs"] <= 2 * 720 and held["clips"] <= 64, (frames, held)
