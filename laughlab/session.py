@@ -77,7 +77,10 @@ class _FedSource:
     """The session's input: the samples :meth:`Session.feed` queued, cut into frames."""
 
     name = "session"
-    live = False
+    #: for the outputs: the samples come as the program feeds them, so it sets the pace (``vmc`` and ``viewer``
+    #: are not paced at the frame clock, and ``viewer`` does not wait for a page: it held the first feed until one
+    #: opened); the plugins were built on the synthetic input, so ``body=hill`` and rms still run as for a file
+    live = True
     n_frames = None
     truth = None
 

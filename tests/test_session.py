@@ -184,3 +184,32 @@ def test_a_session_dropped_unclosed_is_collected_and_its_thread_ends():
     thread.join(10)
     assert not thread.is_alive() and not out.exists()
     assert "laughlab-session" not in [t.name for t in threading.enumerate()]
+
+
+def test_streaming_outputs_go_at_the_pace_the_program_feeds():
+    """outputs=["viewer"] held the first feed until a browser page opened (a game's loop stood still), and
+    ["vmc"] slept each feed to the frame clock: the program feeding the samples sets the pace."""
+    import socket
+    import time
+
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    try:
+        for outputs, extra in ((["viewer"], ["output.viewer.port=0"]),
+                               (["vmc"], [f"output.vmc.port={rx.getsockname()[1]}"])):
+            result = {}
+
+            def go():
+                with Session(["detector=none", *extra], sample_rate=16000, outputs=outputs) as s:
+                    t = time.perf_counter()
+                    result["n"] = len(s.feed(np.zeros(32000, np.float32)))   # 2 s of audio
+                    result["s"] = time.perf_counter() - t
+
+            import threading
+
+            th = threading.Thread(target=go, daemon=True)
+            th.start()
+            th.join(30)
+            assert not th.is_alive() and result["n"] == 120 and result["s"] < 1.5, (outputs, result)
+    finally:
+        rx.close()
