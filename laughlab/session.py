@@ -162,6 +162,7 @@ class _State:
 
     metrics: dict | None = None
     error: BaseException | None = None
+    raised: bool = False
     abandoned: bool = False
 
 
@@ -248,8 +249,12 @@ class Session:
         return self._state.metrics
 
     def _new(self) -> list[SessionFrame]:
-        if self._state.error is not None:
-            raise self._state.error
+        err = self._state.error
+        if err is not None:   # the plugin's own exception once; then one line (re-raising it grew its traceback)
+            if self._state.raised:
+                raise LaughlabError(f"the session stopped on an error: {type(err).__name__}: {err}") from None
+            self._state.raised = True
+            raise err
         n = len(self._frames)   # the session's thread only appends; it is waiting now (or done)
         frames = self._frames[:n]
         del self._frames[:n]
@@ -265,7 +270,7 @@ class Session:
         with self._lock:
             if self._closed:
                 raise LaughlabError("the session is closed")
-            if len(x):
+            if len(x) and self._state.error is None:   # after an error nothing is queued for a run that has ended
                 self._src.hungry.clear()
                 self._src.samples.put(x)
                 while not self._src.hungry.wait(0.05) and self._thread.is_alive():

@@ -213,3 +213,26 @@ def test_streaming_outputs_go_at_the_pace_the_program_feeds():
             assert not th.is_alive() and result["n"] == 120 and result["s"] < 1.5, (outputs, result)
     finally:
         rx.close()
+
+
+def test_a_plugin_error_is_raised_once_then_one_line(tmp_path):
+    """A plugin that raises: its exception from the feed that meets it; every later feed re-raised the same object
+    (its traceback grew by three frames a feed) and queued samples for a run that had ended."""
+    (tmp_path / "boom.py").write_text(
+        "from dataclasses import dataclass\nimport laughlab\nfrom laughlab import Extractor\n\n\n"
+        "@dataclass\nclass BoomParams:\n    at_frame: int = 30\n\n\n"
+        "class Boom(Extractor):\n    name = 'boom'\n    Params = BoomParams\n\n"
+        "    def step(self, block, frame):\n        if frame.index >= self.params.at_frame:\n"
+        "            raise RuntimeError(f'boom at frame {frame.index}')\n        frame.control['mcs'] = 0.5\n\n\n"
+        "@laughlab.hookimpl\ndef register_extractors(register):\n    register(Boom)\n")
+    s = Session([f"plugins_dir={tmp_path}", "extractor=boom"], sample_rate=16000)
+    assert len(s.feed(np.zeros(8000, np.float32))) == 30
+    with pytest.raises(RuntimeError, match=r"^boom at frame 30$"):
+        s.feed(np.zeros(8000, np.float32))
+    for _ in range(2):
+        with pytest.raises(LaughlabError, match=r"^the session stopped on an error: RuntimeError: boom at frame 30$"):
+            s.feed(np.zeros(8000, np.float32))
+    assert s._src.samples.qsize() == 0
+    with pytest.raises(LaughlabError, match=r"^the session stopped on an error"):
+        s.close()
+    assert s.close() == [] and not s.out_dir.exists()
