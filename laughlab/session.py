@@ -3,7 +3,7 @@
     from laughlab.session import Session
 
     with Session(["face=facs"], sample_rate=48000) as s:   # the command line's overrides, any rate from 8 kHz
-        for block in my_audio_blocks():                     # float32 mono samples in [-1, 1], any length
+        for block in my_audio_blocks():                     # mono floats in [-1, 1] (or int16, or (n, channels))
             for frame in s.feed(block):                     # the frames these samples completed
                 frame.arkit["jawOpen"], frame.pose          # ARKit weights; the BVH channel vector (cm, degrees)
 
@@ -20,6 +20,7 @@ from __future__ import annotations
 import queue
 import tempfile
 import threading
+import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -76,7 +77,10 @@ class _FedSource:
     """The session's input: the samples :meth:`Session.feed` queued, cut into frames."""
 
     name = "session"
-    live = False
+    #: for the outputs: the samples come as the program feeds them, so it sets the pace (``vmc`` and ``viewer``
+    #: are not paced at the frame clock, and ``viewer`` does not wait for a page: it held the first feed until one
+    #: opened); the plugins were built on the synthetic input, so ``body=hill`` and rms still run as for a file
+    live = True
     n_frames = None
     truth = None
 
@@ -133,6 +137,38 @@ class _Handback:
 
     def abort(self) -> None:
         pass
+
+
+def mono_samples(samples) -> np.ndarray:
+    """``samples`` as the 1-D float32 array a session feeds (:meth:`Session.feed`), or one clear error."""
+    x = np.asarray(samples)
+    if x.dtype.kind in "iu":   # PCM integers, scaled as soundfile reads them (int16: x / 32768)
+        half = 2.0 ** (8 * x.dtype.itemsize - 1)
+        x = (x.astype(np.float64) - (half if x.dtype.kind == "u" else 0.0)) / half
+    elif x.dtype.kind != "f":
+        raise LaughlabError(f"feed audio samples: floats in [-1, 1] or PCM integers (got an array of {x.dtype})")
+    if x.ndim == 2 and x.shape[1] > 64 and x.shape[0] <= 64:
+        raise LaughlabError(f"feed (frames, channels) (got shape {x.shape}: (channels, frames)? pass its .T)")
+    if x.ndim > 2:
+        raise LaughlabError(f"feed mono samples or (frames, channels) (got shape {x.shape})")
+    if x.ndim == 2:
+        return x.mean(axis=1, dtype=np.float32) if x.shape[1] > 1 else x[:, 0].astype(np.float32)
+    return x.astype(np.float32).reshape(-1)
+
+
+@dataclass
+class _State:
+    """What the session's thread hands back: ``metrics.json``'s numbers or the error that stopped the run."""
+
+    metrics: dict | None = None
+    error: BaseException | None = None
+    raised: bool = False
+    abandoned: bool = False
+
+
+def _abandon(src: _FedSource, state: _State) -> None:
+    state.abandoned = True
+    src.samples.put(None)
 
 
 class Session:
@@ -193,56 +229,84 @@ class Session:
         self._tmp = None if out_dir is not None else tempfile.TemporaryDirectory(prefix="laughlab-session-")
         self.out_dir = Path(out_dir if out_dir is not None else self._tmp.name)
         self.out_dir.mkdir(parents=True, exist_ok=True)
-        self.metrics: dict | None = None
-        self._error: BaseException | None = None
+        self._state = state = _State()
         self._closed = False
+        self._lock = threading.Lock()
+        src, tmp, out_dir = self._src, self._tmp, self.out_dir
 
-        def run() -> None:
+        def run() -> None:   # holds no reference to the session: an unclosed one is still collected
             try:
-                self.metrics = pipeline.execute(pipe, self.out_dir)
+                state.metrics = pipeline.execute(pipe, out_dir)
             except BaseException as exc:   # handed to the caller's thread by feed() or close()
-                self._error = exc
+                state.error = exc
             finally:
-                self._src.hungry.set()
+                src.hungry.set()
+                if state.abandoned and tmp is not None:
+                    tmp.cleanup()
 
         self._thread = threading.Thread(target=run, name="laughlab-session", daemon=True)
+        # a session dropped unclosed ends its input: its thread computes the last frame, writes the outputs, stops
+        self._finalizer = weakref.finalize(self, _abandon, src, state)
         self._thread.start()
 
+    @property
+    def metrics(self) -> dict | None:
+        """``metrics.json``'s numbers, after :meth:`close` (None before)."""
+        return self._state.metrics
+
     def _new(self) -> list[SessionFrame]:
-        if self._error is not None:
-            raise self._error
+        err = self._state.error
+        if err is not None:   # the plugin's own exception once; then one line (re-raising it grew its traceback)
+            if self._state.raised:
+                raise LaughlabError(f"the session stopped on an error: {type(err).__name__}: {err}") from None
+            self._state.raised = True
+            raise err
         n = len(self._frames)   # the session's thread only appends; it is waiting now (or done)
         frames = self._frames[:n]
         del self._frames[:n]
         return frames
 
     def feed(self, samples) -> list[SessionFrame]:
-        """Queue ``samples`` (mono, float in [-1, 1]); return the frames they completed, computed."""
-        if self._closed:
-            raise LaughlabError("the session is closed")
-        x = np.asarray(samples, dtype=np.float32).reshape(-1)
-        if len(x):
-            self._src.hungry.clear()
-            self._src.samples.put(x)
-            while not self._src.hungry.wait(0.05) and self._thread.is_alive():
-                pass
-        return self._new()
+        """Queue ``samples`` and return the frames they completed, computed. ``samples``: mono floats in [-1, 1];
+        a 2-D array is ``(frames, channels)`` (soundfile's and sounddevice's layout), mixed to mono by the mean
+        as ``input=file`` mixes a stereo file; integer PCM (``int16``, ``int32``, ``uint8``) is scaled to
+        [-1, 1) as soundfile reads it. Feeds from several threads take turns (one lock), each returning its
+        own frames."""
+        x = mono_samples(samples)
+        with self._lock:
+            if self._closed:
+                raise LaughlabError("the session is closed")
+            if len(x) and self._state.error is None:   # after an error nothing is queued for a run that has ended
+                self._src.hungry.clear()
+                self._src.samples.put(x)
+                while not self._src.hungry.wait(0.05) and self._thread.is_alive():
+                    pass
+            return self._new()
 
     def close(self) -> list[SessionFrame]:
         """End the input: the last, partial frame is computed and the outputs written; return the frames not
         yet returned. ``metrics`` then holds ``metrics.json``'s numbers."""
-        if not self._closed:
+        with self._lock:
+            if self._closed:
+                return []
             self._closed = True
+            self._finalizer.detach()
             self._src.samples.put(None)
             self._thread.join()
-            frames = self._new()
-            if self._tmp is not None:
-                self._tmp.cleanup()
-            return frames
-        return []
+            try:
+                return self._new()
+            finally:
+                if self._tmp is not None:
+                    self._tmp.cleanup()
 
     def __enter__(self) -> "Session":
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, kind, exc, tb) -> None:
+        if kind is None:
+            self.close()
+            return
+        try:   # the error that left the block is the one to see, not what closing a half-fed run says
+            self.close()
+        except Exception:
+            pass

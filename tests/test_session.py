@@ -125,3 +125,118 @@ def test_a_long_session_keeps_no_frame_it_has_handed_back():
             assert len(s.feed(np.zeros(16000, np.float32))) == 60
             assert s._frames == []
     assert s.metrics["n_frames"] == 300
+
+
+def test_stereo_and_pcm_integers_are_read_as_input_file_reads_them(recording, tmp_path):
+    """A 2-D array was flattened (channels interleaved: twice the frames, at the wrong pitch), int16 went in
+    unscaled; now (frames, channels) is mixed by the mean and PCM integers are scaled, as for a file (same bytes)."""
+    x, sr = sf.read(recording, dtype="float32")
+    x = x[: sr * 2]
+    sf.write(tmp_path / "st.wav", np.stack([x, 0.5 * x], axis=1), sr, subtype="PCM_16")
+    pcm, _ = sf.read(tmp_path / "st.wav", dtype="int16")
+    r = laughlab("input=file", f"input.path={tmp_path / 'st.wav'}", "face=facs", f"hydra.run.dir={tmp_path / 'cli'}")
+    assert r.returncode == 0, r.stderr
+    for k, block in enumerate((pcm, pcm.astype(np.float32) / 32768)):
+        with Session(["face=facs"], sample_rate=sr, outputs=["files"], out_dir=tmp_path / f"s{k}") as s:
+            n = len(s.feed(block[:1000])) + len(s.feed(block[1000:]))
+            n += len(s.close())
+        assert n == len(x) // 735 == 120
+        for name in ("channels.csv", "motion.bvh"):
+            assert filecmp.cmp(tmp_path / f"s{k}" / name, tmp_path / "cli" / name, shallow=False), (k, name)
+
+
+@pytest.mark.parametrize("block, message", [
+    (np.zeros((2, 5000), np.float32), r"^feed \(frames, channels\) \(got shape \(2, 5000\): \(channels, frames\)\? "
+                                      r"pass its \.T\)$"),
+    (np.zeros((10, 2, 2), np.float32), r"^feed mono samples or \(frames, channels\) \(got shape \(10, 2, 2\)\)$"),
+    (np.array(["a", "b"]), r"^feed audio samples: floats in \[-1, 1\] or PCM integers \(got an array of <U1\)$"),
+])
+def test_a_block_it_cannot_read_is_one_clear_error_not_the_closing_one(block, message):
+    with pytest.raises(LaughlabError, match=message):
+        with Session(["detector=none"]) as s:
+            s.feed(block)
+
+
+def test_feeds_from_several_threads_each_get_the_frames_their_samples_completed():
+    """Two threads feeding at once could take each other's frames (0 or 3 back for one frame's samples)."""
+    import threading
+
+    counts = []
+    with Session(["detector=none"], sample_rate=16000) as s:
+        def feeder():
+            for _ in range(60):
+                counts.append(len(s.feed(np.zeros(800, np.float32))))   # three frames of 16 kHz at 60 fps
+
+        threads = [threading.Thread(target=feeder) for _ in range(3)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+    assert counts == [3] * 180
+
+
+def test_a_session_dropped_unclosed_is_collected_and_its_thread_ends():
+    """Its thread held the session, so it was never collected: the thread and the temporary folder stayed."""
+    import gc
+    import threading
+
+    s = Session(["detector=none"], sample_rate=16000)
+    s.feed(np.zeros(16000, np.float32))
+    out, thread = s.out_dir, s._thread
+    del s
+    gc.collect()
+    thread.join(10)
+    assert not thread.is_alive() and not out.exists()
+    assert "laughlab-session" not in [t.name for t in threading.enumerate()]
+
+
+def test_streaming_outputs_go_at_the_pace_the_program_feeds():
+    """outputs=["viewer"] held the first feed until a browser page opened (a game's loop stood still), and
+    ["vmc"] slept each feed to the frame clock: the program feeding the samples sets the pace."""
+    import socket
+    import time
+
+    rx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    rx.bind(("127.0.0.1", 0))
+    try:
+        for outputs, extra in ((["viewer"], ["output.viewer.port=0"]),
+                               (["vmc"], [f"output.vmc.port={rx.getsockname()[1]}"])):
+            result = {}
+
+            def go():
+                with Session(["detector=none", *extra], sample_rate=16000, outputs=outputs) as s:
+                    t = time.perf_counter()
+                    result["n"] = len(s.feed(np.zeros(32000, np.float32)))   # 2 s of audio
+                    result["s"] = time.perf_counter() - t
+
+            import threading
+
+            th = threading.Thread(target=go, daemon=True)
+            th.start()
+            th.join(30)
+            assert not th.is_alive() and result["n"] == 120 and result["s"] < 1.5, (outputs, result)
+    finally:
+        rx.close()
+
+
+def test_a_plugin_error_is_raised_once_then_one_line(tmp_path):
+    """A plugin that raises: its exception from the feed that meets it; every later feed re-raised the same object
+    (its traceback grew by three frames a feed) and queued samples for a run that had ended."""
+    (tmp_path / "boom.py").write_text(
+        "from dataclasses import dataclass\nimport laughlab\nfrom laughlab import Extractor\n\n\n"
+        "@dataclass\nclass BoomParams:\n    at_frame: int = 30\n\n\n"
+        "class Boom(Extractor):\n    name = 'boom'\n    Params = BoomParams\n\n"
+        "    def step(self, block, frame):\n        if frame.index >= self.params.at_frame:\n"
+        "            raise RuntimeError(f'boom at frame {frame.index}')\n        frame.control['mcs'] = 0.5\n\n\n"
+        "@laughlab.hookimpl\ndef register_extractors(register):\n    register(Boom)\n")
+    s = Session([f"plugins_dir={tmp_path}", "extractor=boom"], sample_rate=16000)
+    assert len(s.feed(np.zeros(8000, np.float32))) == 30
+    with pytest.raises(RuntimeError, match=r"^boom at frame 30$"):
+        s.feed(np.zeros(8000, np.float32))
+    for _ in range(2):
+        with pytest.raises(LaughlabError, match=r"^the session stopped on an error: RuntimeError: boom at frame 30$"):
+            s.feed(np.zeros(8000, np.float32))
+    assert s._src.samples.qsize() == 0
+    with pytest.raises(LaughlabError, match=r"^the session stopped on an error"):
+        s.close()
+    assert s.close() == [] and not s.out_dir.exists()

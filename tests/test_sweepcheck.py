@@ -57,10 +57,13 @@ def test_each_value_of_each_key_is_checked_with_the_others_at_their_first_values
      "harness.corpus.seeds=1 with a sweep over experiments: Hydra composes the sweep itself without an experiment, "
      "where harness does not exist; write ++harness.corpus.seeds=1"),
     ("experiment=smoke,energy_readings +harness.corpus.seeds=1", "write ++harness.corpus.seeds=1"),
+    # the live viewer: the sweep stood still at its first point, waiting for a page (the live-viewer review)
+    ("scheduler.decrease_per_s=6,12 output=viewer", "output=viewer in a sweep: each point would wait for a page to "
+                                                    "open before it starts; set output.viewer.wait=off"),
 ])
 def test_a_bad_sweep_is_one_line_before_any_job(tmp_path, swept, message):
     sweep = tmp_path / "sweep"
-    first = [] if swept.startswith("experiment=") else ["experiment=energy_ablation"]   # its launcher: joblib
+    first = [] if swept.startswith(("experiment=", "scheduler.decrease")) else ["experiment=energy_ablation"]   # its launcher: joblib
     r = laughlab("-m", *first, *swept.split(), f"hydra.sweep.dir={sweep}")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr
     assert "Traceback" not in r.stderr and "HYDRA_FULL_ERROR" not in r.stderr
@@ -107,3 +110,11 @@ def test_the_slurm_launcher_names_what_it_needs(tmp_path, monkeypatch):
     sweepcheck.check_launcher(slurm)                                # on a login node: left to the launcher
     sweepcheck.check_launcher({"_target_": "hydra_plugins.hydra_joblib_launcher.joblib_launcher.JoblibLauncher",
                                "n_jobs": -1})                       # -1: one per core
+
+
+def test_a_sweep_shown_live_runs_without_a_page_when_told_not_to_wait(tmp_path):
+    r = laughlab("-m", "scheduler.decrease_per_s=6,12", "output=viewer", "output.viewer.wait=off",
+                 "output.viewer.realtime=off", "output.viewer.port=0", "input.duration_s=0.5",
+                 f"hydra.sweep.dir={tmp_path / 'sweep'}")
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.count("viewer: 30 frames sent to no page") == 2

@@ -47,6 +47,19 @@ def url_of(pipe, thread, timeout_s=60.0) -> str:
     return sink.url
 
 
+def until_ended(page, thread, timeout_s: float, each=None) -> list:
+    """Wait for the page to say the session ended (and the run's thread to finish); ``each()``'s value on every
+    look at the page meanwhile."""
+    seen, t0 = [], time.time()
+    while not page.eval("window.laughlab.live.ended"):
+        assert time.time() - t0 < timeout_s, "the session did not end on the page"
+        if each is not None:
+            seen.append(each())
+        time.sleep(0.1)
+    thread.join(30)
+    return seen
+
+
 def baked_at(glb: Path, frame: int) -> dict:
     """node -> {path: values} of ``character.glb``'s animation at ``frame``."""
     doc, binary = read_glb(glb)
@@ -70,11 +83,7 @@ def test_the_page_shows_each_frame_as_the_glb_of_the_same_run_holds_it(tmp_path,
     page = Page(url_of(pipe, thread))
     try:
         page.wait_ready(120)
-        t0 = time.time()
-        while not page.eval("window.laughlab.live.ended"):
-            assert time.time() - t0 < 60, "the session did not end on the page"
-            time.sleep(0.1)
-        thread.join(30)
+        until_ended(page, thread, 60)
         time.sleep(0.3)   # an animation frame or two: the last frame applied
         feed = page.eval("({frames: window.laughlab.live.frames, k: window.laughlab.live.k, "
                          "layout: window.laughlab.live.layout.length})")
@@ -180,3 +189,50 @@ def test_a_host_that_is_not_an_address_is_one_line_naming_the_setting(tmp_path):
     assert r.stderr.startswith("laughlab: error: cannot listen on output.viewer.host=not-an-address.invalid: it is not "
                                "an address")
     assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.browser
+def test_a_laugh_on_the_floor_stays_in_the_view(tmp_path):
+    """The live page frames the rest pose with room for a laugh; the rofl clip's hands, on the floor in front of
+    the feet, went under the control bar (seen on a screenshot of btanks laugh01): every vertex of every pose
+    shown stays between the top of the view and the bar."""
+    from laughlab.viewer.browser import Page
+
+    cfg = compose_config(["face=facs", "input.duration_s=6", "input.profile=intense", "seed=0"])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+    cfg.output = {"csv": {}, "viewer": {"port": 0, "wait": "on", "realtime": "on"}}
+    pipe = pipeline.build(cfg)
+    thread = threading.Thread(target=lambda: pipeline.execute(pipe, tmp_path / "run"), daemon=True)
+    page = Page(url_of(pipe, thread))
+    try:
+        page.wait_ready(120)
+        seen = until_ended(page, thread, 90,
+                           lambda: page.eval("({t: window.laughlab.live.t, ...window.laughlab.onScreen()})"))
+        assert len(seen) > 30 and seen[-1]["t"] > 5, len(seen)
+        low = max(seen, key=lambda at: at["lowest"])
+        assert low["lowest"] < low["barTop"] - 4, low
+        assert all(at["highest"] > at["viewTop"] for at in seen)
+    finally:
+        page.close()
+
+
+@pytest.mark.browser
+def test_a_page_open_for_long_keeps_only_what_its_strip_can_show(tmp_path):
+    """The page kept every frame's MCS and energy and every clip (walked on each frame) for as long as it was
+    open: 60 values a second, for an always-on installation's days. It keeps 12 s now."""
+    from laughlab.viewer.browser import Page
+
+    pipe, thread, result = live_run(tmp_path / "run", "input.duration_s=150", "detector=none",
+                                    viewer={"realtime": "off"})
+    page = Page(url_of(pipe, thread))
+    try:
+        page.wait_ready(120)
+        until_ended(page, thread, 300)
+        held = page.eval("window.laughlab.live.held()")
+        frames = page.eval("window.laughlab.live.frames")
+        assert frames > 3000 and held["mcs"] <= 2 * 720 and held["clips"] <= 64, (frames, held)
+        time.sleep(0.3)
+        assert page.eval("window.laughlab.live.t") == pytest.approx(149.98, abs=0.02)
+        assert [p for p in page.problems() if "LookAtDegreeMap" not in p] == []
+    finally:
+        page.close()

@@ -70,6 +70,7 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
                                 "(++ sets a key whether it exists or not), or sweep each experiment on its own")
     cfg = preflight(base)
     check_launcher(cfg.hydra.get("launcher") or {})
+    check_viewer(cfg)
     params = None if any(is_group(k.lstrip("+~")) for k in sweeps) else cfg.hydra.get("sweeper", {}).get("params")
     params = OmegaConf.to_container(params, resolve=False) if OmegaConf.is_config(params) else dict(params or {})
     given = {k.lstrip("+~") for k in sweeps} | {o.split("=", 1)[0].lstrip("+~") for o in base}
@@ -108,3 +109,14 @@ def check_launcher(launcher) -> None:
         raise LaughlabError("hydra/launcher=submitit_slurm submits every point with Slurm's sbatch, which this machine "
                             "does not have: run the command on the cluster's login node, or hydra/launcher="
                             "submitit_local to run the same jobs here")
+
+
+def check_viewer(cfg) -> None:
+    """``output=viewer`` in a sweep: a file or synthetic input waits for a page to open before its first frame
+    (``output.viewer.wait=auto``), so the sweep stood still at its first point until someone opened a browser."""
+    viewer = None if cfg.get("harness") else (cfg.get("output") or {}).get("viewer")   # an experiment runs trials
+    if viewer is not None and viewer.get("wait") == "auto" and (cfg.get("input") or {}).get("name") != "mic":
+        raise LaughlabError("output=viewer in a sweep: each point would wait for a page to open before it starts; "
+                            "set output.viewer.wait=off (each point runs at once, paced at the frame clock; "
+                            "output.viewer.realtime=off: as fast as computed) or output.viewer.wait=on, or drop "
+                            "output=viewer")

@@ -129,6 +129,8 @@ if (live) {   // only the rest pose is known: leave room for a laugh's bend and 
   const size = reach.getSize(new THREE.Vector3()), c = reach.getCenter(new THREE.Vector3());
   reach.expandByVector(new THREE.Vector3(0.15 * size.y, 0.05 * size.y, 0.15 * size.y));
   for (const dx of [-1, 1]) for (const dz of [-1, 1]) points.push(new THREE.Vector3(c.x + dx * size.x, c.y, c.z + dz * size.z));
+  // and at the feet, in front: a laugh on the floor (rofl) puts the hands there, under the view's edge before
+  for (const x of [reach.min.x, reach.max.x]) points.push(new THREE.Vector3(x, reach.min.y + 0.05 * size.y, reach.max.z));
 }
 
 // node index -> its object, for the tests' check of the joints' world positions
@@ -183,7 +185,7 @@ function drawStrip(t) {
   sctx.clearRect(0, 0, w, h);
   const from = t - span * nowAt, to = from + span;
   const x = (s) => (s - from) / span * w;
-  const eMax = Math.max(1, ...run.clips.map((c) => c.energy), run.energy_max || 1);
+  const eMax = run.clips.reduce((m, c) => Math.max(m, c.energy), Math.max(1, run.energy_max || 1));
   const shown = run.clips.filter((c) => !(c.stop < from || c.start > to));
   const topOf = (c) => h - 18 - (h - 36) * c.energy / eMax;
   for (const c of shown) {
@@ -193,9 +195,10 @@ function drawStrip(t) {
   const line = (values, colour, scale) => {
     if (!values) return;
     sctx.strokeStyle = colour; sctx.lineWidth = 1.5; sctx.beginPath();
-    const i0 = Math.max(0, Math.floor(from * fps)), i1 = Math.min(values.length - 1, Math.ceil(to * fps));
+    const base = values.base || 0;   // live: the frame index of values[0] (older frames are let go)
+    const i0 = Math.max(base, Math.floor(from * fps)), i1 = Math.min(base + values.length - 1, Math.ceil(to * fps));
     for (let i = i0; i <= i1; i++) {
-      const y = h - 18 - (h - 36) * Math.max(0, values[i]) / scale;
+      const y = h - 18 - (h - 36) * Math.max(0, values[i - base]) / scale;
       i === i0 ? sctx.moveTo(x(i / fps), y) : sctx.lineTo(x(i / fps), y);
     }
     sctx.stroke();
@@ -253,7 +256,7 @@ state.check = async (t) => { await seek(t); frame(); return { anim: state.animTi
 // where the character is drawn now, in CSS pixels of the page: its lowest and highest vertex, its feet (the
 // foot and toe joints), and the top of the control bar (for tests: nothing of the character under the bar)
 state.onScreen = () => {
-  pose(state.animTime);
+  if (!live) pose(state.animTime);   // live: the pose laughlab sent last
   const rect = canvas.getBoundingClientRect();
   const y = (v) => rect.top + (1 - (v.clone().project(camera).y + 1) / 2) * rect.height;
   let lowest = -Infinity, highest = Infinity;
@@ -303,7 +306,8 @@ function liveFrame() {
 if (live) {
   for (const id of ['play', 'seek', 'speed']) $(id).hidden = true;
   $('speed').parentElement.hidden = true;
-  const clipIndex = {};
+  const clipIndex = {}, keep = Math.ceil(12 * fps);   // 12 s of frames: more than the strip's 8 s
+  feed.held = () => ({ mcs: run.channels.mcs ? run.channels.mcs.length : 0, clips: run.clips.length });
   const es = new EventSource('./events');
   es.addEventListener('layout', (e) => {
     feed.layout = JSON.parse(e.data).map(([node, path, size]) => ({ obj: nodes[node], path, size,
@@ -313,12 +317,17 @@ if (live) {
     const f = JSON.parse(e.data);
     feed.pending = f;
     feed.frames += 1;
-    run.channels.mcs = run.channels.mcs || [];
-    run.channels.energy = run.channels.energy || [];
-    run.channels.mcs[f.k] = f.mcs;
-    run.channels.energy[f.k] = f.energy;
+    // the strip's channels and clips: only what it can still show is kept (a page open for days grew by
+    // 60 values a second, and every clip, walked on each frame)
+    for (const [name, value] of [['mcs', f.mcs], ['energy', f.energy]]) {
+      let a = run.channels[name];
+      if (!a) { a = run.channels[name] = []; a.base = f.k; }
+      a[f.k - a.base] = value;
+      if (a.length > 2 * keep) { a.splice(0, a.length - keep); a.base = f.k - keep + 1; }
+    }
     run.energy_max = Math.max(run.energy_max, f.energy);
     for (const c of run.clips) if (c.open) c.stop = f.t;
+    if (run.clips.length > 64) run.clips = run.clips.filter((c) => c.open || c.stop > f.t - 12);
     for (const [kind, clip, energy] of f.clips || []) {
       if (kind === 'start') {
         if (!(clip in clipIndex)) clipIndex[clip] = Object.keys(clipIndex).length;
