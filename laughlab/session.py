@@ -202,7 +202,7 @@ class Session:
             raise LaughlabError(f"sample_rate must be 8000-192000 Hz (got {sample_rate})")
         for o in overrides:
             key = str(o).lstrip("+~").split("=", 1)[0]
-            if key == "output" or key.startswith("output."):
+            if key == "output":   # an output's own parameters (output.vmc.port=...) are welcome
                 raise LaughlabError(f"{o}: a session's outputs are its outputs= argument (outputs=['files'])")
             if key == "input" or key.startswith("input."):
                 raise LaughlabError(f"{o}: a session's input is what feed() is given (sample_rate= its rate)")
