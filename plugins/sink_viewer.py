@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import sys
-import time
 from dataclasses import dataclass
 from typing import Optional
 
@@ -18,6 +17,7 @@ import numpy as np
 
 from laughlab import hookimpl
 from laughlab.core.bases import Sink
+from laughlab.core.clock import FramePacer
 from laughlab.core.plugins import check_range
 from laughlab.core.quiet import to_devnull
 
@@ -96,7 +96,7 @@ class ViewerSink(Sink):
         files = {**page_files(name), "character.glb": glb, "run.json": json.dumps(doc).encode()}
         self.server = LiveServer(files, p.host, p.port)
         self.url = shown_url(self.server.httpd) + "/"
-        self.n, self.origin_ns, self.dt_ns = 0, None, int(round(1e9 / run.fps))
+        self.n, self.pacer = 0, FramePacer(run.fps)
         self.layout = None
         waits = p.wait == "on" or (p.wait == "auto" and self.paced)
         self._say(f"laughlab: watch it live at {self.url}" + (" (the run starts when the page opens; "
@@ -128,11 +128,7 @@ class ViewerSink(Sink):
             events[min(n - 1, int(np.searchsorted(chunk.times, e.time_s - 0.5 / self.run.fps)))].append(e)
         for i in range(n):
             if self.paced:   # frame k is due (k + 1) / fps after the start, when its audio would have been heard
-                if self.origin_ns is None:
-                    self.origin_ns = time.perf_counter_ns() - self.dt_ns
-                wait = self.origin_ns + (self.n + 1) * self.dt_ns - time.perf_counter_ns()
-                if wait > 0:
-                    time.sleep(wait / 1e9)
+                self.pacer.wait(self.n)
             self.server.push("frame", frame_message(self.n, float(chunk.times[i]), values[i], mcs[i], energy[i],
                                                       events[i]))
             self.n += 1

@@ -15,6 +15,7 @@ import numpy as np
 
 from laughlab import hookimpl
 from laughlab.core.bases import Sink
+from laughlab.core.clock import FramePacer
 from laughlab.core.errors import LaughlabError
 from laughlab.core.plugins import check_range
 from laughlab.core.quiet import to_devnull
@@ -125,8 +126,7 @@ class VmcSink(Sink):
         self.encoder = VmcEncoder(self.bones.bones, p.max_packet_bytes)
         live = self.live = bool(getattr(run.source, "live", False))
         self.paced = p.realtime == "on" or (p.realtime == "auto" and not live)
-        self.dt_ns = int(round(1e9 / run.fps))
-        self.origin_ns: int | None = None  # paced: frame k is due at origin + (k + 1) dt
+        self.pacer = FramePacer(run.fps)  # paced: frame k is due (k + 1) / fps after the start
         self.n = 0
         self.lat_ms = FrameSample("d")   # bounded: a session until Ctrl-C
         self._names: dict[str, str] = {}
@@ -161,13 +161,7 @@ class VmcSink(Sink):
         for i in range(n):
             k = self.n
             if self.paced:
-                if self.origin_ns is None:
-                    self.origin_ns = clock() - self.dt_ns
-                due = self.origin_ns + (k + 1) * self.dt_ns
-                wait = due - clock()
-                if wait > 0:
-                    time.sleep(wait / 1e9)
-                captured = due
+                captured = self.pacer.wait(k)
             else:
                 captured = int(capture[i]) if capture is not None else None
             msgs = self.encoder.messages(float(chunk.times[i]), pos[i], rot[i], zip(names, values[i]))
