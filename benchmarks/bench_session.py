@@ -18,19 +18,16 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parent))
 
 
 def audio_48k() -> tuple[np.ndarray, str]:
-    from laughlab.corpora.fetch import corpus_dir
+    from bench_viewer_live import laugh01
 
-    laugh = corpus_dir() / "files" / "btanks" / "laugh01.ogg"
-    if laugh.exists():
-        import soundfile as sf
-        from scipy.signal import resample_poly
-
-        x, sr = sf.read(laugh, dtype="float64")
-        return np.tile(resample_poly(x, 48000, sr), 3).astype(np.float32), "btanks laugh01 at 48 kHz, 3 passes"
+    x = laugh01(48000)
+    if x is not None:
+        return np.tile(x, 3).astype(np.float32), "btanks laugh01 at 48 kHz, 3 passes"
     from laughlab.synth.laughter import SyntheticLaughter
 
     synth = SyntheticLaughter(seed=0, duration_s=18.0, sample_rate=48000, profile="intense")

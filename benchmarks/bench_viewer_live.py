@@ -24,22 +24,33 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
 
+def laugh01(rate: int) -> np.ndarray | None:
+    """The corpus' btanks ``laugh01`` (22.05 kHz) brought to ``rate`` by scipy's ``resample_poly``, or None
+    without the corpus (also ``bench_session.py``'s input)."""
+    from laughlab.corpora.fetch import corpus_dir
+
+    laugh = corpus_dir() / "files" / "btanks" / "laugh01.ogg"
+    if not laugh.exists():
+        return None
+    import soundfile as sf
+    from scipy.signal import resample_poly
+
+    x, sr = sf.read(laugh, dtype="float64")
+    return resample_poly(x, rate, sr)
+
+
 def run_channels(out: Path) -> tuple[str, dict, np.ndarray, object]:
     """A run's channels (arkit.* included) and poses per frame, and what it ran on."""
     from omegaconf import OmegaConf
 
     from laughlab.core import pipeline
     from laughlab.core.config import compose_config
-    from laughlab.corpora.fetch import corpus_dir
-
-    laugh = corpus_dir() / "files" / "btanks" / "laugh01.ogg"
+    x = laugh01(44100)
     source = ["input.duration_s=6"]
-    if laugh.exists():
+    if x is not None:
         import soundfile as sf
-        from scipy.signal import resample_poly
 
-        x, sr = sf.read(laugh, dtype="float64")
-        sf.write(out / "laugh44k.wav", resample_poly(x, 44100, sr), 44100, subtype="FLOAT")
+        sf.write(out / "laugh44k.wav", x, 44100, subtype="FLOAT")
         source = ["input=file", f"input.path={out / 'laugh44k.wav'}"]
     out = out / "run"
     cfg = compose_config(["face=facs", *source])
@@ -55,7 +66,7 @@ def run_channels(out: Path) -> tuple[str, dict, np.ndarray, object]:
     channels = {c: ch[c].to_numpy() for c in ch.columns if c != "time"}
     channels.update({"arkit." + c: face[c].to_numpy() for c in face.columns if c != "time"})
     skeleton, motion, _ = read_bvh(out / "motion.bvh")
-    what = f"btanks laugh01 ({laugh.name}, 44.1 kHz)" if laugh.exists() else "synthetic laughter, 6 s (no corpus)"
+    what = "btanks laugh01 (laugh01.ogg, 44.1 kHz)" if x is not None else "synthetic laughter, 6 s (no corpus)"
     return what, channels, motion, skeleton
 
 

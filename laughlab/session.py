@@ -124,8 +124,7 @@ class _Handback:
         self.run = run
 
     def write(self, chunk) -> None:
-        for i, t in enumerate(chunk.times):
-            events = [e for e in chunk.events if abs(e.time_s - t) < 0.5 / self.run.fps] if chunk.events else []
+        for i, (t, events) in enumerate(zip(chunk.times, chunk.events_by_frame(self.run.fps))):
             self.out.append(SessionFrame(self.n, float(t), {k: float(np.asarray(v)[i]) for k, v in
                                                                  chunk.channels.items()},
                                          np.array(chunk.poses[i], dtype=np.float64), events,

@@ -123,9 +123,7 @@ class ViewerSink(Sink):
             self.server.push("layout", json.dumps(layout, separators=(",", ":")))
         mcs = np.asarray(chunk.channels.get("mcs", np.zeros(n)), dtype=np.float64).reshape(-1)
         energy = np.asarray(chunk.channels.get("energy", np.zeros(n)), dtype=np.float64).reshape(-1)
-        events = [[] for _ in range(n)]   # each clip event on the frame whose time it falls within
-        for e in chunk.events:
-            events[min(n - 1, int(np.searchsorted(chunk.times, e.time_s - 0.5 / self.run.fps)))].append(e)
+        events = chunk.events_by_frame(self.run.fps)
         for i in range(n):
             if self.paced:   # frame k is due (k + 1) / fps after the start, when its audio would have been heard
                 self.pacer.wait(self.n)

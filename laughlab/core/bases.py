@@ -289,6 +289,14 @@ class Chunk:
     capture_ns: np.ndarray | None = None
     audio_s: float | None = None
 
+    def events_by_frame(self, fps: float) -> list[list]:
+        """The chunk's clip events, frame by frame: an event goes to the frame whose time it falls on (within half
+        a frame), for a sink that hands frames on one at a time (the live viewer, a session)."""
+        out: list[list] = [[] for _ in range(len(self.times))]
+        for e in self.events:
+            out[min(len(out) - 1, int(np.searchsorted(self.times, e.time_s - 0.5 / fps)))].append(e)
+        return out
+
 
 class Sink(Plugin):
     """Writes a run's frames somewhere.

@@ -48,8 +48,7 @@ class Tracks:
             from laughlab.character.body import morph_weights
             from laughlab.io.gltf import mannequin_tracks
 
-            weights = np.clip(np.nan_to_num(morph_weights(chunk.channels, n)), 0.0, 1.0)
-            tracks = mannequin_tracks(self.skeleton, poses, weights)
+            tracks = mannequin_tracks(self.skeleton, poses, morph_weights(chunk.channels, n))   # in [0, 1], finite
         columns = [np.asarray(v, dtype=np.float64).reshape(n, -1) for _, _, v in tracks]
         layout = [[int(node), path, int(c.shape[1])] for (node, path, _), c in zip(tracks, columns)]
         return layout, np.concatenate(columns, axis=1) if columns else np.zeros((n, 0))
