@@ -8,7 +8,7 @@
                 frame.arkit["jawOpen"], frame.pose          # ARKit weights; the BVH channel vector (cm, degrees)
 
 The frames are the ones ``python -m laughlab input=file`` computes from the same samples (same seed, same
-bytes; with ``body=hill`` to 4e-6, not byte for byte: not yet explained, docs/pipeline.md): the run is :func:`laughlab.core.pipeline.execute` itself, in a thread of its own, on a source fed by
+bytes, ``body=hill`` included): the run is :func:`laughlab.core.pipeline.execute` itself, in a thread of its own, on a source fed by
 :meth:`Session.feed` and cut into frames as the file and microphone sources cut theirs
 (:func:`laughlab.io.audio.cut_frames`), with a sink that hands each frame back as soon as it is computed. Outputs
 (``outputs=["files"]``, ``"vmc"``, ``"viewer"``) write into ``out_dir`` or stream as they do from the command line.

@@ -44,9 +44,10 @@ def fed(path, overrides, pieces, **kw):
     return frames
 
 
-def test_the_files_are_the_commands_byte_for_byte_and_the_frames_its_rows(recording, tmp_path):
-    frames = fed(recording, ["face=facs"], [1, 734, 2900, 17, 44100], outputs=["files"], out_dir=tmp_path / "s")
-    r = laughlab("input=file", f"input.path={recording}", "face=facs", f"hydra.run.dir={tmp_path / 'cli'}")
+@pytest.mark.parametrize("body", ["body=shapes", "body=hill"])   # hill: a review once measured 4e-6 apart
+def test_the_files_are_the_commands_byte_for_byte_and_the_frames_its_rows(recording, tmp_path, body):
+    frames = fed(recording, ["face=facs", body], [1, 734, 2900, 17, 44100], outputs=["files"], out_dir=tmp_path / "s")
+    r = laughlab("input=file", f"input.path={recording}", "face=facs", body, f"hydra.run.dir={tmp_path / 'cli'}")
     assert r.returncode == 0, r.stderr
     for name in ("channels.csv", "events.csv", "motion.bvh", "face_arkit.csv"):
         assert filecmp.cmp(tmp_path / "s" / name, tmp_path / "cli" / name, shallow=False), name
