@@ -13,10 +13,12 @@ Measures, on this machine:
 3. the cost of one evaluation, alone (as Nelder-Mead and dual annealing use it)
    and in a batch (as CMA-ES and the parallel direct search use it);
 4. live control (``body=hill control=fit``): each call played from the fit of
-   the call before it; the normalised error of the live lung pressure against
-   the target per call (the offline segmentation's calls), the time of each
-   call's fit and of the frames (the fit runs in the frame where a call ends
-   here, ``threaded: no``; live input moves it to a thread);
+   an earlier call (``adopt_after_s``: the default 0.15 s, and 0, the rule before
+   2026-11-28); the normalised error of the live lung pressure against the
+   target per call (the offline segmentation's calls), the time of each call's
+   fit and of the frames (the fit in the frame where a call ends, ``threaded:
+   no``), and the frames as on a microphone (paced at 60 fps, the fits in their
+   thread);
 5. the paper's Fig. 7 setting: single calls optimised with the paper's cost
    alone, from the state the earlier calls leave (CMA-ES at the production
    budget, Nelder-Mead at the paper's ~400 evaluations).
@@ -174,7 +176,10 @@ def single_calls(n: int = 6) -> dict:
     return out
 
 
-def live_control(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), duration_s=10.0) -> dict:
+def live_control(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), duration_s=10.0, threaded="no",
+                 paced=False, **live) -> dict:
+    """Play the corpus' pressure through ``body=hill control=fit``; ``paced``: one frame every 1/60 s, as from a
+    microphone (with ``threaded="yes"``: the fits in their thread, a frame waits only for a fit due and unfinished)."""
     from laughlab.core.bases import Context
     from laughlab.core.frame import Frame
     from laughlab.hill.fit import segment_calls
@@ -183,10 +188,13 @@ def live_control(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), 
 
     errs, fit_s, fit_len, frame_ms, per_input = [], [], [], [], {}
     for name, target, _, _ in corpus_targets(profiles, seeds, duration_s):
-        body = HillBody(HillParams(control="fit", live=LiveParams(threaded="no")), Context(fps=60))
+        body = HillBody(HillParams(control="fit", live=LiveParams(threaded=threaded, **live)), Context(fps=60))
         p = np.empty(len(target))
+        start = time.perf_counter()
         for k, v in enumerate(target):
             f = Frame(k, k / 60, 1 / 60, {"pressure": float(v)})
+            if paced:
+                time.sleep(max(0.0, start + k / 60 - time.perf_counter()))
             t0 = time.perf_counter_ns()
             body.step(f)
             frame_ms.append((time.perf_counter_ns() - t0) / 1e6)
@@ -246,7 +254,15 @@ def main() -> dict:
           f"= {opt['seconds_per_second_of_call']:.2f} s per second of call; error mean {opt['error_mean']:.3f}, "
           f"median {opt['error_median']:.3f}, {100 * opt['share_error_at_most_0.18']:.0f} % of calls <= 0.18")
     live = live_control()
-    print(f"live control (fit of the previous call): error mean {live['error_mean']:.3f} (median "
+    before = live_control(adopt_after_s=0.0)
+    mic = live_control(profiles=("mixed", "intense"), seeds=(0,), threaded="yes", paced=True)
+    print(f"live control, adopt_after_s=0 (each call from the previous call's fit, the rule before 2026-11-28): "
+          f"error mean {before['error_mean']:.3f} (median {before['error_median']:.3f}); frames p99 "
+          f"{before['frame_ms_p99']:.1f} ms, max {before['frame_ms_max']:.0f} ms (fits in the frame)")
+    print(f"live control as on a microphone (fits in their thread, 60 fps paced, 2 x 10 s): frames p50 "
+          f"{mic['frame_ms_p50']:.2f} ms, p99 {mic['frame_ms_p99']:.2f} ms, max {mic['frame_ms_max']:.1f} ms; "
+          f"error mean {mic['error_mean']:.3f}")
+    print(f"live control (default adopt_after_s=0.15): error mean {live['error_mean']:.3f} (median "
           f"{live['error_median']:.3f}) over {live['calls']} calls; fit {live['fit_seconds_mean']:.3f} s per call "
           f"({live['fit_seconds_per_second_of_call']:.2f} s per second of call); frames p50 {live['frame_ms_p50']:.2f} ms, "
           f"p99 {live['frame_ms_p99']:.1f} ms, max {live['frame_ms_max']:.0f} ms (fits in the frame)")
@@ -258,6 +274,8 @@ def main() -> dict:
         "optimisation": opt,
         "single_calls": single,
         "live": live,
+        "live_adopt_after_0": before,
+        "live_threaded_paced": mic,
         "paper": {"seconds_per_call": 3600.0, "call_s": 0.2, "simplex_error": 0.18, "simplex_evals": 400,
                   "annealing_error": 0.16, "annealing_evals": 1800},
         "targets_met": {

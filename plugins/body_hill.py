@@ -45,11 +45,11 @@ plus the integral term, far less than one call.  Between bouts the muscles
 relax and the chest wall's recoil breathes in by itself.
 
 ``fit`` (default, the paper's audio-driven control, real time): per-call
-fitted activations with one call of look-behind (:mod:`laughlab.hill.live`):
-each call plays the seven parameters fitted to the call before it, scaled to
-its own peak, and is fitted itself (:mod:`laughlab.hill.fit`, section 6.2) when
-it ends, in the frame (files: deterministic) or in a background thread (live
-input).  The target is the ``pressure`` control (or ``mcs`` times
+fitted activations (:mod:`laughlab.hill.live`): each call plays the seven
+parameters fitted to the last call that ended at least ``live.adopt_after_s``
+(0.15 s) before it began, scaled to its own peak, and is fitted itself
+(:mod:`laughlab.hill.fit`, section 6.2) when it ends, in the frame (files) or
+in a background thread (live input); the same bytes either way.  The target is the ``pressure`` control (or ``mcs`` times
 ``track.mcs_pressure_cmh2o``).
 
 ``preset``: plays the preset ``preset`` (:mod:`laughlab.hill.presets`) in a

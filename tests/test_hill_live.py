@@ -120,8 +120,53 @@ def test_threaded_fitting_finishes_every_call():
     assert np.all(np.isfinite(out))
 
 
+CHEAP = dict(max_evals=60, polish_evals=0, popsize=12, init_points=11)
+
+
+@pytest.mark.parametrize("delay_s, behind", [(0.1, 0), (0.2, 1), (0.0, 0)])
+def test_a_fit_becomes_the_template_at_the_first_call_starting_adopt_after_s_after_its_call(monkeypatch, delay_s,
+                                                                                          behind):
+    """Call i spans frames 6 + 15 i .. + 5 and ends (is fitted) on the frame after; the next call starts 9 frames
+    later: a fit due 6 frames (0.1 s) after its call is the next call's template, one due 12 frames (0.2 s) after
+    waits for the call after that."""
+    seen = []
+    collect = LiveFitter._collect
+
+    def spy(self, k=None):
+        collect(self, k)
+        if k is not None:
+            seen.append((k, len(self.fits)))
+
+    monkeypatch.setattr(LiveFitter, "_collect", spy)
+    run_body(pulses(5), fit=hf.FitParams(**CHEAP), threaded="no", adopt_after_s=delay_s)
+    assert seen == [(6 + 15 * i, max(0, i - behind)) for i in range(5)]
+
+
+def test_the_fit_in_a_thread_plays_the_bytes_of_the_fit_in_the_frame_however_slow_the_thread(monkeypatch):
+    """Which fit a call plays is fixed by frame numbers (adopt_after_s), not by when the thread finishes: a
+    microphone session replays offline byte for byte (until 2026-11-28 the next onset took the newest finished fit)."""
+    import time
+
+    target = pulses(6)
+    fit = hf.FitParams(**CHEAP)
+    _, inline = run_body(target, fit=fit, threaded="no")
+    rng = np.random.default_rng(0)
+    slow = LiveFitter._fit
+
+    def late(self, *a):
+        time.sleep(float(rng.uniform(0.0, 0.08)))     # up to 5 frames at 60 fps: a busy machine
+        return slow(self, *a)
+
+    monkeypatch.setattr(LiveFitter, "_fit", late)
+    body, threaded = run_body(target, fit=fit, threaded="yes")
+    assert body.live.threaded and len(body.live.fits) == 6
+    np.testing.assert_array_equal(threaded, inline)
+    assert not np.array_equal(inline, run_body(target, fit=fit, threaded="no", adopt_after_s=0.3)[1])
+
+
 def test_live_params_validate():
-    for bad in (dict(onset_cmh2o=0), dict(threaded="maybe"), dict(min_scale=2.0, max_scale=1.0)):
+    for bad in (dict(onset_cmh2o=0), dict(threaded="maybe"), dict(min_scale=2.0, max_scale=1.0),
+                dict(adopt_after_s=-0.1)):
         with pytest.raises(ValueError):
             LiveParams(**bad)
     assert isinstance(LiveParams(fit={"max_evals": 10}).fit, hf.FitParams)

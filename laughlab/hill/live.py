@@ -1,9 +1,9 @@
-"""Real-time audio-driven control of the Hill torso: per-call fitting with one call of look-behind.
+"""Real-time audio-driven control of the Hill torso: per-call fitting, each call played from an earlier call's fit.
 
 The paper fits a whole recording offline, call by call (DiLorenzo, Zordan &
 Sanders 2008, 6.2; :func:`laughlab.hill.fit.fit`).  Live, a call's sound is
 only known once it has been heard, so :class:`LiveFitter` plays each call
-from the fit of the call before it:
+from the fit of an earlier call:
 
 1. :class:`CallTracker` cuts the streaming target pressure (cm H2O, one value
    a frame) into calls causally: a call begins on the first frame above
@@ -12,7 +12,7 @@ from the fit of the call before it:
    ``valley_fraction`` of the peak, confirmed by the next frame's rise, which
    begins the next call), or after ``max_call_s``.
 2. At a call's onset the driver starts the *template*, the seven parameters
-   (:data:`laughlab.hill.fit.PARAMS`) fitted to the previous call, timed from
+   (:data:`laughlab.hill.fit.PARAMS`) fitted to an earlier call (step 3), timed from
    the onset (starts are relative to the call, never before it), its three
    amplitudes scaled by ``sqrt(peak so far / template's peak)``, updated every
    frame until the call ends (pressure goes as the square of the flow, ``P = k
@@ -20,9 +20,14 @@ from the fit of the call before it:
    :data:`FIRST_TEMPLATE`.
 3. When a call ends, its frames are fitted (:class:`laughlab.hill.fit.CallProblem`,
    the offline fit's cost, optimiser and primitives) from the torso's state at
-   the call's onset, on top of what the earlier calls play; the result is the
-   template of the next call, unless its error is 1 or more (no better than
-   holding still).  The held abdominal activations are let go as in
+   the call's onset, on top of what the earlier calls play; the result becomes
+   the template of the first call that starts at least ``adopt_after_s`` (0.15 s)
+   after the call ended, unless its error is 1 or more (no better than holding
+   still).  Within a bout the next call usually starts a few frames after the
+   last ends, so a call plays the fit of the call before the last (our
+   departure from "the previous call": it leaves the fit 0.15 s to finish
+   in a thread, and fixes which fit plays by frame numbers alone).
+   The held abdominal activations are let go as in
    the offline fit (:func:`laughlab.hill.fit.release`): from the first frame
    that starts ``release_after_s`` after the last call's end with no call begun.
    The first call of a bout plays :data:`FIRST_TEMPLATE` again (the torso is
@@ -30,15 +35,20 @@ from the fit of the call before it:
    chest wall's recoil, asked for far too much: the abdomen saturated and
    ruined the next bout).
 
-Look-behind: the activations of call ``n`` come from call ``n - 1``'s fit and
-call ``n``'s own onset and peak so far; nothing later is used.  Fitting runs
-either in the frame where the call ends (``threaded: no``, the default for
-files: same input, same bytes, and a streaming run equals an offline one)
-or in a background thread (``threaded: yes``, the default for live input:
-frames keep coming at their rate; the next onset takes the newest finished
-fit, so which template a call gets depends on the machine's speed).  A fit
-takes about 0.05 s of one core per 0.2 s call with the compiled torso step
-(``benchmarks/bench_hill.py``).
+Look-behind: the activations of call ``n`` come from the fit of a call that
+ended at least ``adopt_after_s`` before call ``n`` began, and call ``n``'s own
+onset and peak so far; nothing later is used.  Fitting runs either in the frame
+where the call ends (``threaded: no``, the default for files) or in a
+background thread (``threaded: yes``, the default for live input: frames keep
+coming at their rate).  Which fit a call plays is fixed by frame numbers, not
+by when the thread finishes (a fit not finished when due holds that frame
+until it is), so both give the same bytes and a microphone session replays
+offline exactly.  A fit takes about 0.05 s of one core per 0.2 s call with the
+compiled torso step (``benchmarks/bench_hill.py``).  ``adopt_after_s: 0`` is
+the behaviour before 2026-11-28 (each call from the previous call's fit: error
+mean 0.57 against 0.60, median 0.44 against 0.45, on bench_hill's
+synthetic corpus), right for files, but
+live it holds each call's first frame for the whole fit.
 """
 from __future__ import annotations
 
@@ -82,6 +92,8 @@ class LiveParams:
         offline fits of the synthetic corpus add 0.01-0.06 a call): one poor fit cannot lock the abdomen.
     threaded : str
         ``auto`` (a background thread for live input, in the frame otherwise), ``yes`` or ``no``.
+    adopt_after_s : float
+        A call's fit becomes the template of the first call starting at least this long after it ended (s).
     fit : FitParams
         The per-call fit (:class:`laughlab.hill.fit.FitParams`); by default 400 + 100 evaluations.
     """
@@ -94,6 +106,7 @@ class LiveParams:
     max_scale: float = 2.0
     max_step: float = 0.1
     threaded: str = "auto"
+    adopt_after_s: float = 0.15
     fit: FitParams = field(default_factory=_fit_defaults)
 
     def __post_init__(self) -> None:
@@ -102,6 +115,7 @@ class LiveParams:
         check_range("valley_fraction", self.valley_fraction, 0, 1)
         check_range("max_call_s", self.max_call_s, 0, lo_open=True)
         check_range("min_scale", self.min_scale, 0, lo_open=True)
+        check_range("adopt_after_s", self.adopt_after_s, 0)
         if not self.max_scale >= self.min_scale:
             raise ValueError(f"max_scale must be >= min_scale (got {self.max_scale} < {self.min_scale})")
         if self.threaded not in ("auto", "yes", "no"):
@@ -166,6 +180,7 @@ class LiveFitter:
         self.torso_params = torso_params
         self.threaded = params.threaded == "yes" or (params.threaded == "auto" and live)
         self._pool = ThreadPoolExecutor(max_workers=1) if self.threaded else None
+        self.delay = int(math.ceil(params.adopt_after_s * self.fps - 1e-9))
         self.reset()
 
     def reset(self) -> None:
@@ -176,7 +191,7 @@ class LiveFitter:
         self.buffer: list[float] = []
         self.last_end_s = None
         self.bout_start_s = 0.0      # fits of calls before the current bout's let-go are not templates
-        self.pending: list = []     # fits submitted to the thread, oldest first
+        self.pending: list = []     # (frame due, fit: a future or its record), oldest first
         self.fits: list[dict] = []   # one record per fitted call: frames, x, error, evals, seconds
 
     # -- fitting
@@ -213,13 +228,15 @@ class LiveFitter:
                 and rec["error"] < 1.0):       # a fit no better than holding still teaches nothing
             self.template = (rec["x"], rec["peak"])
 
-    def _collect(self, block: bool = False) -> None:
-        while self.pending and (block or self.pending[0].done()):
-            self._adopt(self.pending.pop(0).result())
+    def _collect(self, k: int | None = None) -> None:
+        """Adopt the fits due by frame ``k`` (all with ``None``), waiting for any still running."""
+        while self.pending and (k is None or self.pending[0][0] <= k):
+            _, fit = self.pending.pop(0)
+            self._adopt(fit.result() if self._pool is not None else fit)
 
     def close(self) -> None:
         """Wait for a fit in progress and stop the thread."""
-        self._collect(block=True)
+        self._collect()
         if self._pool is not None:
             self._pool.shutdown(wait=True)
 
@@ -239,14 +256,12 @@ class LiveFitter:
                 earlier = [x for x in self.entries if x is not entry]
                 args = (target, s, state, [_Entry(x.x.copy(), x.t_call, x.t_release) for x in earlier],
                         self.template[0])
-                if self.threaded:
-                    self.pending.append(self._pool.submit(self._fit, *args))
-                else:
-                    self._adopt(self._fit(*args))
+                due = k + self.delay
+                self.pending.append((due, self._pool.submit(self._fit, *args) if self.threaded else self._fit(*args)))
                 self.current, self.buffer = None, []
                 self.last_end_s = e / self.fps
             else:
-                self._collect()
+                self._collect(k)
                 entry = _Entry(self._scaled(v), k / self.fps)
                 self.entries.append(entry)
                 self.current = (entry, torso.get_state(0))
