@@ -84,6 +84,10 @@ def preflight(argv: list[str]):
             raise LaughlabError("seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds "
                                 "(synthetic inputs: how many, or a list such as [10,11]) and harness.run_seeds "
                                 "(each recording's runs, e.g. [0,1,2])")
+        if any(o.lstrip("+~").split("=", 1)[0].split(".")[0] == "output" for o in overrides):
+            raise LaughlabError("output settings do not apply to an experiment: its trials write what its metrics "
+                                "read and its showcase runs files with plots; to stream, view or export a "
+                                "condition, run it alone with its overrides and output=...")
         if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
             conditions = check_conditions(cfg.harness.get("conditions"))
             harness = OmegaConf.to_container(cfg.harness, resolve=True)

@@ -165,6 +165,9 @@ def bad_files(tmp_path_factory):
     (["experiment=smoke", "harness.showcase=mild-sx"], "harness.showcase 'mild-sx' is not an input of the corpus"),
     (["experiment=smoke", "seed=5"], "seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds"),
     (["-m", "experiment=smoke", "seed=5,6"], "seed= does not apply to an experiment"),
+    # output= was dropped without a word (the trials set their own); output.plots.* failed after the first trials
+    (["experiment=smoke", "output=[files,viewer]"], "output settings do not apply to an experiment: its trials"),
+    (["experiment=smoke", "output.plots.max_seconds=10"], "output settings do not apply to an experiment"),
     # a key a condition's plugin lacks: found before any trial (a review: after the first trials; silently in a
     # parallel sweep)
     (["experiment=smoke", "scheduler.overrule_c=2"],
