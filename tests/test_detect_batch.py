@@ -293,3 +293,49 @@ def test_a_subfolder_that_cannot_be_listed_is_one_line_not_left_out(tmp_path, mo
     monkeypatch.setattr(os, "scandir", scandir)
     with pytest.raises(LaughlabError, match=r"^cannot read the folder .*locked: Permission denied$"):
         inputs([str(tmp_path / "rec")])
+
+
+def test_each_laugh_as_audio_the_recordings_own_samples(tmp_path):
+    """``--formats ...,audio``: each segment of ``segments.csv`` as ``NAME_laugh_K.wav`` (as ``segment_laughter.py``
+    writes its ``laugh_K.wav``; the detect review found no way but a script), the recording's own samples, rate,
+    channels and sample format; a file of yours by a clip's name is refused even with --overwrite, before anything
+    is written."""
+    from laughlab.corpora import fetch
+
+    x, sr = sf.read(fetch.require(kinds=["laugh"])["btanks/laugh01"])
+    quiet = np.zeros(sr)
+    two = np.concatenate([quiet, x, quiet, quiet, x, quiet])
+    stereo = np.stack([two, -0.5 * two], axis=1)
+    rec = tmp_path / "rec" / "day 1"
+    rec.mkdir(parents=True)
+    sf.write(rec / "take.wav", stereo, sr, subtype="PCM_24")
+    out = tmp_path / "out"
+    r = laughlab("detect", str(tmp_path / "rec"), "--out", str(out), "--formats", "csv,audio")
+    assert r.returncode == 0, r.stderr
+    rows = list(csv.DictReader((out / "segments.csv").open()))
+    assert len(rows) >= 2 and {row["file"] for row in rows} == {"day 1/take"}
+    src, _ = sf.read(rec / "take.wav", dtype="int32")
+    for k, row in enumerate(rows):
+        clip = out / "day 1" / f"take_laugh_{k}.wav"
+        info = sf.info(clip)
+        assert (info.samplerate, info.channels, info.subtype) == (sr, 2, "PCM_24")
+        got, _ = sf.read(clip, dtype="int32")
+        a, b = round(float(row["start"]) * sr), round(float(row["end"]) * sr)
+        np.testing.assert_array_equal(got, src[a:b])
+    assert sorted(p.name for p in (out / "day 1").iterdir()) == [f"take_laugh_{k}.wav" for k in range(len(rows))]
+    # a clip name that is yours: refused, nothing of this run written
+    again = tmp_path / "again"
+    again.mkdir()
+    (again / "day 1").mkdir()
+    (again / "day 1" / "take_laugh_0.wav").write_bytes(b"mine")
+    r = laughlab("detect", str(tmp_path / "rec"), "--out", str(again), "--formats", "csv,audio", "--overwrite")
+    assert r.returncode == 2 and "take_laugh_0.wav" in r.stderr and "which no earlier detect wrote there" in r.stderr
+    assert (again / "day 1" / "take_laugh_0.wav").read_bytes() == b"mine"
+    assert sorted(p.name for p in again.rglob("*")) == ["day 1", "take_laugh_0.wav"]
+    # an earlier detect's clips that this run does not write again are removed (--overwrite): one laugh now
+    sf.write(rec / "take.wav", stereo[: 3 * sr + len(x)], sr, subtype="PCM_24")
+    r = laughlab("detect", str(tmp_path / "rec"), "--out", str(out), "--formats", "csv,audio", "--overwrite")
+    assert r.returncode == 0, r.stderr
+    n = len(list(csv.DictReader((out / "segments.csv").open())))
+    assert 1 <= n < len(rows)
+    assert sorted(p.name for p in (out / "day 1").iterdir()) == [f"take_laugh_{k}.wav" for k in range(n)]

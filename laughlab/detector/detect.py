@@ -4,7 +4,8 @@ Files and folders (searched recursively for audio files soundfile reads) go thro
 :func:`laughlab.detector.segments.laughter_prob` (YAMNet and the head, centred windows,
 smoothed both ways), then a threshold and a minimum length.  Writes into ``--out``
 (default ``laughter_segments``): ``segments.csv`` for all inputs, and per input
-``NAME.txt`` (Audacity labels) and ``NAME.TextGrid`` (Praat); ``NAME`` is a file's stem, or for a file found in
+``NAME.txt`` (Audacity labels) and ``NAME.TextGrid`` (Praat), on request ``NAME.eaf`` (ELAN) and each laugh's
+audio (``NAME_laugh_K.wav``); ``NAME`` is a file's stem, or for a file found in
 a given folder its path from that folder (:func:`inputs`).  A progress bar on stderr
 when the inputs are longer than a minute in all.  An unreadable input stops the batch before anything is
 written, or with ``--skip-unreadable`` is left out in one line on stderr.
@@ -22,7 +23,7 @@ from laughlab.core.outfiles import edited_since, read_record, record_text, unwri
 from laughlab.core.summary import duration_text, factor_text
 
 AUDIO_SUFFIXES = {".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif", ".opus"}
-FORMATS = ("csv", "audacity", "textgrid", "elan")
+FORMATS = ("csv", "audacity", "textgrid", "elan", "audio")
 
 
 def inputs(paths: list[str]) -> list[tuple[Path, str]]:
@@ -156,7 +157,8 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--hop", type=float, default=0.5, help="time between model windows (s, default 0.5)")
     ap.add_argument("--smooth", type=int, default=3,
                     help="centred moving average over this many windows, odd (default 3)")
-    ap.add_argument("--formats", default="csv,audacity,textgrid", help="comma-separated: csv, audacity, textgrid, elan (default: the first three)")
+    ap.add_argument("--formats", default="csv,audacity,textgrid", help="comma-separated: csv, audacity, textgrid, elan, audio (each laugh as NAME_laugh_K.wav; "
+                         "default: the first three)")
     ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto")
     ap.add_argument("--overwrite", action="store_true",
                     help="write into an --out folder that already holds files: the segment files an earlier detect "
@@ -240,7 +242,9 @@ def main(argv: list[str]) -> None:
     out = Path(ns.out)
     # the manifest first lists every name this run may leave (the earlier run's and this one's): a run stopped
     # while writing leaves no file that a later --overwrite would take for the user's
-    planned = S.output_names([r[0] for r in results], formats)
+    planned = S.output_names([r[0] for r in results], formats) + S.clip_names(results, formats)
+    if "audio" in formats:   # the clips' names are known now: a file of yours by one of them is refused as above
+        stale = out_folder_check(out, ns.overwrite, planned)
 
     def rel(paths):
         return {p.relative_to(out).as_posix() for p in paths}
@@ -249,7 +253,8 @@ def main(argv: list[str]) -> None:
     written = S.write_outputs(out, results, formats)
     # an earlier detect's files of an input skipped now stay (it could not be read again: its labels are not stale)
     theirs = set(S.output_names(gone, formats)) - rel(written)
-    kept_old = {p for p in stale if p.relative_to(out).as_posix() in theirs}
+    kept_old = {p for p in stale if p.relative_to(out).as_posix() in theirs
+                or any(p.relative_to(out).as_posix().startswith(f"{g}_laugh_") for g in gone)}
     unwrite(sorted(set(stale) - set(written) - kept_old), out)   # --overwrite: an earlier detect's files not written now
     done = sorted(rel(written) | rel(kept_old))
     S.atomic_write(out / MANIFEST, record_text(out, done))

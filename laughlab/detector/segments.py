@@ -11,7 +11,8 @@ than a window is padded with zeros (silence) either side.
 
 Files: one CSV for a whole command (``file,start,end,probability``), and per input an
 Audacity label file (``NAME.txt``: ``start<TAB>end<TAB>laugh``) and a Praat TextGrid
-(``NAME.TextGrid``, tier ``laughter``).  :func:`read_folder` reads such a folder back
+(``NAME.TextGrid``, tier ``laughter``); on request ELAN (``NAME.eaf``) and each laugh's audio
+(``NAME_laugh_K.wav``).  :func:`read_folder` reads such a folder back
 (Audacity labels, or a CSV with ``file,start,end``), ours or a peer detector's, and
 :func:`score` compares segments with a truth file, so both are scored by the same code
 (``benchmarks/bench_detector.py --peer DIR``).
@@ -211,9 +212,33 @@ def output_names(stems: list[str], formats: tuple[str, ...]) -> list[str]:
     return names + (["segments.csv"] if "csv" in formats else [])
 
 
+def clip_names(results: list, formats: tuple[str, ...]) -> list[str]:
+    """With ``audio`` in ``formats``: ``NAME_laugh_K.wav`` for segment ``K`` (from 0) of each input ``NAME``, as
+    ``segment_laughter.py`` numbers its ``laugh_K.wav`` (Gillick et al. 2021)."""
+    return [f"{r[0]}_laugh_{i}.wav" for r in results for i in range(len(r[2]))] if "audio" in formats else []
+
+
+def write_clip(path: Path, media: Path, seg: Segment) -> None:
+    """The recording's samples ``[round(start * sr), round(end * sr))`` as a WAV file, whole or not at all: its own
+    rate and channels, its own sample format where WAV holds it (16-bit PCM for a compressed recording)."""
+    import soundfile as sf
+
+    info = sf.info(str(media))
+    subtype = info.subtype if info.subtype in ("PCM_U8", "PCM_16", "PCM_24", "PCM_32", "FLOAT", "DOUBLE") else "PCM_16"
+    x, sr = sf.read(str(media), start=round(seg.start * info.samplerate), stop=round(seg.end * info.samplerate),
+                    always_2d=True, dtype="float64" if subtype in ("FLOAT", "DOUBLE") else "int32")
+    tmp = path.with_name(f".{path.name}.part")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        sf.write(str(tmp), x, sr, subtype=subtype, format="WAV")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...]) -> list[Path]:
-    """Write ``segments.csv`` and per-input ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf``; each file whole or not
-    at all."""
+    """Write ``segments.csv`` and per-input ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf`` (and with ``audio`` each
+    laugh as ``NAME_laugh_K.wav``, from the recording, the results' fourth item); each file whole or not at all."""
     written = []
     for name, dur, segs, *media in results:   # (stem, duration, segments[, the recording's path])
         text = {"audacity": lambda: audacity_text(segs), "textgrid": lambda: textgrid_text(segs, dur),
@@ -222,6 +247,9 @@ def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]]
             if f in formats:
                 written.append(out_dir / (name + suffix))
                 atomic_write(written[-1], text[f]())
+        for i, seg in enumerate(segs if "audio" in formats else []):
+            written.append(out_dir / f"{name}_laugh_{i}.wav")
+            write_clip(written[-1], media[0], seg)
     if "csv" in formats:   # through csv: a name with a comma or a quote is quoted (a review: it split the row)
         text = io.StringIO()
         w = csv.writer(text, lineterminator="\n")
