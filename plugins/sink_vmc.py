@@ -10,6 +10,7 @@ from __future__ import annotations
 import sys
 import time
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -53,6 +54,9 @@ class VmcParams:
         ``Blink_L``, ``Blink_R`` for avatars without perfect-sync clips.
     report : bool
         Print the frame count and the measured latency when the run ends.
+    character : str or None
+        Your avatar (the top-level ``character=PATH`` sets it): the Hips' height and the bones' offsets sent are
+        its own, and the body's movement is scaled to its legs; None: laughlab's mannequin's (Hips 0.95 m up).
     rest_on_stop : bool
         When the stream ends (the input's end, Ctrl-C, a failure) send one more frame at rest: every
         blendshape sent at 0 and the neutral standing pose (arms down), then ``Blend/Apply``.  Receivers (VSeeFace,
@@ -68,6 +72,7 @@ class VmcParams:
     vrm_presets: bool = False
     report: bool = True
     rest_on_stop: bool = True
+    character: Optional[str] = None
 
     def __post_init__(self) -> None:
         if not self.host:
@@ -115,6 +120,14 @@ class VmcSink(Sink):
     Params = VmcParams
     streaming = True
 
+    def __init__(self, params=None, ctx=None):
+        super().__init__(params, ctx)
+        self.avatar = None
+        if getattr(self.params, "character", None):   # a bad avatar stops the run before anything is written
+            from laughlab.avatar.load import load_character
+
+            self.avatar = load_character(self.params.character)
+
     def open(self, run) -> None:
         super().open(run)
         p = self.params
@@ -123,6 +136,10 @@ class VmcSink(Sink):
         except OSError as exc:
             raise LaughlabError(f"output.vmc: cannot reach host {p.host!r}: {exc}") from None
         self.bones = BoneMap(run.skeleton, upper_chest=p.upper_chest)
+        if self.avatar is not None:   # the avatar's own bones and height
+            from laughlab.avatar.retarget import vmc_rest
+
+            self.bones.place(*vmc_rest(self.avatar, run.skeleton, self.bones.joints, self.bones.offsets))
         self.encoder = VmcEncoder(self.bones.bones, p.max_packet_bytes)
         live = self.live = bool(getattr(run.source, "live", False))
         self.paced = p.realtime == "on" or (p.realtime == "auto" and not live)

@@ -6,6 +6,7 @@ import socket
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -495,3 +496,66 @@ def test_the_closing_line_of_one_frame_says_frame(tmp_path, capsys):
     (tmp_path / "run").mkdir()
     pipeline.execute(pipeline.build(cfg), tmp_path / "run")
     assert "vmc: 1 frame to 127.0.0.1:39599 (not paced" in capsys.readouterr().out
+
+
+GODETTE = Path(__file__).parent / "assets" / "avatars" / "Godette_vrm_v4.vrm"
+
+
+def test_with_your_avatar_the_bones_at_rest_land_on_its_joints_and_the_hips_move_at_its_scale():
+    """``character=my.vrm output=vmc``: the Hips went out 0.95 m up (the mannequin's) whatever the avatar, and the
+    bones at the mannequin's offsets.  Now, chained from Hips at the T-pose (every local rotation the identity),
+    the sent positions are the avatar's own joints (Unity's frame), and the root's motion is scaled to its legs."""
+    from laughlab.avatar.load import load_avatar
+    from laughlab.avatar.names import JOINT_TO_VRM
+    from laughlab.avatar.retarget import retarget, vmc_rest
+    from laughlab.motion.skeleton import rest_pose
+
+    avatar = load_avatar(GODETTE)
+    bones = BoneMap(HUMANOID)
+    bones.place(*vmc_rest(avatar, HUMANOID, bones.joints, bones.offsets))
+    tpose = rest_pose(HUMANOID)
+    pos, rot = bones.local(tpose[None])
+    np.testing.assert_allclose(rot[0], np.tile([0, 0, 0, 1.0], (len(bones.joints), 1)), atol=1e-12)
+    world = {}
+    for k, j in enumerate(bones.joints):
+        p = HUMANOID.parents[j]
+        while p >= 0 and p not in world:
+            p = HUMANOID.parents[p]
+        world[j] = pos[0, k] if p < 0 else world[p] + pos[0, k]
+    F = np.asarray(avatar.turn)
+    for j, w in world.items():
+        node = avatar.bones.get(JOINT_TO_VRM.get(HUMANOID.names[j]))
+        if node is not None:   # the avatar's joint in laughlab's frame (F.T p), then Unity's (-x, y, z), m
+            want = F.T @ avatar.rest_world[node, :3, 3]
+            np.testing.assert_allclose(w, want * [-1, 1, 1], atol=1e-9, err_msg=HUMANOID.names[j])
+    hips_y = pos[0, 0, 1]
+    assert abs(hips_y - 0.95) > 0.1 and hips_y == pytest.approx(avatar.rest_world[avatar.bones["hips"], 1, 3])
+    # the root's motion as output=gltf retargets it: the same hips in the avatar's frame, every frame
+    rng = np.random.default_rng(3)
+    poses = np.tile(tpose, (5, 1))
+    poses[:, :3] += rng.uniform(-10, 10, (5, 3))
+    moved = retarget(avatar, poses)
+    pos, _ = bones.local(poses)
+    p = int(avatar.parents[avatar.bones["hips"]])
+    hips_world = moved.hips_translation if p < 0 else moved.hips_translation @ avatar.rest_world[p, :3, :3].T \
+        + avatar.rest_world[p, :3, 3]
+    np.testing.assert_allclose(pos[:, 0], (hips_world @ F) * [-1, 1, 1], atol=1e-9)
+    # without an avatar: the mannequin's, as before
+    plain, _ = BoneMap(HUMANOID).local(tpose[None])
+    assert plain[0, 0, 1] == pytest.approx(0.95, abs=0.01)
+
+
+def test_character_goes_to_the_stream_and_a_bad_one_stops_the_run_in_one_line(tmp_path):
+    from laughlab.core.errors import LaughlabError
+
+    with Receiver() as rx:
+        cfg = config(rx.port, realtime="off")
+        cfg.character = str(GODETTE)
+        pipe = pipeline.build(cfg)
+        pipeline.execute(pipe, tmp_path, {})
+        rx.drain()
+    hips = [m[2] for f in rx.frames() for m in f if m[1] == "/VMC/Ext/Bone/Pos" and m[2][0] == "Hips"]
+    assert len(hips) == 30 and all(abs(h[2] - 0.95) > 0.1 for h in hips)
+    cfg.character = str(tmp_path / "nobody.vrm")
+    with pytest.raises(LaughlabError, match="nobody.vrm"):
+        pipeline.build(cfg)

@@ -216,3 +216,25 @@ def animated_world(avatar: Avatar, result: Retargeted) -> np.ndarray:
         p = int(avatar.parents[i])
         world[:, i] = local[:, i] if p < 0 else world[:, p] @ local[:, i]
     return world
+
+
+def vmc_rest(avatar: Avatar, skeleton: Skeleton, joints: list[int], offsets_cm: np.ndarray) -> tuple:
+    """What ``output=vmc`` sends of ``avatar`` at rest, in laughlab's frame (cm): each sent joint's offset from
+    the nearest sent ancestor, such that chained from the hips every joint the avatar has lands on its own (a joint
+    it lacks at laughlab's ``offsets_cm`` from its parent, scaled by leg height), the hips' rest position,
+    laughlab's rest root and the scale by which root motion is carried over (as :func:`retarget` carries it: the
+    avatar's leg height over laughlab's).  Returns
+    ``(offsets (J, 3), hips (3,), rest_root (3,), scale)``."""
+    F, drive, *_, rest_root, scale = _constants(avatar, skeleton)
+    pos = avatar.rest_world[:, :3, 3] @ F * 100.0   # F.T p, per row: laughlab's frame, cm
+    node = {j: avatar.bones.get(JOINT_TO_VRM.get(n)) for j, n in enumerate(skeleton.names)}
+    world: dict[int, np.ndarray] = {}   # each sent joint at rest: the avatar's where it has the bone (an
+    out = []                            # UpperChest it lacks: laughlab's offset, scaled, so its child still lands)
+    for j in joints:
+        a = skeleton.parents[j]
+        while a >= 0 and a not in world:
+            a = skeleton.parents[a]
+        base = world[a] if a >= 0 else np.zeros(3)
+        world[j] = pos[node[j]] if node[j] is not None else base + np.asarray(offsets_cm[j], float) * scale
+        out.append(world[j] - base)
+    return np.array(out).reshape(len(joints), 3), pos[avatar.bones["hips"]], np.asarray(rest_root, float), scale

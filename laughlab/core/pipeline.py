@@ -179,7 +179,8 @@ def check_character_used(cfg: DictConfig) -> None:
     path = cfg.get("character")
     outputs = dict(cfg.get("output") or {})
     if path is not None and not any("character" in _param_names("sink", name) for name in outputs):
-        raise LaughlabError(f"character={path} is shown by output=gltf, output=video and output=viewer (and `laughlab view RUN "
+        raise LaughlabError(f"character={path} is shown by output=gltf, output=video and output=viewer, and sized for by output=vmc "
+                            f"(and `laughlab view RUN "
                             f"--character PATH`); "
                             f"this run's outputs ({', '.join(outputs) or 'none'}) do not use it")
 

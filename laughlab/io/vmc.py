@@ -230,7 +230,17 @@ class BoneMap:
         for folded in self.fold:  # children of a folded joint hang from its parent: add its offset
             for c in skeleton.children(folded):
                 offsets[c] = offsets[c] + offsets[folded]
+        self.offsets = offsets
         self.rest = to_unity_position(offsets[self.joints])
+        self.hips_move = None   # with an avatar: (its hips at rest, laughlab's rest root (cm), scale of the motion)
+
+    def place(self, offsets_cm: np.ndarray, hips_cm: np.ndarray, rest_root_cm: np.ndarray, scale: float) -> "BoneMap":
+        """Send another character's bones: their offsets (``(len(joints), 3)``, laughlab's frame, cm), its hips at
+        rest, and the root's motion from laughlab's rest root scaled by ``scale`` (an avatar's:
+        :func:`laughlab.avatar.retarget.vmc_rest`); the rotations are the same."""
+        self.rest = to_unity_position(np.asarray(offsets_cm, dtype=np.float64))
+        self.hips_move = (np.asarray(hips_cm, dtype=np.float64), np.asarray(rest_root_cm, dtype=np.float64), scale)
+        return self
 
     def local(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unity local positions ``(F, B, 3)`` (m) and rotations ``(F, B, 4)`` (x, y, z, w) of the bones."""
@@ -243,7 +253,11 @@ class BoneMap:
         rot = to_unity_quat(q[:, self.joints])
         pos = np.broadcast_to(self.rest, (f, len(self.joints), 3)).copy()
         if self.joints and self.joints[0] == 0:  # the root carries the pose's translation
-            pos[:, 0] = to_unity_position(self.skeleton.offsets[0] + poses[:, :3])
+            root = self.skeleton.offsets[0] + poses[:, :3]
+            if self.hips_move is not None:
+                hips, rest_root, scale = self.hips_move
+                root = hips + (root - rest_root) * scale
+            pos[:, 0] = to_unity_position(root)
         return pos, rot
 
 
