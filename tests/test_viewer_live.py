@@ -84,7 +84,9 @@ def test_the_page_shows_each_frame_as_the_glb_of_the_same_run_holds_it(tmp_path,
     try:
         page.wait_ready(120)
         until_ended(page, thread, 60)
-        time.sleep(0.3)   # an animation frame or two: the last frame applied
+        deadline = time.monotonic() + 20   # the last frame applied on an animation frame (slow on a loaded machine)
+        while page.eval("window.laughlab.live.k") != 119 and time.monotonic() < deadline:
+            time.sleep(0.1)
         feed = page.eval("({frames: window.laughlab.live.frames, k: window.laughlab.live.k, "
                          "layout: window.laughlab.live.layout.length})")
         assert feed["k"] == 119 and feed["frames"] >= 100 and result["viewer_frames"] == 120
@@ -158,6 +160,18 @@ def test_a_page_that_cannot_keep_up_loses_its_oldest_frames_not_the_newest():
         assert late.get_nowait() == ("layout", "[]") and late.empty()
     finally:
         live.stop()
+
+
+def test_the_end_of_the_stream_reaches_a_page_whose_queue_is_full():
+    """stop() dropped its end-of-stream mark when a slow page's queue was full, and that page's serving thread
+    waited for it until the browser left (a review)."""
+    live = LiveServer({"index.html": b"x"}, "127.0.0.1", 0)
+    q = live.join()
+    for k in range(BACKLOG + 10):
+        live.push("frame", str(k))
+    live.stop()
+    got = [q.get_nowait() for _ in range(q.qsize())]
+    assert len(got) == BACKLOG and got[-1] is None and got[-2] == ("frame", str(BACKLOG + 9))
 
 
 def test_bad_settings_are_one_line(tmp_path):

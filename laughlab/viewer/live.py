@@ -26,6 +26,8 @@ from laughlab.viewer.server import _Handler, http_server
 BACKLOG = 600
 #: a comment line this often (s) keeps an idle stream open through proxies
 KEEPALIVE_S = 15.0
+#: a page whose socket takes nothing for this long (s) is dropped, and its serving thread ends
+WRITE_TIMEOUT_S = 60.0
 
 
 class Tracks:
@@ -101,15 +103,7 @@ class LiveServer:
             if event == "layout":
                 self.layout = data
             for q in self.clients:
-                while True:
-                    try:
-                        q.put_nowait((event, data))
-                        break
-                    except queue.Full:   # a page that cannot keep up: its oldest frame goes
-                        try:
-                            q.get_nowait()
-                        except queue.Empty:
-                            pass
+                _offer(q, (event, data))
 
     def close(self, drain_s: float = 2.0) -> None:
         """Send ``end`` to every page, give them up to ``drain_s`` to read what is queued, stop serving."""
@@ -124,13 +118,23 @@ class LiveServer:
 
     def stop(self) -> None:
         with self.lock:
-            for q in self.clients:
-                try:
-                    q.put_nowait(None)
-                except queue.Full:
-                    pass
+            for q in self.clients:   # the stream's end goes in a full queue too (a page's serving thread waited
+                _offer(q, None)      # for it until the browser left)
         self.httpd.shutdown()
         self.httpd.server_close()
+
+
+def _offer(q: queue.Queue, item) -> None:
+    """Queue ``item`` for a page; a page that cannot keep up loses its oldest item instead."""
+    while True:
+        try:
+            q.put_nowait(item)
+            return
+        except queue.Full:
+            try:
+                q.get_nowait()
+            except queue.Empty:
+                pass
 
 
 class _LiveHandler(_Handler):
@@ -144,6 +148,7 @@ class _LiveHandler(_Handler):
         self.send_header("Cache-Control", "no-store")
         self.end_headers()
         q = self.live.join()
+        self.connection.settimeout(WRITE_TIMEOUT_S)
         try:
             while True:
                 try:
@@ -160,7 +165,7 @@ class _LiveHandler(_Handler):
                 self.wfile.flush()
                 if event == "end":
                     return
-        except (BrokenPipeError, ConnectionResetError):   # the page was closed
+        except OSError:   # the page was closed, or read nothing for WRITE_TIMEOUT_S (a frozen tab)
             return
         finally:
             self.live.leave(q)
