@@ -21,6 +21,7 @@ from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, chec
                                   register_plugin_configs)
 from laughlab.cli_help import check_flags, check_sweep_flags, help_text, local_options
 from laughlab.core.errors import LaughlabError, RefusedFolder, os_error_line, shown_path  # noqa: F401
+from laughlab.core.jobdir import anchor_paths, anchor_run_dir
 from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - summary_line: tests use it here
 
 
@@ -98,6 +99,7 @@ def preflight(argv: list[str]):
             load_character(cfg.character)
     else:
         pipeline.check_character_used(cfg)
+    anchor_run_dir(cfg)   # hydra.job.chdir=true: the run folder named from here
     full = cfg
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in NOT_IN_A_RUN])
     if conditions:   # trials run only the conditions' runs: build those (the base run: only to word an error)
@@ -134,6 +136,8 @@ def task(cfg) -> dict:
     from hydra.core.hydra_config import HydraConfig
 
     out_dir = Path(HydraConfig.get().runtime.output_dir)
+    if HydraConfig.get().job.chdir:   # the job runs in out_dir: the files the user named, from where they ran it
+        anchor_paths(cfg, HydraConfig.get().runtime.cwd)
     t0 = time.monotonic() if _STARTED is None else _STARTED
     cfg_hash = config_hash(cfg)
     with interrupts.worker_job():

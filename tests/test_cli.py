@@ -668,3 +668,26 @@ def test_a_file_fault_outside_the_runs_folder_is_not_called_a_write(tmp_path):
         ("cannot write runs/x: File too large (a file size limit: ulimit -f)", 2)
     assert cli._fault(FileNotFoundError(errno.ENOENT, "No such file", "runs/x/a.csv"), "runs/x", {})[0] == \
         "cannot write runs/x/a.csv: No such file"
+
+
+def test_hydra_job_chdir_runs_in_the_run_folder_with_the_paths_named_from_where_it_ran(tmp_path):
+    """hydra.job.chdir=true ended every run in two lines (Hydra's, then 'cannot write outputs/...') after its files
+    were written; a relative input.path was looked up in the run folder."""
+    import soundfile as sf
+
+    from laughlab.synth.laughter import SyntheticLaughter
+
+    s = SyntheticLaughter(seed=1, duration_s=2.0, sample_rate=16000)
+    sf.write(tmp_path / "laugh.wav", s.render(0, s.n_samples), 16000, subtype="FLOAT")
+    a = laughlab("input=file", "input.path=laugh.wav", "detector=none", "hydra.job.chdir=true",
+                 "hydra.run.dir=out", cwd=tmp_path)
+    assert a.returncode == 0, a.stderr
+    b = laughlab("input=file", "input.path=laugh.wav", "detector=none", "hydra.run.dir=plain", cwd=tmp_path)
+    assert b.returncode == 0, b.stderr
+    for name in ("channels.csv", "events.csv", "motion.bvh"):
+        assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "plain" / name).read_bytes(), name
+    assert not (tmp_path / "out" / "out").exists()
+    r = laughlab("experiment=smoke", "hydra.job.chdir=true", "hydra.run.dir=exp", cwd=tmp_path)
+    assert one_line_error(r) == ("laughlab: error: hydra.job.chdir=true does not apply to an experiment: its trials "
+                                 "read their inputs from where the command runs; drop it")
+    assert not (tmp_path / "exp").exists()
