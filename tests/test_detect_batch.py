@@ -68,8 +68,8 @@ def test_read_mono_fills_in_place_whatever_the_header_says(tmp_path, monkeypatch
     assert sr == 44100 and got.dtype == np.float32 and np.array_equal(got, want)
     real = audio.read_blocks
     for more, keep in ((want[:5000], None), (want[:1], None), (want[:0], -100)):   # more than the header says, or fewer
-        def blocks(path, block_s, more=more, keep=keep):
-            for b in real(path, block_s):
+        def blocks(path, block_s, channel=None, more=more, keep=keep):
+            for b in real(path, block_s, channel):
                 yield b[:keep]
             yield more
 
@@ -339,3 +339,33 @@ def test_each_laugh_as_audio_the_recordings_own_samples(tmp_path):
     n = len(list(csv.DictReader((out / "segments.csv").open())))
     assert 1 <= n < len(rows)
     assert sorted(p.name for p in (out / "day 1").iterdir()) == [f"take_laugh_{k}.wav" for k in range(n)]
+
+
+def test_channels_each_finds_who_laughed_in_a_dyad(tmp_path):
+    """A dyad, one speaker a channel: the laugh on the right channel alone is found in take.ch2 only, and its clip
+    is that channel's samples; mixed (the default) it is found in take; a mono file keeps its name."""
+    from laughlab.corpora import fetch
+
+    x, sr = sf.read(fetch.require(kinds=["laugh"])["btanks/laugh01"])
+    quiet = np.zeros(sr)
+    right = np.concatenate([quiet, x, quiet])
+    left = 0.001 * np.random.default_rng(0).standard_normal(len(right))   # a quiet room on the left
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    sf.write(rec / "take.wav", np.stack([left, right], axis=1), sr, subtype="PCM_16")
+    sf.write(rec / "solo.wav", right, sr, subtype="PCM_16")
+    out = tmp_path / "each"
+    r = laughlab("detect", str(rec), "--out", str(out), "--channels", "each", "--formats", "csv,textgrid,audio")
+    assert r.returncode == 0, r.stderr
+    rows = list(csv.DictReader((out / "segments.csv").open()))
+    assert {row["file"] for row in rows} == {"take.ch2", "solo"}
+    assert {p.name for p in out.glob("*.TextGrid")} == {"take.ch1.TextGrid", "take.ch2.TextGrid", "solo.TextGrid"}
+    src, _ = sf.read(rec / "take.wav", dtype="int32")
+    first = next(row for row in rows if row["file"] == "take.ch2")
+    clip, _ = sf.read(out / "take.ch2_laugh_0.wav", dtype="int32")
+    a, b = round(float(first["start"]) * sr), round(float(first["end"]) * sr)
+    assert clip.ndim == 1 and np.array_equal(clip, src[a:b, 1])
+    mixed = tmp_path / "mixed"
+    r = laughlab("detect", str(rec), "--out", str(mixed))
+    assert r.returncode == 0, r.stderr
+    assert {row["file"] for row in csv.DictReader((mixed / "segments.csv").open())} == {"take", "solo"}

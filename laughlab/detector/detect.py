@@ -131,14 +131,15 @@ def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Pat
     return [out / n for n in sorted(names & there)]
 
 
-def read_mono(path: Path):
+def read_mono(path: Path, channel: int | None = None):
+    """The recording's samples, its channels mixed (or channel ``channel`` alone), and its rate."""
     import numpy as np
 
     from laughlab.io.audio import probe_file, read_blocks
 
     info = probe_file(path)
     x, n = np.empty(info.frames, np.float32), 0   # filled in place: no list of blocks and its copy (half the memory)
-    for b in read_blocks(path, 10.0):
+    for b in read_blocks(path, 10.0, channel):
         if n + len(b) > len(x):   # longer than its header said (a compressed format's estimate)
             x = np.concatenate([x[:n], np.empty(max(len(b), len(x) // 4), np.float32)])
         x[n:n + len(b)] = b
@@ -159,6 +160,9 @@ def main(argv: list[str]) -> None:
                     help="centred moving average over this many windows, odd (default 3)")
     ap.add_argument("--formats", default="csv,audacity,textgrid", help="comma-separated: csv, audacity, textgrid, elan, audio (each laugh as NAME_laugh_K.wav; "
                          "default: the first three)")
+    ap.add_argument("--channels", choices=("mix", "each"), default="mix",
+                    help="mix: a recording's channels mixed (default); each: every channel of a multichannel "
+                         "recording its own input, NAME.ch1, NAME.ch2, ... (a dyad, one speaker a channel)")
     ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto")
     ap.add_argument("--overwrite", action="store_true",
                     help="write into an --out folder that already holds files: the segment files an earlier detect "
@@ -187,8 +191,15 @@ def main(argv: list[str]) -> None:
     from laughlab.detector.yamnet import LaughterScore, ModelFileError, Yamnet
     from laughlab.io.audio import probe_file
 
-    named = inputs(ns.paths)
-    stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n in named], formats))
+    named = [(f, name, None) for f, name in inputs(ns.paths)]
+    if ns.channels == "each":   # every channel its own input (a mono file stays as it is)
+        named = [(f, f"{name}.ch{c + 1}" if k > 1 else name, c if k > 1 else None)
+                 for f, name, _ in named for k in [_channels(f)] for c in range(k)]
+        names = [n for _, n, _ in named]
+        dup = next((n for n in names if names.count(n) > 1), None)
+        if dup:   # take.wav's second channel and a file take.ch2.wav
+            raise LaughlabError(f"two inputs share the name {dup!r} with --channels each: rename the file {dup}.*")
+    stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n, _ in named], formats))
     total_s, kept, gone = 0.0, [], []   # gone: the names of the inputs left out (--skip-unreadable)
 
     def unreadable(name: str, exc: LaughlabError) -> None:
@@ -198,13 +209,13 @@ def main(argv: list[str]) -> None:
         print(f"laughlab: skipped: {exc}", file=sys.stderr)
         gone.append(name)
 
-    for f, name in named:  # every input checked before any work or any file written
+    for f, name, channel in named:  # every input checked before any work or any file written
         try:
             info = probe_file(f)
         except LaughlabError as exc:
             unreadable(name, exc)
             continue
-        kept.append((f, name))
+        kept.append((f, name, channel))
         total_s += info.frames / info.samplerate
     if not kept:
         raise LaughlabError("no readable audio among the inputs")
@@ -224,16 +235,16 @@ def main(argv: list[str]) -> None:
     t0 = time.perf_counter()
     results = []
     try:
-        for f, name in named:
+        for f, name, channel in named:
             try:
-                x, sr = read_mono(f)
+                x, sr = read_mono(f, channel)
             except LaughlabError as exc:  # damaged past its header: found only when read
                 unreadable(name, exc)
                 continue
             t, p = S.laughter_prob(x, sr, ns.hop, model, score, progress=None if bar is None else bar.update)
             p = S.smooth(p, ns.smooth)
             dur = len(x) / sr
-            results.append((name, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f))
+            results.append((name, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f, channel))
     finally:   # also on Ctrl-C: the error line then starts a line of its own, not the end of the bar's (a review)
         if bar is not None:
             bar.close()
@@ -260,6 +271,16 @@ def main(argv: list[str]) -> None:
     S.atomic_write(out / MANIFEST, record_text(out, done))
     wall = time.perf_counter() - t0
     print(summary_line(results, gone, wall, out))
+
+
+def _channels(path: Path) -> int:
+    """A recording's channel count (1 for a file soundfile cannot read: the check before any work says why)."""
+    import soundfile as sf
+
+    try:
+        return sf.info(str(path)).channels
+    except Exception:   # noqa: BLE001 - any unreadable file: probe_file's line names it
+        return 1
 
 
 def summary_line(results: list, skipped: list[str], wall: float, out: Path) -> str:   # skipped: their names

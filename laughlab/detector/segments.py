@@ -218,15 +218,18 @@ def clip_names(results: list, formats: tuple[str, ...]) -> list[str]:
     return [f"{r[0]}_laugh_{i}.wav" for r in results for i in range(len(r[2]))] if "audio" in formats else []
 
 
-def write_clip(path: Path, media: Path, seg: Segment) -> None:
+def write_clip(path: Path, media: Path, seg: Segment, channel: int | None = None) -> None:
     """The recording's samples ``[round(start * sr), round(end * sr))`` as a WAV file, whole or not at all: its own
-    rate and channels, its own sample format where WAV holds it (16-bit PCM for a compressed recording)."""
+    rate and channels (or channel ``channel`` alone), its own sample format where WAV holds it (16-bit PCM for a
+    compressed recording)."""
     import soundfile as sf
 
     info = sf.info(str(media))
     subtype = info.subtype if info.subtype in ("PCM_U8", "PCM_16", "PCM_24", "PCM_32", "FLOAT", "DOUBLE") else "PCM_16"
     x, sr = sf.read(str(media), start=round(seg.start * info.samplerate), stop=round(seg.end * info.samplerate),
                     always_2d=True, dtype="float64" if subtype in ("FLOAT", "DOUBLE") else "int32")
+    if channel is not None:
+        x = x[:, channel]
     tmp = path.with_name(f".{path.name}.part")
     path.parent.mkdir(parents=True, exist_ok=True)
     try:
@@ -249,7 +252,7 @@ def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]]
                 atomic_write(written[-1], text[f]())
         for i, seg in enumerate(segs if "audio" in formats else []):
             written.append(out_dir / f"{name}_laugh_{i}.wav")
-            write_clip(written[-1], media[0], seg)
+            write_clip(written[-1], media[0], seg, media[1] if len(media) > 1 else None)
     if "csv" in formats:   # through csv: a name with a comma or a quote is quoted (a review: it split the row)
         text = io.StringIO()
         w = csv.writer(text, lineterminator="\n")

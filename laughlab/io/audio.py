@@ -140,8 +140,9 @@ def check_wav_length(p: Path, info, shown) -> None:
                         f"{held / per_s:.2f} s (copy it again, or rewrite its header: sox IN.wav OUT.wav)")
 
 
-def read_blocks(path: str | Path, block_s: float = 1.0) -> Iterator[np.ndarray]:
-    """Yield the file's audio as mono float32 chunks of about ``block_s`` seconds.
+def read_blocks(path: str | Path, block_s: float = 1.0, channel: int | None = None) -> Iterator[np.ndarray]:
+    """Yield the file's audio as mono float32 chunks of about ``block_s`` seconds (its channels mixed, or channel
+    ``channel`` alone, from 0).
 
     Memory stays constant whatever the file's length.  16-bit PCM WAV files (the usual
     recording format) are read with the standard library's ``wave`` and scaled by 1/32768,
@@ -153,8 +154,9 @@ def read_blocks(path: str | Path, block_s: float = 1.0) -> Iterator[np.ndarray]:
     p = str(Path(path).expanduser())
     info = sf.info(p)
     if info.format == "WAV" and info.subtype == "PCM_16":
-        yield from _read_pcm16_wav(p, max(1, int(info.samplerate * block_s)))
+        yield from _read_pcm16_wav(p, max(1, int(info.samplerate * block_s)), channel)
         return
+    pick = to_mono if channel is None else (lambda data: np.ascontiguousarray(data[:, channel]))
     with sf.SoundFile(p) as f:
         n = max(1, int(f.samplerate * block_s))
         done = 0
@@ -168,11 +170,11 @@ def read_blocks(path: str | Path, block_s: float = 1.0) -> Iterator[np.ndarray]:
             if len(data) == 0:
                 break
             done += len(data)
-            yield to_mono(data)
+            yield pick(data)
 
 
-def _read_pcm16_wav(path: str, n: int) -> Iterator[np.ndarray]:
-    """Chunks of ``n`` frames of a 16-bit PCM WAV file as float32 in [-1, 1), mixed to mono."""
+def _read_pcm16_wav(path: str, n: int, channel: int | None = None) -> Iterator[np.ndarray]:
+    """Chunks of ``n`` frames of a 16-bit PCM WAV file as float32 in [-1, 1), mixed to mono (or one channel)."""
     import wave
 
     scale = np.float32(1.0 / 32768.0)
@@ -184,7 +186,7 @@ def _read_pcm16_wav(path: str, n: int) -> Iterator[np.ndarray]:
             if not raw:
                 break
             x = np.frombuffer(raw, dtype="<i2").astype(np.float32) * scale
-            yield to_mono(x.reshape(-1, ch))
+            yield to_mono(x.reshape(-1, ch)) if channel is None else np.ascontiguousarray(x.reshape(-1, ch)[:, channel])
 
 
 class FloatWavWriter:
