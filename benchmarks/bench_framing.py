@@ -15,8 +15,8 @@ On which data:
   the riddle preset's SL and LL are ``laugh_energy``'s settings, SS and LS ``smile_only``'s) over its default
   corpus: synthetic laughter, profiles mild and intense, 2 seeds, 8 s each (4 items, 960 frames a condition);
 * the default run (``python -m laughlab output=video``: 30 s of synthetic laughter, 900 frames);
-* a real recording at 44.1 kHz, ``btanks/laugh01.ogg`` of the corpus cache resampled by sox, under
-  ``laugh_energy``'s settings (skipped if the cache or sox is missing);
+* a real recording at 44.1 kHz, ``btanks/laugh01.ogg`` of the corpus cache resampled by scipy
+  (``bench_viewer_live.laugh01``), under ``laugh_energy``'s settings (skipped without the corpus);
 
 each for the mannequin and for the avatar ``tests/assets/avatars/Godette_vrm_v4.vrm``.  The rasteriser is
 replaced by a stub that records the vertices' pixels (the frames are then blank: this counts, it does not
@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
+import sys
 import tempfile
 import threading
 from pathlib import Path
@@ -38,8 +38,8 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
+sys.path.insert(0, str(HERE))
 AVATAR = ROOT / "tests" / "assets" / "avatars" / "Godette_vrm_v4.vrm"
-REAL = Path.home() / ".cache" / "laughlab" / "corpus" / "files" / "btanks" / "laugh01.ogg"
 CONDITIONS = {
     "smile_only": ["scheduler=none", "body.chest_gain=0.0", "body.belly_gain=0.0", "detector=none"],
     "face_breathing": ["scheduler=none", "detector=none"],
@@ -156,9 +156,14 @@ def main() -> None:
     results: dict = {}
     try:
         real = None
-        if REAL.is_file() and shutil.which("sox"):
+        from bench_viewer_live import laugh01
+
+        x = laugh01(44100)   # bench_viewer_live's loader (scipy's resample_poly; sox is not on a fresh machine)
+        if x is not None:
+            import soundfile as sf
+
             real = tmp / "laugh01_44k.wav"
-            subprocess.run(["sox", str(REAL), "-r", "44100", "-c", "1", str(real)], check=True)
+            sf.write(real, x, 44100, subtype="FLOAT")
         for who, character in (("mannequin", None), ("godette", str(AVATAR))):
             rows = {}
             for cond, ovs in CONDITIONS.items():
