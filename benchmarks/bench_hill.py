@@ -13,7 +13,7 @@ Measures, on this machine:
 3. the cost of one evaluation, alone (as Nelder-Mead and dual annealing use it)
    and in a batch (as CMA-ES and the parallel direct search use it);
 4. live control (``body=hill control=fit``): each call played from the fit of
-   an earlier call (``adopt_after_s``: the default 0.15 s, and 0, the rule before
+   an earlier call (``adopt_after_s``: the default 0.25 s, and 0, the rule before
    2026-11-28); the normalised error of the live lung pressure against the
    target per call (the offline segmentation's calls), the time of each call's
    fit and of the frames (the fit in the frame where a call ends, ``threaded:
@@ -262,7 +262,7 @@ def main() -> dict:
     print(f"live control as on a microphone (fits in their thread, 60 fps paced, 2 x 10 s): frames p50 "
           f"{mic['frame_ms_p50']:.2f} ms, p99 {mic['frame_ms_p99']:.2f} ms, max {mic['frame_ms_max']:.1f} ms; "
           f"error mean {mic['error_mean']:.3f}")
-    print(f"live control (default adopt_after_s=0.15): error mean {live['error_mean']:.3f} (median "
+    print(f"live control (default adopt_after_s=0.25): error mean {live['error_mean']:.3f} (median "
           f"{live['error_median']:.3f}) over {live['calls']} calls; fit {live['fit_seconds_mean']:.3f} s per call "
           f"({live['fit_seconds_per_second_of_call']:.2f} s per second of call); frames p50 {live['frame_ms_p50']:.2f} ms, "
           f"p99 {live['frame_ms_p99']:.1f} ms, max {live['frame_ms_max']:.0f} ms (fits in the frame)")

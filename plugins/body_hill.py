@@ -47,7 +47,7 @@ relax and the chest wall's recoil breathes in by itself.
 ``fit`` (default, the paper's audio-driven control, real time): per-call
 fitted activations (:mod:`laughlab.hill.live`): each call plays the seven
 parameters fitted to the last call that ended at least ``live.adopt_after_s``
-(0.15 s) before it began, scaled to its own peak, and is fitted itself
+(0.25 s) before it began, scaled to its own peak, and is fitted itself
 (:mod:`laughlab.hill.fit`, section 6.2) when it ends, in the frame (files) or
 in a background thread (live input); the same bytes either way.  The target is the ``pressure`` control (or ``mcs`` times
 ``track.mcs_pressure_cmh2o``).
@@ -64,6 +64,7 @@ The torso is advanced ``ceil(substep_hz / fps)`` equal substeps per frame
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -270,6 +271,11 @@ class HillBody(Body):
     def close(self) -> None:
         if self.live is not None:
             self.live.close()
+            waits = self.live.waits
+            if waits:   # live: frames held for a fit (the fit takes longer than adopt_after_s on this machine)
+                print(f"laughlab: warning: body=hill held {len(waits)} frame(s) for a call's fit, up to "
+                      f"{1000 * max(waits):.0f} ms: this machine fits a call in more than body.live.adopt_after_s="
+                      f"{self.live.p.adopt_after_s:g} s; raise it for a stream without stalls", file=sys.stderr)
 
     def _preset(self, t_end: np.ndarray):
         pre = PRESETS[self.params.preset]

@@ -67,10 +67,11 @@ def test_each_call_is_fitted_and_becomes_the_next_template(bout):
     ab = out[:, 1]
     assert ab[6 + 15 * 5 + 6] > ab[6 + 15 + 6] > 0
     assert ab[-1] < ab[6 + 15 * 5 + 6]
-    # played live from the previous call's fit, the pressure follows the pulses: from the second call on,
+    # played live from an earlier call's fit (a call ends 9 frames before the next begins, so with adopt_after_s
+    # 0.25 s, 15 frames, call i plays call i - 2's fit), the pressure follows the pulses: from the third call on,
     # the normalised error of every call is below 0.6 and the pressure peaks within 2 frames of the target's
     p = out[:, 0]
-    for i in range(1, 6):
+    for i in range(2, 6):
         k = 6 + 15 * i
         seg, sim = target[k:k + 15], p[k:k + 15]
         assert np.sqrt(np.mean((sim - seg) ** 2)) / np.sqrt(np.mean(seg ** 2)) < 0.6
@@ -142,7 +143,7 @@ def test_a_fit_becomes_the_template_at_the_first_call_starting_adopt_after_s_aft
     assert seen == [(6 + 15 * i, max(0, i - behind)) for i in range(5)]
 
 
-def test_the_fit_in_a_thread_plays_the_bytes_of_the_fit_in_the_frame_however_slow_the_thread(monkeypatch):
+def test_the_fit_in_a_thread_plays_the_bytes_of_the_fit_in_the_frame_however_slow_the_thread(monkeypatch, capsys):
     """Which fit a call plays is fixed by frame numbers (adopt_after_s), not by when the thread finishes: a
     microphone session replays offline byte for byte (until 2026-11-28 the next onset took the newest finished fit)."""
     import time
@@ -161,7 +162,12 @@ def test_the_fit_in_a_thread_plays_the_bytes_of_the_fit_in_the_frame_however_slo
     body, threaded = run_body(target, fit=fit, threaded="yes")
     assert body.live.threaded and len(body.live.fits) == 6
     np.testing.assert_array_equal(threaded, inline)
-    assert not np.array_equal(inline, run_body(target, fit=fit, threaded="no", adopt_after_s=0.3)[1])
+    # the frames came faster than real time here: some waited for a fit due, and the run says so once, at its end
+    waits = body.live.waits
+    assert 1 <= len(waits) <= 5 and capsys.readouterr().err == (
+        f"laughlab: warning: body=hill held {len(waits)} frame(s) for a call's fit, up to {1000 * max(waits):.0f} ms: "
+        "this machine fits a call in more than body.live.adopt_after_s=0.25 s; raise it for a stream without stalls\n")
+    assert not np.array_equal(inline, run_body(target, fit=fit, threaded="no", adopt_after_s=0.0)[1])
 
 
 def test_live_params_validate():

@@ -21,11 +21,11 @@ from the fit of an earlier call:
 3. When a call ends, its frames are fitted (:class:`laughlab.hill.fit.CallProblem`,
    the offline fit's cost, optimiser and primitives) from the torso's state at
    the call's onset, on top of what the earlier calls play; the result becomes
-   the template of the first call that starts at least ``adopt_after_s`` (0.15 s)
+   the template of the first call that starts at least ``adopt_after_s`` (0.25 s)
    after the call ended, unless its error is 1 or more (no better than holding
    still).  Within a bout the next call usually starts a few frames after the
    last ends, so a call plays the fit of the call before the last (our
-   departure from "the previous call": it leaves the fit 0.15 s to finish
+   departure from "the previous call": it leaves the fit 0.25 s to finish
    in a thread, and fixes which fit plays by frame numbers alone).
    The held abdominal activations are let go as in
    the offline fit (:func:`laughlab.hill.fit.release`): from the first frame
@@ -46,7 +46,7 @@ until it is), so both give the same bytes and a microphone session replays
 offline exactly.  A fit takes about 0.05 s of one core per 0.2 s call with the
 compiled torso step (``benchmarks/bench_hill.py``).  ``adopt_after_s: 0`` is
 the behaviour before 2026-11-28 (each call from the previous call's fit: error
-mean 0.57 against 0.60, median 0.44 against 0.45, on bench_hill's
+mean 0.57 against 0.62, median 0.44 against 0.45, on bench_hill's
 synthetic corpus), right for files, but
 live it holds each call's first frame for the whole fit.
 """
@@ -106,7 +106,7 @@ class LiveParams:
     max_scale: float = 2.0
     max_step: float = 0.1
     threaded: str = "auto"
-    adopt_after_s: float = 0.15
+    adopt_after_s: float = 0.25
     fit: FitParams = field(default_factory=_fit_defaults)
 
     def __post_init__(self) -> None:
@@ -193,6 +193,7 @@ class LiveFitter:
         self.bout_start_s = 0.0      # fits of calls before the current bout's let-go are not templates
         self.pending: list = []     # (frame due, fit: a future or its record), oldest first
         self.fits: list[dict] = []   # one record per fitted call: frames, x, error, evals, seconds
+        self.waits: list[float] = []  # frames held for a fit due and unfinished (threaded): how long (s)
 
     # -- fitting
     def _scaled(self, peak: float) -> np.ndarray:
@@ -229,9 +230,14 @@ class LiveFitter:
             self.template = (rec["x"], rec["peak"])
 
     def _collect(self, k: int | None = None) -> None:
-        """Adopt the fits due by frame ``k`` (all with ``None``), waiting for any still running."""
+        """Adopt the fits due by frame ``k`` (all with ``None``), waiting for any still running (each wait counted
+        in ``waits``, s: the machine fits more slowly than ``adopt_after_s``)."""
         while self.pending and (k is None or self.pending[0][0] <= k):
             _, fit = self.pending.pop(0)
+            if self._pool is not None and k is not None and not fit.done():
+                t0 = time.perf_counter()
+                fit.result()
+                self.waits.append(time.perf_counter() - t0)
             self._adopt(fit.result() if self._pool is not None else fit)
 
     def close(self) -> None:
