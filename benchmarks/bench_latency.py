@@ -4,7 +4,8 @@ Plays seeded synthetic laughter through the ``mic`` source's block interface
 at real time (a stand-in: the audio comes from memory instead of the device,
 block by block as PortAudio would deliver it), runs the default pipeline with
 the ``vmc`` sink, and receives the VMC stream with a python-osc server on
-127.0.0.1.  For every laughter call of the ground truth it finds the first
+127.0.0.1 (in a process of its own; ``--receiver thread``: in a thread of the benchmark's, as before
+2026-11-28).  For every laughter call of the ground truth it finds the first
 received frame whose ``jawOpen`` rose by at least ``--delta`` above its value
 at the call onset, and reports
 
@@ -23,8 +24,9 @@ next call, are counted as skipped.  Writes ``benchmarks/results/latency.json``.
 With ``--fps 60,120,144`` the rates run one after the other in one process (the figures then compare: the
 same machine, the same minute) and the medians are also given over the calls measured at every rate.  Each run
 also reports every frame's arrival after its audio block's end (the pipeline, the sink and the in-process
-receiver thread together) and the share of a core the process used, so a rate the machine cannot keep up
-with shows.
+receiver thread together), how late the frame loop took each block after it was due (its backlog: the part of
+the arrival that is the pipeline's, on top of the sink's capture-to-send) and the share of a core the process
+and its frame thread used, so a rate the machine cannot keep up with shows.
 
 Run: ``python benchmarks/bench_latency.py [--duration 20] [--fps 60[,120,...]] [--seed 0] [OVERRIDE...]``.
 """
@@ -81,6 +83,37 @@ class Receiver:
         self.server.server_close()
 
 
+def _serve(conn, stop) -> None:
+    """The receiver in a process of its own (``--receiver process``): its port, then its frames when told to stop."""
+    rx = Receiver()
+    conn.send(rx.port)
+    stop.wait()
+    rx.close()
+    conn.send(rx.frames)
+
+
+class ProcessReceiver:
+    """:class:`Receiver` in another process, as an avatar program is: its parsing does not share the frame loop's
+    interpreter (in a thread of the benchmark's own process it took the GIL from the frame loop at 144 fps).
+    Arrival times are ``perf_counter_ns``, the system's monotonic clock, the same in both processes."""
+
+    def __init__(self):
+        import multiprocessing as mp
+
+        ctx = mp.get_context("spawn")
+        self._conn, child = ctx.Pipe()
+        self._stop = ctx.Event()
+        self.proc = ctx.Process(target=_serve, args=(child, self._stop), daemon=True)
+        self.proc.start()
+        self.port = self._conn.recv()
+        self.frames: list[tuple[int, float, float]] = []
+
+    def close(self):
+        self._stop.set()
+        self.frames = self._conn.recv()
+        self.proc.join()
+
+
 def make_replay_mic():
     from laughlab.io.vmc import paced_chunks
     from laughlab_plugins.source_mic import MicSource, block_samples
@@ -97,7 +130,11 @@ def make_replay_mic():
 
         def _chunks(self):
             n = block_samples(self.sample_rate, self.ctx.fps, self.params.block_frames)   # the mic's own blocks
-            yield from paced_chunks(self.audio, self.sample_rate, n, on_start=lambda t: setattr(self, "t0", t))
+            self.late_ms, end = [], 0
+            for b in paced_chunks(self.audio, self.sample_rate, n, on_start=lambda t: setattr(self, "t0", t)):
+                end += len(b)   # how late the frame loop asks for the block after it was due: its backlog
+                self.late_ms.append((time.perf_counter() - self.t0 - end / self.sample_rate) * 1e3)
+                yield b
 
     return ReplayMic
 
@@ -140,7 +177,7 @@ def measure(ns, fps: float) -> dict:
     if not native:  # until the pipeline hands live sources' frames over one at a time
         pipeline.CHUNK_FRAMES = 1
 
-    rx = Receiver()
+    rx = ProcessReceiver() if ns.receiver == "process" else Receiver()
     cfg = compose_config([f"input.duration_s={ns.duration}", f"input.profile={ns.profile}", f"seed={ns.seed}",
                           f"fps={fps}", "input.save_audio=false", *ns.override])
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
@@ -184,7 +221,7 @@ def measure(ns, fps: float) -> dict:
     return {
         "date": datetime.now(timezone.utc).isoformat(timespec="seconds"),
         "loadavg_1_5_15_before": [round(x, 2) for x in load0],
-        "config": {"duration_s": ns.duration, "fps": fps, "sample_rate": sr, "profile": ns.profile,
+        "config": {"duration_s": ns.duration, "fps": fps, "receiver": ns.receiver, "sample_rate": sr, "profile": ns.profile,
                    "seed": ns.seed, "block_frames": ns.block_frames, "overrides": list(ns.override),
                    "block_samples": int(math.ceil(sr / fps)) * ns.block_frames, "delta_jaw": ns.delta,
                    "pipeline_streaming": "native (chunk_frames)" if native else "CHUNK_FRAMES patched to 1"},
@@ -199,6 +236,7 @@ def measure(ns, fps: float) -> dict:
         "sink_capture_to_send": {"median_ms": m["vmc_latency_ms_p50"], "p90_ms": m["vmc_latency_ms_p90"],
                                  "max_ms": m["vmc_latency_ms_max"]},
         "every_frame_arrival_after_block": {**percentiles(arrival), "p99_ms": float(np.percentile(arrival, 99))},
+        "frame_loop_behind": {**percentiles(mic.late_ms), "p99_ms": float(np.percentile(mic.late_ms, 99))},
         "process_cpu_share": cpu / wall,
         "frame_thread_cpu_share": thread / wall,   # the pipeline and the sink, without the receiver's thread
         "block_ms": 1000.0 * ns.block_frames / fps,
@@ -226,6 +264,9 @@ def main(argv=None) -> dict:
     ap.add_argument("--block-frames", type=int, default=1, help="the mic source's block_frames")
     ap.add_argument("--delta", type=float, default=0.02, help="jawOpen rise that counts as a response")
     ap.add_argument("--out", default=str(HERE / "results" / "latency.json"))
+    ap.add_argument("--receiver", choices=("process", "thread"), default="process",
+                    help="the OSC receiver in a process of its own, as an avatar program is (default), or in a "
+                         "thread of this one (before 2026-11-28)")
     ap.add_argument("override", nargs="*", help="configuration overrides (detector=none, face.jaw.rise=3...)")
     ns = ap.parse_args(argv)
     try:
@@ -243,9 +284,11 @@ def main(argv=None) -> dict:
         print(f"  end to end   median {e['median_ms']:.1f} ms   p90 {e['p90_ms']:.1f} ms")
         print(f"  algorithmic  median {a['median_ms']:.1f} ms   p90 {a['p90_ms']:.1f} ms")
         print(f"  system       median {s['median_ms']:.1f} ms   p90 {s['p90_ms']:.1f} ms")
-        sk, fa = r["sink_capture_to_send"], r["every_frame_arrival_after_block"]
+        sk, fa, fl = r["sink_capture_to_send"], r["every_frame_arrival_after_block"], r["frame_loop_behind"]
         print(f"  sink capture -> send median {sk['median_ms']:.2f} ms, p90 {sk['p90_ms']:.2f} ms, "
               f"max {sk['max_ms']:.2f} ms")
+        print(f"  the frame loop took its blocks after they were due by: median {fl['median_ms']:.1f} ms, "
+              f"p99 {fl['p99_ms']:.1f} ms, max {fl['max_ms']:.1f} ms")
         print(f"  every frame's arrival after its block: median {fa['median_ms']:.1f} ms, p99 {fa['p99_ms']:.1f} ms,"
               f" max {fa['max_ms']:.1f} ms; the process used {100 * r['process_cpu_share']:.0f}% of a core, its frame "
               f"thread {100 * r['frame_thread_cpu_share']:.0f}%")
