@@ -84,10 +84,16 @@ def test_max_floor_keeps_long_silence_silent():
 
 
 def test_rates_scale_with_frame_rate():
-    # the same audio at 60 and 120 fps rises at the same rate per second
+    """The same loud audio (mapped 1 every frame) at 30, 60 and 120 fps: the limited MCS rises 24 /s (0.4 a
+    tick); at 120 fps its first frame takes one tick's step, 0.4, at once (the rise budget of
+    laughlab.signals.smoothing: before, 0.2, and the MCS reached 0.64 a frame later in time than at 60 fps),
+    then 0.2 a frame; at 30 fps a frame's 0.8, as before.  The MCS is the limited value squared."""
+    _, o30 = run([np.full(20, 0.1)] * 3, fps=30, sr=600)
     _, o60 = run([np.full(10, 0.1)] * 6, fps=60, sr=600)
     _, o120 = run([np.full(5, 0.1)] * 12, fps=120, sr=600)
-    assert o60[1]["mcs"] == pytest.approx(o120[3]["mcs"], rel=1e-6)
+    assert [o["mcs"] for o in o30[:2]] == pytest.approx([0.64, 1.0])
+    assert [o["mcs"] for o in o60[:3]] == pytest.approx([0.16, 0.64, 1.0])
+    assert [o["mcs"] for o in o120[:4]] == pytest.approx([0.16, 0.36, 0.64, 1.0])
 
 
 samples = st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32), st.sampled_from([0.0, 1.0, -1.0]))

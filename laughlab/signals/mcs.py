@@ -22,7 +22,7 @@ import numpy as np
 
 from laughlab.core.bases import Extractor
 from laughlab.core.plugins import check_range
-from laughlab.signals.smoothing import THESIS_TICK_HZ
+from laughlab.signals.smoothing import THESIS_TICK_HZ, refill, rise_budget
 
 
 #: the floor of SoundAnalyse's loudness: RMS below 1e-7 counts as 1e-7
@@ -44,7 +44,9 @@ class RmsParams:
         (5.2); the per-tick falloff of 0.001 is then slow, as Fig. 3.1 asks.
         ``linear``: the RMS itself (Eq. 3.1), full-scale units.
     rise_per_s : float
-        Largest rise of the MCS per second (thesis ``ampRise`` 0.4 per tick = 24 /s).
+        Largest rise of the MCS per second (thesis ``ampRise`` 0.4 per tick = 24 /s).  Above 60 fps the
+        MCS may rise one tick's step (``rise_per_s / 60``) at once, the budget refilling at ``rise_per_s``
+        (``laughlab.signals.smoothing.rise_budget``), so that it answers a call no later than at 60 fps.
     fall_per_s : float
         Largest fall per second (thesis ``ampFall`` 0.2 per tick = 12 /s).
     falloff_per_s : float
@@ -136,6 +138,7 @@ class RmsExtractor(Extractor):
         super().__init__(params, ctx)
         p, dt = self.params, self.ctx.dt
         self._rise = p.rise_per_s * dt
+        self._cap = rise_budget(p.rise_per_s, dt)   # above 60 fps: one tick's rise at once (smoothing.py)
         self._fall = p.fall_per_s * dt
         self._falloff = p.falloff_per_s * dt
         self._floor = p.floor
@@ -152,6 +155,7 @@ class RmsExtractor(Extractor):
         self.min_amp = math.inf if p.min_amp is None else float(p.min_amp)
         self.max_amp = -math.inf if p.max_amp is None else float(max(p.max_amp, self._floor))
         self.prev = 0.0
+        self._left = self._rise if self._cap is None else self._cap
         self.nonfinite_samples = 0
         self._cal_left = self._cal_frames
         self._cal_lo, self._cal_hi = math.inf, -math.inf
@@ -221,9 +225,11 @@ class RmsExtractor(Extractor):
         self.max_amp, self.min_amp = hi, lo
         prev = self.prev
         if mapped > prev:
-            mcs = min(mapped, prev + self._rise)
+            mcs = min(mapped, prev + self._left)
         else:
             mcs = max(mapped, prev - self._fall)
+        if self._cap is not None:   # above 60 fps: the rise budget (laughlab.signals.smoothing.rise_budget)
+            self._left = refill(self._left, mcs - prev if mcs > prev else 0.0, self._rise, self._cap)
         self.prev = mcs
         c["mcs_raw"] = mapped
         c["mcs"] = mcs ** self._power

@@ -2,6 +2,16 @@
 
 The thesis applies its constants once per 60 Hz game tick; here every rate is
 per second (per-tick value x 60), so results do not change with the frame rate.
+
+A limiter stepped once a frame lets a signal that starts rising anywhere inside a frame's block rise a whole
+frame's worth, ``rise * dt``, by the block's end: at 60 fps one thesis tick's step (the jaw 0.03 of its range in
+16.7 ms), at 144 fps only 0.0125 in 6.9 ms.  Above 60 fps that made the first response to a call smaller, and
+the jaw and the MCS answered later than at 60 fps (docs/latency.md: a median of 44.1 ms at 144 fps against
+37.1 ms at 60).  So above 60 fps a limiter keeps a **rise budget** (:func:`rise_budget`): it may rise by one
+thesis tick's step, ``rise / 60``, at once, and the budget refills at ``rise`` per second, up to that step again
+(a token bucket).  Over any stretch of frames the rise is then at most ``rise / 60 + rise * (T - dt)`` for a
+stretch ``T`` long, which at 60 fps is the thesis' ``rise * T`` exactly; at and below 60 fps nothing changes
+(the same bytes).
 """
 from __future__ import annotations
 
@@ -33,18 +43,37 @@ def rate_limit(x: float, prev: float, rise: float, fall: float) -> float:
     return max(x, prev - fall)
 
 
+def rise_budget(rise_per_s: float, dt: float) -> float | None:
+    """The most a limiter stepped every ``dt`` seconds may rise at once: one thesis tick's step,
+    ``rise_per_s / 60``, when a frame is shorter than a tick (above 60 fps); None at 60 fps and below, where
+    every frame may rise ``rise_per_s * dt`` (Eq. 3.2 as the thesis steps it, unchanged)."""
+    return rise_per_s / THESIS_TICK_HZ if dt * THESIS_TICK_HZ < 1.0 - 1e-9 else None
+
+
+def refill(left: float, used: float, step: float, cap: float) -> float:
+    """The rise budget of the next frame: what this frame left (``left - used``), plus one frame's refill
+    ``step`` (``rise * dt``), at most ``cap`` (:func:`rise_budget`)."""
+    left = left - used
+    return min(cap, (left if left > 0.0 else 0.0) + step)
+
+
 def rate_limit_series(x: np.ndarray, rise_per_s: float, fall_per_s: float, dt: float,
                       start: float = 0.0) -> np.ndarray:
-    """Apply :func:`rate_limit` along a series (Eq. 3.2), starting from ``start``.
+    """Apply :func:`rate_limit` along a series (Eq. 3.2), starting from ``start``, with the rise budget of
+    frames shorter than a thesis tick (:func:`rise_budget`) as the extractor and the smoothers keep it.
 
     Rates are in signal units per second; ``dt`` is the step (s).
     """
     out = np.empty(len(x))
     prev = float(start)
     rise, fall = rise_per_s * dt, fall_per_s * dt
+    cap = rise_budget(rise_per_s, dt)
+    left = rise if cap is None else cap
     for i, v in enumerate(np.asarray(x, dtype=float).tolist()):
-        prev = rate_limit(v, prev, rise, fall)
-        out[i] = prev
+        y = rate_limit(v, prev, left, fall)
+        if cap is not None:
+            left = refill(left, y - prev if y > prev else 0.0, rise, cap)
+        out[i] = prev = y
     return out
 
 
@@ -91,10 +120,11 @@ class Smoother:
     """Rise/fall limit followed by re-scaling to [0, 1] (van Duijn 2014, listing in 5.3).
 
     ``e <- rate_limit(x, e, rise*dt, fall*dt)``; output is 0 if ``e < min_e``,
-    1 if ``e > max_e``, else ``(e - min_e) / (max_e - min_e)``.
+    1 if ``e > max_e``, else ``(e - min_e) / (max_e - min_e)``.  Above 60 fps the rise keeps
+    the budget of :func:`rise_budget` (one thesis tick's step at once).
     """
 
-    __slots__ = ("rise", "fall", "min_e", "max_e", "range", "e")
+    __slots__ = ("rise", "fall", "min_e", "max_e", "range", "e", "cap", "left")
 
     def __init__(self, params: SmootherParams, dt: float):
         self.rise = params.rise * dt
@@ -102,10 +132,12 @@ class Smoother:
         self.min_e = params.min_e
         self.max_e = params.max_e
         self.range = params.max_e - params.min_e
-        self.e = 0.0
+        self.cap = rise_budget(params.rise, dt)   # None at 60 fps and below: ``left`` stays ``rise``
+        self.reset()
 
     def reset(self) -> None:
         self.e = 0.0
+        self.left = self.rise if self.cap is None else self.cap
 
     def smooth(self, x: float) -> float:
         """One step: the smoothed and re-scaled value of input ``x`` (dimensionless)."""
@@ -113,11 +145,13 @@ class Smoother:
         # min()/max() written out (the same comparisons: min(a, b) is b only if b < a); this runs
         # four times a frame
         if x > e:
-            up = e + self.rise
+            up = e + self.left
             e = up if up < x else x
         else:
             down = e - self.fall
             e = down if down > x else x
+        if self.cap is not None:   # above 60 fps: the rise budget (rise_budget)
+            self.left = refill(self.left, e - self.e if e > self.e else 0.0, self.rise, self.cap)
         self.e = e
         if e < self.min_e:
             return 0.0
