@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import sys
 import time
 from pathlib import Path
@@ -264,8 +265,9 @@ def main(argv: list[str]) -> None:
     written = S.write_outputs(out, results, formats)
     # an earlier detect's files of an input skipped now stay (it could not be read again: its labels are not stale)
     theirs = set(S.output_names(gone, formats)) - rel(written)
+    clip = re.compile("|".join(f"{re.escape(g)}_laugh_[0-9]+\\.wav" for g in gone) or "(?!)")   # their clips
     kept_old = {p for p in stale if p.relative_to(out).as_posix() in theirs
-                or any(p.relative_to(out).as_posix().startswith(f"{g}_laugh_") for g in gone)}
+                or clip.fullmatch(p.relative_to(out).as_posix())}
     unwrite(sorted(set(stale) - set(written) - kept_old), out)   # --overwrite: an earlier detect's files not written now
     done = sorted(rel(written) | rel(kept_old))
     S.atomic_write(out / MANIFEST, record_text(out, done))
