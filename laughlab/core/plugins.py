@@ -163,6 +163,11 @@ def registry() -> dict[str, dict[str, PluginInfo]]:
                                         "name = '...', the name configurations choose it by")
                 if isinstance(obj, type):
                     _check_class(kind, name, obj, _origin(impl.plugin))
+                elif kind != "metric":   # a plugin authors' review: register(Giggle()) ended in a traceback,
+                    # "'Giggle' object is not callable", once a run chose it
+                    raise LaughlabError(f"{kind} plugin {name!r} from {_origin(impl.plugin)} is registered as an "
+                                        f"object ({type(obj).__name__}(...)): register its class, "
+                                        f"register({type(obj).__name__}); laughlab builds it for each run")
                 if kind == "metric" and not all(hasattr(obj, a) for a in ("fn", "higher_is_better", "units")):
                     raise LaughlabError(f"metric {name!r} from {_origin(impl.plugin)} is not a Metric: decorate its "
                                         "function with @laughlab.harness.metrics.metric(name, higher_is_better, units)")
@@ -256,7 +261,13 @@ def make_params(cls: type, values: Any, where: str) -> Any:
     for key in values:
         if key not in valid:
             raise UnknownParameter(f"unknown parameter {typed(where, key)}; valid: {', '.join(valid) or '(none)'}", key)
-    groups = _nested(params_cls)
+    try:
+        groups = _nested(params_cls)
+    except OmegaConfBaseException as exc:   # a plugin authors' review: Literal["a", "b"] ended in a traceback
+        field_ = getattr(exc, "full_key", None)
+        raise LaughlabError(f"{typed(where)}: its Params cannot be configured: {str(exc).splitlines()[0]}"
+                            f"{f' (field {field_})' if field_ else ''}; a Params field is a str, int, float, bool, "
+                            "an Enum, a list, a dict, a dataclass or Optional of one (OmegaConf's types)") from None
     for key, value in values.items():
         if key in groups and not isinstance(value, (dict, DictConfig)):
             sub = [f.name for f in fields(groups[key])]
@@ -277,7 +288,7 @@ def make_params(cls: type, values: Any, where: str) -> Any:
         key = getattr(exc, "full_key", None)
         raise LaughlabError(f"bad parameter {typed(where, key)}: {msg}" if key else
                             f"bad parameter in {typed(where)}: {msg}") from None
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, AssertionError) as exc:   # __post_init__'s checks (an assert: a plugin's own)
         # a nested group's own check (face.au12's hi): name the group, not only the plugin
         inner = next((k for k in groups if k in values and merged is not None and not _builds(merged[k])), None)
         raise LaughlabError(f"bad parameter in {typed(where, inner)}: {exc}") from None
@@ -306,7 +317,7 @@ def _builds(node) -> bool:
     try:
         OmegaConf.to_object(node)
         return True
-    except (ValueError, TypeError):
+    except (ValueError, TypeError, AssertionError):
         return False
 
 

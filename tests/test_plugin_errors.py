@@ -1,0 +1,121 @@
+"""The lines a third-party plugin's bugs get from a run (a plugin authors' review, 2026-11-27: a plugin registered as
+an object, a constructor that raised, an extractor without ``mcs``, a ``Literal`` parameter and a face's misspelt
+ARKit names each ended in a traceback, a line blaming laughlab, or nothing at all).  The plugins are registered in
+code and the command line runs in the test's process (tests/inprocess.py)."""
+from dataclasses import dataclass
+
+import pytest
+
+import laughlab
+from laughlab import Extractor, Face
+from laughlab.core import blame, pipeline, plugins
+from laughlab.core.bases import Context
+from laughlab.core.errors import LaughlabError
+
+from inprocess import laughlab as run_cli
+
+
+class GoodFace(Face):
+    name = "good_face"
+
+    def step(self, frame):
+        frame.channels.update(smile=min(1.0, frame.control["mcs"]), jaw=0.0, blink=0.0, eyes_closed=frame.clip_eyes)
+
+
+class Registers:
+    def __init__(self, obj, hook="register_faces"):
+        setattr(self, hook, laughlab.hookimpl(specname=hook)(lambda register: register(obj)))
+
+
+@pytest.fixture
+def registered():
+    done = []
+
+    def add(obj, hook="register_faces"):
+        plugin = Registers(obj, hook)
+        plugins.pm.register(plugin, name=f"test-contract-{len(done)}")
+        done.append(plugin)
+
+    yield add
+    for p in done:
+        plugins.pm.unregister(p)
+
+
+def test_a_plugin_registered_as_an_object_is_one_line(registered):
+    registered(GoodFace())
+    with pytest.raises(LaughlabError, match=r"^face plugin 'good_face' from registered: test-contract-0 is "
+                                            r"registered as an object \(GoodFace\(\.\.\.\)\): register its class, "
+                                            r"register\(GoodFace\)"):
+        plugins.registry()
+
+
+class Boom(GoodFace):
+    name = "boom"
+
+    def __init__(self, params=None, ctx=None):
+        super().__init__(params, ctx)
+        self.table = {}["x"]
+
+
+class NoCtx(GoodFace):
+    name = "no_ctx"
+
+    def __init__(self, params):
+        super().__init__(params)
+
+
+def test_a_plugin_that_raises_as_it_is_built_is_named(registered):
+    registered(Boom)
+    registered(NoCtx)
+    with pytest.raises(blame.PluginBug) as e:
+        pipeline._built("face", "boom", {}, Context(), "face.boom")
+    assert str(e.value) == (f"face 'boom' ({__file__}, Boom.__init__) raised KeyError: 'x' as the run built it (the "
+                            "lines above are from the plugin's code)")
+    assert blame.trace(e.value).splitlines()[-1] == "KeyError: 'x'" and "self.table" in blame.trace(e.value)
+    with pytest.raises(blame.PluginBug, match=r"^face 'no_ctx' \(.*, NoCtx.__init__\) raised TypeError: .*takes 2 "
+                                              r".*\(laughlab builds a plugin as Cls\(params, ctx\)"):
+        pipeline._built("face", "no_ctx", {}, Context(), "face.no_ctx")
+    r = run_cli("face=boom", "detector=none", "input.duration_s=1", "hydra.run.dir=never")
+    assert r.returncode == 1 and r.stderr.startswith("Traceback (most recent call last):\n  File ")
+    assert r.stderr.splitlines()[-1].startswith("laughlab: error: face 'boom' (") and r.stderr.count("laughlab:") == 1
+
+
+def test_an_extractor_that_writes_no_mcs_is_named_not_laughlab(registered, tmp_path):
+    class Loudness(Extractor):
+        name = "loudness"
+
+        def step(self, block, frame):
+            frame.control["loud"] = float(abs(block).max(initial=0.0))
+
+    registered(Loudness, "register_extractors")
+    r = run_cli("extractor=loudness", "detector=none", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 1 and r.stderr == (
+        f"laughlab: error: extractor 'loudness' ({__file__}, Loudness.step) wrote no mcs at frame 0 (it wrote loud): "
+        "every extractor writes frame.control['mcs'] (0-1), the signal the detector, scheduler, body and face read; "
+        "nothing was written\n"), r.stderr
+    assert not (tmp_path / "run").exists() or not any((tmp_path / "run").iterdir())
+
+
+def test_arkit_names_that_are_not_arkits_are_warned_once(capsys):
+    from laughlab_plugins import sink_arkit
+
+    sink_arkit.warn_unknown({"jawOpen", "JawOpen", "mouthSmile"})
+    sink_arkit.warn_unknown({"jawOpen", "JawOpen", "mouthSmile"})
+    sink_arkit.warn_unknown({"jawOpen", "mouthSmileLeft"})
+    assert capsys.readouterr().err == (
+        "laughlab: warning: arkit.JawOpen (did you mean jawOpen?), arkit.mouthSmile (did you mean mouthSmileLeft?): "
+        "not ARKit blendshape names, so face_arkit.csv leaves them out (the 52 names: "
+        "laughlab.face.facs.ARKIT_BLENDSHAPES)\n")
+
+
+def test_a_params_field_omegaconf_cannot_hold_is_one_line():
+    from typing import Literal
+
+    @dataclass
+    class P:
+        mode: Literal["soft", "hard"] = "soft"
+
+    with pytest.raises(LaughlabError, match=r"^face=moody: its Params cannot be configured: Unexpected type "
+                                            r"annotation: Literal\[soft, hard\] \(field mode\); a Params field is a "
+                                            r"str, int, float, bool, an Enum"):
+        plugins.make_params(type("Moody", (GoodFace,), {"name": "moody", "Params": P}), {}, "face.moody")
