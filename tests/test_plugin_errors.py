@@ -119,3 +119,32 @@ def test_a_params_field_omegaconf_cannot_hold_is_one_line():
                                             r"annotation: Literal\[soft, hard\] \(field mode\); a Params field is a "
                                             r"str, int, float, bool, an Enum"):
         plugins.make_params(type("Moody", (GoodFace,), {"name": "moody", "Params": P}), {}, "face.moody")
+
+
+def test_a_resume_sees_an_edit_to_a_helper_module_of_a_plugins_package(registered, tmp_path, monkeypatch):
+    """A plugin authors' review: an installed package's face imported its curve from a helper module of the package;
+    an edit to the helper left plugin_code_hash as it was, so a resumed experiment mixed two codes' numbers."""
+    import importlib
+    import sys
+
+    from laughlab.harness.runner import plugin_code_hash
+
+    pkg = tmp_path / "giggle_pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "curves.py").write_text("def curve(x):\n    return x\n")
+    (pkg / "face.py").write_text(
+        "from laughlab import Face\n\n\nclass Giggle(Face):\n    name = 'giggle_pkg_face'\n\n"
+        "    def step(self, frame):\n        from .curves import curve   # imported when first stepped\n"
+        "        frame.channels.update(smile=curve(frame.control['mcs']), jaw=0.0, blink=0.0, eyes_closed=0.0)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "giggle_pkg", raising=False)
+    registered(importlib.import_module("giggle_pkg.face").Giggle)
+    try:
+        before = plugin_code_hash()
+        assert plugin_code_hash() == before
+        (pkg / "curves.py").write_text("def curve(x):\n    return x * x\n")
+        assert plugin_code_hash() != before
+    finally:
+        for name in ("giggle_pkg", "giggle_pkg.face"):
+            sys.modules.pop(name, None)
