@@ -148,3 +148,39 @@ def test_a_resume_sees_an_edit_to_a_helper_module_of_a_plugins_package(registere
     finally:
         for name in ("giggle_pkg", "giggle_pkg.face"):
             sys.modules.pop(name, None)
+
+
+def test_a_plugin_module_that_fails_to_import_names_its_line_and_the_way_back(tmp_path, monkeypatch):
+    """A plugin authors' review: an installed package whose module failed to import stopped every laughlab command
+    with the error alone: not the line to mend, nor that ``pip uninstall`` gives laughlab back."""
+    import functools
+    import importlib.metadata
+    import re
+    import sys
+    import types
+
+    (tmp_path / "helpers.py").write_text("import numpy\n\n\ndef window(n):\n    return numpy.linspace(0, 1, n)\n")
+    (tmp_path / "zcr.py").write_text("from .helpers import window\n\nWINDOW = window(-1)\n")
+
+    pkg = types.ModuleType("laughlab_giggle_t")
+    pkg.__path__ = [str(tmp_path)]
+    monkeypatch.setitem(sys.modules, "laughlab_giggle_t", pkg)
+    dist = types.SimpleNamespace(metadata={"name": "laughlab-giggle"}, version="0.1.0")
+    ep = types.SimpleNamespace(name="zcr_t", value="laughlab_giggle_t.zcr", dist=dist,   # as EntryPoint.load imports
+                               load=functools.partial(importlib.import_module, "laughlab_giggle_t.zcr"))
+    monkeypatch.setattr(importlib.metadata, "entry_points", lambda group: [ep] if group == "laughlab" else [])
+    monkeypatch.setattr(plugins, "_loaded_entry_points", False)
+    with pytest.raises(LaughlabError) as e:
+        plugins.load_entry_points()
+    assert str(e.value) == (
+        "plugin zcr_t (laughlab_giggle_t.zcr, from laughlab-giggle 0.1.0) failed to load: ValueError: Number of "
+        f"samples, -1, must be non-negative. (at {tmp_path / 'helpers.py'}, line 5); every laughlab command loads "
+        "the installed plugins: mend it, or pip uninstall laughlab-giggle")
+    for name in ("laughlab_giggle_t.helpers", "laughlab_giggle_t.zcr"):
+        sys.modules.pop(name, None)
+    (tmp_path / "zcr.py").write_text("WINDOW = [0.0] * 4\nFIRST = WINDOW[4]\n")
+    monkeypatch.setattr(plugins, "_loaded_entry_points", False)
+    with pytest.raises(LaughlabError, match=re.escape(f"IndexError: list index out of range (at {tmp_path / 'zcr.py'}"
+                                                      ", line 2); every laughlab command")):
+        plugins.load_entry_points()
+    sys.modules.pop("laughlab_giggle_t.zcr", None)

@@ -67,9 +67,12 @@ def load_entry_points() -> None:
                 continue
             try:
                 plugin = ep.load()
-            except Exception as exc:  # one broken plugin: say which, do not crash with a traceback
-                raise LaughlabError(f"plugin {ep.name} ({ep.value}) failed to load: {type(exc).__name__}: {exc}") \
-                    from exc
+            except Exception as exc:  # one broken plugin: say which, where and how to get laughlab back, no traceback
+                dist = f"{ep.dist.metadata['name']}" if ep.dist else None
+                fix = (f"; every laughlab command loads the installed plugins: mend it, or pip uninstall {dist}"
+                       if dist else "")
+                raise LaughlabError(f"plugin {ep.name} ({ep.value}{f', from {dist} {ep.dist.version}' if dist else ''}) "
+                                    f"failed to load: {type(exc).__name__}: {exc}{_raised_at(exc)}{fix}") from exc
             if isinstance(plugin, type(sys)):   # a module: the hook checks of a plugins_dir module (a review: a
                 _check_hooks(plugin, f"{ep.name} ({ep.value})")   # misspelt hook in a package was ignored)
             pm.register(plugin, name=ep.name)
@@ -106,7 +109,8 @@ def load_plugin_dir(path: str | Path) -> list[str]:
                 spec.loader.exec_module(module)
             except Exception as exc:  # a broken user plugin is a user error
                 sys.modules.pop(mod_name, None)
-                raise LaughlabError(f"plugin {file} failed to import: {type(exc).__name__}: {exc}") from exc
+                raise LaughlabError(f"plugin {file} failed to import: {type(exc).__name__}: {exc}"
+                                    f"{_raised_at(exc)}") from exc
         try:
             _check_hooks(module, file)
             pm.register(module, name=mod_name)
@@ -118,6 +122,26 @@ def load_plugin_dir(path: str | Path) -> list[str]:
             raise
         loaded.append(mod_name)
     return loaded
+
+
+def _raised_at(exc: BaseException) -> str:
+    """`` (at FILE, line N)``: where a plugin module's import failed, the innermost line of the plugin's own folder
+    (a plugin authors' review: the line named the module and the error, not the line to mend; not a line of
+    Python's import machinery or of numpy); a SyntaxError's own place says it already."""
+    import sysconfig
+
+    if isinstance(exc, SyntaxError):
+        return ""
+    tb = exc.__traceback__
+    stdlib, root, at, tb = sysconfig.get_paths()["stdlib"], None, "", tb and tb.tb_next   # not the catching frame
+    while tb is not None:
+        name = tb.tb_frame.f_code.co_filename
+        if not name.startswith("<") and not name.startswith(stdlib):
+            root = root or str(Path(name).parent)   # the plugin module's own folder: its first line of its own
+            if name.startswith(root):
+                at = f" (at {name}, line {tb.tb_lineno})"
+        tb = tb.tb_next
+    return at
 
 
 def _check_hooks(module, file: Path | str) -> None:
