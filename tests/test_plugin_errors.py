@@ -184,3 +184,36 @@ def test_a_plugin_module_that_fails_to_import_names_its_line_and_the_way_back(tm
                                                       ", line 2); every laughlab command")):
         plugins.load_entry_points()
     sys.modules.pop("laughlab_giggle_t.zcr", None)
+
+
+def test_a_third_party_metric_that_never_applies_is_warned_with_its_exception(registered, capsys):
+    """A plugin authors' review: a metric reading a misspelt column was "n/a" in every cell of the report, and
+    nothing said why."""
+    import types
+
+    import pandas as pd
+
+    from laughlab.harness.metrics import compute, metric, warn_unmeasured
+
+    @metric("jaw_open_mean_t", None, "jawOpen weight")
+    def jaw_open_mean_t(trial):
+        return float(trial.channels["arkit.jawopen"].mean())   # ARKit's name is jawOpen
+
+    registered(jaw_open_mean_t, "register_metrics")
+    trial = types.SimpleNamespace(channels=pd.DataFrame({"arkit.jawOpen": [0.2, 0.4]}), run_metrics={})
+    records = []
+    for _ in range(3):
+        why: dict = {}
+        records.append({"metrics": {**compute(trial, ["jaw_open_mean_t", "frame_ms_p50"], why=why)}, "metrics_na": why})
+    assert set(records[0]["metrics_na"]) == {"jaw_open_mean_t"}   # not the built-in's
+    warn_unmeasured(records)
+    assert capsys.readouterr().err == (
+        "laughlab: warning: metric 'jaw_open_mean_t' gave no number on any of the 3 trials (n/a in the report): it "
+        "raised KeyError: 'arkit.jawopen', a column the trial does not have (did you mean 'arkit.jawOpen'?)\n")
+    elsewhere = types.SimpleNamespace(channels=pd.DataFrame({"smile": [0.2]}), run_metrics={})   # face=smile's
+    why = {}
+    compute(elsewhere, ["jaw_open_mean_t"], why=why)
+    assert why == {}   # a metric of channels these trials do not write: n/a, no word
+    records[1]["metrics"]["jaw_open_mean_t"] = 0.3   # it applied once: no word
+    warn_unmeasured(records)
+    assert capsys.readouterr().err == ""

@@ -71,9 +71,12 @@ def run_trial(trial: Trial) -> dict:
             exc.args = (f"in trial {trial.condition}/{trial.item.id} seed {trial.seed}, {exc}",)
         raise
     data = TrialData.load(out, trial.item.truth)
-    metrics = compute(data)
+    why: dict = {}
+    metrics = compute(data, why=why)
     record = {"condition": trial.condition, "input": trial.item.id, "profile": trial.item.profile,
               "seed": trial.seed, "duration_s": data.duration_s, "metrics": metrics}
+    if why:   # a third-party metric that did not apply, and why (metrics.warn_unmeasured)
+        record["metrics_na"] = why
     if trial.keep or trial.plots:
         record["run_dir"] = str(out)
     else:
