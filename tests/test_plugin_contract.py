@@ -161,6 +161,25 @@ def test_the_docs_loud_extractor_and_giggle_face_keep_the_contract():
         check_plugin(giggle.Giggle, {"tau_s": 0})
 
 
+def test_the_docs_jsonl_sink_keeps_the_contract_and_writes_a_line_a_frame(tmp_path):
+    import json
+
+    from laughlab.core.bases import RunInfo
+    from laughlab.testing import _chunks
+
+    jsonl = doc_module("myplugins/jsonl.py")
+    check_plugin(jsonl.Jsonl)
+    chunks, skeleton, n = _chunks(1.0, 0, 60.0, 16000)
+    sink = jsonl.Jsonl(jsonl.JsonlParams(precision=3))
+    sink.open(RunInfo(tmp_path, 60.0, skeleton, n, None, {}))
+    for chunk in chunks:
+        sink.write(chunk)
+    assert sink.close() == [tmp_path / "frames.jsonl"]
+    rows = [json.loads(line) for line in (tmp_path / "frames.jsonl").read_text().splitlines()]
+    assert len(rows) == n == 60 and rows[30]["time"] == 0.5
+    assert rows[30]["mcs"] == round(float(chunks[0].channels["mcs"][30]), 3) and "eyes_closed" in rows[30]
+
+
 def test_the_docs_test_of_a_package_passes_as_written(monkeypatch):
     giggle = doc_module("myplugins/giggle.py")
     monkeypatch.setitem(sys.modules, "laughlab_giggle", types.ModuleType("laughlab_giggle"))
@@ -171,13 +190,16 @@ def test_the_docs_test_of_a_package_passes_as_written(monkeypatch):
     tests["test_giggle_opens_the_jaw_on_the_calls"]()
 
 
-def test_the_docs_giggle_command_writes_its_arkit_shapes(tmp_path):
+def test_the_docs_giggle_and_jsonl_commands_in_one_run(tmp_path):
     (tmp_path / "myplugins").mkdir()
-    (tmp_path / "myplugins" / "giggle.py").write_text(doc_block("# myplugins/giggle.py"))
-    line = [ln for ln in DOC.read_text().splitlines() if "plugins_dir=myplugins face=giggle" in ln][0]
-    command = re.search(r"`python -m laughlab (plugins_dir=myplugins face=giggle[^`]*)`", line).group(1).split()
-    r = subprocess.run([sys.executable, "-m", "laughlab", *command, "input.duration_s=2", "hydra.run.dir=run"],
+    for name in ("giggle", "jsonl"):
+        (tmp_path / "myplugins" / f"{name}.py").write_text(doc_block(f"# myplugins/{name}.py"))
+    text = DOC.read_text()
+    face = re.search(r"`python -m laughlab (plugins_dir=myplugins face=giggle[^`]*)`", text).group(1).split()
+    sink = re.search(r"`python -m laughlab plugins_dir=myplugins (\+output.jsonl=\{\})`", text).group(1)
+    r = subprocess.run([sys.executable, "-m", "laughlab", *face, sink, "input.duration_s=2", "hydra.run.dir=run"],
                        capture_output=True, text=True, cwd=tmp_path, timeout=300)
     assert r.returncode == 0 and r.stderr == "", r.stderr
     assert (tmp_path / "run" / "face_arkit.csv").read_text().splitlines()[0] == \
         "time,eyeBlinkLeft,eyeBlinkRight,jawOpen,mouthSmileLeft,mouthSmileRight"
+    assert len((tmp_path / "run" / "frames.jsonl").read_text().splitlines()) == 120
