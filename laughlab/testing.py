@@ -145,11 +145,12 @@ def _check_frames(kind: str, frames: list, clips, skeleton) -> list[str]:
         keys = list(getattr(first, attr))
         for f in frames:
             if list(getattr(f, attr)) != keys:
-                bad.append(f"frame {f.index} writes other {attr} than frame 0 ({', '.join(sorted(set(getattr(f, attr)) ^ set(keys)))}): "
-                           "every frame writes the same ones")
+                odd = ", ".join(sorted(set(getattr(f, attr)) ^ set(keys)))
+                bad.append(f"frame {f.index} writes other {attr} than frame 0 ({odd}): every frame writes the same "
+                           "ones")
                 break
             for k, v in getattr(f, attr).items():
-                if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)) or not math.isfinite(v):
+                if not isinstance(v, (int, float, np.integer, np.floating, np.bool_)) or not math.isfinite(v):
                     bad.append(f"{attr} {k!r} is {v!r} ({type(v).__name__}) at frame {f.index}: a finite number")
                     break
             else:
@@ -164,11 +165,13 @@ def _check_frames(kind: str, frames: list, clips, skeleton) -> list[str]:
             bad.append(f"{c} is {vals[j]} at frame {j}: a weight in [0, 1]")
     unknown = sorted(k[6:] for k in written if k.startswith("arkit.") and k[6:] not in ARKIT_BLENDSHAPES)
     if unknown:
-        bad.append(f"arkit.{', arkit.'.join(unknown)}: not ARKit blendshape names (laughlab.face.facs.ARKIT_BLENDSHAPES)")
+        bad.append(f"arkit.{', arkit.'.join(unknown)}: not ARKit blendshape names "
+                   "(laughlab.face.facs.ARKIT_BLENDSHAPES)")
     for f in frames:
         for joint, rot in f.offsets.items():
             if joint not in skeleton.names:
-                bad.append(f"frame {f.index} offsets joint {joint!r}, which the skeleton lacks ({', '.join(skeleton.names)})")
+                bad.append(f"frame {f.index} offsets joint {joint!r}, which the skeleton lacks "
+                           f"({', '.join(skeleton.names)})")
             elif len(tuple(rot)) != 3 or not all(math.isfinite(float(a)) for a in rot):
                 bad.append(f"frame {f.index} offsets {joint!r} by {rot!r}: three finite angles (z, x, y), degrees")
             else:
@@ -193,9 +196,10 @@ def check_plugin(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0,
     kind's channels (an extractor ``mcs``, a body ``chest``/``belly``, a face ``smile``/``jaw``/``blink``/
     ``eyes_closed``) in [0, 1], the same names every frame, finite numbers only; ``arkit.*`` names are ARKit's;
     offsets name the skeleton's joints; events are clips of the library; a second plugin on the same seed gives
-    the same values, and an extractor or a detector gives them again after a run and ``reset()``.  A sink: ``open``/``write``/``close`` in a
-    temporary folder return the files it wrote, each named in ``files`` (``planned``); ``abort`` after a chunk
-    leaves the folder as it was; a ``background`` sink pickles.
+    the same values, and an extractor or a detector gives them again after a run and ``reset()``.  A sink:
+    ``open``/``write``/``close`` in a temporary folder return the files it wrote, each named in ``files``
+    (``planned``); ``abort`` after a chunk leaves the folder as it was; a ``background`` sink pickles.  Weights may
+    round up to :data:`TOL` outside [0, 1].
     """
     ctx = Context(fps=float(fps), sample_rate=sample_rate, seed=seed)
     plugin = _build(cls, params, ctx)
@@ -267,7 +271,8 @@ def _check_sink(cls: type, params, *, seconds: float, seed: int, fps: float, sam
             sink.write(chunk)
         files = [Path(p) for p in (sink.close() or [])]
         for p in files:
-            rel = Path(p).resolve().relative_to(out.resolve()) if Path(p).resolve().is_relative_to(out.resolve()) else None
+            full = Path(p).resolve()
+            rel = full.relative_to(out.resolve()) if full.is_relative_to(out.resolve()) else None
             if rel is None or not Path(p).exists():
                 bad.append(f"close() returned {p}, which is not a file it wrote in the run folder")
             elif rel.parts[0] not in planned:
