@@ -417,6 +417,10 @@ def _main(argv: list[str]) -> None:
                 from laughlab.core.sweepcheck import check_sweep
 
                 check_sweep(_overrides(argv), preflight)
+    except blame.PluginBug as exc:   # a plugin that raised as it was built: its own lines, then the line naming it
+        if blame.trace(exc):
+            print(blame.trace(exc), file=sys.stderr)
+        fail(str(exc), code=exc.exit_code)
     except LaughlabError as exc:
         fail(str(exc))
     except OSError as exc:  # a path the user gave that the system refuses (too long, no permission, ...)

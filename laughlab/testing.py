@@ -1,12 +1,24 @@
-"""Stand-ins for testing pipelines and plugins without hardware."""
+"""Stand-ins for testing pipelines and plugins without hardware, and the plugin contract's checks.
+
+:func:`check_plugin` is what a plugin's own tests call (docs/architecture.md, "Testing a plugin"): it builds the
+class as a run does, runs it in its stage between built-in plugins on seeded synthetic laughter and checks what
+the rest of laughlab relies on, raising :class:`ContractError` (an ``AssertionError``: a failed pytest assert)
+with one line per broken rule.  :func:`run_frames` gives the frames themselves for a test's own asserts.
+"""
 from __future__ import annotations
 
+import math
+import pickle
+import tempfile
+from pathlib import Path
+from types import SimpleNamespace
 from typing import Sequence
 
 import numpy as np
 
 from laughlab.io.audio import cut_frames
-from laughlab.core.bases import Context, Source
+from laughlab.core.bases import REQUIRED, Context, Source
+from laughlab.core.errors import LaughlabError
 
 
 class ChunkedSource(Source):
@@ -33,3 +45,250 @@ class ChunkedSource(Source):
                 yield self.audio[i:i + s]
                 i, k = i + s, k + 1
         return cut_frames(chunks(), self.sample_rate, self.ctx.fps)
+
+
+class ContractError(AssertionError):
+    """A plugin breaks the contract of its kind: the message has one line per rule broken."""
+
+
+#: the stages a run steps each frame, in order, and the built-in each is filled with around the plugin checked
+#: (``detector=none``: the papers' pipelines, no model to load)
+STAGES = (("extractor", "rms"), ("detector", "none"), ("scheduler", "energy"), ("body", "shapes"), ("face", "smile"))
+
+
+def _build(cls: type, params, ctx: Context):
+    """``cls`` as a run builds it: its class checked as at registration, ``params`` (a mapping, its defaults when
+    None) checked as the command line's, its own random stream."""
+    from laughlab.core import plugins
+
+    kind = getattr(cls, "kind", "")
+    if kind not in plugins.KINDS or kind == "metric":
+        raise ContractError(f"{getattr(cls, '__name__', cls)!r} is no plugin class: subclass one of laughlab's "
+                            "Source, Extractor, Detector, Scheduler, Body, Face or Sink")
+    name = getattr(cls, "name", "") or ""
+    if not name:
+        raise ContractError(f"{cls.__name__} has no name: give its class name = '...'")
+    group = plugins.group_of(kind)
+    try:
+        plugins._check_class(kind, name, cls, "check_plugin")
+        values = plugins.make_params(cls, params or {}, f"output.{name}" if kind == "sink" else f"{group}.{name}")
+    except Exception as exc:  # noqa: BLE001 - the line a run would print
+        raise ContractError(str(exc)) from None
+    return cls(values, ctx.for_plugin(f"output.{name}" if kind == "sink" else group))
+
+
+def _audio(seconds: float, sample_rate: int, seed: int) -> np.ndarray:
+    from laughlab.synth.laughter import SyntheticLaughter
+
+    return SyntheticLaughter(seed=seed, duration_s=seconds, sample_rate=sample_rate).audio()
+
+
+def run_frames(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0, fps: float = 60.0,
+               sample_rate: int = 16000, reset: bool = True, plugin=None) -> list:
+    """The frames of ``seconds`` of seeded synthetic laughter with a plugin of ``cls`` (an extractor, detector,
+    scheduler, body or face) in its stage and the built-ins of :data:`STAGES` in the others, stepped as
+    :func:`laughlab.core.pipeline.execute` steps them (the clip mixer between scheduler and body).  ``plugin``: an
+    instance of ``cls`` to step instead of a new one (``reset()`` first unless ``reset=False``)."""
+    from laughlab.core import plugins
+    from laughlab.core.frame import Frame
+    from laughlab.core.mixer import Mixer
+
+    ctx = Context(fps=float(fps), sample_rate=sample_rate, rng=np.random.default_rng(seed), seed=seed)
+    mine = plugin if plugin is not None else _build(cls, params, ctx)
+    if mine.kind not in dict(STAGES):
+        raise ContractError(f"run_frames steps extractors, detectors, schedulers, bodies and faces, not a {mine.kind}")
+    stages = [mine if group == mine.kind else plugins.create(group, name, {}, ctx) for group, name in STAGES]
+    mixer = Mixer(ctx.clips)
+    for stage in stages:
+        if stage is not mine or reset:
+            stage.reset()
+    ext, det, sch, body, face = stages
+    frames = []
+    audio = _audio(seconds, sample_rate, seed)
+    try:
+        for k, block in enumerate(cut_frames([audio], sample_rate, fps)):
+            frame = Frame(k, k / fps, 1.0 / fps, {}, None, {}, {}, [], 0.0)
+            ext.step(block, frame)
+            det.step(block, frame)
+            sch.step(frame)
+            mixer.advance(frame)   # a clip the library lacks: the run's line
+            body.step(frame)
+            face.step(frame)
+            mixer.note(frame)
+            frames.append(frame)
+        mixer.take()               # a joint the skeleton lacks: the run's line
+    except LaughlabError as exc:
+        raise ContractError(f"{mine.kind} {mine.name!r}: {exc}") from None
+    return frames
+
+
+#: how far outside [0, 1] a weight may round (``body=hill``'s belly: -1.5e-19 on a silent first frame)
+TOL = 1e-9
+
+
+def _values(frames, attr: str) -> list[tuple]:
+    return [tuple((k, float(v)) for k, v in getattr(f, attr).items()) for f in frames]
+
+
+def _check_frames(kind: str, frames: list, clips, skeleton) -> list[str]:
+    """What a run relies on in a stage's frames: one string per broken rule."""
+    from laughlab.face.facs import ARKIT_BLENDSHAPES
+
+    bad: list[str] = []
+    first = frames[0]
+    written = set(first.control if kind == "extractor" else first.channels)
+    needed = ("mcs",) if kind == "extractor" else REQUIRED.get(kind, ())
+    missing = [c for c in needed if c not in written]
+    if missing:
+        bad.append(f"writes no {', '.join(missing)} (a {kind} writes {', '.join(needed)})")
+    for attr in ("control", "channels"):
+        keys = list(getattr(first, attr))
+        for f in frames:
+            if list(getattr(f, attr)) != keys:
+                odd = ", ".join(sorted(set(getattr(f, attr)) ^ set(keys)))
+                bad.append(f"frame {f.index} writes other {attr} than frame 0 ({odd}): every frame writes the same "
+                           "ones")
+                break
+            for k, v in getattr(f, attr).items():
+                if not isinstance(v, (int, float, np.integer, np.floating, np.bool_)) or not math.isfinite(v):
+                    bad.append(f"{attr} {k!r} is {v!r} ({type(v).__name__}) at frame {f.index}: a finite number")
+                    break
+            else:
+                continue
+            break
+    unit = [c for c in (*needed, *(k for k in written if k.startswith("arkit.")))]
+    for c in unit:
+        vals = [getattr(f, "control" if kind == "extractor" else "channels").get(c, 0.0) for f in frames]
+        out = [i for i, v in enumerate(vals) if isinstance(v, (int, float)) and not -TOL <= v <= 1.0 + TOL]
+        if out:
+            j = out[0]
+            bad.append(f"{c} is {vals[j]} at frame {j}: a weight in [0, 1]")
+    unknown = sorted(k[6:] for k in written if k.startswith("arkit.") and k[6:] not in ARKIT_BLENDSHAPES)
+    if unknown:
+        bad.append(f"arkit.{', arkit.'.join(unknown)}: not ARKit blendshape names "
+                   "(laughlab.face.facs.ARKIT_BLENDSHAPES)")
+    for f in frames:
+        for joint, rot in f.offsets.items():
+            if joint not in skeleton.names:
+                bad.append(f"frame {f.index} offsets joint {joint!r}, which the skeleton lacks "
+                           f"({', '.join(skeleton.names)})")
+            elif len(tuple(rot)) != 3 or not all(math.isfinite(float(a)) for a in rot):
+                bad.append(f"frame {f.index} offsets {joint!r} by {rot!r}: three finite angles (z, x, y), degrees")
+            else:
+                continue
+            return bad
+        for ev in f.events:
+            if getattr(ev, "kind", None) not in ("start", "stop") or getattr(ev, "clip", None) not in clips.names:
+                bad.append(f"frame {f.index} has event {ev!r}: a laughlab.ClipEvent, start or stop, of a clip of "
+                           f"the library ({', '.join(clips.names)})")
+                return bad
+    return bad
+
+
+def check_plugin(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0, fps: float = 60.0,
+                 sample_rate: int = 16000) -> None:
+    """Check a plugin class against its kind's contract as a run would meet it; raise :class:`ContractError` with
+    one line per rule broken.
+
+    Every kind: the class registers (a ``name``, its kind's methods, ``Params`` a dataclass) and its defaults (or
+    ``params``, a mapping as ``face.KEY=VALUE`` sets them) pass the checks of the command line.  An extractor,
+    detector, scheduler, body or face (:func:`run_frames`, ``seconds`` of seeded synthetic laughter): it writes its
+    kind's channels (an extractor ``mcs``, a body ``chest``/``belly``, a face ``smile``/``jaw``/``blink``/
+    ``eyes_closed``) in [0, 1], the same names every frame, finite numbers only; ``arkit.*`` names are ARKit's;
+    offsets name the skeleton's joints; events are clips of the library; a second plugin on the same seed gives
+    the same values, and an extractor or a detector gives them again after a run and ``reset()``.  A sink:
+    ``open``/``write``/``close`` in a temporary folder return the files it wrote, each named in ``files``
+    (``planned``); ``abort`` after a chunk leaves the folder as it was; a ``background`` sink pickles.  Weights may
+    round up to :data:`TOL` outside [0, 1].
+    """
+    ctx = Context(fps=float(fps), sample_rate=sample_rate, seed=seed)
+    plugin = _build(cls, params, ctx)
+    where = f"{plugin.kind} {cls.name!r} ({cls.__module__}.{cls.__name__})"
+    if plugin.kind == "sink":
+        bad = _check_sink(cls, params, seconds=seconds, seed=seed, fps=fps, sample_rate=sample_rate)
+    elif plugin.kind == "source":
+        raise ContractError("check_plugin checks extractors, detectors, schedulers, bodies, faces and sinks; a "
+                            "source is checked by a run on it (python -m laughlab input=NAME)")
+    else:
+        kw = dict(seconds=seconds, seed=seed, fps=fps, sample_rate=sample_rate)
+        frames = run_frames(cls, params, **kw)
+        bad = _check_frames(plugin.kind, frames, ctx.clips, ctx.skeleton)
+        if not bad:
+            once = [_values(frames, a) for a in ("control", "channels")]
+            if [_values(run_frames(cls, params, **kw), a) for a in ("control", "channels")] != once:
+                bad.append("two plugins on the same seed give different values: draw from self.ctx.rng only")
+            elif plugin.kind in ("extractor", "detector"):   # a scheduler that plans ahead (scheduler=concat)
+                run_frames(cls, params, **kw, plugin=plugin)     # runs them over the input, then reset()s them
+                again = run_frames(cls, params, **kw, plugin=plugin)
+                if [_values(again, a) for a in ("control", "channels")] != once:
+                    bad.append("after a run and reset() its values differ from a new one's: reset() returns every "
+                               "state to the first frame's (scheduler=concat runs an extractor and a detector over "
+                               "the input to plan, then resets them)")
+    if bad:
+        raise ContractError(f"{where}: " + "; ".join(bad))
+
+
+def _chunks(seconds: float, seed: int, fps: float, sample_rate: int, n: int = 64):
+    """A run's chunks of frames (the built-ins of :data:`STAGES`), as a sink receives them."""
+    from laughlab.core import plugins
+    from laughlab.core.mixer import Mixer
+    from laughlab.core.recorder import Recorder
+
+    cls = plugins.get("face", "smile").obj
+    frames = run_frames(cls, None, seconds=seconds, seed=seed, fps=fps, sample_rate=sample_rate)
+    ctx = Context(fps=float(fps))
+    mixer, rec, out = Mixer(ctx.clips), Recorder(n, ctx.skeleton.n_channels), []
+    for frame in frames:   # the poses again: run_frames' mixer is its own
+        mixer.advance(frame)
+        mixer.note(frame)
+        rec.add(frame)
+        if rec.i == n:
+            out.append(rec.take(mixer.take()))
+    if rec.i:
+        out.append(rec.take(mixer.take()))
+    return out, ctx.skeleton, len(frames)
+
+
+def _check_sink(cls: type, params, *, seconds: float, seed: int, fps: float, sample_rate: int) -> list[str]:
+    from laughlab.core.bases import RunInfo
+
+    bad: list[str] = []
+    chunks, skeleton, n = _chunks(seconds, seed, fps, sample_rate)
+    source = SimpleNamespace(name="synthetic", live=False, sample_rate=sample_rate, n_frames=n, truth=None)
+    ctx = Context(fps=float(fps), sample_rate=sample_rate, seed=seed)
+    planned = set(cls.planned(dict(params or {})))
+    with tempfile.TemporaryDirectory(prefix="laughlab-check-") as tmp:
+        out = Path(tmp) / "run"
+        out.mkdir()
+        sink = _build(cls, params, ctx)
+        if getattr(cls, "background", False):
+            try:
+                pickle.loads(pickle.dumps(sink))
+            except Exception as exc:  # noqa: BLE001
+                bad.append(f"background = True but it does not pickle ({type(exc).__name__}: {exc})")
+        sink.open(RunInfo(out, float(fps), skeleton, n, source, {}))
+        for chunk in chunks:
+            sink.write(chunk)
+        files = [Path(p) for p in (sink.close() or [])]
+        for p in files:
+            full = Path(p).resolve()
+            rel = full.relative_to(out.resolve()) if full.is_relative_to(out.resolve()) else None
+            if rel is None or not Path(p).exists():
+                bad.append(f"close() returned {p}, which is not a file it wrote in the run folder")
+            elif rel.parts[0] not in planned:
+                bad.append(f"it wrote {rel.parts[0]}, which its files (or planned()) do not name: a run then cannot "
+                           "keep a file of the user's by that name from being replaced")
+        left = sorted(p.name for p in out.iterdir() if p.name not in {f.relative_to(out).parts[0] for f in files
+                                                                    if f.resolve().is_relative_to(out.resolve())})
+        if left:
+            bad.append(f"close() left {', '.join(left)} in the run folder without returning it")
+        aborted = Path(tmp) / "aborted"
+        aborted.mkdir()
+        sink = _build(cls, params, ctx)
+        sink.open(RunInfo(aborted, float(fps), skeleton, n, source, {}))
+        sink.write(chunks[0])
+        sink.abort()
+        left = sorted(p.name for p in aborted.iterdir())
+        if left:
+            bad.append(f"abort() after a chunk left {', '.join(left)}: a failed run leaves nothing half-written")
+    return bad

@@ -56,6 +56,7 @@ class ArkitSink(Sink):
     def write(self, chunk) -> None:
         if self._columns is None:
             present = {k[len(PREFIX):] for k in chunk.channels if k.startswith(PREFIX)}
+            warn_unknown(present)
             self._columns = [n for n in ARKIT_BLENDSHAPES if n in present]
             if not self._columns:
                 return
@@ -77,6 +78,30 @@ class ArkitSink(Sink):
 
     def abort(self) -> None:
         self.staging.abort(getattr(self, "_f", None))  # closes it (a buffer that cannot be written is dropped) first
+
+
+_WARNED: set = set()
+
+
+def warn_unknown(names) -> None:
+    """One warning line (once per set of names in a process) for ``arkit.*`` channels that are not ARKit blendshape
+    names, each with the nearest name: ``face_arkit.csv`` leaves them out (a plugin authors' review: a face's
+    ``arkit.mouthSmile`` and ``arkit.JawOpen`` were in ``channels.csv`` but silently not in ``face_arkit.csv``)."""
+    import difflib
+    import sys
+
+    unknown = tuple(sorted(set(names) - set(ARKIT_BLENDSHAPES)))
+    if not unknown or unknown in _WARNED:
+        return
+    _WARNED.add(unknown)
+    said = []
+    for n in unknown:
+        near = difflib.get_close_matches(n, ARKIT_BLENDSHAPES, n=1, cutoff=0.6) or \
+            [a for a in ARKIT_BLENDSHAPES if a.lower() == n.lower()]
+        said.append(f"{PREFIX}{n}" + (f" (did you mean {near[0]}?)" if near else ""))
+    print(f"laughlab: warning: {', '.join(said)}: not ARKit blendshape names, so face_arkit.csv leaves "
+          f"{'it' if len(unknown) == 1 else 'them'} out (the 52 names: laughlab.face.facs.ARKIT_BLENDSHAPES)",
+          file=sys.stderr)
 
 
 @hookimpl

@@ -56,6 +56,27 @@ def mark(exc: BaseException, stages: list, frame: int | None, fps: float) -> Non
     setattr(exc, BUILT_IN, cls.__module__.split(".")[0] in ("laughlab", "laughlab_plugins"))
 
 
+def not_built(exc: Exception, cls: type, kind: str, name: str) -> "PluginBug":
+    """The error for a plugin whose class raised while a run built it (``Cls(params, ctx)``: its ``__init__``, or a
+    method that calls): one line naming it, its file and class, with the traceback from the plugin's own call on
+    (:func:`trace`).  A plugin authors' review: a ``KeyError`` in a face's ``__init__`` ended in a 20-line
+    traceback through the command line with no line naming the face."""
+    tb = exc.__traceback__
+    while tb is not None and not isinstance(tb.tb_frame.f_locals.get("self"), cls):
+        tb = tb.tb_next
+    text = str(exc).strip().splitlines()
+    cause = f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+    method = tb.tb_frame.f_code.co_name if tb is not None else "__init__"
+    built_in = cls.__module__.split(".")[0] in ("laughlab", "laughlab_plugins")
+    who = ("a bug in laughlab: please report it with the lines above" if built_in else
+           "the lines above are from the plugin's code" if tb is not None else
+           "laughlab builds a plugin as Cls(params, ctx): docs/architecture.md")
+    bug = PluginBug(f"{kind} '{name}' ({_source_file(cls)}, {cls.__name__}.{method}) raised {cause} as the run "
+                    f"built it ({who})")
+    setattr(bug, TRACE, "".join(traceback.format_exception(type(exc), exc, tb)).rstrip() if tb is not None else "")
+    return bug
+
+
 def line(exc: BaseException) -> str | None:
     """The one line for an exception :func:`mark` named (None if it did not)."""
     where = getattr(exc, WHERE, None)
@@ -115,3 +136,15 @@ def check_finite(vals: dict, poses, first_frame: int, raw=None) -> None:
         j, c = (int(x[0]) for x in np.nonzero(~np.isfinite(poses)))
         raise PluginBug(f"pose column {c} is {poses[j, c]} at frame {first_frame + j}: a non-finite joint "
                         f"value, {WHOSE}; nothing was written")
+
+
+def check_extractor(control: dict, extractor) -> None:
+    """On a run's first frame: the extractor wrote ``control['mcs']``, which the detectors, schedulers, bodies and
+    faces read (docs/architecture.md, "Writing a plugin").  An extractor without it stopped the run in the next
+    stage that read it, a built-in one, whose line asked for a report to laughlab (a plugin authors' review)."""
+    if "mcs" not in control:
+        cls = type(extractor)
+        wrote = ", ".join(control) or "nothing"
+        raise PluginBug(f"extractor '{extractor.name}' ({_source_file(cls)}, {cls.__name__}.step) wrote no mcs at "
+                        f"frame 0 (it wrote {wrote}): every extractor writes frame.control['mcs'] (0-1), the signal "
+                        "the detector, scheduler, body and face read; nothing was written")

@@ -94,10 +94,21 @@ def _section(cfg: DictConfig, key: str) -> dict:
     return OmegaConf.to_container(node, resolve=True)
 
 
+def _built(kind: str, name: str, values, ctx: Context, where: str):
+    """:func:`laughlab.core.plugins.create`; a plugin class that raises anything but a :class:`ValueError` (a bad
+    value) as it is built is a bug, said in one line naming it (:func:`laughlab.core.blame.not_built`)."""
+    try:
+        return plugins.create(kind, name, values, ctx, where=where)
+    except (LaughlabError, ValueError):
+        raise
+    except Exception as exc:   # noqa: BLE001 - the plugin's code, whatever it raised
+        raise blame.not_built(exc, plugins.get(kind, name).obj, plugins.group_of(kind), name) from exc
+
+
 def _create(group: str, kind: str, name: str, values, ctx: Context):
     """The plugin of ``group``; a parameter it does not have but another plugin of the group has says which."""
     try:
-        return plugins.create(kind, name, values, ctx, where=f"{group}.{name}")
+        return _built(kind, name, values, ctx, f"{group}.{name}")
     except UnknownParameter as exc:
         from laughlab.core.config import misplaced_parameter
 
@@ -157,7 +168,7 @@ def build(cfg: DictConfig) -> Pipeline:
         for name in outputs:
             if "character" in _param_names("sink", name) and not (outputs[name] or {}).get("character"):
                 outputs[name] = {**(outputs[name] or {}), "character": str(character)}
-    sinks = [plugins.create("sink", name, params or {}, ctx, where=f"output.{name}")
+    sinks = [_built("sink", name, params or {}, ctx, f"output.{name}")
              for name, params in outputs.items()]
     return Pipeline(ctx, built["input"], built["extractor"], built["detector"], built["scheduler"], built["body"],
                     built["face"],
@@ -300,6 +311,13 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         # bound methods in locals: the loop runs once per frame
         ext_step, det_step, sch_step, body_step, face_step = ext.step, det.step, sch.step, body.step, face.step
         advance, note, add, record_ns = mixer.advance, mixer.note, rec.add, times.values.append
+
+        def ext_first(block, frame) -> None:   # frame 0: the extractor wrote what every later stage reads (a
+            nonlocal ext_step                  # review: without mcs, the energy scheduler's KeyError was laughlab's)
+            ext.step(block, frame)
+            blame.check_extractor(frame.control, ext)
+            ext_step = ext.step
+        ext_step = ext_first
         for block in src.blocks():
             t0 = clock()
             frame = Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)

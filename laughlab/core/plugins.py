@@ -67,9 +67,12 @@ def load_entry_points() -> None:
                 continue
             try:
                 plugin = ep.load()
-            except Exception as exc:  # one broken plugin: say which, do not crash with a traceback
-                raise LaughlabError(f"plugin {ep.name} ({ep.value}) failed to load: {type(exc).__name__}: {exc}") \
-                    from exc
+            except Exception as exc:  # one broken plugin: say which, where and how to get laughlab back, no traceback
+                dist = f"{ep.dist.metadata['name']}" if ep.dist else None
+                fix = (f"; every laughlab command loads the installed plugins: mend it, or pip uninstall {dist}"
+                       if dist else "")
+                raise LaughlabError(f"plugin {ep.name} ({ep.value}{f', from {dist} {ep.dist.version}' if dist else ''}) "
+                                    f"failed to load: {type(exc).__name__}: {exc}{_raised_at(exc)}{fix}") from exc
             if isinstance(plugin, type(sys)):   # a module: the hook checks of a plugins_dir module (a review: a
                 _check_hooks(plugin, f"{ep.name} ({ep.value})")   # misspelt hook in a package was ignored)
             pm.register(plugin, name=ep.name)
@@ -106,7 +109,8 @@ def load_plugin_dir(path: str | Path) -> list[str]:
                 spec.loader.exec_module(module)
             except Exception as exc:  # a broken user plugin is a user error
                 sys.modules.pop(mod_name, None)
-                raise LaughlabError(f"plugin {file} failed to import: {type(exc).__name__}: {exc}") from exc
+                raise LaughlabError(f"plugin {file} failed to import: {type(exc).__name__}: {exc}"
+                                    f"{_raised_at(exc)}") from exc
         try:
             _check_hooks(module, file)
             pm.register(module, name=mod_name)
@@ -118,6 +122,26 @@ def load_plugin_dir(path: str | Path) -> list[str]:
             raise
         loaded.append(mod_name)
     return loaded
+
+
+def _raised_at(exc: BaseException) -> str:
+    """`` (at FILE, line N)``: where a plugin module's import failed, the innermost line of the plugin's own folder
+    (a plugin authors' review: the line named the module and the error, not the line to mend; not a line of
+    Python's import machinery or of numpy); a SyntaxError's own place says it already."""
+    import sysconfig
+
+    if isinstance(exc, SyntaxError):
+        return ""
+    tb = exc.__traceback__
+    stdlib, root, at, tb = sysconfig.get_paths()["stdlib"], None, "", tb and tb.tb_next   # not the catching frame
+    while tb is not None:
+        name = tb.tb_frame.f_code.co_filename
+        if not name.startswith("<") and not name.startswith(stdlib):
+            root = root or str(Path(name).parent)   # the plugin module's own folder: its first line of its own
+            if name.startswith(root):
+                at = f" (at {name}, line {tb.tb_lineno})"
+        tb = tb.tb_next
+    return at
 
 
 def _check_hooks(module, file: Path | str) -> None:
@@ -163,6 +187,11 @@ def registry() -> dict[str, dict[str, PluginInfo]]:
                                         "name = '...', the name configurations choose it by")
                 if isinstance(obj, type):
                     _check_class(kind, name, obj, _origin(impl.plugin))
+                elif kind != "metric":   # a plugin authors' review: register(Giggle()) ended in a traceback,
+                    # "'Giggle' object is not callable", once a run chose it
+                    raise LaughlabError(f"{kind} plugin {name!r} from {_origin(impl.plugin)} is registered as an "
+                                        f"object ({type(obj).__name__}(...)): register its class, "
+                                        f"register({type(obj).__name__}); laughlab builds it for each run")
                 if kind == "metric" and not all(hasattr(obj, a) for a in ("fn", "higher_is_better", "units")):
                     raise LaughlabError(f"metric {name!r} from {_origin(impl.plugin)} is not a Metric: decorate its "
                                         "function with @laughlab.harness.metrics.metric(name, higher_is_better, units)")
@@ -256,7 +285,13 @@ def make_params(cls: type, values: Any, where: str) -> Any:
     for key in values:
         if key not in valid:
             raise UnknownParameter(f"unknown parameter {typed(where, key)}; valid: {', '.join(valid) or '(none)'}", key)
-    groups = _nested(params_cls)
+    try:
+        groups = _nested(params_cls)
+    except OmegaConfBaseException as exc:   # a plugin authors' review: Literal["a", "b"] ended in a traceback
+        field_ = getattr(exc, "full_key", None)
+        raise LaughlabError(f"{typed(where)}: its Params cannot be configured: {str(exc).splitlines()[0]}"
+                            f"{f' (field {field_})' if field_ else ''}; a Params field is a str, int, float, bool, "
+                            "an Enum, a list, a dict, a dataclass or Optional of one (OmegaConf's types)") from None
     for key, value in values.items():
         if key in groups and not isinstance(value, (dict, DictConfig)):
             sub = [f.name for f in fields(groups[key])]
@@ -277,7 +312,7 @@ def make_params(cls: type, values: Any, where: str) -> Any:
         key = getattr(exc, "full_key", None)
         raise LaughlabError(f"bad parameter {typed(where, key)}: {msg}" if key else
                             f"bad parameter in {typed(where)}: {msg}") from None
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, AssertionError) as exc:   # __post_init__'s checks (an assert: a plugin's own)
         # a nested group's own check (face.au12's hi): name the group, not only the plugin
         inner = next((k for k in groups if k in values and merged is not None and not _builds(merged[k])), None)
         raise LaughlabError(f"bad parameter in {typed(where, inner)}: {exc}") from None
@@ -306,7 +341,7 @@ def _builds(node) -> bool:
     try:
         OmegaConf.to_object(node)
         return True
-    except (ValueError, TypeError):
+    except (ValueError, TypeError, AssertionError):
         return False
 
 

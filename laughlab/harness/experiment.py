@@ -31,7 +31,7 @@ from omegaconf import OmegaConf
 from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.harness import results as res
 from laughlab.harness.corpus import Item, build_corpus, synthetic_items
-from laughlab.harness.metrics import registered
+from laughlab.harness.metrics import registered, warn_unmeasured
 from laughlab.harness.runner import (Journal, Trial, check_conditions, input_hash, make_trials, plugin_code_hash,
                                      run_overrides, run_trials, trial_hash, write_records)
 from laughlab.harness.settings import check_harness
@@ -151,6 +151,7 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     new = run_trials(todo, jobs, progress, desc=name, on_record=journal.add)
     run.records = sorted([*kept, *new], key=lambda r: (r["condition"], r["input"], r["seed"]))
     write_records(out_dir / "metrics.jsonl", run.records)
+    warn_unmeasured(run.records)
     _remove_empty_dirs(out_dir / "trials")
 
     shown = showcase_item(h, items)

@@ -10,6 +10,7 @@ like any third-party metric.
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 from typing import Callable
 
@@ -67,16 +68,20 @@ def registered() -> dict[str, Metric]:
     return {name: info.obj for name, info in plugins.registry()["metric"].items()}
 
 
-def compute(trial: TrialData, names: list[str] | None = None) -> dict[str, float]:
-    """Evaluate metrics on one trial; a metric that fails on missing data gives NaN."""
+def compute(trial: TrialData, names: list[str] | None = None, why: dict | None = None) -> dict[str, float]:
+    """Evaluate metrics on one trial; a metric that fails on missing data gives NaN (a third-party metric's
+    exception then goes into ``why``: name -> ``"KeyError: 'jawopen'"``, for :func:`warn_unmeasured`)."""
     out = {}
     for name, m in registered().items():
         if names is not None and name not in names:
             continue
         try:
             v = float(m(trial))
-        except (KeyError, ValueError, ZeroDivisionError):
+        except (KeyError, ValueError, ZeroDivisionError) as exc:
             v = float("nan")
+            near = _near_column(exc, trial) if why is not None else None
+            if near and m.fn.__module__.split(".")[0] not in ("laughlab", "laughlab_plugins"):
+                why[name] = f"KeyError: {exc}, a column the trial does not have (did you mean {near!r}?)"
         except Exception as exc:   # e.g. a plugin's metric returning None: one line naming it, not a traceback
             from laughlab.core.errors import LaughlabError
 
@@ -84,6 +89,35 @@ def compute(trial: TrialData, names: list[str] | None = None) -> dict[str, float
                                 "or NaN where it does not apply)") from None
         out[name] = v if math.isfinite(v) else float("nan")
     return out
+
+
+def _near_column(exc: Exception, trial) -> str | None:
+    """For a ``KeyError`` of a name that is no column of the trial's channels: the column it misspells (the same
+    name in other case, or difflib's nearest at 0.8), else None (a metric of another face's channels: n/a)."""
+    import difflib
+
+    key = exc.args[0] if isinstance(exc, KeyError) and exc.args and isinstance(exc.args[0], str) else None
+    columns = [str(c) for c in getattr(getattr(trial, "channels", None), "columns", ())]
+    if key is None or key in columns:
+        return None
+    same = [c for c in columns if c.lower() == key.lower()]
+    return (same or difflib.get_close_matches(key, columns, n=1, cutoff=0.8) or [None])[0]
+
+
+def warn_unmeasured(records: list[dict]) -> None:
+    """One warning line per third-party metric that gave no number on any trial because it read a misspelt column
+    (the records' ``metrics_na``, :func:`_near_column`): a plugin authors' review: a metric reading
+    ``trial.channels["arkit.jawopen"]`` was "n/a" in every cell of the report, without a word.  A metric of
+    channels the trials' plugins do not write is n/a without one."""
+    reasons: dict = {}
+    for r in records:
+        for name, why in (r.get("metrics_na") or {}).items():
+            reasons.setdefault(name, why)
+    for name, why in sorted(reasons.items()):
+        values = [r["metrics"].get(name) for r in records]
+        if not any(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+            print(f"laughlab: warning: metric {name!r} gave no number on any of the {len(records)} trials (n/a in "
+                  f"the report): it raised {why}", file=sys.stderr)
 
 
 def best_lag_correlation(x: np.ndarray, y: np.ndarray, fps: float, max_lag_s: float) -> tuple[float, float, int]:

@@ -71,9 +71,12 @@ def run_trial(trial: Trial) -> dict:
             exc.args = (f"in trial {trial.condition}/{trial.item.id} seed {trial.seed}, {exc}",)
         raise
     data = TrialData.load(out, trial.item.truth)
-    metrics = compute(data)
+    why: dict = {}
+    metrics = compute(data, why=why)
     record = {"condition": trial.condition, "input": trial.item.id, "profile": trial.item.profile,
               "seed": trial.seed, "duration_s": data.duration_s, "metrics": metrics}
+    if why:   # a third-party metric that did not apply, and why (metrics.warn_unmeasured)
+        record["metrics_na"] = why
     if trial.keep or trial.plots:
         record["run_dir"] = str(out)
     else:
@@ -199,10 +202,12 @@ class Journal:
 
 
 def plugin_code_hash() -> str:
-    """A short hash of the source files of every registered plugin (built-in, installed or from plugins_dir):
-    a resumed experiment keeps only the trials this code made (a review resumed after editing a plugin and got
-    one results.json of two codes' numbers)."""
+    """A short hash of the source files of every registered plugin (built-in, installed or from plugins_dir) and of
+    every ``.py`` file of the package each comes from: a resumed experiment keeps only the trials this code made (a
+    review resumed after editing a plugin and got one results.json of two codes' numbers; a plugin authors' review:
+    an edit to a helper module of an installed plugin's package, ``laughlab_giggle/curves.py``, was not seen)."""
     import inspect
+    import sys
 
     from laughlab.core import plugins
 
@@ -216,6 +221,12 @@ def plugin_code_hash() -> str:
                 continue
             if path:
                 files[obj.__module__] = path
+    # the plugins' packages, helpers imported lazily too; laughlab's own method code is laughlab's version (its
+    # commit in results.json), as before: a resume after an edit of cli.py would otherwise run every trial again
+    for top in sorted({m.split(".")[0] for m in files} - {"laughlab"}):
+        for root in getattr(sys.modules.get(top), "__path__", None) or ():
+            for f in sorted(Path(root).rglob("*.py")):
+                files.setdefault(".".join((top, *f.relative_to(root).with_suffix("").parts)), str(f))
     h = hashlib.sha256()
     for module, path in sorted(files.items()):
         h.update(module.encode() + b"\0" + Path(path).read_bytes())

@@ -1,0 +1,219 @@
+"""The lines a third-party plugin's bugs get from a run (a plugin authors' review, 2026-11-27: a plugin registered as
+an object, a constructor that raised, an extractor without ``mcs``, a ``Literal`` parameter and a face's misspelt
+ARKit names each ended in a traceback, a line blaming laughlab, or nothing at all).  The plugins are registered in
+code and the command line runs in the test's process (tests/inprocess.py)."""
+from dataclasses import dataclass
+
+import pytest
+
+import laughlab
+from laughlab import Extractor, Face
+from laughlab.core import blame, pipeline, plugins
+from laughlab.core.bases import Context
+from laughlab.core.errors import LaughlabError
+
+from inprocess import laughlab as run_cli
+
+
+class GoodFace(Face):
+    name = "good_face"
+
+    def step(self, frame):
+        frame.channels.update(smile=min(1.0, frame.control["mcs"]), jaw=0.0, blink=0.0, eyes_closed=frame.clip_eyes)
+
+
+class Registers:
+    def __init__(self, obj, hook="register_faces"):
+        setattr(self, hook, laughlab.hookimpl(specname=hook)(lambda register: register(obj)))
+
+
+@pytest.fixture
+def registered():
+    done = []
+
+    def add(obj, hook="register_faces"):
+        plugin = Registers(obj, hook)
+        plugins.pm.register(plugin, name=f"test-contract-{len(done)}")
+        done.append(plugin)
+
+    yield add
+    for p in done:
+        plugins.pm.unregister(p)
+
+
+def test_a_plugin_registered_as_an_object_is_one_line(registered):
+    registered(GoodFace())
+    with pytest.raises(LaughlabError, match=r"^face plugin 'good_face' from registered: test-contract-0 is "
+                                            r"registered as an object \(GoodFace\(\.\.\.\)\): register its class, "
+                                            r"register\(GoodFace\)"):
+        plugins.registry()
+
+
+class Boom(GoodFace):
+    name = "boom"
+
+    def __init__(self, params=None, ctx=None):
+        super().__init__(params, ctx)
+        self.table = {}["x"]
+
+
+class NoCtx(GoodFace):
+    name = "no_ctx"
+
+    def __init__(self, params):
+        super().__init__(params)
+
+
+def test_a_plugin_that_raises_as_it_is_built_is_named(registered):
+    registered(Boom)
+    registered(NoCtx)
+    with pytest.raises(blame.PluginBug) as e:
+        pipeline._built("face", "boom", {}, Context(), "face.boom")
+    assert str(e.value) == (f"face 'boom' ({__file__}, Boom.__init__) raised KeyError: 'x' as the run built it (the "
+                            "lines above are from the plugin's code)")
+    assert blame.trace(e.value).splitlines()[-1] == "KeyError: 'x'" and "self.table" in blame.trace(e.value)
+    with pytest.raises(blame.PluginBug, match=r"^face 'no_ctx' \(.*, NoCtx.__init__\) raised TypeError: .*takes 2 "
+                                              r".*\(laughlab builds a plugin as Cls\(params, ctx\)"):
+        pipeline._built("face", "no_ctx", {}, Context(), "face.no_ctx")
+    r = run_cli("face=boom", "detector=none", "input.duration_s=1", "hydra.run.dir=never")
+    assert r.returncode == 1 and r.stderr.startswith("Traceback (most recent call last):\n  File ")
+    assert r.stderr.splitlines()[-1].startswith("laughlab: error: face 'boom' (") and r.stderr.count("laughlab:") == 1
+
+
+def test_an_extractor_that_writes_no_mcs_is_named_not_laughlab(registered, tmp_path):
+    class Loudness(Extractor):
+        name = "loudness"
+
+        def step(self, block, frame):
+            frame.control["loud"] = float(abs(block).max(initial=0.0))
+
+    registered(Loudness, "register_extractors")
+    r = run_cli("extractor=loudness", "detector=none", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 1 and r.stderr == (
+        f"laughlab: error: extractor 'loudness' ({__file__}, Loudness.step) wrote no mcs at frame 0 (it wrote loud): "
+        "every extractor writes frame.control['mcs'] (0-1), the signal the detector, scheduler, body and face read; "
+        "nothing was written\n"), r.stderr
+    assert not (tmp_path / "run").exists() or not any((tmp_path / "run").iterdir())
+
+
+def test_arkit_names_that_are_not_arkits_are_warned_once(capsys):
+    from laughlab_plugins import sink_arkit
+
+    sink_arkit.warn_unknown({"jawOpen", "JawOpen", "mouthSmile"})
+    sink_arkit.warn_unknown({"jawOpen", "JawOpen", "mouthSmile"})
+    sink_arkit.warn_unknown({"jawOpen", "mouthSmileLeft"})
+    assert capsys.readouterr().err == (
+        "laughlab: warning: arkit.JawOpen (did you mean jawOpen?), arkit.mouthSmile (did you mean mouthSmileLeft?): "
+        "not ARKit blendshape names, so face_arkit.csv leaves them out (the 52 names: "
+        "laughlab.face.facs.ARKIT_BLENDSHAPES)\n")
+
+
+def test_a_params_field_omegaconf_cannot_hold_is_one_line():
+    from typing import Literal
+
+    @dataclass
+    class P:
+        mode: Literal["soft", "hard"] = "soft"
+
+    with pytest.raises(LaughlabError, match=r"^face=moody: its Params cannot be configured: Unexpected type "
+                                            r"annotation: Literal\[soft, hard\] \(field mode\); a Params field is a "
+                                            r"str, int, float, bool, an Enum"):
+        plugins.make_params(type("Moody", (GoodFace,), {"name": "moody", "Params": P}), {}, "face.moody")
+
+
+def test_a_resume_sees_an_edit_to_a_helper_module_of_a_plugins_package(registered, tmp_path, monkeypatch):
+    """A plugin authors' review: an installed package's face imported its curve from a helper module of the package;
+    an edit to the helper left plugin_code_hash as it was, so a resumed experiment mixed two codes' numbers."""
+    import importlib
+    import sys
+
+    from laughlab.harness.runner import plugin_code_hash
+
+    pkg = tmp_path / "giggle_pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "curves.py").write_text("def curve(x):\n    return x\n")
+    (pkg / "face.py").write_text(
+        "from laughlab import Face\n\n\nclass Giggle(Face):\n    name = 'giggle_pkg_face'\n\n"
+        "    def step(self, frame):\n        from .curves import curve   # imported when first stepped\n"
+        "        frame.channels.update(smile=curve(frame.control['mcs']), jaw=0.0, blink=0.0, eyes_closed=0.0)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "giggle_pkg", raising=False)
+    registered(importlib.import_module("giggle_pkg.face").Giggle)
+    try:
+        before = plugin_code_hash()
+        assert plugin_code_hash() == before
+        (pkg / "curves.py").write_text("def curve(x):\n    return x * x\n")
+        assert plugin_code_hash() != before
+    finally:
+        for name in ("giggle_pkg", "giggle_pkg.face"):
+            sys.modules.pop(name, None)
+
+
+def test_a_plugin_module_that_fails_to_import_names_its_line_and_the_way_back(tmp_path, monkeypatch):
+    """A plugin authors' review: an installed package whose module failed to import stopped every laughlab command
+    with the error alone: not the line to mend, nor that ``pip uninstall`` gives laughlab back."""
+    import functools
+    import importlib.metadata
+    import re
+    import sys
+    import types
+
+    (tmp_path / "helpers.py").write_text("import numpy\n\n\ndef window(n):\n    return numpy.linspace(0, 1, n)\n")
+    (tmp_path / "zcr.py").write_text("from .helpers import window\n\nWINDOW = window(-1)\n")
+
+    pkg = types.ModuleType("laughlab_giggle_t")
+    pkg.__path__ = [str(tmp_path)]
+    monkeypatch.setitem(sys.modules, "laughlab_giggle_t", pkg)
+    dist = types.SimpleNamespace(metadata={"name": "laughlab-giggle"}, version="0.1.0")
+    ep = types.SimpleNamespace(name="zcr_t", value="laughlab_giggle_t.zcr", dist=dist,   # as EntryPoint.load imports
+                               load=functools.partial(importlib.import_module, "laughlab_giggle_t.zcr"))
+    monkeypatch.setattr(importlib.metadata, "entry_points", lambda group: [ep] if group == "laughlab" else [])
+    monkeypatch.setattr(plugins, "_loaded_entry_points", False)
+    with pytest.raises(LaughlabError) as e:
+        plugins.load_entry_points()
+    assert str(e.value) == (
+        "plugin zcr_t (laughlab_giggle_t.zcr, from laughlab-giggle 0.1.0) failed to load: ValueError: Number of "
+        f"samples, -1, must be non-negative. (at {tmp_path / 'helpers.py'}, line 5); every laughlab command loads "
+        "the installed plugins: mend it, or pip uninstall laughlab-giggle")
+    for name in ("laughlab_giggle_t.helpers", "laughlab_giggle_t.zcr"):
+        sys.modules.pop(name, None)
+    (tmp_path / "zcr.py").write_text("WINDOW = [0.0] * 4\nFIRST = WINDOW[4]\n")
+    monkeypatch.setattr(plugins, "_loaded_entry_points", False)
+    with pytest.raises(LaughlabError, match=re.escape(f"IndexError: list index out of range (at {tmp_path / 'zcr.py'}"
+                                                      ", line 2); every laughlab command")):
+        plugins.load_entry_points()
+    sys.modules.pop("laughlab_giggle_t.zcr", None)
+
+
+def test_a_third_party_metric_that_never_applies_is_warned_with_its_exception(registered, capsys):
+    """A plugin authors' review: a metric reading a misspelt column was "n/a" in every cell of the report, and
+    nothing said why."""
+    import types
+
+    import pandas as pd
+
+    from laughlab.harness.metrics import compute, metric, warn_unmeasured
+
+    @metric("jaw_open_mean_t", None, "jawOpen weight")
+    def jaw_open_mean_t(trial):
+        return float(trial.channels["arkit.jawopen"].mean())   # ARKit's name is jawOpen
+
+    registered(jaw_open_mean_t, "register_metrics")
+    trial = types.SimpleNamespace(channels=pd.DataFrame({"arkit.jawOpen": [0.2, 0.4]}), run_metrics={})
+    records = []
+    for _ in range(3):
+        why: dict = {}
+        records.append({"metrics": {**compute(trial, ["jaw_open_mean_t", "frame_ms_p50"], why=why)}, "metrics_na": why})
+    assert set(records[0]["metrics_na"]) == {"jaw_open_mean_t"}   # not the built-in's
+    warn_unmeasured(records)
+    assert capsys.readouterr().err == (
+        "laughlab: warning: metric 'jaw_open_mean_t' gave no number on any of the 3 trials (n/a in the report): it "
+        "raised KeyError: 'arkit.jawopen', a column the trial does not have (did you mean 'arkit.jawOpen'?)\n")
+    elsewhere = types.SimpleNamespace(channels=pd.DataFrame({"smile": [0.2]}), run_metrics={})   # face=smile's
+    why = {}
+    compute(elsewhere, ["jaw_open_mean_t"], why=why)
+    assert why == {}   # a metric of channels these trials do not write: n/a, no word
+    records[1]["metrics"]["jaw_open_mean_t"] = 0.3   # it applied once: no word
+    warn_unmeasured(records)
+    assert capsys.readouterr().err == ""
