@@ -72,7 +72,7 @@ def preflight(argv: list[str]):
     if cfg.get("harness"):
         from laughlab.harness.corpus import build_corpus
         from laughlab.harness.experiment import experiment_module, showcase_item
-        from laughlab.harness.preflight import check_condition_runs, resolved_harness
+        from laughlab.harness.preflight import check_condition_runs, check_single_run_keys, resolved_harness
         from laughlab.harness.runner import check_conditions
         from laughlab.harness.settings import check_harness
 
@@ -81,14 +81,7 @@ def preflight(argv: list[str]):
         module = experiment_module(cfg.harness.get("module"))
         if hasattr(module, "check"):   # the keys the experiment adds (experiments/stimuli.py: preset, loudness...)
             module.check(harness)
-        if any(o.lstrip("+").split("=", 1)[0] == "seed" for o in overrides):
-            raise LaughlabError("seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds "
-                                "(synthetic inputs: how many, or a list such as [10,11]) and harness.run_seeds "
-                                "(each recording's runs, e.g. [0,1,2])")
-        if any(o.lstrip("+~").split("=", 1)[0].split(".")[0] == "output" for o in overrides):
-            raise LaughlabError("output settings do not apply to an experiment: its trials write what its metrics "
-                                "read and its showcase runs files with plots; to stream, view or export a "
-                                "condition, run it alone with its overrides and output=...")
+        check_single_run_keys(overrides)   # seed=, output=: a single run's, refused
         if module is None or not hasattr(module, "run"):  # trial experiments: conditions x corpus
             conditions = check_conditions(cfg.harness.get("conditions"))
             harness = OmegaConf.to_container(cfg.harness, resolve=True)

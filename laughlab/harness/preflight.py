@@ -22,6 +22,21 @@ def resolved_harness(cfg) -> dict:
         raise LaughlabError(f"harness: {str(exc).splitlines()[0]}") from None
 
 
+def check_single_run_keys(overrides: list[str]) -> None:
+    """A single run's ``seed=`` and ``output=``/``output.*`` given to an experiment, refused in one line (``seed=``
+    was recorded and changed nothing; ``output=viewer`` was dropped without a word and ``output.plots.*`` stopped
+    the experiment after its first trials)."""
+    keys = {o.lstrip("+~").split("=", 1)[0] for o in overrides}
+    if "seed" in keys:
+        raise LaughlabError("seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds "
+                            "(synthetic inputs: how many, or a list such as [10,11]) and harness.run_seeds "
+                            "(each recording's runs, e.g. [0,1,2])")
+    if any(k.split(".")[0] == "output" for k in keys):
+        raise LaughlabError("output settings do not apply to an experiment: its trials write what its metrics "
+                            "read and its showcase runs files with plots; to stream, view or export a "
+                            "condition, run it alone with its overrides and output=...")
+
+
 def check_condition_runs(overrides: list[str], conditions: dict, build_base) -> None:
     """Each condition's run built as its trials compose it (the command line's overrides, then the condition's),
     before any trial: a key the condition's plugin lacks (``scheduler.overrule_c`` under a ``scheduler=none``
