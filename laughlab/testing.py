@@ -156,7 +156,8 @@ def _check_frames(kind: str, frames: list, clips, skeleton) -> list[str]:
             else:
                 continue
             break
-    unit = [c for c in (*needed, *(k for k in written if k.startswith("arkit.")))]
+    shapes = ("chest", "belly") if kind == "body" else ()   # shape weights: outside [0, 1] they extrapolate
+    unit = [c for c in (*needed, *(k for k in written if k.startswith("arkit."))) if c not in shapes]
     for c in unit:
         vals = [getattr(f, "control" if kind == "extractor" else "channels").get(c, 0.0) for f in frames]
         out = [i for i, v in enumerate(vals) if isinstance(v, (int, float)) and not -TOL <= v <= 1.0 + TOL]
@@ -194,7 +195,9 @@ def check_plugin(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0,
     ``params``, a mapping as ``face.KEY=VALUE`` sets them) pass the checks of the command line.  An extractor,
     detector, scheduler, body or face (:func:`run_frames`, ``seconds`` of seeded synthetic laughter): it writes its
     kind's channels (an extractor ``mcs``, a body ``chest``/``belly``, a face ``smile``/``jaw``/``blink``/
-    ``eyes_closed``) in [0, 1], the same names every frame, finite numbers only; ``arkit.*`` names are ARKit's;
+    ``eyes_closed``) in [0, 1] (a body's ``chest``/``belly`` are shape weights, 0 rest and 1 the expanded shape,
+    which may extrapolate beyond them, as ``body=hill`` squeezes below rest and ``body=fourier`` above its intense
+    clip), the same names every frame, finite numbers only; ``arkit.*`` names are ARKit's;
     offsets name the skeleton's joints; events are clips of the library; a second plugin on the same seed gives
     the same values, and an extractor or a detector gives them again after a run and ``reset()``.  A sink:
     ``open``/``write``/``close`` in a temporary folder return the files it wrote, each named in ``files``
