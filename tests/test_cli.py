@@ -234,6 +234,7 @@ def test_a_parameter_of_another_plugin_says_what_to_add(tmp_path, args, message)
     (["output=[files,vmc]", "output.bogus=1"], "unknown parameter output.bogus; valid: output.arkit.precision, "
                                                "output.csv.precision, output.plots.filmstrip_frames, "
                                                "output.plots.max_seconds, output.plots.pdf, output.plots.power, "
+                                               "output.plots.width, "
                                                "output.vmc.blend_case, output.vmc.host,"),
     # a nested group given one value, or failing its own check (was OmegaConf's "Merge error: str is not a
     # subclass of UnitParams" and "bad parameter in face.facs: hi must be >= 0", no AU named)

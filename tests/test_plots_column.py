@@ -1,0 +1,123 @@
+"""``output.plots.width=column``: the run's figures drawn 3.5 in wide for one column of a two-column paper, every
+text at 7 pt or more at that size, as readable as the page layout's (no overprinting, nothing cut, every clip
+named); ``page`` (the default) gives the bytes it gave before the setting existed."""
+import hashlib
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from laughlab.core import pipeline
+from laughlab.render.labels import drawn_texts, print_sizes
+from laughlab.render.layout import COLUMN_MIN_PT, layout_of
+
+from inprocess import laughlab
+from test_plots_readable import Saved, assert_readable, cfg_for, read_events
+
+
+@pytest.fixture
+def sized(monkeypatch):
+    """Every figure saved during the test: its name, its width (in) and its texts' sizes at 3.5 in."""
+    seen = []
+    original = Figure.savefig
+
+    def watched(self, fname, *args, **kwargs):
+        if kwargs.get("format", "png") == "png":
+            drawn = drawn_texts(self)
+            seen.append((Saved(fname, self), float(self.get_size_inches()[0]), print_sizes(self, 3.5, drawn)))
+        return original(self, fname, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", watched)
+    return seen
+
+
+@pytest.mark.parametrize("scheduler", ["energy", "concat"])
+def test_every_text_of_the_column_figures_prints_at_7_pt_or_more(tmp_path, sized, scheduler):
+    from laughlab.core.frame import clip_blocks
+
+    pipeline.execute(pipeline.build(cfg_for("input.duration_s=6", f"scheduler={scheduler}", "~output.bvh",
+                                            "output.plots.width=column")), tmp_path)
+    names = {s.name for s, _, _ in sized}
+    assert names == {"fig3_1_calibration.png", "fig3_2_mcs.png", "fig4_2_energy.png", "filmstrip.png"} | (
+        {"fig4_1_energy.png"} if scheduler == "energy" else set())
+    for saved, width, sizes in sized:
+        assert width == 3.5, saved.name
+        assert sizes and sizes[0][1] >= COLUMN_MIN_PT, (saved.name, sizes[:3])
+        # the ticks, axis labels and titles at 8 pt (IEEE and ACM ask for 8-9): only legends, the clips' names
+        # on their blocks and the filmstrip's captions are smaller, and not below 7
+        small = {t for t, pt in sizes if pt < 8}
+        assert not any(t.replace(".", "").replace("−", "").isdigit() for t in small), (saved.name, small)
+    assert_readable([s for s, _, _ in sized])
+    played = {b[0] for b in clip_blocks(read_events(tmp_path), 6.0)}
+    for saved, _, _ in sized:
+        if saved.name.startswith("fig4_"):      # every clip played named, on its block or in the colour key
+            assert all(any(t == c or t.startswith(f"{c}, e=") for t in saved.texts) for c in played), saved.name
+    (strip,) = [s for s, _, _ in sized if s.name == "filmstrip.png"]
+    assert sum(t.endswith(" s") for t in strip.texts) == 8       # 8 moments, in 2 rows of 4 (their times)
+    assert all("\n" in t for t in strip.texts if t.startswith(("smile", "no clip")) or "jaw" in t)
+
+
+#: the figures of ``input.duration_s=3`` (seed 0) in the locked environment: the page layout's recorded at 7df9199,
+#: before output.plots.width existed (the default run's, a concat run's and btanks laugh01's were compared there too)
+PAGE_SHA256 = {
+    "fig3_1_calibration.pdf": "be0af4146dbbb8a7a411b0f7c1e664eb95597849a1bcaeaba3dd16d00fcfa78f",
+    "fig3_1_calibration.png": "60ad58a608e1aa6100a27bffe384084d34fd85c6626f2e9bdb3bac39808fad6e",
+    "fig3_2_mcs.pdf": "941198bdf4718245798426644eed3cd3b6cbc55caf4a5703a0a9895d07f5026a",
+    "fig3_2_mcs.png": "29b9bc60ad63ff4bcb9fcf66ae2861104ed9af619aedfa29f8333f14361cc2ed",
+    "fig4_1_energy.pdf": "2d7463ed8f9ad6ea5e5c7f22781e7c13021c7ee1d328925340f89dc7bc77505a",
+    "fig4_1_energy.png": "e0409cef3d978a26332a5d7e58e83990ddd9f8061caefa44ab58b949893f45d3",
+    "fig4_2_energy.pdf": "c2db83eede0a417a25c97fe9693a5ea77103eed6446e66e95a18c8e7370a55e8",
+    "fig4_2_energy.png": "a75c17aa5e48e577346469c450752229e45fd81ae2d63e04ad2791c7a5a27edf",
+    "filmstrip.pdf": "29b79f1aa43885212edd92369c757284718a9bcccde2c5ae580e9ac2e99ec813",
+    "filmstrip.png": "23d10a966fb8e96fb57434770271bef3eb489cbc3032f46ad010435b6153b12a",
+}
+COLUMN_SHA256 = {
+    "fig3_1_calibration.pdf": "98a7f95285a3e3d9296597eb5ed0a0cb4333d1c93ef696fae134d2c1e0384fb3",
+    "fig3_1_calibration.png": "780b7d062ea59e0da5184cc8568e8e8ea3e5c8920a5db77af1d050a46fe38a5c",
+    "fig3_2_mcs.pdf": "372c81d5c378ffee60ae5ce20148562dfa87aac76c6da12f2c576f733776368d",
+    "fig3_2_mcs.png": "a729585574a845e0ee4ffccfa4527f04a5c974e656df0c0e1d2afb7efd38d66c",
+    "fig4_1_energy.pdf": "6e183e211146a4aaef23b6fd7d9195c13d53f30a7f586903bbaca35ff487361e",
+    "fig4_1_energy.png": "624709dfb9dfd9da81dea33585bbfa8c7523887fc6d521dc3b74699253dc08bc",
+    "fig4_2_energy.pdf": "d0b3da7ab35242186d08a83319493743cad08eab40e7db8a0f0f3d19895f078c",
+    "fig4_2_energy.png": "a7bd9e811d62df03e3aad42eee53d03db06b8523c1807d67c6e6b3117d0c8687",
+    "filmstrip.pdf": "851bbe69b18939bb460549b5bd8776f6f85859e70f767321c1bd64fe00a3daca",
+    "filmstrip.png": "971120f2d7913d7818f5c6d4b88cea19d7521a2b0a1c47b8f9e1f21a087a8cdc",
+}
+
+
+@pytest.mark.parametrize("width", ["page", "column"])
+def test_the_same_seed_gives_the_same_bytes_and_the_pdfs_keep_truetype(tmp_path, width):
+    """In the locked environment each figure is the recorded bytes (the page layout's: those of before the
+    setting); anywhere, each PDF has its text in embedded TrueType (Type 42), no Type 3, and no date."""
+    import golden
+
+    pipeline.execute(pipeline.build(cfg_for("input.duration_s=3", "~output.csv", "~output.bvh",
+                                            f"output.plots.width={width}", "output.plots.pdf=true")), tmp_path)
+    files = {p.name: p.read_bytes() for p in sorted((tmp_path / "plots").iterdir())}
+    pdfs = [n for n in files if n.endswith(".pdf")]
+    assert len(pdfs) == 5 and all(b"/Type3" not in files[n] and b"/FontFile2" in files[n]
+                                  and b"CreationDate" not in files[n] for n in pdfs)
+    exact, why = golden.exact_environment()
+    if not exact:
+        pytest.skip(f"the figures' bytes hold in the locked environment only: {why}")
+    got = {n: hashlib.sha256(b).hexdigest() for n, b in files.items()}
+    assert got == (PAGE_SHA256 if width == "page" else COLUMN_SHA256)
+
+
+def test_a_width_that_is_neither_page_nor_column_is_one_error_line(tmp_path):
+    r = laughlab(f"hydra.run.dir={tmp_path / 'run'}", "input.duration_s=1", "output.plots.width=colum")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode != 0 and len(lines) == 1, r.stderr
+    assert lines[0].startswith("laughlab: error: ") and "width must be one of page, column (got 'colum')" in lines[0]
+    assert not (tmp_path / "run").exists() or not any((tmp_path / "run").rglob("*.png"))
+    with pytest.raises(ValueError):
+        layout_of("a4")
+
+
+def test_print_sizes_by_hand():
+    fig = Figure(figsize=(7.0, 2.0))
+    fig.text(0.1, 0.5, "small", fontsize=6)
+    fig.text(0.5, 0.5, "big", fontsize=10)
+    assert print_sizes(fig, 3.5) == [("small", 3.0), ("big", 5.0)]      # half the width: half the size
+    assert print_sizes(fig, 7.0)[0] == ("small", 6.0)
+    np.testing.assert_allclose([pt for _, pt in print_sizes(fig, 14.0)], [12.0, 20.0])
