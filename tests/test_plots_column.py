@@ -121,3 +121,44 @@ def test_print_sizes_by_hand():
     assert print_sizes(fig, 3.5) == [("small", 3.0), ("big", 5.0)]      # half the width: half the size
     assert print_sizes(fig, 7.0)[0] == ("small", 6.0)
     np.testing.assert_allclose([pt for _, pt in print_sizes(fig, 14.0)], [12.0, 20.0])
+
+
+def test_a_reports_metrics_figure_in_a_column_prints_every_text_at_7_pt_or_more(tmp_path, sized):
+    """``report --width column``: metrics.png 3.5 in wide, 2 panels a row, long metric and condition names, a mean
+    of few trials (its n=k), a 0 and an n/a (the page figure's 5.5-6 pt marks and tick labels)."""
+    from laughlab.harness.report import comparison_figure
+
+    names = ["yamnet", "yamnet_fused", "laugh", "none"]
+    metrics = {"onset_latency_median_s": {"higher_is_better": False, "units": "s"},
+               "false_starts_per_min_speech": {"higher_is_better": False, "units": "per min"},
+               "bouts_answered": {"higher_is_better": True, "units": "fraction"}}
+    results = {c: {m: {"n": 4 if i else 12, "mean": (0.2 + 0.1 * i + j) if i < 3 else (0.0 if j else None),
+                       "ci95": [0.1 + 0.1 * i + j, 0.3 + 0.1 * i + j] if i < 3 else ([0.0, 0.0] if j else [None, None])}
+                   for j, m in enumerate(metrics)} for i, c in enumerate(names)}
+    doc = {"experiment": "detector_eval", "n_trials": 40, "conditions": {c: [] for c in names},
+           "results": results, "metrics": metrics}
+    comparison_figure(doc, tmp_path / "metrics.png", width="column")
+    (saved, width, sizes) = sized[-1]
+    assert width == 3.5 and sizes[0][1] >= COLUMN_MIN_PT, sizes[:3]
+    assert_readable([saved])
+    assert {"n/a", "0 (n=4)", "n=4"} <= set(saved.texts) and saved.xticks[0] == names
+    comparison_figure(doc, tmp_path / "page.png")                       # the page's: 3 panels a row, 5.5 pt marks
+    assert sized[-1][1] == 2.3 * 3 and min(pt for _, pt in print_sizes_at_own(sized[-1])) == 5.5
+
+
+def print_sizes_at_own(entry):
+    """A saved figure's text sizes at its own width (``sized`` holds them at 3.5 in)."""
+    _, width, sizes = entry
+    return [(t, pt * width / 3.5) for t, pt in sizes]
+
+
+def test_report_width_column_is_for_an_experiments_report_and_a_sweep_says_so(tmp_path):
+    (tmp_path / "sweep" / "0").mkdir(parents=True)
+    (tmp_path / "sweep" / "0" / "results.json").write_text("{}")
+    r = laughlab("report", tmp_path / "sweep", "--width", "column")
+    assert r.returncode != 0 and r.stderr.strip() == (
+        "laughlab: error: --width column: a sweep report's heatmaps and line plots are drawn for a page only; "
+        "leave out --width")
+    r = laughlab("report", tmp_path / "sweep", "--width", "a4")
+    assert r.returncode != 0 and len(r.stderr.strip().splitlines()) == 1 and "invalid choice: 'a4'" in r.stderr
+    assert not (tmp_path / "sweep" / "report").exists()
