@@ -162,3 +162,26 @@ def test_report_width_column_is_for_an_experiments_report_and_a_sweep_says_so(tm
     r = laughlab("report", tmp_path / "sweep", "--width", "a4")
     assert r.returncode != 0 and len(r.stderr.strip().splitlines()) == 1 and "invalid choice: 'a4'" in r.stderr
     assert not (tmp_path / "sweep" / "report").exists()
+
+
+def test_the_hill_fits_fig10_in_a_column_names_every_calls_error_at_7_pt_or_more(tmp_path, sized):
+    """experiment=hill_fit draws fig10_pressure.png at the run's output.plots.width: 25 short calls' errors (0.17 s
+    apart, 0.1 in in a column) in 3 staggered rows, none overprinted, and its PDF keeps TrueType."""
+    from types import SimpleNamespace
+
+    from laughlab_experiments.hill_fit import figure_10
+
+    n = 25
+    calls = [SimpleNamespace(call=SimpleNamespace(start=30 + 10 * k, end=37 + 10 * k), error=0.3 - 0.01 * k)
+             for k in range(n)]
+    t = np.arange(30 + 10 * n + 60)
+    target = np.maximum(np.sin(2 * np.pi * t / 10), 0) * 0.1
+    res = SimpleNamespace(calls=calls, fps=60, target=target, simulated=target * 1.1)
+    figure_10(tmp_path / "fig10_pressure.png", res, width="column", pdf=True)
+    (saved, width, sizes) = sized[-1]
+    assert width == 3.5 and sizes[0][1] >= COLUMN_MIN_PT, sizes[:3]
+    assert_readable([saved])
+    errors = [f"{c.error:.2f}" for c in calls]
+    assert all(saved.texts.count(e) >= errors.count(e) for e in errors)    # every call's error is written
+    pdf = (tmp_path / "fig10_pressure.pdf").read_bytes()
+    assert b"/Type3" not in pdf and b"/FontFile2" in pdf
