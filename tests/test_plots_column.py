@@ -185,3 +185,25 @@ def test_the_hill_fits_fig10_in_a_column_names_every_calls_error_at_7_pt_or_more
     assert all(saved.texts.count(e) >= errors.count(e) for e in errors)    # every call's error is written
     pdf = (tmp_path / "fig10_pressure.pdf").read_bytes()
     assert b"/Type3" not in pdf and b"/FontFile2" in pdf
+
+
+def test_an_experiment_with_output_plots_width_column_runs_its_trials_and_draws_metrics_for_a_column(tmp_path):
+    """output.plots.width on an experiment's command line reached its trials, whose output=trial has no plots:
+    'unknown parameter output.plots.width' before any trial ran. Now the trials leave it out and metrics.png is
+    drawn 3.5 in wide (455 px at 130 dpi)."""
+    from PIL import Image
+    from omegaconf import OmegaConf
+
+    from laughlab.core.config import compose_config
+    from laughlab.harness.experiment import run_experiment
+
+    overrides = ["experiment=smoke", "output.plots.width=column"]
+    cfg = compose_config(overrides)
+    h = OmegaConf.to_container(cfg.harness)
+    h.update(jobs=1, showcase=None, plots=True, corpus={**h["corpus"], "profiles": ["intense"], "seeds": 1,
+                                                        "duration_s": 3.0})
+    h["corpus"].pop("real", None)
+    cfg.harness = OmegaConf.create(h)
+    doc = run_experiment(cfg, tmp_path, base_overrides=overrides[1:], progress=False)
+    assert doc["n_trials"] == 2
+    assert Image.open(tmp_path / "plots" / "metrics.png").size[0] == 455
