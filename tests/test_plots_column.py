@@ -207,3 +207,17 @@ def test_an_experiment_with_output_plots_width_column_runs_its_trials_and_draws_
     doc = run_experiment(cfg, tmp_path, base_overrides=overrides[1:], progress=False)
     assert doc["n_trials"] == 2
     assert Image.open(tmp_path / "plots" / "metrics.png").size[0] == 455
+
+
+def test_detector_pr_in_a_column_prints_every_text_at_7_pt_or_more(tmp_path, sized):
+    """detector_eval's detector_pr.png at the run's output.plots.width: 3.5 in, the legend in one column."""
+    from laughlab_experiments.detector_eval import SCORES, pr_figure
+
+    rng = np.random.default_rng(0)
+    y = rng.random(2000) < 0.2
+    fig, out = pr_figure({name: y * rng.random(2000) + rng.random(2000) for name in SCORES}, y, width="column")
+    fig.savefig(tmp_path / "detector_pr.png")
+    (saved, width, sizes) = sized[-1]
+    assert width == 3.5 and sizes[0][1] >= COLUMN_MIN_PT, sizes[:3]
+    assert_readable([saved])
+    assert all(any(t.startswith(f"{name}: AP ") for t in saved.texts) for name in SCORES)
