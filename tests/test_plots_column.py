@@ -152,16 +152,39 @@ def print_sizes_at_own(entry):
     return [(t, pt * width / 3.5) for t, pt in sizes]
 
 
-def test_report_width_column_is_for_an_experiments_report_and_a_sweep_says_so(tmp_path):
+def test_report_width_that_is_neither_page_nor_column_is_one_error_line(tmp_path):
     (tmp_path / "sweep" / "0").mkdir(parents=True)
     (tmp_path / "sweep" / "0" / "results.json").write_text("{}")
-    r = laughlab("report", tmp_path / "sweep", "--width", "column")
-    assert r.returncode != 0 and r.stderr.strip() == (
-        "laughlab: error: --width column: a sweep report's heatmaps and line plots are drawn for a page only; "
-        "leave out --width")
     r = laughlab("report", tmp_path / "sweep", "--width", "a4")
     assert r.returncode != 0 and len(r.stderr.strip().splitlines()) == 1 and "invalid choice: 'a4'" in r.stderr
-    assert not (tmp_path / "sweep" / "report").exists()
+    assert r.stderr.startswith("laughlab: error: ") and not (tmp_path / "sweep" / "report").exists()
+
+
+def test_a_sweeps_heatmaps_and_line_plots_in_a_column_print_every_text_at_7_pt_or_more(tmp_path, sized):
+    """``report --width column`` on a sweep: the heatmaps one a row, the line plots two, 3.5 in wide, long metric
+    names broken after an underscore, the line plots' value labels on two lines."""
+    from laughlab.harness.sweep_figures import heatmaps, lines
+
+    info = {"intensity_r_clip": {"higher_is_better": True, "units": "Pearson r"},
+            "onset_latency_median_s": {"higher_is_better": False, "units": "s"},
+            "false_starts_per_min_speech": {"higher_is_better": False, "units": "per min"}}
+    points = [{"params": {"scheduler.overrule_c": a, "scheduler.decrease_per_s": b},
+               "r": {m: {"mean": 0.3 + 0.1 * i + 0.05 * j + 0.2 * k, "n": 4,
+                         "ci95": [0.25 + 0.1 * i + 0.05 * j + 0.2 * k, 0.35 + 0.1 * i + 0.05 * j + 0.2 * k]}
+                     for k, m in enumerate(info)}}
+              for i, a in enumerate(("1.5", "3", "6")) for j, b in enumerate(("6", "20"))]
+    title = "energy_ablation sweep: each point the mean of 8 trials (profiles intense, mild; seeds 0, 1)"
+    heatmaps(points, "scheduler.overrule_c", "scheduler.decrease_per_s", list(info), lambda p, m: p["r"][m],
+             tmp_path / "heatmap.png", info, title, "column")
+    lines([p for p in points if p["params"]["scheduler.decrease_per_s"] == "6"], "scheduler.overrule_c", list(info),
+          lambda p, m: p["r"][m], tmp_path / "line.png", info, title, "column")
+    assert len(sized) == 2
+    for saved, width, sizes in sized:
+        assert width == 3.5 and sizes[0][1] >= COLUMN_MIN_PT, (saved.name, sizes[:3])
+    assert_readable([s for s, _, _ in sized])
+    heat, line = (s for s, _, _ in sized)
+    assert heat.n_colorbars == 3 and "onset_latency_\nmedian_s ↓" in line.titles
+    assert "Pearson r\n(higher is better)" in line.texts
 
 
 def test_the_hill_fits_fig10_in_a_column_names_every_calls_error_at_7_pt_or_more(tmp_path, sized):

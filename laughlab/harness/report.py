@@ -288,8 +288,8 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
                  metrics: list[str] | None = None, width: str = "page") -> Path:
     """Write the report of an experiment run or a sweep; return the README path.
 
-    ``width``: ``page``, or ``column`` for an experiment's ``metrics.png`` and ``timing.png`` 3.5 in wide (a
-    sweep's figures are drawn for a page only).
+    ``width``: ``page``, or ``column`` for the figures it draws 3.5 in wide (an experiment's ``metrics.png`` and
+    ``timing.png``, a sweep's heatmaps and line plots), no text under 7 pt.
 
     The report goes into ``out``, by default ``run_dir/report`` (beside the results it is made
     from, so that reporting never touches the committed ``reports/``).
@@ -318,9 +318,6 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
             f"laughlab view {runs[0]}" if runs else ""))
     if width not in ("page", "column"):
         raise LaughlabError(f"--width must be page or column (got {width!r})")
-    if width == "column" and write is sweep_report:
-        raise LaughlabError("--width column: a sweep report's heatmaps and line plots are drawn for a page only; "
-                            "leave out --width")
     name = read_results(results)["experiment"]
     target = Path(out) if out else root / "report"
     if target.exists() and not target.is_dir():
@@ -338,7 +335,7 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     shutil.rmtree(staging, ignore_errors=True)
     staging.mkdir(parents=True)
     try:
-        args = (metrics,) if write is sweep_report else (width,)   # an experiment's report shows every metric
+        args = (metrics, width) if write is sweep_report else (width,)   # an experiment's report shows every metric
         write(root, staging, command or f"python -m laughlab report {shlex.quote(str(run_dir))}", *args)
         from laughlab.harness.report_files import replace_report
 

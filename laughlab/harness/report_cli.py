@@ -23,8 +23,9 @@ def main(args: list[str]) -> None:
     parser.add_argument("--metrics", help="a sweep's table and figures also show these metrics (NAME,NAME; "
                                           "besides the key ones and every metric a plugin registered)")
     parser.add_argument("--width", choices=("page", "column"), default="page",
-                        help="metrics.png and timing.png for a page (default) or 3.5 in wide for one column of a "
-                             "two-column paper, no text under 7 pt (an experiment's report; not a sweep's)")
+                        help="the figures drawn for a page (default) or 3.5 in wide for one column of a "
+                             "two-column paper, no text under 7 pt (metrics.png and timing.png; a sweep's heatmaps "
+                             "and line plots)")
     ns = parser.parse_args(args)
     command = "python -m laughlab report " + shlex.join(args)
     try:

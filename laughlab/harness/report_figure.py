@@ -69,7 +69,7 @@ SIZES = {"page": dict(w=2.3, h=1.9, cols=5, title=9, panel=7, names=7, yticks=6,
                         few=7, chars=13)}
 
 
-def _panel_title(text: str, width_in: float, fontsize: float) -> str:
+def panel_title(text: str, width_in: float, fontsize: float) -> str:
     """A panel's title on lines that fit its width, broken after an underscore (metric names are long)."""
     fits = int(width_in * 72 / (0.6 * fontsize))
     out = ""
@@ -151,7 +151,7 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
         info = doc["metrics"][name]
         heading = _heading(name, info)
         # pad: clear of the value axis' top tick label, which can sit at the axes' top
-        ax.set_title(_panel_title(heading, z["w"], z["panel"]) if narrow else heading, fontsize=z["panel"],
+        ax.set_title(panel_title(heading, z["w"], z["panel"]) if narrow else heading, fontsize=z["panel"],
                      **({"pad": 6.0} if narrow else {}))
         ax.set_xticks(range(len(conds)), conds, fontsize=z["names"])
         if upright:
