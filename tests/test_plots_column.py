@@ -244,3 +244,32 @@ def test_detector_pr_in_a_column_prints_every_text_at_7_pt_or_more(tmp_path, siz
     assert width == 3.5 and sizes[0][1] >= COLUMN_MIN_PT, sizes[:3]
     assert_readable([saved])
     assert all(any(t.startswith(f"{name}: AP ") for t in saved.texts) for name in SCORES)
+
+
+def test_the_study_figures_in_a_column_print_every_text_at_7_pt_or_more(tmp_path, sized):
+    """``study analyze --width column``: one panel a row, 3.5 in, long condition names broken after an underscore,
+    a CI past the axis' end marked and its bound written (7 pt)."""
+    import pandas as pd
+
+    from laughlab.study.plots import means_plot, participant_lines
+
+    conditions = ["smile_only", "face_breathing", "laugh_energy", "laugh_concat"]
+    rng = np.random.default_rng(0)
+    tidy = pd.DataFrame([dict(participant=p, condition=c, question=q, value=int(rng.integers(1, 8)))
+                         for p in range(6) for c in conditions for q in ("naturalness", "body_sound_match")])
+    means = tidy.groupby(["question", "condition"], as_index=False)["value"].mean().rename(columns={"value": "mean"})
+    means["ci_low"], means["ci_high"] = means["mean"] - 0.8, means["mean"] + 0.8
+    means.loc[0, "ci_high"] = 9.0                                       # past the 7-point scale's end
+    design = {"scale": "likert", "points": 7, "questions": [
+        {"id": "naturalness", "prompt": "How natural was it?"},
+        {"id": "body_sound_match", "prompt": "How well did the body match the sound?"}]}
+    questions = ["naturalness", "body_sound_match"]
+    means_plot(tmp_path / "fig_means.png", means, tidy, questions, conditions, design, width="column")
+    participant_lines(tmp_path / "fig_participants.png", tidy, means, questions, conditions, design, width="column")
+    pngs = [entry for entry in sized if entry[0].name.endswith(".png")]
+    assert len(pngs) == 2
+    for saved, width, sizes in pngs:
+        assert width == 3.5 and sizes[0][1] >= COLUMN_MIN_PT, (saved.name, sizes[:3])
+        assert ["smile_\nonly", "face_\nbreathing", "laugh_\nenergy", "laugh_\nconcat"] in saved.xticks
+    assert_readable([s for s, _, _ in pngs])
+    assert "9.00" in pngs[0][0].texts
