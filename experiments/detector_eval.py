@@ -87,13 +87,19 @@ def pr_curve(score: np.ndarray, y: np.ndarray):
 PR_STYLES = ("-", "--", "-.", ":")
 
 
-def pr_figure(scores: dict, y: np.ndarray):
+def pr_figure(scores: dict, y: np.ndarray, width: str = "page"):
     """The precision-recall figure of ``scores`` (name: per-frame score, in :data:`SCORES`' order) against the
-    frames' truth ``y``, and its numbers (``detector_pr`` of the results)."""
+    frames' truth ``y``, and its numbers (``detector_pr`` of the results).  ``width``: ``page`` (6 in) or
+    ``column`` (3.5 in, text 7-8 pt, the legend in one column under the axes), as the run's
+    ``output.plots.width``."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(6.0, 5.2), dpi=150)
+    from laughlab.render.layout import COLUMN, layout_of, wrapped
+
+    narrow = layout_of(width).column
+    fig = Figure(figsize=(COLUMN.width_in, 4.2), dpi=150, layout="constrained") if narrow else \
+        Figure(figsize=(6.0, 5.2), dpi=150)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
     out = {"what": "frame-level precision-recall of each detector's score on the held-out recordings with a "
@@ -112,11 +118,20 @@ def pr_figure(scores: dict, y: np.ndarray):
     ax.axhline(float(y.mean()), color="0.35", lw=1, ls=(0, (2, 4)), label=f"chance (laughter share {y.mean():.2f})")
     ax.set_xlim(0, 1)
     ax.set_ylim(0, 1.02)
-    ax.set_xlabel("recall (share of laughter frames above the threshold)")
     ax.set_ylabel("precision")
-    ax.set_title("Laughter scores per frame, held-out recordings (dots: the gates' thresholds)", fontsize=9)
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
     ax.grid(alpha=0.3)
+    title = "Laughter scores per frame, held-out recordings (dots: the gates' thresholds)"
+    if narrow:   # sizes set on the axes, not by rc: the ticks are made again when the figure is saved
+        ax.set_xlabel("recall (laughter frames above the threshold)", fontsize=8)
+        ax.yaxis.label.set_fontsize(8)
+        ax.tick_params(labelsize=8)
+        ax.set_title(wrapped(title, COLUMN.width_in, COLUMN.title), fontsize=COLUMN.title)
+        fig.legend(*ax.get_legend_handles_labels(), loc="outside lower center", ncols=1, fontsize=7.5,
+                   frameon=False)
+        return fig, out
+    ax.set_xlabel("recall (share of laughter frames above the threshold)")
+    ax.set_title(title, fontsize=9)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
     return fig, out
 
@@ -139,7 +154,10 @@ def extra(run) -> dict:
             d, key, _ = SCORES[name]
             pooled[name].append(got[d][0][key])
     y = np.concatenate(ys)
-    fig, out = pr_figure({name: np.nan_to_num(np.concatenate(parts), nan=0.0) for name, parts in pooled.items()}, y)
+    from omegaconf import OmegaConf
+
+    fig, out = pr_figure({name: np.nan_to_num(np.concatenate(parts), nan=0.0) for name, parts in pooled.items()}, y,
+                         width=OmegaConf.select(run.cfg, "output.plots.width", default="page"))
     plots = Path(run.out_dir) / "plots"
     plots.mkdir(parents=True, exist_ok=True)
     fig.savefig(plots / "detector_pr.png")

@@ -130,24 +130,40 @@ def _bouts(res, gap_frames: int) -> list[list[int]]:
     return runs
 
 
-def figure_10(path: Path, res, truth=None) -> dict:
-    """Target (blue) and simulated (red) pressure over the bout with the most calls, as the paper's Fig. 10."""
+def _bout_span(res, bout) -> tuple[int, int, np.ndarray, float]:
+    """Fig. 10's frames (from 0.2 s before the bout to 0.3 s after), their times (s) and the highest pressure."""
+    f0 = max(0, res.calls[bout[0]].call.start - int(0.2 * res.fps))
+    f1 = min(len(res.target), res.calls[bout[-1]].call.end + int(0.3 * res.fps))
+    top = max(float(res.target[f0:f1].max()), float(res.simulated[f0:f1].max()), 1e-6)
+    return f0, f1, (np.arange(f0, f1) + 1) / res.fps, top
+
+
+def figure_10(path: Path, res, truth=None, width: str = "page", pdf: bool = False) -> dict:
+    """Target (blue) and simulated (red) pressure over the bout with the most calls, as the paper's Fig. 10.
+
+    ``width``: ``page`` (10 in) or ``column`` (3.5 in, every text at 7 pt or more: :func:`_figure_10_column`), as
+    the run's ``output.plots.width``; ``pdf``: a vector PDF beside the PNG, as ``output.plots.pdf``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from laughlab.render.layout import drawing, layout_of
+    from laughlab.render.savefig import save_figure
+
     runs = _bouts(res, int(0.05 * res.fps))
     bout = max(runs, key=len) if runs else []
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if layout_of(width).column:
+        with drawing(layout_of(width)):
+            _figure_10_column(path, res, bout, pdf)
+        return {"calls": bout, "start_s": res.calls[bout[0]].call.start / res.fps if bout else None}
     fig, ax = plt.subplots(figsize=(10, 4))
     if bout:
-        f0 = max(0, res.calls[bout[0]].call.start - int(0.2 * res.fps))
-        f1 = min(len(res.target), res.calls[bout[-1]].call.end + int(0.3 * res.fps))
-        t = (np.arange(f0, f1) + 1) / res.fps
+        f0, f1, t, top = _bout_span(res, bout)
         ax.plot(t, res.target[f0:f1], color="tab:blue", lw=1.8, label="target (from audio)")
         ax.plot(t, res.simulated[f0:f1], color="tab:red", lw=1.8, ls="--",   # dashed: red is as light as blue
                 label="simulated (fitted activations)")
-        top = max(float(res.target[f0:f1].max()), float(res.simulated[f0:f1].max()), 1e-6)
         for k, i in enumerate(bout):
             cf = res.calls[i]
             ax.axvline(cf.call.start / res.fps, color="0.75", lw=0.8, zorder=0)
@@ -165,10 +181,56 @@ def figure_10(path: Path, res, truth=None) -> dict:
     # below the axes, not over the error labels along the top
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, pdf, dpi=120)
     plt.close(fig)
     return {"calls": bout, "start_s": res.calls[bout[0]].call.start / res.fps if bout else None}
+
+
+#: rows of the per-call errors over a column's Fig. 10 (3.5 in: a call of 0.17 s is 0.1 in, a label 0.25 in)
+COLUMN_ERROR_ROWS = 3
+
+
+def _figure_10_column(path: Path, res, bout: list, pdf: bool) -> None:
+    """Fig. 10 3.5 in wide: text 7-8 pt, the per-call errors in :data:`COLUMN_ERROR_ROWS` staggered rows above the
+    curves (the value axis made tall enough for them once the layout is known), the legend under the axes."""
+    import matplotlib.pyplot as plt
+
+    from laughlab.render.labels import layout_now
+    from laughlab.render.layout import COLUMN, thin_ticks, wrapped
+    from laughlab.render.savefig import save_figure
+
+    fig, ax = plt.subplots(figsize=(COLUMN.width_in, 2.8), dpi=150, layout="constrained")
+    title = "Fig. 10 style: no call found"
+    if bout:
+        f0, f1, t, top = _bout_span(res, bout)
+        ax.plot(t, res.target[f0:f1], color="tab:blue", lw=1.4, label="target (from audio)")
+        ax.plot(t, res.simulated[f0:f1], color="tab:red", lw=1.4, ls="--", label="simulated (fitted)")
+        for i in bout:
+            ax.axvline(res.calls[i].call.start / res.fps, color="0.75", lw=0.6, zorder=0)
+        ax.axvline(res.calls[bout[-1]].call.end / res.fps, color="0.75", lw=0.6, zorder=0)
+        errs = [res.calls[i].error for i in bout]
+        title = f"Fig. 10 style: a {len(bout)}-call bout; each call's normalised RMS error above (mean " \
+                f"{np.nanmean(errs):.2f})"
+        bottom = min(float(res.simulated[f0:f1].min()), 0.0) * 1.1
+        ax.set_ylim(bottom, top)
+    ax.axhline(0, color="k", lw=0.5)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("pressure (cm H$_2$O)")
+    thin_ticks(ax, x=6, y=4)
+    ax.set_title(wrapped(title, COLUMN.width_in, COLUMN.title), fontsize=COLUMN.title)
+    fig.legend(loc="outside lower center", ncols=2, fontsize=COLUMN.legend, frameon=False)
+    if bout:
+        renderer = layout_now(fig)
+        height_pt = ax.get_window_extent(renderer).height * 72 / fig.dpi
+        room = 4 + 9.0 * COLUMN_ERROR_ROWS          # points above the highest pressure for the rows of errors
+        ax.set_ylim(bottom, top + room / max(height_pt - room, 1.0) * (top - bottom))
+        for k, i in enumerate(bout):
+            cf = res.calls[i]
+            ax.annotate(f"{cf.error:.2f}", ((cf.call.start + cf.call.end) / 2 / res.fps, top),
+                        xytext=(0, 3 + 9.0 * (k % COLUMN_ERROR_ROWS)), textcoords="offset points", ha="center",
+                        va="bottom", fontsize=7, color="0.3", annotation_clip=False).set_in_layout(False)
+    save_figure(fig, path, pdf)
+    plt.close(fig)
 
 
 def figure_7(path: Path, comparison: dict) -> None:
@@ -262,7 +324,9 @@ def run(cfg, out_dir) -> dict:
         raise LaughlabError("experiment hill_fit needs body=hill")
     pipe.body.play(result.schedule)
     metrics = pipeline.execute(pipe, out_dir, OmegaConf.to_container(cfg, resolve=True))
-    fig10 = figure_10(out_dir / "plots" / "fig10_pressure.png", result, truth)
+    fig10 = figure_10(out_dir / "plots" / "fig10_pressure.png", result, truth,   # as the run's own figures
+                      width=OmegaConf.select(cfg, "output.plots.width", default="page"),
+                      pdf=bool(OmegaConf.select(cfg, "output.plots.pdf", default=False)))
     comparison = compare(target, fps, result, fp, tp, OmegaConf.to_container(cfg.harness.get("compare") or {},
                                                                              resolve=True))
     if comparison:

@@ -33,14 +33,22 @@ class PlotsParams:
     pdf : bool
         Also write each figure as a vector PDF beside its PNG (``fig4_2_energy.pdf``...), for print; an
         experiment's showcase runs do (their report links them).
+    width : str
+        ``page``: the figures 7-8 in wide, for a page's full width (``figure*``) or a screen; ``column``: 3.5 in
+        wide, for one column of a two-column paper, every text at 7 pt or more at that size
+        (:mod:`laughlab.render.layout`).
     """
 
     max_seconds: float = 60.0
     power: float = 2.0
     filmstrip_frames: int = 8
     pdf: bool = False
+    width: str = "page"
 
     def __post_init__(self) -> None:
+        from laughlab.render.layout import layout_of
+
+        layout_of(self.width)   # page or column, else one line naming them
         check_range("max_seconds", self.max_seconds, 0, lo_open=True)
         check_range("filmstrip_frames", self.filmstrip_frames, 0, 24)
 
@@ -107,23 +115,25 @@ class PlotsSink(Sink):
         if "mcs_raw" in data:
             path, pdf = self._paths(out / "fig3_2_mcs.png")
             jobs.append(lambda: plots.figure_3_2(path, t, data["mcs_raw"], 1.0 / self.run.fps, self.params.power,
-                                                 bouts, note=note, pdf=pdf))
+                                                 bouts, note=note, pdf=pdf, layout=self.params.width))
         if "mcs" in data and "energy" in data:
             path42, pdf42 = self._paths(out / "fig4_2_energy.png")
             scheduler = (self.run.config or {}).get("scheduler") or {}
             label = {"energy": "laughing energy L", "concat": "energy (40 MCS, 0.5 s low-pass)"}.get(
                 scheduler.get("name"), "energy channel")
             jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts,
-                                                 note=note, energy_label=label, pdf=pdf42))
+                                                 note=note, energy_label=label, pdf=pdf42,
+                                                 layout=self.params.width))
             if scheduler.get("name") == "energy":
                 path41, pdf41 = self._paths(out / "fig4_1_energy.png")
                 jobs.append(lambda: plots.figure_4_1(path41, t, data["mcs"], data["energy"], self.events,
                                                      float(scheduler.get("gain_per_s", 60.0)), bouts, note=note,
-                                                     pdf=pdf41))
+                                                     pdf=pdf41, layout=self.params.width))
         fig31 = self._figure_3_1_args(data)
         if fig31 is not None:
             path31, pdf31 = self._paths(out / "fig3_1_calibration.png")
-            jobs.append(lambda: plots.figure_3_1(path31, t, **fig31, bouts=bouts, note=note, pdf=pdf31))
+            jobs.append(lambda: plots.figure_3_1(path31, t, **fig31, bouts=bouts, note=note, pdf=pdf31,
+                                                 layout=self.params.width))
         if self.params.filmstrip_frames and self.poses:
             strip, strip_pdf = self._paths(out / "filmstrip.png")
             jobs.append(lambda: self._filmstrip(strip, data, note, strip_pdf))
@@ -165,9 +175,10 @@ class PlotsSink(Sink):
             playing = [b[0] for b in blocks if b[1] <= t < b[2]]
             face = ", ".join(f"{k} {data[k][idx[i]]:.2f}" for k in ("smile", "jaw") if k in data)
             caps.append(f"{playing[-1] if playing else 'no clip'}\n{face}")
-        plots.filmstrip(path, self.run.skeleton, times[pick], poses[pick], caps, note=note,
-                        title="The character over the run: each clip's most pronounced pose, then the run's "
-                              "(skeleton from motion.bvh)", pdf=pdf)
+        title = ("The character over the run: each clip's most pronounced pose, then the run's (skeleton from "
+                 "motion.bvh)") if self.params.width == "page" else "Each clip's most pronounced pose, then the run's"
+        plots.filmstrip(path, self.run.skeleton, times[pick], poses[pick], caps, note=note, title=title, pdf=pdf,
+                        layout=self.params.width)
 
     def abort(self) -> None:
         self.staging.abort()

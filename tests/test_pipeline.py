@@ -407,7 +407,9 @@ def test_plots_of_a_long_run_show_a_window_and_say_so(tmp_path, monkeypatch):
     for name, (note, n) in notes.items():
         assert note == "first 2 s of 5 s (output.plots.max_seconds)", name
         assert n in (None, 120)  # 2 s at 60 fps
-    assert plots_mod._titled("T", "first 2 s of 5 s") == "T; first 2 s of 5 s"
+    from laughlab.render.layout import titled
+
+    assert titled("T", "first 2 s of 5 s") == "T; first 2 s of 5 s"
     notes.clear()
     pipeline.execute(pipeline.build(cfg_for("input.duration_s=2")), tmp_path / "short")
     assert all(note == "" for note, _ in notes.values())

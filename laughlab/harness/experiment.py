@@ -204,8 +204,9 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     if h.get("plots", True):
         from laughlab.harness.report import comparison_figure
 
-        comparison_figure(doc, out_dir / "plots" / "metrics.png")
-        comparison_figure(doc, out_dir / "plots" / "timing.png", timing=True)   # the one figure that varies
+        width = OmegaConf.select(cfg, "output.plots.width", default="page")   # as the showcase runs' figures
+        comparison_figure(doc, out_dir / "plots" / "metrics.png", width=width)
+        comparison_figure(doc, out_dir / "plots" / "timing.png", timing=True, width=width)   # it varies run to run
     return doc
 
 

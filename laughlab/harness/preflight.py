@@ -24,17 +24,19 @@ def resolved_harness(cfg) -> dict:
 
 def check_single_run_keys(overrides: list[str]) -> None:
     """A single run's ``seed=`` and ``output=``/``output.*`` given to an experiment, refused in one line (``seed=``
-    was recorded and changed nothing; ``output=viewer`` was dropped without a word and ``output.plots.*`` stopped
-    the experiment after its first trials)."""
+    was recorded and changed nothing; ``output=viewer`` was dropped without a word, ``output.plots.max_seconds=10`` failed
+    after the first trials).  ``output.plots.*`` is the showcase runs' figures' (width, pdf...), and kept."""
     keys = {o.lstrip("+~").split("=", 1)[0] for o in overrides}
+    keys = {k for k in keys if not k.startswith("output.plots.")}
     if "seed" in keys:
         raise LaughlabError("seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds "
                             "(synthetic inputs: how many, or a list such as [10,11]) and harness.run_seeds "
                             "(each recording's runs, e.g. [0,1,2])")
     if any(k.split(".")[0] == "output" for k in keys):
-        raise LaughlabError("output settings do not apply to an experiment: its trials write what its metrics "
-                            "read and its showcase runs files with plots; to stream, view or export a "
-                            "condition, run it alone with its overrides and output=...")
+        raise LaughlabError("output settings do not apply to an experiment (but output.plots.*, its showcase "
+                            "figures'): its trials write what its metrics read and its showcase runs files with "
+                            "plots; to stream, view or export a condition, run it alone with its overrides and "
+                            "output=...")
 
 
 def check_condition_runs(overrides: list[str], conditions: dict, build_base) -> None:

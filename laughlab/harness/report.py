@@ -11,137 +11,18 @@ import os
 import math
 import shlex
 import shutil
-import textwrap
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from laughlab.core.errors import LaughlabError, shown_names  # noqa: E402
-from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, edge_note  # noqa: E402
-from laughlab.harness.report_format import vector_link  # noqa: E402
-from laughlab.render.savefig import save_figure  # noqa: E402
-from laughlab.harness.report_format import fmt as _fmt  # noqa: E402
-from laughlab.harness.report_format import heading as _heading  # noqa: E402
-from laughlab.harness.results import read_results, separated  # noqa: E402
-from laughlab.harness.sweep_report import sweep_report  # noqa: E402
-
-def conditions_of(doc: dict) -> list[str]:
-    """The conditions of a results document in the experiment's order (its config), not alphabetical."""
-    have = list(doc["results"])
-    return [c for c in doc.get("conditions", {}) if c in have] + [c for c in have if c not in doc.get("conditions", {})]
-
-
-def metric_order(doc: dict) -> list[str]:
-    """The metrics of a results document, :data:`KEY_METRICS` first."""
-    return [m for m in KEY_METRICS if m in doc["metrics"]] + [m for m in doc["metrics"] if m not in KEY_METRICS]
-
-
-def _same(a, b) -> bool:
-    if a is None or b is None:
-        return a is None and b is None
-    return math.isclose(a, b, rel_tol=1e-9, abs_tol=1e-12)
-
-
-def same_everywhere(doc: dict, metric: str) -> bool:
-    """True when two or more conditions were compared and ``metric`` came out the same under each:
-    the same number of trials, mean and 95 % CI (e.g. a detector metric when only the scheduler
-    changes).  Such a metric says nothing about the conditions; the report lists it apart."""
-    rs = [doc["results"][c][metric] for c in conditions_of(doc)]
-    if len(rs) < 2 or not rs[0]["n"]:
-        return False
-    first = rs[0]
-    return all(r["n"] == first["n"] and _same(r["mean"], first["mean"])
-               and all(_same(x, y) for x, y in zip(r["ci95"], first["ci95"])) for r in rs[1:])
-
-
-def condition_colors(conds: list[str]) -> dict:
-    """A colour per condition: ``none`` (no detector, no scheduler: the baseline) always grey, the others tab10's
-    colours in their order, so the baseline reads alike in every report (a review: colours went by position)."""
-    cmap = plt.get_cmap("tab10")
-    others = [c for c in conds if c != "none"]
-    return {c: ("0.6" if c == "none" else cmap(others.index(c) % 10)) for c in conds}
-
-
-def comparison_figure(doc: dict, path: Path, pdf: bool = False, timing: bool = False) -> Path:
-    """One panel per metric that differs between the conditions: each condition's mean with its 95 % CI (``pdf``:
-    a vector PDF beside the PNG, as a report writes it).  The compute-time metrics (:func:`is_compute`) are drawn
-    only with ``timing`` (``timing.png``), and then alone: they differ run to run, so ``metrics.png`` without
-    them gives the same bytes for the same seed (a review: it never did).
-
-    Metrics the same under every condition (:func:`same_everywhere`) get no panel; a line under
-    the panels names them.
-    """
-    conds = conditions_of(doc)
-    measured = [m for m in metric_order(doc) if any(doc["results"][c][m]["n"] for c in conds)
-                and is_compute(m) == timing]
-    names = [m for m in measured if not same_everywhere(doc, m)]
-    same = [m for m in measured if same_everywhere(doc, m)]
-    if not names:
-        return path
-    cols = min(5, len(names))
-    rows = math.ceil(len(names) / cols)
-    few = any(0 < doc["results"][c][m]["n"] < FEW for c in conds for m in names)
-    # the title wrapped to the figure's width (about 11 characters an inch at 9 pt; two panels cut it off at both
-    # ends), each line of it given its height
-    per = max((doc["results"][c][m]["n"] for c in conds for m in names), default=0)  # a condition's trials
-    title = textwrap.wrap(f"{doc['experiment']}: " + ("compute time, measured on this machine: differs run to run; "
-                                                      if timing else "")
-                          + f"mean and 95% CI (bootstrap) over up to {per} trials per condition"
-                          + (f"; n=k over a bar: a mean of fewer than {FEW} trials" if few else "")
-                          + " (↑ higher is better, ↓ lower is better)", int(2.3 * cols * 11))
-    fig, axes = plt.subplots(rows, cols, figsize=(2.3 * cols, 1.9 * rows + (0.4 if same else 0) + 0.17 * (len(title) - 1)),
-                             dpi=130, squeeze=False, layout="constrained")
-    colors = condition_colors(conds)
-    # condition names wider than their slot under a panel (about 0.55 em a character at 7 pt) stand upright
-    slot_in = 2.3 / max(len(conds), 1)
-    upright = max(len(c) for c in conds) * 0.55 * 7 / 72 > 0.9 * slot_in
-    for ax, name in zip(axes.flat, names):
-        drawn = []
-        for i, c in enumerate(conds):
-            r = doc["results"][c][name]
-            m = r["mean"] if r["mean"] is not None else np.nan
-            lo, hi = (r["ci95"] if r["ci95"][0] is not None else (m, m))
-            ax.bar(i, m, color=colors[c], width=0.7)
-            ax.errorbar(i, m, yerr=[[m - lo], [hi - m]], color="k", capsize=3, lw=0.8)
-            # a bar of 0 and no bar (the metric does not apply, e.g. no clip played) look alike: say which
-            if not math.isfinite(m) or m == 0:
-                few_n = f" (n={r['n']})" if 0 < r["n"] < FEW else ""   # a zero of 2 trials says so, as the table
-                ax.annotate("n/a" if not math.isfinite(m) else "0" + few_n, (i, 0), xytext=(0, 2),
-                            textcoords="offset points",
-                            ha="center", va="bottom", fontsize=6, color="0.35")
-            elif 0 < r["n"] < FEW:   # as the table's "(n=2)": its interval is too narrow to be a 95 % one
-                ax.annotate(f"n={r['n']}", (i, max(v for v in (m, hi) if math.isfinite(v))), xytext=(0, 1.5),
-                            textcoords="offset points", ha="center", va="bottom", fontsize=5.5, color="0.35")
-            drawn += [v for v in (m, lo, hi) if math.isfinite(v)]
-        if drawn and not any(drawn):
-            ax.set_ylim(0, 1)  # all 0: an axis from 0 (matplotlib's default for nothing is -0.04..0.04)
-        elif few:   # room above the highest bar for its n=k, under the panel's title
-            lo_y, hi_y = ax.get_ylim()
-            ax.set_ylim(lo_y, hi_y + 0.15 * (hi_y - lo_y))
-        info = doc["metrics"][name]
-        ax.set_title(_heading(name, info), fontsize=7)
-        ax.set_xticks(range(len(conds)), conds, fontsize=7)
-        if upright:
-            ax.set_xticklabels(conds, rotation=90, fontsize=7)
-        ax.tick_params(axis="y", labelsize=6)
-        ax.set_ylabel(info["units"], fontsize=6)
-        ax.spines[["top", "right"]].set_visible(False)
-    for ax in axes.flat[len(names):]:
-        ax.set_axis_off()
-    fig.suptitle("\n".join(title), fontsize=9)
-    if same:
-        fig.supxlabel("\n".join(textwrap.wrap(
-            f"Not shown, the same under every condition: {', '.join(same)} (values in the report's table).",
-            int(2.3 * cols * 15))), fontsize=7, color="0.3")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    save_figure(fig, path) if pdf else fig.savefig(path)
-    plt.close(fig)
-    return path
-
+from laughlab.core.errors import LaughlabError, shown_names
+from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, edge_note  # noqa: F401 (KEY_METRICS)
+from laughlab.harness.report_format import vector_link
+from laughlab.harness.report_format import fmt as _fmt
+from laughlab.harness.report_format import heading as _heading
+# the figure and what it reads of the results: here too, where the report's callers have always found them
+from laughlab.harness.report_figure import (FEW, comparison_figure, condition_colors,  # noqa: F401
+                                            conditions_of, is_compute, metric_order, same_everywhere)
+from laughlab.harness.results import read_results, separated
+from laughlab.harness.sweep_report import sweep_report
 
 def table_metrics(doc: dict) -> list[str]:
     """The metrics the results table shows: measured under some condition and not the same under all."""
@@ -173,12 +54,6 @@ def unmeasured(doc: dict) -> list[str]:
     return [m for m in metric_order(doc) if not any(doc["results"][c][m]["n"] for c in conditions_of(doc))]
 
 
-def is_compute(metric: str) -> bool:
-    """A row of the machine's time (``frame_ms_*``, ``realtime_factor``): measured with the trial processes
-    sharing the machine, so never in bold (a review: its 'best' did not hold in a rerun)."""
-    return metric.startswith("frame_ms") or metric == "realtime_factor"
-
-
 def _clear_best(doc: dict, metric: str, conds: list[str]) -> str | None:
     """The condition with the best mean of ``metric`` when its 95 % interval is apart from every other
     condition's (:func:`~laughlab.harness.results.separated`); None when the intervals overlap, the
@@ -207,10 +82,6 @@ def _vacuous(doc: dict, metric: str, cond: str) -> bool:
     best, so :func:`_clear_best` leaves it out."""
     r = doc["results"][cond][metric]
     return doc["metrics"][metric]["higher_is_better"] is False and r["mean"] == 0 and played_no_clip(doc, cond)
-
-
-#: means of fewer trials say how many (``(n=4)``): their bootstrap interval is too narrow to be a 95 % one
-FEW = 10
 
 
 def _cell(r: dict) -> str:
@@ -324,14 +195,14 @@ def _run_command(run_dir: Path, doc: dict) -> list[str]:
     return [f"- the run{first}: `python -m laughlab {' '.join(shlex.quote(o) for o in task)}`"]
 
 
-def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
+def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page") -> Path:
     doc = read_results(run_dir / "results.json")
     figs = out / "figures"
     if figs.exists():
         shutil.rmtree(figs)
     figs.mkdir(parents=True)
-    comparison_figure(doc, figs / "metrics.png", pdf=True)
-    comparison_figure(doc, figs / "timing.png", pdf=True, timing=True)
+    comparison_figure(doc, figs / "metrics.png", pdf=True, width=width)
+    comparison_figure(doc, figs / "timing.png", pdf=True, timing=True, width=width)
     for fig in sorted((run_dir / "plots").glob("*.p[nd][gf]")) if (run_dir / "plots").is_dir() else []:
         if fig.stem not in ("metrics", "timing"):   # the PNGs and their PDFs (drawn again above)
             shutil.copyfile(fig, figs / fig.name)
@@ -414,8 +285,11 @@ def experiment_report(run_dir: Path, out: Path, command: str) -> Path:
 
 
 def write_report(run_dir: str | Path, out: str | Path | None = None, command: str = "", overwrite: bool = False,
-                 metrics: list[str] | None = None) -> Path:
+                 metrics: list[str] | None = None, width: str = "page") -> Path:
     """Write the report of an experiment run or a sweep; return the README path.
+
+    ``width``: ``page``, or ``column`` for the figures it draws 3.5 in wide (an experiment's ``metrics.png`` and
+    ``timing.png``, a sweep's heatmaps and line plots), no text under 7 pt.
 
     The report goes into ``out``, by default ``run_dir/report`` (beside the results it is made
     from, so that reporting never touches the committed ``reports/``).
@@ -442,6 +316,8 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
         raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)" + (
             f"; report is for experiments: to watch {'this run' if runs[0] == root else 'a run'}, python -m "
             f"laughlab view {runs[0]}" if runs else ""))
+    if width not in ("page", "column"):
+        raise LaughlabError(f"--width must be page or column (got {width!r})")
     name = read_results(results)["experiment"]
     target = Path(out) if out else root / "report"
     if target.exists() and not target.is_dir():
@@ -459,7 +335,7 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     shutil.rmtree(staging, ignore_errors=True)
     staging.mkdir(parents=True)
     try:
-        args = (metrics,) if write is sweep_report else ()   # an experiment's report shows every metric
+        args = (metrics, width) if write is sweep_report else (width,)   # an experiment's report shows every metric
         write(root, staging, command or f"python -m laughlab report {shlex.quote(str(run_dir))}", *args)
         from laughlab.harness.report_files import replace_report
 

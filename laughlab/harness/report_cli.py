@@ -22,11 +22,15 @@ def main(args: list[str]) -> None:
                         help="replace a report of another experiment in --out (one of the same is always replaced)")
     parser.add_argument("--metrics", help="a sweep's table and figures also show these metrics (NAME,NAME; "
                                           "besides the key ones and every metric a plugin registered)")
+    parser.add_argument("--width", choices=("page", "column"), default="page",
+                        help="the figures drawn for a page (default) or 3.5 in wide for one column of a "
+                             "two-column paper, no text under 7 pt (metrics.png and timing.png; a sweep's heatmaps "
+                             "and line plots)")
     ns = parser.parse_args(args)
     command = "python -m laughlab report " + shlex.join(args)
     try:
         path = write_report(ns.run_dir, ns.out, command, overwrite=ns.overwrite,
-                            metrics=[m.strip() for m in (ns.metrics or "").split(",") if m.strip()])
+                            metrics=[m.strip() for m in (ns.metrics or "").split(",") if m.strip()], width=ns.width)
     except OSError as exc:
         raise LaughlabError(os_error_line(exc, ns.out or Path(ns.run_dir) / "report")
                             + "; no report was written") from None

@@ -56,7 +56,9 @@ def run_trial(trial: Trial) -> dict:
     out = Path(trial.out_dir)
     # a showcase run's figures go into the report, for print too: PDFs beside the PNGs
     outputs = ("output=files", "output.plots.pdf=true") if trial.plots else ("output=trial",)
-    cfg = _compose([*trial.overrides, *outputs])
+    # the command line's output.plots.* (width=column) are for the showcase runs' figures: output=trial has none
+    overrides = [o for o in trial.overrides if trial.plots or not o.lstrip("+~").startswith("output.plots.")]
+    cfg = _compose([*overrides, *outputs])
     if out.exists():
         shutil.rmtree(out)
     out.mkdir(parents=True)

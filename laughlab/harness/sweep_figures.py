@@ -46,22 +46,48 @@ def _ci(r: dict) -> tuple[float, float, float]:
     return m, lo, hi
 
 
-def _caption(fig, title: str, notes: list[str], width_in: float) -> None:
+#: the figures' sizes: panel width and height (in) and panels a row of the heatmaps (``heat``) and line plots
+#: (``line``), font sizes (pt) and ``notes_chars``, the caption's characters an inch.  ``page`` as it always was
+#: (text 6-8 pt); ``column`` 3.5 in wide for one column of a paper, no text under 7 pt (``report --width column``)
+SIZES = {"page": dict(heat=(3.4, 2.9, 3), line=(3.0, 2.4, 3), cell=6, ticks=7, labels=7, panel=8, bar=6.5,
+                      bar_ticks=6, line_units=6, line_ticks=6, notes=6.5, notes_chars=15),
+         "column": dict(heat=(3.5, 2.7, 1), line=(1.75, 2.2, 2), cell=7, ticks=7, labels=7, panel=7.5, bar=7,
+                        bar_ticks=7, line_units=7, line_ticks=7, notes=7, notes_chars=14)}
+
+
+def _sizes(width: str) -> dict:
+    from laughlab.render.layout import layout_of
+
+    return SIZES["column" if layout_of(width).column else "page"]
+
+
+def _caption(fig, title: str, notes: list[str], width_in: float, z: dict = SIZES["page"]) -> None:
     """The figure's title (what it was measured on) above the panels and its notes (how to read it) below."""
     fig.suptitle("\n".join(textwrap.wrap(title, int(width_in * 12))), fontsize=8)
-    fig.supxlabel("\n".join(line for note in notes for line in textwrap.wrap(note, int(width_in * 15))),
-                  fontsize=6.5, color="0.3")
+    fig.supxlabel("\n".join(line for note in notes for line in textwrap.wrap(note, int(width_in * z["notes_chars"]))),
+                  fontsize=z["notes"], color="0.3")
 
 
-def heatmaps(points, a, b, metrics, result, path, info, title: str) -> None:
+def _panel_heading(m: str, info: dict, z: dict) -> str:
+    """A panel's title; in a column broken after an underscore where it is wider than its panel."""
+    from laughlab.harness.report_figure import panel_title
+
+    text = heading(m, info)
+    # the axes are about 0.7 of the panel's width (the value axis' label and ticks take the rest)
+    return panel_title(text, 0.7 * z["line"][0], z["panel"]) if z is SIZES["column"] else text
+
+
+def heatmaps(points, a, b, metrics, result, path, info, title: str, width: str = "page") -> None:
     """One heatmap per metric over parameters ``a`` (x) and ``b`` (y); bright is better in each.
 
     A cell is the mean of its points' means (over the other swept parameters) and, under it, ``±h``: the mean
     half-width of those points' 95 % bootstrap intervals.  The colour range spans the cells' means, widened to a
-    point's median interval width where the means differ by less, so that noise does not fill the scale."""
+    point's median interval width where the means differ by less, so that noise does not fill the scale.
+    ``width``: ``page`` (3 panels a row) or ``column`` (3.5 in, one a row, no text under 7 pt: :data:`SIZES`)."""
+    z = _sizes(width)
     xs = sorted({p["params"].get(a, "") for p in points}, key=order)
     ys = sorted({p["params"].get(b, "") for p in points}, key=order)
-    fig, axes = panel_grid(len(metrics), 3.4, 2.9)
+    fig, axes = panel_grid(len(metrics), *z["heat"])
     widened, most = [], 1
     for ax, m in zip(axes, metrics):
         grid, half = np.full((len(ys), len(xs)), np.nan), np.full((len(ys), len(xs)), np.nan)
@@ -94,33 +120,35 @@ def heatmaps(points, a, b, metrics, result, path, info, title: str) -> None:
             colour = ("0.35" if not math.isfinite(grid[i, j])   # n/a on the blank cell, not white on white
                       else "k" if bright else "w")
             spread = f"\n±{fmt(half[i, j], 2)}" if math.isfinite(half[i, j]) else ""
-            ax.text(j, i, text + spread, ha="center", va="center", fontsize=6, color=colour, linespacing=1.1)
-        ax.set_xticks(range(len(xs)), xs, fontsize=7)
-        ax.set_yticks(range(len(ys)), ys, fontsize=7)
-        ax.set_xlabel(param_label(a), fontsize=7)
-        ax.set_ylabel(param_label(b), fontsize=7)
+            ax.text(j, i, text + spread, ha="center", va="center", fontsize=z["cell"], color=colour, linespacing=1.1)
+        ax.set_xticks(range(len(xs)), xs, fontsize=z["ticks"])
+        ax.set_yticks(range(len(ys)), ys, fontsize=z["ticks"])
+        ax.set_xlabel(param_label(a), fontsize=z["labels"])
+        ax.set_ylabel(param_label(b), fontsize=z["labels"])
         ax.set_title(heading(m, info[m]), fontsize=8)
         cb = fig.colorbar(im, ax=ax, shrink=0.9)
         if hib is False:
             cb.ax.invert_yaxis()  # the better (lower) end at the top, as on every other bar
-        cb.set_label(better_label(hib, info[m]["units"]), fontsize=6.5)
-        cb.ax.tick_params(labelsize=6)
+        cb.set_label(better_label(hib, info[m]["units"]), fontsize=z["bar"])
+        cb.ax.tick_params(labelsize=z["bar_ticks"])
     notes = ["Each cell: the mean of its point's trials"
              + (f" (averaged over the other swept parameters: up to {most} points a cell)" if most > 1 else "")
              + "; under it ± the half-width of a point's 95% bootstrap CI (the mean over the cell's points)."]
     if widened:
         notes.append("Colour range widened to a point's median CI width, as the cells differ by less: "
                      + ", ".join(widened) + ".")
-    _caption(fig, title, notes, fig.get_figwidth())
+    _caption(fig, title, notes, fig.get_figwidth(), z)
     save_figure(fig, path)
     plt.close(fig)
 
 
-def lines(points, a, metrics, result, path, info, title: str) -> None:
+def lines(points, a, metrics, result, path, info, title: str, width: str = "page") -> None:
     """One panel per metric against the one swept parameter ``a``: each point's mean with its 95 % CI as an error
-    bar; the value axis spans the intervals (not from 0, which the caption says)."""
+    bar; the value axis spans the intervals (not from 0, which the caption says).  ``width``: as :func:`heatmaps`
+    (a column: 2 panels a row)."""
+    z = _sizes(width)
     xs = sorted({p["params"].get(a, "") for p in points}, key=order)
-    fig, axes = panel_grid(len(metrics), 3.0, 2.4)
+    fig, axes = panel_grid(len(metrics), *z["line"])
     zoomed, within = [], []
     for ax, m in zip(axes, metrics):
         cis = []
@@ -139,18 +167,19 @@ def lines(points, a, metrics, result, path, info, title: str) -> None:
                 zoomed.append(m)
             if np.isfinite(lo).all() and np.isfinite(hi).all() and lo.max() <= hi.min():
                 within.append(m)   # one value lies inside every point's interval: no difference shown
-        ax.set_xlabel(param_label(a), fontsize=7)
+        ax.set_xlabel(param_label(a), fontsize=z["labels"])
         hib = info[m]["higher_is_better"]
         way = {True: " (higher is better)", False: " (lower is better)"}.get(hib, "")
-        ax.set_ylabel(info[m]["units"] + way, fontsize=6)
-        ax.tick_params(labelsize=6)
-        ax.set_title(heading(m, info[m]), fontsize=8)
+        ax.set_ylabel(info[m]["units"] + ("\n" + way.strip() if z is SIZES["column"] and way else way),
+                      fontsize=z["line_units"])
+        ax.tick_params(labelsize=z["line_ticks"])
+        ax.set_title(_panel_heading(m, info[m], z), fontsize=z["panel"])
         ax.spines[["top", "right"]].set_visible(False)
     notes = ["Error bars: each point's 95% bootstrap CI over its trials."]
     if zoomed:
         notes.append("Value axis zoomed to the CIs (not from 0): " + ", ".join(zoomed) + ".")
     if within:
         notes.append("Every point's CI overlaps every other's (no difference shown): " + ", ".join(within) + ".")
-    _caption(fig, title, notes, fig.get_figwidth())
+    _caption(fig, title, notes, fig.get_figwidth(), z)
     save_figure(fig, path)
     plt.close(fig)

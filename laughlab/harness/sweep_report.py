@@ -88,7 +88,7 @@ def shown_metrics(doc: dict, asked: list[str] | None = None) -> list[str]:
     return list(dict.fromkeys([m for m in KEY_METRICS if m in doc["metrics"]] + theirs + list(asked or [])))
 
 
-def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None = None) -> Path:
+def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None = None, width: str = "page") -> Path:
     points = _sweep_points(root)
     experiments = sorted({p["doc"]["experiment"] for p in points})
     if len(experiments) > 1:
@@ -178,11 +178,11 @@ def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None 
         lines += ["No figure for " + ", ".join(flat) + ": the sweep did not change it.", ""]
     for a, b in (pairs if heat_metrics else []):
         name = f"heatmap_{a}_{b}.png".replace("/", "_")
-        heatmaps(points, a, b, heat_metrics, result, figs / name, doc0["metrics"], title)
+        heatmaps(points, a, b, heat_metrics, result, figs / name, doc0["metrics"], title, width)
         lines += [f"![{a} x {b}](figures/{name})", "", vector_link(name), ""]
     if len(varying) == 1 and heat_metrics:
         name = f"line_{varying[0]}.png"
-        line_plots(points, varying[0], heat_metrics, result, figs / name, doc0["metrics"], title)
+        line_plots(points, varying[0], heat_metrics, result, figs / name, doc0["metrics"], title, width)
         lines += [f"![{varying[0]}](figures/{name})", "", vector_link(name), ""]
     (out / "README.md").write_text("\n".join(lines) + "\n")
     return out / "README.md"

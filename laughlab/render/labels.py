@@ -7,7 +7,8 @@ thing another way, e.g. a colour key).  :func:`overlapping_texts` lists every pa
 visible texts of a figure whose boxes overlap, and :func:`colorbars_without_direction`
 every colour bar whose label does not say which way is better, :func:`lines_told_apart_by_hue`
 every pair of named lines only their hue tells apart, and :func:`texts_cut_off` every text the
-figure's edge cuts (tests use them all on every figure laughlab draws).
+figure's edge cuts (tests use them all on every figure laughlab draws); :func:`print_sizes` gives each
+text's size in points once the figure is printed at a given width (a column's 3.5 in).
 
 Positions are measured with the figure's own renderer (``fig.canvas.get_renderer()``),
 after the layout engine has run, so the check sees what the PNG shows.  Labels placed
@@ -209,3 +210,11 @@ def lines_told_apart_by_hue(fig) -> list[tuple[str, str]]:
             if abs(_lightness(a.get_color()) - _lightness(b.get_color())) < MIN_LIGHTNESS_STEP:
                 bad.append((a.get_label(), b.get_label()))
     return bad
+
+
+def print_sizes(fig, width_in: float, drawn: list | None = None) -> list[tuple[str, float]]:
+    """Each drawn text of ``fig`` with its size (points) once the figure is printed ``width_in`` wide: its font
+    size times the figure's scale (``width_in`` over the figure's own width), smallest first."""
+    scale = width_in / fig.get_size_inches()[0]
+    sizes = [(t.get_text(), t.get_fontsize() * scale) for t, _ in (drawn if drawn is not None else drawn_texts(fig))]
+    return sorted(sizes, key=lambda s: s[1])

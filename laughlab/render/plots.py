@@ -14,6 +14,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from laughlab.core.frame import clip_blocks  # noqa: E402,F401 (used here and by the plots sink)
+from laughlab.render.filmstrip import filmstrip, filmstrip_moments  # noqa: E402,F401 (the plots sink draws it)
+from laughlab.render.layout import PAGE, Layout, in_layout, thin_ticks, titled, wrapped  # noqa: E402
 from laughlab.render.savefig import save_figure  # noqa: E402
 from laughlab.signals.smoothing import THESIS_TICK_HZ, rate_limit_series  # noqa: E402
 
@@ -54,30 +56,29 @@ def busiest_window(times: np.ndarray, signal: np.ndarray, window_s: float) -> tu
     return float(times[i]), float(times[i] + window_s)
 
 
-def _titled(title: str, note: str) -> str:
-    """A figure title with a note on what part of the run it shows (e.g. the first 60 s of a long one)."""
-    if not note:
-        return title
-    return f"{title}\n{note}" if len(title) + len(note) > 90 else f"{title}; {note}"
-
-
+@in_layout
 def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, power: float = 2.0,
                bouts: Sequence | None = None, title: str = "", window_s: float = 4.0, note: str = "",
-               pdf=False) -> Path:
+               pdf=False, layout: Layout = PAGE) -> Path:
     """Fig. 3.2: the MCS unfiltered and with two rise/fall settings (Eq. 3.2).
 
     Rates are the thesis' per-tick values converted at 60 ticks/s; all three
-    curves are raised to ``power`` like the final MCS (listing 5.2).  Left: the
-    whole run; right: the ``window_s`` seconds with the most laughter, where the
+    curves are raised to ``power`` like the final MCS (listing 5.2).  Left (``layout="column"``: top): the
+    whole run; right (below): the ``window_s`` seconds with the most laughter, where the
     individual calls and the effect of rise and fall can be seen.
     """
+    col = layout.column
     raw = np.asarray(mcs_raw, float)
-    curves = [(raw ** power, "tab:red", 0.8, "-", "MCS, no rise/fall")]
+    curves = [(raw ** power, "tab:red", 0.8, "-", "no rise/fall" if col else "MCS, no rise/fall")]
     for rise, fall, color, style in FIG32_SETTINGS:
         y = rate_limit_series(raw, rise * THESIS_TICK_HZ, fall * THESIS_TICK_HZ, dt) ** power
-        curves.append((y, color, 1.3, style, f"rise {rise}, fall {fall} per tick"))
-    fig, (ax_all, ax_zoom) = plt.subplots(1, 2, figsize=(8.0, 2.9), dpi=150, layout="constrained",
-                                          width_ratios=(1, 1.6), sharey=True)
+        curves.append((y, color, 1.3, style, f"rise {rise}, fall {fall}" + (" /tick" if col else " per tick")))
+    if col:
+        fig, (ax_all, ax_zoom) = plt.subplots(2, 1, figsize=(layout.width_in, 3.6), dpi=150, layout="constrained",
+                                              height_ratios=(1, 1.3), sharey=True)
+    else:
+        fig, (ax_all, ax_zoom) = plt.subplots(1, 2, figsize=(8.0, 2.9), dpi=150, layout="constrained",
+                                              width_ratios=(1, 1.6), sharey=True)
     # the zoom: the most laughter inside the truth's bouts when there are any (a review: on a scene of speech and
     # laughter the busiest signal was talk before the first bout), else the most signal anywhere
     inside = np.zeros(len(times), bool)
@@ -94,17 +95,33 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
         ax.set_xlabel("time (s)")
         _setup_axis(ax)
     ax_all.axvspan(t0, t1, color="tab:orange", alpha=0.15, lw=0)
-    ax_all.set_ylabel("motion control signal")
+    ax_all.set_ylabel("MCS" if col else "motion control signal")
+    if col:
+        ax_zoom.set_ylabel("MCS")
+        ax_all.set_xlabel("")
+        thin_ticks(ax_all, ax_zoom, x=6, y=3)
     ax_all.set_ylim(-0.02, 1.05)
-    ax_all.set_title("plotted stretch (zoom shaded)" if note else "whole run (zoom shaded)", fontsize=8)
-    ax_zoom.set_title(f"zoom: {t0:.1f}-{t1:.1f} s", fontsize=8)
-    fig.suptitle(_titled(title or "Motion control signal and rise/fall (cf. van Duijn 2014, Fig. 3.2)", note),
-                 fontsize=9)
-    fig.legend(*ax_zoom.get_legend_handles_labels(), fontsize=7, loc="outside lower center", ncols=4,
-               frameon=False)
+    ax_all.set_title("plotted stretch (zoom shaded)" if note else "whole run (zoom shaded)",
+                     fontsize=layout.panel_title)
+    ax_zoom.set_title(f"zoom: {t0:.1f}-{t1:.1f} s", fontsize=layout.panel_title)
+    head = "MCS and rise/fall (cf. van Duijn 2014, Fig. 3.2)" if col else \
+        "Motion control signal and rise/fall (cf. van Duijn 2014, Fig. 3.2)"
+    fig.suptitle(_head(title or head, note, layout), fontsize=layout.title)
+    fig.legend(*ax_zoom.get_legend_handles_labels(), fontsize=layout.legend, loc="outside lower center",
+               ncols=2 if col else 4, frameon=False, **(_TIGHT_LEGEND if col else {}))
     save_figure(fig, path, pdf)
     plt.close(fig)
     return path
+
+
+def _head(title: str, note: str, layout: Layout) -> str:
+    """A figure's title with its note; in a column, wrapped to the column's width."""
+    text = titled(title, note)
+    return wrapped(text, layout.width_in, layout.title) if layout.column else text
+
+
+#: a legend's spacing in a column (matplotlib's own is for a page's width)
+_TIGHT_LEGEND = dict(handlelength=1.6, columnspacing=1.0, handletextpad=0.4, borderaxespad=0.2)
 
 
 def _energy_floor(energy: np.ndarray, top: float) -> float:
@@ -165,7 +182,7 @@ def _clip_key(blocks) -> tuple[list, list]:
              for n in names], [f"{n}, e={energy[n]:g}" for n in names])
 
 
-def _label_blocks(fig, ax, blocks, lines, top: float) -> list:
+def _label_blocks(fig, ax, blocks, lines, top: float, fontsize: float = 5.5) -> list:
     """Write each clip's name on its block where it fits, clear of the other labels and of ``lines``.
 
     Tried in order: inside the block (at its top, three quarters, half, a quarter of its height, its
@@ -210,18 +227,20 @@ def _label_blocks(fig, ax, blocks, lines, top: float) -> list:
                  dict(x=t1, y=h, ha="right", va="bottom", transform=up)]
         t = None
         if e > 0:
-            t = place_label(ax, renderer, name, inside, taken, paths, inside=box, fontsize=5.5)
+            t = place_label(ax, renderer, name, inside, taken, paths, inside=box, fontsize=fontsize)
         if t is None:
             others = [b for k, b in enumerate(boxes) if k != i and b.x1 > box.x0 - 80 and b.x0 < box.x1 + 80]
-            t = place_label(ax, renderer, name, above, taken, paths, avoid=others, fontsize=5.5)
+            t = place_label(ax, renderer, name, above, taken, paths, avoid=others, fontsize=fontsize)
         if t is not None:
             placed.append(t)
             labelled.setdefault(name, []).append(box.x0)
     return placed
 
 
+@in_layout
 def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: float, calibration_s: float = 0.0,
-               bouts: Sequence | None = None, title: str = "", note: str = "", pdf=False) -> Path:
+               bouts: Sequence | None = None, title: str = "", note: str = "", pdf=False,
+               layout: Layout = PAGE) -> Path:
     """Fig. 3.1: the MCS with min/max amplitude fixed after calibration (left) and drifting (right).
 
     Both columns run the rms extractor (listing 5.2) again on the run's
@@ -238,12 +257,17 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
     cal = {"calibration_s": calibration_s} if params.calibration_s is None else {}
     fixed = replay(amp, replace(params, falloff_per_s=0.0, **cal), fps)
     drift = replay(amp, replace(params, **cal), fps)
-    fig, axes = plt.subplots(2, 2, figsize=(8.0, 4.4), dpi=150, sharex=True, sharey="row", layout="constrained",
-                             height_ratios=(1.2, 1))
+    narrow = layout.column
+    fig, axes = plt.subplots(2, 2, figsize=(layout.width_in, 3.7) if narrow else (8.0, 4.4), dpi=150, sharex=True,
+                             sharey="row", layout="constrained", height_ratios=(1.2, 1))
     unit = "amplitude\n(dB, 10 log10 RMS)" if params.scale == "loudness" else "amplitude\n(RMS, full scale)"
     fixed_label = "min/max fixed after calibration (no falloff)" if calibration_s > 0 else "min/max fixed (no falloff)"
-    for col, (run, label) in enumerate(((fixed, fixed_label),
-                                        (drift, f"min/max drifting (falloff {params.falloff_per_s:g} /s)"))):
+    drift_label = f"min/max drifting (falloff {params.falloff_per_s:g} /s)"
+    if narrow:   # the title says "min/max"; the panels' titles only what differs
+        unit = "amplitude (dB)" if params.scale == "loudness" else "amplitude (RMS)"
+        fixed_label, drift_label = "fixed (no falloff)", f"falloff {params.falloff_per_s:g} /s"
+        thin_ticks(*axes.flat, x=3, y=3)
+    for col, (run, label) in enumerate(((fixed, fixed_label), (drift, drift_label))):
         top, bottom = axes[0, col], axes[1, col]
         for ax in (top, bottom):
             _shade_bouts(ax, bouts)
@@ -257,28 +281,31 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
         bottom.plot(times, run["mcs"], color="tab:red", lw=0.8, label="MCS")
         bottom.set_ylim(-0.02, 1.05)
         bottom.set_xlabel("time (s)")
-        top.set_title(label, fontsize=8)
+        top.set_title(label, fontsize=layout.panel_title)
     # the plotted stretch, not the truth's bouts past it (a recording longer than output.plots.max_seconds)
     _set_xlim(axes[1, 0], times[0] if len(times) else 0.0, times[-1] if len(times) else 1.0)
     lo = float(np.min(amp)) if len(amp) else 0.0
     axes[0, 0].set_ylim(max(lo, float(np.percentile(amp, 1)) - 3) if len(amp) else 0, None)
     axes[0, 0].set_ylabel(unit)   # two lines at the axes' size (a review: one line at 7 pt read as a footnote)
     axes[1, 0].set_ylabel("MCS")
-    fig.suptitle(_titled(title or "Calibration and min/max falloff (cf. van Duijn 2014, Fig. 3.1)", note),
-                 fontsize=9)
+    head = "Calibration, min/max amplitude fixed or drifting (cf. van Duijn 2014, Fig. 3.1)" if narrow else \
+        "Calibration and min/max falloff (cf. van Duijn 2014, Fig. 3.1)"
+    fig.suptitle(_head(title or head, note, layout), fontsize=layout.title)
     handles = {}
     for ax in (axes[0, 0], axes[1, 0]):
         for h, lab in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(lab, h)
-    fig.legend(list(handles.values()), list(handles), fontsize=7, loc="outside lower center", ncols=5, frameon=False)
+    fig.legend(list(handles.values()), list(handles), fontsize=layout.legend, loc="outside lower center",
+               ncols=3 if narrow else 5, frameon=False, **(_TIGHT_LEGEND if narrow else {}))
     save_figure(fig, path, pdf)
     plt.close(fig)
     return path
 
 
+@in_layout
 def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
                gain_per_s: float, bouts: Sequence | None = None, title: str = "", note: str = "",
-               pdf=False) -> Path:
+               pdf=False, layout: Layout = PAGE) -> Path:
     """Fig. 4.1: MCS (top); the primitive of the MCS, the actual laughing energy and the clips (bottom).
 
     The primitive ``sum(gain_per_s * MCS * dt)`` is the laughing energy with no
@@ -289,8 +316,7 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     times = np.asarray(times, float)
     dt = float(times[1] - times[0]) if len(times) > 1 else 0.0
     primitive = np.cumsum(np.asarray(mcs, float) * gain_per_s * dt)
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.0, 4.2), dpi=150, sharex=True, layout="constrained",
-                                   height_ratios=(1, 2))
+    fig, (ax1, ax2) = _energy_axes(layout)
     for ax in (ax1, ax2):
         _shade_bouts(ax, bouts)
         _setup_axis(ax)
@@ -303,24 +329,28 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     (line,) = ax2.plot(times, energy, color="tab:green", lw=1.0, label="laughing energy L")
     ax2.set_ylim(_energy_floor(energy, top), top * 1.15)
     _set_xlim(ax2, times[0] if len(times) else 0, end or 1)
-    ax2.set_ylabel("laughing energy L /\nclip energy e(a)")
+    ax2.set_ylabel("L / clip energy e(a)" if layout.column else "laughing energy L /\nclip energy e(a)")
     ax2.set_xlabel("time (s)")
     axp = ax2.twinx()
     (prim,) = axp.plot(times, primitive, color="tab:blue", lw=1.0, ls="--",   # dashed: as light as the green
-                       label="primitive of the MCS (right axis)")
+                       label="MCS primitive (right axis)" if layout.column else "primitive of the MCS (right axis)")
     axp.set_ylim(0, max(1.0, float(primitive[-1]) if len(primitive) else 1.0) * 1.05)
-    axp.set_ylabel("primitive of MCS", color="tab:blue", fontsize=8)
-    axp.tick_params(axis="y", colors="tab:blue", labelsize=7)
+    axp.set_ylabel("primitive of MCS", color="tab:blue", fontsize=layout.side_label)
+    axp.tick_params(axis="y", colors="tab:blue", labelsize=layout.side_ticks)
     axp.spines[["top"]].set_visible(False)
-    ax1.set_title(_titled(title or "The laughing energy process (cf. van Duijn 2014, Fig. 4.1)", note), fontsize=9)
-    _legend_with_clip_key(fig, [ax2, axp], blocks)
-    _label_blocks(fig, ax2, blocks, [line, prim], top)
+    if layout.column:
+        thin_ticks(ax1, ax2, axp, x=6, y=3)
+    head = "Laughing energy (cf. van Duijn 2014, Fig. 4.1)" if layout.column else \
+        "The laughing energy process (cf. van Duijn 2014, Fig. 4.1)"
+    ax1.set_title(_head(title or head, note, layout), fontsize=layout.title)
+    _legend_with_clip_key(fig, [ax2, axp], blocks, layout)
+    _label_blocks(fig, ax2, blocks, [line, prim], top, layout.block_label)
     save_figure(fig, path, pdf)
     plt.close(fig)
     return path
 
 
-def _legend_with_clip_key(fig, axes, blocks, max_cols: int = 7) -> None:
+def _legend_with_clip_key(fig, axes, blocks, layout: Layout = PAGE) -> None:
     """One legend under the figure: the lines and shades of ``axes`` in the first column, then the
     colour key of the clips (every clip shown, mildest first) in the next ones."""
     from matplotlib.patches import Patch
@@ -332,24 +362,31 @@ def _legend_with_clip_key(fig, axes, blocks, max_cols: int = 7) -> None:
                 handles.append(h)
                 labels.append(lab)
     kh, kl = _clip_key(blocks)
-    rows = max(len(labels), 1, -(-(len(labels) + len(kl)) // max_cols))
-    while len(labels) < rows:  # the clips start a column of their own
+    # the clips start a column of their own; in a column's width (2 columns) they follow the lines
+    rows = max(1, -(-(len(labels) + len(kl)) // layout.key_cols), 0 if layout.column else len(labels))
+    while len(labels) < rows and not layout.column:
         handles.append(Patch(visible=False))
         labels.append("")
     handles, labels = handles + kh, labels + kl
-    fig.legend(handles, labels, fontsize=6.5, loc="outside lower center", ncols=-(-len(labels) // rows),
+    fig.legend(handles, labels, fontsize=layout.key, loc="outside lower center", ncols=-(-len(labels) // rows),
                frameon=False, handlelength=1.4, columnspacing=1.0, handletextpad=0.5)
 
 
+def _energy_axes(layout: Layout):
+    """The figure and the two panels of Figs. 4.1 and 4.2: the MCS above the energy and the clips."""
+    size = (layout.width_in, 3.3) if layout.column else (7.0, 4.2)
+    return plt.subplots(2, 1, figsize=size, dpi=150, sharex=True, layout="constrained", height_ratios=(1, 2))
+
+
+@in_layout
 def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
                bouts: Sequence | None = None, title: str = "", note: str = "",
-               energy_label: str = "laughing energy L", pdf=False) -> Path:
+               energy_label: str = "laughing energy L", pdf=False, layout: Layout = PAGE) -> Path:
     """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom).
 
     ``energy_label`` names the green line: the thesis' L under the energy scheduler; another scheduler's
     ``energy`` channel is another quantity (the concat scheduler's: 40 x MCS smoothed over 0.5 s)."""
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7.0, 4.2), dpi=150, sharex=True, layout="constrained",
-                                   height_ratios=(1, 2))
+    fig, (ax1, ax2) = _energy_axes(layout)
     _shade_bouts(ax1, bouts)
     _shade_bouts(ax2, bouts)
     ax1.plot(times, mcs, color="tab:red", lw=0.8, label="MCS")
@@ -359,127 +396,23 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     top = max([e for _, _, _, e in clip_blocks(events, end)] + [float(np.max(energy)) if len(energy) else 1.0, 1.0])
     blocks = _draw_clip_blocks(ax2, events, end, top)
     (line,) = ax2.plot(times, energy, color="tab:green", lw=1.0, label=energy_label)
-    ax2.set_ylabel(f"{energy_label} /\nclip energy e(a)")
+    short = "L" if energy_label == "laughing energy L" else "energy"
+    ax2.set_ylabel(f"{short} / clip energy e(a)" if layout.column else f"{energy_label} /\nclip energy e(a)")
     ax2.set_xlabel("time (s)")
     ax2.set_ylim(_energy_floor(energy, top), top * 1.15)
     _set_xlim(ax2, times[0] if len(times) else 0, end or 1)
-    ax1.set_title(_titled(title or "Laughing energy and clip selection (cf. van Duijn 2014, Fig. 4.2)", note),
-                  fontsize=9)
+    head = "Energy and clips (cf. van Duijn 2014, Fig. 4.2)" if layout.column else \
+        "Laughing energy and clip selection (cf. van Duijn 2014, Fig. 4.2)"
+    ax1.set_title(_head(title or head, note, layout), fontsize=layout.title)
     for ax in (ax1, ax2):
         _setup_axis(ax)
-    _legend_with_clip_key(fig, [ax2], blocks)
-    _label_blocks(fig, ax2, blocks, [line], top)
+    if layout.column:
+        thin_ticks(ax1, ax2, x=6, y=3)
+    _legend_with_clip_key(fig, [ax2], blocks, layout)
+    _label_blocks(fig, ax2, blocks, [line], top, layout.block_label)
     if not blocks and not (len(energy) and np.any(energy)):   # scheduler=none: an empty panel said nothing
         ax2.text(0.5, 0.5, "no laughing energy and no clip in this run", transform=ax2.transAxes,
-                 ha="center", va="center", fontsize=8, color="0.35")
-    save_figure(fig, path, pdf)
-    plt.close(fig)
-    return path
-
-
-def filmstrip_moments(times: np.ndarray, positions: np.ndarray, n: int, blocks: Sequence = ()) -> list[int]:
-    """Which of the pose samples a filmstrip of ``n`` figures shows: distinct, telling moments.
-
-    A sample's *pronouncedness* is how far its pose lies from the run's usual pose (the
-    per-joint median over every sample; distance: the mean over joints, cm).
-
-    1. One figure per clip played (``idle`` and clips of energy 0 aside): the most pronounced
-       sample inside the clip's longest block.  With more clips than ``n``, the clips with the
-       longest blocks.
-    2. Figures left over, one at a time: the stretch from the first to the last sample is cut
-       into ``n`` equal parts; among the samples in parts with no figure yet and at least half
-       a part away from every figure chosen, the one least like the figures chosen (the
-       largest distance to the nearest of their poses; the most pronounced one if none is
-       chosen yet).
-
-    So an energy run, whose clips last seconds, shows each clip once; a concatenation run,
-    which plays hundreds of short segments of a few clips, shows each of those clips and
-    then the poses least like them, spread over the run.
-
-    Parameters
-    ----------
-    times : ndarray, shape (k,)
-        The samples' times (s), increasing.
-    positions : ndarray, shape (k, J, 3)
-        Their world joint positions (cm).
-    n : int
-    blocks : sequence of (clip, start_s, stop_s, energy)
-        The clips played (:func:`laughlab.core.frame.clip_blocks`).
-
-    Returns
-    -------
-    list of int
-        Indices into ``times``, increasing, at most ``n``, all different (so all times differ).
-    """
-    times = np.asarray(times, float)
-    k = len(times)
-    if k == 0 or n <= 0:
-        return []
-    pos = np.asarray(positions, float).reshape(k, -1, 3)
-    away = np.linalg.norm(pos - np.median(pos, axis=0), axis=2).mean(axis=1)
-    longest: dict = {}
-    for name, b0, b1, e in blocks:
-        if e > 0 and name != "idle" and (name not in longest or b1 - b0 > longest[name][1] - longest[name][0]):
-            longest[name] = (b0, b1)
-    picked: list[int] = []
-    for name, (b0, b1) in sorted(longest.items(), key=lambda kv: (kv[1][0] - kv[1][1], kv[1][0])):
-        idx = np.flatnonzero((times >= b0) & (times < b1))
-        idx = idx[~np.isin(idx, picked)]
-        if len(idx) and len(picked) < n:
-            picked.append(int(idx[np.argmax(away[idx])]))
-    t0, t1 = float(times[0]), float(times[-1])
-    part = (t1 - t0) / n if t1 > t0 else 1.0
-    which = np.minimum(((times - t0) / part).astype(int), n - 1)
-    flat = pos.reshape(k, -1, 3)
-    while len(picked) < n:
-        free = ~np.isin(which, which[picked]) if picked else np.ones(k, bool)
-        for j in picked:
-            free &= np.abs(times - times[j]) >= 0.5 * part
-        idx = np.flatnonzero(free)
-        if not len(idx):
-            break
-        if picked:  # the pose least like any shown: the largest distance to its nearest shown pose
-            d = np.stack([np.linalg.norm(flat[idx] - flat[j], axis=2).mean(axis=1) for j in picked])
-            score = d.min(axis=0)
-        else:
-            score = away[idx]
-        picked.append(int(idx[np.argmax(score)]))
-    return sorted(picked)
-
-
-def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captions: Sequence[str],
-              title: str = "", note: str = "", pdf=False) -> Path:
-    """A row of stick figures (the run's skeleton at chosen frames) with a caption under each."""
-    from laughlab.render.figure import draw_skeleton
-    from laughlab.motion.skeleton import forward_kinematics
-
-    import textwrap
-
-    from laughlab.render.figure import SIDE_KEY
-
-    n = len(times)
-    width = 1.25 * max(n, 1)
-    # the title and the colours' key, wrapped to the figure's width (a strip of 3 cut a one-line title at both
-    # edges); each line more makes the figure taller, the panels keeping their size
-    chars = int(width * 72 / (0.6 * 8))   # DejaVu Sans at 8 pt: about 0.55 em a character on average
-    head = _titled(title or "The character over the run (skeleton from motion.bvh)", note) + f". {SIDE_KEY}"
-    lines = [w for para in head.split("\n") for w in textwrap.wrap(para, chars)]
-    extra = 0.14 * (len(lines) - 1)
-    height = 2.0 + extra
-    fig, axes = plt.subplots(1, max(n, 1), figsize=(width, height), dpi=150, squeeze=False)
-    if n:
-        pos = forward_kinematics(skeleton, np.asarray(poses), end_sites=True)
-    for k, ax in enumerate(axes[0]):
-        ax.set_axis_off()
-        if k >= n:
-            continue
-        draw_skeleton(ax, skeleton, pos[k, :skeleton.n_joints], pos[k, skeleton.n_joints:], 60.0, 10.0, lw=1.4)
-        ax.set_xlim(-110, 110)
-        ax.set_ylim(-8, 195)
-        ax.set_title(f"{times[k]:.1f} s", fontsize=7, pad=1)
-        ax.text(0.5, -0.02, captions[k], transform=ax.transAxes, ha="center", va="top", fontsize=5.5)
-    fig.suptitle("\n".join(lines), fontsize=8)
-    fig.subplots_adjust(left=0.01, right=0.99, top=1 - (0.32 + extra) / height, bottom=0.4 / height, wspace=0.05)
+                 ha="center", va="center", fontsize=layout.side_label, color="0.35")
     save_figure(fig, path, pdf)
     plt.close(fig)
     return path

@@ -297,8 +297,9 @@ def _p(x) -> str:
     return "< .001" if x < 0.001 else f"{x:.3f}"
 
 
-def analyze(source, out=None, design_dir=None, overwrite: bool = False) -> Path:
-    """Write the report folder (module doc); its path."""
+def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: str = "page") -> Path:
+    """Write the report folder (module doc); its path.  ``width``: the figures for a ``page`` or a ``column``
+    (:mod:`laughlab.study.plots`)."""
     import pandas as pd
 
     import shlex
@@ -372,8 +373,9 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False) -> Path:
     from laughlab.study.plots import participant_lines, means_plot
 
     simulated = kind == "simulated"   # said in the figures' titles too: a figure travels without its README
-    means_plot(tmp / "fig_means.png", means, tidy, questions, conditions, design, simulated=simulated)
-    participant_lines(tmp / "fig_participants.png", tidy, means, questions, conditions, design, simulated=simulated)
+    means_plot(tmp / "fig_means.png", means, tidy, questions, conditions, design, simulated=simulated, width=width)
+    participant_lines(tmp / "fig_participants.png", tidy, means, questions, conditions, design, simulated=simulated,
+                      width=width)
     n_all = int(df["participant"].nunique())
     doc = {"source": str(source), "design_id": (design or {}).get("id"), "participants": n_all,
            "simulated": kind == "simulated",

@@ -63,6 +63,9 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--design", help="the study folder, for CSV input: exclusion rules and condition order")
     a.add_argument("--overwrite", action="store_true", help="replace an earlier report whose files were changed or "
                                                              "added to (the added files are kept)")
+    a.add_argument("--width", choices=("page", "column"), default="page",
+                   help="the figures for a page (default) or 3.5 in wide for one column of a two-column paper, no "
+                        "text under 7 pt")
     w = sub.add_parser("power", help="participants needed to detect an effect (simulation, the same model)")
     w.add_argument("study_dir", help="a study folder (its design: conditions, stimuli, orders, scale)")
     w.add_argument("--contrast", required=True, help="A:B, e.g. laugh_energy:smile_only")
@@ -109,7 +112,7 @@ def _run(ns) -> None:
     elif ns.cmd == "analyze":
         from laughlab.study.analyze import analyze
 
-        out = analyze(ns.source, ns.out, ns.design, ns.overwrite)
+        out = analyze(ns.source, ns.out, ns.design, ns.overwrite, ns.width)
         from laughlab.study.analyze import REPORT_FILES
 
         written = sorted(f.name for f in out.iterdir() if f.name in REPORT_FILES)   # (a review: it named 3 of 10)
