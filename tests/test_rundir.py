@@ -255,7 +255,7 @@ def _interrupted_experiment(d):
     assert p.wait(timeout=120) == 130
 
 
-@pytest.mark.parametrize("then", ["overwrite", "resume, then overwrite"])
+@pytest.mark.parametrize("then", ["overwrite", pytest.param("resume, then overwrite", marks=pytest.mark.slow)])
 def test_a_file_put_into_an_interrupted_experiment_stays_the_users(tmp_path, then):
     """A first-contact review: notes.txt put into an experiment's folder after a Ctrl-C was counted as the run's (an
     interrupted run's files were every entry but the user's), so overwrite=true deleted it, and a resumed run's end

@@ -236,17 +236,19 @@ def test_a_page_open_for_long_keeps_only_what_its_strip_can_show(tmp_path):
     open: 60 values a second, for an always-on installation's days. It keeps 12 s now."""
     from laughlab.viewer.browser import Page
 
-    pipe, thread, result = live_run(tmp_path / "run", "input.duration_s=150", "detector=none",
-                                    viewer={"realtime": "off"})
-    page = Page(url_of(pipe, thread))
+    pipe, thread, result = live_run(tmp_path / "run", "input.duration_s=45", "detector=none",
+                                    viewer={"realtime": "off"})   # 2,700 frames, four times the 12 s kept (it was
+    page = Page(url_of(pipe, thread))                                 # 150 s: 114 s of the suite on a slow machine)
     try:
         page.wait_ready(120)
         until_ended(page, thread, 300)
         held = page.eval("window.laughlab.live.held()")
         frames = page.eval("window.laughlab.live.frames")
-        assert frames > 3000 and held["mcs"] <= 2 * 720 and held["clips"] <= 64, (frames, held)
-        time.sleep(0.3)
-        assert page.eval("window.laughlab.live.t") == pytest.approx(149.98, abs=0.02)
+        assert frames > 2000 and held["mcs"] <= 2 * 720 and held["clips"] <= 64, (frames, held)
+        deadline = time.monotonic() + 20   # the last frame applied on an animation frame
+        while page.eval("window.laughlab.live.t") < 44.97 and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert page.eval("window.laughlab.live.t") == pytest.approx(44.98, abs=0.02)
         assert [p for p in page.problems() if "LookAtDegreeMap" not in p] == []
     finally:
         page.close()
