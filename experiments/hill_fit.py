@@ -234,7 +234,19 @@ def _figure_10_column(path: Path, res, bout: list, pdf: bool) -> None:
 
 
 def figure_7(path: Path, comparison: dict) -> None:
-    """Running best error against evaluations, one panel per call (the paper's Fig. 7)."""
+    """Running best error against evaluations, one panel per call (the paper's Fig. 7), saved to ``path``."""
+    import matplotlib.pyplot as plt
+
+    fig = figure_7_drawn(comparison)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def figure_7_drawn(comparison: dict):
+    """The figure of :func:`figure_7`.  Each optimiser has a line style of its own as well as a hue: the blue and
+    purple lines were both solid and within 15 CIE L* of each other, one line in a greyscale print (the figures
+    review's check, ``laughlab.render.labels.lines_told_apart_by_hue``, had not run on this one)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -243,12 +255,13 @@ def figure_7(path: Path, comparison: dict) -> None:
     n = len(comparison)
     fig, axes = plt.subplots(1, max(n, 1), figsize=(5.2 * max(n, 1), 5.2), squeeze=False, layout="constrained")
     colors = {"nelder-mead": "tab:green", "annealing": "tab:orange", "pds": "tab:blue", "cma": "tab:purple"}
+    styles = {"nelder-mead": "-", "annealing": "--", "pds": "-.", "cma": ":"}
     names = {"nelder-mead": "simplex (Nelder-Mead)", "annealing": "simulated annealing (dual_annealing)",
              "pds": "parallel direct search (batched)", "cma": "CMA-ES (batched)"}
     for ax, (label, runs) in zip(axes[0], comparison.items()):
         for method, r in runs["methods"].items():
             h = np.asarray(r["history"], dtype=float)
-            ax.plot(np.arange(1, len(h) + 1), h, color=colors.get(method), lw=1.6,
+            ax.plot(np.arange(1, len(h) + 1), h, color=colors.get(method), ls=styles.get(method, "-"), lw=1.6,
                     label=f"{names.get(method, method)}: {r['error']:.2f} in {r['seconds']:.2f} s")
         ax.plot([PAPER["simplex"]["evals"]], [PAPER["simplex"]["error"]], "s", color="tab:green", ms=7, mfc="none",
                 label="paper: simplex 0.18 @ ~400")
@@ -263,9 +276,7 @@ def figure_7(path: Path, comparison: dict) -> None:
         # under the panel: in its corner it hid the start of the descents (a review)
         ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
     fig.suptitle("Fig. 7 style: running best error of one call's optimisation", fontsize=11)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    return fig
 
 
 def compare(target, fps: float, res, fp, tp, spec: dict) -> dict:
