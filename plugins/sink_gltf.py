@@ -42,13 +42,12 @@ class GltfSink(Sink):
 
     def __init__(self, params=None, ctx=None):
         super().__init__(params, ctx)
-        self.avatar = None
-        if getattr(self.params, "character", None):  # check the avatar now: a bad file stops the run before anything is written
-            from laughlab.avatar.load import load_character
+        from laughlab.avatar import sink_character
 
-            # and keep it: the end of the run bakes this avatar, the one checked, not the file as it is then
-            # (replaced or re-exported during a long run, a review found: a traceback, or another avatar baked)
-            self.avatar = load_character(self.params.character)
+        # kept: the end of the run bakes this avatar, the one checked, not the file as it is then (replaced or
+        # re-exported during a long run, a review found: a traceback, or another avatar baked)
+        self.avatar = sink_character(self.params)
+        if self.avatar is not None:
             from laughlab.avatar.expressions import say_face_route
 
             say_face_route(self.avatar)

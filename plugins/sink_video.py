@@ -178,11 +178,10 @@ class VideoSink(Sink):
 
     def __init__(self, params=None, ctx=None):
         super().__init__(params, ctx)
-        self.avatar = None
-        if self.params.character:  # check the avatar now: a bad file stops the run before anything is written
-            from laughlab.avatar.load import load_character
+        from laughlab.avatar import sink_character
 
-            self.avatar = load_character(self.params.character)
+        self.avatar = sink_character(self.params)
+        if self.avatar is not None:
             from laughlab.avatar.expressions import say_face_route
 
             say_face_route(self.avatar)

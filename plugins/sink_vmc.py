@@ -122,11 +122,9 @@ class VmcSink(Sink):
 
     def __init__(self, params=None, ctx=None):
         super().__init__(params, ctx)
-        self.avatar = None
-        if getattr(self.params, "character", None):   # a bad avatar stops the run before anything is written
-            from laughlab.avatar.load import load_character
+        from laughlab.avatar import sink_character
 
-            self.avatar = load_character(self.params.character)
+        self.avatar = sink_character(self.params)
 
     def open(self, run) -> None:
         super().open(run)
