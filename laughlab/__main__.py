@@ -9,6 +9,7 @@ from laughlab.core import interrupts
 
 if __name__ == "__main__":
     interrupts.install()
+    interrupts.keep_lost_interrupts_quiet()
     try:
         from laughlab.cli import main
     except BaseException as exc:  # interrupted while importing (nothing was written yet)

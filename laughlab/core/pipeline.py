@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from laughlab.core import blame, plugins
+from laughlab.core import blame, interrupts, plugins
 from laughlab.core.bases import Context, RunInfo
 from laughlab.core.errors import LaughlabError, UnknownParameter
 from laughlab.core.frame import Frame
@@ -302,6 +302,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         order = sorted(opened, key=lambda s: not getattr(s, "streaming", False))
 
         def hand_over() -> None:   # the frames recorded since the last chunk, to every sink
+            interrupts.check()     # a stop signal whose KeyboardInterrupt was lost (raised in a __del__)
             chunk = rec.take(mixer.take())
             chunk.audio_s = samples / rate
             for sink in order:
@@ -343,6 +344,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             if bar is not None:
                 bar.update(k % n_chunk)   # the last, partial chunk: the bar ends at every frame
         wall = time.perf_counter() - wall0
+        interrupts.check()
         for sink in opened:
             written += sink.close() or []
         if hasattr(src, "save_artifacts"):

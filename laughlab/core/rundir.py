@@ -29,6 +29,7 @@ import json
 import os
 from pathlib import Path
 
+from laughlab.core import interrupts
 from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.core.outfiles import remove as _remove
 
@@ -63,7 +64,9 @@ class Claim:
 
     def finish(self, config_hash: str | None = None) -> None:
         """Record the run's files (every entry but the user's and ours) and its configuration's hash; delete
-        the earlier run it replaced."""
+        the earlier run it replaced.  Not after a stop signal whose interrupt was lost on the way
+        (:func:`laughlab.core.interrupts.check` raises it here)."""
+        interrupts.check()
         files = sorted(p.name for p in self.path.iterdir() if p.name not in self.user_files | OWN)
         _write_marker(self.path, {"pid": os.getpid(), "complete": True, "files": files, "config_hash": config_hash,
                                   "user_files": sorted(self.user_files), "hydra": _hydra_files(self.path)})

@@ -1,0 +1,82 @@
+"""A stop signal whose ``KeyboardInterrupt`` Python cannot raise still stops the run.
+
+The handler raises ``KeyboardInterrupt`` wherever the main thread is; inside a ``__del__`` (or another
+callback) Python prints it as "Exception ignored" and goes on, and the handler has by then set the signal
+to be ignored.  The fuzz suite met it under load: a Ctrl-C 1.7 s into a 300 s run, and the run went to its
+end, exit 0, with a traceback on stderr."""
+import subprocess
+import sys
+
+import pytest
+
+# a face that, at frame 30, drops an object whose __del__ is where the Ctrl-C arrives
+PLUGIN = '''
+import signal
+
+import laughlab
+from laughlab import Face
+
+
+class Dropped:
+    def __del__(self):
+        signal.raise_signal(signal.SIGINT)   # the handler runs here: its KeyboardInterrupt cannot leave __del__
+
+
+class Late(Face):
+    """A jaw on the motion control signal; the Ctrl-C comes while frame 30's garbage is collected."""
+    name = "late"
+
+    def step(self, frame):
+        if frame.index == 30:
+            Dropped()
+        frame.channels["jaw"] = min(1.0, frame.control["mcs"])
+        frame.channels.update(smile=0.5, blink=0.0, eyes_closed=0.0)
+
+
+@laughlab.hookimpl
+def register_faces(register):
+    register(Late)
+'''
+
+
+def test_a_ctrl_c_raised_inside_a_del_stops_the_run_in_one_line(tmp_path):
+    (tmp_path / "plugins").mkdir()
+    (tmp_path / "plugins" / "late.py").write_text(PLUGIN)
+    r = subprocess.run([sys.executable, "-m", "laughlab", "plugins_dir=plugins", "face=late", "input.duration_s=5",
+                        "hydra.run.dir=run", "progress=off"], capture_output=True, text=True, cwd=tmp_path,
+                       timeout=300)
+    assert r.returncode == 130, r.stderr
+    assert r.stderr == "laughlab: error: interrupted; the run's partial output was removed\n"   # no traceback
+    assert r.stdout == ""                                   # no summary line: the run did not finish
+    assert not (tmp_path / "run").exists()                  # and left nothing behind
+
+
+def test_check_raises_only_after_a_stop_signal_and_before_the_command_is_done(monkeypatch):
+    from laughlab.core import interrupts
+
+    monkeypatch.setattr(interrupts, "received", None)
+    monkeypatch.setattr(interrupts, "finished", False)
+    interrupts.check()                                      # no signal: nothing
+    monkeypatch.setattr(interrupts, "received", 2)
+    with pytest.raises(KeyboardInterrupt):
+        interrupts.check()
+    monkeypatch.setattr(interrupts, "finished", True)       # the command's work is done: let go
+    interrupts.check()
+
+
+def test_the_unraisable_hook_hides_only_the_handlers_interrupt(monkeypatch, capsys):
+    from types import SimpleNamespace
+
+    from laughlab.core import interrupts
+
+    seen = []
+    monkeypatch.setattr(sys, "__unraisablehook__", seen.append)
+    monkeypatch.setattr(interrupts, "received", 2)
+    ki = SimpleNamespace(exc_type=KeyboardInterrupt)
+    other = SimpleNamespace(exc_type=ValueError)
+    interrupts._unraisable(ki)
+    interrupts._unraisable(other)
+    assert seen == [other]
+    monkeypatch.setattr(interrupts, "received", None)       # a KeyboardInterrupt no stop signal of ours raised
+    interrupts._unraisable(ki)
+    assert seen == [other, ki]
