@@ -14,20 +14,17 @@ smoothly and ahead of time, when a raised arm or a bent body would reach the top
 """
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from laughlab.avatar.load import Avatar
 from laughlab.avatar.mesh import parts
 from laughlab.avatar.retarget import animated_world, facing_matrix, retarget
-from laughlab.render.character_view import FILL, KEY, background, downsample
+from laughlab.render.character_view import FILL, KEY, FollowingView, background
 from laughlab.render.framing import Framing
-from laughlab.render.raster import draw_frames, rasterise
 from laughlab.render.scene import Camera
 
 
-class AvatarRenderer:
+class AvatarRenderer(FollowingView):
     """Renders ``avatar`` driven by ``skeleton`` poses at ``width`` x ``height``."""
 
     def __init__(self, avatar: Avatar, skeleton, width: int = 640, height: int = 480, camera: Camera | None = None,
@@ -101,14 +98,7 @@ class AvatarRenderer:
         ``threads`` threads at once: the camera follows frame by frame first (the only state), then each frame is
         skinned and drawn on its own, so the frames are the same bytes however the run is cut into chunks."""
         aims = [self._follow(w) for w in worlds]
-        ready = []
-        for (v, colour), aim in zip(draw_frames(self._mesh, list(zip(worlds, morphs)), threads), aims):
-            ready += self.framing.push((v, colour, aim), self.framing.need(v, aim))
-        return draw_frames(self._paint, [(*job, d) for job, d in ready], threads)
-
-    def flush(self, threads: int = 2) -> list[np.ndarray]:
-        """The frames :meth:`render_many` still holds (the run has ended)."""
-        return draw_frames(self._paint, [(*job, d) for job, d in self.framing.flush()], threads)
+        return self._draw_ready(list(zip(worlds, morphs)), aims, threads)
 
     def _target(self, world: np.ndarray) -> np.ndarray:
         """The point 70% of the way from the chest to the head joint (cm, facing +Z)."""
@@ -118,17 +108,10 @@ class AvatarRenderer:
 
     def _follow(self, world: np.ndarray) -> np.ndarray:
         """The camera's aim for a frame: it follows the chest and head, smoothed from frame to frame (cm)."""
-        target = self._target(world)
-        self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
-        return self.aim
+        return self._smooth_aim(self._target(world))
 
     def _mesh(self, world: np.ndarray, morphs: dict) -> tuple[np.ndarray, np.ndarray]:
         """The frame's vertices (cm, facing +Z) and their lit colours."""
         v, n = self.vertices(world, morphs)
         light = 0.45 + 0.6 * np.clip(n @ self.key, 0.0, None) + 0.2 * np.clip(n @ self.fill, 0.0, None)
         return v, np.clip(self.albedo * light[:, None], 0.0, 255.0)
-
-    def _paint(self, v: np.ndarray, colour: np.ndarray, aim: np.ndarray, distance: float) -> np.ndarray:
-        cam = self.camera if distance == self.camera.distance_cm else replace(self.camera, distance_cm=distance)
-        xy, depth = cam.projector(self.width * self.ss, self.height * self.ss, target=aim)(v)
-        return downsample(rasterise(xy, depth, colour, self.tris, self.background), self.ss)

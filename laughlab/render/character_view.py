@@ -30,7 +30,38 @@ KEY = np.array([-0.45, 0.65, 0.6])
 FILL = np.array([0.7, 0.2, 0.5])
 
 
-class CharacterRenderer:
+class FollowingView:
+    """What the mannequin's and an avatar's software renderers share: the camera's aim, smoothed frame by frame
+    (:attr:`follow` per rendered frame), its distance looking ahead (:attr:`framing`), and the frames skinned
+    and painted by threads.  A subclass sets :attr:`camera`, :attr:`framing`, :attr:`follow`, :attr:`tris`,
+    :attr:`background`, the size, and ``_mesh(*job) -> (vertices cm, colours)``."""
+
+    aim: np.ndarray | None = None
+
+    def _smooth_aim(self, target: np.ndarray) -> np.ndarray:
+        """The camera's aim after a frame whose aim point is ``target`` (cm)."""
+        self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
+        return self.aim
+
+    def _draw_ready(self, jobs: list, aims: list, threads: int) -> list[np.ndarray]:
+        """Skin ``jobs`` (each a ``_mesh`` argument tuple), let the framing look ahead, paint what it releases:
+        each frame skinned and drawn on its own, so the frames are the same bytes however a run is cut."""
+        ready = []
+        for (v, colour), aim in zip(draw_frames(self._mesh, jobs, threads), aims):
+            ready += self.framing.push((v, colour, aim), self.framing.need(v, aim))
+        return draw_frames(self._paint, [(*job, d) for job, d in ready], threads)
+
+    def flush(self, threads: int = 2) -> list[np.ndarray]:
+        """The frames ``render_many`` still holds (the run has ended)."""
+        return draw_frames(self._paint, [(*job, d) for job, d in self.framing.flush()], threads)
+
+    def _paint(self, v: np.ndarray, colour: np.ndarray, aim: np.ndarray, distance: float) -> np.ndarray:
+        cam = self.camera if distance == self.camera.distance_cm else replace(self.camera, distance_cm=distance)
+        xy, depth = cam.projector(self.width * self.ss, self.height * self.ss, target=aim)(v)
+        return downsample(rasterise(xy, depth, colour, self.tris, self.background), self.ss)
+
+
+class CharacterRenderer(FollowingView):
     """Renders the character at ``width`` x ``height`` with ``camera`` (cm, as the schematic scene's)."""
 
     def __init__(self, skeleton, width: int = 640, height: int = 480, camera: Camera | None = None,
@@ -72,21 +103,12 @@ class CharacterRenderer:
             pos, rot = global_transforms(self.skeleton, pose)   # frame by frame, as render does: the same bits
             jobs.append((pos, rot, w))
             aims.append(self._follow(pos))
-        ready = []
-        for (v, colour), aim in zip(draw_frames(self._mesh, jobs, threads), aims):
-            ready += self.framing.push((v, colour, aim), self.framing.need(v, aim))
-        return draw_frames(self._paint, [(*job, d) for job, d in ready], threads)
-
-    def flush(self, threads: int = 2) -> list[np.ndarray]:
-        """The frames :meth:`render_many` still holds (the run has ended)."""
-        return draw_frames(self._paint, [(*job, d) for job, d in self.framing.flush()], threads)
+        return self._draw_ready(jobs, aims, threads)
 
     def _follow(self, pos: np.ndarray) -> np.ndarray:
         """The camera's aim for a frame's joint positions: between the chest and the head, smoothed (cm)."""
         chest, head = self.skeleton.index("spine2"), self.skeleton.index("head")
-        target = 0.5 * (pos[chest] + pos[head])
-        self.aim = target if self.aim is None else self.aim + self.follow * (target - self.aim)
-        return self.aim
+        return self._smooth_aim(0.5 * (pos[chest] + pos[head]))
 
     def _mesh(self, pos: np.ndarray, rot: np.ndarray, morph_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The skinned vertices (cm) and their lit colours for a frame's joint positions and rotations."""
@@ -102,11 +124,6 @@ class CharacterRenderer:
         nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-9)
         light = 0.30 + 0.75 * np.clip(nrm @ self.key, 0.0, None) + 0.25 * np.clip(nrm @ self.fill, 0.0, None)
         return out, np.clip(self.albedo * light[:, None], 0.0, 255.0)
-
-    def _paint(self, v: np.ndarray, colour: np.ndarray, aim: np.ndarray, distance: float) -> np.ndarray:
-        cam = self.camera if distance == self.camera.distance_cm else replace(self.camera, distance_cm=distance)
-        xy, depth = cam.projector(self.width * self.ss, self.height * self.ss, target=aim)(v)
-        return downsample(rasterise(xy, depth, colour, self.tris, self.background), self.ss)
 
 
 def background(height: int, width: int) -> np.ndarray:
