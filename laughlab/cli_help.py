@@ -56,13 +56,14 @@ def help_text(extra: dict | None = None) -> str:
 
 def local_options(argv: list[str]) -> dict:
     """group -> the plugins and experiments a ``plugins_dir=`` among ``argv`` adds, for ``--help``."""
-    from laughlab.core import config, plugins
+    from laughlab.core import config, own_experiments, plugins
 
     config.load_plugin_dirs(argv)
     out = {plugins.group_of(kind): sorted(n for n, info in named.items() if info.origin.startswith("plugins dir"))
            for kind, named in plugins.registry().items()}
     builtin = {p.name[:-5] for p in conf_dir().joinpath("experiment").glob("*.yaml")}
-    out["experiment"] = [n for n in config.group_options("experiment") if n not in builtin]
+    out["experiment"] = [n for n in config.group_options("experiment") if n not in builtin
+                         and own_experiments.ORIGINS.get(n, "").startswith("plugins dir")]   # not a package's
     return out
 
 

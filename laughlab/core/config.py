@@ -8,8 +8,9 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError, first_line
+from laughlab.core.errors import LaughlabError
 from laughlab.core.overridehints import launcher_missing, unreadable_override
+from laughlab.core import own_experiments
 
 
 def _register_resolvers() -> None:
@@ -42,8 +43,9 @@ def group_options(group: str) -> list[str]:
         from laughlab.core import plugins
 
         names |= set(plugins.registry()[GROUP_KINDS[group]])
-    if group == "experiment":
-        names |= set(_LOCAL_EXPERIMENTS)
+    if group == "experiment":   # a plugins_dir's and the installed packages'
+        own_experiments.load_installed(conf_dir())
+        names |= set(own_experiments.LOCAL)
     return sorted(names)
 
 
@@ -59,7 +61,7 @@ def load_plugin_dirs(overrides) -> None:
         value = unquoted(value)
         if key.lstrip("+~") == "plugins_dir" and value and value != "null":
             plugins.load_plugin_dir(value)
-            _load_experiments(Path(value).expanduser() / "experiment")
+            own_experiments.load_folder(Path(value).expanduser() / "experiment", conf_dir())
 
 
 def unquoted(value: str) -> str:
@@ -82,71 +84,6 @@ def one_plugins_dir(overrides) -> None:
     if len(dirs) > 1:
         raise LaughlabError(f"plugins_dir is given {len(dirs)} times ({', '.join(dirs)}): it is one folder; put every "
                             "plugin module and experiment/ in it")
-
-
-#: experiments of a plugins_dir (``PLUGINS_DIR/experiment/NAME.yaml``): name -> file
-_LOCAL_EXPERIMENTS: dict[str, Path] = {}
-
-def own_experiment_base(name: str) -> dict:
-    """The ``harness`` an experiment of one's own starts from: ``conf/experiment/smoke.yaml``'s shared settings (its
-    corpus, seeds, jobs, plots...), named ``name``, with no conditions, module or showcase.  Its YAML gives what
-    differs, and the command line can set every one of them (``harness.jobs=4``), as for a built-in experiment,
-    which spells them all out."""
-    from omegaconf import OmegaConf
-
-    smoke = OmegaConf.to_container(OmegaConf.load(conf_dir().joinpath("experiment", "smoke.yaml")).harness)
-    return {**smoke, "name": name, "module": None, "conditions": None, "showcase": None}
-
-
-def _load_experiments(folder: Path) -> None:
-    """Give each ``NAME.yaml`` in a plugins_dir's ``experiment/`` folder the option ``experiment=NAME``: a YAML
-    written as ``conf/experiment/``'s are (``# @package _global_``, a ``defaults`` list, a ``harness`` node), so
-    one's own experiment needs no copy of laughlab's configs (docs/experiments.md).  A file that cannot be one is
-    kept with its reason, said only when that experiment is asked for (a review: one bad file stopped every run
-    with the folder, naming the bad file whatever was asked)."""
-    if not folder.is_dir():
-        return
-    from hydra.core.config_store import ConfigStore
-
-    for file in sorted(folder.glob("*.yaml")):
-        name = file.stem
-        if _LOCAL_EXPERIMENTS.get(name) == file.resolve():
-            continue
-        node, why = _experiment_node(file)
-        _LOCAL_EXPERIMENTS[name] = file.resolve()
-        if why:
-            _BAD_EXPERIMENTS[name] = f"{file}: {why}"
-            continue
-        _BAD_EXPERIMENTS.pop(name, None)
-        ConfigStore.instance().store(group="experiment", name=name, node=node, package="_global_")
-
-
-#: experiments of a plugins_dir that cannot be loaded: name -> the line that says why
-_BAD_EXPERIMENTS: dict[str, str] = {}
-
-
-def _experiment_node(file: Path):
-    """(the experiment's configuration, None) or (None, why it is not one)."""
-    from omegaconf import OmegaConf
-
-    name = file.stem
-    if conf_dir().joinpath("experiment", file.name).is_file():
-        return None, f"laughlab has an experiment named {name!r}; give yours another name"
-    try:
-        node = OmegaConf.load(file)
-    except Exception as exc:   # a YAML error: what and where
-        mark = getattr(exc, "problem_mark", None)
-        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
-        what = getattr(exc, "problem", None) or first_line(exc)
-        return None, f"not a readable experiment: {what}{where}"
-    if not OmegaConf.is_dict(node) or not OmegaConf.is_dict(node.get("harness")):
-        return None, ("not an experiment: it needs a harness: mapping of settings (docs/experiments.md, "
-                      "'An experiment of your own')")
-    given = node.harness.get("name")
-    if given is not None and given != name:
-        return None, (f"harness.name {given!r} is not the file's name: an experiment's name is its file's "
-                      f"({name}); remove harness.name or rename the file")
-    return OmegaConf.merge({"harness": own_experiment_base(name)}, node), None
 
 
 def register_plugin_configs() -> None:
@@ -175,6 +112,7 @@ def register_plugin_configs() -> None:
             if params_cls is not None and is_dataclass(params_cls):
                 node.update(asdict(params_cls()))
             cs.store(group=group, name=name, node=node)
+    own_experiments.load_installed(conf_dir())   # and the experiments the installed packages register
 
 
 def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
@@ -472,8 +410,8 @@ def check_overrides(overrides: list[str]) -> None:
             raise LaughlabError(f"write {ov[1:]} without +: {group} is in the defaults already" if ov[:1] == "+"
                                 else f"{group}={value} needs an option: choose one of: {', '.join(options)}")
         for choice in choices:
-            if group == "experiment" and choice in _BAD_EXPERIMENTS:
-                raise LaughlabError(_BAD_EXPERIMENTS[choice])
+            if group == "experiment" and choice in own_experiments.BAD:
+                raise LaughlabError(own_experiments.BAD[choice])
             if choice not in options:
                 own = (f" (an experiment of your own: plugins_dir=DIR with DIR/experiment/{choice}.yaml)"
                        if group == "experiment" else "")

@@ -64,3 +64,10 @@ def register_sinks(register: Register) -> None:
 @hookspec
 def register_metrics(register: Register) -> None:
     """Register metric functions (run outputs -> named numbers)."""
+
+
+@hookspec
+def register_experiments(register: Callable[[object], None]) -> None:
+    """Register experiments: the path of each YAML file (``str`` or ``pathlib.Path``) a package ships, written as a
+    plugins_dir's ``experiment/NAME.yaml`` (docs/experiments.md, 'An experiment of your own'); each is then
+    ``experiment=NAME``, its file's stem."""

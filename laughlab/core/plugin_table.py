@@ -9,11 +9,15 @@ from laughlab.core.config import GROUP_KINDS, conf_dir
 def list_plugins() -> None:
     """Print every plugin: kind, name, where it comes from and how a run chooses it (the plugin kind
     ``source`` is the config group ``input``; a sink is in the output options whose YAML names it)."""
-    from laughlab.core import plugins
+    from laughlab.core import own_experiments, plugins
 
     header = ("kind", "name", "origin", "use with")
     rows = [(kind, name, info.origin, chosen_by(kind, name))
             for kind, named in plugins.registry().items() for name, info in named.items()]
+    own_experiments.load_installed(conf_dir())   # experiments of a plugins_dir or a package (laughlab's own: --help)
+    rows += [("experiment", name, own_experiments.ORIGINS.get(name, "?"),
+              f"experiment={name}" + (" (cannot load: run it to see why)" if name in own_experiments.BAD else ""))
+             for name in sorted(set(own_experiments.LOCAL) | set(own_experiments.BAD))]
     width = [max(len(r[i]) for r in rows + [header]) for i in range(3)]
     for row in [header, *rows]:
         print("  ".join(f"{v:<{w}}" for v, w in zip(row, width)) + "  " + row[3])

@@ -148,7 +148,7 @@ def _check_hooks(module, file: Path | str) -> None:
     """Refuse, in one line, a plugin module whose hooks laughlab would never call: a ``@hookimpl`` of no hook of
     laughlab's (``register_face``), or a ``register_*`` function left without ``@hookimpl`` (a review: both left
     the plugin silently unregistered, and the run said only that its name was unknown)."""
-    specs = sorted(KINDS.values())
+    specs = sorted([*KINDS.values(), "register_experiments"])
     for attr in sorted(vars(module)):
         if attr.startswith("_") or not callable(getattr(module, attr)):
             continue
@@ -161,7 +161,8 @@ def _check_hooks(module, file: Path | str) -> None:
             raise LaughlabError(f"plugin {file}: {attr} is not marked @laughlab.hookimpl, so laughlab never calls it")
 
 
-def _origin(plugin: Any) -> str:
+def origin_of(plugin: Any) -> str:
+    """Where a registered plugin (module) comes from: a distribution's entry point, a plugins_dir file, or a name."""
     name = pm.get_name(plugin) or repr(plugin)
     if name in _EP_ORIGINS:
         return _EP_ORIGINS[name]
@@ -183,24 +184,24 @@ def registry() -> dict[str, dict[str, PluginInfo]]:
                 name = getattr(obj, "name", None) or (None if isinstance(obj, type) else getattr(obj, "__name__", None))
                 if not name:
                     what = f" ({obj.__name__})" if isinstance(obj, type) else ""
-                    raise LaughlabError(f"a {kind} plugin{what} from {_origin(impl.plugin)} has no name: give its class "
+                    raise LaughlabError(f"a {kind} plugin{what} from {origin_of(impl.plugin)} has no name: give its class "
                                         "name = '...', the name configurations choose it by")
                 if isinstance(obj, type):
-                    _check_class(kind, name, obj, _origin(impl.plugin))
+                    _check_class(kind, name, obj, origin_of(impl.plugin))
                 elif kind != "metric":   # a plugin authors' review: register(Giggle()) ended in a traceback,
                     # "'Giggle' object is not callable", once a run chose it
-                    raise LaughlabError(f"{kind} plugin {name!r} from {_origin(impl.plugin)} is registered as an "
+                    raise LaughlabError(f"{kind} plugin {name!r} from {origin_of(impl.plugin)} is registered as an "
                                         f"object ({type(obj).__name__}(...)): register its class, "
                                         f"register({type(obj).__name__}); laughlab builds it for each run")
                 if kind == "metric" and not all(hasattr(obj, a) for a in ("fn", "higher_is_better", "units")):
-                    raise LaughlabError(f"metric {name!r} from {_origin(impl.plugin)} is not a Metric: decorate its "
+                    raise LaughlabError(f"metric {name!r} from {origin_of(impl.plugin)} is not a Metric: decorate its "
                                         "function with @laughlab.harness.metrics.metric(name, higher_is_better, units)")
                 if name in out[kind]:
                     prev = out[kind][name]
                     raise LaughlabError(
-                        f"{kind} plugin {name!r} is registered twice: {prev.origin} and {_origin(impl.plugin)}"
+                        f"{kind} plugin {name!r} is registered twice: {prev.origin} and {origin_of(impl.plugin)}"
                     )
-                out[kind][name] = PluginInfo(kind, name, obj, _origin(impl.plugin))
+                out[kind][name] = PluginInfo(kind, name, obj, origin_of(impl.plugin))
         out[kind] = dict(sorted(out[kind].items()))
     return out
 
