@@ -158,6 +158,21 @@ def tiny_run(tmp_path_factory):
     return out, doc
 
 
+@pytest.fixture(scope="module")
+def small_run(tiny_run, tmp_path_factory):
+    """tiny_run's folder with its results cut to 3 metrics (one differing between the conditions, one the same,
+    one of compute time): for the tests of where a report goes and which files it replaces or keeps, not of what
+    its figures show.  metrics.png of all 38 metrics, drawn again as PNG and PDF, was most of each report's 5-7 s."""
+    out = tmp_path_factory.mktemp("small") / "exp"
+    shutil.copytree(tiny_run[0], out)
+    doc = json.loads((out / "results.json").read_text())
+    keep = ("miss_rate", "cutoff_rate", "frame_ms_p50")
+    doc["metrics"] = {m: doc["metrics"][m] for m in keep}
+    doc["results"] = {c: {m: r[m] for m in keep} for c, r in doc["results"].items()}
+    (out / "results.json").write_text(json.dumps(doc))
+    return out
+
+
 def test_experiment_records_and_results_schema(tiny_run):
     out, doc = tiny_run
     lines = (out / "metrics.jsonl").read_text().splitlines()
@@ -221,10 +236,10 @@ def test_report_tables_and_figures(tiny_run, tmp_path):
     assert "[energy_filmstrip.png](figures/energy_filmstrip.png)" in text
 
 
-def test_report_goes_next_to_the_run_unless_out_is_given(tiny_run, tmp_path):
+def test_report_goes_next_to_the_run_unless_out_is_given(small_run, tmp_path):
     """Issue 26: ``report RUN`` used to overwrite the committed reports/<experiment>/ of the working folder."""
     run = tmp_path / "run"
-    shutil.copytree(tiny_run[0], run)
+    shutil.copytree(small_run, run)
     work = tmp_path / "work"  # the folder the command runs in: nothing may appear here
     work.mkdir()
     r = laughlab("report", run, cwd=work)
@@ -246,47 +261,47 @@ def test_report_goes_next_to_the_run_unless_out_is_given(tiny_run, tmp_path):
             f"hydra.run.dir={run}`\n") in text
 
 
-def test_a_new_report_keeps_the_users_files_in_figures(tiny_run, tmp_path):
+def test_a_new_report_keeps_the_users_files_in_figures(small_run, tmp_path):
     """A sweeps review: regenerating a report deleted a caption and an edited copy of a figure the user had put in
     report/figures/.  Only the files the earlier report wrote (its manifest) are replaced or removed."""
     rep = tmp_path / "rep"
-    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0
+    assert laughlab("report", small_run, "--out", rep).returncode == 0
     figs = rep / "figures"
     (figs / "caption.txt").write_text("Figure 2 caption\n")
     shutil.copyfile(figs / "metrics.png", figs / "metrics_edited_by_me.png")
     (figs / "stale.png").write_bytes(b"x")   # as if the earlier report had written it and this one does not
     files = json.loads((rep / ".laughlab-report.json").read_text())["files"]
     (rep / ".laughlab-report.json").write_text(json.dumps({"files": files + ["figures/stale.png"]}))
-    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0
+    assert laughlab("report", small_run, "--out", rep).returncode == 0
     assert (figs / "caption.txt").read_text() == "Figure 2 caption\n" and (figs / "metrics_edited_by_me.png").exists()
     assert not (figs / "stale.png").exists() and (figs / "metrics.png").exists()
     # a file of the user's where the report would write one (no earlier report wrote it) is refused, and kept
     (rep / ".laughlab-report.json").write_text(json.dumps({"files": [f for f in files if f != "figures/metrics.png"]}))
     (figs / "metrics.png").write_bytes(b"mine")
-    r = laughlab("report", tiny_run[0], "--out", rep)
+    r = laughlab("report", small_run, "--out", rep)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "figures/metrics.png" in r.stderr
     assert (figs / "metrics.png").read_bytes() == b"mine"
 
 
-def test_a_report_edited_in_place_is_not_replaced_without_asking(tiny_run, tmp_path):
+def test_a_report_edited_in_place_is_not_replaced_without_asking(small_run, tmp_path):
     """A diff review: notes added to a report's README, or one of its figures retouched in place, were replaced
     by the next report without a word (only other names were kept).  The manifest holds each file's sha256: an
     edited one is refused in one line and kept; --overwrite replaces it."""
     rep = tmp_path / "rep"
-    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0
-    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0   # unchanged: replaced as before
+    assert laughlab("report", small_run, "--out", rep).returncode == 0
+    assert laughlab("report", small_run, "--out", rep).returncode == 0   # unchanged: replaced as before
     readme = rep / "README.md"
     mine = readme.read_text() + "\nMy notes on this run.\n"
     readme.write_text(mine)
-    r = laughlab("report", tiny_run[0], "--out", rep)
+    r = laughlab("report", small_run, "--out", rep)
     assert r.returncode == 2 and r.stderr == (f"laughlab: error: {rep}: README.md changed since the report wrote "
                                               "it; choose another --out, or add --overwrite to replace it\n")
     assert readme.read_text() == mine
-    r = laughlab("report", tiny_run[0], "--out", rep, "--overwrite")
+    r = laughlab("report", small_run, "--out", rep, "--overwrite")
     assert r.returncode == 0 and "My notes" not in readme.read_text()
 
 
-def test_a_report_replaces_only_a_report_and_goes_with_its_run(tiny_run, tmp_path):
+def test_a_report_replaces_only_a_report_and_goes_with_its_run(small_run, tmp_path):
     """``report --out`` into a folder of the user's is refused (their README kept); into an earlier report it
     replaces it; the report beside a finished run counts among the run's files, so overwriting the run
     removes it (it was left, stale, beside the new run's results)."""
@@ -295,16 +310,16 @@ def test_a_report_replaces_only_a_report_and_goes_with_its_run(tiny_run, tmp_pat
     mine = tmp_path / "mine"
     mine.mkdir()
     (mine / "README.md").write_text("# my notes\n")
-    r = laughlab("report", tiny_run[0], "--out", mine)
+    r = laughlab("report", small_run, "--out", mine)
     assert r.returncode == 2 and "holds files that are not a laughlab report (README.md)" in r.stderr
     assert [p.name for p in mine.iterdir()] == ["README.md"] and (mine / "README.md").read_text() == "# my notes\n"
     rep = tmp_path / "rep"
-    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0
-    assert laughlab("report", tiny_run[0], "--out", rep).returncode == 0        # an earlier report: replaced
+    assert laughlab("report", small_run, "--out", rep).returncode == 0
+    assert laughlab("report", small_run, "--out", rep).returncode == 0        # an earlier report: replaced
     # another experiment's report is not replaced without --overwrite (a review: a sweep's report was silently
     # replaced by another run's)
     other = tmp_path / "other"
-    shutil.copytree(tiny_run[0], other)
+    shutil.copytree(small_run, other)
     doc = json.loads((other / "results.json").read_text())
     (other / "results.json").write_text(json.dumps({**doc, "experiment": "other"}))
     before = (rep / "README.md").read_text()
@@ -317,7 +332,7 @@ def test_a_report_replaces_only_a_report_and_goes_with_its_run(tiny_run, tmp_pat
     assert r.returncode == 0 and (rep / "README.md").read_text().startswith("# other\n")
     run = tmp_path / "run"
     claim = rundir.claim(run)                                  # a finished run, as the command line leaves one
-    for item in tiny_run[0].iterdir():
+    for item in small_run.iterdir():
         (shutil.copytree if item.is_dir() else shutil.copyfile)(item, run / item.name)
     claim.finish("hash")
     os.close(claim.fd)
@@ -347,8 +362,8 @@ def test_without_the_real_corpus_an_experiment_runs_the_synthetic_half_and_says_
         build_corpus({**spec, "real": {**REAL, "if_missing": "fetch"}})
 
     out = tmp_path / "exp"
-    doc = run_experiment(tiny_cfg(corpus={**spec, "real": {**REAL, "if_missing": "skip"}}, showcase=None), out,
-                         base_overrides=[], progress=False)
+    doc = run_experiment(tiny_cfg(corpus={**spec, "real": {**REAL, "if_missing": "skip"}}, showcase=None,
+                                  plots=False), out, base_overrides=[], progress=False)
     err = capsys.readouterr().err.splitlines()
     assert err == [f"tiny: the real corpus is not fetched (in {tmp_path / 'fresh'}), so its sets (real, mixed) are "
                    "left out: running the other 1 inputs. To add them: python -m laughlab corpus fetch (once), then "
@@ -730,7 +745,8 @@ def test_a_sweep_of_a_two_condition_experiment_reports_both(tmp_path):
 
     sweep = tmp_path / "sweep"
     r = laughlab("-m", "experiment=smoke", "harness.corpus.seeds=1,2", "harness.corpus.duration_s=2",
-                 "harness.corpus.profiles=[mild]", "harness.showcase=null", f"hydra.sweep.dir={sweep}")
+                 "harness.corpus.profiles=[mild]", "harness.showcase=null", "harness.plots=false",
+                 f"hydra.sweep.dir={sweep}")
     assert r.returncode == 0, r.stderr
     text = write_report(sweep, tmp_path / "rep", "cmd").read_text()
     assert "- sweep points: 2 x 2 conditions; swept: condition, harness.corpus.seeds\n" in text
