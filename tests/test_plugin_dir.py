@@ -1,12 +1,16 @@
 """A plugin in a ``plugins_dir=`` folder works wherever a built-in one does (a review of writing a plugin: its
 ``face=NAME`` was unknown to an experiment's trial workers, to sweeps and to ``--cfg job``, though a single run
-used it).  Each case is a real ``python -m laughlab`` child: the plugin registry is per process."""
+used it).  A case that starts trial workers (``harness.jobs=2``) or the sinks' helper process is a real
+``python -m laughlab`` child: joblib keeps its worker processes for the next experiment, and a worker that had
+loaded another test's ``gape.py`` would run that one (a module already registered is not loaded again).  The
+other cases run in the test's process (tests/inprocess.py: the folder's plugins are unloaded after each)."""
 import csv
 import json
 import subprocess
 import sys
 
 import pytest
+from inprocess import laughlab
 
 PLUGIN = '''
 from dataclasses import dataclass
@@ -36,12 +40,10 @@ def register_faces(register):
 '''
 
 
-def run(*args, cwd, env_workers=None):
-    import os
-
-    env = {**os.environ, "LAUGHLAB_WORKERS": env_workers} if env_workers is not None else None
+def child(*args, cwd):
+    """``python -m laughlab ARGS``, a process of its own."""
     return subprocess.run([sys.executable, "-m", "laughlab", *args], capture_output=True, text=True, cwd=cwd,
-                          timeout=300, env=env)
+                          timeout=300)
 
 
 def test_a_plugins_dir_face_in_an_experiment_a_sweep_and_cfg_job(tmp_path):
@@ -51,15 +53,16 @@ def test_a_plugins_dir_face_in_an_experiment_a_sweep_and_cfg_job(tmp_path):
         "@laughlab.hookimpl\ndef register_faces(", '@laughlab.hookimpl(specname="register_faces")\ndef my_faces('))
     assert "def my_faces(" in (tmp_path / "myplugins" / "gape.py").read_text()
     # an experiment with its trials in two worker processes, the folder given relative to the working directory
-    r = run("plugins_dir=myplugins", "experiment=smoke", "face=gape", "face.gain=2", "harness.corpus.seeds=1",
-            "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild,intense]", "harness.jobs=2",
-            "harness.showcase=null", "harness.plots=false", "hydra.run.dir=exp", cwd=tmp_path)
+    r = child("plugins_dir=myplugins", "experiment=smoke", "face=gape", "face.gain=2", "detector=none",
+              "harness.corpus.seeds=1",
+              "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild,intense]", "harness.jobs=2",
+              "harness.showcase=null", "harness.plots=false", "hydra.run.dir=exp", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     doc = json.loads((tmp_path / "exp" / "results.json").read_text())
     assert doc["config"]["face"] == {"name": "gape", "gain": 2.0} and doc["n_trials"] == 4
     # a sweep: each point's run used the plugin with its own gain
-    r = run("-m", "plugins_dir=myplugins", "face=gape", "face.gain=0.5,3", "input.duration_s=1",
-            "~output.plots", "hydra.sweep.dir=sweep", cwd=tmp_path)
+    r = laughlab("-m", "plugins_dir=myplugins", "face=gape", "face.gain=0.5,3", "input.duration_s=1",
+                 "~output.plots", "hydra.sweep.dir=sweep", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     peaks = []
     for point in ("0", "1"):
@@ -67,7 +70,7 @@ def test_a_plugins_dir_face_in_an_experiment_a_sweep_and_cfg_job(tmp_path):
             peaks.append(max(float(row["jaw"]) for row in csv.DictReader(f)))
     assert 0 < peaks[0] < peaks[1] <= 1.0
     # Hydra's --cfg job composes the configuration with it
-    r = run("plugins_dir=myplugins", "face=gape", "--cfg", "job", cwd=tmp_path)
+    r = laughlab("plugins_dir=myplugins", "face=gape", "--cfg", "job", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "face:\n  name: gape\n  gain: 1.0" in r.stdout
 
@@ -107,8 +110,8 @@ def test_a_plugin_laughlab_would_never_call_is_one_line(tmp_path):
         folder = tmp_path / case
         folder.mkdir()
         (folder / "p.py").write_text(text)
-        r = run(f"plugins_dir={folder}", "face=gape", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}",
-                cwd=tmp_path)
+        r = laughlab(f"plugins_dir={folder}", "face=gape", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}",
+                     cwd=tmp_path)
         assert r.returncode == 2 and r.stderr.count("\n") == 1 and message in r.stderr, (case, r.stderr)
         assert "Traceback" not in r.stderr and not (tmp_path / "run").exists()
 
@@ -121,15 +124,17 @@ def test_a_metric_that_fails_is_one_line_naming_it(tmp_path):
         "import laughlab\nfrom laughlab.harness.metrics import metric\n\n@metric('jaw_none', True, 'x')\n"
         "def jaw_none(trial):\n    trial.channels['jaw'].mean()\n\n@laughlab.hookimpl\n"
         "def register_metrics(register):\n    register(jaw_none)\n")
-    r = run("plugins_dir=m", "experiment=smoke", "harness.corpus.seeds=1", "harness.corpus.duration_s=1",
-            "harness.corpus.profiles=[mild]", "harness.showcase=null", "harness.plots=false", "hydra.run.dir=exp",
-            cwd=tmp_path)
+    r = laughlab("plugins_dir=m", "experiment=smoke", "detector=none", "harness.corpus.seeds=1",
+                 "harness.corpus.duration_s=1",
+                 "harness.corpus.profiles=[mild]", "harness.showcase=null", "harness.plots=false", "harness.jobs=1",
+                 "hydra.run.dir=exp", cwd=tmp_path)
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
     assert r.stderr.strip().splitlines()[-1].startswith("laughlab: error: metric 'jaw_none' failed: TypeError: ")
     # the folder is an unfinished experiment, not a stranger's files: a review found it refused by the next run
     assert r.stderr.strip().endswith("; the finished trials are kept: run the same command again to resume")
-    r = run("experiment=smoke", "harness.corpus.seeds=1", "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild]",
-            "harness.showcase=null", "harness.plots=false", "hydra.run.dir=exp", cwd=tmp_path)
+    r = laughlab("experiment=smoke", "detector=none", "harness.corpus.seeds=1", "harness.corpus.duration_s=1",
+                 "harness.corpus.profiles=[mild]", "harness.showcase=null", "harness.plots=false", "harness.jobs=1",
+                 "hydra.run.dir=exp", cwd=tmp_path)
     assert r.returncode == 0 and (tmp_path / "exp" / "results.json").exists(), r.stderr
 
 
@@ -142,7 +147,7 @@ def test_a_plugin_that_raises_is_named_with_its_frame_and_its_own_lines(tmp_path
     plugin = tmp_path / "p" / "gape.py"
     plugin.write_text(PLUGIN.replace('        frame.channels["jaw"]', '        if frame.index == 30:\n'
                                      '            raise ValueError("no jaw today")\n        frame.channels["jaw"]'))
-    r = run("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
+    r = laughlab("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
     lines = r.stderr.strip().splitlines()
     assert r.returncode == 1 and not (tmp_path / "run").exists(), r.stderr
     assert lines[-1] == (f"laughlab: error: face 'gape' ({plugin}, Gape.step) at frame 30 (0.50 s) raised "
@@ -151,9 +156,10 @@ def test_a_plugin_that_raises_is_named_with_its_frame_and_its_own_lines(tmp_path
     # the traceback starts at the plugin's step: none of laughlab's, Hydra's or pluggy's lines
     assert lines[0] == "Traceback (most recent call last):" and f'File "{plugin}", line ' in lines[1]
     assert "laughlab/" not in r.stderr.replace(str(tmp_path), "") and "hydra" not in r.stderr
-    r = run("plugins_dir=p", "experiment=smoke", "face=gape", "harness.corpus.seeds=1", "harness.corpus.duration_s=1",
-            "harness.corpus.profiles=[mild,intense]", "harness.jobs=2", "harness.showcase=null",
-            "harness.plots=false", "hydra.run.dir=exp", cwd=tmp_path)
+    r = child("plugins_dir=p", "experiment=smoke", "face=gape", "detector=none", "harness.corpus.seeds=1",
+              "harness.corpus.duration_s=1",
+              "harness.corpus.profiles=[mild,intense]", "harness.jobs=2", "harness.showcase=null",
+              "harness.plots=false", "hydra.run.dir=exp", cwd=tmp_path)
     last = r.stderr.strip().splitlines()[-1]
     assert r.returncode == 1 and "Traceback (most recent call last):" in r.stderr, r.stderr
     assert last.startswith(f"laughlab: error: face 'gape' ({plugin}, Gape.step) at frame 30 (0.50 s) in trial ")
@@ -173,17 +179,32 @@ def test_a_channel_that_is_not_a_number_is_one_line_naming_it(tmp_path, value, s
     (tmp_path / "p").mkdir()
     (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace(
         'frame.channels["jaw"] = min(1.0, frame.control["mcs"] * self.params.gain)', f'frame.channels["jaw"] = {value}'))
-    r = run("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
+    r = laughlab("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
     assert r.returncode == 1 and r.stderr == (
         f"laughlab: error: {says}a bug in the plugin that writes it (laughlab's own plugins: please report it); "
         "nothing was written\n"), r.stderr
     assert not (tmp_path / "run").exists()
     # in an experiment: the trial named, exit status 1 too (a diff review: 2, no trial)
-    r = run("plugins_dir=p", "experiment=smoke", "~harness.conditions", "+harness.conditions={g:['face=gape']}",
-            "harness.corpus.profiles=[mild]", "harness.corpus.seeds=1", "harness.corpus.duration_s=1", "harness.jobs=1",
-            "harness.plots=false", "progress=off", "hydra.run.dir=exp", cwd=tmp_path)
+    r = laughlab("plugins_dir=p", "experiment=smoke", "~harness.conditions", "+harness.conditions={g:['face=gape']}",
+                 "harness.corpus.profiles=[mild]", "harness.corpus.seeds=1", "harness.corpus.duration_s=1",
+                 "harness.jobs=1", "harness.plots=false", "progress=off", "hydra.run.dir=exp", cwd=tmp_path)
     assert r.returncode == 1 and r.stderr.startswith(f"laughlab: error: in trial g/mild-s00 seed 0, {says}a bug in "
                                                      "the plugin") and r.stderr.count("\n") == 1, r.stderr
+
+
+def _code_hash(folder) -> str:
+    """``plugin_code_hash()`` with ``folder``'s plugins loaded, as a process given ``plugins_dir=folder`` has it;
+    they are unloaded after."""
+    from laughlab.core.plugins import load_plugin_dir, pm
+    from laughlab.harness.runner import plugin_code_hash
+
+    loaded = load_plugin_dir(folder)
+    try:
+        return plugin_code_hash()
+    finally:
+        for name in loaded:
+            pm.unregister(name=name)
+            sys.modules.pop(name, None)
 
 
 def test_a_resumed_experiment_does_not_mix_two_codes_numbers(tmp_path):
@@ -195,11 +216,9 @@ def test_a_resumed_experiment_does_not_mix_two_codes_numbers(tmp_path):
 
     (tmp_path / "p").mkdir()
     (tmp_path / "p" / "gape.py").write_text(PLUGIN)
-    code = "from laughlab.core.plugins import load_plugin_dir; from laughlab.harness.runner import plugin_code_hash; " \
-           "load_plugin_dir('p'); print(plugin_code_hash())"
-    before = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path).stdout
+    before = _code_hash(tmp_path / "p")
     (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace("* self.params.gain", "* self.params.gain * 0.5"))
-    after = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path).stdout
+    after = _code_hash(tmp_path / "p")
     assert len(before.strip()) == 16 and before != after
     journal = Journal(tmp_path / "metrics.jsonl", "exp", before.strip())
     item = Item("mild-s00", ("input=synthetic",), "mild", 0)
@@ -222,11 +241,11 @@ def test_a_scheduler_or_body_writing_what_the_character_lacks_is_one_line(tmp_pa
         "        frame.offsets['nosuchjoint'] = (1.0, 0.0, 0.0)\n        frame.channels['chest'] = 0.0\n"
         "        frame.channels['belly'] = 0.0\n\n@laughlab.hookimpl\ndef register_schedulers(register):\n"
         "    register(Bad)\n\n@laughlab.hookimpl\ndef register_bodies(register):\n    register(BadBody)\n")
-    r = run("plugins_dir=p", "scheduler=badsched", "input.duration_s=2", "hydra.run.dir=run", cwd=tmp_path)
+    r = laughlab("plugins_dir=p", "scheduler=badsched", "input.duration_s=2", "hydra.run.dir=run", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.startswith(
         "laughlab: error: the scheduler started clip 'nosuchclip' at 0.50 s (frame 30), which the clip library does not "
         "hold (no clip 'nosuchclip'; have lean_front1, ") and r.stderr.count("\n") == 1
-    r = run("plugins_dir=p", "body=badbody", "input.duration_s=2", "hydra.run.dir=run", cwd=tmp_path)
+    r = laughlab("plugins_dir=p", "body=badbody", "input.duration_s=2", "hydra.run.dir=run", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.startswith(
         "laughlab: error: the body wrote an offset for joint 'nosuchjoint', which the skeleton does not have (its "
         "joints: hips, spine, ") and r.stderr.count("\n") == 1
@@ -258,7 +277,7 @@ def test_an_experiment_of_ones_own_in_the_plugins_dir(tmp_path):
     (tmp_path / "mine" / "experiment").mkdir(parents=True)
     (tmp_path / "mine" / "gape.py").write_text(PLUGIN)
     (tmp_path / "mine" / "experiment" / "gape_vs_smile.yaml").write_text(EXPERIMENT)
-    r = run("plugins_dir=mine", "experiment=gape_vs_smile", "harness.jobs=2", "hydra.run.dir=exp", cwd=tmp_path)
+    r = child("plugins_dir=mine", "experiment=gape_vs_smile", "harness.jobs=2", "hydra.run.dir=exp", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     doc = json.loads((tmp_path / "exp" / "results.json").read_text())
     assert doc["experiment"] == "gape_vs_smile" and doc["n_trials"] == 4
@@ -276,7 +295,7 @@ def test_an_experiment_of_ones_own_in_the_plugins_dir(tmp_path):
     assert all(v is not None and v == v for v in smiles["smile"]) and len(smiles["smile"]) == 2
     assert all(v is None or v != v for v in smiles["gape"]) and len(smiles["gape"]) == 2
     # without the folder the name is unknown, and the line says where one's own experiments go
-    r = run("experiment=gape_vs_smile", cwd=tmp_path)
+    r = laughlab("experiment=gape_vs_smile", cwd=tmp_path)
     assert r.returncode == 2 and "plugins_dir=DIR with DIR/experiment/gape_vs_smile.yaml" in r.stderr, r.stderr
     # a built-in experiment's name, a file that is not YAML, a harness.name of another: one line naming the file,
     # when that experiment is asked for; the folder's other experiments still run (a review: one bad file stopped
@@ -294,11 +313,11 @@ def test_an_experiment_of_ones_own_in_the_plugins_dir(tmp_path):
                                   "experiment's name is its file's (named); remove harness.name or rename the file"),
                         ("dflt", "unknown extractor 'nosuch' in a defaults list (an experiment's override /extractor); "
                                  "choose one of: phoneme, pressure, rms")):
-        r = run("plugins_dir=mine", f"experiment={asked}", "hydra.run.dir=x", cwd=tmp_path)
+        r = laughlab("plugins_dir=mine", f"experiment={asked}", "hydra.run.dir=x", cwd=tmp_path)
         assert r.returncode == 2 and r.stderr.count("\n") == 1 and said in r.stderr, (asked, r.stderr)
         assert not (tmp_path / "x").exists()
-    r = run("plugins_dir=mine", "experiment=gape_vs_smile", "harness.corpus.seeds=1", "hydra.run.dir=again",
-            cwd=tmp_path)
+    r = laughlab("plugins_dir=mine", "experiment=gape_vs_smile", "harness.corpus.seeds=1", "hydra.run.dir=again",
+                 cwd=tmp_path)
     assert r.returncode == 0, r.stderr
 
 
@@ -307,14 +326,14 @@ def test_plugins_dir_is_one_folder(tmp_path):
     one), and plugins_dir=[a,b] said only that it was not a folder."""
     for d in ("a", "b"):
         (tmp_path / d).mkdir()
-    r = run("plugins_dir=a", "plugins_dir=b", "input.duration_s=1", "hydra.run.dir=x", cwd=tmp_path)
+    r = laughlab("plugins_dir=a", "plugins_dir=b", "input.duration_s=1", "hydra.run.dir=x", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and not (tmp_path / "x").exists()
     assert (f"plugins_dir is given 2 times (plugins_dir={tmp_path / 'a'}, plugins_dir={tmp_path / 'b'}): it is one "
             "folder") in r.stderr
-    r = run("plugins_dir=[a,b]", "input.duration_s=1", cwd=tmp_path)
+    r = laughlab("plugins_dir=[a,b]", "input.duration_s=1", cwd=tmp_path)
     assert r.returncode == 2 and "is not a folder (plugins_dir is one folder: put every plugin module" in r.stderr
     # the plugin authors' review: `plugins` listed both folders' plugins, a set-up no run accepts
-    r = run("plugins", "plugins_dir=a", "plugins_dir=b", cwd=tmp_path)
+    r = laughlab("plugins", "plugins_dir=a", "plugins_dir=b", cwd=tmp_path)
     assert r.returncode == 2 and r.stdout == "" and r.stderr == (
         "laughlab: error: plugins_dir is given 2 times (plugins_dir=a, plugins_dir=b): it is one folder; put every "
         "plugin module and experiment/ in it\n"), r.stderr
@@ -365,12 +384,12 @@ def test_a_background_sink_and_a_helper_module_in_the_plugins_dir(tmp_path):
     (tmp_path / "p").mkdir()
     (tmp_path / "p" / "bgsink.py").write_text(BACKGROUND_SINK)
     (tmp_path / "p" / "zz_helpers.py").write_text("def label():\n    return 'frames'\n")
-    r = run("plugins_dir=p", "detector=none", "input.duration_s=3", "hydra.run.dir=run", "+output.frames={}",
-            cwd=tmp_path)
+    r = child("plugins_dir=p", "detector=none", "input.duration_s=3", "hydra.run.dir=run", "+output.frames={}",
+              cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "run" / "frames.txt").read_text().split() == ["frames", "180", "True"]
-    r = run("plugins_dir=p", "detector=none", "input.duration_s=3", "hydra.run.dir=run2", "+output.frames={}",
-            "output.plots=null", cwd=tmp_path, env_workers="0")
+    r = laughlab("plugins_dir=p", "detector=none", "input.duration_s=3", "hydra.run.dir=run2", "+output.frames={}",
+                 "output.plots=null", cwd=tmp_path)   # in this process: LAUGHLAB_WORKERS=0
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "run2" / "frames.txt").read_text().split() == ["frames", "180", "False"]
 
@@ -381,8 +400,8 @@ def test_a_plugin_sinks_parameter_without_plus_says_how(tmp_path):
     ``+`` adds it."""
     (tmp_path / "p").mkdir()
     (tmp_path / "p" / "bgsink.py").write_text(BACKGROUND_SINK.replace("from .zz_helpers import label", "label = str"))
-    r = run("plugins_dir=p", "input.duration_s=1", "hydra.run.dir=run", "+output.frames={}",
-            "output.frames.precision=5", cwd=tmp_path)
+    r = laughlab("plugins_dir=p", "input.duration_s=1", "hydra.run.dir=run", "+output.frames={}",
+                 "output.frames.precision=5", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr == (
         "laughlab: error: output.frames is a plugin's sink, which has no output option: its parameters are added "
         "with +, +output.frames.precision=5 (that also adds the sink)\n"), r.stderr
@@ -395,13 +414,13 @@ def test_help_with_a_plugins_dir_lists_its_plugins_in_laughlabs_own_help(tmp_pat
     (tmp_path / "p" / "gape.py").write_text(PLUGIN)
     (tmp_path / "p" / "experiment" / "mine.yaml").write_text("# @package _global_\nharness:\n  conditions:\n"
                                                              "    a: [face=gape]\n")
-    r = run("plugins_dir=p", "--help", cwd=tmp_path)
+    r = child("plugins_dir=p", "--help", cwd=tmp_path)   # Hydra's search path is per process
     assert r.returncode == 0 and r.stdout.startswith("usage: python -m laughlab [group=option ...]"), r.stderr
     lines = r.stdout.splitlines()
     assert "  face:        smile, cgm, facs; plugins_dir: gape" in lines
     assert any(ln.startswith("  experiment:  ") and ln.endswith("; plugins_dir: mine") for ln in lines)
     assert "Hydra" not in r.stdout.split("Hydra's own flags")[0]
-    r = run("plugins_dir=nope", "--help", cwd=tmp_path)
+    r = laughlab("plugins_dir=nope", "--help", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr == "laughlab: error: plugins_dir 'nope' is not a folder\n"
 
 
@@ -411,7 +430,7 @@ def test_a_face_that_writes_only_the_jaw_runs_with_one_warning(tmp_path):
     stays at rest."""
     (tmp_path / "p").mkdir()
     (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace("smile=0.5, blink=0.0, eyes_closed=0.0", "smile=0.5"))
-    r = run("plugins_dir=p", "face=gape", "detector=none", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
+    r = laughlab("plugins_dir=p", "face=gape", "detector=none", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
     assert r.returncode == 0 and r.stderr == (
         "laughlab: warning: face 'gape' writes no blink, eyes_closed (a face writes smile, jaw, blink, eyes_closed: "
         "docs/architecture.md); the character's blink/eyes_closed stay at rest and the metrics that read them are "
@@ -424,11 +443,11 @@ def test_a_plugins_dir_with_a_space_quoted_as_hydra_asks(tmp_path):
     the name, ``plugins_dir "'my plugins'" is not a folder``)."""
     (tmp_path / "my plugins").mkdir()
     (tmp_path / "my plugins" / "gape.py").write_text(PLUGIN)
-    r = run("plugins_dir='my plugins'", "face=gape", "input.duration_s=1", "detector=none", "output=[files]",
-            "hydra.run.dir='my run'", cwd=tmp_path)
+    r = laughlab("plugins_dir='my plugins'", "face=gape", "input.duration_s=1", "detector=none", "output=[files]",
+                 "hydra.run.dir='my run'", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert " > gape > " in r.stdout and (tmp_path / "my run" / "channels.csv").exists()
-    listed = run("plugins", 'plugins_dir="my plugins"', cwd=tmp_path)
+    listed = laughlab("plugins", 'plugins_dir="my plugins"', cwd=tmp_path)
     assert listed.returncode == 0 and "gape" in listed.stdout, listed.stderr
-    missing = run("plugins_dir='no such'", cwd=tmp_path)
+    missing = laughlab("plugins_dir='no such'", cwd=tmp_path)
     assert missing.returncode == 2 and missing.stderr == "laughlab: error: plugins_dir 'no such' is not a folder\n"
