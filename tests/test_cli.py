@@ -29,7 +29,7 @@ def sha(path):
 @pytest.fixture(scope="module")
 def default_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("runs") / "default"
-    r = laughlab_process(f"hydra.run.dir={out}", "input.duration_s=12")
+    r = laughlab(f"hydra.run.dir={out}", "input.duration_s=6")   # in this process: the same bytes (tests/inprocess.py)
     assert r.returncode == 0, r.stderr
     return out
 
@@ -44,7 +44,7 @@ def test_run_directory_contract(default_run):
     assert ch.columns[0] == "time"
     for col in ("mcs", "chest", "belly", "smile", "jaw", "eyes_closed", "energy", "clip_energy"):
         assert col in ch.columns
-    assert len(ch) == 12 * 60
+    assert len(ch) == 6 * 60
     assert np.allclose(np.diff(ch.time), 1 / 60, atol=1e-6)
     assert np.isfinite(ch.drop(columns="time").to_numpy()).all()
     ev = pd.read_csv(d / "events.csv")
@@ -53,14 +53,14 @@ def test_run_directory_contract(default_run):
     m = json.loads((d / "metrics.json").read_text())
     for key in ("frame_ms_p50", "frame_ms_p99", "realtime_factor", "n_frames"):
         assert key in m
-    assert m["n_frames"] == 12 * 60
+    assert m["n_frames"] == 6 * 60
 
 
 def test_bvh_parses_in_an_independent_reader(default_run):
     from bvh import Bvh
 
     mocap = Bvh((default_run / "motion.bvh").read_text())
-    assert mocap.nframes == 12 * 60                    # frames = duration x fps
+    assert mocap.nframes == 6 * 60                    # frames = duration x fps
     assert mocap.frame_time == pytest.approx(1 / 60, abs=1e-6)
     assert len(mocap.get_joints_names()) == 22
     assert len(mocap.frames[0]) == 69
@@ -68,11 +68,11 @@ def test_bvh_parses_in_an_independent_reader(default_run):
 
 def test_same_seed_same_bytes_other_seed_differs(default_run, tmp_path):
     again = tmp_path / "again"
-    assert laughlab(f"hydra.run.dir={again}", "input.duration_s=12", "~output.plots").returncode == 0
+    assert laughlab(f"hydra.run.dir={again}", "input.duration_s=6", "~output.plots").returncode == 0
     for name in ("channels.csv", "events.csv", "motion.bvh", "truth.csv", "input.wav"):
         assert sha(default_run / name) == sha(again / name), name
     other = tmp_path / "other"
-    assert laughlab(f"hydra.run.dir={other}", "input.duration_s=12", "seed=1", "~output.plots").returncode == 0
+    assert laughlab(f"hydra.run.dir={other}", "input.duration_s=6", "seed=1", "~output.plots").returncode == 0
     assert sha(default_run / "channels.csv") != sha(other / "channels.csv")
 
 
@@ -412,7 +412,8 @@ def test_the_summary_times_the_whole_command_from_the_process_start(tmp_path):
 
     out = tmp_path / "run"
     t_spawn = time.monotonic()
-    p = subprocess.Popen([sys.executable, "-m", "laughlab", f"hydra.run.dir={out}", "input.duration_s=4"],
+    p = subprocess.Popen([sys.executable, "-m", "laughlab", f"hydra.run.dir={out}", "input.duration_s=4",
+                          "~output.plots"],   # the figures' helper process: tests/test_fuzz.py's 10 ms run
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
     line = p.stdout.readline()
     waited = time.monotonic() - t_spawn         # spawn to the summary line, as the user sees it
@@ -481,8 +482,8 @@ def test_a_silent_file_says_so_in_the_closing_line(tmp_path, gain, said):
     x = np.sin(2 * np.pi * 300 * t) * (t < 1.5)
     x = x / np.abs(x).max() * gain
     sf.write(tmp_path / "a.wav", x.astype(np.float32), 44100, subtype="FLOAT")
-    r = laughlab("input=file", f"input.path={tmp_path / 'a.wav'}", "output=[files]", "detector=none",
-                 f"hydra.run.dir={tmp_path / 'r'}")
+    r = laughlab("input=file", f"input.path={tmp_path / 'a.wav'}", "output=[files]", "~output.plots", "detector=none",
+                 f"hydra.run.dir={tmp_path / 'r'}")   # no figures: the closing line and metrics.json say it
     assert r.returncode == 0, r.stderr
     assert r.stdout.startswith(f"laughlab: 2.0 s of a.wav{said}rms > none"), r.stdout
     peak = json.loads((tmp_path / "r" / "metrics.json").read_text())["input_peak"]
@@ -610,8 +611,8 @@ def test_a_run_whose_stdout_is_closed_is_kept_whole(tmp_path):
     assert p.wait(timeout=300) == 0 and err == "", err
     marker = json.loads((run / ".laughlab-run.json").read_text())
     assert marker["complete"] and {"channels.csv", "events.csv", "motion.bvh"} <= set(marker["files"])
-    r = laughlab_process("detector=none", "input.duration_s=1", "output=[files]", "~output.plots",
-                         f"hydra.run.dir={run}", "overwrite=true")
+    r = laughlab("detector=none", "input.duration_s=1", "output=[files]", "~output.plots",   # in this process
+                 f"hydra.run.dir={run}", "overwrite=true")
     assert r.returncode == 0, r.stderr
 
 
@@ -684,7 +685,8 @@ def test_hydra_job_chdir_runs_in_the_run_folder_with_the_paths_named_from_where_
     a = laughlab("input=file", "input.path=laugh.wav", "detector=none", "hydra.job.chdir=true",
                  "hydra.run.dir=out", cwd=tmp_path)
     assert a.returncode == 0, a.stderr
-    b = laughlab("input=file", "input.path=laugh.wav", "detector=none", "hydra.run.dir=plain", cwd=tmp_path)
+    b = laughlab("input=file", "input.path=laugh.wav", "detector=none", "~output.plots", "hydra.run.dir=plain",
+                 cwd=tmp_path)   # the files to compare with (the figures are the chdir run's)
     assert b.returncode == 0, b.stderr
     for name in ("channels.csv", "events.csv", "motion.bvh"):
         assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "plain" / name).read_bytes(), name

@@ -323,7 +323,8 @@ def test_replaying_the_amplitudes_gives_the_runs_mcs_exactly(tmp_path):
     from laughlab.signals.mcs import RmsParams, params_of_run, replay
 
     # the extractor's own mcs in channels.csv: no detector gating it (detector=none)
-    cfg = cfg_for("input.duration_s=6", "extractor.calibration_s=0.5", "output=[files]", "detector=none")
+    cfg = cfg_for("input.duration_s=6", "extractor.calibration_s=0.5", "output=[files]", "~output.plots",
+                  "detector=none")
     pipeline.execute(pipeline.build(cfg), tmp_path)
     ch = pd.read_csv(tmp_path / "channels.csv")
     params = params_of_run(OmegaConf.to_container(cfg, resolve=True))
@@ -427,7 +428,7 @@ def test_a_file_can_start_with_its_calibration_burst(tmp_path):
     laugh = rng.normal(0, 0.03, 3 * sr) * (1 + np.sin(2 * np.pi * 5 * np.arange(3 * sr) / sr))
     sf.write(tmp_path / "cal.wav", np.concatenate([burst, laugh]).astype(np.float32), sr)
     pipe = pipeline.build(cfg_for("input=file", f"input.path={tmp_path / 'cal.wav'}", "extractor.calibration_s=0.5",
-                                  "output=[files]"))
+                                  "output=[files]", "~output.plots"))
     assert pipe.ctx.calibration_s == 0.5
     pipeline.execute(pipe, tmp_path / "run", {})
     ch = pd.read_csv(tmp_path / "run" / "channels.csv")
@@ -452,7 +453,7 @@ def test_the_default_run_writes_no_negative_energy_and_no_eye_jump_at_clip_event
     """The default run, and the papers' (every sound drives the character: clips overrule each other)."""
     import pandas as pd
 
-    pipe = pipeline.build(cfg_for("input.duration_s=30", "output=[files]", f"detector={detector}"))
+    pipe = pipeline.build(cfg_for("input.duration_s=30", "output=[files]", "~output.plots", f"detector={detector}"))
     pipeline.execute(pipe, tmp_path, {})
     ch = pd.read_csv(tmp_path / "channels.csv")
     ev = pd.read_csv(tmp_path / "events.csv")
