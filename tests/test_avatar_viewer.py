@@ -28,7 +28,7 @@ THREE_VRM_NOTICE = "Curves of LookAtDegreeMap defined in VRM 0.0 are not support
 def run_dir(tmp_path_factory):
     from test_avatar import run
 
-    return run(tmp_path_factory.mktemp("avatar-viewer"), "face=facs", "input.duration_s=4")
+    return run(tmp_path_factory.mktemp("avatar-viewer"), "face=facs", "input.duration_s=4", "~output.plots")
 
 
 @pytest.fixture(scope="module", params=["Godette_vrm_v4.vrm", "debug_robot.vrm"], ids=["godette-vrm0", "robot-vrm1"])
@@ -123,8 +123,9 @@ def test_a_run_baked_on_a_vrm_is_viewed_as_that_avatar(tmp_path):
     from test_avatar import run
 
     godette = ASSETS / "Godette_vrm_v4.vrm"
-    baked = run(tmp_path / "baked", "face=facs", "input.duration_s=2", "output=gltf", f"character={godette}")
-    plain = run(tmp_path / "plain", "face=facs", "input.duration_s=2", "output=gltf")
+    baked = run(tmp_path / "baked", "face=facs", "input.duration_s=2", "output=gltf", "~output.plots",
+                f"character={godette}")
+    plain = run(tmp_path / "plain", "face=facs", "input.duration_s=2", "output=gltf", "~output.plots")
     want = json.loads(V.assets(plain, godette)["run.json"])["avatar"]
     assert want["vrm"] and want["facing"] == -1 and want["file"] == godette.name
     got = json.loads(V.assets(baked)["run.json"])["avatar"]
