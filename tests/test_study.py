@@ -34,7 +34,10 @@ def study(tmp_path_factory):
     """``experiment=stimuli`` (short synthetic laughs) and ``study build`` of it, through the command line."""
     root = tmp_path_factory.mktemp("study")
     out = fuzz.run_cli(["experiment=stimuli", f"hydra.run.dir={root / 'stim'}", "harness.corpus.seeds=1",
-                        "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild,intense]", "progress=off"])
+                        "harness.corpus.duration_s=1", "harness.corpus.profiles=[mild,intense]", "progress=off",
+                        # small videos (as tests/test_stimuli.py's): the study is about its design and answers
+                        "harness.video.width=96", "harness.video.height=72", "harness.video.fps=15",
+                        "harness.video.supersample=1"])
     assert out.code == 0, out.stderr
     out = fuzz.run_cli(["study", "build", str(root / "stim")])
     assert out.code == 0, out.stderr
