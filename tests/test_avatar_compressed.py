@@ -101,13 +101,24 @@ def test_a_meshopt_gltf_with_its_fallback_buffer_loads(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def godette_runs(tmp_path_factory):
-    """The same 2 s run baked on Godette, on her Draco copy and on her meshopt copy."""
+def copies(tmp_path_factory):
+    """Godette's Draco and meshopt copies as the encoders make them (made once: the tests below only read them)."""
+    d = tmp_path_factory.mktemp("copies")
+    return {"draco": draco(GODETTE, d / "draco.vrm"), "meshopt": meshopt(GODETTE, d / "meshopt.vrm")}
+
+
+@pytest.fixture(scope="module")
+def godette_runs(tmp_path_factory, copies):
+    """The same 2 s run baked on Godette, on her Draco copy (weights 0.1% off, as a quantising encoder leaves them)
+    and on her meshopt copy; and the Khronos validator's issues with plain Godette (the same for both kinds)."""
+    from test_gltf import validator_issues
+
     d = tmp_path_factory.mktemp("compressed")
     files = {"plain": GODETTE, "draco": draco(GODETTE, d / "draco.vrm", weights_off=1e-3),
-             "meshopt": meshopt(GODETTE, d / "m.vrm")}
-    return {k: run(d / k, "output=gltf", "face=facs", "input.duration_s=2", f"character={f}")
-            for k, f in files.items()}
+             "meshopt": copies["meshopt"]}
+    runs = {k: run(d / k, "output=gltf", "face=facs", "input.duration_s=2", "~output.plots", f"character={f}")
+            for k, f in files.items()}   # the runs' character.glb are compared, not their figures
+    return runs, validator_issues(GODETTE, d)
 
 
 def _animation(path: Path) -> list:
@@ -124,8 +135,9 @@ def test_a_run_on_a_compressed_avatar_animates_as_on_the_uncompressed_one(godett
     no warning the uncompressed avatar does not have."""
     from test_gltf import validator_issues
 
-    path = godette_runs[kind] / "character.glb"
-    plain, ours = _animation(godette_runs["plain"] / "character.glb"), _animation(path)
+    runs, godette_issues = godette_runs
+    path = runs[kind] / "character.glb"
+    plain, ours = _animation(runs["plain"] / "character.glb"), _animation(path)
     assert [t for t, _ in ours] == [t for t, _ in plain]
     assert all(np.array_equal(a, b) for (_, a), (_, b) in zip(ours, plain))
     doc, _ = read_glb(path)
@@ -133,7 +145,7 @@ def test_a_run_on_a_compressed_avatar_animates_as_on_the_uncompressed_one(godett
     found = validator_issues(path, tmp_path)
     assert found["numErrors"] == 0, found["messages"]
     codes = {m["code"] for m in found["messages"] if m["severity"] <= 1}
-    theirs = {m["code"] for m in validator_issues(GODETTE, tmp_path)["messages"] if m["severity"] <= 1}
+    theirs = {m["code"] for m in godette_issues["messages"] if m["severity"] <= 1}
     assert codes <= theirs, codes - theirs
 
 
@@ -184,7 +196,7 @@ def test_draco_weights_sum_to_one_in_character_glb(tmp_path):
     assert (found["numErrors"], found["numWarnings"]) == (0, 0), found["messages"]
 
 
-def test_the_video_draws_a_compressed_avatar_as_the_uncompressed_one(tmp_path):
+def test_the_video_draws_a_compressed_avatar_as_the_uncompressed_one(tmp_path, copies):
     """The software renderer's frames of Godette's compressed copies, in the rest pose and in a bent pose with a
     morph on: meshopt's (lossless) the same pixels; Draco's within its quantisation (a pixel at an edge may flip).
     And ``output=video`` on the Draco copy runs."""
@@ -194,8 +206,7 @@ def test_the_video_draws_a_compressed_avatar_as_the_uncompressed_one(tmp_path):
     bent = rest_pose().copy()
     bent[3:] += np.random.default_rng(1).normal(0.0, 10.0, bent[3:].shape)
     frames = {}
-    for name, path in (("plain", GODETTE), ("meshopt", meshopt(GODETTE, tmp_path / "m.vrm")),
-                       ("draco", draco(GODETTE, tmp_path / "d.vrm"))):
+    for name, path in (("plain", GODETTE), ("meshopt", copies["meshopt"]), ("draco", copies["draco"])):
         r = AvatarRenderer(load_avatar(path), HUMANOID, 320, 240, supersample=1)
         frames[name] = [r.render(rest_pose(), {}), r.render(bent, {"jawOpen": 0.8})]
     for plain, packed in zip(frames["plain"], frames["meshopt"]):
@@ -203,14 +214,20 @@ def test_the_video_draws_a_compressed_avatar_as_the_uncompressed_one(tmp_path):
     for plain, packed in zip(frames["plain"], frames["draco"]):
         differ = np.abs(plain.astype(int) - packed.astype(int)).max(axis=2) > 8
         assert differ.mean() < 0.002, differ.mean()
-    out = _cli(tmp_path, "output=video", "face=facs", "input.duration_s=1", f"character={tmp_path / 'd.vrm'}",
+    out = _cli(tmp_path, "output=video", "face=facs", "input.duration_s=1", f"character={copies['draco']}",
                "output.video.supersample=1")
     assert out.returncode == 0 and (tmp_path / "run" / "video.mp4").stat().st_size > 10_000, out.stderr
 
 
+@pytest.fixture(scope="module")
+def browser_run(tmp_path_factory):
+    """A 3 s run (no figures: the page shows none) for the page to play on each copy."""
+    return run(tmp_path_factory.mktemp("browser") / "run", "face=facs", "input.duration_s=3", "~output.plots")
+
+
 @pytest.mark.browser
 @pytest.mark.parametrize("kind", ["draco", "meshopt"])
-def test_the_browser_plays_a_compressed_avatar(kind, tmp_path):
+def test_the_browser_plays_a_compressed_avatar(kind, copies, browser_run):
     """``view RUN --character`` a compressed copy of Godette: three.js and three-vrm load the page's character.glb
     (decoded by laughlab; the page has no Draco or meshopt decoder) without an error, and her joints are where the
     retargeting puts them."""
@@ -221,8 +238,7 @@ def test_the_browser_plays_a_compressed_avatar(kind, tmp_path):
     from laughlab.viewer import server as V
     from laughlab.viewer.browser import Page
 
-    path = (draco if kind == "draco" else meshopt)(GODETTE, tmp_path / f"{kind}.vrm")
-    run_dir = run(tmp_path / "run", "face=facs", "input.duration_s=3")
+    path, run_dir = copies[kind], browser_run
     httpd = V.server(run_dir, 0, path)
     threading.Thread(target=httpd.serve_forever, daemon=True).start()
     page = Page(f"http://127.0.0.1:{httpd.server_address[1]}/")
