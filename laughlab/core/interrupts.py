@@ -97,10 +97,11 @@ def check() -> None:
 
 
 def _unraisable(info) -> None:
-    """``sys.unraisablehook`` of ``python -m laughlab``: the handler's ``KeyboardInterrupt`` raised where Python
-    cannot raise it is not printed (:func:`check` raises it at the run's next chunk); everything else is
-    Python's."""
-    if info.exc_type is KeyboardInterrupt and received is not None:
+    """``sys.unraisablehook`` of ``python -m laughlab``: after a stop signal, nothing a finaliser raises is printed:
+    the handler's ``KeyboardInterrupt`` raised where Python cannot raise it (:func:`check` raises it at the run's
+    next chunk), and what breaks as the command stops (``study simulate``: Playwright's driver transport collected
+    after its event loop closed, "Event loop is closed", a CI run).  Before one, everything is Python's."""
+    if received is not None:
         return
     sys.__unraisablehook__(info)
 

@@ -15,6 +15,7 @@ not needed.
 from __future__ import annotations
 
 import asyncio
+import logging
 import math
 import time
 from dataclasses import dataclass, field
@@ -215,9 +216,14 @@ def run_sync(*args, **kwargs) -> dict[int, Given]:
         if interrupts.received is None:
             loop.default_exception_handler(context)
 
-    with asyncio.Runner() as runner:
-        runner.get_loop().set_exception_handler(quiet_after_interrupt)
-        return runner.run(run(*args, **kwargs))
+    try:
+        with asyncio.Runner() as runner:
+            runner.get_loop().set_exception_handler(quiet_after_interrupt)
+            return runner.run(run(*args, **kwargs))
+    except BaseException:
+        if interrupts.received is not None:   # the browser's driver process is reaped after the loop closed, and
+            logging.getLogger("asyncio").disabled = True   # asyncio logs "Loop ... that handles pid ... is closed"
+        raise
 
 
 def parse_effects(text: str, design: dict) -> dict[str, float]:
