@@ -402,8 +402,11 @@ def test_a_recordings_showcase_shows_its_annotated_bouts(tmp_path):
     sf.write(rec / "ha.wav", 0.3 * np.sin(2 * np.pi * 300 * t) * (np.sin(2 * np.pi * 4 * t) > 0), 16000)
     (rec / "ha.txt").write_text("0.200\t1.400\tlaugh\n0.200\t0.400\tcall\n")
     r = laughlab("experiment=smoke", f"harness.corpus.folder={rec}", "harness.corpus.profiles=[]",
-                 "harness.showcase=rec-ha", "harness.jobs=1", f"hydra.run.dir={tmp_path / 'exp'}")
+                 "harness.showcase=rec-ha", "harness.jobs=1", "output.plots.pdf=false", f"hydra.run.dir={tmp_path / 'exp'}")
     assert r.returncode == 0, r.stderr
+    # output.plots.pdf=false applies to the showcase's figures (it was overridden to true until 2026-11-28)
+    pngs = sorted(p.name for p in (tmp_path / "exp").rglob("*.png"))
+    assert "energy_fig4_2_energy.png" in pngs and not list((tmp_path / "exp").rglob("*.pdf")), pngs
     for cond in ("energy", "none"):
         rows = list(csv.DictReader((tmp_path / "exp" / "showcase" / cond / "truth.csv").open()))
         assert [(x["kind"], float(x["onset_s"]), float(x["offset_s"])) for x in rows] == [

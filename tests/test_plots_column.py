@@ -59,26 +59,28 @@ def test_every_text_of_the_column_figures_prints_at_7_pt_or_more(tmp_path, sized
 
 #: the figures of ``input.duration_s=3`` (seed 0) in the locked environment: the page layout's recorded at 7df9199,
 #: before output.plots.width existed (the default run's, a concat run's and btanks laugh01's were compared there too)
+#: the PDFs' since 2026-11-28, when a PDF took its PNG's layout instead of a layout pass of its own (the PNGs kept
+#: their bytes; the PDFs' axes moved a fraction of a point: render/savefig.py)
 PAGE_SHA256 = {
-    "fig3_1_calibration.pdf": "be0af4146dbbb8a7a411b0f7c1e664eb95597849a1bcaeaba3dd16d00fcfa78f",
+    "fig3_1_calibration.pdf": "92a1e98ac98f143da0a8b4d23ca5f4f7661e73c32ccc96c7bb7713428dadfda5",
     "fig3_1_calibration.png": "60ad58a608e1aa6100a27bffe384084d34fd85c6626f2e9bdb3bac39808fad6e",
-    "fig3_2_mcs.pdf": "941198bdf4718245798426644eed3cd3b6cbc55caf4a5703a0a9895d07f5026a",
+    "fig3_2_mcs.pdf": "ab147933c2f49e4e62414b401bbbecec558e9a8a3d81a16bd4d8ba9bbe62aad6",
     "fig3_2_mcs.png": "29b9bc60ad63ff4bcb9fcf66ae2861104ed9af619aedfa29f8333f14361cc2ed",
-    "fig4_1_energy.pdf": "2d7463ed8f9ad6ea5e5c7f22781e7c13021c7ee1d328925340f89dc7bc77505a",
+    "fig4_1_energy.pdf": "cab23021db8b487901cba2e193a0b402a0a0f80936435e3e00d42c7f051eca3d",
     "fig4_1_energy.png": "e0409cef3d978a26332a5d7e58e83990ddd9f8061caefa44ab58b949893f45d3",
-    "fig4_2_energy.pdf": "c2db83eede0a417a25c97fe9693a5ea77103eed6446e66e95a18c8e7370a55e8",
+    "fig4_2_energy.pdf": "d874c447c8064a4edd89bf9ecf3b9a0c06cabe270f1310bffcb90909386aa37a",
     "fig4_2_energy.png": "a75c17aa5e48e577346469c450752229e45fd81ae2d63e04ad2791c7a5a27edf",
     "filmstrip.pdf": "29b79f1aa43885212edd92369c757284718a9bcccde2c5ae580e9ac2e99ec813",
     "filmstrip.png": "23d10a966fb8e96fb57434770271bef3eb489cbc3032f46ad010435b6153b12a",
 }
 COLUMN_SHA256 = {
-    "fig3_1_calibration.pdf": "98a7f95285a3e3d9296597eb5ed0a0cb4333d1c93ef696fae134d2c1e0384fb3",
+    "fig3_1_calibration.pdf": "eb41d59a563729d19efa94b5c7e2963ddec815d24be0c8c9daba1bb66989ef74",
     "fig3_1_calibration.png": "780b7d062ea59e0da5184cc8568e8e8ea3e5c8920a5db77af1d050a46fe38a5c",
-    "fig3_2_mcs.pdf": "372c81d5c378ffee60ae5ce20148562dfa87aac76c6da12f2c576f733776368d",
+    "fig3_2_mcs.pdf": "f3558ca3007a0b8031b8e355dcd00ae5002e26d8d05538dcbeac42fe36b9f2dc",
     "fig3_2_mcs.png": "a729585574a845e0ee4ffccfa4527f04a5c974e656df0c0e1d2afb7efd38d66c",
-    "fig4_1_energy.pdf": "6e183e211146a4aaef23b6fd7d9195c13d53f30a7f586903bbaca35ff487361e",
+    "fig4_1_energy.pdf": "06e2cf9a6179eaeb92eb0af7e54a2cfcb5cf31f3cdd1991ce2defc1936f8bfe1",
     "fig4_1_energy.png": "624709dfb9dfd9da81dea33585bbfa8c7523887fc6d521dc3b74699253dc08bc",
-    "fig4_2_energy.pdf": "d0b3da7ab35242186d08a83319493743cad08eab40e7db8a0f0f3d19895f078c",
+    "fig4_2_energy.pdf": "5700b727ab03c963014d4fa92f15a13e4c17c35f0ea6f1c7c0989f425f19e9bb",
     "fig4_2_energy.png": "a7bd9e811d62df03e3aad42eee53d03db06b8523c1807d67c6e6b3117d0c8687",
     "filmstrip.pdf": "851bbe69b18939bb460549b5bd8776f6f85859e70f767321c1bd64fe00a3daca",
     "filmstrip.png": "971120f2d7913d7818f5c6d4b88cea19d7521a2b0a1c47b8f9e1f21a087a8cdc",

