@@ -81,3 +81,16 @@ def test_a_packages_experiment_that_cannot_be_one_is_one_line_when_asked_for(tmp
         r = run("plugins_dir=mine", "experiment=gape_vs_smile", "harness.jobs=1", "harness.corpus.seeds=1",
                 "hydra.run.dir=ok", site=tmp_path / "site", cwd=tmp_path)
         assert r.returncode == 0, r.stderr
+
+
+def test_a_register_hook_that_raises_is_one_line_naming_the_package_and_its_line(tmp_path):
+    """A re-read: a package's ``register_experiments`` that raised ended every command in a traceback."""
+    install(tmp_path / "site", 'raise RuntimeError("no experiments folder")')
+    r = run("experiment=gape_vs_smile", "hydra.run.dir=exp", site=tmp_path / "site", cwd=tmp_path)
+    init = tmp_path / "site" / "laughlab_gape" / "__init__.py"
+    line = next(i for i, t in enumerate(init.read_text().splitlines(), 1) if "no experiments folder" in t)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr == (f"laughlab: error: register_experiments of plugin laughlab-gape 0.1.0 (entry point) raised "
+                        f"RuntimeError: no experiments folder (at {init}, line {line}); every laughlab command loads "
+                        "the installed plugins: mend it, or uninstall it\n"), r.stderr
+    assert not (tmp_path / "exp").exists()

@@ -49,6 +49,24 @@ def test_a_plugin_registered_as_an_object_is_one_line(registered):
         plugins.registry()
 
 
+def test_a_register_hook_that_raises_is_one_line_naming_the_plugin_and_its_line(registered):
+    """A re-read: a ``register_faces`` that raised ended every command in a traceback."""
+    def no_faces(register):
+        raise KeyError("gape")
+
+    plugin = type("Raises", (), {"register_faces": staticmethod(laughlab.hookimpl(specname="register_faces")(no_faces))})
+    plugins.pm.register(plugin, name="test-raises")
+    try:
+        with pytest.raises(LaughlabError) as err:
+            plugins.registry()
+    finally:
+        plugins.pm.unregister(plugin)
+    line = no_faces.__code__.co_firstlineno + 1
+    assert str(err.value) == (f"register_faces of plugin registered: test-raises raised KeyError: 'gape' (at {__file__}, "
+                              f"line {line}); every laughlab command loads the installed plugins: mend it, or "
+                              "uninstall it")
+
+
 class Boom(GoodFace):
     name = "boom"
 

@@ -50,8 +50,7 @@ def load_installed(conf) -> None:
 
     plugins.load_entry_points()
     for impl in plugins.pm.hook.register_experiments.get_hookimpls():
-        found: list = []
-        impl.function(found.append)
+        found = plugins.collect(impl, "register_experiments")
         origin = plugins.origin_of(impl.plugin)
         for file in found:
             file = Path(str(file))

@@ -178,8 +178,7 @@ def registry() -> dict[str, dict[str, PluginInfo]]:
     for kind, hook_name in KINDS.items():
         hook = getattr(pm.hook, hook_name)
         for impl in hook.get_hookimpls():
-            found: list = []
-            impl.function(found.append)
+            found = collect(impl, hook_name)
             for obj in found:
                 name = getattr(obj, "name", None) or (None if isinstance(obj, type) else getattr(obj, "__name__", None))
                 if not name:
@@ -204,6 +203,20 @@ def registry() -> dict[str, dict[str, PluginInfo]]:
                 out[kind][name] = PluginInfo(kind, name, obj, origin_of(impl.plugin))
         out[kind] = dict(sorted(out[kind].items()))
     return out
+
+
+def collect(impl, hook_name: str) -> list:
+    """What one plugin's ``register_*`` hook registers; a hook that raises is one line naming the plugin, the
+    error and the plugin's line (a re-read: a package's ``register_experiments`` or ``register_faces`` that
+    raised ended every command in a traceback)."""
+    found: list = []
+    try:
+        impl.function(found.append)
+    except Exception as exc:
+        raise LaughlabError(f"{hook_name} of plugin {origin_of(impl.plugin)} raised {type(exc).__name__}: {exc}"
+                            f"{_raised_at(exc)}; every laughlab command loads the installed plugins: "
+                            "mend it, or uninstall it") from exc
+    return found
 
 
 def _check_class(kind: str, name: str, cls: type, origin: str) -> None:
