@@ -169,6 +169,19 @@ def test_a_page_too_large_to_inline_says_on_the_page_how_to_serve_it(run_dir, tm
         p.close()
 
 
+def test_a_written_page_holds_no_absolute_path_and_is_the_same_bytes_in_another_folder(run_dir, tmp_path):
+    """A re-read: the page named its folder and the run's by their absolute paths (for the message on how to serve
+    it), so a published page showed its author's folders; it finds its folder where it is opened now, and holds
+    the run's path relative to it (the browser test above: the message still names both in full)."""
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    pages = [(V.write(run_dir, tmp_path / k / "page")[0] / "index.html").read_bytes() for k in ("a", "b")]
+    assert pages[0] == pages[1]
+    assert str(tmp_path).encode() not in pages[0] and str(run_dir).encode() not in pages[0]
+    rel = os.path.relpath(run_dir, tmp_path / "a" / "page")
+    assert f'<body data-run="{rel}">'.encode() in pages[0]
+
+
 def test_view_out_says_how_to_open_the_page(run_dir, tmp_path):
     r = laughlab("view", str(run_dir), "--out", str(tmp_path / "s"))
     assert r.returncode == 0, r.stderr

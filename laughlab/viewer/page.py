@@ -18,6 +18,7 @@ from __future__ import annotations
 import base64
 import html
 import json
+import os
 import re
 from importlib import resources
 from pathlib import Path
@@ -91,8 +92,11 @@ def fits_inline(run_json: bytes, glb: bytes) -> bool:
 
 def static(name: str, run_json: bytes, glb: bytes, folder: Path, run_dir: Path, vrm: bool = False) -> bytes:
     """The page with everything but the audio inline (or, past :data:`INLINE_MAX_BYTES`, the served page);
-    ``folder`` (where it is written) and ``run_dir`` are named in the message shown if it cannot start;
-    ``vrm``: the character is a VRM (three-vrm inlined too)."""
+    ``vrm``: the character is a VRM (three-vrm inlined too).
+
+    The message shown if it cannot start names its folder and ``run_dir``: the page finds its own folder where it
+    is opened (``location``), and holds only the run's path relative to ``folder``, where it is written. Until
+    2026-11-28 it held both as absolute paths: a published page showed the author's folders."""
     if not fits_inline(run_json, glb):
         text = served(name).decode()
     else:
@@ -105,5 +109,8 @@ def static(name: str, run_json: bytes, glb: bytes, folder: Path, run_dir: Path, 
             "<!--laughlab:importmap-->",
             f'<script type="importmap">{_json_in_html({"imports": inline_imports(vrm)})}</script>'
         ).replace("<!--laughlab:viewer-->", f'{data}\n<script type="module" onerror="{_ONERROR}">\n{js}</script>')
-    return text.replace("<body>", f'<body data-folder="{html.escape(str(folder))}" '
-                                  f'data-run="{html.escape(str(run_dir))}">', 1).encode()
+    try:
+        rel = Path(os.path.relpath(run_dir, folder)).as_posix()
+    except ValueError:   # Windows: another drive; the message then says RUN_DIR
+        return text.encode()
+    return text.replace("<body>", f'<body data-run="{html.escape(rel)}">', 1).encode()
