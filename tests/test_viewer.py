@@ -182,6 +182,26 @@ def test_a_written_page_holds_no_absolute_path_and_is_the_same_bytes_in_another_
     assert f'<body data-run="{rel}">'.encode() in pages[0]
 
 
+@pytest.mark.browser
+def test_the_page_names_its_folder_and_the_run_as_a_shell_takes_them(run_dir, tmp_path):
+    """The folders in the line on how to serve the page come from where it was opened: one with a space is quoted
+    (a shell split it), and the run's is resolved from its path relative to the page."""
+    import shlex
+    import time
+
+    out, _ = V.write(run_dir, tmp_path / "my page")
+    p = Page((out / "index.html").as_uri())
+    try:
+        t0 = time.time()
+        while not p.eval("typeof window.laughlabHere === 'function'") and time.time() - t0 < 60:
+            time.sleep(0.1)
+        here = p.eval("window.laughlabHere()")
+    finally:
+        p.close()
+    assert here == {"folder": shlex.quote(str(out)), "run": shlex.quote(str(run_dir))}
+    assert here["folder"].startswith("'") and " " in here["folder"]
+
+
 def test_view_out_says_how_to_open_the_page(run_dir, tmp_path):
     r = laughlab("view", str(run_dir), "--out", str(tmp_path / "s"))
     assert r.returncode == 0, r.stderr
