@@ -59,11 +59,11 @@ def local_options(argv: list[str]) -> dict:
     from laughlab.core import config, own_experiments, plugins
 
     config.load_plugin_dirs(argv)
-    out = {plugins.group_of(kind): sorted(n for n, info in named.items() if info.origin.startswith("plugins dir"))
+    out = {plugins.group_of(kind): sorted(n for n, info in named.items() if plugins.from_plugins_dir(info.origin))
            for kind, named in plugins.registry().items()}
     builtin = {p.name[:-5] for p in conf_dir().joinpath("experiment").glob("*.yaml")}
     out["experiment"] = [n for n in config.group_options("experiment") if n not in builtin
-                         and own_experiments.ORIGINS.get(n, "").startswith("plugins dir")]   # not a package's
+                         and plugins.from_plugins_dir(own_experiments.ORIGINS.get(n, ""))]   # not a package's
     return out
 
 

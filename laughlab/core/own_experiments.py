@@ -35,9 +35,11 @@ def base(name: str, conf) -> dict:
 
 def load_folder(folder: Path, conf) -> None:
     """Each ``NAME.yaml`` in a plugins_dir's ``experiment/`` folder as ``experiment=NAME``."""
+    from laughlab.core import plugins
+
     if folder.is_dir():
         for file in sorted(folder.glob("*.yaml")):
-            load_file(file, f"plugins dir: {file}", conf)
+            load_file(file, plugins.plugins_dir_origin(file), conf)
 
 
 def load_installed(conf) -> None:
@@ -66,10 +68,12 @@ def load_file(file: Path, origin: str, conf) -> None:
     """``file`` as ``experiment=NAME`` (``NAME``: its stem), or the reason it cannot be in :data:`BAD`."""
     from hydra.core.config_store import ConfigStore
 
+    from laughlab.core.plugins import from_plugins_dir
+
     name = file.stem
     if LOCAL.get(name) == file.resolve():
         return
-    if name in LOCAL and not (origin.startswith("plugins dir") and ORIGINS[name].startswith("plugins dir")):
+    if name in LOCAL and not (from_plugins_dir(origin) and from_plugins_dir(ORIGINS[name])):
         # a package's and a folder's, or two packages': the command could not say which it ran (another
         # plugins_dir's in the same process, the tests', replaces it, as one process loads one folder)
         BAD[name] = (f"two experiments are named {name!r}: {LOCAL[name]} ({ORIGINS[name]}) and {file} ({origin}); "

@@ -161,13 +161,23 @@ def _check_hooks(module, file: Path | str) -> None:
             raise LaughlabError(f"plugin {file}: {attr} is not marked @laughlab.hookimpl, so laughlab never calls it")
 
 
+def plugins_dir_origin(file) -> str:
+    """The origin of a plugin or an experiment a plugins_dir's ``file`` gives (the one place that spells it)."""
+    return f"plugins dir: {file}"
+
+
+def from_plugins_dir(origin: str) -> bool:
+    """Whether ``origin`` (:func:`origin_of`, ``own_experiments.ORIGINS``) is a plugins_dir's file, not a package's."""
+    return origin.startswith(plugins_dir_origin(""))
+
+
 def origin_of(plugin: Any) -> str:
     """Where a registered plugin (module) comes from: a distribution's entry point, a plugins_dir file, or a name."""
     name = pm.get_name(plugin) or repr(plugin)
     if name in _EP_ORIGINS:
         return _EP_ORIGINS[name]
     if name.startswith(LOCAL_PACKAGE + "."):
-        return f"plugins dir: {getattr(plugin, '__file__', name)}"
+        return plugins_dir_origin(getattr(plugin, '__file__', name))
     return f"registered: {name}"
 
 
