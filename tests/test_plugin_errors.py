@@ -49,7 +49,7 @@ def test_a_plugin_registered_as_an_object_is_one_line(registered):
         plugins.registry()
 
 
-def test_a_register_hook_that_raises_is_one_line_naming_the_plugin_and_its_line(registered):
+def test_a_register_hook_that_raises_is_one_line_naming_the_plugin_and_its_line():
     """A re-read: a ``register_faces`` that raised ended every command in a traceback."""
     def no_faces(register):
         raise KeyError("gape")

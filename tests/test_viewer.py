@@ -187,14 +187,11 @@ def test_the_page_names_its_folder_and_the_run_as_a_shell_takes_them(run_dir, tm
     """The folders in the line on how to serve the page come from where it was opened: one with a space is quoted
     (a shell split it), and the run's is resolved from its path relative to the page."""
     import shlex
-    import time
 
     out, _ = V.write(run_dir, tmp_path / "my page")
     p = Page((out / "index.html").as_uri())
     try:
-        t0 = time.time()
-        while not p.eval("typeof window.laughlabHere === 'function'") and time.time() - t0 < 60:
-            time.sleep(0.1)
+        p.wait_ready(60)
         here = p.eval("window.laughlabHere()")
     finally:
         p.close()
