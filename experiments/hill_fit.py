@@ -20,6 +20,8 @@
    with the most calls (the paper's Fig. 10).
 5. ``plots/fig7_optimisers.png``: running best error against evaluations of the
    optimisers of ``harness.compare`` on the same calls (the paper's Fig. 7).
+   Both figures are drawn at the run's ``output.plots.width`` (``page`` or
+   ``column``), with a PDF beside them when ``output.plots.pdf=true``.
 6. With synthetic input, the inputs of ``harness.corpus`` are fitted too.
    ``calls.csv`` (one row per call: input, times, error, evaluations, seconds,
    parameters) and ``hill_fit.json`` (summaries per input and overall, the
@@ -233,49 +235,80 @@ def _figure_10_column(path: Path, res, bout: list, pdf: bool) -> None:
     plt.close(fig)
 
 
-def figure_7(path: Path, comparison: dict) -> None:
-    """Running best error against evaluations, one panel per call (the paper's Fig. 7), saved to ``path``."""
-    import matplotlib.pyplot as plt
+def figure_7(path: Path, comparison: dict, width: str = "page", pdf: bool = False) -> None:
+    """Running best error against evaluations, one panel per call (the paper's Fig. 7), saved to ``path``.
 
-    fig = figure_7_drawn(comparison)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
+    ``width``: ``page`` (5.2 in a call, side by side) or ``column`` (3.5 in, the calls stacked, every text at 7 pt
+    or more), as the run's ``output.plots.width``; ``pdf``: a vector PDF beside the PNG, as ``output.plots.pdf``
+    (it had neither: a page figure only, PNG only)."""
+    from laughlab.render.layout import drawing, layout_of
+    from laughlab.render.savefig import save_figure
+
+    layout = layout_of(width)
+    with drawing(layout):
+        fig = figure_7_drawn(comparison, layout.column)
+        import matplotlib.pyplot as plt   # after figure_7_drawn chose Agg
+        path.parent.mkdir(parents=True, exist_ok=True)
+        save_figure(fig, path, pdf, dpi=120 if not layout.column else None)
     plt.close(fig)
 
 
-def figure_7_drawn(comparison: dict):
+#: Fig. 7's optimisers: colour, line style (each its own: two were solid and as light as each other) and name
+OPTIMISERS = {"nelder-mead": ("tab:green", "-", "simplex (Nelder-Mead)"),
+              "annealing": ("tab:orange", "--", "simulated annealing (dual_annealing)"),
+              "pds": ("tab:blue", "-.", "parallel direct search (batched)"),
+              "cma": ("tab:purple", ":", "CMA-ES (batched)")}
+#: their names in a column's legend (3.5 in)
+COLUMN_NAMES = {"annealing": "simulated annealing"}
+
+
+def figure_7_drawn(comparison: dict, column: bool = False):
     """The figure of :func:`figure_7`.  Each optimiser has a line style of its own as well as a hue: the blue and
     purple lines were both solid and within 15 CIE L* of each other, one line in a greyscale print (the figures
-    review's check, ``laughlab.render.labels.lines_told_apart_by_hue``, had not run on this one)."""
+    review's check, ``laughlab.render.labels.lines_told_apart_by_hue``, had not run on this one).
+
+    ``column``: 3.5 in wide, one call a row (2.7 in each), text 7-8 pt (:data:`laughlab.render.layout.COLUMN`:
+    draw it under :func:`laughlab.render.layout.drawing`), each call's legend under its panel in one column."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    n = len(comparison)
-    fig, axes = plt.subplots(1, max(n, 1), figsize=(5.2 * max(n, 1), 5.2), squeeze=False, layout="constrained")
-    colors = {"nelder-mead": "tab:green", "annealing": "tab:orange", "pds": "tab:blue", "cma": "tab:purple"}
-    styles = {"nelder-mead": "-", "annealing": "--", "pds": "-.", "cma": ":"}
-    names = {"nelder-mead": "simplex (Nelder-Mead)", "annealing": "simulated annealing (dual_annealing)",
-             "pds": "parallel direct search (batched)", "cma": "CMA-ES (batched)"}
-    for ax, (label, runs) in zip(axes[0], comparison.items()):
+    from laughlab.render.layout import COLUMN, wrapped
+
+    n = max(len(comparison), 1)
+    if column:   # a sub-figure a call, its legend under it: the layout makes room for both
+        fig = plt.figure(figsize=(COLUMN.width_in, 2.7 * n + 0.3), dpi=150, layout="constrained")
+        axes = [sf.subplots() for sf in np.atleast_1d(fig.subfigures(n, 1))]
+    else:
+        fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 5.2), squeeze=False, layout="constrained")
+        axes = axes[0]
+    for ax, (label, runs) in zip(axes, comparison.items()):
         for method, r in runs["methods"].items():
+            colour, style, name = OPTIMISERS.get(method, (None, "-", method))
             h = np.asarray(r["history"], dtype=float)
-            ax.plot(np.arange(1, len(h) + 1), h, color=colors.get(method), ls=styles.get(method, "-"), lw=1.6,
-                    label=f"{names.get(method, method)}: {r['error']:.2f} in {r['seconds']:.2f} s")
-        ax.plot([PAPER["simplex"]["evals"]], [PAPER["simplex"]["error"]], "s", color="tab:green", ms=7, mfc="none",
-                label="paper: simplex 0.18 @ ~400")
-        ax.plot([PAPER["annealing"]["evals"]], [PAPER["annealing"]["error"]], "o", color="tab:orange", ms=7,
-                mfc="none", label="paper: annealing 0.16 @ ~1800")
+            ax.plot(np.arange(1, len(h) + 1), h, color=colour, ls=style, lw=1.2 if column else 1.6,
+                    label=f"{COLUMN_NAMES.get(method, name) if column else name}: {r['error']:.2f} in "
+                          f"{r['seconds']:.2f} s")
+        ax.plot([PAPER["simplex"]["evals"]], [PAPER["simplex"]["error"]], "s", color="tab:green",
+                ms=5 if column else 7, mfc="none", label="paper: simplex 0.18 @ ~400")
+        ax.plot([PAPER["annealing"]["evals"]], [PAPER["annealing"]["error"]], "o", color="tab:orange",
+                ms=5 if column else 7, mfc="none", label="paper: annealing 0.16 @ ~1800")
         ax.set_xscale("log")
         ax.set_xlabel("evaluations")
-        ax.set_ylabel("best normalised RMS error")
-        ax.set_title(label, fontsize=10)
+        ax.set_ylabel("best normalised RMS error" if not column else "best norm. RMS error")
+        ax.set_title(label, fontsize=COLUMN.panel_title if column else 10)
         ax.set_ylim(0, 1.2)
         ax.grid(alpha=0.3)
-        # under the panel: in its corner it hid the start of the descents (a review)
-        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
-    fig.suptitle("Fig. 7 style: running best error of one call's optimisation", fontsize=11)
+        if column:
+            ax.figure.legend(loc="outside lower center", ncols=1, fontsize=COLUMN.legend, frameon=False)
+        else:   # under the panel: in its corner it hid the start of the descents (a review)
+            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.16), frameon=False)
+    title = "Fig. 7 style: running best error of one call's optimisation"
+    if column:
+        fig.suptitle(wrapped(title, COLUMN.width_in, COLUMN.title), fontsize=COLUMN.title)
+    else:
+        fig.suptitle(title, fontsize=11)
     return fig
 
 
@@ -341,7 +374,9 @@ def run(cfg, out_dir) -> dict:
     comparison = compare(target, fps, result, fp, tp, OmegaConf.to_container(cfg.harness.get("compare") or {},
                                                                              resolve=True))
     if comparison:
-        figure_7(out_dir / "plots" / "fig7_optimisers.png", comparison)
+        figure_7(out_dir / "plots" / "fig7_optimisers.png", comparison,
+                 width=OmegaConf.select(cfg, "output.plots.width", default="page"),
+                 pdf=bool(OmegaConf.select(cfg, "output.plots.pdf", default=False)))
     # the corpus
     base = [f"extractor.{k}={v}" for k, v in OmegaConf.to_container(cfg.extractor, resolve=True).items()
             if k != "name" and not isinstance(v, (dict, list))]

@@ -274,6 +274,14 @@ def test_fit_params_validate():
         hf.FitParams(segment="onsets")
 
 
+
+def png_width(path) -> int:
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return im.size[0]
+
+
 def test_experiment_writes_the_figures_and_numbers(hill_plugins, tmp_path):
     from laughlab.core.config import compose_config
     from laughlab_experiments import hill_fit as exp
@@ -282,13 +290,17 @@ def test_experiment_writes_the_figures_and_numbers(hill_plugins, tmp_path):
                           "harness.fit.max_evals=60", "harness.fit.polish_evals=0", "harness.fit.popsize=12",
                           "harness.fit.init_points=11", "harness.compare.calls=1", "harness.compare.max_evals=30",
                           "harness.compare.methods=[nelder-mead,cma]", "harness.corpus.profiles=[giggle]",
-                          "harness.corpus.duration_s=2.0"])
+                          "harness.corpus.duration_s=2.0", "output.plots.width=column", "output.plots.pdf=true"])
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
     assert cfg.body.name == "hill" and cfg.extractor.name == "pressure"
     doc = exp.run(cfg, tmp_path)
     for name in ("channels.csv", "events.csv", "motion.bvh", "metrics.json", "calls.csv", "hill_fit.json",
                  "plots/fig10_pressure.png", "plots/fig7_optimisers.png"):
         assert (tmp_path / name).exists(), name
+    # the run's output.plots.width and .pdf reach the experiment's own figures (Fig. 7 took neither)
+    for fig in ("fig10_pressure", "fig7_optimisers"):
+        assert (tmp_path / "plots" / f"{fig}.pdf").exists(), fig
+        assert png_width(tmp_path / "plots" / f"{fig}.png") == 3.5 * 150, fig
     data = json.loads((tmp_path / "hill_fit.json").read_text())
     assert data["overall"]["calls"] == len((tmp_path / "calls.csv").read_text().splitlines()) - 1
     assert set(data["inputs"]) == {"input", "giggle-s00"}

@@ -212,6 +212,36 @@ def test_the_hill_fits_fig10_in_a_column_names_every_calls_error_at_7_pt_or_more
     assert b"/Type3" not in pdf and b"/FontFile2" in pdf
 
 
+def test_the_hill_fits_fig7_in_a_column_stacks_its_calls_at_7_pt_or_more(tmp_path, sized):
+    """experiment=hill_fit's fig7_optimisers.png had no column layout (5.2 in a call side by side: 10.4 in for two,
+    its legends 7 pt there, 2.4 pt at 3.5 in) and no PDF. In a column: 3.5 in, a call a row, each call's legend under
+    its panel naming every optimiser's error and time, every text at 7 pt or more, and its PDF with TrueType."""
+    from laughlab_experiments.hill_fit import figure_7
+
+    rng = np.random.default_rng(3)
+    methods = {"nelder-mead": 400, "annealing": 1900, "pds": 900, "cma": 1200}
+    comparison = {}
+    for call in range(2):
+        runs = {}
+        for j, (m, n) in enumerate(methods.items()):
+            h = np.minimum.accumulate(np.exp(-5 * np.arange(n) / n) + 0.2 * rng.random(n))
+            runs[m] = {"history": list(h), "error": float(h[-1]), "seconds": 0.1 + 0.01 * j + call}
+        comparison[f"call {call} ({call}.10-{call}.30 s)"] = {"methods": runs}
+    figure_7(tmp_path / "page" / "fig7_optimisers.png", comparison)
+    figure_7(tmp_path / "column" / "fig7_optimisers.png", comparison, width="column", pdf=True)
+    (_, page_w, page_sizes), (saved, width, sizes) = sized[-2:]
+    assert page_w == 10.4 and page_sizes[0][1] < COLUMN_MIN_PT          # the page one shrunk: under 7 pt
+    assert not (tmp_path / "page" / "fig7_optimisers.pdf").exists()     # output.plots.pdf false: none
+    assert width == 3.5 and sizes[0][1] >= COLUMN_MIN_PT, sizes[:3]
+    assert_readable([saved])
+    for label, runs in comparison.items():
+        assert label in saved.titles
+        for r in runs["methods"].values():
+            assert any(t.endswith(f": {r['error']:.2f} in {r['seconds']:.2f} s") for t in saved.texts)
+    pdf = (tmp_path / "column" / "fig7_optimisers.pdf").read_bytes()
+    assert b"/Type3" not in pdf and b"/FontFile2" in pdf
+
+
 def test_an_experiment_with_output_plots_width_column_runs_its_trials_and_draws_metrics_for_a_column(tmp_path):
     """output.plots.width on an experiment's command line reached its trials, whose output=trial has no plots:
     'unknown parameter output.plots.width' before any trial ran. Now the trials leave it out and metrics.png is

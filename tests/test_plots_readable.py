@@ -385,6 +385,16 @@ def test_the_check_sees_lines_only_their_hue_tells_apart():
     ax.plot([0.5, 0.5], color="tab:orange")            # unnamed: not in a legend
     assert lines_told_apart_by_hue(fig) == [("a", "b")]
 
+    # a panel a sub-figure (Fig. 7 in a column): the same spot of two sub-figures is two panels, not twins, and
+    # within one sub-figure the check still looks
+    fig = Figure()
+    top, bottom = fig.subfigures(2, 1)
+    top.subplots().plot([0, 1], color="tab:red", label="top")
+    ax = bottom.subplots()
+    ax.plot([0, 1], color="tab:blue", label="bottom")
+    ax.twinx().plot([1, 0], color="tab:red", label="twin")
+    assert lines_told_apart_by_hue(fig) == [("bottom", "twin")]
+
 
 def test_the_detector_pr_figure_tells_its_curves_apart_without_colour(tmp_path, saved):
     """detector_eval's precision-recall curves: four scores and chance, each with a style of its own."""

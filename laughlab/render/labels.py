@@ -199,7 +199,8 @@ def lines_told_apart_by_hue(fig) -> list[tuple[str, str]]:
     for ax in fig.axes:
         if not ax.get_visible():
             continue
-        key = tuple(np.round(ax.get_position().bounds, 3))
+        # a position is its (sub)figure's: the same spot in two sub-figures is two panels, not twins
+        key = (id(ax.get_figure(root=False)), *np.round(ax.get_position().bounds, 3))
         groups.setdefault(key, []).extend(
             ln for ln in ax.get_lines() if ln.get_visible() and not ln.get_label().startswith("_"))
     bad = []
