@@ -199,6 +199,61 @@ def test_the_page_names_its_folder_and_the_run_as_a_shell_takes_them(run_dir, tm
     assert here["folder"].startswith("'") and " " in here["folder"]
 
 
+@pytest.mark.browser
+def test_the_folders_the_page_names_are_quoted_as_shlex_quotes_them_and_windows_ones_as_cmd_takes_them(run_dir,
+                                                                                                        tmp_path):
+    """A re-read: the page's quoting missed a backslash, brackets and a tilde in a POSIX path (a shell reads them),
+    and its Windows branch was never run. Here each is worked out from a page's address as a browser gives it (the
+    same function the page runs on a failure): a POSIX folder exactly as shlex.quote quotes it, a Windows one with
+    backslashes, in double quotes where cmd would split it, a drive's root as C:\\."""
+    import posixpath
+    import shlex
+    from urllib.parse import quote
+
+    posix = ["/tmp/my page/index.html", "/tmp/it's/index.html", "/tmp/a\\b/index.html", "/tmp/[1]/index.html",
+             "/tmp/~ann/index.html", "/tmp/ünï/index.html", "/tmp/a$b&c/index.html", "/index.html",
+             "/tmp/plain-dir_1.2+x@y%z=w:v,u/index.html"]
+    windows = {"/C:/Users/Ann Lee/site/index.html": ('"C:\\Users\\Ann Lee\\site"', '"C:\\Users\\Ann Lee\\run"'),
+               "/D:/data/site/index.html": ("D:\\data\\site", "D:\\data\\run"),
+               "/C:/index.html": ("C:\\", "C:\\run")}
+    out, _ = V.write(run_dir, tmp_path / "page")
+    p = Page((out / "index.html").as_uri())
+    try:
+        p.wait_ready(60)
+        p.eval("document.body.dataset.run = '../run'")
+        got = p.eval(f"{json.dumps([quote(x) for x in posix + list(windows)])}.map(x => window.laughlabHere(x))")
+    finally:
+        p.close()
+    for path, here in zip(posix, got):
+        folder = posixpath.dirname(path)
+        assert here == {"folder": shlex.quote(folder), "run": shlex.quote(posixpath.normpath(posixpath.join(folder, "../run")))}, path
+    assert [(h["folder"], h["run"]) for h in got[len(posix):]] == list(windows.values())
+
+
+@pytest.mark.browser
+def test_a_folder_with_markup_in_its_name_is_text_in_the_pages_message(run_dir, tmp_path, monkeypatch):
+    """The message on how to serve a page opened as a file was set as HTML with the folder's name in it: a folder
+    named with a '<' became markup. It is text now, quoted as a shell takes it."""
+    import shlex
+    import time
+
+    from laughlab.viewer import page as P
+
+    monkeypatch.setattr(P, "INLINE_MAX_BYTES", 1000)   # a page that cannot open as a file: it says how to serve it
+    out, _ = V.write(run_dir, tmp_path / "a <b>c</b>")
+    p = Page((out / "index.html").as_uri())
+    try:
+        t0, msg = time.time(), None
+        while msg is None and time.time() - t0 < 60:
+            msg = p.eval("(m => m && !m.hidden ? m.textContent : null)(document.getElementById('msg'))")
+            time.sleep(0.2)
+        bold = p.eval("document.querySelectorAll('#msg b').length")
+    finally:
+        p.close()
+    assert msg is not None and f"python -m http.server -d {shlex.quote(str(out))} 8000" in msg
+    assert bold == 0
+
+
 def test_view_out_says_how_to_open_the_page(run_dir, tmp_path):
     r = laughlab("view", str(run_dir), "--out", str(tmp_path / "s"))
     assert r.returncode == 0, r.stderr
