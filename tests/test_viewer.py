@@ -147,10 +147,19 @@ def test_the_written_page_plays_opened_as_a_file(site, width, height):
         p.close()
 
 
-@pytest.mark.browser
-def test_a_page_too_large_to_inline_says_on_the_page_how_to_serve_it(run_dir, tmp_path, monkeypatch):
+def shown_message(p, timeout: float = 60):
+    """The text of the page's message once it is shown (None if it is not within ``timeout`` seconds)."""
     import time
 
+    t0, msg = time.time(), None
+    while msg is None and time.time() - t0 < timeout:
+        msg = p.eval("(m => m && !m.hidden ? m.textContent : null)(document.getElementById('msg'))")
+        time.sleep(0.2)
+    return msg
+
+
+@pytest.mark.browser
+def test_a_page_too_large_to_inline_says_on_the_page_how_to_serve_it(run_dir, tmp_path, monkeypatch):
     from laughlab.viewer import page as P
 
     monkeypatch.setattr(P, "INLINE_MAX_BYTES", 1000)
@@ -158,10 +167,7 @@ def test_a_page_too_large_to_inline_says_on_the_page_how_to_serve_it(run_dir, tm
     assert not opens_as_file
     p = Page((out / "index.html").as_uri())
     try:
-        t0, msg = time.time(), None
-        while msg is None and time.time() - t0 < 60:
-            msg = p.eval("(m => m && !m.hidden ? m.textContent : null)(document.getElementById('msg'))")
-            time.sleep(0.2)
+        msg = shown_message(p)
         assert msg is not None and "opened as a file" in msg
         assert f"python -m http.server -d {out} 8000" in msg and f"python -m laughlab view {run_dir}" in msg
         assert p.eval("document.getElementById('time').textContent") == "not loaded"
@@ -235,7 +241,6 @@ def test_a_folder_with_markup_in_its_name_is_text_in_the_pages_message(run_dir, 
     """The message on how to serve a page opened as a file was set as HTML with the folder's name in it: a folder
     named with a '<' became markup. It is text now, quoted as a shell takes it."""
     import shlex
-    import time
 
     from laughlab.viewer import page as P
 
@@ -243,10 +248,7 @@ def test_a_folder_with_markup_in_its_name_is_text_in_the_pages_message(run_dir, 
     out, _ = V.write(run_dir, tmp_path / "a <b>c</b>")
     p = Page((out / "index.html").as_uri())
     try:
-        t0, msg = time.time(), None
-        while msg is None and time.time() - t0 < 60:
-            msg = p.eval("(m => m && !m.hidden ? m.textContent : null)(document.getElementById('msg'))")
-            time.sleep(0.2)
+        msg = shown_message(p)
         bold = p.eval("document.querySelectorAll('#msg b').length")
     finally:
         p.close()
