@@ -201,8 +201,13 @@ def check_plugin(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0,
     offsets name the skeleton's joints; events are clips of the library; a second plugin on the same seed gives
     the same values, and an extractor or a detector gives them again after a run and ``reset()``.  A sink:
     ``open``/``write``/``close`` in a temporary folder return the files it wrote, each named in ``files``
-    (``planned``); ``abort`` after a chunk leaves the folder as it was; a ``background`` sink pickles.  Weights may
-    round up to :data:`TOL` outside [0, 1].
+    (``planned``); ``abort`` after a chunk leaves the folder as it was; a ``background`` sink pickles; a
+    ``streaming`` sink gets a frame a chunk, as a run gives it.  A source (:func:`_check_source`): it opens, its
+    ``sample_rate`` is a whole number of Hz from 8000, ``n_frames`` None exactly when it is ``live``, and its blocks
+    are frames as :func:`laughlab.io.audio.cut_frames` cuts them (frame ``k`` of ``round((k+1)*sr/fps) -
+    round(k*sr/fps)`` samples, the last one maybe shorter; ``n_frames`` of them), mono floats at full scale, in [-1,
+    1]; a second source on the same seed gives the same blocks, and so does ``blocks()`` again when it says
+    ``reread``.  A live source is read for ``seconds``.  Weights may round up to :data:`TOL` outside [0, 1].
     """
     ctx = Context(fps=float(fps), sample_rate=sample_rate, seed=seed)
     plugin = _build(cls, params, ctx)
@@ -210,8 +215,7 @@ def check_plugin(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0,
     if plugin.kind == "sink":
         bad = _check_sink(cls, params, seconds=seconds, seed=seed, fps=fps, sample_rate=sample_rate)
     elif plugin.kind == "source":
-        raise ContractError("check_plugin checks extractors, detectors, schedulers, bodies, faces and sinks; a "
-                            "source is checked by a run on it (python -m laughlab input=NAME)")
+        bad = _check_source(cls, params, seconds=seconds, seed=seed, fps=fps)
     else:
         kw = dict(seconds=seconds, seed=seed, fps=fps, sample_rate=sample_rate)
         frames = run_frames(cls, params, **kw)
@@ -229,6 +233,80 @@ def check_plugin(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0,
                                "the input to plan, then resets them)")
     if bad:
         raise ContractError(f"{where}: " + "; ".join(bad))
+
+
+def _check_source(cls: type, params, *, seconds: float, seed: int, fps: float) -> list[str]:
+    """What a run relies on in a source (:func:`check_plugin`): one string per broken rule."""
+    def opened():
+        src = _build(cls, params, Context(fps=float(fps), rng=np.random.default_rng(seed), seed=seed))
+        try:
+            src.open()
+        except (LaughlabError, ValueError, OSError) as exc:
+            raise ContractError(f"source {cls.name!r} does not open with {dict(params or {}) or 'its defaults'}: "
+                                f"{exc}") from None
+        return src
+
+    def read(src) -> list:
+        out = []
+        for block in src.blocks():
+            out.append(np.array(block, copy=True) if isinstance(block, np.ndarray) else block)
+            if src.live and len(out) >= limit:
+                break
+        return out
+
+    bad: list[str] = []
+    limit = max(1, int(round(seconds * fps)))
+    src = opened()
+    try:
+        sr, n, live = src.sample_rate, src.n_frames, bool(src.live)
+        if isinstance(sr, bool) or not isinstance(sr, (int, np.integer)) or sr < 8000:
+            return [f"sample_rate is {sr!r} after open(): a whole number of Hz, 8000 or more"]
+        if live != (n is None):
+            bad.append(f"n_frames is {n!r} and live is {live}: a live source has no n_frames (None), a file or a "
+                       "generator has its count of frames")
+        cal = getattr(src, "calibration_s", 0.0)
+        if not isinstance(cal, (int, float)) or not math.isfinite(cal) or cal < 0:
+            bad.append(f"calibration_s is {cal!r}: seconds, 0 or more")
+        audio = src.audio_path()
+        if audio is not None and not Path(audio).is_file():
+            bad.append(f"audio_path() is {audio}, which is not a file")
+        blocks = read(src)
+        if src.reread and not live and _differ(read(src), blocks):
+            bad.append("reread = True but blocks() again gives other blocks: a detector reading ahead would see "
+                       "other audio than the run")
+    finally:
+        src.close()
+    step = sr / fps
+    for k, b in enumerate(blocks):
+        want = int(round((k + 1) * step)) - int(round(k * step))
+        last = not live and k == len(blocks) - 1
+        if not isinstance(b, np.ndarray) or b.ndim != 1 or b.dtype.kind != "f":
+            what = f"{type(b).__name__} {getattr(b, 'shape', '')} {getattr(b, 'dtype', '')}".strip()
+            bad.append(f"block {k} is a {what}: a 1-D numpy array of float samples (mono)")
+            break
+        if len(b) != want and not (last and 0 < len(b) < want):
+            bad.append(f"block {k} has {len(b)} samples: frame k holds round((k+1)*sr/fps) - round(k*sr/fps) "
+                       f"samples ({want} here; laughlab.io.audio.cut_frames cuts them)")
+            break
+        if not np.all(np.isfinite(b)) or (len(b) and np.max(np.abs(b)) > 1.0):
+            bad.append(f"block {k} holds samples up to {np.max(np.abs(b)):g}: full-scale floats in [-1, 1], finite "
+                       "(16-bit integers divided by 32768)")
+            break
+    if not live and isinstance(n, (int, np.integer)) and len(blocks) != n:
+        bad.append(f"blocks() gave {len(blocks)} blocks for n_frames = {n}")
+    if not bad:
+        again = opened()
+        try:
+            if _differ(read(again), blocks):
+                bad.append("two sources on the same seed give different blocks: draw from self.ctx.rng (or "
+                           "self.ctx.seed) only")
+        finally:
+            again.close()
+    return bad
+
+
+def _differ(a: list, b: list) -> bool:
+    return len(a) != len(b) or any(not np.array_equal(x, y) for x, y in zip(a, b))
 
 
 def _chunks(seconds: float, seed: int, fps: float, sample_rate: int, n: int = 64):
@@ -256,7 +334,7 @@ def _check_sink(cls: type, params, *, seconds: float, seed: int, fps: float, sam
     from laughlab.core.bases import RunInfo
 
     bad: list[str] = []
-    chunks, skeleton, n = _chunks(seconds, seed, fps, sample_rate)
+    chunks, skeleton, n = _chunks(seconds, seed, fps, sample_rate, 1 if getattr(cls, "streaming", False) else 64)
     source = SimpleNamespace(name="synthetic", live=False, sample_rate=sample_rate, n_frames=n, truth=None)
     ctx = Context(fps=float(fps), sample_rate=sample_rate, seed=seed)
     planned = set(cls.planned(dict(params or {})))

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from laughlab import Body, Extractor, Scheduler, Sink
+from laughlab import Body, Extractor, Scheduler, Sink, Source
 from laughlab.core import plugins
 from laughlab.core.frame import ClipEvent
 from laughlab.testing import ContractError, check_plugin, run_frames
@@ -91,6 +91,99 @@ def test_check_plugin_names_the_rule_a_plugin_breaks(cls, says):
     with pytest.raises(ContractError) as e:
         check_plugin(cls)
     assert says in str(e.value) and "\n" not in str(e.value), str(e.value)
+
+
+class Hum(Source):
+    """A good source: 2 s of a seeded hum at 16 kHz, cut as a run cuts a file's samples."""
+    name = "hum"
+    reread = True
+    scale = 0.5
+
+    def open(self):
+        import numpy as np
+
+        from laughlab.io.audio import n_frames_for
+
+        self.sample_rate = 16000
+        t = np.arange(2 * self.sample_rate) / self.sample_rate
+        self.audio = (self.scale * np.sin(2 * np.pi * 220 * t) * self.ctx.rng.uniform(0.5, 1.0)).astype("float32")
+        self.n_frames = n_frames_for(len(self.audio), self.sample_rate, self.ctx.fps)
+
+    def blocks(self):
+        from laughlab.io.audio import cut_frames
+
+        return cut_frames([self.audio], self.sample_rate, self.ctx.fps)
+
+
+def _source(name, **attrs):
+    return type(name, (Hum,), {"name": name, **attrs})
+
+
+def _unseeded_open(self):
+    import numpy as np
+
+    Hum.open(self)
+    self.audio = self.audio * np.float32(np.random.uniform(0.5, 1.0))   # numpy's global generator
+
+
+def _fixed_blocks(self):
+    return iter([self.audio[i:i + 256] for i in range(0, len(self.audio), 256)])
+
+
+def _float_rate_open(self):
+    Hum.open(self)
+    self.sample_rate = 16000.0
+
+
+def _n_more_open(self):
+    Hum.open(self)
+    self.n_frames += 5
+
+
+def _stereo_blocks(self):
+    import numpy as np
+
+    return (np.stack([b, b], axis=1) for b in Hum.blocks(self))
+
+
+def _drifting_blocks(self):   # reread = True, but each call reads further on
+    self.calls = getattr(self, "calls", 0) + 1
+    return (b * (1.0 - 0.1 * self.calls) for b in Hum.blocks(self))
+
+
+@pytest.mark.parametrize("cls, says", [
+    (_source("loud", scale=20000.0), "block 0 holds samples up to 15744.7: full-scale floats in [-1, 1]"),
+    (_source("chunky", blocks=_fixed_blocks), "block 0 has 256 samples: frame k holds round((k+1)*sr/fps) - "
+                                              "round(k*sr/fps) samples (267 here"),
+    (_source("unseeded", open=_unseeded_open), "two sources on the same seed give different blocks"),
+    (_source("float_rate", open=_float_rate_open), "sample_rate is 16000.0 after open(): a whole number of Hz"),
+    (_source("more", open=_n_more_open), "blocks() gave 120 blocks for n_frames = 125"),
+    (_source("stereo", blocks=_stereo_blocks), "block 0 is a ndarray (267, 2) float64: a 1-D numpy array"),
+    (_source("counted_live", live=True), "n_frames is 120 and live is True: a live source has no n_frames"),
+    (_source("drifting", blocks=_drifting_blocks), "reread = True but blocks() again gives other blocks"),
+])
+def test_check_plugin_names_the_rule_a_source_breaks(cls, says):
+    """check_plugin refused a source ("checked by a run on it"): a source handing 16-bit integers, blocks of its
+    own length or a count it does not give was found only by what a run then did with them."""
+    with pytest.raises(ContractError) as e:
+        check_plugin(cls)
+    assert says in str(e.value) and "\n" not in str(e.value), str(e.value)
+
+
+def test_laughlabs_own_sources_and_streaming_sinks_keep_the_contract(tmp_path):
+    """The synthetic generator and a 44.1 kHz WAV through input=file; the live sinks a frame a chunk, as a run on
+    a microphone gives them (output.viewer without waiting for a page)."""
+    import numpy as np
+    import soundfile as sf
+
+    check_plugin(Hum)
+    check_plugin(plugins.get("source", "synthetic").obj, {"duration_s": 2.0})
+    t = np.arange(int(1.5 * 44100)) / 44100
+    sf.write(tmp_path / "a.wav", 0.3 * np.sin(2 * np.pi * 300 * t), 44100, subtype="PCM_16")
+    check_plugin(plugins.get("source", "file").obj, {"path": str(tmp_path / "a.wav")})
+    check_plugin(plugins.get("sink", "viewer").obj, {"wait": "off"}, seconds=1.0)
+    with pytest.raises(ContractError, match="source 'file' does not open with {'path': '.*nothing.wav'}: "):
+        check_plugin(plugins.get("source", "file").obj, {"path": str(tmp_path / "nothing.wav")})
 
 
 def test_check_plugin_on_a_sink_that_leaves_files_behind():
