@@ -236,6 +236,47 @@ def test_report_tables_and_figures(tiny_run, tmp_path):
     assert "[energy_filmstrip.png](figures/energy_filmstrip.png)" in text
 
 
+def test_report_panels_draws_the_metrics_a_paper_discusses_in_a_column_and_says_when_a_figure_is_too_tall(
+        tiny_run, tmp_path):
+    """A column's metrics.png of every metric was 13.9 in tall, taller than a column, with no way to draw fewer
+    panels. ``report --panels A,B`` draws only those, in that order (a compute one in timing.png), and the table
+    keeps every metric; without it, a column report says which figure is too tall. A name the run did not measure:
+    one line, and the earlier report stays."""
+    from PIL import Image
+
+    out, doc = tiny_run
+    r = laughlab("report", out, "--out", tmp_path / "all", "--width", "column")
+    assert r.returncode == 0, r.stderr
+    assert ("laughlab: metrics.png (13.9 in tall) is taller than a column (about 9.5 in): --panels NAME,NAME draws "
+            "only the metrics you discuss") in r.stdout
+    panels = ["onset_latency_median_s", "miss_rate", "intensity_r_clip", "frame_ms_p50"]
+    shown = []
+    with pytest.MonkeyPatch.context() as mp:
+        from matplotlib.figure import Figure
+
+        real = Figure.savefig
+        mp.setattr(Figure, "savefig", lambda fig, name, *a, **k: (
+            k.get("format", "png") == "png" and shown.append((Path(name).stem, [ax.get_title() for ax in fig.axes
+                                                                                if ax.get_visible()])),
+            real(fig, name, *a, **k))[1])
+        r = laughlab("report", out, "--out", tmp_path / "some", "--width", "column", "--panels", ",".join(panels))
+    assert r.returncode == 0 and "taller than a column" not in r.stdout, r.stdout + r.stderr
+    titles = dict(shown)
+    assert [t.split(" ")[0] for t in titles["metrics"] if t] == panels[:3]
+    assert [t.split(" ")[0] for t in titles["timing"]] == panels[3:]
+    figs = tmp_path / "some" / "figures"
+    for name, tall in (("metrics.png", 2), ("timing.png", 1)):
+        with Image.open(figs / name) as im:   # the column's width, one panel spanning it alone
+            assert im.size[0] == 455 and im.size[1] < (tall * 1.75 + 1.2) * 130, (name, im.size)
+    text = (tmp_path / "some" / "README.md").read_text()
+    assert all(f"| {m} " in text for m in doc["metrics"] if any(doc["results"][c][m]["n"] for c in doc["results"]))
+    before = (figs / "metrics.png").read_bytes()
+    r = laughlab("report", out, "--out", tmp_path / "some", "--panels", "miss_rate,jaw_mean")
+    assert r.returncode == 2 and r.stderr.startswith("laughlab: error: --panels: tiny measured no jaw_mean; its "
+                                                     "metrics: ") and len(r.stderr.splitlines()) == 1, r.stderr
+    assert (figs / "metrics.png").read_bytes() == before
+
+
 def test_report_goes_next_to_the_run_unless_out_is_given(small_run, tmp_path):
     """Issue 26: ``report RUN`` used to overwrite the committed reports/<experiment>/ of the working folder."""
     run = tmp_path / "run"

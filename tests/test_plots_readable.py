@@ -557,3 +557,14 @@ def test_a_sweep_report_shows_a_plugins_metric_and_those_asked_for(tmp_path, sav
     assert "clip_events_n ↑" in line.titles or "`clip_events_n` (" in readme   # a panel, or said to be flat
     with pytest.raises(LaughlabError, match=r"^--metrics: the sweep measured no jaw_mean; its metrics: "):
         write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", metrics=["jaw_mean"])
+    # report --panels: the figures show only those metrics, in that order; the table keeps the key ones too
+    saved.clear()
+    panels = ["intensity_r_kinetic", "clip_events_n", "intensity_r_clip"]   # the two that vary, the other way round
+    readme = write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", panels=panels).read_text()
+    (line,) = [f for f in saved if f.name.startswith("line_") and f.name.endswith(".png")]
+    drawn = [t.split(" ")[0] for t in line.titles if t]
+    assert drawn == ["intensity_r_kinetic", "intensity_r_clip"], line.titles
+    assert all(f"`{m}` (" in readme for m in panels if m not in drawn)   # not drawn: said to be flat
+    assert "| clip_events_n ↑ (count) |" in readme and "| cutoff_rate" in readme
+    with pytest.raises(LaughlabError, match=r"^--panels: \S+ measured no jaw_mean; its metrics: "):
+        write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", panels=["jaw_mean"])

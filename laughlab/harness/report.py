@@ -15,7 +15,7 @@ from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, edge_note  # noqa: F401 (KEY_METRICS)
-from laughlab.harness.report_format import vector_link
+from laughlab.harness.report_format import check_panels, vector_link
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
 # the figure and what it reads of the results: here too, where the report's callers have always found them
@@ -195,14 +195,16 @@ def _run_command(run_dir: Path, doc: dict) -> list[str]:
     return [f"- the run{first}: `python -m laughlab {' '.join(shlex.quote(o) for o in task)}`"]
 
 
-def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page") -> Path:
+def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page",
+                      panels: list[str] | None = None) -> Path:
     doc = read_results(run_dir / "results.json")
+    check_panels(doc, panels)
     figs = out / "figures"
     if figs.exists():
         shutil.rmtree(figs)
     figs.mkdir(parents=True)
-    comparison_figure(doc, figs / "metrics.png", pdf=True, width=width)
-    comparison_figure(doc, figs / "timing.png", pdf=True, timing=True, width=width)
+    comparison_figure(doc, figs / "metrics.png", pdf=True, width=width, panels=panels)
+    comparison_figure(doc, figs / "timing.png", pdf=True, timing=True, width=width, panels=panels)
     for fig in sorted((run_dir / "plots").glob("*.p[nd][gf]")) if (run_dir / "plots").is_dir() else []:
         if fig.stem not in ("metrics", "timing"):   # the PNGs and their PDFs (drawn again above)
             shutil.copyfile(fig, figs / fig.name)
@@ -285,11 +287,12 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
 
 
 def write_report(run_dir: str | Path, out: str | Path | None = None, command: str = "", overwrite: bool = False,
-                 metrics: list[str] | None = None, width: str = "page") -> Path:
+                 metrics: list[str] | None = None, width: str = "page", panels: list[str] | None = None) -> Path:
     """Write the report of an experiment run or a sweep; return the README path.
 
     ``width``: ``page``, or ``column`` for the figures it draws 3.5 in wide (an experiment's ``metrics.png`` and
-    ``timing.png``, a sweep's heatmaps and line plots), no text under 7 pt.
+    ``timing.png``, a sweep's heatmaps and line plots), no text under 7 pt.  ``panels``: those figures show only
+    these metrics, in this order (the tables keep every metric).
 
     The report goes into ``out``, by default ``run_dir/report`` (beside the results it is made
     from, so that reporting never touches the committed ``reports/``).
@@ -335,7 +338,7 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     shutil.rmtree(staging, ignore_errors=True)
     staging.mkdir(parents=True)
     try:
-        args = (metrics, width) if write is sweep_report else (width,)   # an experiment's report shows every metric
+        args = (metrics, width, panels) if write is sweep_report else (width, panels)   # an experiment's table: all
         write(root, staging, command or f"python -m laughlab report {shlex.quote(str(run_dir))}", *args)
         from laughlab.harness.report_files import replace_report
 

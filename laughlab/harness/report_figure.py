@@ -79,7 +79,8 @@ def panel_title(text: str, width_in: float, fontsize: float) -> str:
     return out + text
 
 
-def comparison_figure(doc: dict, path: Path, pdf: bool = False, timing: bool = False, width: str = "page") -> Path:
+def comparison_figure(doc: dict, path: Path, pdf: bool = False, timing: bool = False, width: str = "page",
+                      panels: list[str] | None = None) -> Path:
     """One panel per metric that differs between the conditions: each condition's mean with its 95 % CI (``pdf``:
     a vector PDF beside the PNG, as a report writes it).  The compute-time metrics (:func:`is_compute`) are drawn
     only with ``timing`` (``timing.png``), and then alone: they differ run to run, so ``metrics.png`` without
@@ -87,19 +88,21 @@ def comparison_figure(doc: dict, path: Path, pdf: bool = False, timing: bool = F
 
     Metrics the same under every condition (:func:`same_everywhere`) get no panel; a line under
     the panels names them.  ``width``: ``page`` (up to 5 panels a row) or ``column`` (3.5 in, 2 a row, every text
-    at 7 pt or more: :data:`SIZES`).
+    at 7 pt or more: :data:`SIZES`).  ``panels``: only these metrics, in this order (``report --panels``: a
+    column holds about 10 panels; :func:`laughlab.harness.report_format.check_panels` first).
     """
     from laughlab.render.layout import drawing, layout_of
 
     narrow = layout_of(width).column
     z = SIZES["column" if narrow else "page"]
     with drawing(layout_of(width)):
-        return _comparison_figure(doc, path, pdf, timing, narrow, z)
+        return _comparison_figure(doc, path, pdf, timing, narrow, z, panels)
 
 
-def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: bool, z: dict) -> Path:
+def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: bool, z: dict,
+                       panels: list[str] | None = None) -> Path:
     conds = conditions_of(doc)
-    measured = [m for m in metric_order(doc) if any(doc["results"][c][m]["n"] for c in conds)
+    measured = [m for m in (panels or metric_order(doc)) if any(doc["results"][c][m]["n"] for c in conds)
                 and is_compute(m) == timing]
     names = [m for m in measured if not same_everywhere(doc, m)]
     same = [m for m in measured if same_everywhere(doc, m)]
@@ -107,6 +110,8 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
         return path
     cols = min(z["cols"], len(names))
     rows = math.ceil(len(names) / cols)
+    # a column's figure is the column's width: one panel alone spans it (at 1.75 in its title ran to 9 lines)
+    pw = z["w"] * z["cols"] / cols if narrow else z["w"]
     few = any(0 < doc["results"][c][m]["n"] < FEW for c in conds for m in names)
     # the title wrapped to the figure's width (about 11 characters an inch at 9 pt; two panels cut it off at both
     # ends), each line of it given its height
@@ -115,15 +120,15 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
                                                       if timing else "")
                           + f"mean and 95% CI (bootstrap) over up to {per} trials per condition"
                           + (f"; n=k over a bar: a mean of fewer than {FEW} trials" if few else "")
-                          + " (↑ higher is better, ↓ lower is better)", int(z["w"] * cols * z["chars"]))
+                          + " (↑ higher is better, ↓ lower is better)", int(pw * cols * z["chars"]))
     note = textwrap.wrap(f"Not shown, the same under every condition: {', '.join(same)} (values in the report's "
-                         "table).", int(z["w"] * cols * 15)) if same else []
+                         "table).", int(pw * cols * 15)) if same else []
     below = (0.13 * len(note) + 0.1 if narrow else 0.4) if same else 0   # a column's note: many lines
-    fig, axes = plt.subplots(rows, cols, figsize=(z["w"] * cols, z["h"] * rows + below + 0.17 * (len(title) - 1)),
+    fig, axes = plt.subplots(rows, cols, figsize=(pw * cols, z["h"] * rows + below + 0.17 * (len(title) - 1)),
                              dpi=130, squeeze=False, layout="constrained")
     colors = condition_colors(conds)
     # condition names wider than their slot under a panel (about 0.55 em a character at 7 pt) stand upright
-    slot_in = z["w"] / max(len(conds), 1)
+    slot_in = pw / max(len(conds), 1)
     upright = max(len(c) for c in conds) * 0.55 * z["names"] / 72 > 0.9 * slot_in
     for ax, name in zip(axes.flat, names):
         drawn = []
@@ -151,7 +156,7 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
         info = doc["metrics"][name]
         heading = _heading(name, info)
         # pad: clear of the value axis' top tick label, which can sit at the axes' top
-        ax.set_title(panel_title(heading, z["w"], z["panel"]) if narrow else heading, fontsize=z["panel"],
+        ax.set_title(panel_title(heading, pw, z["panel"]) if narrow else heading, fontsize=z["panel"],
                      **({"pad": 6.0} if narrow else {}))
         ax.set_xticks(range(len(conds)), conds, fontsize=z["names"])
         if upright:

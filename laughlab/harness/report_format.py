@@ -8,6 +8,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from laughlab.core.errors import LaughlabError  # noqa: E402
+
 #: metrics shown first in tables and heatmaps
 KEY_METRICS = ("intensity_r_clip", "intensity_r_kinetic", "onset_latency_median_s", "miss_rate",
                "silent_start_rate", "offset_tail_s", "cutoff_rate", "repetition_rate", "clip_entropy")
@@ -80,3 +82,11 @@ def panel_grid(n: int, w: float, h: float, cols: int = 3):
     for ax in axes.flat[n:]:
         ax.set_visible(False)
     return fig, list(axes.flat[:n])
+
+
+def check_panels(doc: dict, panels: list[str] | None) -> None:
+    """``report --panels``: a name the experiment did not measure is refused in one line, naming its metrics."""
+    unknown = [m for m in panels or [] if m not in doc["metrics"]]
+    if unknown:
+        raise LaughlabError(f"--panels: {doc['experiment']} measured no {', '.join(unknown)}; its metrics: "
+                            + ", ".join(doc["metrics"]))

@@ -10,7 +10,7 @@ from pathlib import Path
 from laughlab.core.errors import LaughlabError
 from laughlab.harness.results import read_results
 from laughlab.harness.sweep_plan import multirun, swept_keys, sweep_command, unfinished
-from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, vector_link
+from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, check_panels, vector_link
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
 from laughlab.harness.sweep_figures import heatmaps, lines as line_plots
@@ -88,7 +88,8 @@ def shown_metrics(doc: dict, asked: list[str] | None = None) -> list[str]:
     return list(dict.fromkeys([m for m in KEY_METRICS if m in doc["metrics"]] + theirs + list(asked or [])))
 
 
-def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None = None, width: str = "page") -> Path:
+def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None = None, width: str = "page",
+                 panels: list[str] | None = None) -> Path:
     points = _sweep_points(root)
     experiments = sorted({p["doc"]["experiment"] for p in points})
     if len(experiments) > 1:
@@ -104,7 +105,8 @@ def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None 
     state = unfinished(root)
     planned = set(swept_keys(root))   # swept by the plan, though the finished points may hold only one value
     varying = [k for k in keys if len({p["params"].get(k) for p in points}) > 1 or k in planned]
-    metrics = shown_metrics(doc0, metrics)
+    check_panels(doc0, panels)
+    metrics = shown_metrics(doc0, [*(metrics or []), *(panels or [])])
     key = [m for m in metrics if m in KEY_METRICS]
     per = sorted({p["doc"]["n_trials"] // max(len(p["doc"]["results"]), 1) for p in points})   # a condition's trials
     per_text = str(per[0]) if len(per) == 1 else f"{per[0]}-{per[-1]}"
@@ -154,7 +156,7 @@ def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None 
     lines.append("")
     lines += _edge_lines(points, varying)
     heat_metrics, flat = [], []
-    for m in metrics:
+    for m in panels or metrics:   # report --panels: only those in the figures, in that order
         values = [v for v in (val(p, m) for p in points) if math.isfinite(v)]
         if not values:
             flat.append(f"`{m}` (no value at any point)")
