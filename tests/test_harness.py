@@ -537,6 +537,23 @@ def unfinish(job):
     (job / ".laughlab-run.json").write_text(json.dumps({**marker, "complete": False}))
 
 
+def test_a_sweeps_command_names_its_launcher(tmp_path):
+    """A sweep's report and its 'run the sweep's command again' line gave only the task's overrides: a Slurm sweep
+    (hydra/launcher=submitit_slurm and its partition) read as one to run in a single process. Hydra's own overrides
+    come after the task's, but for its mode, and the folder is the one the sweep is in."""
+    import yaml
+
+    from laughlab.harness.sweep_plan import sweep_command
+
+    (tmp_path / "multirun.yaml").write_text(yaml.safe_dump({"hydra": {"overrides": {
+        "hydra": ["hydra/launcher=submitit_slurm", "hydra.launcher.partition=gpu", "hydra.sweep.dir=elsewhere",
+                  "hydra.mode=MULTIRUN"],
+        "task": ["experiment=energy_ablation", "scheduler.overrule_c=1.5,3", "harness.corpus.profiles=[intense]"]}}}))
+    assert sweep_command(tmp_path) == (
+        "python -m laughlab -m experiment=energy_ablation scheduler.overrule_c=1.5,3 'harness.corpus.profiles=[intense]' "
+        f"hydra/launcher=submitit_slurm hydra.launcher.partition=gpu hydra.sweep.dir={tmp_path}")
+
+
 def test_a_finished_sweep_of_runs_counts_as_finished(tmp_path):
     """A diff review: a point counted as finished only with results.json, which a plain run never writes, so a
     finished sweep of runs was "a sweep with no finished point (0 of 2): run the sweep's command again", and a

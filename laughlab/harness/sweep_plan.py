@@ -109,13 +109,16 @@ def missing_text(root: Path, planned: int, missing: list[str]) -> str:
 
 
 def sweep_command(root: Path) -> str:
-    """The sweep's own command, from ``multirun.yaml`` (empty when there is none)."""
+    """The sweep's own command, from ``multirun.yaml`` (empty when there is none): its overrides, then Hydra's own
+    as given (``hydra/launcher=submitit_slurm``, ``hydra.launcher.*``: a reader reran a Slurm or joblib sweep in one
+    process, the launcher was not named), and the folder it is in."""
     hydra = multirun(Path(root))
     if hydra is None:
         return ""
-    task = [str(o) for o in ((hydra.get("overrides") or {}).get("task") or [])]
-    if not any(o.startswith("hydra.sweep.dir=") for o in task):
-        task.append(f"hydra.sweep.dir={root}")
+    given = hydra.get("overrides") or {}
+    task = [str(o) for o in (given.get("task") or [])]
+    task += [str(o) for o in (given.get("hydra") or []) if not str(o).startswith(("hydra.mode=", "hydra.sweep.dir="))]
+    task = [o for o in task if not o.startswith("hydra.sweep.dir=")] + [f"hydra.sweep.dir={root}"]
     return f"python -m laughlab -m {' '.join(shlex.quote(o) for o in task)}"
 
 
