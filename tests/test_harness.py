@@ -260,8 +260,12 @@ def test_report_panels_draws_the_metrics_a_paper_discusses_in_a_column_and_says_
                                                                                 if ax.get_visible()])),
             real(fig, name, *a, **k))[1])
         r = laughlab("report", out, "--out", tmp_path / "some", "--width", "column", "--panels", ",".join(panels))
-    assert r.returncode == 0 and "taller than a column" not in r.stdout, r.stdout + r.stderr
-    titles = dict(shown)
+        assert r.returncode == 0 and "taller than a column" not in r.stdout, r.stdout + r.stderr
+        titles = dict(shown)
+        shown.clear()
+        r = laughlab("report", out, "--out", tmp_path / "timing", "--panels", "frame_ms_p50,frame_ms_p50")
+        assert r.returncode == 0, r.stderr
+        assert [(n, [t.split(" ")[0] for t in ts if t]) for n, ts in shown] == [("timing", ["frame_ms_p50"])]
     assert [t.split(" ")[0] for t in titles["metrics"] if t] == panels[:3]
     assert [t.split(" ")[0] for t in titles["timing"]] == panels[3:]
     figs = tmp_path / "some" / "figures"
@@ -275,6 +279,10 @@ def test_report_panels_draws_the_metrics_a_paper_discusses_in_a_column_and_says_
     assert r.returncode == 2 and r.stderr.startswith("laughlab: error: --panels: tiny measured no jaw_mean; its "
                                                      "metrics: ") and len(r.stderr.splitlines()) == 1, r.stderr
     assert (figs / "metrics.png").read_bytes() == before
+    # compute metrics only (a name given twice: once): timing.png alone, and the report links no metrics.png
+    text = (tmp_path / "timing" / "README.md").read_text()
+    assert "figures/metrics.png" not in text and "![timing](figures/timing.png)" in text
+    assert not (tmp_path / "timing" / "figures" / "metrics.png").exists()
 
 
 def test_report_goes_next_to_the_run_unless_out_is_given(small_run, tmp_path):

@@ -237,7 +237,8 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
     if gone:
         lines += ["", "No value under any condition (nothing in these inputs for them to measure): "
                   + ", ".join(f"`{m}`" for m in gone) + "."]
-    lines += ["", "![metrics](figures/metrics.png)", "", vector_link("metrics.png"), ""]
+    if (figs / "metrics.png").exists():   # --panels of compute metrics only: timing.png alone
+        lines += ["", "![metrics](figures/metrics.png)", "", vector_link("metrics.png"), ""]
     if (figs / "timing.png").exists():
         lines += ["The compute rows, apart: measured on the machine while the trials ran, they differ run to run "
                   "(the one figure that does; the same seed gives the same bytes of every other).", "",

@@ -51,7 +51,8 @@ COLUMN_HEIGHT_IN = 9.5
 
 
 def _names(text: str | None) -> list[str]:
-    return [m.strip() for m in (text or "").split(",") if m.strip()]
+    """``NAME,NAME`` as a list, each name once."""
+    return list(dict.fromkeys(m.strip() for m in (text or "").split(",") if m.strip()))
 
 
 def _taller_than_a_column(figures: Path) -> list[str]:
