@@ -4,7 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from omegaconf import OmegaConf
+from omegaconf import OmegaConf, open_dict
 from scipy.spatial.transform import Rotation
 
 from laughlab.avatar.expressions import ARKIT_TO_VRM, BREATH_DEGREES
@@ -27,6 +27,8 @@ FRAMES = (0, 61, 137, 239)  # frames of the 4 s run checked (60 fps)
 def run(tmp_path, *overrides):
     cfg = compose_config([*overrides])
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+    with open_dict(cfg):
+        cfg.output.pop("plots", None)   # the run's figures: no test here reads them (tests/test_plots_*.py do)
     pipeline.execute(pipeline.build(cfg), tmp_path)
     return tmp_path
 

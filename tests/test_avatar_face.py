@@ -178,7 +178,7 @@ def test_the_run_says_in_one_line_how_the_face_drives_the_avatar(tmp_path, edit,
 
     path = tmp_path / "face.glb"
     edited(GODETTE, edit, path) if edit else path.write_bytes(GODETTE.read_bytes())
-    out = laughlab("output=gltf", "face=facs", "input.duration_s=1", f"character={path}",
+    out = laughlab("output=gltf", "face=facs", "input.duration_s=1", f"character={path}", "~output.plots",
                    f"hydra.run.dir={tmp_path / 'run'}")
     assert out.returncode == 0, out.stderr
     said = [ln for ln in out.stderr.splitlines() if ln.startswith("laughlab: face: ")]

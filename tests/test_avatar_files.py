@@ -27,7 +27,7 @@ def _build(tmp_path, *overrides):
 def _cli(tmp_path, *args):
     from inprocess import laughlab
 
-    return laughlab(*args, f"hydra.run.dir={tmp_path / 'run'}")
+    return laughlab(*args, "~output.plots", f"hydra.run.dir={tmp_path / 'run'}")   # no test here reads figures
 
 
 def _one_line(out, tmp_path, says):

@@ -317,7 +317,7 @@ def test_pipeline_with_body_fourier(registered, tmp_path):
     from laughlab.core import pipeline
     from laughlab.harness.runner import _compose
 
-    cfg = _compose(["body=fourier", "input.duration_s=3", "input.save_audio=false"])
+    cfg = _compose(["body=fourier", "input.duration_s=3", "input.save_audio=false", "~output.plots"])
     pipeline.execute(pipeline.build(cfg), tmp_path, {})
     import pandas as pd
 

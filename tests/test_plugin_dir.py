@@ -430,7 +430,8 @@ def test_a_face_that_writes_only_the_jaw_runs_with_one_warning(tmp_path):
     stays at rest."""
     (tmp_path / "p").mkdir()
     (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace("smile=0.5, blink=0.0, eyes_closed=0.0", "smile=0.5"))
-    r = laughlab("plugins_dir=p", "face=gape", "detector=none", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
+    r = laughlab("plugins_dir=p", "face=gape", "detector=none", "input.duration_s=1", "~output.plots", "hydra.run.dir=run",
+                 cwd=tmp_path)
     assert r.returncode == 0 and r.stderr == (
         "laughlab: warning: face 'gape' writes no blink, eyes_closed (a face writes smile, jaw, blink, eyes_closed: "
         "docs/architecture.md); the character's blink/eyes_closed stay at rest and the metrics that read them are "
@@ -444,7 +445,7 @@ def test_a_plugins_dir_with_a_space_quoted_as_hydra_asks(tmp_path):
     (tmp_path / "my plugins").mkdir()
     (tmp_path / "my plugins" / "gape.py").write_text(PLUGIN)
     r = laughlab("plugins_dir='my plugins'", "face=gape", "input.duration_s=1", "detector=none", "output=[files]",
-                 "hydra.run.dir='my run'", cwd=tmp_path)
+                 "~output.plots", "hydra.run.dir='my run'", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert " > gape > " in r.stdout and (tmp_path / "my run" / "channels.csv").exists()
     listed = laughlab("plugins", 'plugins_dir="my plugins"', cwd=tmp_path)
