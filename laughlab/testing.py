@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from laughlab.io.audio import cut_frames
+from laughlab.io.audio import cut_frames, frame_edges
 from laughlab.core.bases import REQUIRED, Context, Source
 from laughlab.core.errors import LaughlabError
 
@@ -276,9 +276,8 @@ def _check_source(cls: type, params, *, seconds: float, seed: int, fps: float) -
                        "other audio than the run")
     finally:
         src.close()
-    step = sr / fps
-    for k, b in enumerate(blocks):
-        want = int(round((k + 1) * step)) - int(round(k * step))
+    wanted = np.diff(frame_edges(len(blocks), sr, fps))
+    for k, (b, want) in enumerate(zip(blocks, wanted)):
         last = not live and k == len(blocks) - 1
         if not isinstance(b, np.ndarray) or b.ndim != 1 or b.dtype.kind != "f":
             what = f"{type(b).__name__} {getattr(b, 'shape', '')} {getattr(b, 'dtype', '')}".strip()

@@ -7,11 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from omegaconf import OmegaConf, open_dict
 
 from laughlab.character.body import FACE_MORPHS, MORPHS, build
-from laughlab.core import pipeline
-from laughlab.core.config import compose_config
 from laughlab.io.gltf import accessor_array, read_glb
 from laughlab.motion.skeleton import HUMANOID, forward_kinematics
 
@@ -24,12 +21,10 @@ ASKED = ("jawOpen", "mouthSmileLeft", "mouthSmileRight", "cheekSquintLeft", "che
 
 
 def run(tmp_path, *overrides):
-    cfg = compose_config(["output=gltf", *overrides])
-    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
-    with open_dict(cfg):
-        cfg.output.pop("plots", None)   # the run's figures: no test here reads them (tests/test_plots_*.py do)
-    pipeline.execute(pipeline.build(cfg), tmp_path)
-    return tmp_path
+    """test_avatar's run of ``output=gltf`` (no figures: no test here reads them)."""
+    from test_avatar import run as avatar_run
+
+    return avatar_run(tmp_path, "output=gltf", *overrides)
 
 
 @pytest.fixture(scope="module")

@@ -116,9 +116,8 @@ def sweep_command(root: Path) -> str:
     if hydra is None:
         return ""
     given = hydra.get("overrides") or {}
-    task = [str(o) for o in (given.get("task") or [])]
-    task += [str(o) for o in (given.get("hydra") or []) if not str(o).startswith(("hydra.mode=", "hydra.sweep.dir="))]
-    task = [o for o in task if not o.startswith("hydra.sweep.dir=")] + [f"hydra.sweep.dir={root}"]
+    task = [str(o) for o in [*(given.get("task") or []), *(given.get("hydra") or [])]]
+    task = [o for o in task if not o.startswith(("hydra.mode=", "hydra.sweep.dir="))] + [f"hydra.sweep.dir={root}"]
     return f"python -m laughlab -m {' '.join(shlex.quote(o) for o in task)}"
 
 
