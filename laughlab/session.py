@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from laughlab.core.errors import LaughlabError
+from laughlab.core.overrides import override_key
 
 
 @dataclass
@@ -200,7 +201,7 @@ class Session:
         if not 8000 <= int(sample_rate) <= 192000:
             raise LaughlabError(f"sample_rate must be 8000-192000 Hz (got {sample_rate})")
         for o in overrides:
-            key = str(o).lstrip("+~").split("=", 1)[0]
+            key = override_key(o)
             if key == "output":   # an output's own parameters (output.vmc.port=...) are welcome
                 raise LaughlabError(f"{o}: a session's outputs are its outputs= argument (outputs=['files'])")
             if key == "input" or key.startswith("input."):

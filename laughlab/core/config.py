@@ -9,6 +9,7 @@ import re
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
+from laughlab.core.overrides import override_key
 from laughlab.core.overridehints import launcher_missing, unreadable_override
 from laughlab.core import own_experiments
 
@@ -59,7 +60,7 @@ def load_plugin_dirs(overrides) -> None:
     for ov in overrides:
         key, _, value = str(ov).partition("=")
         value = unquoted(value)
-        if key.lstrip("+~") == "plugins_dir" and value and value != "null":
+        if override_key(key) == "plugins_dir" and value and value != "null":
             plugins.load_plugin_dir(value)
             own_experiments.load_folder(Path(value).expanduser() / "experiment", conf_dir())
 
@@ -181,12 +182,12 @@ def _one_value(key: str, overrides: list[str]) -> bool:
     from laughlab.core import plugins
 
     scalar = {"str", "int", "float", "bool", str, int, float, bool}
-    parts = key.lstrip("+~").split(".")
+    parts = override_key(key).split(".")
     try:
         if len(parts) == 1:   # a run's own parameter (seed, fps): its default's type
             from hydra import compose
 
-            choices = [o for o in overrides if o.split("=")[0].lstrip("+~") in (*GROUP_KINDS, "experiment")]
+            choices = [o for o in overrides if override_key(o) in (*GROUP_KINDS, "experiment")]
             return type(compose("config", overrides=choices).get(parts[0])) in scalar
         if parts[0] == "output" and len(parts) == 3:
             params, name = plugins.get("sink", parts[1]).obj.Params, parts[2]
@@ -255,7 +256,7 @@ def _misplaced(key: str, overrides: list[str]) -> str | None:
         return None
     group, _, rest = key.partition(".")
     if group in GROUP_KINDS and rest:
-        explicit = any(o.lstrip("+~").split("=", 1)[0] == group for o in overrides)
+        explicit = any(override_key(o) == group for o in overrides)
         hint = misplaced_parameter(group, choices.get(group), rest, explicit)
         if hint is None and group == "output":
             hint = _plugin_sink_key(rest, overrides)
@@ -266,7 +267,7 @@ def _misplaced(key: str, overrides: list[str]) -> str | None:
             hint = keyhints.under_output(rest, options, choices.get("output") or given)  # a list: not a choice
         return hint
     if group not in GROUP_KINDS and group not in ("hydra", "harness", "experiment"):
-        value = next((o.split("=", 1)[1] for o in overrides if o.lstrip("+~").split("=", 1)[0] == key), None)
+        value = next((o.split("=", 1)[1] for o in overrides if override_key(o) == key), None)
         found = [(g, o) for g in keyhints.SEARCHED for o in _owners(g, key)]
         return keyhints.without_group(key, value, choices, found)
     return None
@@ -277,7 +278,7 @@ def chosen(overrides: list[str]) -> dict[str, str]:
     from hydra import compose
 
     choices = [o for o in overrides if "=" in o and "." not in o.split("=")[0]
-               and o.split("=")[0].lstrip("+~") in (*GROUP_KINDS, "experiment")]
+               and override_key(o) in (*GROUP_KINDS, "experiment")]
     cfg = compose("config", overrides=choices, return_hydra_config=True)
     return {g: str(v) for g, v in cfg.hydra.runtime.choices.items() if g in GROUP_KINDS and v is not None}
 
@@ -315,7 +316,7 @@ NOT_IN_A_RUN = ("hydra", "harness")
 
 def reaches_run(key: str) -> bool:
     """Does an override of ``key`` (``seed``, ``+input.path``, ``harness.jobs``) reach a run's configuration?"""
-    return key.lstrip("+~").split(".")[0] not in NOT_IN_A_RUN
+    return override_key(key).split(".")[0] not in NOT_IN_A_RUN
 
 
 def is_group(key: str) -> bool:

@@ -18,6 +18,7 @@ from __future__ import annotations
 from typing import Callable
 
 from laughlab.core.errors import LaughlabError
+from laughlab.core.overrides import override_key
 
 
 def sweep_values(overrides: list[str]) -> tuple[list[str], dict[str, list[str]]]:
@@ -60,10 +61,10 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
     from laughlab.core.config import is_group
 
     base, sweeps = sweep_values(overrides)
-    if any(k.lstrip("+~") == "experiment" for k in sweeps):
+    if any(override_key(k) == "experiment" for k in sweeps):
         # Hydra composes the sweep's own configuration (for its sweeper and launcher) without the swept group, where
         # harness.* does not exist: its "Could not override" came after the check (a review)
-        plain = [o for o in base if o.split("=", 1)[0].lstrip("+~").startswith("harness.") and not o.startswith("++")]
+        plain = [o for o in base if override_key(o).startswith("harness.") and not o.startswith("++")]
         if plain:
             raise LaughlabError(f"{plain[0]} with a sweep over experiments: Hydra composes the sweep itself without "
                                 f"an experiment, where harness does not exist; write ++{plain[0].lstrip('+')} "
@@ -71,10 +72,10 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
     cfg = preflight(base)
     check_launcher(cfg.hydra.get("launcher") or {})
     check_viewer(cfg)
-    params = None if any(is_group(k.lstrip("+~")) for k in sweeps) else cfg.hydra.get("sweeper", {}).get("params")
+    params = None if any(is_group(override_key(k)) for k in sweeps) else cfg.hydra.get("sweeper", {}).get("params")
     params = OmegaConf.to_container(params, resolve=False) if OmegaConf.is_config(params) else dict(params or {})
-    given = {k.lstrip("+~") for k in sweeps} | {o.split("=", 1)[0].lstrip("+~") for o in base}
-    extra = [f"{k}={v}" for k, v in params.items() if k.lstrip("+~") not in given]
+    given = {override_key(k) for k in sweeps} | {override_key(o) for o in base}
+    extra = [f"{k}={v}" for k, v in params.items() if override_key(k) not in given]
     more_base, more = sweep_values(extra)
     base, sweeps = base + more_base, {**sweeps, **more}
     checked = 1

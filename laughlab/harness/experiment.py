@@ -29,6 +29,7 @@ from pathlib import Path
 from omegaconf import OmegaConf
 
 from laughlab.core.errors import LaughlabError, shown_names
+from laughlab.core.overrides import without_command_keys
 from laughlab.harness import results as res
 from laughlab.harness.corpus import Item, build_corpus, synthetic_items
 from laughlab.harness.metrics import registered, warn_unmeasured
@@ -73,7 +74,7 @@ def _task_overrides() -> list[str]:
         ovs = list(HydraConfig.get().overrides.task)
     except ValueError:  # not under Hydra (tests call run_experiment directly)
         return []
-    return [o for o in ovs if not o.split("=")[0].lstrip("+~").startswith(("hydra", "overwrite", "progress"))]
+    return without_command_keys(ovs)
 
 
 def not_fetched_line(name: str, sets: list, n_inputs: int) -> str:

@@ -3,6 +3,7 @@ line, and each condition's run built as its trials will compose it."""
 from __future__ import annotations
 
 from laughlab.core.errors import LaughlabError
+from laughlab.core.overrides import override_key, without_command_keys
 
 
 def resolved_harness(cfg) -> dict:
@@ -26,7 +27,7 @@ def check_single_run_keys(overrides: list[str]) -> None:
     """A single run's ``seed=`` and ``output=``/``output.*`` given to an experiment, refused in one line (``seed=``
     was recorded and changed nothing; ``output=viewer`` was dropped without a word, ``output.plots.max_seconds=10`` failed
     after the first trials).  ``output.plots.*`` is the showcase runs' figures' (width, pdf...), and kept."""
-    keys = {o.lstrip("+~").split("=", 1)[0] for o in overrides}
+    keys = {override_key(o) for o in overrides}
     keys = {k for k in keys if not k.startswith("output.plots.")}
     if "seed" in keys:
         raise LaughlabError("seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds "
@@ -51,7 +52,7 @@ def check_condition_runs(overrides: list[str], conditions: dict, build_base) -> 
     from laughlab.core import pipeline
     from laughlab.core.config import NOT_IN_A_RUN, compose_app
 
-    base = [o for o in overrides if not o.split("=")[0].lstrip("+~").startswith(("hydra", "overwrite", "progress"))]
+    base = without_command_keys(overrides)
     for name, cond in conditions.items():
         try:
             cfg = compose_app([*base, *cond])

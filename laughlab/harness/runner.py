@@ -20,6 +20,7 @@ from omegaconf import OmegaConf
 
 from laughlab.core import blame, pipeline
 from laughlab.core.errors import LaughlabError, RefusedFolder
+from laughlab.core.overrides import override_key
 from laughlab.core.progress import bar
 from laughlab.harness.corpus import Item
 
@@ -50,7 +51,7 @@ def _compose(overrides: list[str]):
 
 def _showcase_pdf(overrides, plots: bool) -> tuple:
     """``output.plots.pdf=true`` for a showcase run, unless the command line set ``output.plots.pdf`` itself."""
-    told = any(o.lstrip("+~").split("=", 1)[0] == "output.plots.pdf" for o in overrides)
+    told = any(override_key(o) == "output.plots.pdf" for o in overrides)
     return ("output.plots.pdf=true",) if plots and not told else ()
 
 
@@ -64,7 +65,7 @@ def run_trial(trial: Trial) -> dict:
     # line says output.plots.pdf=false (a quick look; until 2026-11-28 that was overridden)
     outputs = ("output=files",) if trial.plots else ("output=trial",)
     # the command line's output.plots.* (width=column) are for the showcase runs' figures: output=trial has none
-    overrides = [o for o in trial.overrides if trial.plots or not o.lstrip("+~").startswith("output.plots.")]
+    overrides = [o for o in trial.overrides if trial.plots or not override_key(o).startswith("output.plots.")]
     cfg = _compose([*overrides, *outputs, *_showcase_pdf(overrides, trial.plots)])
     if out.exists():
         shutil.rmtree(out)

@@ -15,6 +15,7 @@ from itertools import product
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
+from laughlab.core.overrides import override_key
 
 #: override keys that are not a point's parameters (the report's points leave them out too)
 NOT_PARAMS = ("experiment", "hydra")
@@ -42,11 +43,11 @@ def planned_points(root: Path) -> list[dict[str, str]] | None:
     if hydra is None:
         return None
     task = [str(o) for o in ((hydra.get("overrides") or {}).get("task") or [])]
-    given = {o.split("=", 1)[0].lstrip("+~") for o in task}
+    given = {override_key(o) for o in task}
     params = (hydra.get("sweeper") or {}).get("params") or {}
-    if any(o.split("=", 1)[0].lstrip("+~") == "experiment" and "," in o for o in task):
+    if any(override_key(o) == "experiment" and "," in o for o in task):
         params = {}   # a sweep over experiments composes the sweeper without them (laughlab.core.sweepcheck)
-    extra = [f"{k}={v}" for k, v in params.items() if str(k).lstrip("+~") not in given]
+    extra = [f"{k}={v}" for k, v in params.items() if override_key(k) not in given]
     try:
         _, sweeps = sweep_values(task + extra)
     except LaughlabError:
@@ -69,7 +70,7 @@ def _job_params(job: Path) -> dict[str, str] | None:
 
 
 def _matches(plan: dict, params: dict) -> bool:
-    return all(params.get(k) == v for k, v in plan.items() if not k.lstrip("+~").startswith(NOT_PARAMS))
+    return all(params.get(k) == v for k, v in plan.items() if not override_key(k).startswith(NOT_PARAMS))
 
 
 def unfinished(root: Path) -> tuple[int, list[str]] | None:
@@ -96,7 +97,7 @@ def unfinished(root: Path) -> tuple[int, list[str]] | None:
 def swept_keys(root: Path) -> list[str]:
     """The keys the sweep in ``root`` sweeps over more than one value (none when its plan is unknown)."""
     plan = planned_points(Path(root)) or []
-    keys = dict.fromkeys(k for point in plan for k in point if not k.lstrip("+~").startswith(NOT_PARAMS))
+    keys = dict.fromkeys(k for point in plan for k in point if not override_key(k).startswith(NOT_PARAMS))
     return [k for k in keys if len({point.get(k) for point in plan}) > 1]
 
 

@@ -1,0 +1,23 @@
+"""Hydra's override strings (``key=value``, ``+key=value``, ``++key=value``, ``~key``): their keys, and which of
+them a run repeats.
+
+The CLI, the experiment runner, the sweep check and the session read overrides by their keys; they read them
+through here, so that ``+seed=1`` and ``~seed`` are ``seed`` everywhere.
+"""
+from __future__ import annotations
+
+#: the keys of Hydra's own settings and of the command's (overwrite, progress): an experiment's trials and a
+#: condition's check run without them
+COMMAND_ONLY = ("hydra", "overwrite", "progress")
+
+
+def override_key(override) -> str:
+    """The key an override sets, adds or deletes: ``+input.path=a=b.wav`` -> ``input.path``, ``~seed`` -> ``seed``.
+
+    A key alone (``++harness.jobs``) gives the key without its ``+``/``~``."""
+    return str(override).split("=", 1)[0].lstrip("+~")
+
+
+def without_command_keys(overrides) -> list:
+    """``overrides`` without Hydra's own settings and the command's (``COMMAND_ONLY``), in their order."""
+    return [o for o in overrides if not override_key(o).startswith(COMMAND_ONLY)]
