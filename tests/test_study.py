@@ -216,6 +216,7 @@ def test_simulated_participants_in_chromium_and_the_planted_effect_recovered(stu
 
 
 @pytest.mark.browser
+@pytest.mark.slow   # 35-41 s in Chromium for one review's case (make test-all); the served study's answers: the test above
 def test_answers_another_tab_gave_first_are_not_said_to_be_saved(study, tmp_path, monkeypatch):
     """A review: a second tab of the same participant had its answers refused (409: already stored from the
     first tab), and its end page said "All your answers are saved".  Here the server stores trial 2's answers as

@@ -238,6 +238,7 @@ def test_a_laugh_on_the_floor_stays_in_the_view(tmp_path):
 
 
 @pytest.mark.browser
+@pytest.mark.slow   # 45 s of a live run into a page, 32-37 s (make test-all); the live page itself: the tests above
 def test_a_page_open_for_long_keeps_only_what_its_strip_can_show(tmp_path):
     """The page kept every frame's MCS and energy and every clip (walked on each frame) for as long as it was
     open: 60 values a second, for an always-on installation's days. It keeps 12 s now."""
