@@ -550,6 +550,8 @@ def test_output_piped_into_a_reader_that_stops_ends_quietly(argv):
     (["+foo.bar=1"], "unknown setting 'foo.bar'"),
     (["++fsp=30"], "unknown setting 'fsp'"),
     (["+fps=30"], "fps is already a setting: write fps=30 (without +)"),
+    (["+output.plots.width=column"], "output.plots.width is already a setting: write output.plots.width=column (without +)"),
+    (["+detector.hop_s=0.5"], "detector.hop_s is already a setting: write detector.hop_s=0.5 (without +)"),
 ])
 def test_a_key_added_with_plus_that_nothing_reads_is_refused(tmp_path, args, says):
     from inprocess import laughlab

@@ -145,6 +145,11 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
             if near:
                 return f"unknown parameter {key}; did you mean {near}?"
         return f"unknown parameter {key}{valid}"
+    m = re.search(r"Could not append to config\. An item is already at '([^']+)'", text)
+    if m:   # +output.plots.width=column: Hydra's line spoke of appending (the top-level keys: check_overrides)
+        given = next((o for o in overrides if o.startswith("+") and override_key(o) == m.group(1)), None)
+        if given:
+            return f"{m.group(1)} is already a setting: write {given.lstrip('+')} (without +)"
     unreadable = unreadable_override(text, overrides)
     if unreadable:  # Hydra's override grammar reads only plain ASCII values unquoted (a path with é or a space)
         return unreadable
@@ -277,7 +282,7 @@ def chosen(overrides: list[str]) -> dict[str, str]:
     """Group -> the option the user's group choices (and the defaults) select."""
     from hydra import compose
 
-    choices = [o for o in overrides if "=" in o and "." not in o.split("=")[0]
+    choices = [o for o in overrides if "=" in o and "." not in override_key(o)
                and override_key(o) in (*GROUP_KINDS, "experiment")]
     cfg = compose("config", overrides=choices, return_hydra_config=True)
     return {g: str(v) for g, v in cfg.hydra.runtime.choices.items() if g in GROUP_KINDS and v is not None}
