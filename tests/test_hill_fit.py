@@ -274,7 +274,6 @@ def test_fit_params_validate():
         hf.FitParams(segment="onsets")
 
 
-
 def png_width(path) -> int:
     from PIL import Image
 

@@ -5,6 +5,7 @@ import shlex
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, one_line_parser, os_error_line
+from laughlab.render.layout import COLUMN_HEIGHT_IN
 
 
 def main(args: list[str]) -> None:
@@ -44,10 +45,6 @@ def main(args: list[str]) -> None:
         print(f"laughlab: {', '.join(tall)} {'is' if len(tall) == 1 else 'are'} taller than a column (about "
               f"{COLUMN_HEIGHT_IN:g} in): --panels NAME,NAME draws only the metrics you discuss")
     partial_warning(Path(ns.run_dir))   # a half-finished sweep: its report says PARTIAL, and one line here
-
-
-#: the height of a two-column paper's column (in): a figure taller does not fit one
-COLUMN_HEIGHT_IN = 9.5
 
 
 def _names(text: str | None) -> list[str]:

@@ -53,6 +53,8 @@ COLUMN = Layout("column", 3.5, rc={"font.size": 8.0, "axes.labelsize": 8.0, "xti
 LAYOUTS = {"page": PAGE, "column": COLUMN}
 #: the smallest text the column layout allows, in points at its printed width (IEEE and ACM ask for 8-9 pt)
 COLUMN_MIN_PT = 7.0
+#: the height of a two-column paper's column (in): a figure drawn for a column and taller does not fit one
+COLUMN_HEIGHT_IN = 9.5
 
 
 def layout_of(layout: str | Layout) -> Layout:
