@@ -96,8 +96,9 @@ def register_plugin_configs() -> None:
 
     from hydra.core.config_store import ConfigStore
 
-    from laughlab.core import plugins
+    from laughlab.core import config_files, plugins
 
+    config_files.install()   # before Hydra composes (here, in a sweep's launcher, in its jobs): each file parsed once
     cs = ConfigStore.instance()
     reg = plugins.registry()
     for group, kind in GROUP_KINDS.items():
@@ -303,6 +304,9 @@ def compose_config(overrides: list[str], job_name: str = "app"):
     from hydra import compose, initialize_config_module
     from hydra.core.global_hydra import GlobalHydra
 
+    from laughlab.core import config_files
+
+    config_files.install()
     GlobalHydra.instance().clear()
     with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3", job_name=job_name):
         try:
