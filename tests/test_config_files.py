@@ -29,6 +29,18 @@ def _choices():
     return out
 
 
+def _package_source(tmp_path, monkeypatch, name: str, files: dict[str, str]):
+    """A package ``name`` holding ``files`` on the path, and Hydra's (cached) reader on it."""
+    pkg = tmp_path / name
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    for file, text in files.items():
+        (pkg / file).write_text(text)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, name, raising=False)
+    return _pkg_source()(provider="test", path=f"pkg://{name}"), pkg
+
+
 def _yaml(cfg) -> str:
     return OmegaConf.to_yaml(cfg)
 
@@ -48,12 +60,8 @@ def test_every_option_composes_as_hydras_own_reader_composes_it(monkeypatch):
 
 
 def test_a_file_edited_in_the_process_is_read_again_and_a_copy_changed_changes_nothing(tmp_path, monkeypatch):
-    pkg = tmp_path / "llcfgfiles_pkg"
-    pkg.mkdir()
-    (pkg / "__init__.py").write_text("")
-    (pkg / "a.yaml").write_text("# @package _global_\nx: 1\nnested:\n  y: [1, 2]\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    source = _pkg_source()(provider="test", path="pkg://llcfgfiles_pkg")
+    source, pkg = _package_source(tmp_path, monkeypatch, "llcfgfiles_pkg",
+                                  {"a.yaml": "# @package _global_\nx: 1\nnested:\n  y: [1, 2]\n"})
     first = source.load_config("a")
     assert (first.config.x, list(first.config.nested.y), first.header["package"]) == (1, [1, 2], "_global_")
     first.config.nested.y.append(3)   # Hydra pops a file's defaults from the copy it is given
@@ -62,17 +70,10 @@ def test_a_file_edited_in_the_process_is_read_again_and_a_copy_changed_changes_n
     assert (again.config.x, list(again.config.nested.y), again.header["package"]) == (1, [1, 2], "_global_")
     (pkg / "a.yaml").write_text("x: 2\n")
     assert source.load_config("a").config == OmegaConf.create({"x": 2})
-    sys.modules.pop("llcfgfiles_pkg", None)
 
 
 def test_a_bad_file_is_hydras_own_error_each_time(tmp_path, monkeypatch):
-    pkg = tmp_path / "llcfgfiles_bad"
-    pkg.mkdir()
-    (pkg / "__init__.py").write_text("")
-    (pkg / "b.yaml").write_text("x: [1, 2\n")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    source = _pkg_source()(provider="test", path="pkg://llcfgfiles_bad")
+    source, _ = _package_source(tmp_path, monkeypatch, "llcfgfiles_bad", {"b.yaml": "x: [1, 2\n"})
     for _ in range(2):   # not cached as a result
         with pytest.raises(Exception, match="expected ',' or ']'"):
             source.load_config("b")
-    sys.modules.pop("llcfgfiles_bad", None)
