@@ -57,6 +57,9 @@ def test_each_value_of_each_key_is_checked_with_the_others_at_their_first_values
      "harness.corpus.seeds=1 with a sweep over experiments: Hydra composes the sweep itself without an experiment, "
      "where harness does not exist; write ++harness.corpus.seeds=1"),
     ("experiment=smoke,energy_readings +harness.corpus.seeds=1", "write ++harness.corpus.seeds=1"),
+    # + on a nested key that exists: the fix quotes the whole sweep, not its first value
+    ("+scheduler.overrule_c=1.5,3", "scheduler.overrule_c is already a setting: write scheduler.overrule_c=1.5,3 "
+                                    "(without +)\n"),
     # the live viewer: the sweep stood still at its first point, waiting for a page (the live-viewer review)
     ("scheduler.decrease_per_s=6,12 output=viewer", "output=viewer in a sweep: each point would wait for a page to "
                                                     "open before it starts; set output.viewer.wait=off"),

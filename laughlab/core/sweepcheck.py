@@ -69,7 +69,10 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
             raise LaughlabError(f"{plain[0]} with a sweep over experiments: Hydra composes the sweep itself without "
                                 f"an experiment, where harness does not exist; write ++{plain[0].lstrip('+')} "
                                 "(++ sets a key whether it exists or not), or sweep each experiment on its own")
-    cfg = preflight(base)
+    try:
+        cfg = preflight(base)
+    except LaughlabError as exc:
+        raise LaughlabError(_quoting_the_sweep(str(exc), overrides, sweeps)) from None
     check_launcher(cfg.hydra.get("launcher") or {})
     check_viewer(cfg)
     params = None if any(is_group(override_key(k)) for k in sweeps) else cfg.hydra.get("sweeper", {}).get("params")
@@ -92,6 +95,16 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
                 raise LaughlabError(f"sweep value {value}: {exc}") from None
             checked += 1
     return checked
+
+
+def _quoting_the_sweep(message: str, overrides: list[str], sweeps: dict[str, list[str]]) -> str:
+    """``message`` with a fix it words on a sweep's first value (``write detector.hop_s=0.5 (without +)``, from the
+    check of the first values) worded on the whole sweep the user gave (``detector.hop_s=0.5,1``)."""
+    for values in sweeps.values():
+        given = next((o for o in overrides if override_key(o) == override_key(values[0])), None)
+        if given is not None:
+            message = message.replace(f"write {values[0].lstrip('+')} ", f"write {given.lstrip('+')} ")
+    return message
 
 
 def check_launcher(launcher) -> None:
