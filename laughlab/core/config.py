@@ -98,7 +98,7 @@ def register_plugin_configs() -> None:
 
     from laughlab.core import config_files, plugins
 
-    config_files.install()   # before Hydra composes (here, in a sweep's launcher, in its jobs): each file parsed once
+    config_files.install()   # before Hydra composes (a run, a sweep's checks, its basic launcher's jobs)
     cs = ConfigStore.instance()
     reg = plugins.registry()
     for group, kind in GROUP_KINDS.items():
