@@ -557,6 +557,9 @@ def test_a_sweep_report_shows_a_plugins_metric_and_those_asked_for(tmp_path, sav
     assert "clip_events_n ↑" in line.titles or "`clip_events_n` (" in readme   # a panel, or said to be flat
     with pytest.raises(LaughlabError, match=r"^--metrics: the sweep measured no jaw_mean; its metrics: "):
         write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", metrics=["jaw_mean"])
+    with pytest.raises(LaughlabError, match=r"^--metrics: the sweep measured no missrate \(did you mean miss_rate\?\), "
+                                            r"jaw_mean; its metrics: "):   # a typo: the nearest metric
+        write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", metrics=["missrate", "jaw_mean"])
     # report --panels: the figures show only those metrics, in that order; the table keeps the key ones too
     saved.clear()
     panels = ["intensity_r_kinetic", "clip_events_n", "intensity_r_clip"]   # the two that vary, the other way round
@@ -568,3 +571,5 @@ def test_a_sweep_report_shows_a_plugins_metric_and_those_asked_for(tmp_path, sav
     assert "| clip_events_n ↑ (count) |" in readme and "| cutoff_rate" in readme
     with pytest.raises(LaughlabError, match=r"^--panels: \S+ measured no jaw_mean; its metrics: "):
         write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", panels=["jaw_mean"])
+    with pytest.raises(LaughlabError, match=r"^--panels: \S+ measured no cutoff \(did you mean cutoff_rate\?\); its "):
+        write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", panels=["cutoff"])

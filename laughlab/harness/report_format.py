@@ -86,7 +86,16 @@ def panel_grid(n: int, w: float, h: float, cols: int = 3):
 
 def check_panels(doc: dict, panels: list[str] | None) -> None:
     """``report --panels``: a name the experiment did not measure is refused in one line, naming its metrics."""
-    unknown = [m for m in panels or [] if m not in doc["metrics"]]
+    refuse_unmeasured("--panels", doc["experiment"], panels, doc["metrics"])
+
+
+def refuse_unmeasured(flag: str, who: str, asked: list[str] | None, metrics) -> None:
+    """LaughlabError, one line, for the names in ``asked`` not among ``metrics``: each with the nearest metric
+    when one is near (a typo: ``missrate``, did you mean ``miss_rate``), then every metric ``who`` measured."""
+    import difflib
+
+    unknown = [m for m in asked or [] if m not in metrics]
     if unknown:
-        raise LaughlabError(f"--panels: {doc['experiment']} measured no {', '.join(unknown)}; its metrics: "
-                            + ", ".join(doc["metrics"]))
+        named = [m + "".join(f" (did you mean {near}?)" for near in difflib.get_close_matches(m, list(metrics), n=1))
+                 for m in unknown]
+        raise LaughlabError(f"{flag}: {who} measured no {', '.join(named)}; its metrics: " + ", ".join(metrics))

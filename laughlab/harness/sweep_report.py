@@ -10,7 +10,8 @@ from pathlib import Path
 from laughlab.core.errors import LaughlabError
 from laughlab.harness.results import read_results
 from laughlab.harness.sweep_plan import multirun, swept_keys, sweep_command, unfinished
-from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, check_panels, vector_link
+from laughlab.harness.report_format import (EDGE, KEY_METRICS, at_search_edge, check_panels, refuse_unmeasured,
+                                            vector_link)
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
 from laughlab.harness.sweep_figures import heatmaps, lines as line_plots
@@ -79,10 +80,7 @@ def shown_metrics(doc: dict, asked: list[str] | None = None) -> list[str]:
     """The metrics a sweep's table and figures show: :data:`KEY_METRICS`, every metric a plugin other than
     laughlab registered (a plugin authors' review: a researcher's own metric never appeared), and ``asked``
     (``report --metrics``); a name the sweep did not measure is refused in one line."""
-    unknown = [m for m in asked or [] if m not in doc["metrics"]]
-    if unknown:
-        raise LaughlabError(f"--metrics: the sweep measured no {', '.join(unknown)}; its metrics: "
-                            + ", ".join(doc["metrics"]))
+    refuse_unmeasured("--metrics", "the sweep", asked, doc["metrics"])
     origins = doc.get("plugins") or {}
     theirs = [m for m in doc["metrics"] if not origins.get(f"metric/{m}", "laughlab ").startswith("laughlab ")]
     return list(dict.fromkeys([m for m in KEY_METRICS if m in doc["metrics"]] + theirs + list(asked or [])))
