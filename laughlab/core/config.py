@@ -150,7 +150,7 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
     if m:   # +output.plots.width=column: Hydra's line spoke of appending (the top-level keys: check_overrides)
         given = next((o for o in overrides if o.startswith("+") and override_key(o) == m.group(1)), None)
         if given:
-            return f"{m.group(1)} is already a setting: write {given.lstrip('+')} (without +)"
+            return already_a_setting(m.group(1), given)
     unreadable = unreadable_override(text, overrides)
     if unreadable:  # Hydra's override grammar reads only plain ASCII values unquoted (a path with é or a space)
         return unreadable
@@ -395,6 +395,11 @@ def _top_level_keys() -> tuple[str, ...]:
     return tuple(k for k in doc if k != "defaults")
 
 
+def already_a_setting(key: str, given: str) -> str:
+    """The line for ``+KEY=V`` (``given``) on a key the configuration already has, top-level or nested."""
+    return f"{key} is already a setting: write {given.lstrip('+')} (without +)"
+
+
 def check_overrides(overrides: list[str]) -> None:
     """Unknown group options raise :class:`LaughlabError` with the list of valid ones; so does ``+KEY=...`` for a
     key no part of laughlab reads (``+fsp=30``, a typo of ``fps``, was added and ignored)."""
@@ -402,12 +407,12 @@ def check_overrides(overrides: list[str]) -> None:
 
     one_plugins_dir(overrides)
     for ov in overrides:
-        key = ov.split("=")[0].lstrip("+")
+        key = override_key(ov)
         root = re.split(r"[./]", key)[0]
         if ov.startswith("+") and root not in (*GROUP_KINDS, "experiment", "hydra", "harness"):
             if root in _top_level_keys():
                 if not ov.startswith("++"):
-                    raise LaughlabError(f"{root} is already a setting: write {ov.lstrip('+')} (without +)")
+                    raise LaughlabError(already_a_setting(root, ov))
             else:
                 raise LaughlabError(f"unknown setting {key!r}: + adds a key that nothing reads; python -m laughlab "
                                     "--help lists the settings")
