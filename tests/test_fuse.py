@@ -124,6 +124,30 @@ def test_a_bad_fuse_value_is_refused():
         YamnetParams(fuse="maybe")
 
 
+def test_the_fused_heads_c_reads_a_cpu_familys_rounding_as_a_tie():
+    """The cross-validated APs of the bundled fit (AVX-512, 2026-11-27, at 4 decimals) and of its refit on AVX2
+    (2026-11-28), where the best-AP rule picked C = 0.3: both give the bundled C = 1."""
+    from laughlab.detector.yamnet_fit import FUSE_C_TIE, chosen_c
+
+    avx512 = {0.003: 0.9261, 0.01: 0.9288, 0.03: 0.9304, 0.1: 0.9307, 0.3: 0.9308, 1.0: 0.9308}
+    avx2 = {**avx512, 0.3: 0.9307, 1.0: 0.9306}
+    assert chosen_c(avx512) == chosen_c(avx2) == 1.0
+    # a real difference is not a tie: the better C wins
+    assert chosen_c({**avx2, 1.0: 0.9307 - 2 * FUSE_C_TIE}) == 0.3
+    assert chosen_c({0.1: 0.95, 0.3: 0.90, 1.0: 0.90}) == 0.1
+
+
+@given(st.dictionaries(st.sampled_from((0.003, 0.01, 0.03, 0.1, 0.3, 1.0)), st.floats(0, 1), min_size=1))
+@settings(max_examples=200, deadline=None)
+def test_the_fused_heads_c_is_within_the_tie_of_the_best_and_the_weakest_there(cv):
+    from laughlab.detector.yamnet_fit import FUSE_C_TIE, chosen_c
+
+    c, top = chosen_c(cv), max(cv.values())
+    assert cv[c] >= top - FUSE_C_TIE and not [k for k, v in cv.items() if v >= top - FUSE_C_TIE and k > c]
+    if cv[c] < top:   # a C that lost by less than the tie: it is larger than the best one
+        assert c > max(k for k, v in cv.items() if v == top)
+
+
 @pytest.mark.slow
 def test_the_fused_head_is_refitted_byte_for_byte():
     """``python -m laughlab.detector.yamnet_fit --fuse --check`` refits on the train split and compares (~3-5 min)."""
