@@ -81,3 +81,59 @@ def test_the_unraisable_hook_hides_what_breaks_after_a_stop_signal_only(monkeypa
     interrupts._unraisable(ki)
     interrupts._unraisable(other)
     assert seen == [ki, other]
+
+
+# a coroutine whose clean-up needs another task alive: Playwright's reader of its driver's answers, busy most of
+# the time (so a KeyboardInterrupt raised where the main thread stands lands in it), and a Ctrl-C 0.3 s in
+ASYNC = '''
+import asyncio, os, signal, sys, threading, time
+from laughlab.core import interrupts
+
+interrupts.install()
+cleaned = []
+
+
+async def reader(q):
+    while True:
+        t = time.perf_counter()
+        while time.perf_counter() - t < 0.02:
+            pass
+        await asyncio.sleep(0)
+        while not q.empty():
+            q.get_nowait().set_result("answered")
+
+
+async def work():
+    q = asyncio.Queue()
+    r = asyncio.create_task(reader(q))
+    try:
+        await asyncio.sleep(30)
+    finally:
+        fut = asyncio.get_running_loop().create_future()
+        q.put_nowait(fut)
+        try:
+            cleaned.append(await asyncio.wait_for(fut, 5))
+        except asyncio.TimeoutError:
+            cleaned.append("nobody answered")
+        r.cancel()
+
+
+threading.Timer(0.3, os.kill, (os.getpid(), signal.SIGINT)).start()
+try:
+    if sys.argv[1] == "plain":
+        asyncio.run(work())
+    else:
+        interrupts.run_coroutine(work())
+except KeyboardInterrupt:
+    print("stopped", cleaned, signal.getsignal(signal.SIGINT) is signal.SIG_IGN, interrupts.received)
+'''
+
+
+def test_a_ctrl_c_in_an_event_loop_cancels_the_coroutine_whose_clean_up_then_runs_whole():
+    """Found by a CI run: ``study simulate`` did not exit within 60 s of a Ctrl-C. The handler's KeyboardInterrupt
+    landed in Playwright's reader task, and the browser's clean-up waited for an answer nobody read. Under
+    ``run_coroutine`` the signal cancels the coroutine's task; the reader lives to answer its clean-up, then
+    KeyboardInterrupt, the signal ignored from there on (plain ``asyncio.run`` under laughlab's handler: "nobody
+    answered", 5 s later)."""
+    r = subprocess.run([sys.executable, "-c", ASYNC, "ours"], capture_output=True, text=True, timeout=60)
+    assert r.stdout == "stopped ['answered'] True 2\n", r.stdout + r.stderr

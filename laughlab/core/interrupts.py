@@ -49,10 +49,9 @@ def reset() -> None:
         _ignored = False
 
 
-def _handler(signum, frame):
-    global received, _pending, _ignored
-    if finished:
-        return
+def _record(signum) -> None:
+    """A stop signal came: remember it and ignore the stop signals from now on."""
+    global received, _ignored
     if signum == _HUP:
         _away_from_the_terminal()
     received = received or signum
@@ -64,6 +63,13 @@ def _handler(signum, frame):
         _ignored = True
     except ValueError:   # not the main thread
         pass
+
+
+def _handler(signum, frame):
+    global _pending
+    if finished:
+        return
+    _record(signum)
     if _defer:
         _pending = True
         return
@@ -159,6 +165,56 @@ def install() -> None:
     for sig in STOP_SIGNALS:
         if signal.getsignal(sig) in (signal.SIG_DFL, signal.default_int_handler):
             signal.signal(sig, _handler)
+
+
+def run_coroutine(coro, exception_handler=None):
+    """``asyncio.run(coro)``, a stop signal ending it as a cancel of ``coro``'s task, then ``KeyboardInterrupt``.
+
+    The handler's ``KeyboardInterrupt`` is raised wherever the main thread stands; in an event loop that may be a
+    task other than ``coro``'s, which then dies of it: ``study simulate``'s Playwright reads its driver's answers
+    in such a task, and the browser's clean-up after a Ctrl-C waited for an answer nobody read any more (a CI run:
+    no exit within 60 s). So while the loop runs, the stop signals this module handles are the loop's own
+    (``loop.add_signal_handler``: run between callbacks, never inside one): the first one is recorded as
+    :func:`_handler` records it and cancels ``coro``'s task, whose clean-up runs whole. Under another handler (a
+    test runner's, an embedding program's) nothing changes, as with :func:`install`."""
+    import asyncio
+
+    ours = []
+    try:
+        ours = [sig for sig in STOP_SIGNALS if signal.getsignal(sig) is _handler]
+    except ValueError:
+        pass
+
+    async def main():
+        loop, task = asyncio.get_running_loop(), asyncio.current_task()
+        if exception_handler is not None:
+            loop.set_exception_handler(exception_handler)
+
+        def stop(signum):
+            if received is None and not finished:
+                _record(signum)   # the stop signals ignored from here: a second Ctrl-C cuts no clean-up in two
+                task.cancel()
+
+        for sig in list(ours):
+            try:
+                loop.add_signal_handler(sig, stop, sig)
+            except (ValueError, RuntimeError, NotImplementedError):   # not the main thread; Windows
+                ours.remove(sig)
+        return await coro
+
+    try:
+        with asyncio.Runner() as runner:
+            out = runner.run(main())
+        if received is not None:   # the coroutine let the cancel go and returned: the command still stops
+            raise KeyboardInterrupt
+        return out
+    except asyncio.CancelledError:
+        if received is not None:
+            raise KeyboardInterrupt from None
+        raise
+    finally:   # closing the loop put the default handlers back: ours, or ignored once a stop signal came
+        for sig in ours:
+            signal.signal(sig, signal.SIG_IGN if received is not None else _handler)
 
 
 def interrupted(exc: BaseException) -> bool:

@@ -208,7 +208,8 @@ async def run(url: str, design: dict, participants: list[int], answer, behaviour
 
 
 def run_sync(*args, **kwargs) -> dict[int, Given]:
-    """:func:`run` to its end.  After Ctrl-C the pages' pending calls fail as the browser closes; asyncio would
+    """:func:`run` to its end.  A stop signal cancels it (``interrupts.run_coroutine``: the browser closes whole)
+    and then raises ``KeyboardInterrupt``.  The pages' pending calls fail as the browser closes; asyncio would
     print each of them (hundreds of lines) before laughlab's one line, so they are let go quietly then."""
     from laughlab.core import interrupts
 
@@ -217,9 +218,7 @@ def run_sync(*args, **kwargs) -> dict[int, Given]:
             loop.default_exception_handler(context)
 
     try:
-        with asyncio.Runner() as runner:
-            runner.get_loop().set_exception_handler(quiet_after_interrupt)
-            return runner.run(run(*args, **kwargs))
+        return interrupts.run_coroutine(run(*args, **kwargs), quiet_after_interrupt)
     except BaseException:
         if interrupts.received is not None:   # the browser's driver process is reaped after the loop closed, and
             logging.getLogger("asyncio").disabled = True   # asyncio logs "Loop ... that handles pid ... is closed"
