@@ -486,3 +486,34 @@ def test_overwrite_takes_an_older_pages_scripts_and_puts_the_page_back_if_the_sw
         V.write(run_dir, out, overwrite=True)
     assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*")) == before
     assert (out / "index.html").read_text() == "the earlier page"
+
+
+@pytest.mark.parametrize("server_class", ["laughlab's", "socketserver's"])
+def test_a_client_gone_while_it_is_answered_prints_nothing(capsys, server_class, monkeypatch):
+    """Found trying ``study simulate`` with a Ctrl-C to its process group: Chromium, stopped by the same Ctrl-C,
+    left a 20-line BrokenPipeError from the server's thread before the command's one line. A client that resets
+    the connection during a 20 MB answer: nothing on stderr (socketserver's own class prints the traceback)."""
+    import socket
+    import struct
+    import time
+    from http.server import ThreadingHTTPServer
+
+    if server_class != "laughlab's":
+        monkeypatch.setattr(V, "_Server", ThreadingHTTPServer)
+    httpd = V.http_server({"big.bin": b"x" * 20_000_000}, 0)
+    before = threading.active_count()
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    try:
+        c = socket.create_connection(httpd.server_address[:2])
+        c.sendall(b"GET /big.bin HTTP/1.1\r\nHost: x\r\n\r\n")
+        assert c.recv(1024).startswith(b"HTTP/1.0 200")
+        c.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+        c.close()   # a reset, as a killed browser's
+        deadline = time.time() + 10
+        while threading.active_count() > before + 1 and time.time() < deadline:   # the request's thread ends
+            time.sleep(0.05)
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+    err = capsys.readouterr().err
+    assert ("Traceback" in err) == (server_class != "laughlab's"), err

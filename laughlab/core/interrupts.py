@@ -173,16 +173,17 @@ def run_coroutine(coro, exception_handler=None):
     The handler's ``KeyboardInterrupt`` is raised wherever the main thread stands; in an event loop that may be a
     task other than ``coro``'s, which then dies of it: ``study simulate``'s Playwright reads its driver's answers
     in such a task, and the browser's clean-up after a Ctrl-C waited for an answer nobody read any more (a CI run:
-    no exit within 60 s). So while the loop runs, the stop signals this module handles are the loop's own
-    (``loop.add_signal_handler``: run between callbacks, never inside one): the first one is recorded as
-    :func:`_handler` records it and cancels ``coro``'s task, whose clean-up runs whole. Under another handler (a
-    test runner's, an embedding program's) nothing changes, as with :func:`install`."""
+    no exit within 60 s). So while the loop runs, a stop signal raises nothing: it is recorded as :func:`_handler`
+    records it, at once (a terminal's Ctrl-C stops Playwright's driver and Chromium too, and what then fails is
+    the interrupt's consequence, :func:`interrupted`), and cancels ``coro``'s task, whose clean-up runs whole, as
+    ``asyncio.Runner`` does with a Ctrl-C under Python's default handler. Under another handler (a test runner's,
+    an embedding program's) nothing changes, as with :func:`install`."""
     import asyncio
 
     ours = []
     try:
         ours = [sig for sig in STOP_SIGNALS if signal.getsignal(sig) is _handler]
-    except ValueError:
+    except ValueError:   # not the main thread
         pass
 
     async def main():
@@ -190,16 +191,15 @@ def run_coroutine(coro, exception_handler=None):
         if exception_handler is not None:
             loop.set_exception_handler(exception_handler)
 
-        def stop(signum):
-            if received is None and not finished:
-                _record(signum)   # the stop signals ignored from here: a second Ctrl-C cuts no clean-up in two
-                task.cancel()
+        def stop(signum, frame):
+            if finished or received is not None:
+                return
+            _record(signum)   # the stop signals ignored from here: a second Ctrl-C cuts no clean-up in two
+            task.cancel()
+            loop.call_soon_threadsafe(lambda: None)   # wake the loop if it waits in select()
 
-        for sig in list(ours):
-            try:
-                loop.add_signal_handler(sig, stop, sig)
-            except (ValueError, RuntimeError, NotImplementedError):   # not the main thread; Windows
-                ours.remove(sig)
+        for sig in ours:
+            signal.signal(sig, stop)
         return await coro
 
     try:
@@ -212,7 +212,7 @@ def run_coroutine(coro, exception_handler=None):
         if received is not None:
             raise KeyboardInterrupt from None
         raise
-    finally:   # closing the loop put the default handlers back: ours, or ignored once a stop signal came
+    finally:   # laughlab's handler again, or the signals ignored once one came
         for sig in ours:
             signal.signal(sig, signal.SIG_IGN if received is not None else _handler)
 

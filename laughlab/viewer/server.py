@@ -407,7 +407,7 @@ def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: 
 
     from laughlab.core.errors import LaughlabError
 
-    cls = _Server6 if ":" in host else ThreadingHTTPServer   # an IPv6 address (::1, ::)
+    cls = _Server6 if ":" in host else _Server   # an IPv6 address (::1, ::)
     try:
         try:
             return cls((host, port), partial(handler))
@@ -424,7 +424,20 @@ def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: 
                             "this computer's addresses") from None
 
 
-class _Server6(ThreadingHTTPServer):
+class _Server(ThreadingHTTPServer):
+    def handle_error(self, request, client_address):
+        """A client that went away while it was answered (a tab closed during a video, Chromium stopped by the
+        same Ctrl-C as ``study simulate``) is no error of the server's: socketserver printed its traceback, 20
+        lines, before the command's one line (found trying ``study simulate`` with a Ctrl-C to its process
+        group, as a terminal sends it). Any other error is printed as before."""
+        import sys
+
+        if isinstance(sys.exc_info()[1], (BrokenPipeError, ConnectionResetError, ConnectionAbortedError)):
+            return
+        super().handle_error(request, client_address)
+
+
+class _Server6(_Server):
     address_family = socket.AF_INET6
 
 
