@@ -710,6 +710,32 @@ def test_ctrl_c_during_simulate_is_one_line(study, tmp_path, to):
     assert not list(tmp_path.glob("s.sqlite*"))
 
 
+@pytest.mark.browser
+def test_chromium_stopped_under_simulate_is_one_line(study, tmp_path):
+    """Found trying Ctrl-C as a user (2026-11-28): started as a shell's background job, the command ignores SIGINT
+    but Chromium and Playwright's driver do not, and a Ctrl-C to the group stopped only them: 60 lines of
+    TargetClosedError, exit 1. Now one line, exit 2, and the simulation's files removed."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    db = tmp_path / "s.sqlite"
+    p = subprocess.Popen([sys.executable, "-m", "laughlab", "study", "simulate", str(study), "--participants", "3",
+                          "--db", str(db)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
+    deadline = time.time() + 60
+    while not db.exists() and time.time() < deadline:
+        time.sleep(0.05)
+    time.sleep(2.0)
+    os.killpg(p.pid, signal.SIGINT)
+    _, err = p.communicate(timeout=60)
+    assert p.returncode == 2 and err.startswith("laughlab: error: Chromium stopped while the simulated participants "
+                                                "worked (") and err.count("\n") == 1, err[-2000:]
+    assert err.endswith("nothing was kept: run the command again\n") and not list(tmp_path.glob("s.sqlite*"))
+
+
 def test_a_simulation_records_what_it_planted(study, tmp_path):
     """A review: the simulated study's report did not say what was planted, the thing it should recover.  simulate
     stores it in the database's study table; analyze prints it (reports/study_demo shows the line)."""

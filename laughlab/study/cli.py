@@ -143,6 +143,10 @@ def serve(ns) -> None:
     serve_until_interrupted(httpd)
 
 
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+
+
 def simulate(ns) -> None:
     """Serve the study on a free local port and let ``--participants`` simulated people do it at once."""
     import threading
@@ -174,11 +178,14 @@ def simulate(ns) -> None:
     try:
         url = f"http://127.0.0.1:{httpd.server_address[1]}"
         given = S.run_sync(url, design, list(range(1, ns.participants + 1)), S.planted(design, effects, seed=ns.seed))
-    except BaseException:   # Ctrl-C, Chromium gone: a review found the part-done database refusing the command again
+    except BaseException as exc:   # Ctrl-C, Chromium gone: a review found the part-done database refusing the command again
         httpd.shutdown()
         httpd.server_close()
         for f in made:
             f.unlink(missing_ok=True)
+        if S.browser_gone(exc):
+            raise LaughlabError(f"Chromium stopped while the simulated participants worked ({_first_line(exc)}); "
+                                "nothing was kept: run the command again") from None
         raise
     httpd.shutdown()
     httpd.server_close()

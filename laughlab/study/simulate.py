@@ -207,6 +207,20 @@ async def run(url: str, design: dict, participants: list[int], answer, behaviour
     return {g.participant: g for g in out}
 
 
+def browser_gone(exc: BaseException) -> bool:
+    """Chromium or Playwright's driver ended under the simulation (killed, crashed; or a process-group Ctrl-C to a
+    command started as a shell's background job, which ignores SIGINT itself): Playwright's errors, not a stop."""
+    from laughlab.core import interrupts
+
+    if interrupts.received is not None or not isinstance(exc, Exception):
+        return False
+    try:
+        from playwright.async_api import Error
+    except ImportError:
+        return False
+    return isinstance(exc, Error) or "Connection closed while reading from the driver" in str(exc)
+
+
 def run_sync(*args, **kwargs) -> dict[int, Given]:
     """:func:`run` to its end.  A stop signal cancels it (``interrupts.run_coroutine``: the browser closes whole)
     and then raises ``KeyboardInterrupt``.  The pages' pending calls fail as the browser closes; asyncio would
@@ -219,9 +233,11 @@ def run_sync(*args, **kwargs) -> dict[int, Given]:
 
     try:
         return interrupts.run_coroutine(run(*args, **kwargs), quiet_after_interrupt)
-    except BaseException:
-        if interrupts.received is not None:   # the browser's driver process is reaped after the loop closed, and
-            logging.getLogger("asyncio").disabled = True   # asyncio logs "Loop ... that handles pid ... is closed"
+    except BaseException as exc:
+        # after a stop, or with the browser gone: the driver process is reaped after the loop closed, and asyncio logs
+        # "Loop ... that handles pid ... is closed" and "Future exception was never retrieved" (Connection closed)
+        if interrupts.received is not None or browser_gone(exc):
+            logging.getLogger("asyncio").disabled = True
         raise
 
 
