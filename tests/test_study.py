@@ -10,6 +10,7 @@ other conditions).
 import csv
 import json
 import shutil
+import signal
 import sqlite3
 import subprocess
 import sys
@@ -680,23 +681,15 @@ def test_serve_on_ipv6_and_says_where_to_open_it(study, tmp_path):
         httpd.server_close()
 
 
-@pytest.mark.browser
-@pytest.mark.parametrize("to", ["the process", "its process group"])
-def test_ctrl_c_during_simulate_is_one_line(study, tmp_path, to):
-    """Found by a new-user review: Ctrl-C while simulated participants worked printed 371 lines of asyncio and
-    Playwright tracebacks before laughlab's line. A terminal's Ctrl-C reaches the whole process group, Chromium and
-    Playwright's driver too (then a BrokenPipeError from the server's thread was printed, 2026-11-28); the
-    simulation's files go with it either way."""
+def _simulate_then_sigint(study, db, to: str, sigint=signal.SIG_DFL) -> tuple[int, str]:
+    """``study simulate`` of 3 participants into ``db`` (in a session of its own; its SIGINT set to ``sigint``), a
+    SIGINT to ``to`` ("the process" or "its process group") 2 s after the pages opened; its exit status and stderr."""
     import os
-    import signal
-    import subprocess
-    import sys
     import time
 
-    db = tmp_path / "s.sqlite"
     p = subprocess.Popen([sys.executable, "-m", "laughlab", "study", "simulate", str(study), "--participants", "3",
                           "--db", str(db)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+                         start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, sigint))
     deadline = time.time() + 60
     while not db.exists() and time.time() < deadline:   # the pages are opening
         time.sleep(0.05)
@@ -706,7 +699,18 @@ def test_ctrl_c_during_simulate_is_one_line(study, tmp_path, to):
     else:
         os.killpg(p.pid, signal.SIGINT)
     _, err = p.communicate(timeout=60)
-    assert p.returncode == 130 and err == "laughlab: error: interrupted\n", err[-2000:]
+    return p.returncode, err
+
+
+@pytest.mark.browser
+@pytest.mark.parametrize("to", ["the process", "its process group"])
+def test_ctrl_c_during_simulate_is_one_line(study, tmp_path, to):
+    """Found by a new-user review: Ctrl-C while simulated participants worked printed 371 lines of asyncio and
+    Playwright tracebacks before laughlab's line. A terminal's Ctrl-C reaches the whole process group, Chromium and
+    Playwright's driver too (then a BrokenPipeError from the server's thread was printed, 2026-11-28); the
+    simulation's files go with it either way."""
+    code, err = _simulate_then_sigint(study, tmp_path / "s.sqlite", to)
+    assert code == 130 and err == "laughlab: error: interrupted\n", err[-2000:]
     assert not list(tmp_path.glob("s.sqlite*"))
 
 
@@ -715,24 +719,9 @@ def test_chromium_stopped_under_simulate_is_one_line(study, tmp_path):
     """Found trying Ctrl-C as a user (2026-11-28): started as a shell's background job, the command ignores SIGINT
     but Chromium and Playwright's driver do not, and a Ctrl-C to the group stopped only them: 60 lines of
     TargetClosedError, exit 1. Now one line, exit 2, and the simulation's files removed."""
-    import os
-    import signal
-    import subprocess
-    import sys
-    import time
-
-    db = tmp_path / "s.sqlite"
-    p = subprocess.Popen([sys.executable, "-m", "laughlab", "study", "simulate", str(study), "--participants", "3",
-                          "--db", str(db)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
-    deadline = time.time() + 60
-    while not db.exists() and time.time() < deadline:
-        time.sleep(0.05)
-    time.sleep(2.0)
-    os.killpg(p.pid, signal.SIGINT)
-    _, err = p.communicate(timeout=60)
-    assert p.returncode == 2 and err.startswith("laughlab: error: Chromium stopped while the simulated participants "
-                                                "worked (") and err.count("\n") == 1, err[-2000:]
+    code, err = _simulate_then_sigint(study, tmp_path / "s.sqlite", "its process group", sigint=signal.SIG_IGN)
+    assert code == 2 and err.startswith("laughlab: error: Chromium stopped while the simulated participants "
+                                        "worked (") and err.count("\n") == 1, err[-2000:]
     assert err.endswith("nothing was kept: run the command again\n") and not list(tmp_path.glob("s.sqlite*"))
 
 

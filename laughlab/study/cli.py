@@ -7,7 +7,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError, finite_number, one_line_parser, port_number
+from laughlab.core.errors import LaughlabError, finite_number, first_line, one_line_parser, port_number
 
 EPILOG = """\
 from stimuli to a report:
@@ -143,10 +143,6 @@ def serve(ns) -> None:
     serve_until_interrupted(httpd)
 
 
-def _first_line(exc: BaseException) -> str:
-    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-
-
 def simulate(ns) -> None:
     """Serve the study on a free local port and let ``--participants`` simulated people do it at once."""
     import threading
@@ -184,7 +180,7 @@ def simulate(ns) -> None:
         for f in made:
             f.unlink(missing_ok=True)
         if S.browser_gone(exc):
-            raise LaughlabError(f"Chromium stopped while the simulated participants worked ({_first_line(exc)}); "
+            raise LaughlabError(f"Chromium stopped while the simulated participants worked ({first_line(exc)}); "
                                 "nothing was kept: run the command again") from None
         raise
     httpd.shutdown()
