@@ -396,6 +396,40 @@ def test_power_by_simulation_grows_with_participants(study):
     assert found <= 3
 
 
+def test_the_server_sends_only_what_study_build_wrote(study, tmp_path):
+    """``study analyze`` writes its report (every answer, in ``tidy.csv``) beside the database, inside the study
+    folder, by default: a review found ``simulated-report/tidy.csv`` served to anyone.  Only the page's own files
+    go out; the databases, their logs, reports and a user's notes stay."""
+    from laughlab.study.server import files_of
+    from laughlab.viewer.server import http_server
+
+    copy = tmp_path / "study"
+    shutil.copytree(study, copy)
+    built = set(files_of(copy))
+    assert {"index.html", "study.js", "study.css", "design.js"} <= built and "design.json" not in built
+    assert any(f.startswith("stimuli/") for f in built) and any(f.startswith("audio_check/") for f in built)
+    assert any(f.startswith("vendor/") for f in built)
+    extra = ["responses-report/tidy.csv", "simulated-report/README.md", "power/power.csv", "notes.txt",
+             "responses.sqlite", "responses.sqlite.rejected.log", "stimuli/.DS_Store", "mine/page.html"]
+    for rel in extra:
+        (copy / rel).parent.mkdir(parents=True, exist_ok=True)
+        (copy / rel).write_text("participant,value\n1,7\n")
+    assert set(files_of(copy)) == built
+    httpd = http_server(files_of(copy), 0)
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    base = f"http://127.0.0.1:{httpd.server_address[1]}/"
+    try:
+        with urllib.request.urlopen(base + "design.js", timeout=10) as r:
+            assert r.status == 200
+        for rel in extra:
+            with pytest.raises(urllib.error.HTTPError) as e:
+                urllib.request.urlopen(base + rel, timeout=10)
+            assert e.value.code == 404, rel
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+
+
 @pytest.mark.browser
 def test_on_a_static_host_the_page_keeps_the_answers_and_its_csv_is_analysed(study, tmp_path):
     """Pavlovia or any static host: no /api, so the page keeps the answers in the browser and offers

@@ -36,6 +36,7 @@ from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
 from laughlab.study import db as DB
+from laughlab.study.build import OWN
 from laughlab.study.design import load_design, normalise_word, scale_range
 from laughlab.viewer.server import DEFAULT_PORT, _Handler, http_server
 
@@ -237,18 +238,19 @@ class StudyHandler(_Handler):
 
 
 def files_of(study_dir: Path) -> dict[str, Path]:
-    """Every file of the study folder by its URL path (the database, hidden files and ``design.json``, which holds
-    the audio check's words, left out: the page reads ``design.js``)."""
+    """The page's files by their URL path: only what ``study build`` wrote (``build.OWN``: the page, ``design.js``,
+    the stimuli, the audio check's words, the vendored jsPsych), hidden files and ``design.json`` (it holds the audio
+    check's words; the page reads ``design.js``) left out.  Anything else in the folder is never sent: the databases,
+    their logs, and ``study analyze``'s and ``study power``'s reports, which hold every answer and sit beside the
+    database by default (a review found ``simulated-report/tidy.csv`` served to anyone)."""
     out = {}
-    for f in sorted(study_dir.rglob("*")):
-        rel = f.relative_to(study_dir).as_posix()
-        if f.is_file() and not any(part.startswith(".") for part in rel.split("/")) and \
-                not rel.startswith(DB_PREFIXES) and rel != "design.json":
-            out[rel] = f
-    return out
-
-
-DB_PREFIXES = ("responses.sqlite", "simulated.sqlite")
+    for name in OWN:
+        top = study_dir / name
+        for f in ([top] if top.is_file() else sorted(top.rglob("*")) if top.is_dir() else []):
+            rel = f.relative_to(study_dir).as_posix()
+            if f.is_file() and not any(part.startswith(".") for part in rel.split("/")) and rel != "design.json":
+                out[rel] = f
+    return dict(sorted(out.items()))
 
 
 def server(study_dir, db: str | Path | None = None, port: int = DEFAULT_PORT, host: str = "127.0.0.1",
