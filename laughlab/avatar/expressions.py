@@ -219,7 +219,13 @@ def face_route(avatar: Avatar, channels=FACE_MORPHS) -> dict:
     exprs = used_expressions(avatar, set(channels))
     how = [f"{arkit} ARKit-named morph{'s' if arkit != 1 else ''}"] if arkit else []
     how += [f"the VRM expression{'s' if len(exprs) != 1 else ''} {', '.join(exprs)}"] if exprs else []
-    line = (f"face: {n} of {total} morphs of {avatar.path.name} driven, through {' and '.join(how)}" if how else
+    # with laughlab's faces' channels (the default: the start-up line, said before the run's face has given any),
+    # a count for all of them: a run's own face drives fewer (`face=smile`: 7 of Godette's 15, `facs` 9), which
+    # character.glb and metrics.json count (a review read "11 of 15" as the run's, against the files' 9)
+    up_to = "up to " if set(channels) == set(FACE_MORPHS) and n else ""
+    by = " by laughlab's faces together (this run's face: counted in character.glb or metrics.json)" if up_to else ""
+    line = (f"face: {up_to}{n} of {total} morphs of {avatar.path.name} driven{by}, through {' and '.join(how)}"
+            if how else
             f"face: {avatar.path.name} has no morph targets, so its face will not move" if not total else
             f"face: 0 of {total} morphs of {avatar.path.name} driven: no ARKit-named morph and no VRM expression "
             "laughlab maps, so the face will not move (docs/avatars.md)")
