@@ -561,6 +561,28 @@ def test_a_key_added_with_plus_that_nothing_reads_is_refused(tmp_path, args, say
     assert not (tmp_path / "run").exists()
 
 
+@pytest.mark.parametrize("args, says", [
+    # Hydra keeps the last: output=gltf was dropped without a word, and no character.glb (a new-user review)
+    (["output=gltf", "output=vrma"], "output= is given twice (gltf, then vrma): only the last would be used; for "
+                                     "both outputs: 'output=[gltf,vrma]'"),
+    (["face=facs", "face=smile"], "face= is given twice (facs, then smile): only the last would be used; give it once"),
+    (["fps=30", "fps=60"], "fps= is given twice (30, then 60)"),
+    (["-m", "input.seed=1,2", "input.seed=3"], "input.seed= is given twice (1,2, then 3)"),
+])
+def test_a_key_given_twice_is_refused(tmp_path, args, says):
+    r = laughlab(*args, "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}", f"hydra.sweep.dir={tmp_path / 'sw'}")
+    assert r.returncode == 2 and r.stderr.strip().splitlines() == [r.stderr.strip()] and says in r.stderr, r.stderr
+    assert not (tmp_path / "run").exists() and not (tmp_path / "sw").exists()
+
+
+def test_delete_then_set_and_one_value_each_still_compose():
+    """Only plain KEY=VALUE pairs are compared: ~KEY then KEY=..., or keys that only share a start, pass."""
+    from laughlab.core.config import given_twice
+
+    given_twice(["~output.plots", "output.plots.width=column", "output=[gltf,vrma]", "input.seed=1", "input=file"])
+    given_twice(["+harness.jobs=2", "harness.jobs=3", "seed=1"])
+
+
 def test_a_missing_report_folder_says_not_found_and_a_short_file_its_own_length(tmp_path):
     from inprocess import laughlab
 

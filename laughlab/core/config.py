@@ -400,12 +400,30 @@ def already_a_setting(key: str, given: str) -> str:
     return f"{key} is already a setting: write {given.lstrip('+')} (without +)"
 
 
+def given_twice(overrides: list[str]) -> None:
+    """A key set twice (``output=gltf output=vrma``) raises :class:`LaughlabError`: Hydra keeps the last, and the
+    first was dropped without a word (a new-user review lost its ``character.glb`` so).  Only plain ``KEY=VALUE``
+    overrides are compared; ``+``, ``++`` and ``~`` say what they do to a key already there."""
+    seen: dict[str, str] = {}
+    for ov in overrides:
+        if "=" not in ov or ov[:1] in "+~":
+            continue
+        key, value = ov.split("=", 1)
+        if key in seen:
+            first, last = seen[key] or "''", value or "''"
+            both = f"{key}= is given twice ({first}, then {last}): only the last would be used"
+            raise LaughlabError(f"{both}; for both outputs: 'output=[{seen[key]},{value}]'" if key == "output" else
+                                f"{both}; give it once")
+        seen[key] = value
+
+
 def check_overrides(overrides: list[str]) -> None:
     """Unknown group options raise :class:`LaughlabError` with the list of valid ones; so does ``+KEY=...`` for a
     key no part of laughlab reads (``+fsp=30``, a typo of ``fps``, was added and ignored)."""
     from laughlab.core import plugins
 
     one_plugins_dir(overrides)
+    given_twice(overrides)
     for ov in overrides:
         key = override_key(ov)
         root = re.split(r"[./]", key)[0]
