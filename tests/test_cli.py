@@ -583,6 +583,19 @@ def test_delete_then_set_and_one_value_each_still_compose():
     given_twice(["+harness.jobs=2", "harness.jobs=3", "seed=1"])
 
 
+def test_report_on_a_stimuli_folder_points_to_the_study(tmp_path):
+    """``experiment=stimuli`` writes stimuli.json, not results.json: report said "run an experiment first" of an
+    experiment's folder (a new-user review).  Its report is the study's."""
+    stim = tmp_path / "stimuli run"
+    stim.mkdir()
+    (stim / "stimuli.json").write_text("{}\n")
+    r = laughlab("report", stim)
+    assert r.returncode == 2 and r.stderr == (f"laughlab: error: {stim} holds stimuli for a perception study, not "
+                                              f"results: python -m laughlab study build '{stim}', then study serve and "
+                                              "study analyze (docs/study.md)\n"), r.stderr
+    assert sorted(p.name for p in stim.iterdir()) == ["stimuli.json"]
+
+
 def test_a_missing_report_folder_says_not_found_and_a_short_file_its_own_length(tmp_path):
     from inprocess import laughlab
 
