@@ -425,8 +425,11 @@ def _bone_node(doc: dict, bone: str) -> int:
         _root_of(d, _bone_node(d, "head"))), p), "is its own ancestor (a cycle of children)"),
     (lambda p: _robot_edited(lambda d: d["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["leftHand"].update(
         node=_bone_node(d, "hips")), p), "maps hips and leftHand to the same node"),
+    # a bone whose node is not there was "lacks the required bone head", and the bone is there (a review)
+    (lambda p: _robot_edited(lambda d: d["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["head"].update(
+        node=9999), p), "its humanoid bone head refers to node 9999, which is not there (the file has "),
 ], ids=["not-gltf", "no-humanoid", "vrm-missing-bone", "zero-scale", "view-past-buffer", "accessor-out-of-range",
-        "two-parents", "node-cycle", "two-bones-one-node"])
+        "two-parents", "node-cycle", "two-bones-one-node", "bone-node-not-there"])
 def test_a_bad_avatar_is_one_line_exit_2_and_nothing_written(tmp_path, make, says):
     path = make(tmp_path / "avatar.glb") or tmp_path / "avatar.glb"
     out = _cli(tmp_path, "output=gltf", "input.duration_s=1", f"character={path}")

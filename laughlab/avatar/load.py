@@ -295,6 +295,11 @@ def _humanoid(path: Path, doc: dict) -> tuple[str, dict]:
             raise _fail(path, "has no humanoid: no VRM humanoid bone map and no node named as a Mixamo, Ready "
                               "Player Me or VRM bone (docs/avatars.md lists the names)")
         kind = "gltf"
+    for b in REQUIRED:   # present with a node that is not there: damage, not a missing bone (a new-user review)
+        v = bones.get(b)
+        if v is not None and not (isinstance(v, int) and not isinstance(v, bool) and 0 <= v < n_nodes):
+            raise _fail(path, f"its humanoid bone {b} refers to node {json.dumps(v)[:40]}, which is not there (the "
+                              f"file has {n_nodes} node{'s' if n_nodes != 1 else ''}); the file is damaged")
     bones = {k: int(v) for k, v in bones.items() if isinstance(v, int) and 0 <= v < n_nodes}
     missing = [b for b in REQUIRED if b not in bones]
     if missing:
