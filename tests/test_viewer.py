@@ -114,6 +114,11 @@ def test_the_page_can_be_written_for_static_hosting(run_dir, tmp_path):
     assert run["fps"] == 60.0 and run["duration"] == pytest.approx(6.0) and run["clips"]
     with pytest.raises(Exception, match="not an empty folder"):
         V.write(run_dir, tmp_path / "site")
+    (tmp_path / "notes.txt").write_text("mine\n")   # a file was "not an empty folder" (a new-user review)
+    for overwrite in (False, True):
+        with pytest.raises(Exception, match=r"notes.txt exists and is not a folder; choose another --out$"):
+            V.write(run_dir, tmp_path / "notes.txt", overwrite=overwrite)
+    assert (tmp_path / "notes.txt").read_text() == "mine\n"
 
 
 @pytest.fixture(scope="module")

@@ -252,6 +252,8 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
     out = Path(out)
     if out.is_symlink() and out.is_dir():   # a link to a folder: the page goes into that folder (a review)
         out = out.resolve()
+    if out.exists() and not out.is_dir():   # a file was "not an empty folder" (a new-user review)
+        raise LaughlabError(f"{out} exists and is not a folder; choose another --out")
     foreign = _not_the_pages(out)
     earlier = foreign == []
     if out.exists() and (not out.is_dir() or any(out.iterdir())) and not (overwrite and earlier):
