@@ -276,7 +276,10 @@ def test_every_study_command_fails_in_one_line(study, tmp_path):
              ["study", "simulate", str(study), "--participants", "0"],
              ["study", "serve", str(study), "--db", str(tmp_path / "h.sqlite"), "--host", "999.1.1.1"],   # was
              ["study", "serve", str(study), "--db", str(tmp_path / "h.sqlite"), "--host", "10.99.99.99"],  # "cannot write"
-             ["study", "build", str(study.with_name("stim")), "--out", str(study)]]  # would overwrite answers
+             ["study", "build", str(study.with_name("stim")), "--out", str(study)],  # would overwrite answers
+             ["study", "analyze", str(tmp_path / "a study")]]   # a study folder: its database is named
+    (tmp_path / "a study").mkdir()
+    (tmp_path / "a study" / "responses.sqlite").write_bytes(b"")
     for argv in cases:
         out = fuzz.run_cli(argv)
         assert out.code == 2, (argv, out)
@@ -284,6 +287,22 @@ def test_every_study_command_fails_in_one_line(study, tmp_path):
         assert "Traceback" not in out.stderr
         if "--host" in argv:
             assert "cannot listen on --host" in out.stderr, out.stderr
+        if argv[1:3] == ["analyze", str(tmp_path / "a study")]:
+            assert out.stderr.endswith(f"holds no .csv files of answers; its answers are in responses.sqlite: python "
+                                       f"-m laughlab study analyze '{tmp_path / 'a study' / 'responses.sqlite'}'\n")
+        if argv[1:3] == ["build", str(tmp_path / "missing")]:   # was "... has no stimuli.json, ..." (a review)
+            assert out.stderr.endswith("missing not found: give the hydra.run.dir of an experiment=stimuli run\n")
+
+
+def test_a_broken_questions_file_says_where(study, tmp_path):
+    """A review: the line was the parser's context ("while parsing a flow node"), without its line or cause."""
+    bad = tmp_path / "q.yaml"
+    bad.write_text("questions: [a, b\nscale: 7\n")
+    out = fuzz.run_cli(["study", "build", str(study.with_name("stim")), "--questions", str(bad),
+                        "--out", str(tmp_path / "s")])
+    assert out.code == 2 and out.stderr == (f"laughlab: error: cannot read {bad}: line 2, column 6: expected ',' or "
+                                            "']', but got ':'\n"), out.stderr
+    assert not (tmp_path / "s").exists()
 
 
 @pytest.mark.parametrize("name, text, why", [

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import csv
 import math
+import shlex
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
@@ -41,8 +42,11 @@ def load(source, design_dir=None):
     design = load_design(Path(design_dir).expanduser()) if design_dir is not None else None
     if source.is_dir():
         files = sorted(source.glob("*.csv"))
-        if not files:
-            raise LaughlabError(f"{source} holds no .csv files of answers")
+        if not files:   # a study folder holds its answers in a database: name it (a new-user review)
+            dbs = sorted(p.name for p in source.glob("*.sqlite"))
+            raise LaughlabError(f"{source} holds no .csv files of answers" + (
+                f"; its answers are in {' and '.join(dbs)}: python -m laughlab study analyze {shlex.quote(str(source / dbs[0]))}"
+                if dbs else ""))
         rows = [r for f in files for r in read_csv(f, design)]
     elif source.suffix.lower() == ".csv":
         rows = read_csv(source, design)

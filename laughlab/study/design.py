@@ -34,7 +34,10 @@ def _yaml(path) -> dict:
     try:
         doc = OmegaConf.to_container(OmegaConf.load(path), resolve=True)
     except Exception as exc:  # noqa: BLE001 - a YAML error in the user's file: one line
-        raise LaughlabError(f"cannot read {path}: {str(exc).splitlines()[0]}") from None
+        mark = getattr(exc, "problem_mark", None)   # the parser's line and cause (a review got only its context)
+        why = (f"line {mark.line + 1}, column {mark.column + 1}: {exc.problem}" if mark is not None and
+               getattr(exc, "problem", None) else str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+        raise LaughlabError(f"cannot read {path}: {why}") from None
     if not isinstance(doc, dict):
         raise LaughlabError(f"{path} must hold a mapping of study settings")
     return doc
@@ -122,6 +125,9 @@ def read_csv(path: Path) -> list[dict]:
 def read_stimuli(run_dir: Path) -> tuple[dict, list[dict], dict[int, list[dict]]]:
     """``stimuli.json``, the manifest rows and each participant's trials from an ``experiment=stimuli`` folder."""
     run_dir = Path(run_dir)
+    if not run_dir.is_dir():   # a missing folder "had no stimuli.json, ..." (a new-user review)
+        raise LaughlabError(f"{run_dir} {'is not a folder' if run_dir.exists() else 'not found'}: give the "
+                            "hydra.run.dir of an experiment=stimuli run")
     need = [n for n in ("stimuli.json", "manifest.csv", "orders/jspsych_all.json") if not (run_dir / n).is_file()]
     if need:
         raise LaughlabError(f"{run_dir} is not a finished experiment=stimuli folder: it has no {', '.join(need)}")
