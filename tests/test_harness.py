@@ -293,7 +293,7 @@ def test_report_goes_next_to_the_run_unless_out_is_given(small_run, tmp_path):
     work.mkdir()
     r = laughlab("report", run, cwd=work)
     assert r.returncode == 0, r.stderr
-    assert r.stdout.strip() == f"report written: {run / 'report' / 'README.md'}"
+    assert r.stdout.strip() == f"laughlab: report written: {run / 'report' / 'README.md'}"
     assert (run / "report" / "figures" / "metrics.png").exists() and list(work.iterdir()) == []
     assert (run / "report" / "README.md").read_text().startswith("# tiny")
     r = laughlab("report", run, "--out", "reports/tiny", cwd=work)

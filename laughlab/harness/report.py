@@ -317,8 +317,9 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
         if state and state[1]:
             raise LaughlabError(missing_text(root, *state))
         if (root / "stimuli.json").is_file():   # experiment=stimuli: its report is the study's (a new-user review)
-            raise LaughlabError(f"{run_dir} holds stimuli for a perception study, not results: python -m laughlab "
-                                f"study build {shlex.quote(str(run_dir))}, then study serve and study analyze (docs/study.md)")
+            build = f"python -m laughlab study build {shlex.quote(str(run_dir))}"
+            raise LaughlabError(f"{run_dir} holds stimuli for a perception study, not results: {build}, then study "
+                                "serve and study analyze (docs/study.md)")
         runs = sorted(m.parent for m in root.rglob("metrics.json"))   # a single run's folder, or a sweep of runs
         raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)" + (
             f"; report is for experiments: to watch {'this run' if runs[0] == root else 'a run'}, python -m "

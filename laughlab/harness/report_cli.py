@@ -39,7 +39,7 @@ def main(args: list[str]) -> None:
     except OSError as exc:
         raise LaughlabError(os_error_line(exc, ns.out or Path(ns.run_dir) / "report")
                             + "; no report was written") from None
-    print(f"report written: {path}")
+    print(f"laughlab: report written: {path}")
     tall = _taller_than_a_column(path.parent / "figures") if ns.width == "column" else []
     if tall:
         print(f"laughlab: {', '.join(tall)} {'is' if len(tall) == 1 else 'are'} taller than a column (about "
