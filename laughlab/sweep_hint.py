@@ -5,7 +5,9 @@ Named in ``conf/config.yaml`` (``hydra.callbacks``).  A sweep's jobs print their
 """
 from __future__ import annotations
 
+import json
 import shlex
+from pathlib import Path
 
 from hydra.experimental.callback import Callback
 
@@ -18,4 +20,25 @@ class SweepReportHint(Callback):
 
         module = experiment_module(config.harness.get("module"))
         if module is None or not hasattr(module, "run"):  # trial experiments: the report reads their results
-            print(f"report: python -m laughlab report {shlex.quote(str(config.hydra.sweep.dir))}")
+            sweep = Path(str(config.hydra.sweep.dir))
+            points = _experiments(sweep)
+            if len(set(points.values())) > 1:   # a sweep over experiments: report refuses the folder (a review)
+                names = ", ".join(sorted(set(points.values())))
+                print(f"report: the sweep holds {len(set(points.values()))} experiments ({names}): report each "
+                      f"point's folder, e.g. python -m laughlab report {shlex.quote(str(min(points)))}")
+            else:
+                print(f"report: python -m laughlab report {shlex.quote(str(sweep))}")
+
+
+def _experiments(sweep: Path) -> dict[Path, str]:
+    """Each finished point's folder in ``sweep`` -> the experiment its ``results.json`` names (unreadable ones left
+    out: ``report`` says what is wrong with them)."""
+    out = {}
+    for path in sweep.rglob("results.json"):
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        if isinstance(doc, dict) and isinstance(doc.get("experiment"), str):
+            out[path.parent] = doc["experiment"]
+    return out

@@ -732,3 +732,25 @@ def test_hydra_job_chdir_runs_in_the_run_folder_with_the_paths_named_from_where_
     assert one_line_error(r) == ("laughlab: error: hydra.job.chdir=true does not apply to an experiment: its trials "
                                  "read their inputs from where the command runs; drop it")
     assert not (tmp_path / "exp").exists()
+
+
+def test_a_sweep_over_experiments_ends_with_a_hint_report_takes(tmp_path, capsys):
+    """A review: a sweep of experiment=smoke,energy_ablation ended 'report: python -m laughlab report SWEEP', which
+    report refuses (two experiments); the hint now names a point's folder."""
+    from omegaconf import OmegaConf
+
+    from laughlab.sweep_hint import SweepReportHint
+
+    sweep = tmp_path / "my sweep"
+    for point, name in (("0", "smoke"), ("1", "energy_ablation"), ("2", "smoke")):
+        (sweep / point).mkdir(parents=True)
+        (sweep / point / "results.json").write_text(json.dumps({"experiment": name, "results": {}}))
+    (sweep / "3").mkdir()
+    (sweep / "3" / "results.json").write_text("{")   # damaged: report says so, the hint ignores it
+    cfg = OmegaConf.create({"harness": {"module": None}, "hydra": {"sweep": {"dir": str(sweep)}}})
+    SweepReportHint().on_multirun_end(cfg)
+    assert capsys.readouterr().out == ("report: the sweep holds 2 experiments (energy_ablation, smoke): report each "
+                                       f"point's folder, e.g. python -m laughlab report '{sweep / '0'}'\n")
+    (sweep / "1" / "results.json").unlink()
+    SweepReportHint().on_multirun_end(cfg)
+    assert capsys.readouterr().out == f"report: python -m laughlab report '{sweep}'\n"

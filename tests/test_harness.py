@@ -473,11 +473,26 @@ def test_a_damaged_results_file_is_one_line_and_writes_nothing(tmp_path, text, w
     assert r.returncode == 2 and r.stderr.strip().count("\n") == 0
     assert f"results.json is not a laughlab results file ({why}); run the experiment again" in r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["results.json"]
+    assert r.stderr.endswith("; run the experiment again (its command with overwrite=true)\n")   # (a review: the
+    # same command alone is refused, the run being finished)
     sweep = tmp_path / "sweep"   # a sweep's job with a damaged one: the same line
     (sweep / "0").mkdir(parents=True)
     (sweep / "0" / "results.json").write_text(text)
+    (sweep / "multirun.yaml").write_text("hydra: {}\n")
     r = laughlab("report", sweep)
     assert r.returncode == 2 and "is not a laughlab results file" in r.stderr and not (sweep / "report").exists()
+
+
+def test_a_folder_of_separate_runs_is_not_reported_as_a_sweep(small_run, tmp_path):
+    """A review: two runs copied into one folder gave a "sweep" report (exit 0) of duplicated, unnamed rows."""
+    both = tmp_path / "my runs"
+    for name in ("a", "b"):
+        shutil.copytree(small_run, both / name)
+    r = laughlab("report", both)
+    assert r.returncode == 2 and r.stderr == (
+        f"laughlab: error: {both} is neither an experiment's run folder (no results.json) nor a sweep's (no "
+        f"multirun.yaml); report each run it holds on its own: python -m laughlab report '{both / 'a'}' (2 runs)\n")
+    assert sorted(p.name for p in both.iterdir()) == ["a", "b"]
 
 
 def test_sweep_through_hydra_multirun_and_its_report(tmp_path):

@@ -176,5 +176,6 @@ def read_results(path: Path) -> dict:
     a traceback)."""
     from laughlab.core.errors import read_json_object
 
-    return read_json_object(path, "; run the experiment again (the same command resumes it)",
+    # its run finished (results.json is written last), so the same command alone is refused: it needs overwrite=true
+    return read_json_object(path, "; run the experiment again (its command with overwrite=true)",
                             damaged="is not a laughlab results file", keys={"experiment": str, "results": dict})
