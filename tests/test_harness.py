@@ -86,6 +86,10 @@ def test_bold_only_where_the_intervals_are_apart():
     lower = {**apart, "metrics": {"m": {"higher_is_better": False}}}
     assert _clear_best(lower, "m", ["A", "B"]) == "B"
     assert _clear_best({**apart, "metrics": {"m": {"higher_is_better": None}}}, "m", ["A", "B"]) is None
+    # one trial apiece: zero-width "intervals" never overlap, and a best was bolded on 1 trial (a new-user review)
+    assert _clear_best(doc([0.9], [0.1]), "m", ["A", "B"]) is None
+    assert _clear_best(doc([0.9], [0.1, 0.2, 0.15]), "m", ["A", "B"]) is None
+    assert _clear_best(doc([0.9, 0.9], [0.1, 0.1]), "m", ["A", "B"]) == "A"   # two each, all alike: the values
 
 
 def test_a_condition_that_played_no_clip_is_not_the_best_at_a_trivial_0():

@@ -57,13 +57,15 @@ def unmeasured(doc: dict) -> list[str]:
 def _clear_best(doc: dict, metric: str, conds: list[str]) -> str | None:
     """The condition with the best mean of ``metric`` when its 95 % interval is apart from every other
     condition's (:func:`~laughlab.harness.results.separated`); None when the intervals overlap, the
-    metric has no better direction, or fewer than two conditions have a value."""
+    metric has no better direction, fewer than two conditions have a value, or one of them has a single trial."""
     if doc["metrics"][metric]["higher_is_better"] is None or is_compute(metric):
         return None
     rs = {c: doc["results"][c][metric] for c in conds}
     have = [c for c, r in rs.items() if r["n"] and r["mean"] is not None and math.isfinite(r["mean"])
             and not _vacuous(doc, metric, c)]
-    if len(have) < 2:
+    # a single trial's "interval" is its value: two of them never overlap, so one trial apiece bolded a winner every
+    # time (a new-user review); a best needs at least two trials under every condition compared
+    if len(have) < 2 or any(rs[c]["n"] < 2 for c in have):
         return None
     sign = 1 if doc["metrics"][metric]["higher_is_better"] else -1
     best = max(have, key=lambda c: sign * rs[c]["mean"])
