@@ -17,7 +17,7 @@ from pathlib import Path
 
 from laughlab.core import blame, clock, interrupts, quiet
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, check_overrides,  # noqa: F401
-                                  compose_config, conf_dir, group_options, load_plugin_dirs,
+                                  compose_config, conf_dir, given_twice, group_options, load_plugin_dirs,
                                   register_plugin_configs)
 from laughlab.cli_help import check_flags, check_sweep_flags, help_text, local_options
 from laughlab.core.errors import LaughlabError, RefusedFolder, os_error_line, shown_path  # noqa: F401
@@ -395,6 +395,8 @@ def _main(argv: list[str]) -> None:
         global _STARTED
         _STARTED = None
     hydra_only = any(a.split("=")[0] in _HYDRA_FLAGS for a in argv)
+    for line in given_twice(_overrides(argv)):   # a group chosen twice: the last wins, said once (a review)
+        print(line, file=sys.stderr, flush=True)
     if not multirun and not hydra_only and "input=mic" not in argv:
         from laughlab.core import background
 

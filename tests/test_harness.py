@@ -482,7 +482,6 @@ def test_a_damaged_results_file_is_one_line_and_writes_nothing(tmp_path, text, w
     sweep = tmp_path / "sweep"   # a sweep's job with a damaged one: the same line
     (sweep / "0").mkdir(parents=True)
     (sweep / "0" / "results.json").write_text(text)
-    (sweep / "multirun.yaml").write_text("hydra: {}\n")
     r = laughlab("report", sweep)
     assert r.returncode == 2 and "is not a laughlab results file" in r.stderr and not (sweep / "report").exists()
 
@@ -494,8 +493,8 @@ def test_a_folder_of_separate_runs_is_not_reported_as_a_sweep(small_run, tmp_pat
         shutil.copytree(small_run, both / name)
     r = laughlab("report", both)
     assert r.returncode == 2 and r.stderr == (
-        f"laughlab: error: {both} is neither an experiment's run folder (no results.json) nor a sweep's (no "
-        f"multirun.yaml); report each run it holds on its own: python -m laughlab report '{both / 'a'}' (2 runs)\n")
+        f"laughlab: error: {both} is not a sweep (no multirun.yaml) and two of its runs have the same settings (a, b); "
+        f"report each run on its own: python -m laughlab report '{both / 'a'}'\n")
     assert sorted(p.name for p in both.iterdir()) == ["a", "b"]
 
 

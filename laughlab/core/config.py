@@ -400,21 +400,23 @@ def already_a_setting(key: str, given: str) -> str:
     return f"{key} is already a setting: write {given.lstrip('+')} (without +)"
 
 
-def given_twice(overrides: list[str]) -> None:
-    """A key set twice (``output=gltf output=vrma``) raises :class:`LaughlabError`: Hydra keeps the last, and the
-    first was dropped without a word (a new-user review lost its ``character.glb`` so).  Only plain ``KEY=VALUE``
-    overrides are compared; ``+``, ``++`` and ``~`` say what they do to a key already there."""
+def given_twice(overrides: list[str]) -> list[str]:
+    """A line for each plugin group chosen twice (``output=gltf output=vrma``): Hydra keeps the last, and the first
+    was dropped without a word (a new-user review lost its ``character.glb`` so).  The last still wins, as Hydra
+    documents and scripts use (a base command with a choice changed after it); a key of a value given twice is
+    Hydra's rule alone, said nothing of.  Only plain ``GROUP=OPTION`` overrides are compared."""
     seen: dict[str, str] = {}
+    lines = []
     for ov in overrides:
-        if "=" not in ov or ov[:1] in "+~":
+        key, _, value = ov.partition("=")
+        if not _ or ov[:1] in "+~" or key not in (*GROUP_KINDS, "experiment"):
             continue
-        key, value = ov.split("=", 1)
-        if key in seen:
-            first, last = seen[key] or "''", value or "''"
-            both = f"{key}= is given twice ({first}, then {last}): only the last would be used"
-            raise LaughlabError(f"{both}; for both outputs: 'output=[{seen[key]},{value}]'" if key == "output" else
-                                f"{both}; give it once")
+        if key in seen and seen[key] != value:
+            both = f"'{key}=[{seen[key]},{value}]'" if key == "output" else None
+            lines.append(f"laughlab: {key}= is given twice ({seen[key]}, then {value}): {value} is used"
+                         + (f"; for both outputs: {both}" if both else ""))
         seen[key] = value
+    return lines
 
 
 def check_overrides(overrides: list[str]) -> None:
@@ -423,7 +425,6 @@ def check_overrides(overrides: list[str]) -> None:
     from laughlab.core import plugins
 
     one_plugins_dir(overrides)
-    given_twice(overrides)
     for ov in overrides:
         key = override_key(ov)
         root = re.split(r"[./]", key)[0]

@@ -311,11 +311,6 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     if (root / "results.json").exists():
         results, write = root / "results.json", experiment_report
     elif root.is_dir() and any(root.rglob("results.json")):
-        if not (root / "multirun.yaml").is_file():   # a folder of separate runs was reported as a "sweep" (a review)
-            held = sorted(r.parent for r in root.rglob("results.json"))
-            raise LaughlabError(f"{run_dir} is neither an experiment's run folder (no results.json) nor a sweep's (no "
-                                f"multirun.yaml); report each run it holds on its own: python -m laughlab report "
-                                f"{shlex.quote(str(held[0]))}" + (f" ({len(held)} runs)" if len(held) > 1 else ""))
         results, write = next(root.rglob("results.json")), sweep_report
     else:
         from laughlab.harness.sweep_plan import missing_text, unfinished

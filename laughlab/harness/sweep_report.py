@@ -2,7 +2,9 @@
 the swept parameters (``python -m laughlab report SWEEP_DIR``, through :func:`laughlab.harness.report.write_report`)."""
 from __future__ import annotations
 
+import json
 import math
+import shlex
 import shutil
 from itertools import combinations
 from pathlib import Path
@@ -93,6 +95,16 @@ def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None 
     if len(experiments) > 1:
         raise LaughlabError(f"{root} holds the results of {len(experiments)} experiments ({', '.join(experiments)}); "
                             "report each point's folder on its own (python -m laughlab report POINT_DIR)")
+    if not (root / "multirun.yaml").is_file():   # not Hydra's sweep: a folder of separate runs? (a review: a "sweep"
+        seen: dict[str, Path] = {}              # report of two copies of one run, its rows duplicated and unnamed)
+        for p in points:
+            key = json.dumps(p["params"], sort_keys=True)
+            if key in seen:
+                raise LaughlabError(
+                    f"{root} is not a sweep (no multirun.yaml) and two of its runs have the same settings "
+                    f"({seen[key].relative_to(root)}, {p['dir'].relative_to(root)}); report each run on its own: "
+                    f"python -m laughlab report {shlex.quote(str(seen[key]))}")
+            seen[key] = p["dir"]
     doc0 = points[0]["doc"]
     conds = list(doc0["results"])
     # an experiment of several conditions: each (point, condition) is a row, the condition a swept dimension of its
