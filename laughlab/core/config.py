@@ -403,13 +403,13 @@ def already_a_setting(key: str, given: str) -> str:
 def given_twice(overrides: list[str]) -> list[str]:
     """A line for each plugin group chosen twice (``output=gltf output=vrma``): Hydra keeps the last, and the first
     was dropped without a word (a new-user review lost its ``character.glb`` so).  The last still wins, as Hydra
-    documents and scripts use (a base command with a choice changed after it); a key of a value given twice is
-    Hydra's rule alone, said nothing of.  Only plain ``GROUP=OPTION`` overrides are compared."""
+    documents and scripts use (a base command with a choice changed after it); a value given twice (``fps=30
+    fps=60``) is Hydra's rule alone and gets no line.  Only plain ``GROUP=OPTION`` overrides are compared."""
     seen: dict[str, str] = {}
     lines = []
     for ov in overrides:
-        key, _, value = ov.partition("=")
-        if not _ or ov[:1] in "+~" or key not in (*GROUP_KINDS, "experiment"):
+        key, sep, value = ov.partition("=")
+        if not sep or ov[:1] in "+~" or key not in (*GROUP_KINDS, "experiment"):
             continue
         if key in seen and seen[key] != value:
             both = f"'{key}=[{seen[key]},{value}]'" if key == "output" else None
