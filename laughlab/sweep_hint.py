@@ -5,7 +5,6 @@ Named in ``conf/config.yaml`` (``hydra.callbacks``).  A sweep's jobs print their
 """
 from __future__ import annotations
 
-import json
 import shlex
 from pathlib import Path
 
@@ -31,14 +30,15 @@ class SweepReportHint(Callback):
 
 
 def _experiments(sweep: Path) -> dict[Path, str]:
-    """Each finished point's folder in ``sweep`` -> the experiment its ``results.json`` names (unreadable ones left
-    out: ``report`` says what is wrong with them)."""
+    """Each finished point's folder in ``sweep`` -> the experiment its ``results.json`` names (read as ``report``
+    reads it; damaged ones left out: ``report`` says what is wrong with them)."""
+    from laughlab.core.errors import LaughlabError
+    from laughlab.harness.results import read_results
+
     out = {}
     for path in sweep.rglob("results.json"):
         try:
-            doc = json.loads(path.read_text())
-        except (OSError, ValueError):
+            out[path.parent] = read_results(path)["experiment"]
+        except (LaughlabError, OSError):
             continue
-        if isinstance(doc, dict) and isinstance(doc.get("experiment"), str):
-            out[path.parent] = doc["experiment"]
     return out

@@ -412,9 +412,8 @@ def given_twice(overrides: list[str]) -> list[str]:
         if not sep or ov[:1] in "+~" or key not in (*GROUP_KINDS, "experiment"):
             continue
         if key in seen and seen[key] != value:
-            both = f"'{key}=[{seen[key]},{value}]'" if key == "output" else None
             lines.append(f"laughlab: {key}= is given twice ({seen[key]}, then {value}): {value} is used"
-                         + (f"; for both outputs: {both}" if both else ""))
+                         + (f"; for both outputs: '{key}=[{seen[key]},{value}]'" if key == "output" else ""))
         seen[key] = value
     return lines
 

@@ -261,7 +261,5 @@ def server(study_dir, db: str | Path | None = None, port: int = DEFAULT_PORT, ho
     design = load_design(study_dir)
     db_path = DB.open_db(Path(db).expanduser() if db else study_dir / DB.DEFAULT_NAMES[participants], design,
                          participants)
-    files = files_of(study_dir)
-    files.pop(db_path.name, None)
-    return http_server(files, port, base=StudyHandler, host=host, design=design, db=db_path,
+    return http_server(files_of(study_dir), port, base=StudyHandler, host=host, design=design, db=db_path,
                        log=db_path.with_name(db_path.name + ".rejected.log"), quiet=quiet)

@@ -256,7 +256,7 @@ def write(run_dir: str | Path, out: str | Path, character: str | Path | None = N
         raise LaughlabError(f"{out} exists and is not a folder; choose another --out")
     foreign = _not_the_pages(out)
     earlier = foreign == []
-    if out.exists() and (not out.is_dir() or any(out.iterdir())) and not (overwrite and earlier):
+    if out.exists() and any(out.iterdir()) and not (overwrite and earlier):
         if overwrite and foreign:
             from laughlab.core.errors import shown_names
 
