@@ -2,7 +2,9 @@
 nothing written; with ``--skip-unreadable`` each damaged file is left out in one line on stderr and the rest is
 written, and the closing line says how many were skipped and how many had no laughter."""
 import csv
+import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -357,6 +359,8 @@ def test_channels_each_finds_who_laughed_in_a_dyad(tmp_path):
     out = tmp_path / "each"
     r = laughlab("detect", str(rec), "--out", str(out), "--channels", "each", "--formats", "csv,textgrid,audio")
     assert r.returncode == 0, r.stderr
+    # two files, three inputs: the line counts files as files (it said 3 file(s))
+    assert r.stdout.startswith("laughlab: 2 file(s) as 3 inputs (a channel each), 1 without laughter, "), r.stdout
     rows = list(csv.DictReader((out / "segments.csv").open()))
     assert {row["file"] for row in rows} == {"take.ch2", "solo"}
     assert {p.name for p in out.glob("*.TextGrid")} == {"take.ch1.TextGrid", "take.ch2.TextGrid", "solo.TextGrid"}
@@ -369,3 +373,110 @@ def test_channels_each_finds_who_laughed_in_a_dyad(tmp_path):
     r = laughlab("detect", str(rec), "--out", str(mixed))
     assert r.returncode == 0, r.stderr
     assert {row["file"] for row in csv.DictReader((mixed / "segments.csv").open())} == {"take", "solo"}
+
+
+def test_a_recordings_tail_shorter_than_half_a_hop_is_judged_too(tmp_path):
+    """A new-user review: 4.9 s at --hop 2 --threshold 0 (every window laughter) was labelled 0 to 4.0 s: the windows
+    stopped at the last whole hop's centre (3 s), so the last 0.9 s was never judged.  By hand: centres 1, 3, 5 s,
+    each speaking for +-1 s, the last one cut at the recording's end: one segment 0 to 4.9 s."""
+    sf.write(tmp_path / "a.wav", np.zeros(int(4.9 * 16000)), 16000)
+    out = tmp_path / "out"
+    r = laughlab("detect", str(tmp_path / "a.wav"), "--out", str(out), "--hop", "2", "--threshold", "0",
+                 "--smooth", "1")
+    assert r.returncode == 0, r.stderr
+    assert (out / "a.txt").read_text() == "0.0000\t4.9000\tlaugh\n"
+
+
+@pytest.mark.parametrize("hop", [0.05, 0.1, 0.3, 0.5, 1.0, 2.0])
+def test_the_windows_cover_the_whole_recording_and_no_more(hop, monkeypatch):
+    """Property over lengths, each hop: the first window speaks from 0 s, the last for a hop that begins before the
+    recording's end and reaches it; no window ends more than SPEAKS_FOR_S past the last sample (zeros after it)."""
+    from hypothesis import given, settings, strategies as st
+
+    from laughlab.detector import segments as S, yamnet
+
+    seen = {}
+
+    def scores(audio, sr, ends, model, progress=None):
+        seen["ends"] = np.asarray(ends)
+        return np.zeros((len(ends), yamnet.N_CLASSES))
+
+    monkeypatch.setattr(yamnet, "window_scores", scores)
+
+    @settings(max_examples=60, deadline=None)
+    @given(n=st.integers(1, 16000 * 9), sr=st.sampled_from([8000, 16000, 44100]))
+    def check(n, sr):
+        dur = n / sr
+        t, p = S.laughter_prob(np.zeros(n, np.float32), sr, hop, model=object(), score=lambda s: 1.0)
+        assert len(t) == len(p) == len(seen["ends"]) and t[0] == pytest.approx(hop / 2)
+        assert np.allclose(np.diff(t), hop)
+        assert t[-1] - hop / 2 < dur <= t[-1] + hop / 2 + 1e-9
+        assert seen["ends"].max() <= round((dur + S.SPEAKS_FOR_S) * sr)
+        segs = S.segments(t, p, hop, 0.0, 0.0, dur)
+        assert [(s.start, s.end) for s in segs] == [(0.0, S.floor_to(dur, 4))]
+
+    check()
+
+
+def test_an_out_folder_inside_the_input_folder_is_not_read_back(tmp_path):
+    """A new-user review: ``detect rec --out rec/labels --formats audio`` run again with --overwrite read its own
+    laughs' clips back as recordings (``labels/a_laugh_0``'s labels, clips of clips).  The files an earlier detect
+    wrote into --out (its manifest) are left out of a folder's search."""
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    sf.write(rec / "a.wav", np.zeros(3 * 16000), 16000)
+    args = ("detect", str(rec), "--out", str(rec / "labels"), "--formats", "csv,audio", "--threshold", "0")
+    assert laughlab(*args).returncode == 0
+    assert (rec / "labels" / "a_laugh_0.wav").is_file()
+    r = laughlab(*args, "--overwrite")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("laughlab: 1 file(s), 3.0 s of audio, 1 laughter segment(s)")
+    assert sorted(p.relative_to(rec).as_posix() for p in rec.rglob("*") if p.is_file() and p.name[0] != ".") == [
+        "a.wav", "labels/a_laugh_0.wav", "labels/segments.csv"]
+    # a folder holding only an earlier detect's clips: the line says why none is read
+    r = laughlab("detect", str(rec / "labels"), "--out", str(rec / "labels"), "--overwrite")
+    assert r.returncode == 2 and r.stderr.strip() == (
+        f"laughlab: error: no audio files in folder {rec / 'labels'} other than the 1 laugh clip(s) an earlier "
+        "detect wrote into --out")
+
+
+def test_a_detect_stopped_while_writing_its_clips_leaves_nothing_of_its_own(tmp_path, monkeypatch):
+    """A new-user review: a Ctrl-C while detect wrote 146 clips left 85 of them, labels, and no segments.csv.  Now
+    its files are moved into place together: stopped before that, a new --out is not there at all, and an --out
+    that an earlier detect filled keeps that run's files, byte for byte, with no temporary file beside them."""
+    from laughlab.detector import segments as S
+
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    for name in ("a", "b"):
+        sf.write(rec / f"{name}.wav", np.zeros(3 * 16000), 16000)
+    out = tmp_path / "out"
+    args = ("detect", str(rec), "--out", str(out), "--formats", "csv,audacity,audio", "--threshold", "0")
+    real, calls = S.write_clip, []
+
+    def stopped(*a, **k):
+        calls.append(a[0])
+        if len(calls) == 2:   # the first clip written, the user stops the second
+            raise KeyboardInterrupt
+        real(*a, **k)
+
+    monkeypatch.setattr(S, "write_clip", stopped)
+    r = laughlab(*args)
+    assert r.returncode == 130 and r.stderr.strip() == "laughlab: error: interrupted" and not out.exists()
+    monkeypatch.setattr(S, "write_clip", real)
+    assert laughlab(*args).returncode == 0
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert sorted(map(str, before)) == [".laughlab-detect.json", "a.txt", "a_laugh_0.wav", "b.txt", "b_laugh_0.wav",
+                                        "segments.csv"]
+    calls.clear()
+    monkeypatch.setattr(S, "write_clip", stopped)
+    for name in ("a", "b"):   # longer recordings: every file would change
+        sf.write(rec / f"{name}.wav", np.zeros(4 * 16000), 16000)
+    r = laughlab(*args, "--overwrite")
+    assert r.returncode == 130
+    after = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    record = Path(".laughlab-detect.json")
+    assert after.keys() == before.keys() and all(after[k] == before[k] for k in before if k != record)
+    # the manifest names the files this run would have written too, and keeps the earlier ones' hashes (an edit
+    # made after the earlier run is still found by the next --overwrite)
+    assert json.loads(after[record])["sha256"] == json.loads(before[record])["sha256"]

@@ -16,6 +16,7 @@ from omegaconf import OmegaConf
 from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
 from laughlab.core.errors import LaughlabError
 from laughlab.harness.corpus import build_corpus, folder_items
+from laughlab.io.audio import AUDIO_SUFFIXES
 from laughlab.harness.experiment import run_experiment
 from laughlab.harness.report import _clear_best, write_report
 from laughlab.harness.results import SCHEMA, mean_ci, separated
@@ -118,6 +119,21 @@ def test_corpus_profiles_seeds_and_folder(tmp_path):
         build_corpus({"profiles": ["loud"], "seeds": 1})
     with pytest.raises(LaughlabError, match="no audio files"):
         folder_items(_empty(tmp_path))
+
+
+def test_a_corpus_folder_of_session_folders_names_them_and_a_wave_file_is_read(tmp_path):
+    """A new-user review: a folder whose recordings sit in subfolders was said to hold no audio, and a ``.wave``
+    file (WAV's other suffix) was not a recording.  The line now names the subfolders to give instead."""
+    for day in ("day2", "day1", ".hidden"):
+        (tmp_path / day).mkdir()
+        sf.write(tmp_path / day / "take.wav", np.zeros(800), 8000)
+    with pytest.raises(LaughlabError) as e:
+        folder_items(tmp_path)
+    assert str(e.value) == (f"corpus folder {tmp_path} holds no audio files ({', '.join(AUDIO_SUFFIXES)}) itself; "
+                            "its subfolder(s) day1, day2 do: give one of them as harness.corpus.folder (subfolders "
+                            "are not searched)")
+    sf.write(tmp_path / "day1" / "other.wave", np.zeros(800), 8000, format="WAV")
+    assert [i.id for i in folder_items(tmp_path / "day1")] == ["rec-other", "rec-take"]
 
 
 def test_a_corpus_folder_with_one_name_in_two_formats_is_one_line_before_any_trial(tmp_path):

@@ -734,7 +734,10 @@ def test_detect_overwrite_refuses_files_no_detect_wrote(tmp_path):
     (["nothing.wav"], "input not found: nothing.wav"),
     (["--threshold", "2", "x"], "--threshold must be in [0, 1]"),
     (["--formats", "eaf", "x"], "unknown format eaf"),
-    (["--smooth", "4", "x"], "--smooth must be an odd number of windows (a centred average: 1, 3, 5, ...; got 4)"),
+    (["--smooth", "4", "x"], "--smooth must be a positive odd number of windows (a centred average: 1, 3, 5, ...; "
+                             "got 4)"),
+    (["--smooth=-1", "x"], "--smooth must be a positive odd number of windows (a centred average: 1, 3, 5, ...; "
+                           "got -1)"),
 ])
 def test_detect_bad_input_is_one_line(tmp_path, args, message):
     if "x" in args:
@@ -808,10 +811,12 @@ def test_a_recording_shorter_than_the_textgrids_resolution_still_gives_one_praat
 
 def test_a_detect_stopped_while_writing_leaves_nothing_a_later_overwrite_refuses(tmp_path, monkeypatch):
     """A Ctrl-C while detect wrote its files left the written ones out of its manifest, and the next
-    --overwrite refused them as the user's: the manifest now lists them before they are written."""
-    for name in ("a", "b"):
+    --overwrite refused them as the user's: the manifest now lists them before they are written.  (A new --out
+    goes whole on a stop since 2026-11-29, so an earlier detect's --out here: c's.)"""
+    for name in ("a", "b", "c"):
         sf.write(tmp_path / f"{name}.wav", np.zeros(1600), 16000)
     out = tmp_path / "out"
+    assert laughlab("detect", str(tmp_path / "c.wav"), "--out", str(out)).returncode == 0
     real = S.write_outputs
 
     def stopped(out_dir, results, formats):
@@ -819,7 +824,7 @@ def test_a_detect_stopped_while_writing_leaves_nothing_a_later_overwrite_refuses
         raise KeyboardInterrupt
 
     monkeypatch.setattr(S, "write_outputs", stopped)
-    r = laughlab("detect", str(tmp_path / "a.wav"), str(tmp_path / "b.wav"), "--out", str(out))
+    r = laughlab("detect", str(tmp_path / "a.wav"), str(tmp_path / "b.wav"), "--out", str(out), "--overwrite")
     assert r.returncode != 0 and (out / "a.txt").exists() and not (out / "b.txt").exists()
     monkeypatch.setattr(S, "write_outputs", real)
     r = laughlab("detect", str(tmp_path / "a.wav"), str(tmp_path / "b.wav"), "--out", str(out), "--overwrite")

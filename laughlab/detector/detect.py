@@ -20,18 +20,22 @@ import time
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, one_line_parser, shown_names
-from laughlab.core.outfiles import edited_since, read_record, record_text, unwrite
+from laughlab.core.interrupts import deferred
+from laughlab.core.outfiles import edited_since, read_record, record_text, remove, unwrite
 from laughlab.core.summary import duration_text, factor_text
+from laughlab.io.audio import AUDIO_SUFFIXES
 
-AUDIO_SUFFIXES = {".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif", ".opus"}
 FORMATS = ("csv", "audacity", "textgrid", "elan", "audio")
 
 
-def inputs(paths: list[str]) -> list[tuple[Path, str]]:
+def inputs(paths: list[str], ours: frozenset = frozenset()) -> list[tuple[Path, str]]:
     """The audio files of ``paths`` (a folder's hidden files and folders left out) with the name each one's
     outputs take: a file given by itself, its stem; a
     file found in a given folder, its path from that folder without the suffix (``day1/take1``), so a tree of
-    recordings keeps its layout in ``--out`` and repeated take names in different folders do not collide."""
+    recordings keeps its layout in ``--out`` and repeated take names in different folders do not collide.
+    ``ours``: resolved paths of files an earlier ``detect`` wrote (:func:`written_before`), not searched for in
+    a folder: its laughs' clips in an ``--out`` inside a given folder were read back as recordings by
+    ``--overwrite`` (``out/out/take_laugh_0_laugh_0.wav``, a new-user review)."""
     from laughlab.io.audio import OTHER_MEDIA
 
     out, seen, other = [], set(), {}   # other: a folder's recordings laughlab does not read, once each
@@ -39,12 +43,15 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
         q = Path(p).expanduser()
         if q.is_dir():
             files = _folder_files(q)
-            found = [f for f in files if f.suffix.lower() in AUDIO_SUFFIXES]
+            audio = [f for f in files if f.suffix.lower() in AUDIO_SUFFIXES]
+            found = [f for f in audio if f.resolve() not in ours]
             media = [f for f in files if f.suffix.lower() in OTHER_MEDIA]
             other.update((f.resolve(), f) for f in media)
             if not found:
                 raise LaughlabError(f"no audio files in folder {p}" + (f" that laughlab reads: {_unread(media)}"
-                                                                        if media else ""))
+                                                                        if media else "")
+                                    + (f" other than the {len(audio)} laugh clip(s) an earlier detect wrote into --out"
+                                       if audio else ""))
             named = [(f, f.relative_to(q).with_suffix("").as_posix()) for f in found]
         elif q.exists():
             named = [(q, q.stem)]
@@ -104,6 +111,12 @@ def _unread(files: list[Path]) -> str:
 
 #: in --out, the names of the files the last ``detect`` wrote there (so that ``--overwrite`` removes only those)
 MANIFEST = ".laughlab-detect.json"
+
+
+def written_before(out: Path) -> frozenset:
+    """The resolved paths of the files an earlier ``detect`` wrote into ``out`` (its manifest), not recordings."""
+    names, _ = read_record(out / MANIFEST) or (set(), {})
+    return frozenset((out / n).resolve() for n in names)
 
 
 def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Path]:
@@ -182,8 +195,8 @@ def main(argv: list[str]) -> None:
     if ns.smooth < 1 or ns.smooth % 2 == 0:   # an even count is not centred: 4 looked a window further ahead than back,
         # its segments half a hop late (the detect review: --hop 0.1 --smooth 4 started where --smooth 1 did, 3 and 5 a
         # window earlier)
-        raise LaughlabError(f"--smooth must be an odd number of windows (a centred average: 1, 3, 5, ...; got "
-                            f"{ns.smooth})")
+        raise LaughlabError(f"--smooth must be a positive odd number of windows (a centred average: 1, 3, 5, ...; "
+                            f"got {ns.smooth})")
     formats = tuple(f.strip() for f in ns.formats.split(",") if f.strip())
     bad = [f for f in formats if f not in FORMATS]
     if bad or not formats:
@@ -192,7 +205,7 @@ def main(argv: list[str]) -> None:
     from laughlab.detector.yamnet import LaughterScore, ModelFileError, Yamnet
     from laughlab.io.audio import probe_file
 
-    named = [(f, name, None) for f, name in inputs(ns.paths)]
+    named = [(f, name, None) for f, name in inputs(ns.paths, written_before(Path(ns.out)))]
     if ns.channels == "each":   # every channel its own input (a mono file stays as it is)
         named = [(f, f"{name}.ch{c + 1}" if k > 1 else name, c if k > 1 else None)
                  for f, name, _ in named for k in [_channels(f)] for c in range(k)]
@@ -261,16 +274,27 @@ def main(argv: list[str]) -> None:
     def rel(paths):
         return {p.relative_to(out).as_posix() for p in paths}
 
-    S.atomic_write(out / MANIFEST, json.dumps({"files": sorted(rel(stale) | set(planned))}) + "\n")
-    written = S.write_outputs(out, results, formats)
+    fresh = not out.exists()
+    try:
+        # the earlier run's hashes kept: a run stopped here leaves its files' record as it was (their edits found)
+        sums = (read_record(out / MANIFEST) or (set(), {}))[1]
+        names = sorted(rel(stale) | set(planned))
+        S.atomic_write(out / MANIFEST, json.dumps({"files": names, "sha256": {n: sums[n] for n in names if n in sums}},
+                                                  indent=1) + "\n")
+        written = S.write_outputs(out, results, formats)   # all or none
+    except BaseException:   # a Ctrl-C or a full disk: a folder this run made goes (its manifest alone was left)
+        if fresh:
+            remove(out)
+        raise
     # an earlier detect's files of an input skipped now stay (it could not be read again: its labels are not stale)
     theirs = set(S.output_names(gone, formats)) - rel(written)
     clip = re.compile("|".join(f"{re.escape(g)}_laugh_[0-9]+\\.wav" for g in gone) or "(?!)")   # their clips
     kept_old = {p for p in stale if p.relative_to(out).as_posix() in theirs
                 or clip.fullmatch(p.relative_to(out).as_posix())}
-    unwrite(sorted(set(stale) - set(written) - kept_old), out)   # --overwrite: an earlier detect's files not written now
-    done = sorted(rel(written) | rel(kept_old))
-    S.atomic_write(out / MANIFEST, record_text(out, done))
+    with deferred():   # the old files' removal and the manifest that says so, not cut in two by a Ctrl-C
+        unwrite(sorted(set(stale) - set(written) - kept_old), out)   # --overwrite: an earlier detect's files not written now
+        done = sorted(rel(written) | rel(kept_old))
+        S.atomic_write(out / MANIFEST, record_text(out, done))
     wall = time.perf_counter() - t0
     print(summary_line(results, gone, wall, out))
 
@@ -291,6 +315,9 @@ def summary_line(results: list, skipped: list[str], wall: float, out: Path) -> s
     n = sum(len(r[2]) for r in results)
     audio_s = sum(r[1] for r in results)
     none = sum(1 for r in results if not r[2])
+    # --channels each: a stereo file is one file of two inputs (it was counted as 2 files, a new-user review)
+    files = len({(str(r[3]) if len(r) > 3 else r[0]) for r in results})
+    apart = f" as {len(results)} inputs (a channel each)" if files < len(results) else ""
     extra = "".join([f", {none} without laughter" if none else "", f", {len(skipped)} skipped" if skipped else ""])
-    return (f"laughlab: {len(results)} file(s){extra}, {audio_s:.1f} s of audio, {n} laughter segment(s) in "
+    return (f"laughlab: {files} file(s){apart}{extra}, {audio_s:.1f} s of audio, {n} laughter segment(s) in "
             f"{duration_text(wall)} ({factor_text(audio_s / max(wall, 1e-9))}x real time) -> {out}/")

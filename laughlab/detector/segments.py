@@ -48,8 +48,12 @@ def laughter_prob(audio: np.ndarray, sample_rate: int, hop_s: float = 0.5, model
 
     sr = int(sample_rate)
     dur = len(audio) / sr
-    times = np.arange(hop_s / 2.0, max(dur, hop_s / 2.0 + 1e-9), hop_s)
-    ends = np.round((times + SPEAKS_FOR_S) * sr).astype(np.int64)
+    # a window for every hop that begins inside the recording, the last one too: it stopped at the last whole
+    # hop's centre, and a recording's tail shorter than half a hop was never judged (4.9 s of laughter at --hop 2
+    # was labelled to 4.0 s, a new-user review)
+    times = np.arange(hop_s / 2.0, max(dur + hop_s / 2.0 - 1e-9, hop_s / 2.0 + 1e-9), hop_s)
+    # the tail's window ends at most SPEAKS_FOR_S past the recording (zeros after it), as every other one does
+    ends = np.round(np.minimum(times + SPEAKS_FOR_S, dur + SPEAKS_FOR_S) * sr).astype(np.int64)
     S = window_scores(audio, sr, ends, model or Yamnet(), progress=progress)
     score = score or LaughterScore()
     return times, np.array([score(s) for s in S])
@@ -219,9 +223,9 @@ def clip_names(results: list, formats: tuple[str, ...]) -> list[str]:
 
 
 def write_clip(path: Path, media: Path, seg: Segment, channel: int | None = None) -> None:
-    """The recording's samples ``[round(start * sr), round(end * sr))`` as a WAV file, whole or not at all: its own
-    rate and channels (or channel ``channel`` alone), its own sample format where WAV holds it (16-bit PCM for a
-    compressed recording)."""
+    """The recording's samples ``[round(start * sr), round(end * sr))`` as a WAV file at ``path`` (a staging file:
+    :func:`write_outputs`): its own rate and channels (or channel ``channel`` alone), its own sample format where
+    WAV holds it (16-bit PCM for a compressed recording)."""
     import soundfile as sf
 
     info = sf.info(str(media))
@@ -230,37 +234,48 @@ def write_clip(path: Path, media: Path, seg: Segment, channel: int | None = None
                     always_2d=True, dtype="float64" if subtype in ("FLOAT", "DOUBLE") else "int32")
     if channel is not None:
         x = x[:, channel]
-    tmp = path.with_name(f".{path.name}.part")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        sf.write(str(tmp), x, sr, subtype=subtype, format="WAV")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    sf.write(str(path), x, sr, subtype=subtype, format="WAV")
 
 
 def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...]) -> list[Path]:
     """Write ``segments.csv`` and per-input ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf`` (and with ``audio`` each
-    laugh as ``NAME_laugh_K.wav``, from the recording, the results' fourth item); each file whole or not at all."""
-    written = []
-    for name, dur, segs, *media in results:   # (stem, duration, segments[, the recording's path])
-        text = {"audacity": lambda: audacity_text(segs), "textgrid": lambda: textgrid_text(segs, dur),
-                "elan": lambda: eaf_text(segs, media[0] if media else None, (out_dir / name).parent, dur)}
-        for f, suffix in SUFFIXES.items():
-            if f in formats:
-                written.append(out_dir / (name + suffix))
-                atomic_write(written[-1], text[f]())
-        for i, seg in enumerate(segs if "audio" in formats else []):
-            written.append(out_dir / f"{name}_laugh_{i}.wav")
-            write_clip(written[-1], media[0], seg, media[1] if len(media) > 1 else None)
-    if "csv" in formats:   # through csv: a name with a comma or a quote is quoted (a review: it split the row)
-        text = io.StringIO()
-        w = csv.writer(text, lineterminator="\n")
-        w.writerow(["file", "start", "end", "probability"])
-        w.writerows([name, f"{s.start:.4f}", f"{s.end:.4f}", f"{s.prob:.4f}"] for name, _, segs, *_ in results
-                    for s in segs)
-        written.append(out_dir / "segments.csv")
-        atomic_write(written[-1], text.getvalue())
+    laugh as ``NAME_laugh_K.wav``, from the recording, the results' fourth item); all of them or none.
+
+    Each file is written under a hidden temporary name beside its place, and all are moved into place together at
+    the end, a stop signal held off while they move (:func:`laughlab.core.interrupts.deferred`); a failure or a
+    Ctrl-C before that removes the temporary files.  Each file was moved into place as it was written: a Ctrl-C
+    while the clips were written left 85 of 146 of them and no ``segments.csv`` (a new-user review, 2026-11-28)."""
+    from laughlab.core.interrupts import deferred
+    from laughlab.core.outfiles import Staging
+
+    stage, written = Staging(), []
+
+    def put(final: Path, text: str) -> None:
+        written.append(final)
+        stage.path(final).write_text(text, encoding="utf-8")
+
+    try:
+        for name, dur, segs, *media in results:   # (stem, duration, segments[, the recording's path])
+            text = {"audacity": lambda: audacity_text(segs), "textgrid": lambda: textgrid_text(segs, dur),
+                    "elan": lambda: eaf_text(segs, media[0] if media else None, (out_dir / name).parent, dur)}
+            for f, suffix in SUFFIXES.items():
+                if f in formats:
+                    put(out_dir / (name + suffix), text[f]())
+            for i, seg in enumerate(segs if "audio" in formats else []):
+                written.append(out_dir / f"{name}_laugh_{i}.wav")
+                write_clip(stage.path(written[-1]), media[0], seg, media[1] if len(media) > 1 else None)
+        if "csv" in formats:   # through csv: a name with a comma or a quote is quoted (a review: it split the row)
+            text = io.StringIO()
+            w = csv.writer(text, lineterminator="\n")
+            w.writerow(["file", "start", "end", "probability"])
+            w.writerows([name, f"{s.start:.4f}", f"{s.end:.4f}", f"{s.prob:.4f}"] for name, _, segs, *_ in results
+                        for s in segs)
+            put(out_dir / "segments.csv", text.getvalue())
+        with deferred():
+            stage.commit()
+    except BaseException:
+        stage.abort()
+        raise
     return written
 
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError, first_line
+from laughlab.core.errors import LaughlabError, first_line, shown_names
 
-AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".mp3", ".aiff", ".aif")
+from laughlab.io.audio import AUDIO_SUFFIXES
 
 
 @dataclass(frozen=True)
@@ -155,7 +155,13 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
     # experiment (a detect review: the same folder detect, corrections and the harness share)
     files = sorted(p for p in d.iterdir() if p.suffix.lower() in AUDIO_SUFFIXES and not p.name.startswith("."))
     if not files:
-        raise LaughlabError(f"corpus folder {folder} holds no audio files ({', '.join(AUDIO_SUFFIXES)})")
+        # a folder of session folders: said, and which to give (the harness reads one folder, not a tree: its trials
+        # are named by file name, rec-NAME, a review found the line said the folder held no audio)
+        below = sorted({p.relative_to(d).parts[0] for p in d.rglob("*") if p.suffix.lower() in AUDIO_SUFFIXES
+                        and not any(part.startswith(".") for part in p.relative_to(d).parts)})
+        raise LaughlabError(f"corpus folder {folder} holds no audio files ({', '.join(AUDIO_SUFFIXES)})"
+                            + (f" itself; its subfolder(s) {shown_names(below)} do: give one of them as "
+                               f"harness.corpus.folder (subfolders are not searched)" if below else ""))
     stems: dict[str, list[str]] = {}
     for f in files:
         stems.setdefault(f.stem, []).append(f.name)

@@ -229,6 +229,10 @@ class FloatWavWriter:
         self.close()
 
 
+#: the suffixes of recordings a folder is searched for (``detect``, a corpus folder): formats libsndfile reads
+#: (``.wave``: WAV's other suffix, skipped without a word before 2026-11-29, a new-user review; ``.opus``: Ogg Opus)
+AUDIO_SUFFIXES = (".wav", ".wave", ".flac", ".ogg", ".opus", ".mp3", ".aiff", ".aif")
+
 #: recordings in formats libsndfile does not read (phones', video's): their lines say how to convert them
 OTHER_MEDIA = {".m4a", ".aac", ".wma", ".mp4", ".m4b", ".3gp", ".amr", ".caf", ".webm", ".mka", ".mov", ".mkv", ".avi"}
 
