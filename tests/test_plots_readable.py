@@ -242,7 +242,9 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
     write_report(tmp_path / "sweep", tmp_path / "rep", "cmd")
     assert pdfs == {n: (tmp_path / "rep" / "figures" / n).read_bytes() for n in pdfs}
     assert "energy_ablation sweep: each point the mean of" in " ".join(heat.texts)
-    assert sum(bool(re.fullmatch(r"[\d.]+\n±[\d.]+", t)) for t in heat.texts) >= 4   # a cell's CI under its mean
+    # a cell's CI under its mean, but not for a point of one trial (its "interval" is its value: it read ±0)
+    assert sum(bool(re.fullmatch(r"[\d.]+\n±[\d.]+", t)) for t in heat.texts) == (0 if per == 1 else 4)
+    assert ("no ± where every point has one trial" in " ".join(heat.texts).replace("\n", " ")) == (per == 1)
     flat = re.findall(r"`(\w+)` \(", readme.split("No figure for")[1].split("\n")[0]) if "No figure for" in readme \
         else []
     # every metric of the table has a heatmap, or the report says why not
@@ -509,6 +511,44 @@ def test_heatmap_cells_of_different_values_read_differently(tmp_path, saved):
     heatmaps(points, "a", "b", ["intensity_r_clip"], lambda p, m: p["r"], tmp_path / "h.png", info, "t")
     cells = [t.split("\n")[0] for t in saved[-1].texts if re.fullmatch(r"[\d.]+\n±[\d.]+", t)]
     assert sorted(cells) == ["0.781", "0.785", "0.79", "0.8"]
+
+
+def test_a_heatmap_cell_of_single_trials_has_no_plus_minus_and_no_clip_is_no_value(tmp_path, saved):
+    """A new-user review: a sweep of one trial a point printed "±0" under every cell (one trial's interval is its
+    value), and scheduler=none's offset tail of 0 s (no clip played, so no tail) was the brightest, "best", cell."""
+    from laughlab.harness.report_format import NO_VALUE, vacuous
+    from laughlab.harness.sweep_figures import heatmaps
+
+    info = {"intensity_r_clip": {"higher_is_better": True, "units": "Pearson r"}}
+    one = [{"params": {"a": a, "b": b}, "r": {"mean": v, "ci95": [v, v], "n": 1}}
+           for (a, b), v in zip([("1", "1"), ("2", "1"), ("1", "2"), ("2", "2")], (0.5, 0.6, 0.7, 0.8))]
+    heatmaps(one, "a", "b", ["intensity_r_clip"], lambda p, m: p["r"], tmp_path / "h.png", info, "t")
+    texts = saved[-1].texts
+    assert {"0.5", "0.6", "0.7", "0.8"} <= set(texts)   # the cells, each its value alone
+    assert not any("±" in t for t in texts if t[:1].isdigit()) and any("those of one trial" in t for t in texts)
+    # a cell with a point of 3 trials and one of 1: its ± is the 3-trial point's half-width alone (0.1)
+    mixed = one[:3] + [{"params": {"a": "2", "b": "2"}, "r": {"mean": 0.8, "ci95": [0.7, 0.9], "n": 3}}]
+    heatmaps(mixed, "a", "b", ["intensity_r_clip"], lambda p, m: p["r"], tmp_path / "h2.png", info, "t")
+    assert [t for t in saved[-1].texts if "±" in t and t[0].isdigit()] == ["0.8\n±0.1"]
+    # scheduler=none: no clip played (cutoff_rate has no value), so its offset tail's 0 is no value
+    doc = {"metrics": {"offset_tail_s": {"higher_is_better": False}, "cutoff_rate": {"higher_is_better": False}},
+           "results": {"none": {"offset_tail_s": {"mean": 0.0, "ci95": [0.0, 0.0], "n": 4},
+                                "cutoff_rate": {"mean": None, "ci95": [None, None], "n": 0}},
+                       "energy": {"offset_tail_s": {"mean": 0.0, "ci95": [0.0, 0.0], "n": 4},
+                                  "cutoff_rate": {"mean": 0.1, "ci95": [0.0, 0.2], "n": 4}}}}
+    assert vacuous(doc, "offset_tail_s", "none") and not vacuous(doc, "offset_tail_s", "energy")
+    info = {"offset_tail_s": {"higher_is_better": False, "units": "s"}}
+    pts = [{"params": {"a": a, "b": "1"}, "cond": c, "r": doc["results"][c]["offset_tail_s"]}
+           for a, c in (("energy", "energy"), ("none", "none"))] + [
+          {"params": {"a": a, "b": "2"}, "cond": "energy", "r": {"mean": 0.4, "ci95": [0.3, 0.5], "n": 4}}
+          for a in ("energy", "none")]
+
+    def shown(p, m):   # as sweep_report shows a point
+        return NO_VALUE if vacuous(doc, m, p["cond"]) else p["r"]
+
+    heatmaps(pts, "a", "b", ["offset_tail_s"], shown, tmp_path / "h3.png", info, "t")
+    cells = sorted(t for t in saved[-1].texts if t[:1].isdigit() and "±" in t or t == "n/a")
+    assert cells == ["0\n±0", "0.4\n±0.1", "0.4\n±0.1", "n/a"], cells   # energy's 0 stays: it played clips
 
 
 class _ClipCount:

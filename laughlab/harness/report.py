@@ -15,7 +15,7 @@ from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, edge_note  # noqa: F401 (KEY_METRICS)
-from laughlab.harness.report_format import check_panels, vector_link
+from laughlab.harness.report_format import check_panels, vacuous, vector_link
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
 # the figure and what it reads of the results: here too, where the report's callers have always found them
@@ -62,7 +62,7 @@ def _clear_best(doc: dict, metric: str, conds: list[str]) -> str | None:
         return None
     rs = {c: doc["results"][c][metric] for c in conds}
     have = [c for c, r in rs.items() if r["n"] and r["mean"] is not None and math.isfinite(r["mean"])
-            and not _vacuous(doc, metric, c)]
+            and not vacuous(doc, metric, c)]
     # a single trial's "interval" is its value: two of them never overlap, so one trial apiece bolded a winner every
     # time (a new-user review); a best needs at least two trials under every condition compared
     if len(have) < 2 or any(rs[c]["n"] < 2 for c in have):
@@ -70,20 +70,6 @@ def _clear_best(doc: dict, metric: str, conds: list[str]) -> str | None:
     sign = 1 if doc["metrics"][metric]["higher_is_better"] else -1
     best = max(have, key=lambda c: sign * rs[c]["mean"])
     return best if all(separated(rs[best], rs[c]) for c in have if c != best) else None
-
-
-def played_no_clip(doc: dict, cond: str) -> bool:
-    """True when no trial of ``cond`` played a clip (e.g. ``scheduler=none``): ``cutoff_rate``, a fraction
-    of the played clips, has no value in any of its trials although other metrics have."""
-    rs = doc["results"][cond]
-    return "cutoff_rate" in rs and not rs["cutoff_rate"]["n"] and any(r["n"] for r in rs.values())
-
-
-def _vacuous(doc: dict, metric: str, cond: str) -> bool:
-    """A lower-is-better value of 0 under a condition that played no clip (an offset tail of no clip): not a
-    best, so :func:`_clear_best` leaves it out."""
-    r = doc["results"][cond][metric]
-    return doc["metrics"][metric]["higher_is_better"] is False and r["mean"] == 0 and played_no_clip(doc, cond)
 
 
 def _cell(r: dict) -> str:

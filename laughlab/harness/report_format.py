@@ -99,3 +99,21 @@ def refuse_unmeasured(flag: str, who: str, asked: list[str] | None, metrics) -> 
         named = [m + "".join(f" (did you mean {near}?)" for near in difflib.get_close_matches(m, list(metrics), n=1))
                  for m in unknown]
         raise LaughlabError(f"{flag}: {who} measured no {', '.join(named)}; its metrics: " + ", ".join(metrics))
+
+
+def played_no_clip(doc: dict, cond: str) -> bool:
+    """True when no trial of ``cond`` played a clip (e.g. ``scheduler=none``): ``cutoff_rate``, a fraction
+    of the played clips, has no value in any of its trials although other metrics have."""
+    rs = doc["results"][cond]
+    return "cutoff_rate" in rs and not rs["cutoff_rate"]["n"] and any(r["n"] for r in rs.values())
+
+
+def vacuous(doc: dict, metric: str, cond: str) -> bool:
+    """A lower-is-better value of 0 under a condition that played no clip (an offset tail of no clip): not a
+    best, so a report's best (``report._clear_best``) and a sweep's figures leave it out."""
+    r = doc["results"][cond][metric]
+    return doc["metrics"][metric]["higher_is_better"] is False and r["mean"] == 0 and played_no_clip(doc, cond)
+
+
+#: a result with no value (a figure leaves its cell blank)
+NO_VALUE = {"mean": None, "ci95": [None, None], "std": None, "n": 0}

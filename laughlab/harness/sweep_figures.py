@@ -88,21 +88,25 @@ def heatmaps(points, a, b, metrics, result, path, info, title: str, width: str =
     xs = sorted({p["params"].get(a, "") for p in points}, key=order)
     ys = sorted({p["params"].get(b, "") for p in points}, key=order)
     fig, axes = panel_grid(len(metrics), *z["heat"])
-    widened, most = [], 1
+    widened, most, single = [], 1, False
     for ax, m in zip(axes, metrics):
         grid, half = np.full((len(ys), len(xs)), np.nan), np.full((len(ys), len(xs)), np.nan)
         widths, lows, highs = [], [], []
         for i, y in enumerate(ys):
             for j, x in enumerate(xs):
-                cis = [_ci(result(p, m)) for p in points if p["params"].get(a, "") == x and p["params"].get(b, "") == y]
-                cis = [c for c in cis if math.isfinite(c[0])]
+                rs = [result(p, m) for p in points if p["params"].get(a, "") == x and p["params"].get(b, "") == y]
+                cis = [_ci(r) for r in rs if math.isfinite(_ci(r)[0])]
+                # a point of one trial has no interval (its "[v, v]" read as ±0, a new-user review): no ± from it
+                spread = [_ci(r) for r in rs if math.isfinite(_ci(r)[0]) and (r.get("n") or 0) >= 2]
                 most = max(most, len(cis))
+                single = single or len(spread) < len(cis)
                 if cis:
                     grid[i, j] = np.mean([c[0] for c in cis])
-                    half[i, j] = np.mean([(c[2] - c[1]) / 2 for c in cis])
-                    widths += [c[2] - c[1] for c in cis]
                     lows += [c[1] for c in cis]
                     highs += [c[2] for c in cis]
+                if spread:
+                    half[i, j] = np.mean([(c[2] - c[1]) / 2 for c in spread])
+                    widths += [c[2] - c[1] for c in spread]
         lo, hi = np.nanmin(grid), np.nanmax(grid)
         noise = float(np.median(widths)) if widths else 0.0
         if hi - lo < noise:   # the cells differ by less than one point's interval: do not stretch that over the scale
@@ -133,7 +137,9 @@ def heatmaps(points, a, b, metrics, result, path, info, title: str, width: str =
         cb.ax.tick_params(labelsize=z["bar_ticks"])
     notes = ["Each cell: the mean of its point's trials"
              + (f" (averaged over the other swept parameters: up to {most} points a cell)" if most > 1 else "")
-             + "; under it ± the half-width of a point's 95% bootstrap CI (the mean over the cell's points)."]
+             + "; under it ± the half-width of a point's 95% bootstrap CI (the mean over the cell's points"
+             + (", those of one trial, which have none, left out; no ± where every point has one trial)." if single
+                else ").")]
     if widened:
         notes.append("Colour range widened to a point's median CI width, as the cells differ by less: "
                      + ", ".join(widened) + ".")

@@ -14,6 +14,7 @@ from laughlab.harness.results import read_results
 from laughlab.harness.sweep_plan import multirun, swept_keys, sweep_command, unfinished
 from laughlab.harness.report_format import (EDGE, KEY_METRICS, at_search_edge, check_panels, refuse_unmeasured,
                                             vector_link)
+from laughlab.harness.report_format import NO_VALUE, vacuous
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
 from laughlab.harness.sweep_figures import heatmaps, lines as line_plots
@@ -156,6 +157,11 @@ def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None 
     def result(p, m):
         return p["doc"]["results"][p["cond"]][m]
 
+    def shown(p, m):
+        """A point's result as the figures show it: an offset tail of 0 where no clip played (``scheduler=none``)
+        is no value (it was the brightest, "best", cell; the experiment's table bolds no such best either)."""
+        return NO_VALUE if vacuous(p["doc"], m, p["cond"]) else result(p, m)
+
     def val(p, m):
         r = result(p, m)
         return r["mean"] if r["mean"] is not None else float("nan")
@@ -190,11 +196,11 @@ def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None 
         lines += ["No figure for " + ", ".join(flat) + ": the sweep did not change it.", ""]
     for a, b in (pairs if heat_metrics else []):
         name = f"heatmap_{a}_{b}.png".replace("/", "_")
-        heatmaps(points, a, b, heat_metrics, result, figs / name, doc0["metrics"], title, width)
+        heatmaps(points, a, b, heat_metrics, shown, figs / name, doc0["metrics"], title, width)
         lines += [f"![{a} x {b}](figures/{name})", "", vector_link(name), ""]
     if len(varying) == 1 and heat_metrics:
         name = f"line_{varying[0]}.png"
-        line_plots(points, varying[0], heat_metrics, result, figs / name, doc0["metrics"], title, width)
+        line_plots(points, varying[0], heat_metrics, shown, figs / name, doc0["metrics"], title, width)
         lines += [f"![{varying[0]}](figures/{name})", "", vector_link(name), ""]
     (out / "README.md").write_text("\n".join(lines) + "\n")
     return out / "README.md"
