@@ -756,3 +756,15 @@ def test_a_sweep_over_experiments_ends_with_a_hint_report_takes(tmp_path, capsys
     (sweep / "1" / "results.json").unlink()
     SweepReportHint().on_multirun_end(cfg)
     assert capsys.readouterr().out == f"report: python -m laughlab report '{sweep}'\n"
+
+
+@pytest.mark.parametrize("args,line", [
+    (["corpus"], "python -m laughlab corpus: name a command: fetch, list, lock (see --help)"),
+    (["study"], "python -m laughlab study: name a command: build, serve, simulate, analyze, power (see --help)"),
+    (["corpus", "fetchh"], "python -m laughlab corpus: unknown command 'fetchh': its commands are fetch, list, lock "
+                           "(see --help)"),
+])
+def test_a_command_without_its_own_command_names_them(args, line):
+    """A new-user review: ``python -m laughlab corpus`` said "the following arguments are required: cmd"."""
+    r = laughlab(*args)
+    assert r.returncode == 2 and r.stderr == f"laughlab: error: {line}\n"

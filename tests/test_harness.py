@@ -836,6 +836,8 @@ def test_report_extras_compute_rows_and_the_shared_plugins():
                                  "conditions; profiles mild, recording; seeds 0..1)")
     one = {**two, "n_trials": 8, "corpus": {**two["corpus"], "seeds": [0]}}
     assert _trials_line(one) == "- trials: 8 (4 inputs x 2 conditions; profiles mild, recording; seed 0)"
+    single = {**one, "n_trials": 1, "conditions": {"a": []}, "corpus": {**one["corpus"], "inputs": ["mild-s00"]}}
+    assert _trials_line(single) == "- trials: 1 (1 input x 1 condition; profiles mild, recording; seed 0)"  # "1 inputs"
 
 
 def test_a_sweep_of_a_two_condition_experiment_reports_both(tmp_path):

@@ -49,9 +49,18 @@ def one_line_parser(**kwargs):
     """An ``argparse.ArgumentParser`` whose usage errors are a :class:`LaughlabError` (one line, exit 2),
     not argparse's usage block; ``--help`` is unchanged."""
     import argparse
+    import re
 
     class _Parser(argparse.ArgumentParser):
         def error(self, message):
+            # a command's own commands (corpus fetch, study build...) by name, not argparse's "required: cmd"
+            # (a new-user review) or "argument cmd: invalid choice"
+            sub = next((a for a in self._actions if isinstance(a, argparse._SubParsersAction)), None)
+            if sub is not None and (message.endswith(f"required: {sub.dest}") or f"argument {sub.dest}:" in message):
+                names = ", ".join(sub.choices)
+                bad = re.search(r"invalid choice: '([^']*)'", message)
+                message = (f"unknown command {bad.group(1)!r}: its commands are {names}" if bad
+                           else f"name a command: {names}")
             raise LaughlabError(f"{self.prog}: {message} (see --help)")
 
     return _Parser(**kwargs)

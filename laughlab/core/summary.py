@@ -90,6 +90,11 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
     return "; ".join(parts)
 
 
+def counted(n: int, word: str) -> str:
+    """``1 trial``, ``2 trials``: a count and its noun (a new-user review read "1 trials")."""
+    return f"{n} {word}{'' if n == 1 else 's'}"
+
+
 def factor_text(x: float) -> str:
     """A speed factor with two significant digits below 10 (0.091, 0.15, 8.8), whole above (219)."""
     return f"{x:.0f}" if x >= 10 else f"{x:.1f}" if x >= 1 else f"{x:.2g}"

@@ -30,6 +30,7 @@ from omegaconf import OmegaConf
 
 from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.core.overrides import without_command_keys
+from laughlab.core.summary import counted
 from laughlab.harness import results as res
 from laughlab.harness.corpus import Item, build_corpus, synthetic_items
 from laughlab.harness.metrics import registered, warn_unmeasured
@@ -147,7 +148,8 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     kept = [done[t.key] for t in trials if finished(t)]
     todo = [t for t in trials if not finished(t)]
     if kept:
-        print(f"{name}: resuming: {len(kept)} of {len(trials)} trials were done, running {len(todo)}", file=sys.stderr)
+        print(f"{name}: resuming: {len(kept)} of {counted(len(trials), 'trial')} were done, running {len(todo)}",
+              file=sys.stderr)
     journal.path.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in kept))  # drop stale lines
     new = run_trials(todo, jobs, progress, desc=name, on_record=journal.add)
     run.records = sorted([*kept, *new], key=lambda r: (r["condition"], r["input"], r["seed"]))
@@ -177,7 +179,7 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
         steps = ["means and bootstrap intervals",
                  *(["the experiment's own numbers"] if hasattr(module, "extra") else []),
                  *(["plots/metrics.png and timing.png"] if h.get("plots", True) else [])]
-        print(f"{name}: summarising {len(run.records)} trials: {', '.join(steps)}", file=sys.stderr)
+        print(f"{name}: summarising {counted(len(run.records), 'trial')}: {', '.join(steps)}", file=sys.stderr)
     results, by_profile = res.aggregate(run.records, list(metric_info))
     extra = {}
     if module is not None and hasattr(module, "extra"):

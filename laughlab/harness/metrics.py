@@ -16,6 +16,7 @@ from typing import Callable
 
 import numpy as np
 
+from laughlab.core.summary import counted
 from laughlab.harness.trialdata import TrialData
 
 
@@ -116,7 +117,7 @@ def warn_unmeasured(records: list[dict]) -> None:
     for name, why in sorted(reasons.items()):
         values = [r["metrics"].get(name) for r in records]
         if not any(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
-            print(f"laughlab: warning: metric {name!r} gave no number on any of the {len(records)} trials (n/a in "
+            print(f"laughlab: warning: metric {name!r} gave no number on {'the' if len(records) == 1 else 'any of the'} {counted(len(records), 'trial')} (n/a in "
                   f"the report): it raised {why}", file=sys.stderr)
 
 

@@ -14,6 +14,7 @@ import shutil
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, shown_names
+from laughlab.core.summary import counted
 from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, edge_note  # noqa: F401 (KEY_METRICS)
 from laughlab.harness.report_format import check_panels, vacuous, vector_link
 from laughlab.harness.report_format import fmt as _fmt
@@ -111,9 +112,9 @@ def _trials_line(doc: dict) -> str:
     seed_text = (f"seed {seeds[0]}" if len(seeds) == 1 or seeds[0] == seeds[-1] else f"seeds {seeds[0]}..{seeds[-1]}")
     runs = n // conds
     run_seeds = ((doc.get("config") or {}).get("harness") or {}).get("run_seeds") or []
-    how = (f"{runs} runs of {inputs} inputs, the recordings once per run seed ({', '.join(map(str, run_seeds))})"
-           if runs != inputs and run_seeds else f"{inputs} inputs")
-    return (f"- trials: {n} ({how} x {conds} conditions; profiles {', '.join(doc['corpus']['profiles'])}; "
+    how = (f"{counted(runs, 'run')} of {counted(inputs, 'input')}, the recordings once per run seed "
+           f"({', '.join(map(str, run_seeds))})" if runs != inputs and run_seeds else counted(inputs, "input"))
+    return (f"- trials: {n} ({how} x {counted(conds, 'condition')}; profiles {', '.join(doc['corpus']['profiles'])}; "
             f"{seed_text})")
 
 

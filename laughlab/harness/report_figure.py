@@ -118,7 +118,8 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
     per = max((doc["results"][c][m]["n"] for c in conds for m in names), default=0)  # a condition's trials
     title = textwrap.wrap(f"{doc['experiment']}: " + ("compute time, measured on this machine: differs run to run; "
                                                       if timing else "")
-                          + f"mean and 95% CI (bootstrap) over up to {per} trials per condition"
+                          + (f"mean and 95% CI (bootstrap) over up to {per} trials per condition" if per > 1
+                             else "the value of 1 trial per condition (no interval)")
                           + (f"; n=k over a bar: a mean of fewer than {FEW} trials" if few else "")
                           + " (↑ higher is better, ↓ lower is better)", int(pw * cols * z["chars"]))
     note = textwrap.wrap(f"Not shown, the same under every condition: {', '.join(same)} (values in the report's "
