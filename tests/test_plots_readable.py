@@ -122,6 +122,7 @@ def test_fig4_2_of_a_run_without_energy_says_so(tmp_path, saved):
     (empty, full) = saved
     assert "no laughing energy and no clip in this run" in empty.texts
     assert "no laughing energy and no clip in this run" not in full.texts
+    assert "laughing energy L" not in empty.texts and "laughing energy L" in full.texts   # a line not there: no key
     assert_readable(saved)
 
 

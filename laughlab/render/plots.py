@@ -408,9 +408,12 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
         _setup_axis(ax)
     if layout.column:
         thin_ticks(ax1, ax2, x=6, y=3)
+    empty = not blocks and not (len(energy) and np.any(energy))
+    if empty:   # its line lies on the axis: not in the legend (a review: it named a line one could not see)
+        line.set_label(f"_{energy_label}")
     _legend_with_clip_key(fig, [ax2], blocks, layout)
     _label_blocks(fig, ax2, blocks, [line], top, layout.block_label)
-    if not blocks and not (len(energy) and np.any(energy)):   # scheduler=none: an empty panel said nothing
+    if empty:   # scheduler=none: an empty panel said nothing
         ax2.text(0.5, 0.5, "no laughing energy and no clip in this run", transform=ax2.transAxes,
                  ha="center", va="center", fontsize=layout.side_label, color="0.35")
     save_figure(fig, path, pdf)
