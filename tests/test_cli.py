@@ -768,3 +768,21 @@ def test_a_command_without_its_own_command_names_them(args, line):
     """A new-user review: ``python -m laughlab corpus`` said "the following arguments are required: cmd"."""
     r = laughlab(*args)
     assert r.returncode == 2 and r.stderr == f"laughlab: error: {line}\n"
+
+
+def test_a_float_file_with_nan_and_samples_over_full_scale_is_said_in_the_summary(tmp_path):
+    """A new-user review: a float WAV with NaN and samples at 4.0 ran without a word (only metrics.json counted
+    them).  End to end: 100 NaN samples, and a peak of 4.0, +12.0 dBFS (20 log10 4 = 12.04)."""
+    x = 0.1 * np.sin(2 * np.pi * 220 * np.arange(32000) / 16000).astype(np.float32)
+    x[1000:1100] = np.nan
+    x[5000:5010] = 4.0
+    sf.write(tmp_path / "odd.wav", x, 16000, subtype="FLOAT")
+    r = laughlab("input=file", f"input.path={tmp_path / 'odd.wav'}", f"hydra.run.dir={tmp_path / 'run'}",
+                 "~output.plots", "detector=none")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("laughlab: 2.0 s of odd.wav (100 NaN or infinite samples read as silence; its loudest "
+                               "sample +12.0 dBFS, over full scale), "), r.stdout
+    sf.write(tmp_path / "fine.wav", x[2000:4000], 16000, subtype="FLOAT")   # neither: nothing said
+    r = laughlab("input=file", f"input.path={tmp_path / 'fine.wav'}", f"hydra.run.dir={tmp_path / 'run2'}",
+                 "~output.plots", "detector=none")
+    assert r.stdout.startswith("laughlab: 0.12 s of fine.wav, "), r.stdout

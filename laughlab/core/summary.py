@@ -36,6 +36,12 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     if peak is not None and peak < 10 ** (SILENT_DBFS / 20):   # a review: a silent file ran without a word
         what += f" (silent: {silent_text(peak)}" + \
             ("; is the microphone muted? input.device=NAME_OR_INDEX chooses another" if src == "mic" else "") + ")"
+    # samples a float file holds that no sound is: said, not only counted in metrics.json (a new-user review)
+    odd = [f"{counted(bad, 'NaN or infinite sample')} read as silence"
+           for bad in [int(metrics.get("nonfinite_samples") or 0)] if bad]
+    if peak is not None and peak > 1.0 + 1e-6:   # a float file's samples past full scale: kept as they are
+        odd.append(f"its loudest sample {20 * math.log10(peak):+.1f} dBFS, over full scale")
+    what += f" ({'; '.join(odd)})" if odd else ""
     chain = " > ".join(str(cfg[g].name) + (" (fused)" if g == "detector" and cfg[g].get("fuse") else "")
                        for g in CHAIN
                        if g in cfg and cfg[g] is not None and "name" in cfg[g])   # fused: detector=yamnet_fused
