@@ -833,3 +833,18 @@ def test_an_interrupted_simulation_leaves_no_database_behind(study, tmp_path, mo
     before = db.read_bytes()
     out = fuzz.run_cli(["study", "simulate", str(study), "--db", str(db), "--participants", "1"])
     assert out.code == 130 and db.read_bytes() == before
+
+
+@pytest.mark.browser
+def test_simulate_counts_what_its_database_holds(study, tmp_path):
+    """A new-user review: the closing line said "216 answers" of a database whose CSV has 228 rows (the audio
+    checks, one a participant, were not counted).  The line now counts both, as the database's rows."""
+    from laughlab.study import db as DB
+
+    db = tmp_path / "sim.sqlite"
+    out = fuzz.run_cli(["study", "simulate", str(study), "--db", str(db), "--participants", "2"])
+    assert out.code == 0, out.stderr
+    kinds = [r["kind"] for r in DB.rows(db)]
+    assert kinds.count("audio_check") == 2
+    assert out.stdout.startswith(f"laughlab: 2 simulated participants finished ({len(kinds) - 2} answers and 2 audio "
+                                 "checks, planted no effect) -> "), out.stdout

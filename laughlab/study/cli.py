@@ -185,12 +185,17 @@ def simulate(ns) -> None:
         raise
     httpd.shutdown()
     httpd.server_close()
-    n = sum(len(g.answers) for g in given.values())
-    from laughlab.study.db import store   # what was planted, so that the analysis can say what it should recover
+    from laughlab.study.db import rows, store   # store: what was planted, so that the analysis can say what it should recover
+
+    # the database's rows as its CSV export counts them: the ratings and attention answers, and one audio check a
+    # participant (the line said "216 answers" of a CSV of 228 rows, a new-user review)
+    kinds = [r["kind"] for r in rows(_handler(httpd).db)]
+    n, checks = len(kinds) - kinds.count("audio_check"), kinds.count("audio_check")
 
     store(_handler(httpd).db, "simulation", {"effects": effects, "seed": ns.seed, "participants": len(given),
                                              **S.PLANTED_SPREAD})
-    print(f"laughlab: {len(given)} simulated participants finished ({n} answers, planted {ns.effects or 'no effect'})"
+    print(f"laughlab: {len(given)} simulated participants finished ({n} answers and {checks} audio checks, planted "
+          f"{ns.effects or 'no effect'})"
           f" -> {_handler(httpd).db}; analyze it with: python -m laughlab study analyze "
           f"{shlex.quote(str(_handler(httpd).db))}")
 
