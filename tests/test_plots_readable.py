@@ -42,6 +42,7 @@ class Saved:
         self.hue_only = lines_told_apart_by_hue(fig)
         self.cut_off = texts_cut_off(fig, drawn)
         self.n_colorbars = len(colorbars(fig))
+        self.figure = fig
         # (label, colour map, values rising upwards) of each colour bar
         self.bars = [(cb.ax.get_ylabel(), cb.cmap.name, not cb.ax.yaxis_inverted()) for cb in colorbars(fig)]
         self.titles = [ax.get_title() for ax in fig.axes if ax.get_visible()]
@@ -614,3 +615,24 @@ def test_a_sweep_report_shows_a_plugins_metric_and_those_asked_for(tmp_path, sav
         write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", panels=["jaw_mean"])
     with pytest.raises(LaughlabError, match=r"^--panels: \S+ measured no cutoff \(did you mean cutoff_rate\?\); its "):
         write_report(tmp_path / "sweep", tmp_path / "rep", "cmd", panels=["cutoff"])
+
+
+@pytest.mark.parametrize("frames", [1, 2])
+def test_a_filmstrip_of_one_or_two_figures_keeps_a_readable_title(tmp_path, saved, frames):
+    """A new-user review: a 0.2 s run's filmstrip of one figure was 1.25 in wide, its title 7 lines of 2 words.  The
+    strip is now at least 5 in wide, its figures keeping 1.25 in each, in the middle; the title on 3 lines or fewer."""
+    from laughlab.motion.skeleton import HUMANOID as sk, rest_pose
+    from laughlab.render import plots
+
+    plots.filmstrip(tmp_path / "s.png", sk, np.arange(frames) * 0.2, np.stack([rest_pose(sk)] * frames),
+                    ["no clip\nsmile 0.00, jaw 0.00"] * frames)
+    (strip,) = saved
+    fig = strip.figure
+    assert fig.get_figwidth() == 5.0
+    title = fig._suptitle.get_text()
+    assert title.count("\n") + 1 <= 3, title
+    for ax in fig.axes:   # each figure's panel as wide as in a strip of n (1.25 in less the margins), centred
+        assert 1.15 <= ax.get_position().width * 5.0 <= 1.23
+    boxes = [ax.get_position() for ax in fig.axes]
+    assert min(b.x0 for b in boxes) == pytest.approx(1 - max(b.x1 for b in boxes), abs=1e-6)
+    assert_readable(saved)

@@ -84,6 +84,10 @@ def filmstrip_moments(times: np.ndarray, positions: np.ndarray, n: int, blocks: 
     return sorted(picked)
 
 
+#: a filmstrip's least width on a page (in): its title on 2-3 lines, however few its figures
+MIN_PAGE_IN = 5.0
+
+
 @in_layout
 def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captions: Sequence[str],
               title: str = "", note: str = "", pdf=False, layout: Layout = PAGE) -> Path:
@@ -96,7 +100,10 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
     n = len(times)
     cols = max(1, min(n, layout.strip_cols) if layout.strip_cols else n)
     rows = -(-max(n, 1) // cols)
-    width = layout.width_in if layout.column else 1.25 * max(n, 1)
+    # on a page 1.25 in a figure, and at least MIN_PAGE_IN wide, the figures in its middle: a strip of one (a run of
+    # 0.2 s) was 1.25 in wide, its title wrapped to 7 lines of 2 words (a new-user review)
+    strip_in = 1.25 * max(n, 1)
+    width = layout.width_in if layout.column else max(strip_in, MIN_PAGE_IN)
     # the title and the colours' key, wrapped to the figure's width (a strip of 3 cut a one-line title at both
     # edges); each line more makes the figure taller, the panels keeping their size
     head = titled(title or "The character over the run (skeleton from motion.bvh)", note) + f". {SIDE_KEY}"
@@ -128,7 +135,8 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
         ax.set_title(f"{times[k]:.1f} s", fontsize=layout.frame_title, pad=1)
         ax.text(0.5, -0.02, captions[k], transform=ax.transAxes, ha="center", va="top", fontsize=layout.caption)
     fig.suptitle("\n".join(lines), fontsize=layout.strip_title)
-    fig.subplots_adjust(left=0.01, right=0.99, wspace=0.05, **adjust)
+    side = 0.01 if layout.column else (0.01 * strip_in + (width - strip_in) / 2) / width
+    fig.subplots_adjust(left=side, right=1 - side, wspace=0.05, **adjust)
     save_figure(fig, path, pdf)
     plt.close(fig)
     return path
