@@ -682,6 +682,11 @@ def test_on_bad_skip_runs_the_rest_and_records_what_it_skipped(tmp_path):
     assert doc["corpus"]["inputs"] == ["rec-good1", "rec-good2"]
     assert sorted(s["file"] for s in doc["corpus"]["skipped"]) == ["cut.ogg", "notes.wav", "overlap.wav"]
     assert all(s["reason"] for s in doc["corpus"]["skipped"])
+    # and on screen as it starts (only results.json had them, a new-user review)
+    said = [ln for ln in r.stderr.splitlines() if "left out" in ln]
+    assert len(said) == 1 and said[0].startswith("smoke: left out 3 bad corpus files (harness.corpus.on_bad=skip): "
+                                                 "cut.ogg: "), r.stderr
+    assert all(f in said[0] for f in ("notes.wav: ", "overlap.wav: ")) and said[0].endswith("(all of them in results.json)")
 
 
 def test_an_inputs_hash_is_of_its_overrides_or_its_bytes_not_of_its_id(tmp_path):

@@ -119,6 +119,10 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     items = build_corpus(h.get("corpus") or {}, skipped, not_fetched)
     if not_fetched:
         print(not_fetched_line(name, not_fetched, len(items)), file=sys.stderr)
+    if skipped:   # said as it starts, not only in results.json (a new-user review found them nowhere on screen)
+        print(f"{name}: left out {counted(len(skipped), 'bad corpus file')} (harness.corpus.on_bad=skip): "
+              + "; ".join(f"{b['file']}: {b['reason']}" for b in skipped[:3]) + ("; ..." if len(skipped) > 3 else "")
+              + " (all of them in results.json)", file=sys.stderr)
     run_seeds = [int(s) for s in h.get("run_seeds") or [0]]
     base = _task_overrides() if base_overrides is None else list(base_overrides)
     out_dir = Path(out_dir)
