@@ -367,10 +367,11 @@ class FixedScore:
     """Stands in for the head, the laughter classes and the other human sounds (``os``, the veto): their scores,
     one per model window, in order."""
 
-    def __init__(self, ps, qs=None, os=None):
+    def __init__(self, ps, qs=None, os=None, ns=None):
         self.ps = list(ps)
         self.qs = list(qs) if qs is not None else [0.0] * len(self.ps)
         self.os = list(os) if os is not None else [0.0] * len(self.ps)
+        self.ns = list(ns) if ns is not None else [0.0] * len(self.ps)
 
     def both(self, scores):
         return self.ps.pop(0), self.qs.pop(0)
@@ -378,14 +379,17 @@ class FixedScore:
     def other_human(self, scores):
         return self.os.pop(0)
 
+    def noise(self, scores):
+        return self.ns.pop(0)
 
-def gate_run(ps, mcs, qs=None, os=None, **params):
+
+def gate_run(ps, mcs, qs=None, os=None, ns=None, **params):
     from laughlab_plugins.detector_yamnet import YamnetDetector, YamnetParams
 
     # the rule these hand-computed sequences were written for: the head alone, windows every 0.5 s, no quiet close
     params = {"rule": "head", "hop_s": 0.5, "open_windows": 2, "close_quiet_s": 0.0, "model_frames": 1, **params}
     det = YamnetDetector(YamnetParams(**params), Context(fps=FPS, sample_rate=16000))
-    det.score = FixedScore(ps, qs, os)
+    det.score = FixedScore(ps, qs, os, ns)
     rows = []
     for k, m in enumerate(mcs):
         f = Frame(k, k / FPS, 1 / FPS, {"mcs": m}, None, {}, {}, [], 0.0)
@@ -477,20 +481,41 @@ def test_a_window_where_another_human_sound_outscores_laughter_neither_opens_nor
 
 @pytest.mark.parametrize("rule", ["head", "classes", "either"])
 @pytest.mark.parametrize("veto", ["none", "classes", "both"])
-def test_the_train_split_sweep_gates_like_the_detector(rule, veto):
+@pytest.mark.parametrize("noise_veto", [1.0, 0.1])
+def test_the_train_split_sweep_gates_like_the_detector(rule, veto, noise_veto):
     """``yamnet_fit --rules`` chose the thresholds with ``gate_windows``: the detector's rule, window by window."""
     from laughlab.detector.yamnet_fit import gate_windows
 
     rng = np.random.default_rng(5)   # a draw where each veto changes some window (asserted below)
     ps, qs = rng.uniform(0, 1, 40).round(2), (rng.uniform(0, 0.2, 40) ** 2 * 5).round(3)
     os_ = np.where(rng.random(40) < 0.25, 0.5, 0.0)   # a quarter of the windows: a cough louder than laughter
+    ns = np.where(rng.random(40) < 0.25, 0.4, 0.05)   # a quarter: steady noise louder than laughter and 0.1
     kw = dict(open_windows=3, class_open=0.1, class_windows=1, class_close=0.05)
-    r = gate_run(list(ps), [0.6] * 600, list(qs), list(os_), rule=rule, hop_s=0.25, attack_s=0.0, release_s=0.0,
-                 veto=veto, **kw)
-    want = gate_windows(ps, qs, rule, other=os_, veto=veto, **kw)
+    r = gate_run(list(ps), [0.6] * 600, list(qs), list(os_), list(ns), rule=rule, hop_s=0.25, attack_s=0.0,
+                 release_s=0.0, veto=veto, noise_veto=noise_veto, **kw)
+    want = gate_windows(ps, qs, rule, other=os_, veto=veto, noise=ns, noise_veto=noise_veto, **kw)
     assert np.array_equal(r[14::15, 1] == 1.0, want) and want.any() and not want.all()
-    if veto != "none" and not (rule == "head" and veto == "classes"):   # the veto changed something here
-        assert not np.array_equal(want, gate_windows(ps, qs, rule, **kw))
+    if veto != "none" and not (rule == "head" and veto == "classes") and noise_veto == 1.0:   # the veto changed
+        assert not np.array_equal(want, gate_windows(ps, qs, rule, **kw))                      # something here
+    if noise_veto < 1.0 and rule != "classes" and veto != "both":   # the noise veto changed something (the head's rules)
+        assert not np.array_equal(want, gate_windows(ps, qs, rule, other=os_, veto=veto, **kw))
+
+
+def test_steady_noise_louder_than_laughter_keeps_the_head_from_opening_the_gate():
+    """``detector.noise_veto`` by hand, rule=either, 3 windows of the head at 0.9 open the gate: steady noise at 0.4
+    in the 3rd window (above 0.1 and the laughter classes' 0) starts the count over, so windows 4-6 open it; noise
+    at 0.05 (under 0.1), or at 0.4 under a laughter-class score of 0.5, or noise_veto=1 leave it alone."""
+    kw = dict(rule="either", hop_s=0.25, open_windows=3, attack_s=0.0, release_s=0.0, class_open=0.6,
+              class_close=0.55)
+    noisy = [0.0, 0.0, 0.4, 0.0, 0.0, 0.0]
+    e = gate_run([0.9] * 6, [0.6] * 90, [0.0] * 6, None, noisy, **kw)
+    assert np.all(e[:89, 1] == 0.0) and e[89, 1] == 1.0          # windows 4, 5, 6 in a row: open at frame 89
+    for ps, qs, ns, extra in (([0.9] * 6, [0.0] * 6, [0.0, 0.0, 0.05, 0.0, 0.0, 0.0], {}),
+                              ([0.9] * 6, [0.5] * 6, noisy, {}),
+                              ([0.9] * 6, [0.0] * 6, noisy, {"noise_veto": 1.0})):
+        g = gate_run(ps, [0.6] * 90, qs, None, ns, **kw, **extra)
+        assert np.all(g[:44, 1] == 0.0) and np.all(g[44:, 1] == 1.0)   # the 3rd window (frame 44) opens it
+    assert np.array_equal(e[:, 0], gate_run([0.9] * 6, [0.6] * 90, [0.0] * 6, **kw)[:, 0])   # published unchanged
 
 
 def test_the_train_sweep_counts_bouts_false_openings_and_first_openings_by_hand():
@@ -919,3 +944,19 @@ def test_an_error_line_said_while_stderr_is_quiet_reaches_the_real_stderr(tmp_pa
         r = subprocess.run([sys.executable, "-c", code], stderr=fh)
     assert r.returncode == 0
     assert err.read_text() == "laughlab: error: said inside\nlaughlab: error: said after\n"
+
+
+def test_steady_white_noise_starts_no_clip(tmp_path):
+    """A new-user review: 30 s of white noise started 12 clips with the default detector, as many as without one
+    (the head took it for laughter).  End to end at 44.1 kHz, 10 s of seeded white noise at 0.27 RMS (as sox's
+    ``synth whitenoise``): no clip with the default noise_veto, clips with it off."""
+    x = (0.27 * np.random.default_rng(7).standard_normal(10 * 44100)).clip(-1, 1).astype(np.float32)
+    sf.write(tmp_path / "white.wav", x, 44100, subtype="PCM_16")
+    starts = {}
+    for veto in ("0.1", "1"):
+        out = tmp_path / f"run{veto}"
+        r = laughlab("input=file", f"input.path={tmp_path / 'white.wav'}", f"hydra.run.dir={out}", "~output.plots",
+                     f"detector.noise_veto={veto}", "progress=off")
+        assert r.returncode == 0, r.stderr
+        starts[veto] = (out / "events.csv").read_text().count(",start,")
+    assert starts["0.1"] == 0 and starts["1"] > 0, starts

@@ -26,8 +26,8 @@ from laughlab.detector import yamnet_model as _model
 from laughlab.detector.stream16k import (  # noqa: F401  (the names users of this module know)
     CONVERT_CHUNK, Resampler16k, Window16k, cleaned, pieces_16k, sosfilt_carry, to_16k)
 from laughlab.detector.yamnet_model import (  # noqa: F401  (the names users of this module know)
-    BANDS, FRAME, HOP, LAUGH_CLASSES, MODEL_SHA256, N_CLASSES, OTHER_HUMAN_CLASSES, RATE, RESTORE, ROWS, WINDOW,
-    ModelFileError, Yamnet, class_names, data_dir, frame_starts, frames, frames_at, laugh_indices)
+    BANDS, FRAME, HOP, LAUGH_CLASSES, MODEL_SHA256, N_CLASSES, NOISE_CLASSES, OTHER_HUMAN_CLASSES, RATE, RESTORE, ROWS,
+    WINDOW, ModelFileError, Yamnet, class_names, data_dir, frame_starts, frames, frames_at, laugh_indices)
 
 
 #: the helper thread that runs model windows off the frame thread (``detector.async_frames``), per process
@@ -233,7 +233,13 @@ class LaughterScore:
     def __init__(self, head: str | Path | None = None, use_head: bool = True):
         self.idx = laugh_indices(class_names())
         self.other_idx = laugh_indices(class_names(), OTHER_HUMAN_CLASSES)
+        self.noise_idx = laugh_indices(class_names(), NOISE_CLASSES)
         self.head = Head.load(head) if use_head else None
+
+    def noise(self, scores: np.ndarray) -> float:
+        """The largest score of YAMNet's steady-noise classes (``NOISE_CLASSES``: white and pink noise, static,
+        hiss...)."""
+        return float(class_score(scores, self.noise_idx))
 
     def other_human(self, scores: np.ndarray) -> float:
         """The largest score of YAMNet's other non-speech human sounds (``OTHER_HUMAN_CLASSES``: coughs,

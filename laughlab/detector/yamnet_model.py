@@ -32,6 +32,9 @@ LAUGH_CLASSES = ("Laughter", "Baby laughter", "Giggle", "Snicker", "Belly laugh"
 OTHER_HUMAN_CLASSES = ("Screaming", "Crying, sobbing", "Baby cry, infant cry", "Whimper", "Wail, moan", "Sigh",
                        "Groan", "Grunt", "Breathing", "Wheeze", "Snoring", "Gasp", "Pant", "Snort", "Cough",
                        "Throat clearing", "Sneeze", "Sniff", "Burping, eructation", "Hiccup")
+#: YAMNet's classes of steady noise (AudioSet ontology, "Noise" and its children that a room or a device makes): where
+#: one of them scores above ``detector.noise_veto`` and above laughter, the head's probability does not count
+NOISE_CLASSES = ("White noise", "Pink noise", "Static", "Noise", "Hiss", "Environmental noise")
 MODEL_SHA256 = "469be6a3421cbc52cf97e9f2f966cba984198e8e7af9854d68b3e3ebb1e04194"
 RESTORE = ("restore it with `git checkout laughlab/data/yamnet` in a source checkout, "
            "or reinstall laughlab (pip install --force-reinstall laughlab)")
