@@ -48,7 +48,7 @@ from laughlab.core.bases import Detector
 from laughlab.core.plugins import check_range
 from laughlab.detector.model import apply_gate, check_hysteresis, check_non_negative
 from laughlab.detector.yamnet import Ahead, LaughterScore, ModelFileError, Window16k, Yamnet, helper
-from laughlab.detector.yamnet_model import CUTS
+from laughlab.detector.yamnet_model import CUTS, NOISE_VETO
 
 
 @dataclass
@@ -155,7 +155,7 @@ class YamnetParams:
     fuse: bool = False
     fuse_file: str | None = None
     veto: str = "classes"
-    noise_veto: float = 0.1
+    noise_veto: float = NOISE_VETO
 
     def __post_init__(self) -> None:
         check_non_negative(self, ("hop_s", "hold_s", "quiet_s", "decide_s", "attack_s", "release_s", "onset_mcs",

@@ -56,7 +56,16 @@ def laughter_prob(audio: np.ndarray, sample_rate: int, hop_s: float = 0.5, model
     ends = np.round(np.minimum(times + SPEAKS_FOR_S, dur + SPEAKS_FOR_S) * sr).astype(np.int64)
     S = window_scores(audio, sr, ends, model or Yamnet(), progress=progress)
     score = score or LaughterScore()
-    return times, np.array([score(s) for s in S])
+    return times, np.array([_prob(score, s) for s in S])
+
+
+def _prob(score, s: np.ndarray) -> float:
+    """A window's laughter probability, 0 where steady noise is louder than laughter (the live gate's
+    ``noise_veto``: 3 s of white noise gave a segment, a new-user review)."""
+    from laughlab.detector.yamnet import NOISE_VETO
+
+    p, q = score.both(s)
+    return 0.0 if score.noise(s) > max(NOISE_VETO, q) else p
 
 
 def smooth(p: np.ndarray, n: int) -> np.ndarray:

@@ -35,6 +35,8 @@ OTHER_HUMAN_CLASSES = ("Screaming", "Crying, sobbing", "Baby cry, infant cry", "
 #: YAMNet's classes of steady noise (AudioSet ontology, "Noise" and its children that a room or a device makes): where
 #: one of them scores above ``detector.noise_veto`` and above laughter, the head's probability does not count
 NOISE_CLASSES = ("White noise", "Pink noise", "Static", "Noise", "Hiss", "Environmental noise")
+#: ... above this (the live gate's ``detector.noise_veto`` and ``laughlab detect``'s; chosen on the train split)
+NOISE_VETO = 0.1
 MODEL_SHA256 = "469be6a3421cbc52cf97e9f2f966cba984198e8e7af9854d68b3e3ebb1e04194"
 RESTORE = ("restore it with `git checkout laughlab/data/yamnet` in a source checkout, "
            "or reinstall laughlab (pip install --force-reinstall laughlab)")
