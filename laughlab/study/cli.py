@@ -243,6 +243,6 @@ def run_power(ns) -> None:
             part.unlink(missing_ok=True)
     print(f"laughlab: {W.verdict(rows, ns.target)} for {a} - {b} = {ns.effect:g} (alpha {ns.alpha:g}, Holm); "
           f"{out}/power.csv, power.png")
-    hint = W.advice(rows, ns.target, ns.effect)
+    hint = W.advice(rows, ns.target, ns.effect, len(design["participants"]))
     if hint:
         print(f"laughlab: {hint}")

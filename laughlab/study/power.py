@@ -64,13 +64,17 @@ def verdict(rows: list[dict], target: float) -> str:
             f"(best {best['power']:.0%} with {best['n']})")
 
 
-def advice(rows: list[dict], target: float, effect: float) -> str | None:
-    """When no size reaches ``target``: what to change (None when one does)."""
+def advice(rows: list[dict], target: float, effect: float, built_for: int | None = None) -> str | None:
+    """When no size reaches ``target``: what to change (None when one does).  ``built_for``: the participants the
+    study was built for (its design's orders); more than that needs the stimuli built again for them (a new-user
+    review: the advice named 64 participants of a study that serves 24)."""
     if any(r["power"] >= target for r in rows):
         return None
     top = max(r["n"] for r in rows)
     more = ",".join(str(k * top) for k in (2, 3, 4))
-    return (f"to reach {target:.0%}: more participants (--participants {more}), more stimuli per condition "
+    rebuild = (f"; this study has orders for {built_for} participants: more need its stimuli made again with "
+               "harness.participants=N, then study build" if built_for is not None and 2 * top > built_for else "")
+    return (f"to reach {target:.0%}: more participants (--participants {more}{rebuild}), more stimuli per condition "
             f"(more audio items: experiment=stimuli harness.corpus.seeds=N), or a larger effect than {effect:g}")
 
 
