@@ -17,6 +17,7 @@ frame, as for a file; the calibration of ``extractor=rms`` is ``calibration_s``,
 """
 from __future__ import annotations
 
+import numbers
 import queue
 import tempfile
 import threading
@@ -196,8 +197,12 @@ class Session:
         from omegaconf import OmegaConf
 
         from laughlab.core import pipeline
-        from laughlab.core.config import compose_app
+        from laughlab.core.config import check_overrides, compose_app, load_plugin_dirs
 
+        # a whole number of Hz: 44100.9 ran as 44100 without a word (a new-user review)
+        if (isinstance(sample_rate, bool) or not isinstance(sample_rate, numbers.Real) or not np.isfinite(sample_rate)
+                or sample_rate != int(sample_rate)):
+            raise LaughlabError(f"sample_rate must be a whole number of Hz (got {sample_rate!r})")
         if not 8000 <= int(sample_rate) <= 192000:
             raise LaughlabError(f"sample_rate must be 8000-192000 Hz (got {sample_rate})")
         for o in overrides:
@@ -206,6 +211,8 @@ class Session:
                 raise LaughlabError(f"{o}: a session's outputs are its outputs= argument (outputs=['files'])")
             if key == "input" or key.startswith("input."):
                 raise LaughlabError(f"{o}: a session's input is what feed() is given (sample_rate= its rate)")
+        load_plugin_dirs(list(overrides))   # then the command line's lines: 'unknown face ...; choose one of: ...'
+        check_overrides(list(overrides))
         out = list(outputs)
         cfg = compose_app([*overrides, "input=synthetic", f"input.sample_rate={int(sample_rate)}",
                            f"output={out[0] if len(out) == 1 else '[' + ','.join(out) + ']'}" if out else "output=trial",

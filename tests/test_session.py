@@ -107,6 +107,13 @@ def test_each_feed_returns_the_frames_its_samples_completed():
 def test_mistakes_are_one_line():
     with pytest.raises(LaughlabError, match=r"^sample_rate must be 8000-192000 Hz \(got 4000\)$"):
         Session([], sample_rate=4000)
+    # a new-user review: 44100.9 ran as 44100, and an unknown face was said to come from an experiment
+    for bad in (44100.9, float("nan"), "44100"):
+        with pytest.raises(LaughlabError, match=r"^sample_rate must be a whole number of Hz"):
+            Session([], sample_rate=bad)
+    assert Session([], sample_rate=np.int64(48000)).out_dir.is_dir()   # numpy's integers are whole numbers
+    with pytest.raises(LaughlabError, match=r"^unknown face 'nope'; choose one of: cgm, facs, smile$"):
+        Session(["face=nope"])
     with pytest.raises(LaughlabError, match=r"bad parameter"):
         Session(["fps=0"])
     with pytest.raises(LaughlabError, match=r"^output=vmc: a session's outputs are its outputs= argument"):
