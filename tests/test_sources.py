@@ -268,9 +268,12 @@ def test_a_file_cut_short_is_one_line_before_any_work(tmp_path):
 
     sr = 44100
     x = (0.3 * np.sin(2 * np.pi * 220 * np.arange(3 * sr) / sr)).astype(np.float32)
-    for ext, subtype in (("wav", "PCM_16"), ("wav", "FLOAT"), ("flac", "PCM_16")):
+    # WAVEX: a 24-bit WAV as sox writes it (WAVE_FORMAT_EXTENSIBLE), which the check left out (a new-user review)
+    for ext, subtype, fmt in (("wav", "PCM_16", "WAV"), ("wav", "FLOAT", "WAV"), ("wav", "PCM_24", "WAVEX"),
+                              ("flac", "PCM_16", "FLAC")):
         whole = tmp_path / f"whole_{subtype}.{ext}"
-        sf.write(whole, x, sr, subtype=subtype)
+        sf.write(whole, x, sr, subtype=subtype, format=fmt)
+        assert sf.info(str(whole)).format == fmt
         cut = tmp_path / f"cut_{subtype}.{ext}"
         cut.write_bytes(whole.read_bytes()[: whole.stat().st_size // 3])
         probe_file(whole)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, first_line, shown_names
 
-from laughlab.io.audio import AUDIO_SUFFIXES
+from laughlab.io.audio import AUDIO_SUFFIXES, WAV_FORMATS
 
 
 @dataclass(frozen=True)
@@ -76,7 +76,7 @@ def check_audio(f: Path) -> float:
         raise LaughlabError(f"cannot read audio: {reason}") from None
     if info.frames <= 0:
         raise LaughlabError("no audio samples")
-    if info.format == "WAV":   # a WAV cut short reads without error: its header says how long it should be
+    if info.format in WAV_FORMATS:   # a WAV cut short reads without error: its header says how long it should be
         from laughlab.io.audio import check_wav_length
 
         check_wav_length(f, info, "the file")

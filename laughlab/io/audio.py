@@ -89,7 +89,7 @@ def probe_file(path: str | Path):
         raise LaughlabError(f"cannot read audio from {path}: {reason}{convert_hint([p])}") from None
     if info.frames <= 0:
         raise LaughlabError(f"input file has no audio samples: {path}")
-    if info.format == "WAV":
+    if info.format in WAV_FORMATS:   # WAVEX too: sox writes 24-bit and multichannel WAV so (a review: missed)
         check_wav_length(p, info, path)
     if not MIN_RATE <= info.samplerate <= MAX_RATE:
         raise LaughlabError(f"sample rate {info.samplerate} Hz of {path} is outside {MIN_RATE}-{MAX_RATE} Hz")
@@ -109,6 +109,10 @@ def _any_finite(p: Path, block: int = 65536) -> bool:
         if np.isfinite(b).any():
             return True
     return False
+
+
+#: libsndfile's names of RIFF WAVE files, whose header says how long their audio is (:func:`check_wav_length`)
+WAV_FORMATS = ("WAV", "WAVEX")
 
 
 def check_wav_length(p: Path, info, shown) -> None:
