@@ -33,6 +33,8 @@ def test_every_shipped_experiment_passes(experiment):
     ("harness.corpus.seeds=[-1]", "corpus.seeds"),   # a review: it passed, and failed after the run folder was made
     ("harness.corpus.seeds=[0,-1]", "corpus.seeds"),
     ("harness.run_seeds=[-2]", "run_seeds"),
+    ("harness.corpus.seeds=[1,1]", "corpus.seeds"),   # a new-user review: a trial run twice into one folder
+    ("harness.run_seeds=[0,0]", "run_seeds"),
     ("harness.corpus.real.seed=-1", "corpus.real.seed"),   # a diff review: numpy refused it in the first trial
     ("harness.corpus.duration_s=0", "corpus.duration_s"),
     ("harness.corpus.duration_s=inf", "corpus.duration_s"),

@@ -46,6 +46,12 @@ def _list_of(test):
     return lambda v: isinstance(v, list) and all(test(x) for x in v)
 
 
+def _seeds(v) -> bool:
+    """A list of seeds, each once: a seed twice ran its trials twice into one folder (a new-user review: the
+    second stopped on the first's files, or with one job both counted in the means as two trials)."""
+    return _list_of(_seed)(v) and len(set(v)) == len(v)
+
+
 def _seed(v) -> bool:
     """A seed: a whole number >= 0 (a review: a negative one passed this check and failed in the first trial)."""
     return _is_int(v) and v >= 0
@@ -57,7 +63,7 @@ def _seconds(v) -> bool:
 
 #: (key, test, what it takes) of ``harness.corpus`` and of ``harness.corpus.real``
 CORPUS = (("profiles", _list_of(lambda p: isinstance(p, str)), "a list of synthetic profiles, e.g. [mild, intense]"),
-          ("seeds", lambda v: _seed(v) or _list_of(_seed)(v), "a number of seeds or a list of seeds, each >= 0"),
+          ("seeds", lambda v: _seed(v) or _seeds(v), "a number of seeds or a list of different seeds, each >= 0"),
           ("duration_s", _seconds, "a finite duration in seconds, above 0"),
           ("folder", _str_or_none, "a folder of recordings or null"),
           ("on_bad", lambda v: v in ("stop", "skip"), "stop or skip"))
@@ -101,7 +107,7 @@ def check_harness(h: dict, added=None) -> None:
     _check(h, "conditions", lambda c: c is None or (isinstance(c, dict) and all(
         v is None or _list_of(lambda o: isinstance(o, str))(v) for v in c.values())),
         "a mapping of condition name to a list of overrides, e.g. {energy: [scheduler=energy]}")
-    _check(h, "run_seeds", _list_of(_seed), "a list of whole numbers >= 0, e.g. [0, 1]")
+    _check(h, "run_seeds", _seeds, "a list of different whole numbers >= 0, e.g. [0, 1]")
     _check(h, "showcase", _str_or_none, "an input's id (e.g. mixed-s00) or null")
     _check(h, "jobs", lambda v: _is_int(v) and v >= 1, "a whole number of parallel trial processes, at least 1")
     for flag in ("keep_trials", "plots"):
