@@ -182,6 +182,11 @@ def bad_files(tmp_path_factory):
     # a mistyped top-level key: the nearest one (a review: 'unknown parameter sed')
     (["sed=3"], "unknown parameter sed; did you mean seed?"),
     (["facee=facs"], "unknown parameter facee; did you mean face?"),
+    (["bogus=1"], "unknown parameter bogus; the settings are seed, fps, progress, overwrite, plugins_dir, character and "
+                  "the groups input, extractor, face, body, scheduler, output, detector (python -m laughlab --help)"),
+    # a sink's name given to output= (a new-user review: "'bvh' is registered as a sink" said not what to write)
+    (["output=bvh"], "unknown output 'bvh'; choose one of: files, gltf, trial, video, viewer, vmc, vrma ('bvh' is a sink, "
+                     "written by output=files (also gltf, video, vrma))"),
 ])
 def test_bad_input_one_line_no_output(bad_files, args, message):
     out = bad_files / "run"
@@ -499,6 +504,8 @@ def test_a_silent_file_says_so_in_the_closing_line(tmp_path, gain, said):
      "in 0.8 s (38x real time; frame loop 80x)"),
     (["output=video"], 21.7, {"duration_s": 2.0, "realtime_factor": 0.1, "video_frames": 60,
                               "video_render_fps": 9.17}, "in 21.7 s (0.092x real time; video: 60 frames rendered at 9.2 frames/s)"),
+    (["output=video"], 3.1, {"duration_s": 0.005, "realtime_factor": 0.01, "video_frames": 1,
+                             "video_render_fps": 1.9}, "video: 1 frame rendered at 1.9 frames/s)"),   # not "1 frames"
     ([], 1925.0, {"duration_s": 1800.0, "realtime_factor": 716.0}, "in 32 min 05 s (0.94x real time; frame loop 716x)"),
     # the fused head says so (a review: its line read as plain yamnet's)
     (["detector=yamnet_fused"], 3.4, {"duration_s": 30.0, "realtime_factor": 219.4},

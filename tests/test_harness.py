@@ -806,7 +806,7 @@ def test_a_corpus_folders_truth_csv_is_checked_before_any_trial(tmp_path, text, 
 
     sf.write(tmp_path / "tank.wav", np.zeros(48000), 16000)
     (tmp_path / "tank.truth.csv").write_text(text)
-    with pytest.raises(LaughlabError, match="^corpus folder .*1 of 1 files are bad") as err:
+    with pytest.raises(LaughlabError, match="^corpus folder .*1 of 1 file is bad") as err:
         folder_items(tmp_path)
     assert message in str(err.value)
     (tmp_path / "tank.truth.csv").write_text("kind,bout,onset_s,offset_s,intensity\nbout,0,0.5,2,1\ncall,0,0.5,0.7,1\n"

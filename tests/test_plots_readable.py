@@ -410,6 +410,9 @@ def test_the_detector_pr_figure_tells_its_curves_apart_without_colour(tmp_path, 
     assert set(out["scores"]) == set(SCORES)
     fig.savefig(tmp_path / "detector_pr.png")
     assert_readable(saved)
+    # the sets it was measured on, as given (a new-user review: "real, mixed and between" of a run of mixed alone)
+    assert "(sets real, mixed and between)" in out["what"]
+    assert "(sets mixed)" in pr_figure({"yamnet (head)": y * 1.0}, y, sets=["mixed"])[1]["what"]
 
 
 @pytest.mark.parametrize("names", [["yamnet", "yamnet_fused", "laugh", "none"],

@@ -145,6 +145,9 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
             near = _nearest_top_level(key)
             if near:
                 return f"unknown parameter {key}; did you mean {near}?"
+            # none near: the settings there are, and the groups (a review: 'unknown parameter bogus' said no more)
+            valid = (f"; the settings are {', '.join(k for k in _top_level_keys() if k not in (*GROUP_KINDS, 'hydra'))} and the "
+                     f"groups {', '.join(GROUP_KINDS)} (python -m laughlab --help)")
         return f"unknown parameter {key}{valid}"
     m = re.search(r"Could not append to config\. An item is already at '([^']+)'", text)
     if m:   # +output.plots.width=column: Hydra's line spoke of appending (the top-level keys: check_overrides)

@@ -89,7 +89,7 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
     parts = [f"{factor_text(dur / seconds)}x real time" if seconds > 0 else "instant"]
     if metrics.get("video_frames"):
         rate = metrics.get("video_render_fps")
-        parts.append(f"video: {int(metrics['video_frames'])} frames rendered at {float(rate):.1f} frames/s"
+        parts.append(f"video: {counted(int(metrics['video_frames']), 'frame')} rendered at {float(rate):.1f} frames/s"
                      if rate is not None and rate == rate else f"video: {int(metrics['video_frames'])} frames")
     elif metrics.get("realtime_factor"):
         parts.append(f"frame loop {factor_text(float(metrics['realtime_factor']))}x")

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, first_line, shown_names
+from laughlab.core.summary import counted
 
 from laughlab.io.audio import AUDIO_SUFFIXES, WAV_FORMATS
 
@@ -180,7 +181,8 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
         items.append(Item(f"rec-{f.stem}", ("input=file", f"input.path={f.resolve()}"), "recording", None, truth))
     if bad and on_bad == "stop":
         listed = "; ".join(f"{b['file']}: {b['reason']}" for b in bad)
-        raise LaughlabError(f"corpus folder {folder}: {len(bad)} of {len(files)} files are bad ({listed}); fix or "
+        raise LaughlabError(f"corpus folder {folder}: {len(bad)} of {counted(len(files), 'file')} "
+                            f"{'is' if len(bad) == 1 else 'are'} bad ({listed}); fix or "
                             "remove them, or set harness.corpus.on_bad=skip to run the rest")
     if skipped is not None:
         skipped.extend(bad)
