@@ -793,3 +793,19 @@ def test_a_float_file_with_nan_and_samples_over_full_scale_is_said_in_the_summar
     r = laughlab("input=file", f"input.path={tmp_path / 'fine.wav'}", f"hydra.run.dir={tmp_path / 'run2'}",
                  "~output.plots", "detector=none")
     assert r.stdout.startswith("laughlab: 0.12 s of fine.wav, "), r.stdout
+
+
+def test_report_on_a_hill_fit_run_says_it_has_figures_of_its_own(tmp_path):
+    """A new-user review: ``report runs/hill`` of an ``experiment=hill_fit`` run said "run an experiment first";
+    that experiment writes hill_fit.json and plots/, not results.json (the folder as the experiment leaves it)."""
+    run = tmp_path / "hill"
+    (run / ".hydra").mkdir(parents=True)
+    (run / ".hydra" / "overrides.yaml").write_text("- experiment=hill_fit\n- harness.compare.calls=1\n")
+    (run / "plots").mkdir()
+    for name in ("hill_fit.json", "metrics.json", "motion.bvh"):
+        (run / name).write_text("{}\n")
+    r = laughlab("report", run)
+    assert r.returncode == 2 and r.stderr == (f"laughlab: error: {run} is an experiment=hill_fit run: it writes its own "
+                                              "figures and numbers (hill_fit.json, metrics.json, plots/), not the "
+                                              "results.json of compared conditions that report reads\n"), r.stderr
+    assert not (run / "report").exists()

@@ -276,6 +276,23 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
     return out / "README.md"
 
 
+def _own_outputs_experiment(root: Path) -> str | None:
+    """The experiment a run folder was made by (its ``.hydra/overrides.yaml``), when it is not one that writes
+    ``results.json`` (``hill_fit``, ``fourier_blend``: their modules replace the trial harness); else None."""
+    import yaml
+
+    try:
+        given = yaml.safe_load((root / ".hydra" / "overrides.yaml").read_text()) or []
+    except (OSError, yaml.YAMLError):
+        return None
+    name = next((str(o).split("=", 1)[1] for o in given if str(o).startswith("experiment=")), None)
+    return name if name in OWN_OUTPUTS else None
+
+
+#: experiments whose module writes its own figures and numbers instead of the trial harness' results.json
+OWN_OUTPUTS = ("hill_fit", "fourier_blend")
+
+
 def write_report(run_dir: str | Path, out: str | Path | None = None, command: str = "", overwrite: bool = False,
                  metrics: list[str] | None = None, width: str = "page", panels: list[str] | None = None) -> Path:
     """Write the report of an experiment run or a sweep; return the README path.
@@ -309,6 +326,11 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
             build = f"python -m laughlab study build {shlex.quote(str(run_dir))}"
             raise LaughlabError(f"{run_dir} holds stimuli for a perception study, not results: {build}, then study "
                                 "serve and study analyze (docs/study.md)")
+        own = _own_outputs_experiment(root)
+        if own:   # an experiment that writes its own figures and numbers (a new-user review: "run an experiment first")
+            held = sorted(p.name + "/" * p.is_dir() for p in root.iterdir() if p.name == "plots" or p.suffix == ".json")
+            raise LaughlabError(f"{run_dir} is an experiment={own} run: it writes its own figures and numbers "
+                                f"({', '.join(held)}), not the results.json of compared conditions that report reads")
         runs = sorted(m.parent for m in root.rglob("metrics.json"))   # a single run's folder, or a sweep of runs
         raise LaughlabError(f"{run_dir} holds no results.json (run an experiment first)" + (
             f"; report is for experiments: to watch {'this run' if runs[0] == root else 'a run'}, python -m "
