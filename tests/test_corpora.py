@@ -461,5 +461,6 @@ def test_the_two_tier_readers_label_alike(tmp_path, ext):
 
     a = A.read(write("x"), 2.0)
     assert a.bouts == [(0.2, 1.0)] and a.calls == [(0.25, 0.4)]
-    with pytest.raises(LaughlabError, match=r"calls #1: unknown label 'laughter'"):
+    # numbered as each tool numbers it: Praat counts the empty interval before it, ELAN has none (a new-user review)
+    with pytest.raises(LaughlabError, match=rf"calls #{2 if ext == 'TextGrid' else 1}: unknown label 'laughter'"):
         A.read(write("laughter"), 2.0)

@@ -95,14 +95,15 @@ def read_audacity(path: str | Path, duration_s: float | None = None) -> Annotati
 def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) -> Annotation:
     """Read tiers ``bouts`` and ``calls`` of a Praat TextGrid (praatio); other tiers are ignored.
 
-    A bad interval is named by its tier and number (``bouts #2``) in place of a line.
+    A bad interval is named by its tier and number as Praat numbers it (``bouts #2``, empty intervals counted) in
+    place of a line.
     """
     from praatio import textgrid
 
     try:
         with open(path, "rb") as fh:
             head = fh.read(12)
-        tg = None if head == b"ooBinaryFile" else textgrid.openTextgrid(str(path), includeEmptyIntervals=False)
+        tg = None if head == b"ooBinaryFile" else textgrid.openTextgrid(str(path), includeEmptyIntervals=True)
     except FileNotFoundError:
         raise LaughlabError(f"annotation not found: {path}") from None
     except Exception as exc:  # praatio raises many kinds on a malformed file
@@ -113,8 +114,10 @@ def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) 
     if bouts is None:   # a tier 'laughter' alone: what `laughlab detect` writes, corrected in Praat
         raise LaughlabError(f"bad TextGrid {path}: it has no tier 'bouts' (nor 'laughter', as laughlab detect "
                             f"writes) (tiers: {', '.join(tg.tierNames)})")
+    # intervals numbered as Praat numbers them, the empty ones counted (a review: the 2nd was called #1), and the
+    # empty ones (no text, or blanks) not labels
     labels = [_tier_label(tier, i, a, b, t) for tier in (bouts, "calls") if tier in tg.tierNames
-              for i, (a, b, t) in enumerate(tg.getTier(tier).entries, 1)]
+              for i, (a, b, t) in enumerate(tg.getTier(tier).entries, 1) if t.strip()]
     return check(Annotation(str(path), labels), duration_s)
 
 
