@@ -90,7 +90,7 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
     if metrics.get("video_frames"):
         rate = metrics.get("video_render_fps")
         parts.append(f"video: {counted(int(metrics['video_frames']), 'frame')} rendered at {float(rate):.1f} frames/s"
-                     if rate is not None and rate == rate else f"video: {int(metrics['video_frames'])} frames")
+                     if rate is not None and rate == rate else f"video: {counted(int(metrics['video_frames']), 'frame')}")
     elif metrics.get("realtime_factor"):
         parts.append(f"frame loop {factor_text(float(metrics['realtime_factor']))}x")
     return "; ".join(parts)

@@ -12,7 +12,6 @@ from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, first_line, shown_names
 from laughlab.core.summary import counted
-
 from laughlab.io.audio import AUDIO_SUFFIXES, WAV_FORMATS
 
 

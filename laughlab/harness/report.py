@@ -285,6 +285,8 @@ def _own_outputs_experiment(root: Path) -> str | None:
         given = yaml.safe_load((root / ".hydra" / "overrides.yaml").read_text()) or []
     except (OSError, yaml.YAMLError):
         return None
+    if not isinstance(given, list):   # not Hydra's list of overrides
+        return None
     name = next((str(o).split("=", 1)[1] for o in given if str(o).startswith("experiment=")), None)
     return name if name in OWN_OUTPUTS else None
 
