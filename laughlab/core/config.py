@@ -36,6 +36,20 @@ def conf_dir():
     return files(CONFIG_MODULE)
 
 
+
+def outputs_writing(sink: str) -> str:
+    """The ``output=`` options whose YAML names sink ``sink``: ``output=files (also gltf, video, vrma)`` (its own
+    option first, then the default), or ``+output.NAME={}`` when none does."""
+    options = []
+    for f in sorted(conf_dir().joinpath("output").iterdir(), key=lambda f: f.name):
+        if f.name.endswith(".yaml") and f.name != "trial.yaml" and re.search(rf"^{re.escape(sink)}:", f.read_text(),
+                                                                             re.M):   # trial: the harness' own
+            options.append(f.name[:-5])
+    options.sort(key=lambda o: (o != sink, o != "files", o))
+    if not options:
+        return f"+output.{sink}={{}}"
+    return f"output={options[0]}" + (f" (also {', '.join(options[1:])})" if options[1:] else "")
+
 def group_options(group: str) -> list[str]:
     """Names selectable in a config group: YAML files plus registered plugins."""
     names = {p.name[:-5] for p in conf_dir().joinpath(group).iterdir() if p.name.endswith(".yaml")} \
@@ -451,5 +465,8 @@ def check_overrides(overrides: list[str]) -> None:
             if choice not in options:
                 own = (f" (an experiment of your own: plugins_dir=DIR with DIR/experiment/{choice}.yaml)"
                        if group == "experiment" else "")
+                # a sink's name (output=bvh): the outputs that write it (a review: "registered as a sink" said no more)
+                hint = (f" ({choice!r} is a sink, written by {outputs_writing(choice)})"
+                        if choice in plugins.registry()["sink"] else plugins.other_kind_hint(choice))
                 raise LaughlabError(f"unknown {group} {choice!r}; choose one of: {', '.join(options) or '(none)'}"
-                                    f"{plugins.other_kind_hint(choice)}{own}")
+                                    f"{hint}{own}")

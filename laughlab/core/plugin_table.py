@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import re
 
-from laughlab.core.config import GROUP_KINDS, conf_dir
+from laughlab.core.config import GROUP_KINDS, conf_dir, outputs_writing
 
 
 def list_plugins() -> None:
@@ -36,12 +36,4 @@ def chosen_by(kind: str, name: str) -> str:
                          if f.name.endswith(".yaml") and f.name[:-5] != name
                          and re.search(rf"^(name: *{re.escape(name)}|  - {re.escape(name)}) *$", f.read_text(), re.M))
         return f"{group}={name}" + (f" (also {', '.join(f'{group}={p}' for p in presets)})" if presets else "")
-    options = []
-    for f in sorted(conf_dir().joinpath("output").iterdir(), key=lambda f: f.name):
-        if f.name.endswith(".yaml") and f.name != "trial.yaml" and re.search(rf"^{re.escape(name)}:", f.read_text(),
-                                                                             re.M):   # trial: the harness' own
-            options.append(f.name[:-5])
-    options.sort(key=lambda o: (o != name, o != "files", o))  # its own option, then the default
-    if not options:
-        return f"+output.{name}={{}}"
-    return f"output={options[0]}" + (f" (also {', '.join(options[1:])})" if options[1:] else "")
+    return outputs_writing(name)

@@ -253,13 +253,7 @@ def other_kind_hint(name: str) -> str:
     review: a face registered through register_bodies was only an unknown face); else empty."""
     reg = registry()
     other = [k for k, found in reg.items() if name in found]
-    if not other:
-        return ""
-    if other[0] == "sink":   # output= names outputs, each a set of sinks: say which writes it (a review: output=bvh)
-        from laughlab.core.plugin_table import chosen_by
-
-        return f" ({name!r} is a sink, written by {chosen_by('sink', name)})"
-    return f" ({name!r} is registered as a {other[0]}, {reg[other[0]][name].origin})"
+    return f" ({name!r} is registered as a {other[0]}, {reg[other[0]][name].origin})" if other else ""
 
 
 def get(kind: str, name: str) -> PluginInfo:

@@ -329,13 +329,8 @@ def rule_sweep(n_scenes: int = N_SCENES, seed: int = SEED, hop_s: float = 0.25) 
         found, false = _found_false(train, opened)
         out.append({"name": name, **kw, "bouts_found": found, "false_per_10min": false,
                     "first_open_s": _first_open(train, opened), "synthetic_found": _found_false(synth, opened)[0],
-                    "noise_openings": sum(_openings(opened(sc)) for sc in noise)})
+                    "noise_openings": sum(int(o[:1].sum() + np.sum(o[1:] & ~o[:-1])) for o in map(opened, noise))})
     return out
-
-
-def _openings(opened: np.ndarray) -> int:
-    """The times the gate opens: its closed-to-open steps (open from the first window counts)."""
-    return int(opened[:1].sum() + np.sum(opened[1:] & ~opened[:-1]))
 
 
 #: the noise vetoes ``--rules`` tries (``detector.noise_veto``; 1: none)
@@ -343,9 +338,8 @@ NOISE_VETOES = (1.0, 0.5, 0.3, 0.2, 0.1, 0.05)
 
 
 def steady_noise(seed: int = SEED, duration_s: float = 30.0, rate: int = 44100):
-    """Steady noise the train scenes do not have (their bed is pink noise): white noise at -11 dBFS RMS (as sox's
-    ``synth whitenoise``, 0.27), ``(audio, sample rate)``.  The head, fitted on voices over pink noise, took it for
-    laughter (2026-11-28: 12 clip starts in 30 s, as many as without a detector)."""
+    """``(audio, rate)``: white noise at 0.27 RMS (as sox's ``synth whitenoise``), which the train scenes (a pink
+    noise bed) do not have and the head took for laughter (2026-11-28: 12 clip starts in 30 s, as many as none)."""
     rng = np.random.default_rng([seed, 9000])
     yield (0.27 * rng.standard_normal(int(duration_s * rate))).clip(-1.0, 1.0).astype(np.float32), rate
 
