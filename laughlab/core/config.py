@@ -36,7 +36,6 @@ def conf_dir():
     return files(CONFIG_MODULE)
 
 
-
 def outputs_writing(sink: str) -> str:
     """The ``output=`` options whose YAML names sink ``sink``: ``output=files (also gltf, video, vrma)`` (its own
     option first, then the default), or ``+output.NAME={}`` when none does."""
@@ -49,6 +48,7 @@ def outputs_writing(sink: str) -> str:
     if not options:
         return f"+output.{sink}={{}}"
     return f"output={options[0]}" + (f" (also {', '.join(options[1:])})" if options[1:] else "")
+
 
 def group_options(group: str) -> list[str]:
     """Names selectable in a config group: YAML files plus registered plugins."""
