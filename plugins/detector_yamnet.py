@@ -48,7 +48,7 @@ from laughlab.core.bases import Detector
 from laughlab.core.plugins import check_range
 from laughlab.detector.model import apply_gate, check_hysteresis, check_non_negative
 from laughlab.detector.yamnet import Ahead, LaughterScore, ModelFileError, Window16k, Yamnet, helper
-from laughlab.detector.yamnet_model import CUTS, NOISE_VETO
+from laughlab.detector.yamnet_model import CUTS, NOISE_VETO, noise_vetoes
 
 
 @dataclass
@@ -328,7 +328,7 @@ class YamnetDetector(Detector):
             self.p = float(self.fusion.prob(inputs(self.q, self.p, cues[1], cues[0]))[0])
         self.vetoed = p.veto != "none" and self.score.other_human(scores) > self.q
         # steady noise louder than laughter: the head's probability does not count (noise_veto)
-        self.noise = self.score.noise(scores) > max(p.noise_veto, self.q)
+        self.noise = noise_vetoes(self.score.noise(scores), self.q, p.noise_veto)
         self.run = self.run + 1 if self.p >= p.open_at and not self._head_vetoed() else 0
         self.qrun = self.qrun + 1 if self.q >= p.class_open and not self.vetoed else 0
         if (self.pending is not None and t_end - self.pending >= p.decide_s - 1e-9

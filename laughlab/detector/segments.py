@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from laughlab.core.errors import LaughlabError
+from laughlab.detector.yamnet_model import noise_vetoes
 
 #: the time a window's probability speaks for, before the window's end (s)
 SPEAKS_FOR_S = 0.25
@@ -62,10 +63,8 @@ def laughter_prob(audio: np.ndarray, sample_rate: int, hop_s: float = 0.5, model
 def _prob(score, s: np.ndarray) -> float:
     """A window's laughter probability, 0 where steady noise is louder than laughter (the live gate's
     ``noise_veto``: 3 s of white noise gave a segment, a new-user review)."""
-    from laughlab.detector.yamnet import NOISE_VETO
-
     p, q = score.both(s)
-    return 0.0 if score.noise(s) > max(NOISE_VETO, q) else p
+    return 0.0 if noise_vetoes(score.noise(s), q) else p
 
 
 def smooth(p: np.ndarray, n: int) -> np.ndarray:

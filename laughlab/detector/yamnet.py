@@ -27,7 +27,8 @@ from laughlab.detector.stream16k import (  # noqa: F401  (the names users of thi
     CONVERT_CHUNK, Resampler16k, Window16k, cleaned, pieces_16k, sosfilt_carry, to_16k)
 from laughlab.detector.yamnet_model import (  # noqa: F401  (the names users of this module know)
     BANDS, FRAME, HOP, LAUGH_CLASSES, MODEL_SHA256, N_CLASSES, NOISE_CLASSES, NOISE_VETO, OTHER_HUMAN_CLASSES, RATE,
-    RESTORE, ROWS, WINDOW, ModelFileError, Yamnet, class_names, data_dir, frame_starts, frames, frames_at, laugh_indices)
+    RESTORE, ROWS, WINDOW, ModelFileError, Yamnet, class_names, data_dir, frame_starts, frames, frames_at, laugh_indices,
+    noise_vetoes)
 
 
 #: the helper thread that runs model windows off the frame thread (``detector.async_frames``), per process

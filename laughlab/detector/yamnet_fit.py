@@ -29,7 +29,7 @@ import sys
 import numpy as np
 
 from laughlab.core.errors import LaughlabError
-from laughlab.detector.yamnet import N_CLASSES, WINDOW, Head, Yamnet, data_dir, window_scores
+from laughlab.detector.yamnet import N_CLASSES, WINDOW, Head, Yamnet, data_dir, noise_vetoes, window_scores
 
 SEED = 20261125
 N_SCENES = 48
@@ -242,7 +242,7 @@ def gate_windows(p: np.ndarray, q: np.ndarray, rule: str, open_at: float = 0.5, 
     is_open, run, qrun = False, 0, 0
     for i in range(len(p)):
         vetoed = other is not None and veto != "none" and other[i] > q[i]
-        head_vetoed = (vetoed and veto == "both") or (noise is not None and noise[i] > max(noise_veto, q[i]))
+        head_vetoed = (vetoed and veto == "both") or (noise is not None and noise_vetoes(noise[i], q[i], noise_veto))
         run = run + 1 if p[i] >= open_at and not head_vetoed else 0
         qrun = qrun + 1 if q[i] >= class_open and not vetoed else 0
         if (head and run >= open_windows) or (classes and qrun >= class_windows):

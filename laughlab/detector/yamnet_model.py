@@ -42,6 +42,12 @@ RESTORE = ("restore it with `git checkout laughlab/data/yamnet` in a source chec
            "or reinstall laughlab (pip install --force-reinstall laughlab)")
 
 
+def noise_vetoes(noise: float, laughter: float, at: float = NOISE_VETO) -> bool:
+    """Does a window's steady-noise score (:data:`NOISE_CLASSES`) veto the head: above ``at`` and above the laughter
+    classes' score?  One rule for the live gate, ``laughlab detect`` and ``yamnet_fit --rules``."""
+    return noise > max(at, laughter)
+
+
 class ModelFileError(ValueError):
     """The model file is missing or not the bundled YAMNet: the message names the file and the fix."""
 

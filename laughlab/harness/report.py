@@ -173,12 +173,10 @@ def _run_command(run_dir: Path, doc: dict) -> list[str]:
     the corpus it needs first (a review: the reports named only their report step)."""
     import shlex
 
-    import yaml
-
-    path = run_dir / ".hydra" / "overrides.yaml"
-    if not path.exists():
+    given = _overrides_of(run_dir)
+    if given is None:
         return []
-    task = [str(o) for o in (yaml.safe_load(path.read_text()) or [])] + [f"hydra.run.dir={run_dir}"]
+    task = given + [f"hydra.run.dir={run_dir}"]
     real = (((doc.get("config") or {}).get("harness") or {}).get("corpus") or {}).get("real") or {}
     first = " (after `python -m laughlab corpus fetch`: the real corpus)" if real.get("sets") else ""
     return [f"- the run{first}: `python -m laughlab {' '.join(shlex.quote(o) for o in task)}`"]
@@ -276,18 +274,21 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
     return out / "README.md"
 
 
-def _own_outputs_experiment(root: Path) -> str | None:
-    """The experiment a run folder was made by (its ``.hydra/overrides.yaml``), when it is not one that writes
-    ``results.json`` (``hill_fit``, ``fourier_blend``: their modules replace the trial harness); else None."""
+def _overrides_of(run_dir: Path) -> list[str] | None:
+    """A run folder's command-line overrides, from Hydra's ``.hydra/overrides.yaml``; None without a readable list."""
     import yaml
 
     try:
-        given = yaml.safe_load((root / ".hydra" / "overrides.yaml").read_text()) or []
+        given = yaml.safe_load((run_dir / ".hydra" / "overrides.yaml").read_text()) or []
     except (OSError, yaml.YAMLError):
         return None
-    if not isinstance(given, list):   # not Hydra's list of overrides
-        return None
-    name = next((str(o).split("=", 1)[1] for o in given if str(o).startswith("experiment=")), None)
+    return [str(o) for o in given] if isinstance(given, list) else None   # not Hydra's list: none
+
+
+def _own_outputs_experiment(root: Path) -> str | None:
+    """The experiment a run folder was made by (its ``.hydra/overrides.yaml``), when it is not one that writes
+    ``results.json`` (``hill_fit``, ``fourier_blend``: their modules replace the trial harness); else None."""
+    name = next((o.split("=", 1)[1] for o in _overrides_of(root) or [] if o.startswith("experiment=")), None)
     return name if name in OWN_OUTPUTS else None
 
 

@@ -184,13 +184,11 @@ def annealing(problem: CallProblem, u0, fit: FitParams) -> tuple[np.ndarray, flo
     where Nelder-Mead, CMA-ES and PDS took 100-109, and Fig. 7 compared unequal budgets (a new-user review)."""
     from scipy.optimize import dual_annealing
 
-    best = [np.clip(u0, 0, 1), math.inf]
-    count = [0]
+    best, spent = [np.clip(u0, 0, 1), math.inf], problem.evals + fit.max_evals   # the problem counts evaluations
 
     def error(u):
-        if count[0] >= fit.max_evals:
+        if problem.evals >= spent:
             raise _Spent
-        count[0] += 1
         f = problem.error(u)
         if f < best[1]:
             best[0], best[1] = np.clip(np.asarray(u, float), 0, 1), float(f)
