@@ -447,7 +447,16 @@ def test_an_out_folder_inside_the_input_folder_is_not_read_back(tmp_path):
     r = laughlab("detect", str(rec / "labels"), "--out", str(rec / "labels"), "--overwrite")
     assert r.returncode == 2 and r.stderr.strip() == (
         f"laughlab: error: no audio files in folder {rec / 'labels'} other than the 1 laugh clip(s) an earlier "
-        "detect wrote into --out")
+        "detect wrote (its --out)")
+    # a second run into another --out inside the folder (a researcher's review: labB read labA's clips, 9 files
+    # for 4): an earlier detect's --out anywhere below is left out, its clips and its segments.csv alike
+    r = laughlab("detect", str(rec), "--out", str(rec / "labB"), "--formats", "csv,audio", "--threshold", "0")
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("laughlab: 1 file(s), 3.0 s of audio, 1 laughter segment(s)")
+    assert sorted(p.name for p in (rec / "labB").iterdir() if p.name[0] != ".") == ["a_laugh_0.wav", "segments.csv"]
+    # a clip given by name is read: only a folder's search leaves them out
+    r = laughlab("detect", str(rec / "labels" / "a_laugh_0.wav"), "--out", str(tmp_path / "clip"))
+    assert r.returncode == 0 and r.stdout.startswith("laughlab: 1 file(s)"), r.stderr
 
 
 def test_a_detect_stopped_while_writing_its_clips_leaves_nothing_of_its_own(tmp_path, monkeypatch):

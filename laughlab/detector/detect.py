@@ -42,15 +42,15 @@ def inputs(paths: list[str], ours: frozenset = frozenset()) -> list[tuple[Path, 
     for p in paths:
         q = Path(p).expanduser()
         if q.is_dir():
-            files = _folder_files(q)
+            files, theirs = _folder_files(q)
             audio = [f for f in files if f.suffix.lower() in AUDIO_SUFFIXES]
-            found = [f for f in audio if f.resolve() not in ours]
+            found = [f for f in audio if f.resolve() not in ours | theirs]
             media = [f for f in files if f.suffix.lower() in OTHER_MEDIA]
             other.update((f.resolve(), f) for f in media)
             if not found:
                 raise LaughlabError(f"no audio files in folder {p}" + (f" that laughlab reads: {_unread(media)}"
                                                                         if media else "")
-                                    + (f" other than the {len(audio)} laugh clip(s) an earlier detect wrote into --out"
+                                    + (f" other than the {len(audio)} laugh clip(s) an earlier detect wrote (its --out)"
                                        if audio else ""))
             named = [(f, f.relative_to(q).with_suffix("").as_posix()) for f in found]
         elif q.exists():
@@ -78,12 +78,14 @@ def inputs(paths: list[str], ours: frozenset = frozenset()) -> list[tuple[Path, 
     return out
 
 
-def _folder_files(folder: Path) -> list[Path]:
+def _folder_files(folder: Path) -> tuple[list[Path], frozenset]:
     """The files below ``folder``, sorted, through linked folders too (each real folder once: a link to a parent is
     no loop), and not its hidden files and folders: macOS's "._take1.wav" beside each recording copied to a USB
     drive is not audio and stopped the batch; .Trashes, .git hold no takes (the detect review, as was a linked
-    session folder left out without a word: rglob does not follow links)."""
-    out, real = [], {os.path.realpath(folder)}
+    session folder left out without a word: rglob does not follow links).  With them, the resolved paths of the
+    files an earlier ``detect`` wrote into any folder below (its manifest): laugh clips of an ``--out`` inside
+    the folder are not recordings (a review: a second ``detect rec --out rec/labB`` read ``rec/labA``'s clips)."""
+    out, real, theirs = [], {os.path.realpath(folder)}, set()
 
     def unreadable(exc: OSError):   # os.walk skips a folder it cannot list, and its recordings went unsaid
         from laughlab.core.errors import os_error_line
@@ -99,7 +101,9 @@ def _folder_files(folder: Path) -> list[Path]:
                 keep.append(sub)
         dirs[:] = keep
         out += [Path(d, n) for n in names if not n.startswith(".") and os.path.isfile(os.path.join(d, n))]
-    return sorted(out)
+        if MANIFEST in names:
+            theirs |= written_before(Path(d))
+    return sorted(out), frozenset(theirs)
 
 
 def _unread(files: list[Path]) -> str:
