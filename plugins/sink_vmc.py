@@ -147,7 +147,7 @@ class VmcSink(Sink):
         self._names: dict[str, str] = {}
         self._sent: dict[str, None] = {}   # the blendshape names sent, in order (the rest frame zeroes them)
         self._t = 0.0                       # the time of the last frame sent (s)
-        self._stopped = False
+        self._stopped = self._rested = False
         self._summary: dict | None = None
 
     def _blend_name(self, name: str) -> str:
@@ -194,6 +194,7 @@ class VmcSink(Sink):
         try:
             if self.params.rest_on_stop and self.n and self.sender.failed is None:
                 self._send_rest()
+                self._rested = True
         finally:
             self.sender.close()
 
@@ -235,7 +236,9 @@ class VmcSink(Sink):
                 ("live" if self.live else "not paced: as fast as computed")
             dropped = f", {self.sender.dropped} datagrams dropped" if self.sender.dropped else ""
             try:
-                print(f"vmc: {self.n} frame{'' if self.n == 1 else 's'} to {self.params.host}:{self.params.port} ({how}{dropped}); latency "
+                # the rest frame counted apart: a receiver counts one message more than the frames (a review)
+                rest = " and a rest frame" if self._rested else ""
+                print(f"vmc: {self.n} frame{'' if self.n == 1 else 's'}{rest} to {self.params.host}:{self.params.port} ({how}{dropped}); latency "
                       f"audio block -> OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max "
                       f"{s['max']:.2f} ms", file=sys.stdout, flush=True)
             except BrokenPipeError:   # stdout closed (| head): no fault of the session, which is kept (review-live-2 7)

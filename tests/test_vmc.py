@@ -449,6 +449,27 @@ def test_rest_on_stop_false_sends_the_frames_only(tmp_path):
     assert len(rx.frames()) == 15
 
 
+def test_the_rest_frame_goes_out_before_the_files_are_written_and_is_said(tmp_path, capsys):
+    """A game developer's review: with ``output=[files,vmc]`` the rest frame came 1 s after the last frame, once
+    the files and plots were written, and the closing line counted 351 frames for the 352 a receiver got.  The
+    streaming sink closes first (the csv is listed before it here), and its line names the rest frame."""
+    closed = []
+    with Receiver() as rx:
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.5", realtime="off", rest_on_stop=True))
+        assert [s.name for s in pipe.sinks] == ["csv", "vmc"]
+        for sink in pipe.sinks:
+            def logged(close=sink.close, name=sink.name):
+                closed.append((name, len(rx.msgs), (tmp_path / "channels.csv").exists()))
+                return close()
+            sink.close = logged
+        pipeline.execute(pipe, tmp_path, {})
+        rx.drain()
+    assert [c[0] for c in closed] == ["vmc", "csv"]
+    assert not closed[0][2]   # the rest frame went out while channels.csv was still to be written
+    assert len(rx.frames()) == 16
+    assert f"vmc: 15 frames and a rest frame to 127.0.0.1:{rx.port} (not paced" in capsys.readouterr().out
+
+
 def test_the_streaming_sink_gets_each_frame_before_the_file_writers(tmp_path):
     """'output=[files,vmc]' wrote each frame to csv, bvh and plots before VMC sent it (review-live 13)."""
     with Receiver() as rx:
@@ -495,7 +516,7 @@ def test_the_closing_line_of_one_frame_says_frame(tmp_path, capsys):
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
     (tmp_path / "run").mkdir()
     pipeline.execute(pipeline.build(cfg), tmp_path / "run")
-    assert "vmc: 1 frame to 127.0.0.1:39599 (not paced" in capsys.readouterr().out
+    assert "vmc: 1 frame and a rest frame to 127.0.0.1:39599 (not paced" in capsys.readouterr().out
 
 
 GODETTE = Path(__file__).parent / "assets" / "avatars" / "Godette_vrm_v4.vrm"

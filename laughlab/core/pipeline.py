@@ -345,7 +345,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
                 bar.update(k % n_chunk)   # the last, partial chunk: the bar ends at every frame
         wall = time.perf_counter() - wall0
         interrupts.check()
-        for sink in opened:
+        for sink in order:   # streaming first: vmc's rest frame went out after the files and plots, 1 s late
             written += sink.close() or []
         if hasattr(src, "save_artifacts"):
             artifacts = src.save_artifacts(out_dir)
