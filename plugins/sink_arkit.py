@@ -8,6 +8,7 @@ import numpy as np
 from laughlab import hookimpl
 from laughlab.core.bases import Sink
 from laughlab.face.facs import ARKIT_BLENDSHAPES
+from laughlab.io.vmc import arkit_weights
 from laughlab.core.outfiles import Staging
 
 #: prefix of the channels holding ARKit weights (``arkit.jawOpen``)
@@ -37,8 +38,10 @@ class ArkitSink(Sink):
     The columns are the channels named ``arkit.NAME`` (written by faces such as
     ``facs`` and ``cgm``), named ``NAME`` without the prefix, in Apple's order
     (:data:`laughlab.face.facs.ARKIT_BLENDSHAPES`); values are clipped to [0, 1].
-    A run without such channels writes nothing, so the sink can stay in the
-    default outputs.  Streamed: each chunk is appended to a staged file that is
+    A run without them (``face=smile``, the default) has the 11 weights the VMC stream and ``character.glb``
+    make of its ``smile``, ``jaw`` and ``eyes_closed`` channels (:data:`laughlab.io.vmc.SMILE_TO_ARKIT`; a game
+    developer's review asked for ARKit names with the defaults and got no file).  A run with neither writes
+    nothing, so the sink can stay in the default outputs.  Streamed: each chunk is appended to a staged file that is
     moved into place when the run succeeds and removed when it fails.
     """
 
@@ -57,6 +60,9 @@ class ArkitSink(Sink):
         if self._columns is None:
             present = {k[len(PREFIX):] for k in chunk.channels if k.startswith(PREFIX)}
             warn_unknown(present)
+            self._mapped = not present   # no arkit.* channels: the smile face's mapping, as vmc and gltf send it
+            if self._mapped:
+                present = set(arkit_weights(chunk.channels))
             self._columns = [n for n in ARKIT_BLENDSHAPES if n in present]
             if not self._columns:
                 return
@@ -64,8 +70,12 @@ class ArkitSink(Sink):
             self._f.write(",".join(["time", *self._columns]) + "\n")
         if not self._columns:
             return
-        data = np.column_stack([chunk.times] + [np.clip(chunk.channels[PREFIX + c], 0.0, 1.0)
-                                                for c in self._columns])
+        if self._mapped:
+            weights = arkit_weights(chunk.channels)
+            data = np.column_stack([chunk.times] + [weights[c] for c in self._columns])
+        else:
+            data = np.column_stack([chunk.times] + [np.clip(chunk.channels[PREFIX + c], 0.0, 1.0)
+                                                    for c in self._columns])
         n, c = data.shape
         row = ",".join([f"%.{self.params.precision}f"] * c) + "\n"
         self._f.write((row * n) % tuple((data + 0.0).ravel().tolist()))

@@ -322,9 +322,32 @@ def test_face_arkit_csv_end_to_end(registered, tmp_path):
     assert not list(out.rglob("*.part"))
 
 
-def test_no_arkit_channels_no_file(registered, tmp_path):
+def test_the_smile_face_writes_the_arkit_weights_the_stream_sends(registered, tmp_path):
+    """A game developer's review: with the default face=smile, the VMC stream and character.glb had 11 ARKit
+    names and face_arkit.csv was not written.  Now it holds those 11, in Apple's order, made of the face's
+    channels as the stream makes them (laughlab.io.vmc.SMILE_TO_ARKIT: jawOpen = jaw, mouthLowerDown = 0.3 jaw,
+    mouthSmile = smile, cheekSquint = 0.7 smile, eyeSquint = 0.3 smile, eyeBlink = eyes_closed, clipped)."""
     out = run(tmp_path / "smile", "face=smile")
-    assert (out / "channels.csv").exists() and not (out / "face_arkit.csv").exists()
+    arkit, ch = pd.read_csv(out / "face_arkit.csv"), pd.read_csv(out / "channels.csv")
+    assert not [c for c in ch.columns if c.startswith("arkit.")]
+    assert list(arkit.columns) == ["time"] + [n for n in ARKIT_BLENDSHAPES if n in (
+        "eyeBlinkLeft", "eyeBlinkRight", "eyeSquintLeft", "eyeSquintRight", "jawOpen", "mouthLowerDownLeft",
+        "mouthLowerDownRight", "mouthSmileLeft", "mouthSmileRight", "cheekSquintLeft", "cheekSquintRight")]
+    assert len(arkit) == len(ch) == 240 and (arkit["time"] == ch["time"]).all()
+    u = lambda x: np.clip(x, 0.0, 1.0)   # noqa: E731
+    for name, want in (("jawOpen", u(ch["jaw"])), ("mouthLowerDownRight", u(0.3 * ch["jaw"])),
+                       ("mouthSmileLeft", u(ch["smile"])), ("cheekSquintRight", u(0.7 * ch["smile"])),
+                       ("eyeSquintLeft", u(0.3 * ch["smile"])), ("eyeBlinkRight", u(ch["eyes_closed"]))):
+        np.testing.assert_allclose(arkit[name], want, atol=2e-6, err_msg=name)
+    assert arkit["mouthSmileLeft"].max() > 0.3 and arkit["jawOpen"].max() > 0.3
+
+
+def test_no_face_channels_no_file(tmp_path):
+    s = ArkitSink()
+    s.open(RunInfo(tmp_path, FPS, None, None))
+    s.write(Chunk(np.array([0.0, DT]), {"mcs": np.zeros(2), "energy": np.ones(2)}, np.zeros((2, 3)), [],
+                  [None, None]))
+    assert s.close() == [] and list(tmp_path.iterdir()) == []
 
 
 def test_sink_abort_leaves_nothing(tmp_path):
