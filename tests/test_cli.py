@@ -182,8 +182,10 @@ def bad_files(tmp_path_factory):
     # a mistyped top-level key: the nearest one (a review: 'unknown parameter sed')
     (["sed=3"], "unknown parameter sed; did you mean seed?"),
     (["facee=facs"], "unknown parameter facee; did you mean face?"),
-    (["bogus=1"], "unknown parameter bogus; the settings are seed, fps, progress, overwrite, plugins_dir, character and "
-                  "the groups input, extractor, face, body, scheduler, output, detector (python -m laughlab --help)"),
+    (["bogus=1"], "unknown parameter bogus; the settings are seed, fps, progress, overwrite, plugins_dir, character, "
+                  "the groups input, extractor, face, body, scheduler, output, detector, and experiment=NAME "
+                  "(python -m laughlab --help)"),
+    (["experimnt=smoke"], "unknown parameter experimnt; did you mean experiment?"),   # a researcher's review
     # a sink's name given to output= (a new-user review: "'bvh' is registered as a sink" said not what to write)
     (["output=bvh"], "unknown output 'bvh'; choose one of: files, gltf, trial, video, viewer, vmc, vrma ('bvh' is a sink, "
                      "written by output=files (also gltf, video, vrma))"),

@@ -160,8 +160,9 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
             if near:
                 return f"unknown parameter {key}; did you mean {near}?"
             # none near: the settings there are, and the groups (a review: 'unknown parameter bogus' said no more)
-            valid = (f"; the settings are {', '.join(k for k in _top_level_keys() if k not in (*GROUP_KINDS, 'hydra'))} and the "
-                     f"groups {', '.join(GROUP_KINDS)} (python -m laughlab --help)")
+            settings = ", ".join(k for k in _top_level_keys() if k not in (*GROUP_KINDS, "hydra"))
+            valid = (f"; the settings are {settings}, the groups {', '.join(GROUP_KINDS)}, and experiment=NAME "
+                     "(python -m laughlab --help)")
         return f"unknown parameter {key}{valid}"
     m = re.search(r"Could not append to config\. An item is already at '([^']+)'", text)
     if m:   # +output.plots.width=column: Hydra's line spoke of appending (the top-level keys: check_overrides)
@@ -245,7 +246,8 @@ def _nearest_top_level(key: str) -> str | None:
     """The configuration's top-level key or group nearest ``key`` (difflib; None if none is close)."""
     import difflib
 
-    names = [k for k in _top_level_keys() if k != "hydra"] + list(GROUP_KINDS)
+    # experiment: a group of its own, not a plugin's (a review: experimnt=smoke got no "did you mean")
+    names = [k for k in _top_level_keys() if k != "hydra"] + list(GROUP_KINDS) + ["experiment"]
     found = difflib.get_close_matches(key, names, n=1, cutoff=0.6)
     return found[0] if found else None
 
