@@ -435,7 +435,9 @@ def test_a_bad_avatar_is_one_line_exit_2_and_nothing_written(tmp_path, make, say
     out = _cli(tmp_path, "output=gltf", "input.duration_s=1", f"character={path}")
     assert out.returncode == 2, out.stderr
     assert out.stderr.strip().count("\n") == 0 and "Traceback" not in out.stderr
-    assert out.stderr.startswith(f"laughlab: error: {path}: ") and says in out.stderr, out.stderr
+    # "PATH is not ...", "PATH has no ...", or "PATH: what is wrong in it" (not "PATH: is not", a review)
+    assert out.stderr.startswith(f"laughlab: error: {path}") and says in out.stderr, out.stderr
+    assert f"{path}: is " not in out.stderr and f"{path}: has " not in out.stderr
     assert not (tmp_path / "run").exists()
 
 
@@ -493,6 +495,10 @@ def test_breathing_goes_to_the_bones_channel_by_channel():
 def test_a_character_no_output_uses_is_said(tmp_path):
     out = _cli(tmp_path, "input.duration_s=1", f"character={GODETTE}")
     assert out.returncode == 2 and "do not use it" in out.stderr and not (tmp_path / "run").exists()
+    # the fix, in the options a user types (a game developer's review: the line named sinks and no fix)
+    assert out.stderr.strip().endswith("do not use it: add one, e.g. 'output=[files,gltf]', or leave out character=")
+    out = _cli(tmp_path, "input.duration_s=1", "output=vrma", f"character={GODETTE}")
+    assert out.returncode == 2 and out.stderr.strip().endswith("animation.vrma (output=vrma) fits any VRM without it")
 
 
 def test_the_docs_tables_are_the_codes():

@@ -109,7 +109,7 @@ def test_view_with_a_bad_character_is_one_line(run_dir, tmp_path):
     bad = tmp_path / "not.vrm"
     bad.write_text("hello")
     out = laughlab("view", str(run_dir), "--character", str(bad), "--out", str(tmp_path / "page"))
-    assert out.returncode == 2 and out.stderr == f"laughlab: error: {bad}: is not a glTF file (neither a glTF " \
+    assert out.returncode == 2 and out.stderr == f"laughlab: error: {bad} is not a glTF file (neither a glTF " \
                                                   f"binary nor glTF JSON)\n"
     assert not (tmp_path / "page").exists()
 

@@ -138,7 +138,9 @@ def load_character(path: str | Path) -> "Avatar":
 
 
 def _fail(path: Path, what: str) -> AvatarError:
-    return AvatarError(f"{path}: {what}")
+    """``PATH: what``, or ``PATH is ...``/``PATH has ...`` where ``what`` is a verb's phrase (a review: "fake.vrm: is
+    not a glTF file")."""
+    return AvatarError(f"{path} {what}" if what.startswith(("is ", "has ")) else f"{path}: {what}")
 
 
 def read_gltf(path: str | Path) -> tuple[dict, bytes]:

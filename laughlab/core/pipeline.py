@@ -190,10 +190,13 @@ def check_character_used(cfg: DictConfig) -> None:
     path = cfg.get("character")
     outputs = dict(cfg.get("output") or {})
     if path is not None and not any("character" in _param_names("sink", name) for name in outputs):
-        raise LaughlabError(f"character={path} is shown by output=gltf, output=video and output=viewer, and sized for by output=vmc "
-                            f"(and `laughlab view RUN "
-                            f"--character PATH`); "
-                            f"this run's outputs ({', '.join(outputs) or 'none'}) do not use it")
+        # what to do, in the options the user types (a review: the line named the sinks csv, bvh, plots, arkit, not
+        # output=files, and no fix); a VRM Animation fits any VRM as it is
+        vrma = "; animation.vrma (output=vrma) fits any VRM without it" if "vrma" in outputs else ""
+        raise LaughlabError(f"character={path} is shown by output=gltf, output=video and output=viewer, and sized for "
+                            f"by output=vmc (and `laughlab view RUN --character PATH`); this run's outputs "
+                            f"({', '.join(outputs) or 'none'}) do not use it: add one, e.g. 'output=[files,gltf]', "
+                            f"or leave out character={vrma}")
 
 
 def chunk_frames(pipe: Pipeline) -> int:
