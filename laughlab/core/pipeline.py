@@ -6,6 +6,7 @@ same ``step`` calls, so live and offline results agree.
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 import math
 import os
@@ -31,6 +32,8 @@ from laughlab.core.framesample import FrameSample
 GROUPS = {"input": "source", "extractor": "extractor", "detector": "detector", "scheduler": "scheduler",
           "body": "body", "face": "face"}
 CHUNK_FRAMES = 256
+#: the longest ``run_out`` goes on after the input (s): the longest clip of the library is about 10 s
+RUN_OUT_MAX_S = 20.0
 
 
 @dataclass
@@ -47,12 +50,17 @@ class RunParams:
         ``auto`` (a bar on long inputs when stderr is a terminal), ``on`` or ``off``.
     overwrite : bool
         Allow writing into a run directory that holds an earlier run (:mod:`laughlab.core.rundir`).
+    run_out : bool
+        When the input ends while a clip plays, go on in silence until no clip plays and the blend back to idle
+        is done (the energy scheduler's energy winds down: it may start a calmer clip first), at most
+        :data:`RUN_OUT_MAX_S` (:func:`execute`); off, the last frame is wherever the clip was.
     """
 
     seed: int = 0
     fps: float = 60.0
     progress: str = "auto"
     overwrite: bool = False
+    run_out: bool = False
 
     def __post_init__(self) -> None:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
@@ -62,8 +70,9 @@ class RunParams:
             raise ValueError(f"fps must be a positive number (got {self.fps})")
         if not 1 <= self.fps <= 1000:   # fps=0.5 ran without a word: frames of 2 s, no clip on a clear laugh
             raise ValueError(f"fps must be 1-1000 animation frames a second (got {self.fps})")
-        if not isinstance(self.overwrite, bool):
-            raise ValueError(f"overwrite must be true or false (got {self.overwrite!r})")
+        for key in ("overwrite", "run_out"):
+            if not isinstance(getattr(self, key), bool):
+                raise ValueError(f"{key} must be true or false (got {getattr(self, key)!r})")
         if self.progress not in ("auto", "on", "off"):
             raise ValueError(f"progress must be auto, on or off (got {self.progress!r})")
 
@@ -122,7 +131,7 @@ def build(cfg: DictConfig) -> Pipeline:
     """
     if cfg.get("plugins_dir"):
         plugins.load_plugin_dir(cfg.plugins_dir)
-    run_values = {k: cfg.get(k) for k in ("seed", "fps", "progress", "overwrite") if k in cfg}
+    run_values = {k: cfg.get(k) for k in ("seed", "fps", "progress", "overwrite", "run_out") if k in cfg}
     try:
         run = RunParams(**run_values)
     except (ValueError, TypeError) as exc:
@@ -322,7 +331,20 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             blame.check_extractor(frame.control, ext)
             ext_step = ext.step
         ext_step = ext_first
-        for block in src.blocks():
+        tail = []   # [input samples, frames] once the input has ended (run_out)
+
+        def run_out():
+            """After the input: silent frames while a clip plays or its blend back to idle runs (``run_out``; a game
+            developer's review: a baked laugh ended with the body half-way down a rofl). Each block is a frame's
+            samples as the input's frames are cut (:func:`laughlab.io.audio.frame_edges`)."""
+            tail.extend((samples, k))
+            if not pipe.run.run_out or k == 0:
+                return
+            per_frame = rate / ctx.fps   # samples a frame
+            while (mixer.clip is not None or mixer.blend_from is not None) and (k - tail[1]) * dt < RUN_OUT_MAX_S:
+                yield np.zeros(int(round((k + 1) * per_frame)) - int(round(k * per_frame)), np.float32)
+
+        for block in itertools.chain(src.blocks(), run_out()):
             t0 = clock()
             frame = Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)
             ext_step(block, frame)
@@ -352,7 +374,11 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             written += sink.close() or []
         if hasattr(src, "save_artifacts"):
             artifacts = src.save_artifacts(out_dir)
-        metrics = _metrics(pipe, times, k, samples / rate, wall)
+        metrics = _metrics(pipe, times, k, tail[0] / rate, wall)
+        if k > tail[1]:
+            metrics["run_out_s"] = (k - tail[1]) * dt   # the silent frames after the input
+        elif mixer.clip is not None:   # said by the summary line: the last frame is mid-clip
+            metrics["clip_at_end"] = mixer.clip.name
         for part in (src, *opened):  # the source's and a sink's own numbers (mic overflows, vmc latency)
             more = getattr(part, "metrics", None)
             if callable(more):

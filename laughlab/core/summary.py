@@ -42,6 +42,12 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     if peak is not None and peak > 1.0 + 1e-6:   # a float file's samples past full scale: kept as they are
         odd.append(f"its loudest sample {20 * math.log10(peak):+.1f} dBFS, over full scale")
     what += f" ({'; '.join(odd)})" if odd else ""
+    # the last frame mid-clip, or the silence run_out added (a game developer's review: a baked laugh ended with
+    # the body half-way down a rofl, and nothing said how to let it finish)
+    if metrics.get("run_out_s"):
+        what += f", then {float(metrics['run_out_s']):.1f} s of silence to end its last clip (run_out)"
+    elif metrics.get("clip_at_end"):
+        what += f" (ends mid-{metrics['clip_at_end']}: run_out=true plays it out)"
     chain = " > ".join(str(cfg[g].name) + (" (fused)" if g == "detector" and cfg[g].get("fuse") else "")
                        for g in CHAIN
                        if g in cfg and cfg[g] is not None and "name" in cfg[g])   # fused: detector=yamnet_fused

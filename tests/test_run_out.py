@@ -1,0 +1,119 @@
+"""``run_out=true``: an input that ends while a clip plays goes on in silence until the clip has ended and the
+blend back to idle is done (a game developer's review: a baked 5.8 s laugh ended with the body half-way down a
+``rofl``, hips at 50 cm and pitched 47 degrees, and nothing said how to let it finish)."""
+from __future__ import annotations
+
+import csv
+import inspect
+import json
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
+from laughlab.core import pipeline
+from laughlab.core.mixer import Mixer
+
+#: 3 s of the synthetic laughter (seed 0) ends inside hands_on_belly; the papers' pipeline, so no model
+ARGS = ("input.duration_s=3", "detector=none", "~output.plots")
+FPS = 60
+
+
+def _rows(d, name="channels.csv"):
+    return (d / name).read_text().splitlines()
+
+
+def _events(d):
+    with open(d / "events.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def _last_pose(d):
+    return [float(v) for v in (d / "motion.bvh").read_text().rstrip().splitlines()[-1].split()]
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("run_out")
+    off = laughlab(*ARGS, f"hydra.run.dir={root / 'off'}")
+    on = laughlab(*ARGS, "run_out=true", f"hydra.run.dir={root / 'on'}")
+    assert off.returncode == 0 and on.returncode == 0, off.stderr + on.stderr
+    return root, off, on
+
+
+def test_the_input_ending_mid_clip_is_said_with_the_setting(runs):
+    root, off, _ = runs
+    assert "3.0 s of synthetic input (ends mid-hands_on_belly: run_out=true plays it out), rms > none" in off.stdout
+    ev = _events(root / "off")
+    assert ev[-1]["event"] == "start" and ev[-1]["clip"] == "hands_on_belly"   # no stop: cut by the input's end
+    assert json.loads((root / "off" / "metrics.json").read_text())["clip_at_end"] == "hands_on_belly"
+
+
+def test_the_run_goes_on_in_silence_until_the_blend_back_to_idle_is_done(runs):
+    root, _, on = runs
+    off_rows, on_rows = _rows(root / "off"), _rows(root / "on")
+    assert on_rows[:len(off_rows)] == off_rows        # the input's frames are the same bytes
+    assert len(on_rows) > len(off_rows) == 1 + 3 * FPS
+    ev = _events(root / "on")
+    starts, stops = [e for e in ev if e["event"] == "start"], [e for e in ev if e["event"] == "stop"]
+    # every clip stops; in the silence the energy scheduler's laughing energy winds down (it may start a calmer
+    # clip, as here: lean_front2 at energy 10 after hands_on_belly at 15), then none
+    assert len(starts) == len(stops) and stops[-1]["clip"] == starts[-1]["clip"]
+    assert [e["clip"] for e in starts if float(e["time"]) < 3.0] == [e["clip"] for e in _events(root / "off")
+                                                                     if e["event"] == "start"]
+    # the last frame is the first at which the mixer's blend to idle (10/24 s from the clip's stop) is done
+    t_stop = float(stops[-1]["time"])
+    blend_done = t_stop + inspect.signature(Mixer).parameters["idle_blend_s"].default   # 10/24 s
+    frames = len(on_rows) - 1
+    assert (frames - 1) / FPS == pytest.approx(blend_done, abs=1.01 / FPS)
+    m = json.loads((root / "on" / "metrics.json").read_text())
+    assert m["duration_s"] == pytest.approx(3.0) and m["n_frames"] == frames
+    assert m["run_out_s"] == pytest.approx((frames - 3 * FPS) / FPS) and "clip_at_end" not in m
+    assert f"3.0 s of synthetic input, then {m['run_out_s']:.1f} s of silence to end its last clip (run_out)" \
+        in on.stdout
+    # standing: the hips at the idle pose's height, where the cut run's last frame is elsewhere
+    assert abs(_last_pose(root / "on")[1] - 95.0) < 2.0
+    assert _last_pose(root / "off") != _last_pose(root / "on")
+
+
+def test_an_input_that_ends_at_idle_is_not_extended(tmp_path):
+    """0.5 s of the synthetic laughter ends before any clip: run_out changes no byte."""
+    a = laughlab("input.duration_s=0.5", "detector=none", "~output.plots", f"hydra.run.dir={tmp_path / 'a'}")
+    b = laughlab("input.duration_s=0.5", "detector=none", "~output.plots", "run_out=true",
+                 f"hydra.run.dir={tmp_path / 'b'}")
+    assert a.returncode == b.returncode == 0
+    for name in ("channels.csv", "events.csv", "motion.bvh"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+
+
+def test_the_silence_is_bounded(tmp_path, monkeypatch):
+    monkeypatch.setattr(pipeline, "RUN_OUT_MAX_S", 0.25)
+    r = laughlab(*ARGS, "run_out=true", f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 0, r.stderr
+    assert len(_rows(tmp_path / "r")) == 1 + 3 * FPS + 15   # 0.25 s at 60 fps
+
+
+def test_a_session_runs_out_as_the_file_does(runs, tmp_path):
+    """Streaming and offline agree: the session's close() returns the silent frames the file run wrote."""
+    from laughlab.session import Session
+
+    root = runs[0]
+    x, sr = sf.read(root / "on" / "input.wav", dtype="float32")
+    frames = []
+    with Session(["run_out=true", "detector=none"], sample_rate=sr) as s:
+        for i in range(0, len(x), 1234):
+            frames += s.feed(x[i:i + 1234])
+        frames += s.close()
+    with open(root / "on" / "channels.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert len(frames) == len(rows)
+    for col in ("mcs", "energy", "smile", "jaw"):
+        np.testing.assert_allclose([fr.channels[col] for fr in frames], [float(r[col]) for r in rows], atol=1e-6,
+                                   err_msg=col)
+
+
+def test_run_out_takes_true_or_false(tmp_path):
+    r = laughlab("input.duration_s=1", "run_out=maybe", f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "run_out" in r.stderr, r.stderr
+    assert not (tmp_path / "r").exists()
