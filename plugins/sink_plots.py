@@ -60,7 +60,7 @@ class PlotsSink(Sink):
     ``phoneme`` extractors) or, for other extractors, ``rms``, from which it
     shows what the thesis' mapping with default parameters would do;
     ``plots/fig3_2_mcs.png`` needs the ``mcs_raw`` control (``rms`` extractor);
-    ``plots/fig4_2_energy.png`` needs ``mcs`` and the ``energy`` channel;
+    ``plots/fig4_2_energy.png`` needs ``mcs``, the ``energy`` channel and a scheduler (not ``none``);
     ``plots/fig4_1_energy.png`` also the ``energy`` scheduler (its gain);
     ``plots/filmstrip.png`` shows the skeleton at a few moments (poses are kept
     at 5 Hz over the plotted stretch).
@@ -116,9 +116,11 @@ class PlotsSink(Sink):
             path, pdf = self._paths(out / "fig3_2_mcs.png")
             jobs.append(lambda: plots.figure_3_2(path, t, data["mcs_raw"], 1.0 / self.run.fps, self.params.power,
                                                  bouts, note=note, pdf=pdf, layout=self.params.width))
-        if "mcs" in data and "energy" in data:
+        scheduler = (self.run.config or {}).get("scheduler") or {}
+        # scheduler=none writes its energy as 0 and starts no clip: Fig. 4.2 would be an MCS over an empty panel,
+        # which a report copied too (a researcher's review); Fig. 3.2 shows that MCS
+        if "mcs" in data and "energy" in data and scheduler.get("name") != "none":
             path42, pdf42 = self._paths(out / "fig4_2_energy.png")
-            scheduler = (self.run.config or {}).get("scheduler") or {}
             label = {"energy": "laughing energy L", "concat": "energy (40 MCS, 0.5 s low-pass)"}.get(
                 scheduler.get("name"), "energy channel")
             jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts,
