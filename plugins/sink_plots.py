@@ -70,7 +70,7 @@ class PlotsSink(Sink):
     background = True  # only writes files: may run in the helper process
     files = ("plots",)
     Params = PlotsParams
-    _keys = ("rms", "amp", "calibrating", "mcs_raw", "mcs", "energy", "smile", "jaw", "eyes_closed")
+    _keys = ("rms", "amp", "calibrating", "mcs_raw", "mcs", "energy", "smile", "jaw", "eyes_closed", "clip_gate")
     _pose_hz = 5.0
 
     def open(self, run) -> None:
@@ -123,14 +123,15 @@ class PlotsSink(Sink):
             path42, pdf42 = self._paths(out / "fig4_2_energy.png")
             label = {"energy": "laughing energy L", "concat": "energy (40 MCS, 0.5 s low-pass)"}.get(
                 scheduler.get("name"), "energy channel")
+            gate = data.get("clip_gate")   # the detector's clip gain: a closed gate is said (plots._closed_gate_note)
             jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts,
                                                  note=note, energy_label=label, pdf=pdf42,
-                                                 layout=self.params.width))
+                                                 layout=self.params.width, gate=gate))
             if scheduler.get("name") == "energy":
                 path41, pdf41 = self._paths(out / "fig4_1_energy.png")
                 jobs.append(lambda: plots.figure_4_1(path41, t, data["mcs"], data["energy"], self.events,
                                                      float(scheduler.get("gain_per_s", 60.0)), bouts, note=note,
-                                                     pdf=pdf41, layout=self.params.width))
+                                                     pdf=pdf41, layout=self.params.width, gate=gate))
         fig31 = self._figure_3_1_args(data)
         if fig31 is not None:
             path31, pdf31 = self._paths(out / "fig3_1_calibration.png")

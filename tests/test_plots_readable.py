@@ -127,6 +127,25 @@ def test_fig4_2_of_a_run_without_energy_says_so(tmp_path, saved):
     assert_readable(saved)
 
 
+def test_figs_4_1_and_4_2_say_when_the_detector_kept_every_clip_back(tmp_path, saved):
+    """A researcher's review: over a laugh between speech L rose to 19 with no clip block and no word why (the
+    detector's clip gate stayed 0).  Said in the panel when the gate never opened; not when it did, nor without
+    a detector's gate (detector=none), nor when a clip played."""
+    from laughlab.core.frame import ClipEvent
+    from laughlab.render import plots
+
+    t = np.arange(240) / 60
+    mcs, energy = np.abs(np.sin(t * 9)), 10 * np.abs(np.sin(t))
+    shut, opened = np.zeros_like(t), (t > 2).astype(float)
+    clip = [ClipEvent(1.0, "start", "giggle", 10.0, blend_s=0.2), ClipEvent(3.0, "stop", "giggle", 10.0)]
+    for k, (gate, events) in enumerate([(shut, []), (opened, []), (None, []), (shut, clip)]):
+        plots.figure_4_2(tmp_path / f"b{k}.png", t, mcs, energy, events, gate=gate)
+        plots.figure_4_1(tmp_path / f"a{k}.png", t, mcs, energy, events, 60.0, gate=gate)
+    said = ["no clip: the laughter detector's clip gate stayed closed" in f.texts for f in saved]
+    assert said == [True, True, False, False, False, False, False, False]
+    assert_readable(saved)
+
+
 def test_truth_past_the_plotted_stretch_does_not_widen_the_figures(tmp_path, saved):
     """A recording's truth reaches past the first output.plots.max_seconds the figures draw: Fig. 3.1 spread its
     60 s of data over the 90 s of the truth's last bout (seen in reports/detector_eval)."""

@@ -305,8 +305,9 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
 @in_layout
 def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
                gain_per_s: float, bouts: Sequence | None = None, title: str = "", note: str = "",
-               pdf=False, layout: Layout = PAGE) -> Path:
+               pdf=False, layout: Layout = PAGE, gate: np.ndarray | None = None) -> Path:
     """Fig. 4.1: MCS (top); the primitive of the MCS, the actual laughing energy and the clips (bottom).
+    ``gate``: the detector's clip gain per frame (``clip_gate``), if the run has one (:func:`_closed_gate_note`).
 
     The primitive ``sum(gain_per_s * MCS * dt)`` is the laughing energy with no
     clip consuming and no fixed decrease (the thesis' blue line); it grows
@@ -345,6 +346,7 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     ax1.set_title(_head(title or head, note, layout), fontsize=layout.title)
     _legend_with_clip_key(fig, [ax2, axp], blocks, layout)
     _label_blocks(fig, ax2, blocks, [line, prim], top, layout.block_label)
+    _closed_gate_note(ax2, energy, blocks, gate, layout)
     save_figure(fig, path, pdf)
     plt.close(fig)
     return path
@@ -381,8 +383,10 @@ def _energy_axes(layout: Layout):
 @in_layout
 def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
                bouts: Sequence | None = None, title: str = "", note: str = "",
-               energy_label: str = "laughing energy L", pdf=False, layout: Layout = PAGE) -> Path:
-    """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom).
+               energy_label: str = "laughing energy L", pdf=False, layout: Layout = PAGE,
+               gate: np.ndarray | None = None) -> Path:
+    """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom); ``gate`` as in
+    :func:`figure_4_1`.
 
     ``energy_label`` names the green line: the thesis' L under the energy scheduler; another scheduler's
     ``energy`` channel is another quantity (the concat scheduler's: 40 x MCS smoothed over 0.5 s)."""
@@ -416,6 +420,16 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     if empty:   # scheduler=none: an empty panel said nothing
         ax2.text(0.5, 0.5, "no laughing energy and no clip in this run", transform=ax2.transAxes,
                  ha="center", va="center", fontsize=layout.side_label, color="0.35")
+    _closed_gate_note(ax2, energy, blocks, gate, layout)
     save_figure(fig, path, pdf)
     plt.close(fig)
     return path
+
+
+def _closed_gate_note(ax, energy, blocks, gate, layout: Layout) -> None:
+    """Energy rose but no clip played, and the detector's clip gain never opened: said in the panel (a
+    researcher's review: L rose to 19 over a Russian laugh between speech, with no clip and no word why)."""
+    if gate is None or blocks or not (len(energy) and np.any(energy)) or np.any(np.asarray(gate) > 0):
+        return
+    ax.text(0.5, 0.96, "no clip: the laughter detector's clip gate stayed closed", transform=ax.transAxes,
+            ha="center", va="top", fontsize=layout.side_label, color="0.35")
