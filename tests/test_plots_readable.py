@@ -453,27 +453,41 @@ def test_the_comparison_figure_keeps_long_condition_names_apart(tmp_path, saved,
 
 def test_an_all_zero_metric_starts_at_0_and_a_metric_that_does_not_apply_says_n_a(tmp_path, saved):
     """A new-user review: cutoff_rate (0 under energy, no clip under none) got an empty panel running
-    -0.04..0.04, and the missing bar of none read as a 0."""
+    -0.04..0.04, and the missing bar of none read as a 0.  A researcher's review: a panel of one condition's
+    "0 (n=2)" beside an "n/a" compares nothing: a metric measured under one condition only has no panel and
+    is named, with its value, under the panels."""
     from laughlab.harness.report import comparison_figure
 
     metrics = {"cutoff_rate": {"higher_is_better": False, "units": "fraction"},
+               "repetition_rate": {"higher_is_better": False, "units": "fraction"},
+               "clip_entropy": {"higher_is_better": True, "units": "bits"},
                "miss_rate": {"higher_is_better": False, "units": "fraction"}}
+    nothing = {"n": 0, "mean": None, "ci95": [None, None]}
     results = {"energy": {"cutoff_rate": {"n": 4, "mean": 0.0, "ci95": [0.0, 0.0]},
+                          "repetition_rate": {"n": 4, "mean": 0.0, "ci95": [0.0, 0.0]},
+                          "clip_entropy": {"n": 4, "mean": 1.5, "ci95": [1.0, 2.0]},
                           "miss_rate": {"n": 4, "mean": 0.25, "ci95": [0.0, 0.5]}},
-               "none": {"cutoff_rate": {"n": 0, "mean": None, "ci95": [None, None]},
+               "concat": {"cutoff_rate": {"n": 4, "mean": 0.5, "ci95": [0.25, 0.75]},
+                          "repetition_rate": nothing, "clip_entropy": nothing,
+                          "miss_rate": {"n": 4, "mean": 0.5, "ci95": [0.25, 0.75]}},
+               "none": {"cutoff_rate": nothing, "repetition_rate": nothing, "clip_entropy": nothing,
                         "miss_rate": {"n": 4, "mean": 1.0, "ci95": [1.0, 1.0]}}}
-    doc = {"experiment": "smoke", "n_trials": 8, "conditions": {"energy": [], "none": []},
+    doc = {"experiment": "smoke", "n_trials": 12, "conditions": {"energy": [], "concat": [], "none": []},
            "results": results, "metrics": metrics}
     comparison_figure(doc, tmp_path / "metrics.png")
     assert_readable(saved)
     (fig,) = saved
+    assert sorted(t for t in fig.titles if t) == ["cutoff_rate ↓", "miss_rate ↓"]
+    note = " ".join(" ".join(fig.texts).split())
+    assert ("Not shown, measured under one condition only: repetition_rate (energy: 0), clip_entropy (energy: "
+            "1.5) (values in the report's table).") in note
     cutoff = fig.titles.index("cutoff_rate ↓")
     lo, hi = fig.ylims[cutoff]
-    assert lo == 0 and hi >= 1                      # an axis from 0, not matplotlib's -0.04..0.04
+    assert lo == 0 and hi >= 0.75                   # an axis from 0, not matplotlib's -0.04..0.04
     assert fig.texts.count("n/a") == 1                 # none's missing bar
     # means of fewer than 10 trials say so over their bars, as the table's "(n=4)" (a review: the figure did not),
     # a bar at 0 too (a review: its n was lost under the "0")
-    assert fig.texts.count("0 (n=4)") == 1 and fig.texts.count("n=4") == 2
+    assert fig.texts.count("0 (n=4)") == 1 and fig.texts.count("n=4") == 4
     assert fig.ylims[fig.titles.index("miss_rate ↓")][0] == 0
 
 

@@ -104,8 +104,13 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
     conds = conditions_of(doc)
     measured = [m for m in (panels or metric_order(doc)) if any(doc["results"][c][m]["n"] for c in conds)
                 and is_compute(m) == timing]
-    names = [m for m in measured if not same_everywhere(doc, m)]
     same = [m for m in measured if same_everywhere(doc, m)]
+    # a metric measured under one condition of several compares nothing: no panel, its value named under the
+    # panels (a researcher's review: 3 of smoke's 5 panels were one "0 (n=2)" beside an "n/a"); --panels asked for
+    alone = {m: [c for c in conds if doc["results"][c][m]["n"]] for m in measured} \
+        if len(conds) > 1 and not panels else {}
+    alone = {m: cs[0] for m, cs in alone.items() if len(cs) == 1}
+    names = [m for m in measured if m not in same and m not in alone]
     if not names:
         return path
     cols = min(z["cols"], len(names))
@@ -122,9 +127,13 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
                              else "the value of 1 trial per condition (no interval)")
                           + (f"; n=k over a bar: a mean of fewer than {FEW} trials" if few else "")
                           + " (↑ higher is better, ↓ lower is better)", int(pw * cols * z["chars"]))
-    note = textwrap.wrap(f"Not shown, the same under every condition: {', '.join(same)} (values in the report's "
-                         "table).", int(pw * cols * 15)) if same else []
-    below = (0.13 * len(note) + 0.1 if narrow else 0.4) if same else 0   # a column's note: many lines
+    told = ([f"the same under every condition: {', '.join(same)}"] if same else []) + (
+        [f"measured under one condition only: " + ", ".join(
+            f"{m} ({c}: {doc['results'][c][m]['mean']:.3g})" for m, c in alone.items())] if alone else [])
+    note = textwrap.wrap(f"Not shown, {'; '.join(told)} (values in the report's table).",
+                         int(pw * cols * 15)) if told else []
+    # a column's note: many lines; a page's had room for two (a longer one with the one-condition metrics)
+    below = (0.13 * len(note) + 0.1 if narrow else 0.4 + 0.13 * max(0, len(note) - 2)) if note else 0
     fig, axes = plt.subplots(rows, cols, figsize=(pw * cols, z["h"] * rows + below + 0.17 * (len(title) - 1)),
                              dpi=130, squeeze=False, layout="constrained")
     colors = condition_colors(conds)
@@ -170,7 +179,7 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
     for ax in axes.flat[len(names):]:
         ax.set_axis_off()
     fig.suptitle("\n".join(title), fontsize=z["title"])
-    if same:
+    if note:
         fig.supxlabel("\n".join(note), fontsize=z["note"], color="0.3")
     path.parent.mkdir(parents=True, exist_ok=True)
     save_figure(fig, path) if pdf else fig.savefig(path)
