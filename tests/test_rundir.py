@@ -288,6 +288,20 @@ def test_a_sweep_run_again_skips_its_finished_jobs_and_runs_the_rest(tmp_path):
     assert "input.duration_s=1" in hydra["overrides.yaml"]
     root = (d / "multirun.yaml").read_bytes()
     changed = run("-m", "seed=0,1", "input.duration_s=2", f"hydra.sweep.dir={d}")
+    # refused before any job: the folder's multirun.yaml is a sweep of other settings (sweepcheck.check_sweep_folder)
+    assert changed.returncode == 2 and "holds a sweep of other settings (input.duration_s=2 (there: 1)" in \
+        changed.stderr, changed.stderr
+    assert (d / "multirun.yaml").read_bytes() == root
+    assert {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")} == hydra
+    # behind that check, each job's own: a folder whose multirun.yaml names this sweep while its points hold runs
+    # of other settings (a point run over by hand) refuses job by job, and leaves the folder as it was
+    import yaml
+
+    doc = yaml.safe_load(root)
+    doc["hydra"]["overrides"]["task"] = ["seed=0,1", "input.duration_s=2"]
+    (d / "multirun.yaml").write_text(yaml.safe_dump(doc))
+    root = (d / "multirun.yaml").read_bytes()
+    changed = run("-m", "seed=0,1", "input.duration_s=2", f"hydra.sweep.dir={d}")
     assert changed.returncode != 0 and "already holds a run; choose another hydra.sweep.dir" in changed.stderr
     assert (d / "multirun.yaml").read_bytes() == root   # Hydra rewrote it for the refused sweep; put back
     # found by a new-user review: the refusal deleted the finished job's .hydra/ (Hydra had already written the
@@ -461,7 +475,8 @@ def test_a_sweep_job_refused_by_a_running_job_leaves_its_hydra_alone(tmp_path):
         time.sleep(0.05)
     mine = {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")}
     assert "seed=3" in mine["overrides.yaml"]
-    second = run("-m", "seed=4", "input.duration_s=1", f"hydra.sweep.dir={d}", *NO_PLOTS)
+    # the same sweep (another's settings are refused before any job, sweepcheck.check_sweep_folder)
+    second = run("-m", "seed=3", "input.duration_s=600", f"hydra.sweep.dir={d}", *NO_PLOTS)
     assert second.returncode != 0 and "in use by another laughlab run" in second.stderr
     assert {f.name: f.read_text() for f in (d / "0" / ".hydra").glob("*.yaml")} == mine
     first.send_signal(signal.SIGTERM)

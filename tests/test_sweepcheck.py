@@ -121,3 +121,41 @@ def test_a_sweep_shown_live_runs_without_a_page_when_told_not_to_wait(tmp_path):
                  f"hydra.sweep.dir={tmp_path / 'sweep'}")
     assert r.returncode == 0, r.stderr
     assert r.stderr.count("viewer: 30 frames sent to no page") == 2
+
+
+def _earlier_sweep(folder, task):
+    import yaml
+
+    folder.mkdir(parents=True)
+    (folder / "multirun.yaml").write_text(yaml.safe_dump({"hydra": {"overrides": {
+        "hydra": [f"hydra.sweep.dir={folder}", "hydra.mode=MULTIRUN"], "task": task}}}))
+
+
+def test_a_sweep_folder_of_other_settings_is_refused_before_any_job(tmp_path):
+    """A researcher's review: the documented small sweep run again with decrease_per_s=6,30 into the same
+    hydra.sweep.dir skipped point 0, then stopped at point 1 ("already holds a run") without saying why, and
+    rewrote multirun.yaml.  Now one line before any job names what differs; the same sweep again resumes;
+    overwrite=true runs over it."""
+    from laughlab.core.sweepcheck import check_sweep_folder
+
+    sweep = tmp_path / "small"
+    task = ["experiment=energy_ablation", "scheduler.overrule_c=1.5,3", "scheduler.decrease_per_s=6,20",
+            "harness.corpus.seeds=1"]
+    _earlier_sweep(sweep, task)
+    before = (sweep / "multirun.yaml").read_bytes()
+    changed = [*task[:2], "scheduler.decrease_per_s=6,30", "fps=30"]
+    r = laughlab("-m", *changed, f"hydra.sweep.dir={sweep}")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr == (f"laughlab: error: {sweep} holds a sweep of other settings (scheduler.decrease_per_s=6,30 "
+                        "(there: 6,20), fps=30, harness.corpus.seeds=1 there, not now): its points are numbered as "
+                        "that sweep's; choose another hydra.sweep.dir, or add overwrite=true to run these points "
+                        "over it\n")
+    assert sorted(p.name for p in sweep.iterdir()) == ["multirun.yaml"]
+    assert (sweep / "multirun.yaml").read_bytes() == before
+    # the same sweep (in another order) resumes; overwrite=true runs over it; a new folder has nothing to compare
+    check_sweep_folder([*reversed(task), f"hydra.sweep.dir={sweep}", "hydra/launcher=basic"])
+    check_sweep_folder([*changed, f"hydra.sweep.dir={sweep}", "overwrite=true"])
+    check_sweep_folder([*changed, f"hydra.sweep.dir={tmp_path / 'new'}"])
+    check_sweep_folder(changed)   # the default folder is named by the time: a new one
+    with pytest.raises(LaughlabError, match=r"\(scheduler.decrease_per_s=6,30 \(there: 6,20\), fps=30, seed=3, ...\)"):
+        check_sweep_folder([*changed, "seed=3", f"hydra.sweep.dir={sweep}"])

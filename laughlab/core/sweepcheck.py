@@ -60,6 +60,7 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
 
     from laughlab.core.config import is_group
 
+    check_sweep_folder(overrides)
     base, sweeps = sweep_values(overrides)
     if any(override_key(k) == "experiment" for k in sweeps):
         # Hydra composes the sweep's own configuration (for its sweeper and launcher) without the swept group, where
@@ -95,6 +96,36 @@ def check_sweep(overrides: list[str], preflight: Callable[[list[str]], object]) 
                 raise LaughlabError(f"sweep value {value}: {exc}") from None
             checked += 1
     return checked
+
+
+def check_sweep_folder(overrides: list[str]) -> None:
+    """A ``hydra.sweep.dir`` that holds a sweep of other settings (its ``multirun.yaml``) is refused before any job,
+    unless ``overwrite=true``: its points are numbered as that sweep's, so point 1 of the new sweep met point 1 of
+    the old one part way through, with a line that did not say why (a researcher's review).  The same command
+    again (a sweep resumed) passes: its finished points are skipped."""
+    from pathlib import Path
+
+    import yaml
+
+    given = [o.split("=", 1)[1] for o in overrides if override_key(o) == "hydra.sweep.dir" and "=" in o]
+    if not given or any(override_key(o) == "overwrite" and o.split("=", 1)[1].lower() == "true" for o in overrides):
+        return
+    folder = Path(given[-1]).expanduser()
+    try:
+        before = yaml.safe_load((folder / "multirun.yaml").read_text())["hydra"]["overrides"]["task"]
+    except (OSError, yaml.YAMLError, KeyError, TypeError):
+        return   # no earlier sweep there (or not one laughlab can read): the jobs' own checks hold
+    # Hydra's own settings (hydra.launcher.n_jobs, hydra/launcher=joblib) are not in multirun.yaml's task list
+    now = {override_key(o): o for o in overrides if not override_key(o).lstrip("+~").startswith(("hydra.", "hydra/"))}
+    old = {override_key(o): o for o in before if isinstance(o, str)} if isinstance(before, list) else {}
+    if sorted(now.values()) == sorted(old.values()):
+        return
+    said = [f"{o} (there: {old[k].split('=', 1)[1] if '=' in old[k] else old[k]})" if k in old else o
+            for k, o in now.items() if old.get(k) != o]
+    said += [f"{o} there, not now" for k, o in old.items() if k not in now]
+    raise LaughlabError(f"{folder} holds a sweep of other settings ({', '.join(said[:3])}"
+                        f"{', ...' if len(said) > 3 else ''}): its points are numbered as that sweep's; choose "
+                        "another hydra.sweep.dir, or add overwrite=true to run these points over it")
 
 
 def _quoting_the_sweep(message: str, overrides: list[str], sweeps: dict[str, list[str]]) -> str:
