@@ -261,6 +261,11 @@ def test_view_out_says_how_to_open_the_page(run_dir, tmp_path):
     assert r.stdout.strip() == (f"laughlab: viewer of {run_dir} written to {tmp_path / 's'}/: open "
                                 f"{tmp_path / 's' / 'index.html'} in a browser, or put the folder on any web server "
                                 f"(e.g. python -m http.server -d {tmp_path / 's'})")
+    # a folder with a space: both commands quoted for the shell (a game developer's review: the first was not)
+    r = laughlab("view", str(run_dir), "--out", str(tmp_path / "my site"))
+    assert r.returncode == 0, r.stderr
+    assert f"open '{tmp_path / 'my site' / 'index.html'}' in a browser" in r.stdout
+    assert f"python -m http.server -d '{tmp_path / 'my site'}'" in r.stdout
 
 
 def test_a_closed_browser_leaves_nothing_in_the_temporary_folder(monkeypatch):

@@ -30,7 +30,7 @@ def main(args: list[str]) -> None:
     if ns.out:
         out, opens = V.write(ns.run_dir, ns.out, ns.character, overwrite=ns.overwrite)
         serve = f"python -m http.server -d {shlex.quote(str(out))}"
-        print(f"laughlab: viewer of {ns.run_dir} written to {out}/: open {out / 'index.html'} in a browser, or put "
+        print(f"laughlab: viewer of {ns.run_dir} written to {out}/: open {shlex.quote(str(out / 'index.html'))} in a browser, or put "
               f"the folder on any web server (e.g. {serve})" if opens else
               f"laughlab: viewer of {ns.run_dir} written to {out}/: too large to open as a file; serve the folder "
               f"(e.g. {serve}) and open http://127.0.0.1:8000/")
