@@ -452,3 +452,19 @@ def test_a_plugins_dir_with_a_space_quoted_as_hydra_asks(tmp_path):
     assert listed.returncode == 0 and "gape" in listed.stdout, listed.stderr
     missing = laughlab("plugins_dir='no such'", cwd=tmp_path)
     assert missing.returncode == 2 and missing.stderr == "laughlab: error: plugins_dir 'no such' is not a folder\n"
+
+
+def test_a_parameter_without_a_default_is_required_in_one_line(tmp_path):
+    """A plugin author's review: ``gain: float`` with no default stopped every command with a TypeError traceback,
+    the face's own runs with face.gain=2 too.  It is a required parameter now, as ``= MISSING`` makes one."""
+    folder = tmp_path / "req"
+    folder.mkdir()
+    (folder / "gape.py").write_text(PLUGIN.replace("gain: float = 1.0", "gain: float\n    bias: float = 0.0"))
+    r = laughlab(f"plugins_dir={folder}", "face=gape", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'a'}",
+                 cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr == "laughlab: error: face.gain is required: set face.gain=VALUE\n"
+    assert not (tmp_path / "a").exists()
+    r = laughlab(f"plugins_dir={folder}", "face=gape", "face.gain=2", "input.duration_s=1", "~output.plots",
+                 f"hydra.run.dir={tmp_path / 'b'}", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "b" / "channels.csv").is_file()

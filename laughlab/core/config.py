@@ -106,7 +106,7 @@ def register_plugin_configs() -> None:
 
     Third-party plugins then work as ``extractor=NAME`` with their dataclass defaults.
     """
-    from dataclasses import asdict, is_dataclass
+    from dataclasses import is_dataclass
 
     from hydra.core.config_store import ConfigStore
 
@@ -126,9 +126,26 @@ def register_plugin_configs() -> None:
             params_cls = getattr(info.obj, "Params", None)
             node = {"name": name}
             if params_cls is not None and is_dataclass(params_cls):
-                node.update(asdict(params_cls()))
+                node.update(_defaults(params_cls))
             cs.store(group=group, name=name, node=node)
     own_experiments.load_installed(conf_dir())   # and the experiments the installed packages register
+
+
+def _defaults(params_cls) -> dict:
+    """A plugin's parameters as its config node: each field's default, and OmegaConf's ``???`` for a field with
+    none, so that a run without it says "face.gain is required: set face.gain=VALUE" (a plugin author's review:
+    ``gain: float`` with no default stopped every command, the plugin's own runs too, with a traceback)."""
+    from dataclasses import MISSING, asdict, fields, is_dataclass
+
+    try:
+        return asdict(params_cls())
+    except TypeError:   # a field without a default
+        out = {}
+        for f in fields(params_cls):
+            value = f.default if f.default is not MISSING else \
+                f.default_factory() if f.default_factory is not MISSING else "???"
+            out[f.name] = asdict(value) if is_dataclass(value) and not isinstance(value, type) else value
+        return out
 
 
 def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
