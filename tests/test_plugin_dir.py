@@ -468,3 +468,27 @@ def test_a_parameter_without_a_default_is_required_in_one_line(tmp_path):
                  f"hydra.run.dir={tmp_path / 'b'}", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "b" / "channels.csv").is_file()
+
+
+@pytest.mark.parametrize("how", ['frame.channels["energy"] = 0.3', 'frame.channels.update(energy=0.3)',
+                                 'frame.channels |= {"energy": 0.3}'])
+def test_a_face_writing_an_earlier_stages_channel_is_said_once(tmp_path, how, monkeypatch):
+    """A plugin author's review: a face that wrote energy (or chest, mcs) replaced the scheduler's in
+    channels.csv and the metrics without a word.  One warning names both writers; the face's value is kept."""
+    from laughlab.core import blame
+
+    monkeypatch.setattr(blame, "_CLASHES_SAID", set())   # said once a process: this one runs the command thrice
+    folder = tmp_path / "clash"
+    folder.mkdir()
+    (folder / "gape.py").write_text(PLUGIN.replace(
+        "frame.channels.update(smile=0.5, blink=0.0, eyes_closed=0.0)",
+        f"frame.channels.update(smile=0.5, blink=0.0, eyes_closed=0.0)\n        {how}"))
+    r = laughlab(f"plugins_dir={folder}", "face=gape", "input.duration_s=1", "~output.plots", "detector=none",
+                 f"hydra.run.dir={tmp_path / 'r'}", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    said = [line for line in r.stderr.splitlines() if "warning" in line]
+    assert said == ["laughlab: warning: face 'gape' writes energy, which scheduler 'energy' wrote on the same frame: "
+                    "channels.csv, the character and the metrics keep the face's (each channel has one writer: "
+                    "docs/architecture.md)"]
+    with open(tmp_path / "r" / "channels.csv", newline="") as f:
+        assert {row["energy"] for row in csv.DictReader(f)} == {"0.300000"}

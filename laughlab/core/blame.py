@@ -10,6 +10,7 @@ process keeps them); the command line then prints the traceback from the plugin'
 from __future__ import annotations
 
 import inspect
+import sys
 import traceback
 
 from laughlab.core.errors import LaughlabError
@@ -148,3 +149,53 @@ def check_extractor(control: dict, extractor) -> None:
         raise PluginBug(f"extractor '{extractor.name}' ({_source_file(cls)}, {cls.__name__}.step) wrote no mcs at "
                         f"frame 0 (it wrote {wrote}): every extractor writes frame.control['mcs'] (0-1), the signal "
                         "the detector, scheduler, body and face read; nothing was written")
+
+
+class WatchedChannels(dict):
+    """``frame.channels`` on a run's first frame: which stage (``stage``: its kind and name) writes each channel,
+    through ``[]``, ``update``, ``setdefault`` and ``|=`` alike (:func:`warn_clashes`)."""
+
+    stage: tuple = ("", "")
+
+    def __init__(self):
+        super().__init__()
+        self.writers: dict = {}
+
+    def __setitem__(self, key, value) -> None:
+        self.writers.setdefault(key, [])
+        if self.stage not in self.writers[key]:
+            self.writers[key].append(self.stage)
+        super().__setitem__(key, value)
+
+    def update(self, *args, **kwargs) -> None:
+        for key, value in dict(*args, **kwargs).items():
+            self[key] = value
+
+    def setdefault(self, key, default=None):
+        if key not in self:
+            self[key] = default
+        return self[key]
+
+    def __ior__(self, other):
+        self.update(other)
+        return self
+
+
+_CLASHES_SAID: set = set()
+
+
+def warn_clashes(watched: WatchedChannels) -> None:
+    """One warning line (once a process) per pair of stages that wrote the same channel on the first frame: the
+    later one's value is what ``channels.csv``, the character and the metrics keep.  A warning, not a refusal: a
+    plugin may mean to refine an earlier one's channel; laughlab's own stages never do."""
+    pairs: dict = {}
+    for key, who in watched.writers.items():
+        for later in who[1:]:
+            pairs.setdefault((who[0], later), []).append(key)
+    for (first, later), keys in pairs.items():
+        if (first, later, tuple(keys)) in _CLASHES_SAID:
+            continue
+        _CLASHES_SAID.add((first, later, tuple(keys)))
+        print(f"laughlab: warning: {later[0]} {later[1]!r} writes {', '.join(keys)}, which {first[0]} {first[1]!r} "
+              f"wrote on the same frame: channels.csv, the character and the metrics keep the {later[0]}'s "
+              "(each channel has one writer: docs/architecture.md)", file=sys.stderr)

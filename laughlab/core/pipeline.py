@@ -325,12 +325,23 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         ext_step, det_step, sch_step, body_step, face_step = ext.step, det.step, sch.step, body.step, face.step
         advance, note, add, record_ns = mixer.advance, mixer.note, rec.add, times.values.append
 
-        def ext_first(block, frame) -> None:   # frame 0: the extractor wrote what every later stage reads (a
-            nonlocal ext_step                  # review: without mcs, the energy scheduler's KeyError was laughlab's)
-            ext.step(block, frame)
-            blame.check_extractor(frame.control, ext)
-            ext_step = ext.step
-        ext_step = ext_first
+        def first_frame(block, frame) -> None:
+            """Frame 0's steps, checked: the extractor wrote what every later stage reads (a review: without mcs, the
+            energy scheduler's KeyError was laughlab's), and a stage that writes a channel an earlier one wrote is
+            said (a plugin author's review: a face writing energy replaced the scheduler's in every file)."""
+            frame.channels = watched = blame.WatchedChannels()
+            for stage, plugin, step in (("extractor", ext, ext.step), ("detector", det, det.step)):
+                watched.stage = (stage, plugin.name)
+                step(block, frame)
+                if plugin is ext:
+                    blame.check_extractor(frame.control, ext)
+            watched.stage = ("scheduler", sch.name)
+            sch.step(frame)
+            advance(frame)
+            for stage, plugin in (("body", body), ("face", face)):
+                watched.stage = (stage, plugin.name)
+                plugin.step(frame)
+            blame.warn_clashes(watched)
         tail = []   # [input samples, frames] once the input has ended (run_out)
 
         def run_out():
@@ -347,12 +358,15 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         for block in itertools.chain(src.blocks(), run_out()):
             t0 = clock()
             frame = Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)
-            ext_step(block, frame)
-            det_step(block, frame)
-            sch_step(frame)
-            advance(frame)
-            body_step(frame)
-            face_step(frame)
+            if k:
+                ext_step(block, frame)
+                det_step(block, frame)
+                sch_step(frame)
+                advance(frame)
+                body_step(frame)
+                face_step(frame)
+            else:
+                first_frame(block, frame)
             note(frame)
             add(frame, t0)
             record_ns(clock() - t0)
