@@ -509,7 +509,12 @@ def test_the_reasons_of_the_exclusions_are_counted_once_each():
     excluded[14] = ["straight-lining: all 12 ratings were 3"]
     excluded[15] = ["straight-lining: all 12 ratings were 5"]
     assert reason_counts(excluded) == ("no audio check stored: 12; audio check failed: 2; "
-                                       "failed N of N attention items: 2; straight-lining: all N ratings were N: 2")
+                                       "failed 1 or 2 of 2 attention items: 2; straight-lining: all 12 ratings were "
+                                       "3 or 5: 2")
+    # one participant: the reason as it is (a review read "all N ratings were N: 1" as placeholders left unfilled)
+    assert reason_counts({3: ["straight-lining: all 16 ratings were 5"]}) == "straight-lining: all 16 ratings were 5: 1"
+    many = {p: [f"straight-lining: all 12 ratings were {p}"] for p in range(1, 8)}
+    assert reason_counts(many) == "straight-lining: all 12 ratings were 1-7: 7"
 
 
 def test_exclusions_name_each_participant_and_the_reason(study, tmp_path):

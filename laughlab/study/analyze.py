@@ -326,7 +326,8 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
     ratings = df[(df["kind"] == "rating") & df["value"].notna()]
     tidy = ratings[~ratings["participant"].astype(int).isin(excluded)].reset_index(drop=True)
     if tidy.empty:
-        raise LaughlabError(f"no ratings are left after the exclusions ({len(excluded)} participants excluded: "
+        raise LaughlabError(f"no ratings are left after the exclusions ({len(excluded)} "
+                            f"participant{'' if len(excluded) == 1 else 's'} excluded: "
                             f"{reason_counts(excluded)})")
     questions = [q for q in questions if q in set(tidy["question"])]
     means = condition_means(tidy, conditions, questions)
@@ -395,14 +396,23 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
 
 def reason_counts(excluded: dict) -> str:
     """The exclusions' reasons, each kind once with how many participants it excluded (the reasons' words before
-    any detail in brackets, numbers as N): ``no audio check stored: 12; failed N of N attention items: 2``."""
-    from collections import Counter
-
+    any detail in brackets), each number the values it took: ``no audio check stored: 12; failed 1 or 2 of 2
+    attention items: 2`` (a review read "all N ratings were N: 1" as placeholders left unfilled)."""
     import re
 
-    # the reason's kind: its words before any bracketed detail, its numbers as N ("failed N of N attention items")
-    counts = Counter(re.sub(r"\d+(\.\d+)?", "N", r.split(" (")[0]) for reasons in excluded.values() for r in reasons)
-    return "; ".join(f"{r}: {n}" for r, n in counts.most_common())
+    kinds: dict = {}
+    for reasons in excluded.values():
+        for r in reasons:
+            text = r.split(" (")[0]
+            kinds.setdefault(re.sub(r"\d+(\.\d+)?", "N", text), []).append(re.split(r"(\d+(?:\.\d+)?)", text))
+    out = []
+    for parts in sorted(kinds.values(), key=len, reverse=True):   # most participants first, ties as met
+        words = list(parts[0])
+        for i in range(1, len(words), 2):   # the numbers: each slot's values, as taken
+            seen = sorted({p[i] for p in parts}, key=float)
+            words[i] = seen[0] if len(seen) == 1 else " or ".join(seen) if len(seen) <= 3 else f"{seen[0]}-{seen[-1]}"
+        out.append(f"{''.join(words)}: {len(parts)}")
+    return "; ".join(out)
 
 
 #: the report's line when no design was found or given (CSV answers without --design)
