@@ -860,3 +860,20 @@ def test_simulate_counts_what_its_database_holds(study, tmp_path):
     assert kinds.count("audio_check") == 2
     assert out.stdout.startswith(f"laughlab: 2 simulated participants finished ({len(kinds) - 2} answers and 2 audio "
                                  "checks, planted no effect) -> "), out.stdout
+
+
+def test_a_planted_effect_past_the_scales_end_is_refused(study):
+    """A user-study review: --effects laugh_energy=5 over the base rating 4 of a 1..7 scale ran, and every answer
+    was cut to 7 under a report of "+5 planted".  Refused in one line, as study power refuses its --effect."""
+    from laughlab.core.errors import LaughlabError
+    from laughlab.study.simulate import PLANTED_SPREAD, parse_effects
+
+    d = design_of(study)
+    cond = d["conditions"][0]
+    lo, hi = 1, d["points"]
+    base = PLANTED_SPREAD["base"]
+    assert parse_effects(f"{cond}={hi - base:g}", d) == {cond: hi - base}          # to the end: allowed
+    assert parse_effects(f"{cond}={lo - base:g}", d) == {cond: lo - base}
+    with pytest.raises(LaughlabError, match=rf"^--effects {cond}=5 is impossible on this 1\.\.{hi} scale: from the "
+                                            rf"base rating 4 an effect must lie between -3 and \+{hi - 4}$"):
+        parse_effects(f"{cond}=5", d)

@@ -255,4 +255,13 @@ def parse_effects(text: str, design: dict) -> dict[str, float]:
             raise LaughlabError(f"--effects: {val!r} is not a number") from None
         if not math.isfinite(out[cond]):
             raise LaughlabError("--effects must be finite")
+        # past the scale's end every answer is cut to it: the report then read "laugh_energy +5 planted" over
+        # answers all at 7 (a user-study review); study power refuses its --effect the same way
+        from laughlab.study.design import scale_range
+
+        lo, hi = scale_range(design)
+        base = PLANTED_SPREAD["base"]
+        if not lo <= base + out[cond] <= hi:
+            raise LaughlabError(f"--effects {cond}={val} is impossible on this {lo:g}..{hi:g} scale: from the base "
+                                f"rating {base:g} an effect must lie between {lo - base:+g} and {hi - base:+g}")
     return out
