@@ -877,3 +877,33 @@ def test_a_planted_effect_past_the_scales_end_is_refused(study):
     with pytest.raises(LaughlabError, match=rf"^--effects {cond}=5 is impossible on this 1\.\.{hi} scale: from the "
                                             rf"base rating 4 an effect must lie between -3 and \+{hi - 4}$"):
         parse_effects(f"{cond}=5", d)
+
+
+def test_answers_to_other_videos_are_not_read_as_this_studys(study, tmp_path):
+    """A user-study review: the same design built from the mannequin's and from an avatar's videos had one id, so
+    serve and analyze took the one's database as the other's.  The id holds each stimulus' sha256, and
+    analyze --design refuses a database of another design in one line."""
+    import json
+
+    from laughlab.core.errors import LaughlabError
+    from laughlab.study import db as DB
+    from laughlab.study.answers import load
+    from laughlab.study.design import design_id
+
+    d = design_of(study)
+    assert design_id(d) == d["id"]
+    other = json.loads(json.dumps(d))
+    first = sorted(other["stimuli"])[0]
+    other["stimuli"][first]["sha256"] = "0" * 64          # the same design over one other video
+    other["id"] = design_id(other)
+    assert other["id"] != d["id"]
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "design.json").write_text(json.dumps(other))
+    db = DB.open_db(tmp_path / "answers.sqlite", d)
+    with pytest.raises(LaughlabError, match=rf"^{db} holds the answers of another study \(design {d['id']}; "
+                                            rf"{tmp_path / 'other'}'s is {other['id']}\): give its own study folder"):
+        load(db, tmp_path / "other")
+    with pytest.raises(LaughlabError, match="holds the responses of another study"):
+        DB.open_db(db, other)                              # and study serve's check of its --db
+    with pytest.raises(LaughlabError, match="holds no answers yet"):
+        load(db, study)                                    # its own design: read (no answers here)

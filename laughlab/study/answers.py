@@ -52,7 +52,13 @@ def load(source, design_dir=None):
         rows = read_csv(source, design)
     elif source.is_file():
         rows = DB.rows(source)
-        design = design or DB.stored_design(source)
+        stored = DB.stored_design(source)
+        if design is not None and stored is not None and stored.get("id") != design.get("id"):
+            # answers to other videos (or another design) read against this one's (a user-study review)
+            raise LaughlabError(f"{source} holds the answers of another study (design {stored.get('id')}; "
+                                f"{design_dir}'s is {design.get('id')}): give its own study folder as --design, or "
+                                "leave --design out (the database holds its design)")
+        design = design or stored
     else:
         raise LaughlabError(f"no database or CSV at {source}")
     if not rows:

@@ -205,13 +205,18 @@ def make_design(run_dir: Path, preset: dict, preset_name: str, audio_files: list
 
 
 def design_id(doc: dict) -> str:
-    """A short hash of what a response is checked against (trials, questions, scale, checks)."""
+    """A short hash of what a response is checked against (trials, questions, scale, checks) and of what the
+    participants saw: each stimulus' sha256 (since 2026-11-29; a user-study review served and analysed a database of
+    answers to the mannequin's videos as the answers to the same design on an avatar, whose ids were the same)."""
     keep = {k: doc[k] for k in ("participants", "questions", "scale", "points", "slider", "attention", "audio_check")}
+    keep["stimuli"] = {sid: s.get("sha256") for sid, s in (doc.get("stimuli") or {}).items()}
     return hashlib.sha256(json.dumps(keep, sort_keys=True).encode()).hexdigest()[:16]
 
 
 def load_design(study_dir: Path) -> dict:
     path = Path(study_dir) / "design.json"
+    if not Path(study_dir).exists():   # a review: "is not a study folder" of a path that is not there at all
+        raise LaughlabError(f"study folder not found: {study_dir}")
     if not path.is_file():
         raise LaughlabError(f"{study_dir} is not a study folder (no design.json): build one with "
                             "python -m laughlab study build STIMULI_RUN_DIR")

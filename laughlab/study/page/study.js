@@ -305,7 +305,7 @@
         },
       });
       timeline.push({type: jsPsychInstructions, show_clickable_nav: true, key_forward: "ArrowRight",
-                     key_backward: "ArrowLeft", button_label_next: "Next &rarr;", button_label_previous: "&larr; Back",
+                     key_backward: "ArrowLeft", button_label_next: "Next", button_label_previous: "Back",   // jsPsych adds &lt; and &gt;
                      pages: S.instructions.map((s) => `<div class="study-text">${s}</div>`), on_load: focusButton});
     } else {
       timeline.push({type: jsPsychHtmlButtonResponse, choices: ["Go on"], on_load: focusButton,
