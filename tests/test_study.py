@@ -907,3 +907,24 @@ def test_answers_to_other_videos_are_not_read_as_this_studys(study, tmp_path):
         DB.open_db(db, other)                              # and study serve's check of its --db
     with pytest.raises(LaughlabError, match="holds no answers yet"):
         load(db, study)                                    # its own design: read (no answers here)
+
+
+def test_power_from_a_simulated_pilot_says_so_and_its_figure_is_for_a_page(study, tmp_path):
+    """A user-study review: --pilot took a report of simulated participants' variances without a word, the
+    figure's title ran off both sides with a long pilot path, and it was 594 x 396 px ("= 1 points")."""
+    import json
+
+    from PIL import Image
+
+    pilot = tmp_path / "a long folder name of the pilot's report" / "simulated-report"
+    pilot.mkdir(parents=True)
+    (pilot / "report.json").write_text(json.dumps({
+        "simulated": True, "fixed": [{"question": "natural", "term": "Intercept", "estimate": 4.0}],
+        "variance": [{"question": "natural", "var_participant": 0.3, "var_stimulus": 0.05, "var_residual": 0.6}]}))
+    r = fuzz.run_cli(["study", "power", str(study), "--contrast", "laugh_energy:smile_only", "--effect", "1",
+                      "--participants", "4", "--sims", "2", "--pilot", str(pilot), "--out", str(tmp_path / "pw")])
+    assert r.code == 0, r.stderr
+    assert (f"power: note: the variances are from a report of simulated participants ({pilot}): the planted "
+            "model's spreads, not a pilot's") in r.stderr
+    with Image.open(tmp_path / "pw" / "power.png") as im:
+        assert im.size[0] >= 1000

@@ -228,7 +228,7 @@ def run_power(ns) -> None:
               file=sys.stderr)
     W.check_out(out)
     out.mkdir(parents=True, exist_ok=True)
-    title = f"{a} - {b} = {ns.effect:g} points; variances: {source}"
+    title = f"{a} - {b} = {ns.effect:g} point{'' if abs(ns.effect) == 1 else 's'}; variances: {source}"
     parts = [out / ".power.csv.part", out / ".power.png.part"]
     try:
         with open(parts[0], "w", newline="") as f:
@@ -241,6 +241,9 @@ def run_power(ns) -> None:
     finally:
         for part in parts:
             part.unlink(missing_ok=True)
+    if "simulated participants" in source:
+        print(f"power: note: the variances are from a report of simulated participants ({ns.pilot}): the planted "
+              "model's spreads, not a pilot's", file=sys.stderr)
     print(f"laughlab: {W.verdict(rows, ns.target)} for {a} - {b} = {ns.effect:g} (alpha {ns.alpha:g}, Holm); "
           f"{out}/power.csv, power.png")
     hint = W.advice(rows, ns.target, ns.effect, len(design["participants"]))

@@ -131,8 +131,11 @@ def pilot_variance(report_dir: Path, question: str | None) -> tuple[dict, float,
         raise LaughlabError(f"the pilot has no question {question!r}; it has: "
                             f"{', '.join(x['question'] for x in doc['variance'])}")
     icpt = next(f["estimate"] for f in doc["fixed"] if f["question"] == v["question"] and f["term"] == "Intercept")
+    # a report of simulated participants is said where its variances are used (a user-study review: power took the
+    # planted model's spreads as a pilot's without a word)
     return ({"participant": v["var_participant"], "stimulus": v.get("var_stimulus") or 0.0,
-             "residual": v["var_residual"]}, float(icpt), v["question"])
+             "residual": v["var_residual"]}, float(icpt),
+            v["question"] + (", simulated participants" if doc.get("simulated") else ""))
 
 
 def power(design: dict, contrast: tuple[str, str], effect: float, ns: list[int], sims: int = 200,
@@ -196,6 +199,8 @@ def plot(path: Path, rows: list[dict], target: float, title: str) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    import textwrap
+
     fig = Figure(figsize=(5.4, 3.6), dpi=110, layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.subplots()
@@ -209,8 +214,8 @@ def plot(path: Path, rows: list[dict], target: float, title: str) -> None:
     ax.set_xlabel("participants")
     ax.set_ylabel("power (95 % CI)")
     ax.set_ylim(-0.04, 1.04)                # a power of 0 or 1 shows whole, not cut at the axis
-    ax.set_title(title, fontsize=9)
+    ax.set_title("\n".join(textwrap.wrap(title, 75)), fontsize=9)   # a review: a long pilot path cut it at both ends
     ax.grid(alpha=0.3)
     # under the axes, where it covers no point (a review: in the corner it sat on the 12-participant point)
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncols=2, fontsize=8, frameon=False)
-    fig.savefig(path, format="png")
+    fig.savefig(path, format="png", dpi=200)   # as sharp as the analysis' figures for a page (it was 594 x 396 px)
