@@ -158,7 +158,21 @@ def test_the_report_warns_when_few_stimuli_vary():
     note = few_stimuli_note(var, 4)
     assert note.startswith("Only 4 stimuli per condition, and they vary (stimulus variance 0.5, 19% of the total)")
     assert few_stimuli_note(var, 10) == "" and few_stimuli_note({**var, "stimulus": 0.09}, 4) == ""
-    assert few_stimuli_note({**var, "stimulus": 0.0}, 2) == ""
+    # 2 stimuli per condition, their variance estimated at 0: too few to take that as their not varying (a
+    # user-study review: 1e-9 and no warning)
+    assert few_stimuli_note({**var, "stimulus": 1e-9}, 2).startswith(
+        "Only 2 stimuli per condition: too few to tell how much stimuli vary (the estimate, 1e-09, rests on them)")
+    assert few_stimuli_note({**var, "stimulus": 0.0}, 4) == ""
+
+
+def test_the_report_cautions_with_few_participants():
+    """A user-study review: 4 simulated participants' report called its Wald tests valid."""
+    from laughlab.study.analyze import FEW_PARTICIPANTS, few_participants_note
+
+    assert few_participants_note(FEW_PARTICIPANTS) == ""
+    assert few_participants_note(4) == ("Only 4 participants: the Wald z tests below take the estimated variances as "
+                                        "known, which with so few makes their p values too small; read them as a "
+                                        "pilot's.")
 
 
 def test_the_warning_reaches_the_readme(tmp_path):

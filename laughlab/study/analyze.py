@@ -206,7 +206,7 @@ def fit_note(fit, warned: list[str]) -> str:
         total = sum(var.values()) + float(fit.scale)
         low = [n for n, v in var.items() if v < 0.01 * total] or ([min(var, key=var.get)] if var else [])
         plural = {"participant": "participants", "stimulus": "stimuli"}
-        clauses.append(f"the {' and '.join(low)} variance is at or near zero ("
+        clauses.append(f"the {' and '.join(low)} variance{'s are' if len(low) > 1 else ' is'} at or near zero ("
                        f"{' and '.join(plural.get(n, n) for n in low)} differ no more than the rating noise, so the "
                        "model is in effect one without that random intercept)")
     if any(w.startswith(_HESSIAN) for w in warned):
@@ -216,7 +216,7 @@ def fit_note(fit, warned: list[str]) -> str:
         return head + ("; " + " and ".join(clauses) if clauses else "") + (
             ", but statsmodels also warned of something else (see report.json), so check these estimates.")
     return head + ("; " + " and ".join(clauses) if clauses else "") + (
-        ", which leaves the condition estimates and tests below valid.")
+        ", which by itself leaves the condition estimates and tests below as they are.")
 
 
 #: below this many stimuli per condition, and with the stimulus variance at least this share of the total, the
@@ -224,12 +224,36 @@ def fit_note(fit, warned: list[str]) -> str:
 FEW_STIMULI, STIMULUS_SHARE = 10, 0.05
 
 
+#: below this many stimuli per condition the stimulus variance is not estimable enough to trust its estimate of ~0
+TOO_FEW_STIMULI = 4
+#: below this many participants the README says the Wald tests are liberal
+FEW_PARTICIPANTS = 12
+
+
+def few_participants_note(n: int) -> str:
+    """The README's caution for a question rated by few participants ("" when not): the Wald z tests take the
+    estimated variances as known, which with few participants makes their p values too small (a user-study review:
+    4 simulated participants' report called its tests valid)."""
+    if n >= FEW_PARTICIPANTS:
+        return ""
+    return (f"Only {n} participants: the Wald z tests below take the estimated variances as known, which with so "
+            "few makes their p values too small; read them as a pilot's.")
+
+
 def few_stimuli_note(var: dict[str, float], per_condition: int) -> str:
-    """The README's warning for a question whose stimuli per condition are few and vary ("" when not)."""
+    """The README's warning for a question whose stimuli per condition are few and vary ("" when not); with fewer
+    than :data:`TOO_FEW_STIMULI` a stimulus variance estimated at about 0 is not taken as their not varying (a
+    user-study review: 2 stimuli per condition, variance 1e-9, no warning)."""
     total = sum(var.values())
     share = var.get("stimulus", 0.0) / total if total > 0 else 0.0
-    if per_condition >= FEW_STIMULI or share < STIMULUS_SHARE:
+    if per_condition >= FEW_STIMULI:
         return ""
+    if share < STIMULUS_SHARE:
+        if per_condition >= TOO_FEW_STIMULI:
+            return ""
+        return (f"Only {per_condition} stimuli per condition: too few to tell how much stimuli vary (the estimate, "
+                f"{var.get('stimulus', 0.0):.3g}, rests on them), so if they do, the tests below are liberal; more "
+                "audio items per condition is the remedy.")
     return (f"Only {per_condition} stimuli per condition, and they vary (stimulus variance {var['stimulus']:.3g}, "
             f"{share:.0%} of the total): the Wald tests below take that variance as known, though it is estimated "
             "from few stimuli, so their p values are too small (in simulations with 4 stimuli per condition and a "
@@ -347,7 +371,8 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
                           "ci_low": float(ci.loc[name, 0]), "ci_high": float(ci.loc[name, 1]),
                           "z": float(fit.tvalues[name]), "p": float(fit.pvalues[name])})
         var = variance_components(fit)
-        few = few_stimuli_note(var, int(data.groupby("condition")["stimulus"].nunique().min()))
+        few = " ".join(filter(None, (few_stimuli_note(var, int(data.groupby("condition")["stimulus"].nunique().min())),
+                                     few_participants_note(int(data["participant"].nunique())))))
         if few:
             notes[q] = f"{notes[q]} {few}" if notes.get(q) else few
         variances.append({"question": q, **{f"var_{k}": v for k, v in var.items()}, "converged": bool(fit.converged),
