@@ -180,9 +180,10 @@ def test_a_channel_that_is_not_a_number_is_one_line_naming_it(tmp_path, value, s
     (tmp_path / "p" / "gape.py").write_text(PLUGIN.replace(
         'frame.channels["jaw"] = min(1.0, frame.control["mcs"] * self.params.gain)', f'frame.channels["jaw"] = {value}'))
     r = laughlab("plugins_dir=p", "face=gape", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
+    # the plugin named (a plugin author's review: the line said "the plugin that writes it", not which)
     assert r.returncode == 1 and r.stderr == (
-        f"laughlab: error: {says}a bug in the plugin that writes it (laughlab's own plugins: please report it); "
-        "nothing was written\n"), r.stderr
+        f"laughlab: error: {says}a bug in the plugin that writes it, face 'gape' (laughlab's own plugins: please "
+        "report it); nothing was written\n"), r.stderr
     assert not (tmp_path / "run").exists()
     # in an experiment: the trial named, exit status 1 too (a diff review: 2, no trial)
     r = laughlab("plugins_dir=p", "experiment=smoke", "~harness.conditions", "+harness.conditions={g:['face=gape']}",

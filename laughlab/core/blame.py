@@ -95,7 +95,14 @@ def trace(exc: BaseException) -> str:
     return getattr(exc, TRACE, "") or ""
 
 
-def not_a_number(key: str, values: list, first_frame: int) -> str:
+def whose(key: str, owner=None) -> str:
+    """:data:`WHOSE`, naming the plugin when ``owner(key)`` knows it (``face 'giggle'``: the stage that wrote the
+    channel on the first frame, :class:`WatchedChannels`; a plugin author's review: the line did not name it)."""
+    who = owner(key) if owner is not None else None
+    return WHOSE.replace("writes it", f"writes it, {who}") if who else WHOSE
+
+
+def not_a_number(key: str, values: list, first_frame: int, owner=None) -> str:
     """The line for a channel value that is not a number (a plugin's bug): the channel, the value, the frame."""
     for j, v in enumerate(values):
         try:
@@ -105,7 +112,7 @@ def not_a_number(key: str, values: list, first_frame: int) -> str:
     else:
         j, v = 0, values[0]
     return (f"channel {key!r} is {str(v)[:40]!r} ({type(v).__name__}) at frame {first_frame + j}: channel values "
-            f"are numbers; {WHOSE}; nothing was written")
+            f"are numbers; {whose(key, owner)}; nothing was written")
 
 
 class PluginBug(LaughlabError):
@@ -120,7 +127,7 @@ class PluginBug(LaughlabError):
 WHOSE = "a bug in the plugin that writes it (laughlab's own plugins: please report it)"
 
 
-def check_finite(vals: dict, poses, first_frame: int, raw=None) -> None:
+def check_finite(vals: dict, poses, first_frame: int, raw=None, owner=None) -> None:
     """The guard before every writer: a NaN or infinite channel or pose value is a plugin's bug, never output.
 
     Raises :class:`PluginBug` naming the channel (or pose column), the value (``None`` as the plugin gave it:
@@ -132,7 +139,7 @@ def check_finite(vals: dict, poses, first_frame: int, raw=None) -> None:
             j = int(np.argmin(np.isfinite(arr)))
             v = raw(k, j) if raw is not None else arr[j]
             raise PluginBug(f"channel {k!r} is {'None' if v is None else arr[j]} at frame {first_frame + j}: "
-                            f"{WHOSE}; nothing was written")
+                            f"{whose(k, owner)}; nothing was written")
     if len(poses) and not np.isfinite(poses).all():
         j, c = (int(x[0]) for x in np.nonzero(~np.isfinite(poses)))
         raise PluginBug(f"pose column {c} is {poses[j, c]} at frame {first_frame + j}: a non-finite joint "

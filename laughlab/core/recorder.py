@@ -36,6 +36,8 @@ class Recorder:
         if self.keys is None:
             if self.names is not None:
                 check_contract(frame.channels, self.names)
+            # who wrote each channel on the first frame (pipeline.first_frame), named by a value no writer takes
+            self.writers = dict(getattr(frame.channels, "writers", {}))
             self.keys = (tuple(frame.control), tuple(frame.channels))
         self.capture.append(capture_ns)
         self.controls.append(frame.control)
@@ -45,6 +47,11 @@ class Recorder:
         if frame.events:
             self.events.extend(frame.events)
         self.i += 1
+
+    def _owner(self, key: str) -> str | None:
+        """``face 'giggle'``: the stage that last wrote ``key`` on the first frame, or None."""
+        who = getattr(self, "writers", {}).get(key)
+        return f"{who[-1][0]} {who[-1][1]!r}" if who else None
 
     def take(self, poses: np.ndarray) -> Chunk:
         """The recorded frames with their ``poses`` (the mixer renders them per chunk)."""
@@ -61,9 +68,10 @@ class Recorder:
                 except KeyError:
                     raise LaughlabError(f"channel {k!r} is not written every frame") from None
                 except (TypeError, ValueError):   # a value that is not a number: say which and where
-                    raise blame.PluginBug(blame.not_a_number(k, [d[k] for d in dicts], self.done)) from None
+                    raise blame.PluginBug(blame.not_a_number(k, [d[k] for d in dicts], self.done,
+                                                             self._owner)) from None
         blame.check_finite(vals, poses, self.done, raw=lambda k, j: next(  # the value as given (None), on failure
-            ds[j][k] for keys, ds in zip(self.keys, (self.controls, self.outputs)) if k in keys))
+            ds[j][k] for keys, ds in zip(self.keys, (self.controls, self.outputs)) if k in keys), owner=self._owner)
         chunk = Chunk(np.array(self.times, dtype=np.float64), vals, poses, self.events, self.labels,
                       np.array(self.capture, dtype=np.int64))
         self.done += i
