@@ -1,6 +1,7 @@
 """Sink ``arkit``: ``face_arkit.csv``, the ARKit blendshape weights of the face, streamed chunk by chunk."""
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -74,11 +75,28 @@ class ArkitSink(Sink):
             weights = arkit_weights(chunk.channels)
             data = np.column_stack([chunk.times] + [weights[c] for c in self._columns])
         else:
+            self._warn_outside(chunk)
             data = np.column_stack([chunk.times] + [np.clip(chunk.channels[PREFIX + c], 0.0, 1.0)
                                                     for c in self._columns])
         n, c = data.shape
         row = ",".join([f"%.{self.params.precision}f"] * c) + "\n"
         self._f.write((row * n) % tuple((data + 0.0).ravel().tolist()))
+
+    def _warn_outside(self, chunk) -> None:
+        """A face's ARKit weight outside [0, 1], said once a run: this file, the stream and the character clip it,
+        channels.csv keeps it (a plugin author's review: 1.7 in one file and 1.0 in the other, without a word)."""
+        if getattr(self, "_said", False):
+            return
+        for c in self._columns:
+            v = np.asarray(chunk.channels[PREFIX + c], dtype=np.float64)
+            bad = np.flatnonzero((v < 0.0) | (v > 1.0))
+            if bad.size:
+                self._said = True
+                frame = int(round(float(chunk.times[bad[0]]) * self.run.fps))
+                print(f"laughlab: warning: the face's {PREFIX}{c} is {v[bad[0]]:g} at frame {frame}, outside the "
+                      "weights' 0-1: face_arkit.csv, the stream and the character clip it, channels.csv keeps it",
+                      file=sys.stderr)
+                return
 
     def close(self):
         if self._f is None:

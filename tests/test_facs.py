@@ -364,3 +364,21 @@ def test_sink_abort_leaves_nothing(tmp_path):
     assert [p.name for p in s.close()] == ["face_arkit.csv"]
     assert (tmp_path / "face_arkit.csv").read_text().splitlines() == [
         "time,eyeBlinkLeft,jawOpen", "0.000000,1.000000,0.200000", "0.016667,1.000000,1.000000"]
+
+
+def test_a_weight_outside_0_1_is_said_once_and_clipped(tmp_path, capsys):
+    """A plugin author's review: a face's arkit.mouthFunnel of 1.7 was 1.7 in channels.csv and 1.0 in
+    face_arkit.csv, without a word."""
+    s = ArkitSink()
+    s.open(RunInfo(tmp_path, FPS, None, None))
+    for k in range(2):
+        t = np.array([2 * k, 2 * k + 1]) * DT
+        s.write(Chunk(t, {"arkit.mouthFunnel": np.array([0.5, 1.7]), "arkit.jawOpen": np.array([0.2, -0.1])},
+                      np.zeros((2, 3)), [], [None, None]))
+    s.close()
+    err = capsys.readouterr().err
+    assert err == ("laughlab: warning: the face's arkit.jawOpen is -0.1 at frame 1, outside the weights' 0-1: "
+                   "face_arkit.csv, the stream and the character clip it, channels.csv keeps it\n")
+    assert (tmp_path / "face_arkit.csv").read_text().splitlines()[1:3] == ["0.000000,0.200000,0.500000",
+                                                                        "0.016667,0.000000,1.000000"]
+
