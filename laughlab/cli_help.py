@@ -47,11 +47,23 @@ def help_text(extra: dict | None = None) -> str:
         names = ([first] if first in names else []) + [n for n in names if n != first]
         mine = [f"+output.{n}={{}}" if g == "output" else n for n in (extra or {}).get(g, ())]
         lines.append(f"  {g + ':':<12} {', '.join(names)}" + (f"; plugins_dir: {', '.join(mine)}" if mine else ""))
+    packages = plugin_packages()
+    if packages:   # a plugin author's review: --help named plugins_dir's plugins, not an installed package's
+        lines.append(f"  installed plugin packages: {', '.join(packages)} (their plugins: python -m laughlab plugins)")
     lines += ["", HELP_EXAMPLES.rstrip(), "",
               "docs: README.md and the docs/ pages it links (pipeline.md: outputs; experiments.md; papers.md:",
               "what each plugin implements; benchmarks.md); each conf/<group>/<option>.yaml explains its parameters.",
               "Hydra's own flags: python -m laughlab --hydra-help"]
     return "\n".join(lines)
+
+
+def plugin_packages() -> list[str]:
+    """The installed distributions other than laughlab that add plugins (entry points of the group ``laughlab``),
+    read from their metadata without importing them: ``--help`` stays quick."""
+    from importlib.metadata import entry_points
+
+    return sorted({ep.dist.name for ep in entry_points(group="laughlab")
+                   if ep.dist is not None and ep.dist.name.lower() != "laughlab"})
 
 
 def local_options(argv: list[str]) -> dict:

@@ -813,3 +813,20 @@ def test_report_on_a_hill_fit_run_says_it_has_figures_of_its_own(tmp_path):
                                               "figures and numbers (hill_fit.json, metrics.json, plots/), not the "
                                               "results.json of compared conditions that report reads\n"), r.stderr
     assert not (run / "report").exists()
+
+
+def test_help_names_the_installed_plugin_packages(monkeypatch):
+    """A plugin author's review: --help listed a plugins_dir's plugins but not those of an installed package (the
+    package is named from its metadata, without importing it; laughlab's own entry points are not a package)."""
+    import importlib.metadata as md
+    from types import SimpleNamespace
+
+    from laughlab.cli_help import help_text
+
+    eps = [SimpleNamespace(dist=SimpleNamespace(name=n)) for n in ("laughlab", "laughlab-giggle", "laughlab-giggle",
+                                                                   "acme-faces")]
+    monkeypatch.setattr(md, "entry_points", lambda group: eps if group == "laughlab" else [])
+    assert ("  installed plugin packages: acme-faces, laughlab-giggle (their plugins: python -m laughlab plugins)"
+            in help_text().splitlines())
+    monkeypatch.setattr(md, "entry_points", lambda group: eps[:1])
+    assert "installed plugin packages" not in help_text()
