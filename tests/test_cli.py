@@ -334,6 +334,15 @@ def test_plugins_has_a_help_and_refuses_other_arguments():
                                       "laughlab plugins --help") and r.stdout == ""
 
 
+def test_a_command_after_plugins_dir(tmp_path):
+    """A plugin author's review: 'plugins_dir=D plugins' said "plugins takes no argument (got 'plugins')", and
+    'plugins_dir=D report RUN' gave Hydra's "Error parsing override 'report'"."""
+    r = laughlab(f"plugins_dir={tmp_path}", "plugins")
+    assert r.returncode == 0 and r.stdout.split()[:4] == ["kind", "name", "origin", "use"], r.stderr
+    r = laughlab(f"plugins_dir={tmp_path}", "report", "runs/x")
+    assert one_line_error(r) == "laughlab: error: report is a command: it comes first (python -m laughlab report --help)"
+
+
 def test_plugins_command_lists_kind_name_origin_and_how_to_use_it(tmp_path):
     r = laughlab("plugins")
     assert r.returncode == 0
