@@ -358,9 +358,8 @@ def _main(argv: list[str]) -> None:
             return
     if argv[:1] == ["plugins"] or ("plugins" in argv and all(a == "plugins" or a.startswith("plugins_dir=")
                                                             for a in argv)):   # not 'face=x plugins': a run's typo
-        rest = list(argv)
-        rest.remove("plugins")   # the command, wherever it is among the plugins_dir= (a review: after one, it was
-        rest = [a for a in rest if not a.startswith("plugins_dir=")]   # "takes no argument (got 'plugins')")
+        rest = [a for a in argv if not a.startswith("plugins_dir=")]   # the command wherever it is among them (a
+        rest.remove("plugins")                                           # review: "no argument (got 'plugins')")
         if rest[:1] in (["-h"], ["--help"]):
             print("usage: python -m laughlab plugins [plugins_dir=DIR]\n\nList every plugin: its kind, name, origin "
                   "and the setting that chooses it (with plugins_dir=DIR, your own too).")
@@ -378,9 +377,8 @@ def _main(argv: list[str]) -> None:
         except BrokenPipeError:  # e.g. piped into head: stop quietly
             _quiet_stdout()
         return
-    later = next((a for a in argv[1:] if a in commands), None)
-    if later and "=" in argv[0]:   # plugins_dir=my report RUN: Hydra's "Error parsing override 'report'" (a review)
-        fail(f"{later} is a command: it comes first (python -m laughlab {later} --help)")
+    if argv and "=" in argv[0] and set(argv[1:]) & set(commands):   # plugins_dir=my report RUN: Hydra's "Error
+        fail(f"{min(set(argv[1:]) & set(commands))} is a command: it comes first")   # parsing override" (a review)
     if argv and "=" not in argv[0] and not argv[0].startswith(("~", "-")):   # e.g. a mistyped command
         fail(f"unknown command {argv[0]!r}: the commands are {', '.join(commands)}, plugins; a run "
              "takes overrides key=value (python -m laughlab --help)")
