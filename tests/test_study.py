@@ -154,6 +154,9 @@ def test_bad_posts_get_4xx_are_logged_and_never_stored(study, tmp_path):
         assert srv.post("/api/response", good, content_type="text/plain")[0] == 415
         assert srv.oversized("/api/response", 2 << 20) == 413                             # oversized body
         assert srv.post("/api/nothing", good)[0] == 404
+        with pytest.raises(urllib.error.HTTPError) as e:   # a file it does not serve: its own words, not the viewer's
+            urllib.request.urlopen(srv.url + "/favicon.ico", timeout=10)
+        assert e.value.code == 404 and "not part of this study's page" in e.value.read().decode()
         assert srv.rows() == []
         log = (tmp_path / "r.sqlite.rejected.log").read_text().splitlines()
         assert len(log) == len(bad) + 5 and all(json.loads(line)["status"] >= 400 for line in log)

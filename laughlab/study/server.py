@@ -92,6 +92,7 @@ def _keys(body: dict, allowed: set[str]) -> None:
 
 
 class StudyHandler(_Handler):
+    served = "this study's page"
     design: dict = {}
     db: Path = Path()
     log: Path = Path()

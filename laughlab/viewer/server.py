@@ -353,12 +353,14 @@ def _not_the_pages(out: Path) -> list[str] | None:
 
 class _Handler(SimpleHTTPRequestHandler):
     files: dict = {}
+    #: what a 404 says is not part of (the study's server says "this study's page": a review read the viewer's words)
+    served = "this run's viewer"
 
     def do_GET(self):  # noqa: N802 - http.server's name
         name = self.path.split("?", 1)[0].lstrip("/") or "index.html"
         data = self.files.get(name)
         if data is None:
-            self.send_error(404, "not part of this run's viewer")
+            self.send_error(404, f"not part of {self.served}")
             return
         body = data.read_bytes() if isinstance(data, Path) else data
         # byte ranges: a browser seeks in audio only when the server answers them (RFC 9110, 14)
