@@ -167,7 +167,8 @@ def design_notes(n_conditions: int, n_items: int, n_participants: int, design: s
                    f"{n_participants - more or rows} or {n_participants - more + rows} participants balance them")
     if design == "one_per_condition" and n_items < n_conditions:
         out.append(f"one_per_condition with {n_items} audio item(s) for {n_conditions} conditions: each participant "
-                   "hears an item under more than one condition; more seeds (harness.corpus.seeds) or profiles "
+                   "hears an item under more than one condition; more recordings (harness.corpus.folder), or "
+                   "more seeds (harness.corpus.seeds) or profiles of the synthetic laughter, "
                    "give each condition its own")
     return out
 

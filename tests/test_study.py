@@ -679,14 +679,16 @@ def test_power_says_what_to_change_when_no_size_reaches_the_target():
     short = [row(8, 0.2), row(16, 0.55), row(12, 0.4)]
     assert verdict(short, 0.8) == "none of 8, 16, 12 participants reaches 80% power (best 55% with 16)"
     assert advice(short, 0.8, 0.5) == ("to reach 80%: more participants (--participants 32,48,64), more stimuli per "
-                                       "condition (more audio items: experiment=stimuli harness.corpus.seeds=N), "
+                                       "condition (more audio items: experiment=stimuli with more recordings in "
+                                       "harness.corpus.folder, or harness.corpus.seeds=N of the synthetic laughter), "
                                        "or a larger effect than 0.5")
     # a study built for 24 participants: 32 and more need its stimuli made again (a new-user review)
     assert advice(short, 0.8, 0.5, 24) == ("to reach 80%: more participants (--participants 32,48,64; this study has "
                                            "orders for 24 participants: more need its stimuli made again with "
                                            "harness.participants=N, then study build), more stimuli per condition "
-                                           "(more audio items: experiment=stimuli harness.corpus.seeds=N), or a "
-                                           "larger effect than 0.5")
+                                           "(more audio items: experiment=stimuli with more recordings in "
+                                           "harness.corpus.folder, or harness.corpus.seeds=N of the synthetic "
+                                           "laughter), or a larger effect than 0.5")
     assert advice(short, 0.8, 0.5, 64) == advice(short, 0.8, 0.5)   # enough orders: nothing to rebuild
 
 

@@ -75,7 +75,8 @@ def advice(rows: list[dict], target: float, effect: float, built_for: int | None
     rebuild = (f"; this study has orders for {built_for} participants: more need its stimuli made again with "
                "harness.participants=N, then study build" if built_for is not None and 2 * top > built_for else "")
     return (f"to reach {target:.0%}: more participants (--participants {more}{rebuild}), more stimuli per condition "
-            f"(more audio items: experiment=stimuli harness.corpus.seeds=N), or a larger effect than {effect:g}")
+            f"(more audio items: experiment=stimuli with more recordings in harness.corpus.folder, or "
+            f"harness.corpus.seeds=N of the synthetic laughter), or a larger effect than {effect:g}")
 
 
 def detected(df, conditions: list[str], a: str, b: str, alpha: float, effect: float = 1.0,
