@@ -272,10 +272,9 @@ def config_hash(cfg) -> str:
 def _stopped(cfg, out_dir: Path, what: str) -> str:
     """Clean up after a run stopped by a signal or a file-system fault; the one line that says so.
 
-    A single run removes what it wrote.  An experiment keeps its journal of finished trials and
-    its unfinished marker (any ``results.json`` goes: it is written only when every trial is in),
-    so the same command resumes it.
-    """
+    A single run removes what it wrote.  An experiment keeps its journal of finished trials (stimuli: videos) and
+    its unfinished marker (any ``results.json`` goes: it is written only when every trial is in), so the same
+    command resumes it."""
     if cfg.get("harness"):
         from laughlab.core import rundir
 
@@ -284,7 +283,8 @@ def _stopped(cfg, out_dir: Path, what: str) -> str:
             _CLAIM.keep()   # what it has written so far: a file the user adds now stays theirs
         aside = out_dir / rundir.PREVIOUS
         kept = f" (the run it replaces is kept in {aside} until it finishes)" if aside.is_dir() else ""
-        return f"{what}; the finished trials are kept: run the same command again to resume{kept}"
+        done = "videos rendered" if cfg.harness.get("name") == "stimuli" else "finished trials"   # (a review)
+        return f"{what}; the {done} are kept: run the same command again to resume{kept}"
     _remove_new_run_dir(out_dir)
     return f"{what}; the run's partial output was removed"
 

@@ -839,3 +839,16 @@ def test_help_names_the_installed_plugin_packages(monkeypatch):
             in help_text().splitlines())
     monkeypatch.setattr(md, "entry_points", lambda group: eps[:1])
     assert "installed plugin packages" not in help_text()
+
+
+def test_a_stopped_stimuli_run_says_its_videos_are_kept(tmp_path):
+    """A user-study review: an interrupted experiment=stimuli said "the finished trials are kept"; its trials are
+    videos."""
+    from omegaconf import OmegaConf
+
+    from laughlab.cli import _stopped
+
+    said = _stopped(OmegaConf.create({"harness": {"name": "stimuli"}}), tmp_path, "interrupted")
+    assert said == "interrupted; the videos rendered are kept: run the same command again to resume"
+    said = _stopped(OmegaConf.create({"harness": {"name": "smoke"}}), tmp_path, "interrupted")
+    assert said == "interrupted; the finished trials are kept: run the same command again to resume"

@@ -255,6 +255,12 @@ def test_report_tables_and_figures(tiny_run, tmp_path):
     for png in (tmp_path / "rep" / "figures").glob("*.png"):
         assert f"(figures/{png.name})" in text, png.name
     assert "[energy_filmstrip.png](figures/energy_filmstrip.png)" in text
+    # Fig. 3.1, the same bytes under both (one extractor, one input): shown once, the other copy linked
+    figs = tmp_path / "rep" / "figures"
+    assert (figs / "energy_fig3_1_calibration.png").read_bytes() == (figs / "none_fig3_1_calibration.png").read_bytes()
+    assert text.count("![energy_fig3_1_calibration.png]") == 1 and "![none_fig3_1_calibration.png]" not in text
+    assert ("**every condition**, Fig. 3.1 (the same bytes under each: "
+            "[none_fig3_1_calibration.png](figures/none_fig3_1_calibration.png))") in text
 
 
 def test_report_panels_draws_the_metrics_a_paper_discusses_in_a_column_and_says_when_a_figure_is_too_tall(
@@ -909,3 +915,17 @@ def test_the_clean_up_after_ctrl_c_is_not_cut_by_another(tmp_path):
     finally:
         interrupts.received = None
         signal.signal(signal.SIGINT, old)
+
+
+def test_a_showcase_figure_the_same_under_every_condition_is_shown_once(tmp_path):
+    """A plugin author's review: a face comparison's report showed the same Fig. 4.2 under each face's name."""
+    from laughlab.harness.report import SAME_FIGURE, _one_figure
+
+    for name, data in (("a_fig4_2_energy.png", b"png"), ("b_fig4_2_energy.png", b"png"), ("c_fig4_2_energy.png",
+                                                                                           b"other")):
+        (tmp_path / name).write_bytes(data)
+    assert _one_figure(tmp_path, ["a_fig4_2_energy.png", "b_fig4_2_energy.png"])
+    assert not _one_figure(tmp_path, ["a_fig4_2_energy.png", "b_fig4_2_energy.png", "c_fig4_2_energy.png"])
+    assert not _one_figure(tmp_path, ["a_fig4_2_energy.png"])   # one condition: nothing to compare
+    assert SAME_FIGURE.startswith("**Every condition**: this figure is byte for byte the same under each")
+
