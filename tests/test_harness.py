@@ -929,3 +929,17 @@ def test_a_showcase_figure_the_same_under_every_condition_is_shown_once(tmp_path
     assert not _one_figure(tmp_path, ["a_fig4_2_energy.png"])   # one condition: nothing to compare
     assert SAME_FIGURE.startswith("**Every condition**: this figure is byte for byte the same under each")
 
+
+
+def test_the_showcase_figures_follow_the_experiments_order_of_conditions(tiny_run, tmp_path):
+    """A plugin author's review: the tables went in the experiment's order of conditions, the figures by name."""
+    out = tmp_path / "exp"
+    shutil.copytree(tiny_run[0], out)
+    doc = json.loads((out / "results.json").read_text())
+    doc["conditions"] = dict(reversed(list(doc["conditions"].items())))   # none first, then energy
+    (out / "results.json").write_text(json.dumps(doc))
+    text = write_report(out, tmp_path / "rep", "cmd").read_text()
+    assert text.index("| none mean") < text.index("| energy mean")
+    links = [text.index(f"[{c}_filmstrip.png]") for c in ("none", "energy")]
+    assert links[0] < links[1]
+    assert text.index("(figures/none_fig3_2_mcs.png)") < text.index("(figures/energy_fig3_2_mcs.png)")

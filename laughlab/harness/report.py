@@ -233,7 +233,14 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
     same = _same_table(doc)
     if same:
         lines += same + [""]
-    shows = sorted(p.name for p in figs.glob("*_fig4_2_energy.png"))
+    # in the experiment's order of conditions, as the tables (a plugin author's review: the figures went by name)
+    order = conditions_of(doc)
+
+    def by_condition(name: str) -> tuple:
+        cond = name.split("_fig")[0].split("_filmstrip")[0]
+        return (order.index(cond) if cond in order else len(order), name)
+
+    shows = sorted((p.name for p in figs.glob("*_fig4_2_energy.png")), key=by_condition)
     if shows:
         shown = f" (`{doc['showcase']}`, `harness.showcase`)" if doc.get("showcase") else ""
         lines += [f"## The same input under each condition{shown}", ""]
@@ -242,7 +249,8 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
         else:
             for name in shows:
                 lines += [f"**{name.split('_fig4_2')[0]}**", "", f"![{name}](figures/{name})", ""]
-    thesis = sorted(p.name for p in figs.glob("*.png") if "_fig4_1" in p.name or "_fig3_1" in p.name)
+    thesis = sorted((p.name for p in figs.glob("*.png") if "_fig4_1" in p.name or "_fig3_1" in p.name),
+                    key=by_condition)
     if thesis:
         lines += ["## How the energy is made (thesis Figs. 4.1 and 3.1) on the same input", "",
                   "Fig. 4.1: the MCS, its primitive (the energy if no clip consumed), the actual energy and the "
@@ -264,7 +272,8 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
                     and p.name not in thesis and "fig3_2" not in p.name and "filmstrip" not in p.name)
     for name in others:
         lines += [f"![{name}](figures/{name})", ""]
-    linked = sorted(p.name for p in figs.glob("*.png") if "fig3_2" in p.name or "filmstrip" in p.name)
+    linked = sorted((p.name for p in figs.glob("*.png") if "fig3_2" in p.name or "filmstrip" in p.name),
+                    key=by_condition)
     if linked:   # in figures/ but not inline (a review found them there unmentioned)
         lines += ["More figures of the same input, per condition (not shown inline): " + ", ".join(
             f"[{name}](figures/{name})" for name in linked) + " (Fig. 3.2: the MCS with a zoom on one bout; "
