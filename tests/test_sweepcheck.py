@@ -154,6 +154,8 @@ def test_a_sweep_folder_of_other_settings_is_refused_before_any_job(tmp_path):
     assert (sweep / "multirun.yaml").read_bytes() == before
     # the same sweep (in another order) resumes; overwrite=true runs over it; a new folder has nothing to compare
     check_sweep_folder([*reversed(task), f"hydra.sweep.dir={sweep}", "hydra/launcher=basic"])
+    check_sweep_folder([*task, "progress=off", f"hydra.sweep.dir={sweep}"])   # the command's settings: no matter
+    check_sweep_folder([*changed, f"hydra.sweep.dir={sweep}", f"hydra.sweep.dir={tmp_path / 'new'}"])   # Hydra's: last
     check_sweep_folder([*changed, f"hydra.sweep.dir={sweep}", "overwrite=true"])
     check_sweep_folder([*changed, f"hydra.sweep.dir={tmp_path / 'new'}"])
     check_sweep_folder(changed)   # the default folder is named by the time: a new one

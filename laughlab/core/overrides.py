@@ -21,3 +21,11 @@ def override_key(override) -> str:
 def without_command_keys(overrides) -> list:
     """``overrides`` without Hydra's own settings and the command's (``COMMAND_ONLY``), in their order."""
     return [o for o in overrides if not override_key(o).startswith(COMMAND_ONLY)]
+
+
+def given_value(overrides, key: str) -> str | None:
+    """The value ``overrides`` give ``key`` (the last, as Hydra takes it), or None: ``hydra.sweep.dir``'s for the
+    sweep's checks (:mod:`laughlab.core.sweepcheck`) and its clean-up (:func:`laughlab.core.rundir.sweep_state`)."""
+    values = [str(o).split("=", 1)[1] for o in overrides if "=" in str(o) and override_key(o) == key]
+    return values[-1] if values else None
+

@@ -32,6 +32,7 @@ from pathlib import Path
 from laughlab.core import interrupts
 from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.core.outfiles import remove as _remove
+from laughlab.core.overrides import given_value
 
 LOCK = ".laughlab.lock"
 MARKER = ".laughlab-run.json"
@@ -333,7 +334,7 @@ def _write_marker(path: Path, doc: dict) -> None:
 def sweep_state(argv: list[str]) -> tuple[Path, bytes, dict] | None:
     """A sweep into a folder given on the command line that already holds one: its ``multirun.yaml`` and
     its jobs' markers (a job that runs rewrites its marker)."""
-    given = next((a.split("=", 1)[1] for a in argv if a.startswith("hydra.sweep.dir=")), None)
+    given = given_value(argv, "hydra.sweep.dir")
     if not given:
         return None
     root = Path(given).expanduser()

@@ -18,7 +18,7 @@ from __future__ import annotations
 from typing import Callable
 
 from laughlab.core.errors import LaughlabError
-from laughlab.core.overrides import override_key
+from laughlab.core.overrides import given_value, override_key, without_command_keys
 
 
 def sweep_values(overrides: list[str]) -> tuple[list[str], dict[str, list[str]]]:
@@ -107,17 +107,19 @@ def check_sweep_folder(overrides: list[str]) -> None:
 
     import yaml
 
-    given = [o.split("=", 1)[1] for o in overrides if override_key(o) == "hydra.sweep.dir" and "=" in o]
-    if not given or any(override_key(o) == "overwrite" and o.split("=", 1)[1].lower() == "true" for o in overrides):
+    given = given_value(overrides, "hydra.sweep.dir")
+    if not given or str(given_value(overrides, "overwrite")).lower() == "true":
         return
-    folder = Path(given[-1]).expanduser()
+    folder = Path(given).expanduser()
     try:
         before = yaml.safe_load((folder / "multirun.yaml").read_text())["hydra"]["overrides"]["task"]
     except (OSError, yaml.YAMLError, KeyError, TypeError):
         return   # no earlier sweep there (or not one laughlab can read): the jobs' own checks hold
-    # Hydra's own settings (hydra.launcher.n_jobs, hydra/launcher=joblib) are not in multirun.yaml's task list
-    now = {override_key(o): o for o in overrides if not override_key(o).lstrip("+~").startswith(("hydra.", "hydra/"))}
-    old = {override_key(o): o for o in before if isinstance(o, str)} if isinstance(before, list) else {}
+    # Hydra's own settings (hydra.launcher.n_jobs, hydra/launcher=joblib) are not in multirun.yaml's task list, and
+    # the command's (overwrite, progress) change no point's results
+    now = {override_key(o): o for o in without_command_keys(overrides)}
+    old = {override_key(o): o for o in without_command_keys(o for o in before if isinstance(o, str))} \
+        if isinstance(before, list) else {}
     if sorted(now.values()) == sorted(old.values()):
         return
     said = [f"{o} (there: {old[k].split('=', 1)[1] if '=' in old[k] else old[k]})" if k in old else o
