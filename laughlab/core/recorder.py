@@ -20,6 +20,7 @@ class Recorder:
     def __init__(self, n: int, n_channels: int, names: dict | None = None):
         self.n, self.n_channels, self.names = n, n_channels, names   # names: stage -> plugin, for the contract
         self.keys: tuple | None = None
+        self.writers: dict = {}   # channel -> the stages that wrote it on the first frame (pipeline.first_frame)
         self.done = 0  # frames handed out in earlier chunks
         self._reset()
 
@@ -36,8 +37,7 @@ class Recorder:
         if self.keys is None:
             if self.names is not None:
                 check_contract(frame.channels, self.names)
-            # who wrote each channel on the first frame (pipeline.first_frame), named by a value no writer takes
-            self.writers = dict(getattr(frame.channels, "writers", {}))
+            self.writers = dict(getattr(frame.channels, "writers", {}))   # named by a value no writer takes
             self.keys = (tuple(frame.control), tuple(frame.channels))
         self.capture.append(capture_ns)
         self.controls.append(frame.control)
@@ -50,7 +50,7 @@ class Recorder:
 
     def _owner(self, key: str) -> str | None:
         """``face 'giggle'``: the stage that last wrote ``key`` on the first frame, or None."""
-        who = getattr(self, "writers", {}).get(key)
+        who = self.writers.get(key)
         return f"{who[-1][0]} {who[-1][1]!r}" if who else None
 
     def take(self, poses: np.ndarray) -> Chunk:

@@ -28,14 +28,14 @@ from laughlab.io.audio import AUDIO_SUFFIXES
 FORMATS = ("csv", "audacity", "textgrid", "elan", "audio")
 
 
-def inputs(paths: list[str], ours: frozenset = frozenset()) -> list[tuple[Path, str]]:
+def inputs(paths: list[str]) -> list[tuple[Path, str]]:
     """The audio files of ``paths`` (a folder's hidden files and folders left out) with the name each one's
     outputs take: a file given by itself, its stem; a
     file found in a given folder, its path from that folder without the suffix (``day1/take1``), so a tree of
     recordings keeps its layout in ``--out`` and repeated take names in different folders do not collide.
-    ``ours``: resolved paths of files an earlier ``detect`` wrote (:func:`written_before`), not searched for in
-    a folder: its laughs' clips in an ``--out`` inside a given folder were read back as recordings by
-    ``--overwrite`` (``out/out/take_laugh_0_laugh_0.wav``, a new-user review)."""
+    The files an earlier ``detect`` wrote into any ``--out`` below a given folder (its manifest, this run's
+    ``--out`` too) are not searched for: its laughs' clips were read back as recordings by ``--overwrite``
+    (``out/out/take_laugh_0_laugh_0.wav``, a new-user review)."""
     from laughlab.io.audio import OTHER_MEDIA
 
     out, seen, other = [], set(), {}   # other: a folder's recordings laughlab does not read, once each
@@ -44,7 +44,7 @@ def inputs(paths: list[str], ours: frozenset = frozenset()) -> list[tuple[Path, 
         if q.is_dir():
             files, theirs = _folder_files(q)
             audio = [f for f in files if f.suffix.lower() in AUDIO_SUFFIXES]
-            found = [f for f in audio if f.resolve() not in ours | theirs]
+            found = [f for f in audio if f.resolve() not in theirs]
             media = [f for f in files if f.suffix.lower() in OTHER_MEDIA]
             other.update((f.resolve(), f) for f in media)
             if not found:
@@ -209,7 +209,7 @@ def main(argv: list[str]) -> None:
     from laughlab.detector.yamnet import LaughterScore, ModelFileError, Yamnet
     from laughlab.io.audio import probe_file
 
-    named = [(f, name, None) for f, name in inputs(ns.paths, written_before(Path(ns.out)))]
+    named = [(f, name, None) for f, name in inputs(ns.paths)]
     if ns.channels == "each":   # every channel its own input (a mono file stays as it is)
         named = [(f, f"{name}.ch{c + 1}" if k > 1 else name, c if k > 1 else None)
                  for f, name, _ in named for k in [_channels(f)] for c in range(k)]

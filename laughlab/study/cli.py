@@ -214,10 +214,10 @@ def run_power(ns) -> None:
     design = load_design(Path(ns.study_dir).expanduser())
     out = Path(ns.out).expanduser() if ns.out else Path(ns.study_dir).expanduser() / "power"
     W.check_out(out)   # before the simulations: they take minutes
-    var, icpt, source = None, sum(scale_range(design)) / 2, "defaults"   # the scale's middle (4 on 1..7)
+    var, icpt, source, simulated = None, sum(scale_range(design)) / 2, "defaults", False   # the scale's middle (4)
     if ns.pilot:
-        var, icpt, q = W.pilot_variance(ns.pilot, ns.question)
-        source = f"pilot {ns.pilot} ({q})"
+        var, icpt, q, simulated = W.pilot_variance(ns.pilot, ns.question)
+        source = f"pilot {ns.pilot} ({q}{', simulated participants' if simulated else ''})"
     W.check_effect(ns.effect, icpt, scale_range(design))   # before the simulations: they take minutes
     rows = W.power(design, (a, b), ns.effect, ns.participants, ns.sims, ns.alpha, var, icpt, ns.seed,
                    progress=lambda m: print(m, file=sys.stderr, flush=True))
@@ -241,7 +241,7 @@ def run_power(ns) -> None:
     finally:
         for part in parts:
             part.unlink(missing_ok=True)
-    if "simulated participants" in source:
+    if simulated:
         print(f"power: note: the variances are from a report of simulated participants ({ns.pilot}): the planted "
               "model's spreads, not a pilot's", file=sys.stderr)
     print(f"laughlab: {W.verdict(rows, ns.target)} for {a} - {b} = {ns.effect:g} (alpha {ns.alpha:g}, Holm); "

@@ -117,8 +117,10 @@ def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     return (0.0 if k == 0 else max(0.0, centre - half)), (1.0 if k == n else min(1.0, centre + half))
 
 
-def pilot_variance(report_dir: Path, question: str | None) -> tuple[dict, float, str]:
-    """Variance components and intercept of a pilot's report (one question's, default the first)."""
+def pilot_variance(report_dir: Path, question: str | None) -> tuple[dict, float, str, bool]:
+    """Variance components and intercept of a pilot's report (one question's, default the first), the question, and
+    whether the report's participants were simulated (a user-study review: power took the planted model's spreads
+    as a pilot's without a word)."""
     doc_path = Path(report_dir).expanduser() / "report.json"
     if not doc_path.is_file():
         raise LaughlabError(f"no report.json in {report_dir}: analyse the pilot first (study analyze)")
@@ -132,11 +134,8 @@ def pilot_variance(report_dir: Path, question: str | None) -> tuple[dict, float,
         raise LaughlabError(f"the pilot has no question {question!r}; it has: "
                             f"{', '.join(x['question'] for x in doc['variance'])}")
     icpt = next(f["estimate"] for f in doc["fixed"] if f["question"] == v["question"] and f["term"] == "Intercept")
-    # a report of simulated participants is said where its variances are used (a user-study review: power took the
-    # planted model's spreads as a pilot's without a word)
     return ({"participant": v["var_participant"], "stimulus": v.get("var_stimulus") or 0.0,
-             "residual": v["var_residual"]}, float(icpt),
-            v["question"] + (", simulated participants" if doc.get("simulated") else ""))
+             "residual": v["var_residual"]}, float(icpt), v["question"], bool(doc.get("simulated")))
 
 
 def power(design: dict, contrast: tuple[str, str], effect: float, ns: list[int], sims: int = 200,
