@@ -105,6 +105,23 @@ def test_a_condition_that_played_no_clip_is_not_the_best_at_a_trivial_0():
     assert _clear_best(doc([0.1, 0.2, 0.1, 0.15], []), "offset_tail_s", ["A", "B"]) == "B"  # not the trivial 0
 
 
+def test_a_constant_value_under_every_condition_is_the_same_whatever_the_trials():
+    """detector_others drew a panel of zeros (n=3, 9, 5, 253): one value in every trial of every condition says
+    nothing about the conditions, whatever their numbers of trials; a mean that only looks alike does."""
+    from laughlab.harness.report import _same_table, same_everywhere
+
+    def doc(a, b):
+        return {"metrics": {"m": {"higher_is_better": False, "units": "fraction", "description": "d"}},
+                "results": {"A": {"m": mean_ci(a)}, "B": {"m": mean_ci(b)}}}
+    assert same_everywhere(doc([0.0] * 3, [0.0] * 40), "m")
+    assert not same_everywhere(doc([0.0] * 3, [0.5] * 40), "m")                  # two constants
+    assert not same_everywhere(doc([0.0, 1.0, 0.5], [0.0, 1.0, 0.5] * 2), "m")   # alike means, not one value
+    assert same_everywhere(doc([0.0, 1.0, 0.5], [0.0, 1.0, 0.5]), "m")           # the same trials
+    assert not same_everywhere(doc([0.0] * 3, []), "m")                          # B measured nothing
+    row = [ln for ln in _same_table(doc([0.0] * 3, [0.0] * 40)) if ln.startswith("| m ")]
+    assert row == ["| m ↓ | fraction | 0 [0, 0] (every trial; n=3-40 by condition) |"]
+
+
 def test_corpus_profiles_seeds_and_folder(tmp_path):
     items = build_corpus({"profiles": ["mild", "giggle"], "seeds": 3, "duration_s": 10})
     assert [i.id for i in items] == ["mild-s00", "mild-s01", "mild-s02", "giggle-s00", "giggle-s01", "giggle-s02"]

@@ -91,7 +91,10 @@ def _same_table(doc: dict) -> list[str]:
              "| metric | units | every condition: mean [95% CI] |", "|---|---|---|"]
     for m in same:
         info = doc["metrics"][m]
-        lines.append(f"| {_heading(m, info)} | {info['units']} | {_cell(doc['results'][first][m])} |")
+        ns = sorted({doc["results"][c][m]["n"] for c in conditions_of(doc)})
+        cell = _cell(doc["results"][first][m]) if len(ns) == 1 else \
+            _cell({**doc["results"][first][m], "n": FEW}) + f" (every trial; n={ns[0]}-{ns[-1]} by condition)"
+        lines.append(f"| {_heading(m, info)} | {info['units']} | {cell} |")
     return lines
 
 

@@ -43,13 +43,17 @@ def _same(a, b) -> bool:
 def same_everywhere(doc: dict, metric: str) -> bool:
     """True when two or more conditions were compared and ``metric`` came out the same under each:
     the same number of trials, mean and 95 % CI (e.g. a detector metric when only the scheduler
-    changes).  Such a metric says nothing about the conditions; the report lists it apart."""
+    changes), or one constant value under every condition (every trial the same, so the CI is that
+    value) whatever the number of trials (a review: detector_others drew a panel of zeros over n=3, 9
+    and 253).  Such a metric says nothing about the conditions; the report lists it apart."""
     rs = [doc["results"][c][metric] for c in conditions_of(doc)]
-    if len(rs) < 2 or not rs[0]["n"]:
+    if len(rs) < 2 or not all(r["n"] for r in rs):
         return False
     first = rs[0]
-    return all(r["n"] == first["n"] and _same(r["mean"], first["mean"])
-               and all(_same(x, y) for x, y in zip(r["ci95"], first["ci95"])) for r in rs[1:])
+    alike = all(_same(r["mean"], first["mean"]) and all(_same(x, y) for x, y in zip(r["ci95"], first["ci95"]))
+                for r in rs[1:])
+    constant = first["ci95"] is not None and all(_same(x, first["mean"]) for x in first["ci95"])
+    return alike and (constant or all(r["n"] == first["n"] for r in rs[1:]))
 
 
 def condition_colors(conds: list[str]) -> dict:
