@@ -80,6 +80,7 @@ class PlotsSink(Sink):
         self.events: list = []
         self.limit = int(self.params.max_seconds * run.fps)
         self.n = 0
+        self.input_end_s = None   # where the input ended, when run_out went on in silence
         self.pose_every = max(1, int(round(run.fps / self._pose_hz)))
         self.pose_idx: list = []
         self.poses: list = []
@@ -97,6 +98,7 @@ class PlotsSink(Sink):
             self.pose_idx.append(idx + self.n)
             self.poses.append(chunk.poses[idx])
         self.n += len(chunk.times)
+        self.input_end_s = chunk.input_end_s
 
     def close(self):
         from laughlab.render import plots
@@ -115,7 +117,8 @@ class PlotsSink(Sink):
         if "mcs_raw" in data:
             path, pdf = self._paths(out / "fig3_2_mcs.png")
             jobs.append(lambda: plots.figure_3_2(path, t, data["mcs_raw"], 1.0 / self.run.fps, self.params.power,
-                                                 bouts, note=note, pdf=pdf, layout=self.params.width))
+                                                 bouts, note=note, pdf=pdf, layout=self.params.width,
+                                                 input_end_s=self.input_end_s))
         scheduler = (self.run.config or {}).get("scheduler") or {}
         # scheduler=none writes its energy as 0 and starts no clip: Fig. 4.2 would be an MCS over an empty panel,
         # which a report copied too (a researcher's review); Fig. 3.2 shows that MCS
@@ -126,17 +129,19 @@ class PlotsSink(Sink):
             gate = data.get("clip_gate")   # the detector's clip gain: a closed gate is said (plots._closed_gate_note)
             jobs.append(lambda: plots.figure_4_2(path42, t, data["mcs"], data["energy"], self.events, bouts,
                                                  note=note, energy_label=label, pdf=pdf42,
-                                                 layout=self.params.width, gate=gate))
+                                                 layout=self.params.width, gate=gate,
+                                                 input_end_s=self.input_end_s))
             if scheduler.get("name") == "energy":
                 path41, pdf41 = self._paths(out / "fig4_1_energy.png")
                 jobs.append(lambda: plots.figure_4_1(path41, t, data["mcs"], data["energy"], self.events,
                                                      float(scheduler.get("gain_per_s", 60.0)), bouts, note=note,
-                                                     pdf=pdf41, layout=self.params.width, gate=gate))
+                                                     pdf=pdf41, layout=self.params.width, gate=gate,
+                                                     input_end_s=self.input_end_s))
         fig31 = self._figure_3_1_args(data)
         if fig31 is not None:
             path31, pdf31 = self._paths(out / "fig3_1_calibration.png")
             jobs.append(lambda: plots.figure_3_1(path31, t, **fig31, bouts=bouts, note=note, pdf=pdf31,
-                                                 layout=self.params.width))
+                                                 layout=self.params.width, input_end_s=self.input_end_s))
         if self.params.filmstrip_frames and self.poses:
             strip, strip_pdf = self._paths(out / "filmstrip.png")
             jobs.append(lambda: self._filmstrip(strip, data, note, strip_pdf))

@@ -117,3 +117,32 @@ def test_run_out_takes_true_or_false(tmp_path):
     r = laughlab("input.duration_s=1", "run_out=maybe", f"hydra.run.dir={tmp_path / 'r'}")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "run_out" in r.stderr, r.stderr
     assert not (tmp_path / "r").exists()
+
+
+def test_the_figures_hatch_the_silence_after_the_input(tmp_path, monkeypatch):
+    """The figures drew run_out's silence as if it were the laugh's own (left from the game developer's review):
+    every time-axis figure hatches from the input's end (3 s) to the last frame, and says so in its legend; a run
+    without run_out hatches nothing."""
+    from matplotlib.figure import Figure
+
+    NAMES = ("fig3_1_calibration", "fig3_2_mcs", "fig4_1_energy", "fig4_2_energy")
+    hatched: dict = {}
+    original = Figure.savefig
+
+    def watched(self, fname, *args, **kwargs):
+        spans = [p.get_x() for ax in self.axes for p in ax.patches if p.get_hatch() == "///"]
+        legends = [t.get_text() for leg in self.legends for t in leg.get_texts()]
+        hatched.setdefault(next((n for n in NAMES if n in str(fname)), str(fname)), (spans, legends))
+        return original(self, fname, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", watched)
+    on = laughlab("input.duration_s=3", "detector=none", "run_out=true", f"hydra.run.dir={tmp_path / 'on'}")
+    assert on.returncode == 0, on.stderr
+    assert set(NAMES) <= set(hatched)
+    for name in NAMES:
+        spans, legends = hatched.pop(name)
+        assert spans and all(x == pytest.approx(3.0) for x in spans), name
+        assert "after the input: silence (run_out)" in legends, name
+    off = laughlab("input.duration_s=3", "detector=none", f"hydra.run.dir={tmp_path / 'off'}")
+    assert off.returncode == 0, off.stderr
+    assert all(not spans for spans, _ in hatched.values()), hatched

@@ -279,6 +279,9 @@ class Chunk:
         Seconds of audio the run has read up to the end of these frames (samples / sample rate):
         on the last chunk, the input's own length, which the frames' span (frames / fps) exceeds
         by up to a frame. None when unknown.
+    input_end_s : float or None
+        Where the input ended (s), once it has and ``run_out`` goes on in silence; None before (and
+        always without ``run_out``): ``audio_s`` then counts the silence too.
     """
 
     times: np.ndarray
@@ -288,6 +291,7 @@ class Chunk:
     labels: list
     capture_ns: np.ndarray | None = None
     audio_s: float | None = None
+    input_end_s: float | None = None
 
     def events_by_frame(self, fps: float) -> list[list]:
         """The chunk's clip events, frame by frame: an event goes to the frame whose time it falls on (within half

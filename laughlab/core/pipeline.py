@@ -316,7 +316,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         def hand_over() -> None:   # the frames recorded since the last chunk, to every sink
             interrupts.check()     # a stop signal whose KeyboardInterrupt was lost (raised in a __del__)
             chunk = rec.take(mixer.take())
-            chunk.audio_s = samples / rate
+            chunk.audio_s, chunk.input_end_s = samples / rate, (tail[0] / rate if tail and pipe.run.run_out else None)
             for sink in order:
                 sink.write(chunk)
             times.settle()

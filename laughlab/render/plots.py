@@ -30,6 +30,15 @@ def _shade_bouts(ax, bouts) -> None:
         ax.axvspan(b[0], b[1], color="0.9", zorder=0, label="laughter bout (truth)" if i == 0 else None)
 
 
+def _shade_run_out(ax, times, input_end_s: float | None) -> None:
+    """Hatch the frames after the input's end, the silence ``run_out=true`` added to play the last clip out (a
+    review: the figures drew it as the laugh's own)."""
+    if input_end_s is None or not len(times) or input_end_s >= float(times[-1]):
+        return
+    ax.axvspan(input_end_s, float(times[-1]), facecolor="none", edgecolor="0.6", hatch="///", lw=0, zorder=0,
+               label="after the input: silence (run_out)")
+
+
 def _set_xlim(ax, lo: float, hi: float) -> None:
     """``ax.set_xlim`` for any run, however short: a run of one frame spans one frame's width, not zero
     (matplotlib would widen it itself, with a UserWarning on the terminal)."""
@@ -59,13 +68,14 @@ def busiest_window(times: np.ndarray, signal: np.ndarray, window_s: float) -> tu
 @in_layout
 def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, power: float = 2.0,
                bouts: Sequence | None = None, title: str = "", window_s: float = 4.0, note: str = "",
-               pdf=False, layout: Layout = PAGE) -> Path:
+               pdf=False, layout: Layout = PAGE, input_end_s: float | None = None) -> Path:
     """Fig. 3.2: the MCS unfiltered and with two rise/fall settings (Eq. 3.2).
 
     Rates are the thesis' per-tick values converted at 60 ticks/s; all three
     curves are raised to ``power`` like the final MCS (listing 5.2).  Left (``layout="column"``: top): the
     whole run; right (below): the ``window_s`` seconds with the most laughter, where the
-    individual calls and the effect of rise and fall can be seen.
+    individual calls and the effect of rise and fall can be seen.  ``input_end_s``: where the input ended, when
+    ``run_out`` went on in silence (:func:`_shade_run_out`; the same in every figure of this module).
     """
     col = layout.column
     raw = np.asarray(mcs_raw, float)
@@ -87,6 +97,7 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     t0, t1 = busiest_window(times, raw * inside if np.any(raw * inside > 0) else raw, window_s)
     for ax, lo, hi in ((ax_all, times[0] if len(times) else 0, times[-1] if len(times) else 1), (ax_zoom, t0, t1)):
         _shade_bouts(ax, bouts)
+        _shade_run_out(ax, times, input_end_s)
         for k, (y, color, lw, style, label) in enumerate(curves if ax is ax_zoom else curves[:1]):
             # the unfiltered signal over the filtered ones, which otherwise hide it where they agree
             ax.plot(times, y, color=color, lw=lw, ls=style, label=label, zorder=3 if k == 0 else 2,
@@ -107,7 +118,11 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     head = "MCS and rise/fall (cf. van Duijn 2014, Fig. 3.2)" if col else \
         "Motion control signal and rise/fall (cf. van Duijn 2014, Fig. 3.2)"
     fig.suptitle(_head(title or head, note, layout), fontsize=layout.title)
-    fig.legend(*ax_zoom.get_legend_handles_labels(), fontsize=layout.legend, loc="outside lower center",
+    handles = {}
+    for ax in (ax_zoom, ax_all):
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(lab, h)
+    fig.legend(list(handles.values()), list(handles), fontsize=layout.legend, loc="outside lower center",
                ncols=2 if col else 4, frameon=False, **(_TIGHT_LEGEND if col else {}))
     save_figure(fig, path, pdf)
     plt.close(fig)
@@ -240,7 +255,7 @@ def _label_blocks(fig, ax, blocks, lines, top: float, fontsize: float = 5.5) -> 
 @in_layout
 def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: float, calibration_s: float = 0.0,
                bouts: Sequence | None = None, title: str = "", note: str = "", pdf=False,
-               layout: Layout = PAGE) -> Path:
+               layout: Layout = PAGE, input_end_s: float | None = None) -> Path:
     """Fig. 3.1: the MCS with min/max amplitude fixed after calibration (left) and drifting (right).
 
     Both columns run the rms extractor (listing 5.2) again on the run's
@@ -271,6 +286,7 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
         top, bottom = axes[0, col], axes[1, col]
         for ax in (top, bottom):
             _shade_bouts(ax, bouts)
+            _shade_run_out(ax, times, input_end_s)
             if calibration_s > 0:
                 ax.axvspan(times[0], times[0] + calibration_s, color="tab:orange", alpha=0.15, lw=0,
                            label="calibration")
@@ -305,7 +321,8 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
 @in_layout
 def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
                gain_per_s: float, bouts: Sequence | None = None, title: str = "", note: str = "",
-               pdf=False, layout: Layout = PAGE, gate: np.ndarray | None = None) -> Path:
+               pdf=False, layout: Layout = PAGE, gate: np.ndarray | None = None,
+               input_end_s: float | None = None) -> Path:
     """Fig. 4.1: MCS (top); the primitive of the MCS, the actual laughing energy and the clips (bottom).
     ``gate``: the detector's clip gain per frame (``clip_gate``), if the run has one (:func:`_closed_gate_note`).
 
@@ -320,6 +337,7 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     fig, (ax1, ax2) = _energy_axes(layout)
     for ax in (ax1, ax2):
         _shade_bouts(ax, bouts)
+        _shade_run_out(ax, times, input_end_s)
         _setup_axis(ax)
     ax1.plot(times, mcs, color="tab:red", lw=0.8)
     ax1.set_ylabel("MCS")
@@ -384,15 +402,16 @@ def _energy_axes(layout: Layout):
 def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarray, events: Sequence,
                bouts: Sequence | None = None, title: str = "", note: str = "",
                energy_label: str = "laughing energy L", pdf=False, layout: Layout = PAGE,
-               gate: np.ndarray | None = None) -> Path:
+               gate: np.ndarray | None = None, input_end_s: float | None = None) -> Path:
     """Fig. 4.2: MCS (top); laughing energy and the clips as blocks of height e(a) (bottom); ``gate`` as in
     :func:`figure_4_1`.
 
     ``energy_label`` names the green line: the thesis' L under the energy scheduler; another scheduler's
     ``energy`` channel is another quantity (the concat scheduler's: 40 x MCS smoothed over 0.5 s)."""
     fig, (ax1, ax2) = _energy_axes(layout)
-    _shade_bouts(ax1, bouts)
-    _shade_bouts(ax2, bouts)
+    for ax in (ax1, ax2):
+        _shade_bouts(ax, bouts)
+        _shade_run_out(ax, times, input_end_s)
     ax1.plot(times, mcs, color="tab:red", lw=0.8, label="MCS")
     ax1.set_ylabel("MCS")
     ax1.set_ylim(-0.02, 1.05)
