@@ -113,30 +113,68 @@ def test_mistakes_are_one_line():
             Session([], sample_rate=bad)
     assert Session([], sample_rate=np.int64(48000)).out_dir.is_dir()   # numpy's integers are whole numbers
     with pytest.raises(LaughlabError, match=r"^unknown face 'nope'; choose one of: cgm, facs, smile$"):
-        Session(["face=nope"])
+        Session(["face=nope"], sample_rate=16000)
     with pytest.raises(LaughlabError, match=r"bad parameter"):
-        Session(["fps=0"])
+        Session(["fps=0"], sample_rate=16000)
     with pytest.raises(LaughlabError, match=r"^output=vmc: a session's outputs are its outputs= argument"):
-        Session(["output=vmc"])
+        Session(["output=vmc"], sample_rate=16000)
     with pytest.raises(LaughlabError, match=r"^input.path=x.wav: a session's input is what feed\(\) is given"):
-        Session(["input.path=x.wav"])
+        Session(["input.path=x.wav"], sample_rate=16000)
     with pytest.raises(LaughlabError, match=r"^scheduler=concat \(scheduler.mode=optimal\) plans over the whole "
                                             r"input and cannot run on a session fed as it goes; use scheduler.mode=greedy"):
-        Session(["scheduler=concat", "scheduler.mode=optimal"])
-    s = Session(["detector=none"])
+        Session(["scheduler=concat", "scheduler.mode=optimal"], sample_rate=16000)
+    s = Session(["detector=none"], sample_rate=16000)
     s.feed(np.zeros(1000, np.float32))
     s.close()
     with pytest.raises(LaughlabError, match=r"^the session is closed$"):
         s.feed(np.zeros(10, np.float32))
 
 
+def test_an_api_users_mistakes_are_one_line_too():
+    """An API user's review: a string of overrides failed as "Error parsing override 'f'", outputs="files" as
+    "Could not load 'output/s'"; a forgotten sample_rate ran 48 kHz audio at 16 kHz's timing."""
+    with pytest.raises(LaughlabError, match=r"^overrides must be a list of strings \(got the string 'face=facs': "
+                                            r"overrides=\['face=facs'\]\)$"):
+        Session("face=facs", sample_rate=16000)
+    with pytest.raises(LaughlabError, match=r"^outputs must be a list of strings \(got the string 'files'"):
+        Session([], sample_rate=16000, outputs="files")
+    with pytest.raises(LaughlabError, match=r"^overrides must be a list of strings \(got \['face=facs', 3\]\)$"):
+        Session(["face=facs", 3], sample_rate=16000)
+    with pytest.raises(LaughlabError, match=r"^Session needs sample_rate=, the rate of the samples you will feed"):
+        Session(["face=facs"])
+    s = Session((o for o in ["detector=none"]), sample_rate=16000)   # any iterable of strings
+    assert len(s.feed(np.zeros(800, np.float32))) == 3   # three frames of 16 kHz at 60 fps
+    s.close()
+
+
+def test_a_session_closed_before_any_audio_gives_no_frame_and_writes_nothing(tmp_path):
+    """A game that opened a session and quit before any audio got "the input holds no audio frames"."""
+    with Session(["detector=none"], sample_rate=16000, outputs=["files"], out_dir=tmp_path / "out") as s:
+        pass
+    assert s.metrics is None and list((tmp_path / "out").iterdir()) == []
+    s = Session(["detector=none"], sample_rate=16000)
+    s.feed(np.zeros(0, np.float32))      # an empty block is no audio either
+    assert s.close() == [] and s.metrics is None
+
+
+def test_frame_fields_as_documented():
+    """label is "" where the extractor gives none (it was None); arkit is computed once a frame (a review: 8 reads
+    a frame cost more than the feed)."""
+    with Session(["face=facs"], sample_rate=16000) as s:
+        frames = s.feed(np.random.default_rng(0).normal(0, 0.1, 8000).astype(np.float32)) + s.close()
+    assert frames and all(f.label == "" for f in frames)
+    f = frames[-1]
+    assert f.arkit is f.arkit and f.arkit["jawOpen"] == pytest.approx(f.channels["arkit.jawOpen"], abs=1e-6)
+
+
 def test_files_already_in_out_dir_are_not_replaced_without_asking(tmp_path):
     (tmp_path / "channels.csv").write_text("mine\n")
     with pytest.raises(LaughlabError, match=r"already holds channels.csv, which this session would replace; choose "
                                             r"another out_dir or pass overwrite=True$"):
-        Session(["detector=none"], outputs=["files"], out_dir=tmp_path)
+        Session(["detector=none"], sample_rate=16000, outputs=["files"], out_dir=tmp_path)
     assert (tmp_path / "channels.csv").read_text() == "mine\n"
-    with Session(["detector=none", "~output.plots"], outputs=["files"], out_dir=tmp_path, overwrite=True) as s:
+    with Session(["detector=none", "~output.plots"], sample_rate=16000, outputs=["files"], out_dir=tmp_path,
+                 overwrite=True) as s:
         s.feed(np.zeros(1000, np.float32))
     assert (tmp_path / "channels.csv").read_text().startswith("time,")
 
@@ -176,10 +214,13 @@ def test_stereo_and_pcm_integers_are_read_as_input_file_reads_them(recording, tm
                                       r"pass its \.T\)$"),
     (np.zeros((10, 2, 2), np.float32), r"^feed mono samples or \(frames, channels\) \(got shape \(10, 2, 2\)\)$"),
     (np.array(["a", "b"]), r"^feed audio samples: floats in \[-1, 1\] or PCM integers \(got an array of <U1\)$"),
+    # a list of Python ints is int64: scaled by 2^63 it played as silence (an API user's review)
+    ([0, 16000, -16000], r"^feed audio samples: floats in \[-1, 1\] or PCM integers \(int16, int32, uint8\); got "
+                         r"int64 \(a list of Python ints\?\): give np.asarray\(samples, np.int16\) for 16-bit PCM$"),
 ])
 def test_a_block_it_cannot_read_is_one_clear_error_not_the_closing_one(block, message):
     with pytest.raises(LaughlabError, match=message):
-        with Session(["detector=none"]) as s:
+        with Session(["detector=none"], sample_rate=16000) as s:
             s.feed(block)
 
 
@@ -266,3 +307,33 @@ def test_a_plugin_error_is_raised_once_then_one_line(tmp_path):
     with pytest.raises(LaughlabError, match=r"^the session stopped on an error"):
         s.close()
     assert s.close() == [] and not s.out_dir.exists()
+
+
+def _examples():
+    """The Session examples as a reader copies them: docs/pipeline.md's and the module docstring's."""
+    import inspect
+    import re
+    from pathlib import Path
+
+    import laughlab.session
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "pipeline.md").read_text()
+    (doc,) = [b for b in re.findall(r"```python\n(.*?)```", page, re.S) if "from laughlab.session import" in b]
+    module = inspect.getdoc(laughlab.session).split("\n\n", 1)[1].split("\nThe frames are")[0]
+    return {"pipeline.md": doc, "session.py": inspect.cleandoc(module)}
+
+
+@pytest.mark.parametrize("where", ["pipeline.md", "session.py"])
+def test_the_documented_examples_run_as_written_and_give_every_frame(where, recording, monkeypatch):
+    """An API user's review: pipeline.md's example called an undefined my_audio_blocks(), and the module's lost
+    the last frame (no close()). Run on a real laugh, each reads the face of every frame input=file computes."""
+    from laughlab.io import vmc
+    from laughlab.io.audio import n_frames_for
+
+    read = []   # each example reads frame.arkit once a frame it is given: computed once a frame
+    original = vmc.arkit_weights
+    monkeypatch.setattr(vmc, "arkit_weights", lambda ch: read.append(1) or original(ch))
+    ns: dict = {}
+    exec(compile(_examples()[where].replace('"laugh.wav"', repr(str(recording))), where, "exec"), ns)
+    info = sf.info(recording)
+    assert len(read) == ns["s"].metrics["n_frames"] == n_frames_for(info.frames, info.samplerate, 60)
