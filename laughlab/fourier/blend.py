@@ -20,7 +20,10 @@ def _phases_for_blend(a: FourierModel, b: FourierModel, eps: float = 1e-9) -> tu
 
     Where one amplitude is (near) zero its phase is meaningless, so it takes
     the other's; then ``b``'s phase is moved by a multiple of ``2 pi`` to lie
-    within ``pi`` of ``a``'s (the short way round).
+    within ``pi`` of ``a``'s (the short way round).  Unuma et al. 1995's Eq. 3
+    blends the phases linearly, ``(1-s) phi + s psi`` (radians); a phase is
+    defined only modulo ``2 pi`` and the paper does not say which ``psi`` to take:
+    this is our choice of it, the blend itself stays linear.
     """
     scale = max(float(np.abs(a.amp).max(initial=0.0)), float(np.abs(b.amp).max(initial=0.0)), 1e-300)
     pa, pb = a.phase.copy(), b.phase.copy()
