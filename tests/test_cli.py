@@ -492,7 +492,9 @@ def test_the_closing_line_offers_view_only_for_what_view_plays(tmp_path):
 
 @pytest.mark.parametrize("gain, said", [(0.0, " (silent: its loudest sample is 0), "),
                                          (10 ** (-72 / 20), " (silent: its loudest sample -72 dBFS), "),
-                                         (10 ** (-50 / 20), ", ")])
+                                         # quiet but not silent: the energy it made is said (tests/test_no_clip.py)
+                                         (10 ** (-50 / 20), " (no full-body clip: the laughing energy peaked at 0.0, "
+                                                            "under the mildest clip's 5), ")])
 def test_a_silent_file_says_so_in_the_closing_line(tmp_path, gain, said):
     """A review: a file of digital silence (or a level no method moves at, below -60 dBFS) ran as any other, its
     figures empty and nothing said.  ``input_peak`` (metrics.json) is the loudest sample read, 1 full scale."""

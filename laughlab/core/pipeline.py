@@ -393,10 +393,9 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             metrics["run_out_s"] = (k - tail[1]) * dt   # the silent frames after the input
         elif mixer.clip is not None:   # said by the summary line: the last frame is mid-clip
             metrics["clip_at_end"] = mixer.clip.name
-        for part in (src, *opened):  # the source's and a sink's own numbers (mic overflows, vmc latency)
-            more = getattr(part, "metrics", None)
-            if callable(more):
-                metrics.update(more() or {})
+        metrics.update(rec.no_clip(sch))   # said by the summary line: why no clip started
+        for more in (getattr(p, "metrics", None) for p in (src, *opened)):  # their own (mic overflows, vmc latency)
+            metrics.update((more() if callable(more) else None) or {})
         metrics.update(extra or {})
         tmp = out_dir / ".metrics.json.part"
         tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")

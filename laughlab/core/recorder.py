@@ -22,6 +22,8 @@ class Recorder:
         self.keys: tuple | None = None
         self.writers: dict = {}   # channel -> the stages that wrote it on the first frame (pipeline.first_frame)
         self.done = 0  # frames handed out in earlier chunks
+        # over the run: clip starts, the largest clip_gate and energy (:meth:`no_clip`)
+        self.starts, self.gate_max, self.energy_max = 0, None, 0.0
         self._reset()
 
     def _reset(self) -> None:
@@ -75,5 +77,28 @@ class Recorder:
         chunk = Chunk(np.array(self.times, dtype=np.float64), vals, poses, self.events, self.labels,
                       np.array(self.capture, dtype=np.int64))
         self.done += i
+        self._tally(vals)
         self._reset()
         return chunk
+
+    def _tally(self, vals: dict) -> None:
+        self.starts += sum(ev.kind == "start" for ev in self.events)
+        if len(vals.get("clip_gate", ())):
+            self.gate_max = max(self.gate_max or 0.0, float(vals["clip_gate"].max()))
+        if len(vals.get("energy", ())):
+            self.energy_max = max(self.energy_max, float(vals["energy"].max()))
+
+    def no_clip(self, scheduler) -> dict:
+        """Why a run with a scheduler started no full-body clip, for ``metrics.json`` and the run's line (a
+        review: a real laugh under the default detector, or under ``body=hill``, played none, and nothing said
+        why): ``no_clip`` ``"gate"`` (a detector's ``clip_gate`` never reached 0.5,
+        :func:`laughlab.detector.model.clip_allowed`) or ``"energy"`` (the laughing energy peaked under the
+        mildest clip's e(a): ``energy_peak``, ``mildest_clip_energy``); empty otherwise."""
+        if self.starts or getattr(scheduler, "name", "none") == "none":
+            return {}
+        if self.gate_max is not None and self.gate_max < 0.5:
+            return {"no_clip": "gate"}
+        mildest = min((float(a.energy) for a in getattr(scheduler, "actions", ())), default=None)
+        if mildest is not None and self.energy_max < mildest:
+            return {"no_clip": "energy", "energy_peak": self.energy_max, "mildest_clip_energy": mildest}
+        return {}

@@ -48,6 +48,7 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
         what += f", then {float(metrics['run_out_s']):.1f} s of silence to end its last clip (run_out)"
     elif metrics.get("clip_at_end"):
         what += f" (ends mid-{metrics['clip_at_end']}: run_out=true plays it out)"
+    what += "" if peak is not None and peak < 10 ** (SILENT_DBFS / 20) else no_clip_text(metrics)   # silence: said
     chain = " > ".join(str(cfg[g].name) + (" (fused)" if g == "detector" and cfg[g].get("fuse") else "")
                        for g in CHAIN
                        if g in cfg and cfg[g] is not None and "name" in cfg[g])   # fused: detector=yamnet_fused
@@ -61,6 +62,18 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     watch = (f"; watch it: python -m laughlab view {shlex.quote(str(out_dir))}"
              if all(n in files for n in VIEWER_NEEDS) else "")
     return f"laughlab: {length} s of {what}, {chain}, {took} -> {out_dir}/: {', '.join(files)}{watch}"
+
+
+def no_clip_text(metrics: dict) -> str:
+    """Why no full-body clip started (``metrics['no_clip']``, :meth:`laughlab.core.recorder.Recorder.no_clip`), or ""."""
+    why = metrics.get("no_clip")
+    if why == "gate":
+        return (" (no full-body clip: the laughter detector never heard laughter; detector=none starts clips on any "
+                "loud sound, as the papers do)")
+    if why == "energy" and float(metrics.get("duration_s") or 0) >= 1.0:   # a blip is not expected to start one
+        return (f" (no full-body clip: the laughing energy peaked at {metrics['energy_peak']:.1f}, under the mildest "
+                f"clip's {metrics['mildest_clip_energy']:g})")
+    return ""
 
 
 def silent_text(peak: float) -> str:
