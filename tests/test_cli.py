@@ -854,3 +854,16 @@ def test_a_stopped_stimuli_run_says_its_videos_are_kept(tmp_path):
     assert said == "interrupted; the videos rendered are kept: run the same command again to resume"
     said = _stopped(OmegaConf.create({"harness": {"name": "smoke"}}), tmp_path, "interrupted")
     assert said == "interrupted; the finished trials are kept: run the same command again to resume"
+
+
+@pytest.mark.parametrize("args, line", [
+    (["scheduler=concat", "scheduler.gama=0.5"], "unknown parameter scheduler.gama (did you mean scheduler.gamma?); "
+                                                 "valid: gamma, mode, blend_s, "),
+    (["body=hill", "body.zzz=3"], "unknown parameter body.zzz; valid: control, preset, "),   # nothing near: no guess
+])
+def test_a_mistyped_plugin_parameter_names_the_nearest(args, line, tmp_path):
+    """A researcher's review: scheduler.gama listed the valid keys but named none, where harness keys did."""
+    r = laughlab(*args, f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 2 and r.stderr == f"laughlab: error: {r.stderr.split('error: ')[1]}"
+    assert r.stderr.startswith(f"laughlab: error: {line}"), r.stderr
+    assert not (tmp_path / "r").exists()

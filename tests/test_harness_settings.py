@@ -18,6 +18,18 @@ def test_every_shipped_experiment_passes(experiment):
     check_harness(OmegaConf.to_container(cfg.harness, resolve=True))
 
 
+@pytest.mark.parametrize("experiment", group_options("experiment"))
+def test_every_experiment_takes_the_shared_corpus_keys_without_a_plus(experiment):
+    """docs/experiments.md calls corpus.* and corpus.real.* shared: concat_ablation, energy_ablation, fourier_blend,
+    hill_fit and stimuli refused harness.corpus.real.sets=[real] as an unknown parameter (a researcher's review)."""
+    cfg = compose_config([f"experiment={experiment}", "harness.corpus.real.sets=[real]", "harness.corpus.folder=null"])
+    assert cfg.harness.corpus.real.sets == ["real"]
+    default = compose_config([f"experiment={experiment}"]).harness.corpus.real
+    real_by_default = ("detector_eval", "detector_others", "energy_readings", "energy_vs_concat", "smoke")
+    if experiment not in real_by_default:   # the new blocks run nothing more unasked, and never need the corpus
+        assert list(default.sets) == [] and default.if_missing == "skip" and default.split == "test"
+
+
 @pytest.mark.parametrize("override,key", [
     ("harness.jobs=two", "jobs"),
     ("harness.jobs=0", "jobs"),

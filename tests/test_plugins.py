@@ -95,7 +95,8 @@ def test_unknown_plugin_lists_known_ones():
 
 
 def test_unknown_parameter_lists_valid_ones(fake):
-    with pytest.raises(LaughlabError, match=r"unknown parameter extractor.gian \(extractor=loud\); valid: gain"):
+    with pytest.raises(LaughlabError, match=r"unknown parameter extractor.gian \(extractor=loud\) \(did you mean gain\?\); "
+                                            r"valid: gain"):
         plugins.create("extractor", "loud", {"gian": 1}, None, where="extractor.loud")
 
 

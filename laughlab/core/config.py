@@ -8,7 +8,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, nearest
 from laughlab.core.overrides import override_key
 from laughlab.core.overridehints import launcher_missing, unreadable_override
 from laughlab.core import own_experiments
@@ -161,7 +161,10 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
         if group in GROUP_KINDS and group != "output" and "." in key:
             try:
                 keys = valid_keys(group, overrides)
-                valid = "; valid: " + ", ".join(keys) if keys else f"; this {group} takes no parameters"
+                head, _, last = key.rpartition(".")
+                near = nearest(last, keys)
+                valid = ((f" (did you mean {head}.{near}?)" if near else "") + "; valid: " + ", ".join(keys) if keys
+                         else f"; this {group} takes no parameters")
             except Exception:  # listing the keys is a courtesy
                 valid = ""
         given = next((o.split("=", 1)[1] for o in overrides if o.split("=", 1)[0] == key), "")

@@ -39,6 +39,15 @@ def shown_path(path, limit: int = 200) -> str:
     return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-40:]} ({len(text)} characters)"
 
 
+def nearest(name: str, valid) -> str | None:
+    """The name in ``valid`` nearest ``name`` (difflib), or None (a researcher's review: ``scheduler.gama`` listed
+    the valid keys but did not name the one meant, as a mistyped top-level key did)."""
+    import difflib
+
+    found = difflib.get_close_matches(name, list(valid), n=1, cutoff=0.6)
+    return found[0] if found else None
+
+
 def shown_names(names, most: int = 3) -> str:
     """The first ``most`` of ``names`` as an error line lists a folder's files: ``a, b, c, ...``."""
     names = list(names)

@@ -22,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from laughlab.core import hookspecs
-from laughlab.core.errors import LaughlabError, UnknownParameter, shown_path
+from laughlab.core.errors import LaughlabError, UnknownParameter, nearest, shown_path
 from laughlab.core.localpackage import LOCAL_PACKAGE, local_package
 
 hookimpl = pluggy.HookimplMarker("laughlab")
@@ -308,7 +308,10 @@ def make_params(cls: type, values: Any, where: str) -> Any:
     valid = [f.name for f in fields(params_cls)]
     for key in values:
         if key not in valid:
-            raise UnknownParameter(f"unknown parameter {typed(where, key)}; valid: {', '.join(valid) or '(none)'}", key)
+            near = nearest(key, valid)
+            raise UnknownParameter(f"unknown parameter {typed(where, key)}"
+                                   + (f" (did you mean {near}?)" if near else "")
+                                   + f"; valid: {', '.join(valid) or '(none)'}", key)
     try:
         groups = _nested(params_cls)
     except OmegaConfBaseException as exc:   # a plugin authors' review: Literal["a", "b"] ended in a traceback
