@@ -164,8 +164,11 @@ class PlotsSink(Sink):
             return None
         amp = 10.0 * np.log10(np.maximum(data["rms"], LOUDNESS_FLOOR_RMS))
         name = ((self.run.config or {}).get("extractor") or {}).get("name", "?")
-        return dict(amp=amp, params=RmsParams(), fps=self.run.fps,
-                    title=f"The thesis' min/max mapping of this run's sound (its MCS: extractor={name}; cf. Fig. 3.1)")
+        # what the rms extractor would make of the sound, not this run's MCS (a researcher's review: its panels,
+        # labelled MCS, reached 1 where the pressure extractor's MCS was 0)
+        return dict(amp=amp, params=RmsParams(), fps=self.run.fps, mcs_label="rms's MCS",
+                    title=f"The thesis' rms mapping of this run's sound, not the MCS of this run (extractor={name}; "
+                          "cf. Fig. 3.1)")
 
     def _filmstrip(self, path, data, note: str = "", pdf=None) -> None:
         from laughlab.motion.skeleton import forward_kinematics

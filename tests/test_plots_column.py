@@ -74,14 +74,14 @@ PAGE_SHA256 = {
     "filmstrip.png": "23d10a966fb8e96fb57434770271bef3eb489cbc3032f46ad010435b6153b12a",
 }
 COLUMN_SHA256 = {
-    "fig3_1_calibration.pdf": "eb41d59a563729d19efa94b5c7e2963ddec815d24be0c8c9daba1bb66989ef74",
-    "fig3_1_calibration.png": "780b7d062ea59e0da5184cc8568e8e8ea3e5c8920a5db77af1d050a46fe38a5c",
-    "fig3_2_mcs.pdf": "f3558ca3007a0b8031b8e355dcd00ae5002e26d8d05538dcbeac42fe36b9f2dc",
-    "fig3_2_mcs.png": "a729585574a845e0ee4ffccfa4527f04a5c974e656df0c0e1d2afb7efd38d66c",
-    "fig4_1_energy.pdf": "06e2cf9a6179eaeb92eb0af7e54a2cfcb5cf31f3cdd1991ce2defc1936f8bfe1",
-    "fig4_1_energy.png": "624709dfb9dfd9da81dea33585bbfa8c7523887fc6d521dc3b74699253dc08bc",
-    "fig4_2_energy.pdf": "5700b727ab03c963014d4fa92f15a13e4c17c35f0ea6f1c7c0989f425f19e9bb",
-    "fig4_2_energy.png": "a7bd9e811d62df03e3aad42eee53d03db06b8523c1807d67c6e6b3117d0c8687",
+    "fig3_1_calibration.pdf": "c2b64a502f29e7faa4fb605e05565b10732804a01491f72c947431600d7a87d7",
+    "fig3_1_calibration.png": "425872206203bd19313f010054ba9f107fbb24d2c8219f9f69cd90835e85bfcc",
+    "fig3_2_mcs.pdf": "0fe8460542bcc2b124598582f72baf4eea1e68b4e4464e1ce04aa4edeadad8d1",
+    "fig3_2_mcs.png": "c08eb7a1fa56aa2a844f7f30c299ee3ead57e388e6fa0ba741a43a2a0c28aba7",
+    "fig4_1_energy.pdf": "1bb36873efe4a72a00c76e118f66b71963b5de4f5af049e5d79405ec5f51fff4",
+    "fig4_1_energy.png": "b6b3b491a25163abeafcbb8d8d70d8c3f4549619a3a086abfb5a870550968ebc",
+    "fig4_2_energy.pdf": "8cdd46f3f8640e05da1d62b5201073fb82e7577644299987b5a80339c39d2441",
+    "fig4_2_energy.png": "ac6b9769ba4f2155dd207c11dcc38865015b0bba16adf110fe8ce618dcf9d392",
     "filmstrip.pdf": "851bbe69b18939bb460549b5bd8776f6f85859e70f767321c1bd64fe00a3daca",
     "filmstrip.png": "971120f2d7913d7818f5c6d4b88cea19d7521a2b0a1c47b8f9e1f21a087a8cdc",
 }

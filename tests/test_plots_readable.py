@@ -673,3 +673,18 @@ def test_a_filmstrip_of_one_or_two_figures_keeps_a_readable_title(tmp_path, save
     boxes = [ax.get_position() for ax in fig.axes]
     assert min(b.x0 for b in boxes) == pytest.approx(1 - max(b.x1 for b in boxes), abs=1e-6)
     assert_readable(saved)
+
+
+@pytest.mark.parametrize("width", ["page", "column"])
+def test_fig_3_1_of_another_extractor_does_not_call_the_rms_mapping_the_runs_mcs(saved, tmp_path, width):
+    """A researcher's review: under extractor=pressure, Fig. 3.1's panels labelled "MCS" reached 1 where the run's
+    MCS (the pressure extractor's) was 0: they are what the rms extractor would make of the sound."""
+    from inprocess import laughlab
+
+    r = laughlab("input.duration_s=2", "extractor=pressure", "detector=none", f"output.plots.width={width}",
+                 f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 0, r.stderr
+    assert_readable(saved)
+    (fig,) = [f for f in saved if f.name == "fig3_1_calibration.png"]
+    assert "rms's MCS" in fig.texts and "MCS" not in fig.texts
+    assert any("not the MCS of this run" in t.replace("\n", " ") for t in fig.texts)

@@ -43,10 +43,11 @@ class Layout:
 
 
 PAGE = Layout("page")
-#: 3.5 in wide; no text under 7 pt; ticks and axis labels 8 pt
+#: 3.5 in wide; no text under 7 pt; ticks and axis labels 8 pt (the x ticks' labels 3 pt under their ticks: at 2 pt
+#: the y axis' "0" and the x axis' "0.0" touched at a panel's corner, Fig. 4.2 of extractor=pressure, 2026-11-29)
 COLUMN = Layout("column", 3.5, rc={"font.size": 8.0, "axes.labelsize": 8.0, "xtick.labelsize": 8.0,
                                    "ytick.labelsize": 8.0, "legend.fontsize": 7.0, "xtick.major.size": 2.5,
-                                   "ytick.major.size": 2.5, "xtick.major.pad": 2.0, "ytick.major.pad": 2.0,
+                                   "ytick.major.size": 2.5, "xtick.major.pad": 3.0, "ytick.major.pad": 2.0,
                                    "axes.labelpad": 2.0, "axes.titlepad": 3.0},
                 title=8.0, panel_title=8.0, legend=7.5, key=7.0, key_cols=2, block_label=7.0, side_label=8.0,
                 side_ticks=8.0, caption=7.0, frame_title=7.5, strip_title=8.0, strip_cols=4)

@@ -255,7 +255,7 @@ def _label_blocks(fig, ax, blocks, lines, top: float, fontsize: float = 5.5) -> 
 @in_layout
 def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: float, calibration_s: float = 0.0,
                bouts: Sequence | None = None, title: str = "", note: str = "", pdf=False,
-               layout: Layout = PAGE, input_end_s: float | None = None) -> Path:
+               layout: Layout = PAGE, input_end_s: float | None = None, mcs_label: str = "MCS") -> Path:
     """Fig. 3.1: the MCS with min/max amplitude fixed after calibration (left) and drifting (right).
 
     Both columns run the rms extractor (listing 5.2) again on the run's
@@ -263,7 +263,8 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
     a loud calibration burst keeps later laughter mapped low; right with the
     run's falloff (thesis: 0.001 per tick), maxAmp and minAmp drifting towards
     each other.  Top: the amplitude (grey) and the band from minAmp to maxAmp
-    (blue, the thesis' "blue area"); bottom: the final MCS (red).
+    (blue, the thesis' "blue area"); bottom: the final MCS (red), named ``mcs_label`` (another extractor's run:
+    the rms mapping's MCS, not the run's own).
     """
     from dataclasses import replace
 
@@ -294,7 +295,7 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
         top.fill_between(times, run["min_amp"], run["max_amp"], color="tab:blue", alpha=0.2, lw=0,
                          label="minAmp .. maxAmp")
         top.plot(times, amp, color="0.45", lw=0.5, label="amplitude")
-        bottom.plot(times, run["mcs"], color="tab:red", lw=0.8, label="MCS")
+        bottom.plot(times, run["mcs"], color="tab:red", lw=0.8, label=mcs_label)
         bottom.set_ylim(-0.02, 1.05)
         bottom.set_xlabel("time (s)")
         top.set_title(label, fontsize=layout.panel_title)
@@ -303,7 +304,7 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
     lo = float(np.min(amp)) if len(amp) else 0.0
     axes[0, 0].set_ylim(max(lo, float(np.percentile(amp, 1)) - 3) if len(amp) else 0, None)
     axes[0, 0].set_ylabel(unit)   # two lines at the axes' size (a review: one line at 7 pt read as a footnote)
-    axes[1, 0].set_ylabel("MCS")
+    axes[1, 0].set_ylabel(mcs_label)
     head = "Calibration, min/max amplitude fixed or drifting (cf. van Duijn 2014, Fig. 3.1)" if narrow else \
         "Calibration and min/max falloff (cf. van Duijn 2014, Fig. 3.1)"
     fig.suptitle(_head(title or head, note, layout), fontsize=layout.title)
