@@ -233,3 +233,19 @@ def test_an_avatar_in_centimetres_is_framed_and_drawn(run_dir, tmp_path):
         assert figure.mean() > 0.03, figure.mean()   # drawn, not beyond the far plane
     finally:
         page.close()
+
+
+@pytest.mark.browser
+def test_spring_bones_after_a_seek_are_where_they_settle_whatever_the_page_showed_before(viewed):
+    """An avatar developer's review: a seek while paused carried Godette's hair in one 0.1 s step from the old pose
+    (over her face, or a spike on her head) and left it there. The hair after a seek now depends on the moment
+    only: the same from before it and from after it, and a paused page's redraws keep it."""
+    path, page = viewed
+    page.eval("window.laughlab.check(0.5)")
+    from_before = np.array(page.eval("window.laughlab.check(3.0).then(() => window.laughlab.springs())"))
+    page.eval("window.laughlab.check(3.9)")
+    from_after = np.array(page.eval("window.laughlab.check(3.0).then(() => window.laughlab.springs())"))
+    assert len(from_before) > 0 or path.name == "debug_robot.vrm"   # Godette's hair; the robot has none
+    np.testing.assert_allclose(from_after, from_before, atol=1e-6)
+    again = np.array(page.eval("window.laughlab.check(3.0).then(() => window.laughlab.springs())"))
+    np.testing.assert_allclose(again, from_before, atol=1e-6)

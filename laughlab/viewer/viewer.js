@@ -98,7 +98,7 @@ action.play();
 // the character's meshes: skinned ones, and rigid ones that ride on a bone (as some avatars' parts do)
 const meshes = [];
 root.traverse((o) => { if (o.isMesh && o.geometry && o.geometry.attributes.position) meshes.push(o); });
-let lastT = 0;
+let lastT = -1;   // the time of the last frame drawn (-1: none yet, so the first frame settles the springs)
 
 function pose(t) {
   if (!live) mixer.setTime(t);
@@ -230,11 +230,25 @@ function resize() {
 window.addEventListener('resize', resize);
 resize();
 
+// a VRM's spring bones (hair, clothes) step with the time played; a jump (a seek, the first frame, a frame late
+// by more than 0.1 s) starts them again from rest and lets them settle 0.5 s at the new pose, so a paused frame
+// shows them as playback does (an avatar developer's review: after a seek while paused, Godette's hair covered
+// her face and stayed there, one 0.1 s step having carried it from the old pose)
+function springs(step) {
+  if (!vrm || !vrm.springBoneManager) return;
+  vrm.scene.updateMatrixWorld(true);
+  if (step >= 0 && step <= 0.1) { vrm.springBoneManager.update(step); return; }
+  vrm.springBoneManager.reset();
+  for (let i = 0; i < 30; i++) vrm.springBoneManager.update(1 / 60);
+}
+state.springs = () => (vrm && vrm.springBoneManager ? [...vrm.springBoneManager.joints].map(
+  (j) => j.bone.getWorldPosition(new THREE.Vector3()).toArray()) : []);
+
 function frame() {
   if (live) { liveFrame(); return; }
   const t = Math.min(now(), run.duration);
   mixer.setTime(t);
-  if (vrm && vrm.springBoneManager) { vrm.scene.updateMatrixWorld(true); vrm.springBoneManager.update(Math.max(0, Math.min(0.1, t - lastT))); }
+  springs(t - lastT);
   lastT = t;
   state.animTime = mixer.time;
   state.frames += 1;
