@@ -404,6 +404,19 @@ def test_bones_laughlab_does_not_drive_are_not_checked_and_a_tiny_scale_is_fine(
     load_avatar(_robot_edited(tiny, tmp_path / "tiny.vrm"))
 
 
+def test_a_tilde_in_the_character_path_is_the_home_folder(tmp_path, monkeypatch):
+    """An avatar developer's review: the hint for character=~/x.vrm (zsh leaves the ~) said to quote it, and the
+    quoted path was then not found ("~/x.vrm: cannot read the avatar")."""
+    home = tmp_path / "home"
+    home.mkdir()
+    (home / "my robot.vrm").write_bytes(ROBOT.read_bytes())
+    monkeypatch.setenv("HOME", str(home))
+    out = _cli(tmp_path, "output=gltf", "input.duration_s=1", "detector=none", "character='~/my robot.vrm'")
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / "run" / "character.glb").stat().st_size > 0
+    assert load_avatar("~/my robot.vrm").bones == load_avatar(ROBOT).bones
+
+
 def _bone_node(doc: dict, bone: str) -> int:
     return doc["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"][bone]["node"]
 
@@ -428,7 +441,10 @@ def _bone_node(doc: dict, bone: str) -> int:
     # a bone whose node is not there was "lacks the required bone head", and the bone is there (a review)
     (lambda p: _robot_edited(lambda d: d["extensions"]["VRMC_vrm"]["humanoid"]["humanBones"]["head"].update(
         node=9999), p), "its humanoid bone head refers to node 9999, which is not there (the file has "),
-], ids=["not-gltf", "no-humanoid", "vrm-missing-bone", "zero-scale", "view-past-buffer", "accessor-out-of-range",
+    # Mixamo's download (an avatar developer's review: "is not a glTF file" sent its user searching)
+    (lambda p: (p.with_suffix(".fbx").write_bytes(b"Kaydara FBX Binary  \0\x1a\0") and p.with_suffix(".fbx")),
+     "is FBX, which laughlab does not read: export the avatar as glTF binary (.glb) or VRM (.vrm)"),
+], ids=["not-gltf", "fbx", "no-humanoid", "vrm-missing-bone", "zero-scale", "view-past-buffer", "accessor-out-of-range",
         "two-parents", "node-cycle", "two-bones-one-node", "bone-node-not-there"])
 def test_a_bad_avatar_is_one_line_exit_2_and_nothing_written(tmp_path, make, says):
     path = make(tmp_path / "avatar.glb") or tmp_path / "avatar.glb"

@@ -145,8 +145,9 @@ def _fail(path: Path, what: str) -> AvatarError:
 
 def read_gltf(path: str | Path) -> tuple[dict, bytes]:
     """The JSON document and buffer 0 of a ``.glb``/``.vrm`` (binary) or ``.gltf`` (JSON) file; a buffer
-    shorter than its declared ``byteLength`` (a file cut short) is refused in one line."""
-    path = Path(path)
+    shorter than its declared ``byteLength`` (a file cut short) is refused in one line. ``~`` is the home folder
+    (a quoted ``character='~/my.vrm'``, or a shell that leaves it, as zsh does after ``=``)."""
+    path = Path(path).expanduser()
     doc, binary = _read_gltf(path)
     declared = ((doc.get("buffers") or [{}])[0] or {}).get("byteLength")
     if isinstance(declared, int) and len(binary) < declared:
@@ -210,10 +211,21 @@ def _read_gltf(path: Path) -> tuple[dict, bytes]:
     return doc, binary
 
 
+#: other formats an avatar comes in, named in the line that refuses them (an avatar developer's review: Mixamo
+#: gives FBX, and "is not a glTF file" sent its user searching)
+OTHER_FORMATS = {".fbx": "FBX", ".obj": "OBJ", ".blend": "a Blender file", ".dae": "COLLADA", ".usdz": "USDZ",
+                 ".usd": "USD", ".pmx": "a MikuMikuDance model", ".vroid": "a VRoid Studio project"}
+
+
 def _json(path: Path, raw: bytes) -> dict:
     try:
         doc = json.loads(raw)
     except (UnicodeDecodeError, json.JSONDecodeError):
+        other = OTHER_FORMATS.get(path.suffix.lower())
+        if other:
+            raise _fail(path, f"is {other}, which laughlab does not read: export the avatar as glTF binary (.glb) "
+                              "or VRM (.vrm), e.g. Blender's File > Export > glTF 2.0, VRoid Studio's Export VRM "
+                              "(docs/avatars.md)") from None
         raise _fail(path, "is not a glTF file (neither a glTF binary nor glTF JSON)") from None
     if not isinstance(doc, dict):
         raise _fail(path, "is not a glTF file")
@@ -407,8 +419,8 @@ def _default_weights(node: dict, mesh: dict, n: int) -> np.ndarray:
 
 
 def load_avatar(path: str | Path) -> Avatar:
-    """Read and check an avatar file (see the module's docstring)."""
-    path = Path(path)
+    """Read and check an avatar file (see the module's docstring); ``~`` is the home folder."""
+    path = Path(path).expanduser()
     doc, binary = read_gltf(path)
     nodes = doc.get("nodes") or []
     if not nodes:
