@@ -103,6 +103,10 @@ class VideoParams:
         The ``schematic`` style's camera.
     character_camera : CameraParams
         The ``character`` style's camera (upper body and face).
+    framing : str
+        The ``character`` style's framing: ``upper`` (the upper body and face, the default) or ``body`` (the
+        whole body, feet included: looking between the head and the feet, from at least the distance at which
+        the character standing at rest fits; an avatar developer's review: a full-body laugh lost its shins).
     character : str or None
         A user's avatar (VRM, humanoid glTF) to render instead of the mannequin (``character`` style;
         the top-level ``character=PATH`` sets it): :mod:`laughlab.render.avatar_view`.
@@ -127,8 +131,11 @@ class VideoParams:
     character_camera: CameraParams = field(default_factory=lambda: CameraParams(
         azimuth_deg=15.0, elevation_deg=3.0, distance_cm=170.0, target_height_cm=138.0, fov_deg=30.0))
     character: Optional[str] = None
+    framing: str = "upper"
 
     def __post_init__(self) -> None:
+        if self.framing not in ("upper", "body"):
+            raise ValueError(f"framing must be upper or body (got {self.framing!r})")
         if not self.file or "/" in self.file or "\\" in self.file:
             raise ValueError(f"file must be a plain file name (got {self.file!r})")
         if not self.file.lower().endswith(".mp4") or self.file.startswith("."):
@@ -212,14 +219,14 @@ class VideoSink(Sink):
 
                 try:
                     self.renderer = AvatarRenderer(self.avatar, run.skeleton, p.width, p.height,
-                                                   Camera(**vars(p.character_camera)), p.supersample)
+                                                   Camera(**vars(p.character_camera)), p.supersample, p.framing)
                 except AvatarError as exc:   # a texture whose pixels do not decode: the avatar's line, not ours
                     raise LaughlabError(str(exc)) from None
             elif p.style == "character":
                 from laughlab.render.character_view import CharacterRenderer
 
                 self.renderer = CharacterRenderer(run.skeleton, p.width, p.height,
-                                                  Camera(**vars(p.character_camera)), p.supersample)
+                                                  Camera(**vars(p.character_camera)), p.supersample, p.framing)
             else:
                 self.renderer = Renderer(run.skeleton, p.width, p.height, Camera(**vars(p.camera)), p.inset,
                                          p.inset_size, p.supersample)

@@ -91,3 +91,36 @@ def test_a_stimulus_framed_otherwise_is_rendered_again(tmp_path, monkeypatch):
     assert stimuli.render_key(["scheduler=energy"], spec, False) == key
     monkeypatch.setattr(framing, "VERSION", "another")
     assert stimuli.render_key(["scheduler=energy"], spec, False) != key
+
+
+def _rows_drawn(frame: np.ndarray, bg: np.ndarray) -> np.ndarray:
+    return np.flatnonzero((np.abs(frame.astype(int) - bg.astype(int)).sum(axis=2) > 24).any(axis=1))
+
+
+@pytest.mark.parametrize("who", ["mannequin", "Godette_vrm_v4.vrm"])
+def test_the_body_framing_keeps_the_feet_in_the_frame_as_well(who):
+    """output.video.framing=body (an avatar developer's review: a full-body laugh lost its shins): every edge shows
+    only the backdrop, the bottom too, and the character fills most of the height (it is not a speck far away);
+    the upper framing cuts the body at the bottom edge, as documented."""
+    from laughlab.avatar.load import load_avatar
+    from laughlab.render.avatar_view import AvatarRenderer
+
+    poses = raise_arm()
+    bg = np.clip(background(120, 160) + 0.5, 0, 255).astype(np.uint8)
+    shown = {}
+    for framing in ("upper", "body"):
+        if who == "mannequin":
+            r = CharacterRenderer(HUMANOID, 160, 120, supersample=1, framing=framing)
+            frames = r.render_many(poses, np.zeros((len(poses), r.morphs.shape[0]))) + r.flush()
+        else:
+            r = AvatarRenderer(load_avatar(ASSETS / who), HUMANOID, 160, 120, supersample=1, framing=framing)
+            frames = r.render_many(r.worlds(poses), [{}] * len(poses)) + r.flush()
+        assert len(frames) == len(poses)
+        shown[framing] = frames
+    cut = [i for i, f in enumerate(shown["body"]) if not edges_are_background(f, bg)
+           or _rows_drawn(f, bg).max() >= 120 - 2]
+    assert not cut, f"the whole {who} leaves the frame in frames {cut}"
+    still = r.render(rest_pose(), np.zeros(r.morphs.shape[0])) if who == "mannequin" else r.render(rest_pose(), {})
+    rows = _rows_drawn(still, bg)                                # the rest pose alone (no raise ahead to make room)
+    assert rows.max() - rows.min() > 0.75 * 120 and rows.max() < 120 - 2
+    assert all(_rows_drawn(f, bg).max() == 119 for f in shown["upper"])   # the upper framing: the legs cut

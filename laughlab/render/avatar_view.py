@@ -10,7 +10,8 @@ is the mannequin's, its distance scaled by the avatar's height (x 1.5: avatars o
 or farther if the top of the mesh in the rest pose (hair above the head joint) would not fit within 85%
 of the half field of view, aimed at a point 70% of the way from the chest to the head joint; it moves back,
 smoothly and ahead of time, when a raised arm or a bent body would reach the top or a side of the frame
-(:mod:`laughlab.render.framing`).
+(:mod:`laughlab.render.framing`).  The ``body`` framing looks between the head and the feet and keeps the whole
+avatar in the frame, as the mannequin's does (:meth:`laughlab.render.character_view.FollowingView._whole_body`).
 """
 from __future__ import annotations
 
@@ -28,8 +29,9 @@ class AvatarRenderer(FollowingView):
     """Renders ``avatar`` driven by ``skeleton`` poses at ``width`` x ``height``."""
 
     def __init__(self, avatar: Avatar, skeleton, width: int = 640, height: int = 480, camera: Camera | None = None,
-                 supersample: int = 2):
+                 supersample: int = 2, framing: str = "upper"):
         self.avatar, self.skeleton = avatar, skeleton
+        self.whole = framing == "body"
         self.width, self.height, self.ss = width, height, supersample
         self.parts = parts(avatar)
         offsets = np.cumsum([0] + [len(p.positions) for p in self.parts])
@@ -52,6 +54,9 @@ class AvatarRenderer(FollowingView):
         self.key, self.fill = KEY / np.linalg.norm(KEY), FILL / np.linalg.norm(FILL)
         self.background = background(height * supersample, width * supersample)
         self.framing = Framing(self.camera, width, height)
+        if self.whole:
+            self.camera = self._whole_body(self.camera, self.vertices(avatar.rest_world, {})[0],
+                                           self._target(avatar.rest_world))
 
     def worlds(self, poses: np.ndarray) -> np.ndarray:
         """The avatar's node world matrices ``(F, N, 4, 4)`` for ``poses`` (F, 3 + 3J), retargeted at once."""
@@ -101,8 +106,12 @@ class AvatarRenderer(FollowingView):
         return self._draw_ready(list(zip(worlds, morphs)), aims, threads)
 
     def _target(self, world: np.ndarray) -> np.ndarray:
-        """The point 70% of the way from the chest to the head joint (cm, facing +Z)."""
+        """The point 70% of the way from the chest to the head joint (cm, facing +Z); with the ``body`` framing
+        the point between the head and the middle of the feet."""
         b = self.avatar.bones
+        if self.whole:
+            feet = 0.5 * (world[b["leftFoot"], :3, 3] + world[b["rightFoot"], :3, 3])
+            return 0.5 * (world[b["head"], :3, 3] + feet) @ self.turn * 100.0 + self.body_offset
         chest = b.get("upperChest", b.get("chest", b["spine"]))
         return (0.3 * world[chest, :3, 3] + 0.7 * world[b["head"], :3, 3]) @ self.turn * 100.0
 

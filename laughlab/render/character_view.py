@@ -4,7 +4,9 @@ The camera follows the upper body: it looks at the point between the chest (``sp
 head, smoothed over about a fifth of a second, from the azimuth, elevation and distance of
 ``camera`` (its ``target_height_cm`` is not used), so the face stays in frame when the character
 bends over or rolls on the floor; it moves back, smoothly and ahead of time, when a raised arm or a
-bent body would reach the top or a side of the frame (:mod:`laughlab.render.framing`).
+bent body would reach the top or a side of the frame (:mod:`laughlab.render.framing`).  The ``body`` framing
+(``output.video.framing=body``) looks at the middle of the body instead, between the head and the feet, from at
+least the distance at which the whole character standing at rest fits, and keeps the feet in the frame too.
 
 Per frame: the morph targets are added in the rest pose (face and breathing weights), the mesh
 is skinned by the pose's joint transforms (linear blend, as glTF does), lit by a key light, a
@@ -37,6 +39,22 @@ class FollowingView:
     :attr:`background`, the size, and ``_mesh(*job) -> (vertices cm, colours)``."""
 
     aim: np.ndarray | None = None
+    body_offset = np.zeros(3)   # the body framing's aim from the joints' midpoint (cm): :meth:`_whole_body`
+
+    def _whole_body(self, camera: Camera, rest_vertices: np.ndarray, rest_target: np.ndarray) -> Camera:
+        """The ``body`` framing: :attr:`framing` keeps the bottom edge too, and the camera's distance is the one at
+        which the whole character standing at rest just fits, with the margin (the configured distance, a close-up
+        of the upper body, is not used); kneeling does not bring it closer, a raise moves it back as before.
+        Returns that camera."""
+        # the aim a little up or down from the joints' midpoint, to the middle of the mesh's height at rest (hair
+        # and soles reach past the head and foot joints): the standing character centred, not against the top
+        self.body_offset = np.array([0.0, 0.5 * (rest_vertices[:, 1].min() + rest_vertices[:, 1].max())
+                                     - rest_target[1], 0.0])
+        need = Framing(replace(camera, distance_cm=1e-6), self.width, self.height, bottom=True).need(
+            rest_vertices, rest_target + self.body_offset)
+        camera = replace(camera, distance_cm=need)
+        self.framing = Framing(camera, self.width, self.height, bottom=True)
+        return camera
 
     def _smooth_aim(self, target: np.ndarray) -> np.ndarray:
         """The camera's aim after a frame whose aim point is ``target`` (cm)."""
@@ -65,8 +83,9 @@ class CharacterRenderer(FollowingView):
     """Renders the character at ``width`` x ``height`` with ``camera`` (cm, as the schematic scene's)."""
 
     def __init__(self, skeleton, width: int = 640, height: int = 480, camera: Camera | None = None,
-                 supersample: int = 2):
+                 supersample: int = 2, framing: str = "upper"):
         self.char = build(skeleton)
+        self.whole = framing == "body"
         self.skeleton = skeleton
         self.width, self.height, self.ss = width, height, supersample
         self.camera = camera or Camera(azimuth_deg=15.0, elevation_deg=3.0, distance_cm=170.0,
@@ -84,6 +103,10 @@ class CharacterRenderer(FollowingView):
         self.key, self.fill = key, fill
         self.background = background(height * supersample, width * supersample)
         self.framing = Framing(self.camera, width, height)
+        if self.whole:
+            rest_pos, rest_rot = global_transforms(skeleton, rest_pose(skeleton))
+            v, _ = self._mesh(rest_pos, rest_rot, np.zeros(len(self.morphs)))
+            self.camera = self._whole_body(self.camera, v, self._target(rest_pos))
 
     def render(self, pose: np.ndarray, morph_weights: np.ndarray) -> np.ndarray:
         """One frame ``(height, width, 3)`` uint8 of ``pose`` (BVH channel vector) with ``morph_weights``, framed on
@@ -105,10 +128,18 @@ class CharacterRenderer(FollowingView):
             aims.append(self._follow(pos))
         return self._draw_ready(jobs, aims, threads)
 
+    def _target(self, pos: np.ndarray) -> np.ndarray:
+        """Where the camera looks for a frame's joint positions (cm): between the chest and the head, or with the
+        ``body`` framing between the head and the middle of the feet."""
+        sk = self.skeleton
+        if self.whole:
+            feet = 0.5 * (pos[sk.index("left_foot")] + pos[sk.index("right_foot")])
+            return 0.5 * (pos[sk.index("head")] + feet) + self.body_offset
+        return 0.5 * (pos[sk.index("spine2")] + pos[sk.index("head")])
+
     def _follow(self, pos: np.ndarray) -> np.ndarray:
-        """The camera's aim for a frame's joint positions: between the chest and the head, smoothed (cm)."""
-        chest, head = self.skeleton.index("spine2"), self.skeleton.index("head")
-        return self._smooth_aim(0.5 * (pos[chest] + pos[head]))
+        """The camera's aim for a frame's joint positions (:meth:`_target`), smoothed (cm)."""
+        return self._smooth_aim(self._target(pos))
 
     def _mesh(self, pos: np.ndarray, rot: np.ndarray, morph_weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The skinned vertices (cm) and their lit colours for a frame's joint positions and rotations."""

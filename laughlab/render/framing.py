@@ -7,7 +7,8 @@ arm raised over the head, or a body bent far sideways, reaches beyond that frami
 
 For each frame, :meth:`Framing.need` is the smallest distance at which every vertex of the mesh lies inside the
 frame with a margin (``margin`` x the height) at the top, left and right (the bottom cuts the body by design:
-the framing shows the upper body); never less than the configured distance.  A vertex at ``(x, y, z)`` in the
+the framing shows the upper body; with ``bottom``, the ``body`` framing, at the bottom too); never less than the
+configured distance.  A vertex at ``(x, y, z)`` in the
 camera's frame relative to the aim is seen at ``f y / (z + d)`` from the centre at distance ``d``, so the
 distance is ``max(y / t_y - z, |x| / t_x - z)`` over the vertices, with ``t`` the half frame less the margin
 over the focal length.
@@ -42,11 +43,14 @@ class Framing:
         The configured camera (its azimuth, elevation, field of view and distance: the closest it comes).
     margin : float
         Background kept at the top, left and right edges, as a fraction of the height.
+    bottom : bool
+        Keep it at the bottom edge too (the whole body in the frame, ``output.video.framing=body``).
     hold, smooth : int
         Frames (rendered frames) either side: a raise's zoom is held ``hold``, ramped over about ``4 smooth``.
     """
 
-    def __init__(self, camera, width: int, height: int, margin: float = 0.04, hold: int = 24, smooth: int = 8):
+    def __init__(self, camera, width: int, height: int, margin: float = 0.04, hold: int = 24, smooth: int = 8,
+                 bottom: bool = False):
         if hold < 2 * smooth:
             raise ValueError("hold must be at least 2 smooth (else a frame could need more than it gets)")
         _, self.rot = camera.basis(np.zeros(3))   # right, up, forward: the same for any aim and distance
@@ -54,7 +58,7 @@ class Framing:
         focal = 0.5 * height / math.tan(math.radians(camera.fov_deg) / 2)
         self.ty = (0.5 * height - margin * height) / focal
         self.tx = (0.5 * width - margin * height) / focal
-        self.hold, self.smooth = int(hold), int(smooth)
+        self.hold, self.smooth, self.bottom = int(hold), int(smooth), bool(bottom)
         self.needs: list[float] = []
         self.queue: deque = deque()   # (frame index, job) not drawn yet
         self.done = 0                 # frames handed out
@@ -62,7 +66,8 @@ class Framing:
     def need(self, vertices: np.ndarray, aim: np.ndarray) -> float:
         """The smallest distance (cm, at least the configured one) keeping ``vertices`` (cm) inside the frame."""
         c = (np.asarray(vertices, dtype=np.float64) - aim) @ self.rot.T
-        d = max(float(np.max(c[:, 1] / self.ty - c[:, 2])), float(np.max(np.abs(c[:, 0]) / self.tx - c[:, 2])))
+        up = np.abs(c[:, 1]) if self.bottom else c[:, 1]
+        d = max(float(np.max(up / self.ty - c[:, 2])), float(np.max(np.abs(c[:, 0]) / self.tx - c[:, 2])))
         return max(self.base, d)
 
     def push(self, job, need: float) -> list:
