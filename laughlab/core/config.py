@@ -163,8 +163,8 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
                 keys = valid_keys(group, overrides)
                 head, _, last = key.rpartition(".")
                 near = nearest(last, keys)
-                valid = ((f" (did you mean {head}.{near}?)" if near else "") + "; valid: " + ", ".join(keys) if keys
-                         else f"; this {group} takes no parameters")
+                hint = f" (did you mean {head}.{near}?)" if near and near != last else ""
+                valid = (hint + "; valid: " + ", ".join(keys) if keys else f"; this {group} takes no parameters")
             except Exception:  # listing the keys is a courtesy
                 valid = ""
         given = next((o.split("=", 1)[1] for o in overrides if o.split("=", 1)[0] == key), "")

@@ -13,6 +13,9 @@ BEHIND_S = 0.1
 #: a file whose loudest sample is below this (dB full scale) is called silent in the run's line: nothing moves
 SILENT_DBFS = -60.0
 
+#: a file whose samples' mean is this far from 0 (full scale, -40 dBFS) has its DC offset said in the run's line
+DC_OFFSET = 0.01
+
 #: the plugin groups a run's summary line and a report name, in the order the summary line gives them
 CHAIN = ("extractor", "detector", "face", "body", "scheduler")
 
@@ -33,7 +36,11 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     src = cfg.input.name
     what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
     peak = metrics.get("input_peak")
-    if peak is not None and peak < 10 ** (SILENT_DBFS / 20):   # a review: a silent file ran without a word
+    loudest = max(metrics.get("input_channel_peaks") or [0.0])   # a silent mix of channels that are not silent
+    if peak is not None and peak < 10 ** (SILENT_DBFS / 20) and loudest >= 10 ** (SILENT_DBFS / 20):
+        what += (f" (silent when its {len(metrics['input_channel_peaks'])} channels are mixed: they cancel out, "
+                 f"each alone up to {20 * math.log10(loudest):.0f} dBFS; input.channel=0 reads the first alone)")
+    elif peak is not None and peak < 10 ** (SILENT_DBFS / 20):   # a review: a silent file ran without a word
         what += f" (silent: {silent_text(peak)}" + \
             ("; is the microphone muted? input.device=NAME_OR_INDEX chooses another" if src == "mic" else "") + ")"
     # samples a float file holds that no sound is: said, not only counted in metrics.json (a new-user review)
@@ -41,6 +48,10 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
            for bad in [int(metrics.get("nonfinite_samples") or 0)] if bad]
     if peak is not None and peak > 1.0 + 1e-6:   # a float file's samples past full scale: kept as they are
         odd.append(f"its loudest sample {20 * math.log10(peak):+.1f} dBFS, over full scale")
+    dc = float(metrics.get("input_dc") or 0.0)   # a new-user review: an offset of 0.05 left a laugh without a clip
+    if abs(dc) >= DC_OFFSET and not (cfg.input.get("highpass_hz") or 0):
+        odd.append(f"a DC offset of {dc:+.3f} full scale, which the level the motion follows includes: "
+                   "input.highpass_hz=20 removes it")
     what += f" ({'; '.join(odd)})" if odd else ""
     # the last frame mid-clip, or the silence run_out added (a game developer's review: a baked laugh ended with
     # the body half-way down a rofl, and nothing said how to let it finish)

@@ -1,0 +1,98 @@
+"""``input=file``'s ``channel`` and ``highpass_hz``, and what the run's line says of a DC offset and of channels
+that cancel when mixed (a first-contact review: a DC offset of 0.05 full scale left a real laugh between speech
+without a clip, and a stereo file whose channels cancel was called silent)."""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import soundfile as sf
+
+from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
+
+ARGS = ("input=file", "detector=none", "~output.plots")
+
+
+@pytest.fixture(scope="module")
+def laugh(tmp_path_factory):
+    """6 s of the synthetic laughter (seed 0) at 44.1 kHz, as a file, and its samples."""
+    root = tmp_path_factory.mktemp("file_input")
+    r = laughlab("input.duration_s=6", "input.sample_rate=44100", "detector=none", "~output.plots",
+                 f"hydra.run.dir={root / 'synth'}")
+    assert r.returncode == 0, r.stderr
+    x, sr = sf.read(root / "synth" / "input.wav", dtype="float64")
+    return root, x, sr
+
+
+def _run(root, name, path, *args):
+    r = laughlab(*ARGS, f"input.path={path}", *args, f"hydra.run.dir={root / name}")
+    assert r.returncode == 0, r.stderr
+    mcs = np.genfromtxt(root / name / "channels.csv", delimiter=",", names=True)["mcs"]
+    return r.stdout, mcs, json.loads((root / name / "metrics.json").read_text())
+
+
+def test_a_dc_offset_is_said_and_highpass_hz_removes_it(laugh):
+    root, x, sr = laugh
+    sf.write(root / "clean.wav", x, sr, subtype="FLOAT")
+    sf.write(root / "dc.wav", x + 0.05, sr, subtype="FLOAT")
+    _, clean, m = _run(root, "clean", root / "clean.wav")
+    assert abs(m["input_dc"]) < 1e-3
+    out, shifted, m = _run(root, "dc", root / "dc.wav")
+    assert m["input_dc"] == pytest.approx(np.mean(x) + 0.05, abs=1e-6)
+    assert "(a DC offset of +0.050 full scale, which the level the motion follows includes: input.highpass_hz=20 " \
+           "removes it)" in out
+    out, fixed, _ = _run(root, "hp", root / "dc.wav", "input.highpass_hz=20")
+    assert "DC offset" not in out
+    # the offset compresses the motion control signal (measured: r 0.69 with the clean file's, its mean 0.17 for
+    # 0.30); the high-pass gives back the clean file's, nearly (r 0.999, 0.001 apart on average)
+    assert np.corrcoef(fixed, clean)[0, 1] > 0.99 and np.abs(fixed - clean).mean() < 0.01
+    assert np.corrcoef(shifted, clean)[0, 1] < 0.9 and shifted.mean() < 0.7 * clean.mean()
+
+
+def test_the_high_pass_is_the_same_however_the_file_is_cut(laugh):
+    """Run block by block with its state, the filter gives the samples of one pass over the whole file."""
+    from omegaconf import OmegaConf
+    from scipy.signal import butter, sosfilt
+
+    from laughlab.core.config import compose_config
+    from laughlab.core.pipeline import build
+
+    root, x, sr = laugh
+    y = x + 0.05 * np.sin(2 * np.pi * 3 * np.arange(len(x)) / sr)   # rumble at 3 Hz
+    sf.write(root / "rumble.wav", y, sr, subtype="FLOAT")
+    cfg = compose_config(["input=file", f"input.path={root / 'rumble.wav'}", "input.highpass_hz=20"])
+    src = build(OmegaConf.create(OmegaConf.to_container(cfg))).source
+    got = np.concatenate(list(src._read()))
+    want = sosfilt(butter(2, 20, "highpass", fs=sr, output="sos"), y.astype(np.float32))
+    np.testing.assert_allclose(got, want, atol=1e-6)
+    assert len(list(src.blocks())) == src.n_frames
+
+
+def test_channels_that_cancel_are_said_and_channel_reads_one_alone(laugh):
+    root, x, sr = laugh
+    sf.write(root / "mono.wav", x, sr, subtype="PCM_16")
+    sf.write(root / "phase.wav", np.stack([x, -x], axis=1), sr, subtype="PCM_16")
+    out, _, m = _run(root, "phase", root / "phase.wav")
+    assert len(m["input_channel_peaks"]) == 2 and min(m["input_channel_peaks"]) > 0.1
+    assert "(silent when its 2 channels are mixed: they cancel out, each alone up to " in out
+    assert "input.channel=0 reads the first alone)" in out and "(silent: its loudest" not in out
+    _run(root, "left", root / "phase.wav", "input.channel=0")
+    _run(root, "mono", root / "mono.wav")
+    for name in ("channels.csv", "motion.bvh", "events.csv"):
+        assert (root / "left" / name).read_bytes() == (root / "mono" / name).read_bytes(), name
+
+
+@pytest.mark.parametrize("args, line", [
+    (["input.channel=2"], "input.channel=2: {path} has 2 channel(s), numbered from 0"),
+    (["input.highpass_hz=30000"], "bad parameter in input=file: highpass_hz must be <= 1000 (got 30000.0)"),
+    (["input.highpass_hz=-1"], "bad parameter in input=file: highpass_hz must be >= 0"),
+])
+def test_a_channel_or_cutoff_the_file_cannot_take_is_one_line(laugh, args, line):
+    root, x, sr = laugh
+    path = root / "st.wav"
+    sf.write(path, np.stack([x, x], axis=1), sr, subtype="PCM_16")
+    r = laughlab(*ARGS, f"input.path={path}", *args, f"hydra.run.dir={root / 'bad'}")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+    assert line.format(path=path) in r.stderr, r.stderr
+    assert not (root / "bad").exists()
