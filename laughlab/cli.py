@@ -335,16 +335,15 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def _main(argv: list[str]) -> None:
-    if argv in (["--help"], ["-h"], ["help"]):
-        print(help_text())
-        return
-    if {"--help", "-h"} & set(argv) and all(a in ("--help", "-h") or a.startswith("plugins_dir=") for a in argv):
-        try:   # a review: Hydra's generic help replaced laughlab's
+    commands = ("detect", "report", "corpus", "study", "view")
+    if argv == ["help"] or {"--help", "-h"} & set(argv) and argv[0] not in (*commands, "plugins"):
+        try:   # with settings too: Hydra's generic help replaced laughlab's (reviews: alone, after input.path=x.wav)
             print(help_text(local_options(argv)))
         except LaughlabError as exc:
             fail(str(exc))
+        except BrokenPipeError:  # piped into head: stop quietly
+            _quiet_stdout()
         return
-    commands = ("detect", "report", "corpus", "study", "view")
     for name in commands:
         if argv[:1] == [name]:
             try:

@@ -420,6 +420,11 @@ def test_help_lists_every_group_with_examples_and_docs():
                  "  detector:    yamnet, laugh, none"):
         assert line in r.stdout
     assert "examples:" in r.stdout and "README.md" in r.stdout and "--hydra-help" in r.stdout
+    # after settings too (a first-contact review: Hydra's 130-line "cli is powered by Hydra." came instead)
+    for args in (["input=file", "input.path=x.wav", "--help"], ["-h", "face=facs"], ["help"]):
+        again = laughlab(*args)
+        assert again.returncode == 0 and again.stdout == r.stdout, args
+        assert "powered by Hydra" not in again.stdout
 
 
 def test_the_summary_times_the_whole_command_from_the_process_start(tmp_path):

@@ -138,6 +138,10 @@ def test_two_inputs_of_one_name_are_both_named(tmp_path):
         inputs([str(tmp_path)])
     assert str(e.value) == (f"two inputs share the name 'a' ({tmp_path / 'a.flac'}, {tmp_path / 'a.wav'}): their "
                             "label files would collide; run them separately (--out)")
+    (tmp_path / "a.mp3").write_bytes(b"x")   # a first-contact review: three files were "two inputs"
+    with pytest.raises(LaughlabError, match=r"^three inputs share the name 'a' \("):
+        inputs([str(tmp_path)])
+    (tmp_path / "a.mp3").unlink()
     # the same take name in two folders, given file by file (a shell glob, rec/*/*.wav; the detect review): their
     # folder names each by its path from it, and the line says so
     for day in ("day1", "day2"):

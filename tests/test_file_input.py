@@ -96,3 +96,20 @@ def test_a_channel_or_cutoff_the_file_cannot_take_is_one_line(laugh, args, line)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
     assert line.format(path=path) in r.stderr, r.stderr
     assert not (root / "bad").exists()
+
+
+def test_a_file_it_may_not_read_says_permission_denied(tmp_path, monkeypatch):
+    """libsndfile said "System error." for a file without read permission (a first-contact review). The tests run
+    as root, who reads any file, so the refusal is the operating system's error as open() raises it."""
+    from laughlab.core.errors import LaughlabError
+    from laughlab.io import audio
+
+    path = tmp_path / "noperm.wav"
+    sf.write(path, np.zeros(800), 8000)
+
+    def refused(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    monkeypatch.setattr(audio, "open", refused, raising=False)
+    with pytest.raises(LaughlabError, match=rf"^cannot read audio from {path}: Permission denied$"):
+        audio.probe_file(path)

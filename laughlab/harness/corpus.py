@@ -167,7 +167,9 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
         stems.setdefault(f.stem, []).append(f.name)
     for stem, names in stems.items():   # a review: NAME.flac beside NAME.mp3 ran both as trial rec-NAME, into one
         if len(names) > 1:              # folder, and the second stopped the experiment with an OSError
-            raise LaughlabError(f"corpus folder {folder}: two recordings share the name {stem!r} ({', '.join(names)}): "
+            raise LaughlabError(f"corpus folder {folder}: {({2: 'two', 3: 'three'}).get(len(names), len(names))} "
+                                f"recordings share the name {stem!r} "
+                                f"({', '.join(names)}): "
                                 f"their trials (rec-{stem}) and their annotation ({stem}.truth.csv, {stem}.txt, ...) "
                                 "would collide; keep one of them in the folder")
     items, bad = [], []

@@ -82,6 +82,11 @@ def probe_file(path: str | Path):
         raise LaughlabError(f"input path is a folder, not an audio file: {path}")
     if p.stat().st_size == 0:
         raise LaughlabError(f"input file is empty: {path}")
+    try:   # libsndfile says "System error." for a file it may not open (a first-contact review)
+        with open(p, "rb"):
+            pass
+    except OSError as exc:
+        raise LaughlabError(f"cannot read audio from {path}: {exc.strerror or exc}") from None
     try:
         info = sf.info(str(p))
     except Exception as exc:
