@@ -40,6 +40,24 @@ def cpu_flags() -> frozenset[str]:
     return frozenset()
 
 
+#: the CPU flags (Linux's names) behind XNNPACK's x86 kernel families (YAMNet's interpreter), in the order of
+#: :func:`cpu_family`
+FAMILIES = (("avx", {"avx"}), ("avx2", {"avx2", "fma"}), ("avx512f", {"avx512f"}),
+            ("avx512skx", {"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"}),
+            ("avx512vbmi", {"avx512vbmi"}), ("avx512vnni", {"avx512_vnni"}), ("avxvnni", {"avx_vnni"}),
+            ("amx", {"amx_int8"}))
+
+
+def cpu_family() -> str:
+    """The CPU's kernel families as XNNPACK tells them apart, e.g. ``avx+avx2`` or ``avx+avx2+avx512f+...``
+    (the architecture's name outside x86-64 Linux): the default detector's bytes hold within one family."""
+    import platform
+
+    flags = cpu_flags()
+    names = [name for name, need in FAMILIES if need <= flags]
+    return "+".join(names) if names else platform.machine()
+
+
 def pin() -> None:
     """Set the two variables (see the module notes) unless numpy is already imported, the user set them,
     or ``LAUGHLAB_NATIVE_KERNELS=1``."""

@@ -28,6 +28,8 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
+from laughlab._kernels import cpu_family  # noqa: F401 (the family the YAMNet runs' bytes are recorded for)
+
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN = Path(__file__).parent / "data" / "golden.json"
 GOLDEN_DIR = Path(__file__).parent / "data" / "golden"
@@ -58,27 +60,10 @@ RUNS = {
 #: the runs through YAMNet (the default detector): XNNPACK's kernels, chosen by CPU, decide their bytes
 YAMNET_RUNS = tuple(n for n, a in RUNS.items() if not any(o.startswith("detector=") for o in a)
                     or "detector=yamnet" in a)
-#: the CPU flags (Linux's names) behind XNNPACK's x86 kernel families, in the order of :func:`cpu_family`
-_FAMILIES = (("avx", {"avx"}), ("avx2", {"avx2", "fma"}), ("avx512f", {"avx512f"}),
-             ("avx512skx", {"avx512f", "avx512cd", "avx512bw", "avx512dq", "avx512vl"}),
-             ("avx512vbmi", {"avx512vbmi"}), ("avx512vnni", {"avx512_vnni"}), ("avxvnni", {"avx_vnni"}),
-             ("amx", {"amx_int8"}))
-
-
 #: the CPU family the bundled YAMNet heads (laughlab/data/yamnet/head.json, fuse.json) were fitted on (refitted
 #: 2026-11-27 with the monotone speech streams, on an AMD EPYC with AVX-512; first fitted 2026-11-25/26 on AVX2):
 #: ``yamnet_fit --check`` reproduces their bytes there only
 HEADS_FITTED_ON = "avx+avx2+avx512f+avx512skx+avx512vbmi+avx512vnni"
-
-
-def cpu_family() -> str:
-    """The CPU's kernel families as XNNPACK tells them apart, e.g. ``avx+avx2`` or ``avx+avx2+avx512f+...``
-    (the architecture's name outside x86-64 Linux)."""
-    from laughlab._kernels import cpu_flags
-
-    flags = cpu_flags()
-    names = [name for name, need in _FAMILIES if need <= flags]
-    return "+".join(names) if names else platform.machine()
 
 
 def real_path() -> str:

@@ -125,8 +125,12 @@ def versions() -> dict:
 
     from laughlab import _kernels
 
-    out = {"python": platform.python_version(), "cpu_kernels": _kernels.state()}
-    for pkg in ("laughlab", "numpy", "scipy", "hydra-core", "pluggy"):
+    # the CPU family and the packages that decide bytes: YAMNet's interpreter (the default detector, by family),
+    # numba (body=hill), Praat (extractor=phoneme), libsndfile's and ffmpeg's decoders, matplotlib (a JOSS-style
+    # review: metrics.json left out what docs/pipeline.md says changes the bytes)
+    out = {"python": platform.python_version(), "cpu_kernels": _kernels.state(), "cpu_family": _kernels.cpu_family()}
+    for pkg in ("laughlab", "numpy", "scipy", "hydra-core", "pluggy", "ai-edge-litert", "numba",
+                "praat-parselmouth", "soundfile", "imageio-ffmpeg", "matplotlib"):
         try:
             out[pkg] = version(pkg)
         except PackageNotFoundError:
