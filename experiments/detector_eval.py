@@ -87,7 +87,22 @@ def pr_curve(score: np.ndarray, y: np.ndarray):
 PR_STYLES = ("-", "--", "-.", ":")
 
 
-def pr_figure(scores: dict, y: np.ndarray, width: str = "page", sets=("real", "mixed", "between")):
+def data_words(sets, split: str = "test") -> tuple[str, str]:
+    """What the curves were measured on, long (for results.json) and short (for the title), from the items'
+    profiles: the corpus' sets (held out when ``split`` is ``test``), your recordings (``recording``: a corpus
+    folder), the synthetic laughter (a new-user review: a run on a folder of one's own was titled "held-out")."""
+    corpus = [s for s in sets if s in ("real", "between") or s.startswith("mixed")]
+    own, synth = "recording" in sets, [s for s in sets if s not in corpus and s != "recording"]
+    kind = "held-out" if split == "test" else f"{split}-split"
+    named = ", ".join(corpus[:-1]) + f" and {corpus[-1]}" if len(corpus) > 1 else "".join(corpus)
+    long = [f"the {kind} recordings with a truth (sets {named})"] * bool(corpus) + \
+        ["the recordings of harness.corpus.folder with a truth"] * own + ["the synthetic laughter"] * bool(synth)
+    short = [f"{kind} recordings"] * bool(corpus) + ["your recordings"] * own + ["synthetic laughter"] * bool(synth)
+    return " and ".join(long), " and ".join(short)
+
+
+def pr_figure(scores: dict, y: np.ndarray, width: str = "page", sets=("real", "mixed", "between"),
+              split: str = "test"):
     """The precision-recall figure of ``scores`` (name: per-frame score, in :data:`SCORES`' order) against the
     frames' truth ``y``, and its numbers (``detector_pr`` of the results).  ``width``: ``page`` (6 in) or
     ``column`` (3.5 in, text 7-8 pt, the legend in one column under the axes), as the run's
@@ -102,10 +117,10 @@ def pr_figure(scores: dict, y: np.ndarray, width: str = "page", sets=("real", "m
         Figure(figsize=(6.0, 5.2), dpi=150)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot(1, 1, 1)
-    named = ", ".join(sets[:-1]) + f" and {sets[-1]}" if len(sets) > 1 else "".join(sets)
     # the sets the run had (they were always said to be real, mixed and between: a new-user review ran mixed alone)
-    out = {"what": "frame-level precision-recall of each detector's score on the held-out recordings with a "
-                   f"truth (sets {named}), pooled over frames at 60 fps; a frame is laughter inside a bout",
+    long, short = data_words(sets, split)
+    out = {"what": f"frame-level precision-recall of each detector's score on {long}, pooled over frames at 60 fps; "
+                   "a frame is laughter inside a bout",
            "frames": int(len(y)), "laughter_share": float(y.mean()), "scores": {}}
     for i, (name, s) in enumerate(scores.items()):
         p, r, thr, ap = pr_curve(s, y)
@@ -122,7 +137,7 @@ def pr_figure(scores: dict, y: np.ndarray, width: str = "page", sets=("real", "m
     ax.set_ylim(0, 1.02)
     ax.set_ylabel("precision")
     ax.grid(alpha=0.3)
-    title = "Laughter scores per frame, held-out recordings (dots: the gates' thresholds)"
+    title = f"Laughter scores per frame, {short} (dots: the gates' thresholds)"
     if narrow:   # sizes set on the axes, not by rc: the ticks are made again when the figure is saved
         ax.set_xlabel("recall (laughter frames above the threshold)", fontsize=8)
         ax.yaxis.label.set_fontsize(8)
@@ -160,7 +175,8 @@ def extra(run) -> dict:
 
     fig, out = pr_figure({name: np.nan_to_num(np.concatenate(parts), nan=0.0) for name, parts in pooled.items()}, y,
                          width=OmegaConf.select(run.cfg, "output.plots.width", default="page"),
-                         sets=sorted({i.profile for i in items}))
+                         sets=sorted({i.profile for i in items}),
+                         split=OmegaConf.select(run.cfg, "harness.corpus.real.split", default="test"))
     plots = Path(run.out_dir) / "plots"
     plots.mkdir(parents=True, exist_ok=True)
     fig.savefig(plots / "detector_pr.png")

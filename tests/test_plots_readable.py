@@ -433,6 +433,17 @@ def test_the_detector_pr_figure_tells_its_curves_apart_without_colour(tmp_path, 
     # the sets it was measured on, as given (a new-user review: "real, mixed and between" of a run of mixed alone)
     assert "(sets real, mixed and between)" in out["what"]
     assert "(sets mixed)" in pr_figure({"yamnet (head)": y * 1.0}, y, sets=["mixed"])[1]["what"]
+    # a folder of one's own is not "held-out" (a new-user review published that title on their own recordings)
+    from laughlab_experiments.detector_eval import data_words
+
+    assert data_words(["between", "mixed-10dB", "real"]) == (
+        "the held-out recordings with a truth (sets between, mixed-10dB and real)", "held-out recordings")
+    assert data_words(["recording"]) == ("the recordings of harness.corpus.folder with a truth", "your recordings")
+    assert data_words(["real", "recording"], "train") == (
+        "the train-split recordings with a truth (sets real) and the recordings of harness.corpus.folder with a "
+        "truth", "train-split recordings and your recordings")
+    fig, out = pr_figure({"yamnet (head)": y * 1.0}, y, sets=["recording"])
+    assert fig.axes[0].get_title() == "Laughter scores per frame, your recordings (dots: the gates' thresholds)"
 
 
 @pytest.mark.parametrize("names", [["yamnet", "yamnet_fused", "laugh", "none"],
