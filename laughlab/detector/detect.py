@@ -190,6 +190,10 @@ def main(argv: list[str]) -> None:
                     help="write into an --out folder that already holds files: the segment files an earlier detect "
                          "wrote there are replaced by this run's (or removed), other files kept; a file of yours by "
                          "a name this run writes (NAME.TextGrid beside NAME.wav) is refused")
+    ap.add_argument("--score", action="store_true",
+                    help="score the segments against each input's annotation beside it (NAME.truth.csv, NAME.txt, "
+                         "NAME.TextGrid or NAME.eaf): bouts found, frame precision, recall and F1, segments outside "
+                         "laughter, in scores.csv and the closing line")
     ap.add_argument("--skip-unreadable", action="store_true",
                     help="leave out an input that cannot be read (one line on stderr each) instead of stopping "
                          "the batch before any work")
@@ -209,6 +213,7 @@ def main(argv: list[str]) -> None:
     bad = [f for f in formats if f not in FORMATS]
     if bad or not formats:
         raise LaughlabError(f"unknown format {bad[0] if bad else '(none)'}: choose from {', '.join(FORMATS)}")
+    from laughlab.detector import detect_score as DS
     from laughlab.detector import segments as S
     from laughlab.detector.yamnet import LaughterScore, ModelFileError, Yamnet
     from laughlab.io.audio import probe_file
@@ -221,8 +226,9 @@ def main(argv: list[str]) -> None:
         dup = next((n for n in names if names.count(n) > 1), None)
         if dup:   # take.wav's second channel and a file take.ch2.wav
             raise LaughlabError(f"two inputs share the name {dup!r} with --channels each: rename the file {dup}.*")
-    stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n, _ in named], formats))
-    total_s, kept, gone = 0.0, [], []   # gone: the names of the inputs left out (--skip-unreadable)
+    scored = ["scores.csv"] if ns.score else []
+    stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n, _ in named], formats) + scored)
+    total_s, kept, gone, durations = 0.0, [], [], {}   # gone: the names of the inputs left out (--skip-unreadable)
 
     def unreadable(name: str, exc: LaughlabError) -> None:
         """An input that cannot be read stops the batch, or with --skip-unreadable is left out in one stderr line."""
@@ -238,10 +244,14 @@ def main(argv: list[str]) -> None:
             unreadable(name, exc)
             continue
         kept.append((f, name, channel))
-        total_s += info.frames / info.samplerate
+        durations[name] = info.frames / info.samplerate
+        total_s += durations[name]
     if not kept:
         raise LaughlabError("no readable audio among the inputs")
     named = kept
+    record = read_record(Path(ns.out) / MANIFEST) if ns.score else None   # an earlier detect's labels: not truths
+    ours = frozenset((Path(ns.out) / n).resolve() for n in (record[0] if record else ()))
+    truths = DS.find_truths(named, durations, ours) if ns.score else {}   # checked before any work
     try:
         model, score = Yamnet(), LaughterScore()
     except ModelFileError as exc:
@@ -275,7 +285,8 @@ def main(argv: list[str]) -> None:
     out = Path(ns.out)
     # the manifest first lists every name this run may leave (the earlier run's and this one's): a run stopped
     # while writing leaves no file that a later --overwrite would take for the user's
-    planned = S.output_names([r[0] for r in results], formats) + S.clip_names(results, formats)
+    planned = S.output_names([r[0] for r in results], formats) + S.clip_names(results, formats) + scored
+    score_rows = DS.score_rows(results, truths) if ns.score else []
     if "audio" in formats:   # the clips' names are known now: a file of yours by one of them is refused as above
         stale = out_folder_check(out, ns.overwrite, planned)
 
@@ -289,7 +300,8 @@ def main(argv: list[str]) -> None:
         names = sorted(rel(stale) | set(planned))
         S.atomic_write(out / MANIFEST, json.dumps({"files": names, "sha256": {n: sums[n] for n in names if n in sums}},
                                                   indent=1) + "\n")
-        written = S.write_outputs(out, results, formats)   # all or none
+        written = S.write_outputs(out, results, formats,   # all or none
+                                  {"scores.csv": DS.scores_text(score_rows)} if ns.score else None)
     except BaseException:   # a Ctrl-C or a full disk: a folder this run made goes (its manifest alone was left)
         if fresh:
             remove(out)
@@ -304,7 +316,8 @@ def main(argv: list[str]) -> None:
         done = sorted(rel(written) | rel(kept_old))
         S.atomic_write(out / MANIFEST, record_text(out, done))
     wall = time.perf_counter() - t0
-    print(summary_line(results, gone, wall, out))
+    print(summary_line(results, gone, wall, out)
+          + DS.score_summary(score_rows, sum(r[0] not in truths for r in results)))
 
 
 def _channels(path: Path) -> int:

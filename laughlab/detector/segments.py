@@ -245,9 +245,11 @@ def write_clip(path: Path, media: Path, seg: Segment, channel: int | None = None
     sf.write(str(path), x, sr, subtype=subtype, format="WAV")
 
 
-def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...]) -> list[Path]:
+def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...],
+                  extra: dict[str, str] | None = None) -> list[Path]:
     """Write ``segments.csv`` and per-input ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf`` (and with ``audio`` each
-    laugh as ``NAME_laugh_K.wav``, from the recording, the results' fourth item); all of them or none.
+    laugh as ``NAME_laugh_K.wav``, from the recording, the results' fourth item), and ``extra``'s files (name ->
+    text: ``scores.csv``); all of them or none.
 
     Each file is written under a hidden temporary name beside its place, and all are moved into place together at
     the end, a stop signal held off while they move (:func:`laughlab.core.interrupts.deferred`); a failure or a
@@ -279,6 +281,8 @@ def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]]
             w.writerows([name, f"{s.start:.4f}", f"{s.end:.4f}", f"{s.prob:.4f}"] for name, _, segs, *_ in results
                         for s in segs)
             put(out_dir / "segments.csv", text.getvalue())
+        for name, text in (extra or {}).items():
+            put(out_dir / name, text)
         with deferred():
             stage.commit()
     except BaseException:

@@ -1,0 +1,117 @@
+"""``detect --score``: the segments scored against your own annotations of the same recordings.
+
+A new-user review (2026-11-29): a researcher with annotated recordings had no documented way to measure what
+``detect`` found against them (the harness scores the live gate, ``bench_detector`` the corpus' sets only).  With
+``--score`` each input's annotation beside it is read, as a corpus folder's are (``NAME.truth.csv``, else Audacity
+labels ``NAME.txt``, a Praat ``NAME.TextGrid`` or an ELAN ``NAME.eaf``: :mod:`laughlab.corpora.annotations`), and
+the segments are scored as ``benchmarks/bench_detector.py`` scores them (:func:`laughlab.detector.segments.score`):
+frames of 10 ms inside a bout (precision, recall and F1 of the laughter frames), bouts found (a segment overlapping
+the bout), segments outside every bout.  ``scores.csv`` holds a row per scored input and the pooled row ``all``.
+"""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+from laughlab.core.errors import LaughlabError
+
+#: where an input's annotation is looked for, beside it, in this order (as a corpus folder's: corpus.py)
+ANNOTATIONS = (".truth.csv", ".txt", ".TextGrid", ".eaf")
+COLUMNS = ("file", "annotation", "bouts", "found", "precision", "recall", "f1", "segments_outside", "seconds")
+
+
+def annotation_for(path: Path, name: str, ours: frozenset) -> Path | None:
+    """The annotation of input ``name`` (a file's stem, ``NAME.ch2`` for a channel) beside its recording ``path``;
+    ``ours``, the files an earlier detect wrote into ``--out`` (its ``NAME.txt`` labels), are not annotations."""
+    stem = Path(name).name
+    for ext in ANNOTATIONS:
+        p = path.with_name(stem + ext)
+        if p.is_file() and p.resolve() not in ours:
+            return p
+    return None
+
+
+def truth_rows(annotation: Path, duration_s: float) -> list[dict]:
+    """The annotation's rows (``kind``, ``onset_s``, ``offset_s``), checked as a corpus folder's are: one line
+    naming the file and the line for an unknown label, overlapping bouts or a time past the recording's end."""
+    from laughlab.harness.corpus import check_truth_csv
+
+    if annotation.name.endswith(".truth.csv"):
+        check_truth_csv(annotation, duration_s)
+        with annotation.open(newline="", encoding="utf-8") as fh:
+            rows = list(csv.DictReader(fh))
+    else:
+        from laughlab.corpora.annotations import read
+
+        rows = read(annotation, duration_s).truth_rows()
+    return [{"kind": r["kind"], "onset_s": float(r["onset_s"]), "offset_s": float(r["offset_s"])} for r in rows]
+
+
+def score_rows(results: list, truths: dict[str, tuple[Path, list[dict]]]) -> list[dict]:
+    """A row per input with a truth (``results`` as detect makes them: name, duration, segments, ...), then the
+    pooled row ``all`` (frames summed over the inputs, so a long recording weighs more)."""
+    from laughlab.detector.segments import f1, score
+
+    rows, tot = [], {"tp": 0, "fp": 0, "fn": 0, "bouts": 0, "found": 0, "outside": 0, "seconds": 0.0}
+
+    def row(name, ann, r, outside, seconds) -> dict:
+        tp, fp, fn = r["tp"], r["fp"], r["fn"]
+        return {"file": name, "annotation": ann, "bouts": r["bouts"], "found": r["found"],
+                "precision": tp / (tp + fp) if tp + fp else None, "recall": tp / (tp + fn) if tp + fn else None,
+                "f1": f1(tp, fp, fn) if tp + fp + fn else None, "segments_outside": outside, "seconds": seconds}
+
+    for name, dur, segs, *_ in results:
+        if name not in truths:
+            continue
+        ann, truth = truths[name]
+        r = score(segs, truth, dur)
+        outside = sum(r["false_segments"].values())
+        rows.append(row(name, str(ann), r, outside, dur))
+        for k in ("tp", "fp", "fn", "bouts", "found"):
+            tot[k] += r[k]
+        tot["outside"] += outside
+        tot["seconds"] += dur
+    if rows:
+        rows.append(row("all", "", tot, tot["outside"], tot["seconds"]))
+    return rows
+
+
+def scores_text(rows: list[dict]) -> str:
+    """``scores.csv``: :data:`COLUMNS`, ratios to 4 decimals, empty where undefined (no bout and no segment)."""
+    text = io.StringIO()
+    w = csv.writer(text, lineterminator="\n")
+    w.writerow(COLUMNS)
+    for r in rows:
+        w.writerow([f"{r[c]:.4f}" if isinstance(r[c], float) else "" if r[c] is None else r[c] for c in COLUMNS])
+    return text.getvalue()
+
+
+def score_summary(rows: list[dict], unscored: int) -> str:
+    """The closing line's part: ``; scored against 4 annotations: 4 of 8 bouts found, frame F1 0.45 (precision
+    0.50, recall 0.41), 5 segments outside laughter -> scores.csv``."""
+    if not rows:
+        return ""
+    a = rows[-1]
+    fmt = lambda v: "n/a" if v is None else f"{v:.2f}"   # noqa: E731
+    n = len(rows) - 1
+    return (f"; scored against {n} annotation{'s' * (n != 1)}: {a['found']} of {a['bouts']} bouts found, frame F1 "
+            f"{fmt(a['f1'])} (precision {fmt(a['precision'])}, recall {fmt(a['recall'])}), "
+            f"{a['segments_outside']} segment{'s' * (a['segments_outside'] != 1)} outside laughter"
+            + (f", {unscored} input{'s' * (unscored != 1)} without an annotation" if unscored else "")
+            + " -> scores.csv")
+
+
+def find_truths(named: list, durations: dict, ours: frozenset) -> dict[str, tuple[Path, list[dict]]]:
+    """``--score``: every input's annotation read and checked before any work (one line for the first bad one);
+    ``ours``: the files an earlier detect wrote into ``--out`` (resolved).  None at all is an error that says where
+    they are looked for."""
+    found = {}
+    for f, name, _ in named:
+        ann = annotation_for(Path(f), name, ours)
+        if ann is not None:
+            found[name] = (ann, truth_rows(ann, durations[name]))
+    if not found:
+        raise LaughlabError("--score: no input has an annotation beside it (NAME.truth.csv, NAME.txt, NAME.TextGrid "
+                            "or NAME.eaf next to NAME.wav; docs/detector.md)")
+    return found
