@@ -960,3 +960,29 @@ def test_the_showcase_figures_follow_the_experiments_order_of_conditions(tiny_ru
     links = [text.index(f"[{c}_filmstrip.png]") for c in ("none", "energy")]
     assert links[0] < links[1]
     assert text.index("(figures/none_fig3_2_mcs.png)") < text.index("(figures/energy_fig3_2_mcs.png)")
+
+
+def test_an_empty_annotation_or_one_without_calls_is_warned_once(tmp_path, capsys):
+    """A new-user review: an empty Audacity export and an ELAN file of bouts alone were taken without a word (the
+    report's intensity n one short, the empty one counted as a recording without laughter)."""
+    from laughlab.harness import corpus
+
+    for name in ("empty", "bouts", "full"):
+        sf.write(tmp_path / f"{name}.wav", np.zeros(16000 * 3), 16000)
+    (tmp_path / "empty.txt").write_text("")
+    (tmp_path / "bouts.txt").write_text("0.5\t1.5\tlaugh\n")
+    (tmp_path / "full.txt").write_text("0.5\t1.5\tlaugh\n0.6\t0.8\tcall\n")
+    monkey = corpus._WARNED.copy()
+    try:
+        items = folder_items(tmp_path)
+        folder_items(tmp_path)                                   # read again (the showcase's check): said once
+    finally:
+        corpus._WARNED.clear()
+        corpus._WARNED.update(monkey)
+    assert [i.id for i in items] == ["rec-bouts", "rec-empty", "rec-full"]
+    err = capsys.readouterr().err.splitlines()
+    assert err == [f"laughlab: warning: {tmp_path / 'bouts.txt'} marks bouts but no calls: rec-bouts's metrics of "
+                   "laughter intensity (intensity_r_*, intensity_rho_*, jaw_call_r) are left blank "
+                   "(docs/experiments.md: annotate the calls)",
+                   f"laughlab: warning: {tmp_path / 'empty.txt'} holds no laughter bout: rec-empty counts as a "
+                   "recording without laughter (its false starts count, its detector scores are blank)"]

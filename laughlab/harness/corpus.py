@@ -136,6 +136,43 @@ def _truth_beside(f: Path, duration: float | None) -> str | None:
     return None
 
 
+#: the annotations a warning was printed for (a corpus is read twice: the showcase's check, then the trials)
+_WARNED: set = set()
+
+
+def _warn_thin(truth: Path, item: str) -> None:
+    """One warning line for an annotation that holds no bout (an empty export: the recording counts as one without
+    laughter) or bouts but no calls (the intensity metrics are left blank for it): a new-user review found both
+    taken without a word, the report's n one short."""
+    import sys
+
+    if truth in _WARNED:
+        return
+    _WARNED.add(truth)
+    kinds = [r["kind"] for r in _rows(truth)]
+    if "bout" not in kinds:
+        why = (f"holds no laughter bout: {item} counts as a recording without laughter (its false starts count, "
+               "its detector scores are blank)")
+    elif "call" not in kinds:
+        why = (f"marks bouts but no calls: {item}'s metrics of laughter intensity (intensity_r_*, intensity_rho_*, "
+               "jaw_call_r) are left blank (docs/experiments.md: annotate the calls)")
+    else:
+        return
+    print(f"laughlab: warning: {truth} {why}", file=sys.stderr)
+
+
+def _rows(truth: Path) -> list[dict]:
+    """A truth file's rows (``kind``...): a ``truth.csv`` or an annotation (:mod:`laughlab.corpora.annotations`)."""
+    import csv
+
+    from laughlab.corpora.annotations import read
+
+    if truth.name.endswith(".truth.csv"):
+        with truth.open(newline="", encoding="utf-8") as fh:
+            return list(csv.DictReader(fh))
+    return read(truth).truth_rows()
+
+
 def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None = None) -> list[Item]:
     """Every audio file in ``folder`` (sorted), with ``NAME.truth.csv`` (or an annotation ``NAME.txt``,
     ``NAME.TextGrid``: see ``laughlab.corpora.annotations``) as its truth when present.
@@ -180,6 +217,8 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
             bad.append({"file": f.name, "reason": str(exc)})
             continue
         items.append(Item(f"rec-{f.stem}", ("input=file", f"input.path={f.resolve()}"), "recording", None, truth))
+        if truth:
+            _warn_thin(Path(truth), f"rec-{f.stem}")
     if bad and on_bad == "stop":
         listed = "; ".join(f"{b['file']}: {b['reason']}" for b in bad)
         raise LaughlabError(f"corpus folder {folder}: {len(bad)} of {counted(len(files), 'file')} "
