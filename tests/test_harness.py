@@ -94,6 +94,21 @@ def test_bold_only_where_the_intervals_are_apart():
     assert _clear_best(doc([0.9, 0.9], [0.1, 0.1]), "m", ["A", "B"]) == "A"   # two each, all alike: the values
 
 
+def test_no_detector_is_not_the_best_at_its_own_always_open_signal():
+    """A new-user review: detector_eval's report bolded detector=none's recall of 1 and latency of a frame, true by
+    construction (its laughter signal is always on); the clip metrics still compare it."""
+    def doc(metric, better, none, other):
+        return {"metrics": {metric: {"higher_is_better": better}},
+                "conditions": {"none": ["detector=none"], "yamnet": ["detector=yamnet"]},
+                "results": {"none": {metric: mean_ci(none)}, "yamnet": {metric: mean_ci(other)}}}
+    assert _clear_best(doc("detector_recall", True, [1.0] * 4, [0.2, 0.3, 0.25, 0.2]), "detector_recall",
+                       ["none", "yamnet"]) is None
+    assert _clear_best(doc("detection_latency_median_s", False, [0.02] * 4, [0.9, 1.0, 0.8, 0.95]),
+                       "detection_latency_median_s", ["none", "yamnet"]) is None
+    assert _clear_best(doc("bouts_answered", True, [1.0] * 4, [0.2, 0.3, 0.25, 0.2]), "bouts_answered",
+                       ["none", "yamnet"]) == "none"
+
+
 def test_a_condition_that_played_no_clip_is_not_the_best_at_a_trivial_0():
     """The smoke report bolded scheduler=none's offset tail of 0 s: it never played a clip."""
     def doc(tail_b, cut_b):

@@ -16,6 +16,7 @@ from pathlib import Path
 from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.core.summary import counted
 from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, edge_note  # noqa: F401 (KEY_METRICS)
+from laughlab.harness.report_format import DETECTOR_OWN
 from laughlab.harness.report_format import check_panels, vacuous, vector_link
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
@@ -222,6 +223,12 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
         lines[-1:-1] = ["", f"(n=K): a mean of fewer than {FEW} trials (e.g. the few inputs holding that kind of "
                         "sound); its bootstrap interval is narrower than a 95% interval should be: read it as the "
                         "spread of those trials."]
+    nones = [c for c in conditions_of(doc) if "detector=none" in doc["conditions"].get(c, ())]
+    if 0 < len(nones) < len(conditions_of(doc)) and any(m in doc["metrics"] for m in DETECTOR_OWN):
+        # compared with detectors, detector=none's own detector metrics were bolded (a review)
+        lines[-1:-1] = ["", f"{' and '.join(f'**{c}**' for c in nones)} (detector=none) hears laughter in every "
+                        "frame, so its detector metrics (recall 1, latency one frame) hold by construction and are "
+                        "never in bold."]
     lines += _results_table(doc)
     gone = unmeasured(doc)
     if gone:

@@ -108,10 +108,19 @@ def played_no_clip(doc: dict, cond: str) -> bool:
     return "cutoff_rate" in rs and not rs["cutoff_rate"]["n"] and any(r["n"] for r in rs.values())
 
 
+#: the metrics of a detector's own laughter signal: under ``detector=none`` (always "laughter") its recall is 1 and
+#: its latency a frame, by construction, not a best (a new-user review: the report bolded them for ``none``)
+DETECTOR_OWN = ("detector_f1", "detector_precision", "detector_recall", "detection_latency_median_s",
+                "detection_latency_p90_s", "probability_latency_median_s", "probability_in_time")
+
+
 def vacuous(doc: dict, metric: str, cond: str) -> bool:
-    """A lower-is-better value of 0 under a condition that played no clip (an offset tail of no clip): not a
-    best, so a report's best (``report._clear_best``) and a sweep's figures leave it out."""
+    """A lower-is-better value of 0 under a condition that played no clip (an offset tail of no clip), or a
+    detector's own metric under ``detector=none`` (:data:`DETECTOR_OWN`): not a best, so a report's best
+    (``report._clear_best``) and a sweep's figures leave it out."""
     r = doc["results"][cond][metric]
+    if metric in DETECTOR_OWN and "detector=none" in (doc.get("conditions") or {}).get(cond, ()):
+        return True
     return doc["metrics"][metric]["higher_is_better"] is False and r["mean"] == 0 and played_no_clip(doc, cond)
 
 
