@@ -38,7 +38,7 @@ def test_each_value_of_each_key_is_checked_with_the_others_at_their_first_values
 
 
 @pytest.mark.parametrize("swept, message", [
-    ("scheduler.overule_c=1.5,3", "unknown parameter scheduler.overule_c; valid: "),
+    ("scheduler.overule_c=1.5,3", "unknown parameter scheduler.overule_c (did you mean scheduler.overrule_c?); valid: "),
     ("nosuchkey=1", "unknown parameter nosuchkey"),
     ("scheduler.overrule_c=1.5,-2", "sweep value scheduler.overrule_c=-2: bad parameter in scheduler=energy: "
                                     "overrule_c must be >= 0 (got -2.0)"),
