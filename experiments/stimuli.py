@@ -388,7 +388,6 @@ def check(h: dict) -> None:
 
 def run(cfg, out_dir) -> dict:
     """Render every stimulus, write the manifest, the audio and the participants' orders into ``out_dir``."""
-    from laughlab.core.errors import LaughlabError
     from laughlab.harness.corpus import build_corpus
     from laughlab.harness.experiment import _task_overrides
     from laughlab.harness.runner import check_conditions

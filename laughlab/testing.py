@@ -20,6 +20,8 @@ from laughlab.io.audio import cut_frames, frame_edges
 from laughlab.core.bases import REQUIRED, Context, Source
 from laughlab.core.errors import LaughlabError
 
+__all__ = ["ChunkedSource", "ContractError", "check_plugin", "run_frames"]
+
 
 class ChunkedSource(Source):
     """A microphone stand-in: given audio delivered in irregular device blocks.

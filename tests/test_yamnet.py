@@ -844,8 +844,8 @@ def test_a_detect_stopped_while_writing_leaves_nothing_a_later_overwrite_refuses
     assert laughlab("detect", str(tmp_path / "c.wav"), "--out", str(out)).returncode == 0
     real = S.write_outputs
 
-    def stopped(out_dir, results, formats):
-        real(out_dir, results[:1], formats)   # the first input's files are written, then the user stops it
+    def stopped(out_dir, results, formats, extra=None):
+        real(out_dir, results[:1], formats, extra)   # the first input's files are written, then the user stops it
         raise KeyboardInterrupt
 
     monkeypatch.setattr(S, "write_outputs", stopped)

@@ -173,7 +173,10 @@ class Extractor(Plugin):
 
     @abstractmethod
     def step(self, block: np.ndarray, frame: Frame) -> None:
-        ...
+        """Read ``block``, the frame's mono float samples in [-1, 1] at ``ctx.sample_rate`` (frame k holds
+        ``round((k+1)*sr/fps) - round(k*sr/fps)`` of them), and write this frame's control signals into
+        ``frame.control``: ``mcs``, the motion control signal in [0, 1] that the detector, scheduler, body and face
+        read, and any others; the same names every frame, finite floats (``laughlab.testing.check_plugin``)."""
 
 
 class Detector(Plugin):
@@ -190,7 +193,8 @@ class Detector(Plugin):
 
     @abstractmethod
     def step(self, block: np.ndarray, frame: Frame) -> None:
-        ...
+        """Read the frame's ``block`` (as :meth:`Extractor.step`) and ``frame.control`` after the extractor; write
+        ``laughter`` and ``laugh_gate`` (both in [0, 1]) and gate the driving signals, as the class says."""
 
     def prefetch(self, blocks) -> None:
         """Called after ``reset`` when the input can be read again (``Source.reread``): ``blocks()`` gives
@@ -205,7 +209,8 @@ class Scheduler(Plugin):
 
     @abstractmethod
     def step(self, frame: Frame) -> None:
-        ...
+        """Read ``frame.control`` (``mcs``, ``clip_gate``...); append the frame's clip starts and stops to
+        ``frame.events`` (clips of ``ctx.clips``), write ``energy`` (and ``clip_energy``) into the channels."""
 
 
 class Body(Plugin):
@@ -215,7 +220,9 @@ class Body(Plugin):
 
     @abstractmethod
     def step(self, frame: Frame) -> None:
-        ...
+        """Read ``frame.control``; write the body's channels (``chest``, ``belly``: shape weights, 0 rest, 1 the
+        expanded shape, which may extrapolate) and ``frame.offsets``: joint rotations added to the clip pose (joint ->
+        (Z, X, Y) degrees, BVH order)."""
 
 
 class Face(Plugin):
@@ -225,7 +232,8 @@ class Face(Plugin):
 
     @abstractmethod
     def step(self, frame: Frame) -> None:
-        ...
+        """Read ``frame.control``; write the face's channels in [0, 1] (``smile``, ``jaw``, ``eyes_closed``, or
+        ARKit's own names as ``arkit.NAME``)."""
 
 
 @dataclass
@@ -325,6 +333,7 @@ class Sink(Plugin):
         return cls.files
 
     def open(self, run: RunInfo) -> None:
+        """The run starts: its folder, frame rate, skeleton, source and configuration (:class:`RunInfo`)."""
         self.run = run
 
     def write(self, chunk: Chunk) -> None:

@@ -132,7 +132,7 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
                           + (f"; n=k over a bar: a mean of fewer than {FEW} trials" if few else "")
                           + " (↑ higher is better, ↓ lower is better)", int(pw * cols * z["chars"]))
     told = ([f"the same under every condition: {', '.join(same)}"] if same else []) + (
-        [f"measured under one condition only: " + ", ".join(
+        ["measured under one condition only: " + ", ".join(
             f"{m} ({c}: {doc['results'][c][m]['mean']:.3g})" for m, c in alone.items())] if alone else [])
     note = textwrap.wrap(f"Not shown, {'; '.join(told)} (values in the report's table).",
                          int(pw * cols * 15)) if told else []

@@ -116,7 +116,7 @@ import numpy as np
 from laughlab.core.bases import Extractor
 from laughlab.core.plugins import check_range
 from laughlab.signals.prosody import PRAAT_REF_POWER
-from laughlab.io.textgrid import PHONEMES, read_textgrid
+from laughlab.io.textgrid import read_textgrid
 from laughlab.signals.mcs import RmsExtractor, RmsParams
 
 #: vowel-like pseudo-phonemes: a call starts where one follows silence or a fricative
