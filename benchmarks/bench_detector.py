@@ -221,7 +221,9 @@ def score_segments(wavs: list[Path], segs: dict) -> dict:
             tot[k] += r[k]
         for k, v in r["false_segments"].items():
             kinds[k] = kinds.get(k, 0) + v
-    return {"frame_f1": SEG.f1(tot["tp"], tot["fp"], tot["fn"]), "found": tot["found"], "bouts": tot["bouts"],
+    # no laughter in the set (speech, other sounds): F1 is undefined, not 1 (a JOSS-style review read "F1 1.000")
+    f1 = SEG.f1(tot["tp"], tot["fp"], tot["fn"]) if tot["tp"] + tot["fn"] else None
+    return {"frame_f1": f1, "found": tot["found"], "bouts": tot["bouts"],
             "false_segments": kinds, "false_segments_total": int(sum(kinds.values())), "minutes": minutes}
 
 
@@ -359,7 +361,8 @@ def main() -> None:
     print(f"{'offline segments':22s} {'F1':>6s} {'found':>7s} {'false segments (by kind)':40s} {'x RT':>6s} "
           f"{'x RT cpu':>8s}")
     for k, v in offline.items():
-        print(f"{k:22s} {v['frame_f1']:6.3f} {v['found']:3d}/{v['bouts']:<3d} {json.dumps(v['false_segments']):40s} "
+        f1 = "   n/a" if v["frame_f1"] is None else format(v["frame_f1"], "6.3f")
+        print(f"{k:22s} {f1} {v['found']:3d}/{v['bouts']:<3d} {json.dumps(v['false_segments']):40s} "
               f"{v.get('x_real_time', float('nan')):6.0f} {v.get('x_real_time_cpu', float('nan')):8.0f}")
 
 
