@@ -1001,3 +1001,28 @@ def test_an_empty_annotation_or_one_without_calls_is_warned_once(tmp_path, capsy
                    "(docs/experiments.md: annotate the calls)",
                    f"laughlab: warning: {tmp_path / 'empty.txt'} holds no laughter bout: rec-empty counts as a "
                    "recording without laughter (its false starts count, its detector scores are blank)"]
+
+
+def test_each_of_your_recordings_gets_a_row_under_each_condition(tmp_path):
+    """A new-user review: the report pooled four recordings of one's own, hiding that one condition missed both
+    bouts of one of them. A row per folder recording and condition, the mean over run seeds; corpus sets and
+    synthetic inputs stay pooled."""
+    from laughlab.harness.report_recordings import recordings_table
+
+    def rec(inp, cond, seed, **m):
+        return json.dumps({"input": inp, "condition": cond, "seed": seed, "metrics": m})
+
+    (tmp_path / "metrics.jsonl").write_text("\n".join([
+        rec("rec-a", "x", 0, bouts_answered=1.0, detector_f1=0.5), rec("rec-a", "x", 1, bouts_answered=0.0,
+                                                                        detector_f1=None),
+        rec("rec-a", "y", 0, bouts_answered=0.5, detector_f1=0.25), rec("rec-b", "y", 0, bouts_answered=None),
+        rec("intense-s00", "x", 0, bouts_answered=0.0, detector_f1=0.9), rec("real-z", "x", 0, bouts_answered=0.0)]))
+    doc = {"conditions": {"x": [], "y": []},
+           "metrics": {"bouts_answered": {"higher_is_better": True}, "detector_f1": {"higher_is_better": True},
+                       "miss_rate": {"higher_is_better": False}}}
+    lines = recordings_table(tmp_path, doc)
+    assert lines[1] == "## Each of your recordings"
+    assert lines[-5:] == ["| recording | condition | bouts_answered ↑ | detector_f1 ↑ |", "|---|---|---|---|",
+                          "| a | x | 0.5 | 0.5 |", "| a | y | 0.5 | 0.25 |", "| b | y | n/a | n/a |"]
+    (tmp_path / "metrics.jsonl").write_text(rec("intense-s00", "x", 0, bouts_answered=1.0))
+    assert recordings_table(tmp_path, doc) == []               # no folder recording: no section

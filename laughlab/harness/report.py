@@ -17,6 +17,7 @@ from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.core.summary import counted
 from laughlab.harness.report_format import EDGE, KEY_METRICS, at_search_edge, edge_note  # noqa: F401 (KEY_METRICS)
 from laughlab.harness.report_format import DETECTOR_OWN
+from laughlab.harness.report_recordings import recordings_table
 from laughlab.harness.report_format import check_panels, vacuous, vector_link
 from laughlab.harness.report_format import fmt as _fmt
 from laughlab.harness.report_format import heading as _heading
@@ -243,6 +244,9 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
     same = _same_table(doc)
     if same:
         lines += same + [""]
+    mine = recordings_table(run_dir, doc)   # your own recordings one by one (a review: they were pooled only)
+    if mine:
+        lines += (mine if lines[-1] else mine[1:]) + [""]
     # in the experiment's order of conditions, as the tables (a plugin author's review: the figures went by name)
     order = conditions_of(doc)
 
