@@ -11,6 +11,7 @@ from laughlab.core.background import parallel
 from laughlab.core.bases import Sink
 from laughlab.core.outfiles import Staging
 from laughlab.core.plugins import check_range
+from laughlab.render.method_plots import CHANNELS as METHOD_CHANNELS
 
 
 @dataclass
@@ -70,7 +71,8 @@ class PlotsSink(Sink):
     background = True  # only writes files: may run in the helper process
     files = ("plots",)
     Params = PlotsParams
-    _keys = ("rms", "amp", "calibrating", "mcs_raw", "mcs", "energy", "smile", "jaw", "eyes_closed", "clip_gate")
+    _keys = tuple(dict.fromkeys(("rms", "amp", "calibrating", "mcs_raw", "mcs", "energy", "smile", "jaw",
+                                 "eyes_closed", "clip_gate") + METHOD_CHANNELS))
     _pose_hz = 5.0
 
     def open(self, run) -> None:
@@ -142,6 +144,15 @@ class PlotsSink(Sink):
             path31, pdf31 = self._paths(out / "fig3_1_calibration.png")
             jobs.append(lambda: plots.figure_3_1(path31, t, **fig31, bouts=bouts, note=note, pdf=pdf31,
                                                  layout=self.params.width, input_end_s=self.input_end_s))
+        from laughlab.render.method_plots import method_figure, method_panels
+
+        if method_panels(data):   # the method's own signals (a researcher's review: channels.csv held them alone)
+            path_m, pdf_m = self._paths(out / "method.png")
+            cfg = self.run.config or {}
+            chain = ", ".join(f"{g}={(cfg.get(g) or {}).get('name')}" for g in ("extractor", "body", "face",
+                                                                              "scheduler") if cfg.get(g))
+            jobs.append(lambda: method_figure(path_m, t, data, title=f"The method's own signals ({chain})".replace(
+                " ()", ""), note=note, pdf=pdf_m, layout=self.params.width, input_end_s=self.input_end_s))
         if self.params.filmstrip_frames and self.poses:
             strip, strip_pdf = self._paths(out / "filmstrip.png")
             jobs.append(lambda: self._filmstrip(strip, data, note, strip_pdf))

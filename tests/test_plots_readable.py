@@ -699,3 +699,31 @@ def test_fig_3_1_of_another_extractor_does_not_call_the_rms_mapping_the_runs_mcs
     (fig,) = [f for f in saved if f.name == "fig3_1_calibration.png"]
     assert "rms's MCS" in fig.texts and "MCS" not in fig.texts
     assert any("not the MCS of this run" in t.replace("\n", " ") for t in fig.texts)
+
+
+@pytest.mark.parametrize("args, titles", [
+    (["extractor=pressure", "body=hill"], ["Lung pressure (DiLorenzo et al. 2008, Eqs. 1-4)",
+                                           "Target from the audio (Sec. 6: Butterworth low-pass of |audio|)",
+                                           "Muscle activations (Hill model, Sec. 5.1)", "Airflow (out positive)"]),
+    (["extractor=phoneme", "scheduler=concat", "face=cgm", "body=follow", "output.plots.width=column"],
+     ["Torso following the head (Ding et al. 2014)", "Prosody (Ding et al. 2014: Praat's pitch)",
+      "Lips and jaw (Ding et al. 2014, contextual Gaussian model, Eq. 1)",
+      "Segment concatenation cost (Ding et al. 2014, Eq. 4)"]),
+    (["body=fourier"], ["Fourier blend between calm and intense (Unuma et al. 1995, Eq. 3)"]),
+    ([], None),
+])
+def test_a_runs_method_figure_shows_the_methods_own_signals(tmp_path, saved, args, titles):
+    """A paper-reproducing researcher's review: body=hill, body=fourier and Ding et al.'s pipeline drew only van
+    Duijn's figures; their own channels were in channels.csv alone. plots/method.png: a panel each, with units;
+    none for van Duijn's pipeline alone."""
+    from inprocess import laughlab
+
+    r = laughlab("input.duration_s=2", "detector=none", *args, f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 0, r.stderr
+    assert_readable(saved)
+    shown = [f for f in saved if f.name == "method.png"]
+    assert (tmp_path / "r" / "plots" / "method.png").exists() == bool(titles) == bool(shown)
+    if titles:
+        got = [ax.get_title(loc="left").replace("\n", " ") for ax in shown[0].figure.axes]
+        assert got == titles
+        assert all(ax.get_ylabel() for ax in shown[0].figure.axes)   # every panel has its unit

@@ -1,0 +1,98 @@
+"""``plots/method.png``: the signals of the method a run used beyond the thesis' figures, one panel each.
+
+A paper-reproducing researcher's review (2026-11-29): a run under ``body=hill``, ``body=fourier`` or Ding et al.'s
+pipeline drew only van Duijn's Figs. 3.1-4.2, and the method's own channels (the lungs, the muscles, the Fourier
+blend, the torso angles, the lips, the prosody) were in ``channels.csv`` alone.  Each panel is drawn when the run
+wrote its channels; units as docs/pipeline.md's columns table gives them.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from laughlab.render.layout import PAGE, Layout, in_layout, thin_ticks, wrapped
+
+#: a line's style by its place in a panel: told apart without its hue (docs/plots.md)
+STYLES = ("-", "--", ":", "-.")
+
+#: the panels: (title, unit, channels with their legend names); a panel is drawn when its first channel is there
+PANELS = (
+    ("Lung pressure (DiLorenzo et al. 2008, Eqs. 1-4)", "cm H2O", (("lung_pressure", "lung pressure"),)),
+    ("Target from the audio (Sec. 6: Butterworth low-pass of |audio|)", "0-1",
+     (("pressure", "pressure target"), ("env", "|audio| low-passed"))),
+    ("Muscle activations (Hill model, Sec. 5.1)", "0-1",
+     (("act_abdomen", "abdomen"), ("act_diaphragm", "diaphragm"), ("act_inner_ic", "inner intercostals"),
+      ("act_outer_ic", "outer intercostals"))),
+    ("Airflow (out positive)", "L/s", (("airflow", "airflow"),)),
+    ("Fourier blend between calm and intense (Unuma et al. 1995, Eq. 3)", "0 calm - 1 intense",
+     (("fourier_s", "blend s"), ("mcs", "MCS"))),
+    ("Torso following the head (Ding et al. 2014)", "deg",
+     (("follow_head_pitch", "head pitch"), ("torso_pitch", "torso pitch"), ("shoulder_angle", "shoulders"))),
+    ("Prosody (Ding et al. 2014: Praat's pitch)", "Hz", (("f0", "F0 (gaps: unvoiced)"),)),
+    ("Lips and jaw (Ding et al. 2014, contextual Gaussian model, Eq. 1)", "0-1",
+     (("lip_open", "lips open"), ("lip_corner", "lip corners"), ("jaw", "jaw"))),
+    ("Segment concatenation cost (Ding et al. 2014, Eq. 4)", "cost", (("concat_cost", "chosen segment's cost"),)),
+)
+
+#: every channel a panel may draw (the plots sink keeps these)
+CHANNELS = tuple(dict.fromkeys(k for _, _, lines in PANELS for k, _ in lines))
+
+
+def method_panels(data: dict) -> list:
+    """The panels whose first channel the run wrote, each with the lines it has."""
+    out = []
+    for title, unit, lines in PANELS:
+        if lines[0][0] in data:
+            out.append((title, unit, [(k, name) for k, name in lines if k in data]))
+    return out
+
+
+@in_layout
+def method_figure(path: Path, times: np.ndarray, data: dict, title: str = "", note: str = "", pdf=False,
+                  layout: Layout = PAGE, input_end_s: float | None = None) -> Path | None:
+    """One panel per :data:`PANELS` entry the run has, stacked on one time axis; None when it has none (a run of
+    van Duijn's pipeline alone: its figures are Figs. 3.1-4.2)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from laughlab.render.savefig import save_figure
+
+    panels = method_panels(data)
+    if not panels:
+        return None
+    col = layout.column
+    width = layout.width_in if col else 7.0
+    fig, axes = plt.subplots(len(panels), 1, figsize=(width, 0.35 + 1.35 * len(panels)), dpi=150, sharex=True,
+                             layout="constrained", squeeze=False)
+    axes = axes[:, 0]
+    for ax, (head, unit, lines) in zip(axes, panels):
+        for i, (key, name) in enumerate(lines):
+            y = np.asarray(data[key], float)
+            if key == "f0":   # unvoiced frames are 0 Hz in the channel: gaps here, not drops to 0
+                y = np.where(y > 0, y, np.nan)
+            ax.plot(times, y, lw=1.0, ls=STYLES[i % len(STYLES)], label=name)
+        if input_end_s is not None and len(times) and input_end_s < float(times[-1]):
+            ax.axvspan(input_end_s, float(times[-1]), facecolor="none", edgecolor="0.6", hatch="///", lw=0,
+                       zorder=0, label="after the input: silence (run_out)")
+        ax.set_ylabel(unit, fontsize=layout.panel_title if col else 8)
+        # the axes start after the y label: a title at the left wraps to the axes' width, not the figure's
+        ax.set_title(wrapped(head, width - 0.7, layout.panel_title) if col else head, fontsize=layout.panel_title,
+                     loc="left")
+        ax.spines[["top", "right"]].set_visible(False)
+        ax.grid(alpha=0.3, linewidth=0.5)
+        if len(lines) > 1 or ax.get_legend_handles_labels()[1][1:]:
+            ax.legend(fontsize=layout.legend, frameon=False, ncols=2 if col else 4, loc="upper right")
+        if col:
+            thin_ticks(ax, x=6, y=3)
+    axes[-1].set_xlabel("time (s)")
+    if len(times):
+        axes[-1].set_xlim(float(times[0]), float(times[-1]) if times[-1] > times[0] else float(times[0]) + 1 / 60)
+    head = title or "The method's own signals"
+    fig.suptitle(wrapped(f"{head}; {note}" if note else head, width, layout.title) if col else
+                 (f"{head}; {note}" if note else head), fontsize=layout.title)
+    save_figure(fig, path, pdf)
+    plt.close(fig)
+    return path
