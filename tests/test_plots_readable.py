@@ -708,7 +708,7 @@ def test_fig_3_1_of_another_extractor_does_not_call_the_rms_mapping_the_runs_mcs
     (["extractor=phoneme", "scheduler=concat", "face=cgm", "body=follow", "output.plots.width=column"],
      ["Torso following the head (Ding et al. 2014)", "Prosody (Ding et al. 2014: Praat's pitch)",
       "Lips and jaw (Ding et al. 2014, contextual Gaussian model, Eq. 1)",
-      "Segment concatenation cost (Ding et al. 2014, Eq. 4)"]),
+      "Concatenation cost of the segments so far (Ding et al. 2014, Eq. 4)"]),
     (["body=fourier"], ["Fourier blend between calm and intense (Unuma et al. 1995, Eq. 3)"]),
     ([], None),
 ])

@@ -251,7 +251,7 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
     order = conditions_of(doc)
 
     def by_condition(name: str) -> tuple:
-        cond = name.split("_fig")[0].split("_filmstrip")[0]
+        cond = name.split("_fig")[0].split("_filmstrip")[0].split("_method")[0]
         return (order.index(cond) if cond in order else len(order), name)
 
     shows = sorted((p.name for p in figs.glob("*_fig4_2_energy.png")), key=by_condition)

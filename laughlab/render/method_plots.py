@@ -32,7 +32,8 @@ PANELS = (
     ("Prosody (Ding et al. 2014: Praat's pitch)", "Hz", (("f0", "F0 (gaps: unvoiced)"),)),
     ("Lips and jaw (Ding et al. 2014, contextual Gaussian model, Eq. 1)", "0-1",
      (("lip_open", "lips open"), ("lip_corner", "lip corners"), ("jaw", "jaw"))),
-    ("Segment concatenation cost (Ding et al. 2014, Eq. 4)", "cost", (("concat_cost", "chosen segment's cost"),)),
+    ("Concatenation cost of the segments so far (Ding et al. 2014, Eq. 4)", "cost",
+     (("concat_cost", "Eq. 4 so far"),)),
 )
 
 #: every channel a panel may draw (the plots sink keeps these)
