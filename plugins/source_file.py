@@ -142,7 +142,8 @@ class FileSource(Source):
             from scipy.signal import butter, sosfilt, sosfilt_zi
 
             sos = butter(2, self.params.highpass_hz, "highpass", fs=self.sample_rate, output="sos")
-            state = sosfilt_zi(sos) * 0.0   # from rest: the first sample is not taken as the offset's level
+            zi = sosfilt_zi(sos)   # set to the first sample's level below: an offset is no step at the start (a
+            # review: from rest, the step's transient was the loudest frame and shrank the rms extractor's MCS)
         for chunk in read_blocks(self.params.path, channel=self.params.channel):
             finite = chunk[np.isfinite(chunk)]
             if finite.size:
@@ -151,6 +152,8 @@ class FileSource(Source):
                 self.count += finite.size
             if sos is not None:
                 bad = ~np.isfinite(chunk)   # filtered as silence, and left as they were: the run counts them
+                if state is None and len(chunk):
+                    state = zi * float(np.where(bad, 0.0, chunk)[0])
                 x, state = sosfilt(sos, np.where(bad, 0.0, chunk), zi=state)
                 chunk = np.where(bad, chunk, x).astype(np.float32)
             yield chunk

@@ -146,3 +146,18 @@ def test_the_figures_hatch_the_silence_after_the_input(tmp_path, monkeypatch):
     off = laughlab("input.duration_s=3", "detector=none", f"hydra.run.dir={tmp_path / 'off'}")
     assert off.returncode == 0, off.stderr
     assert all(not spans for spans, _ in hatched.values()), hatched
+
+
+def test_concats_idle_segments_do_not_keep_run_out_going(tmp_path):
+    """A review: under scheduler=concat run_out always reached its 20 s cap, the scheduler starting one idle segment
+    (a looping clip) after another, and the run without it said "ends mid-idle". Idle is no clip to play out."""
+    args = ("input.duration_s=3", "detector=none", "extractor=phoneme", "scheduler=concat", "~output.plots")
+    on = laughlab(*args, "run_out=true", f"hydra.run.dir={tmp_path / 'on'}")
+    off = laughlab(*args, f"hydra.run.dir={tmp_path / 'off'}")
+    assert on.returncode == off.returncode == 0, on.stderr + off.stderr
+    m = json.loads((tmp_path / "on" / "metrics.json").read_text())
+    assert m.get("run_out_s", 0.0) < 2.0                         # the clip it ends in played out, not 20 s
+    assert "ends mid-idle" not in off.stdout
+    assert json.loads((tmp_path / "off" / "metrics.json").read_text()).get("clip_at_end") != "idle"
+    ev = _events(tmp_path / "on")
+    assert ev[-1]["clip"] == "idle" or ev[-1]["event"] == "stop"   # nothing but idle left playing

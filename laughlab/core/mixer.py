@@ -167,3 +167,9 @@ class Mixer:
                     row[c + 1] += x
                     row[c + 2] += y
         return out
+
+
+def mid_clip(mixer) -> bool:
+    """A clip other than a looping idle plays, or the blend back to idle runs (``run_out`` goes on while it does): a
+    review found ``scheduler=concat``'s idle segments, a looping clip, kept ``run_out`` going to its 20 s cap."""
+    return (mixer.clip is not None and not mixer.clip.loop) or mixer.blend_from is not None

@@ -23,7 +23,7 @@ from laughlab.core import blame, interrupts, plugins
 from laughlab.core.bases import Context, RunInfo
 from laughlab.core.errors import LaughlabError, UnknownParameter
 from laughlab.core.frame import Frame
-from laughlab.core.mixer import Mixer
+from laughlab.core.mixer import Mixer, mid_clip
 from laughlab.core.outfiles import unwrite
 from laughlab.core.recorder import Recorder
 from laughlab.core.framesample import FrameSample
@@ -352,7 +352,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             if not pipe.run.run_out or k == 0:
                 return
             per_frame = rate / ctx.fps   # samples a frame
-            while (mixer.clip is not None or mixer.blend_from is not None) and (k - tail[1]) * dt < RUN_OUT_MAX_S:
+            while mid_clip(mixer) and (k - tail[1]) * dt < RUN_OUT_MAX_S:
                 yield np.zeros(int(round((k + 1) * per_frame)) - int(round(k * per_frame)), np.float32)
 
         for block in itertools.chain(src.blocks(), run_out()):
@@ -391,7 +391,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         metrics = _metrics(pipe, times, k, tail[0] / rate, wall)
         if k > tail[1]:
             metrics["run_out_s"] = (k - tail[1]) * dt   # the silent frames after the input
-        elif mixer.clip is not None:   # said by the summary line: the last frame is mid-clip
+        elif mixer.clip is not None and not mixer.clip.loop:   # said by the summary line: the last frame is mid-clip
             metrics["clip_at_end"] = mixer.clip.name
         metrics.update(rec.no_clip(sch))   # said by the summary line: why no clip started
         for more in (getattr(p, "metrics", None) for p in (src, *opened)):  # their own (mic overflows, vmc latency)
