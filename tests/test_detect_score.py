@@ -103,3 +103,14 @@ def test_detects_own_labels_in_the_input_folder_are_not_an_annotation(tmp_path):
     assert (rec / "x.txt").exists()
     r = laughlab("detect", str(rec), "--out", str(rec), "--formats", "csv,audacity", "--overwrite", "--score")
     assert r.returncode == 2 and "no input has an annotation" in r.stderr
+
+
+def test_labels_a_detect_wrote_beside_the_recordings_are_not_annotations_of_another_run(tmp_path):
+    """A review: detect into the recordings' folder, then detect --score into another --out scored the first run's
+    NAME.txt as the recording's annotation (F1 1 against itself)."""
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    sf.write(rec / "x.wav", 0.1 * np.sin(np.arange(32000) / 5), 16000)
+    assert laughlab("detect", str(rec), "--out", str(rec), "--formats", "csv,audacity", "--overwrite").returncode == 0
+    r = laughlab("detect", str(rec), "--out", str(tmp_path / "o"), "--score")
+    assert r.returncode == 2 and "no input has an annotation" in r.stderr

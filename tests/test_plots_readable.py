@@ -94,7 +94,7 @@ def test_the_figures_of_a_run(tmp_path, saved, monkeypatch, scheduler):
                      tmp_path)
     names = {f.name for f in saved}
     wanted = {"fig3_1_calibration.png", "fig3_2_mcs.png", "fig4_2_energy.png", "filmstrip.png"}
-    assert names == wanted | ({"fig4_1_energy.png"} if scheduler == "energy" else set())
+    assert names == wanted | ({"fig4_1_energy.png"} if scheduler == "energy" else {"method.png"})   # concat: its cost
     assert_readable(saved)
     # the default filmstrip (8 frames) names its limbs' colours (3 frames: the filmstrip test below)
     (strip,) = [f for f in saved if f.name == "filmstrip.png"]
@@ -702,14 +702,16 @@ def test_fig_3_1_of_another_extractor_does_not_call_the_rms_mapping_the_runs_mcs
 
 
 @pytest.mark.parametrize("args, titles", [
-    (["extractor=pressure", "body=hill"], ["Lung pressure (DiLorenzo et al. 2008, Eqs. 1-4)",
-                                           "Target from the audio (Sec. 6: Butterworth low-pass of |audio|)",
-                                           "Muscle activations (Hill model, Sec. 5.1)", "Airflow (out positive)"]),
+    (["extractor=pressure", "body=hill", "output.plots.width=column", "run_out=true"], [
+        "Lung pressure (DiLorenzo et al. 2008, Eqs. 1-4) and its target from the audio (Sec. 6)",
+        "Muscle activations (Hill model, Sec. 5.1)", "Airflow (out positive)"]),
+    (["extractor=pressure"], [
+        "Pressure target from the audio (DiLorenzo et al. 2008, Sec. 6: |audio| low-passed, fitted)"]),
     (["extractor=phoneme", "scheduler=concat", "face=cgm", "body=follow", "output.plots.width=column"],
      ["Torso following the head (Ding et al. 2014)", "Prosody (Ding et al. 2014: Praat's pitch)",
       "Lips and jaw (Ding et al. 2014, contextual Gaussian model, Eq. 1)",
       "Concatenation cost of the segments so far (Ding et al. 2014, Eq. 4)"]),
-    (["body=fourier"], ["Fourier blend between calm and intense (Unuma et al. 1995, Eq. 3)"]),
+    (["body=fourier"], ["Fourier blend s, calm 0 to intense 1, past 1 extrapolated (Unuma et al. 1995, Eq. 3)"]),
     ([], None),
 ])
 def test_a_runs_method_figure_shows_the_methods_own_signals(tmp_path, saved, args, titles):

@@ -59,7 +59,9 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
         what += f", then {float(metrics['run_out_s']):.1f} s of silence to end its last clip (run_out)"
     elif metrics.get("clip_at_end"):
         what += f" (ends mid-{metrics['clip_at_end']}: run_out=true plays it out)"
-    what += "" if peak is not None and peak < 10 ** (SILENT_DBFS / 20) else no_clip_text(metrics)   # silence: said
+    why = "" if peak is not None and peak < 10 ** (SILENT_DBFS / 20) else no_clip_text(metrics)   # silence: said
+    # one bracket, not two back to back (a review: "(a DC offset ...) (no full-body clip ...)")
+    what = what[:-1] + "; " + why[2:] if why and what.endswith(")") else what + why
     chain = " > ".join(str(cfg[g].name) + (" (fused)" if g == "detector" and cfg[g].get("fuse") else "")
                        for g in CHAIN
                        if g in cfg and cfg[g] is not None and "name" in cfg[g])   # fused: detector=yamnet_fused

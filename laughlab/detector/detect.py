@@ -147,9 +147,12 @@ def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Pat
     there = {n for n in set(planned) | names if (out / n).is_file()}
     theirs = sorted(set(planned) & (there | edited) - names)
     if theirs:
-        why = "edited since detect wrote it" if set(theirs) <= edited else "which no earlier detect wrote there"
-        raise LaughlabError(f"{out} holds {shown_names(theirs)}, {why}, and this run would replace it; move it or "
-                            f"choose another --out (--overwrite replaces only detect's own files, unedited)")
+        one = len(theirs) == 1   # "it" of several files (a review)
+        why = f"edited since detect wrote {'it' if one else 'them'}" if set(theirs) <= edited else \
+            "which no earlier detect wrote there"
+        raise LaughlabError(f"{out} holds {shown_names(theirs)}, {why}, and this run would replace "
+                            f"{'it; move it' if one else 'them; move them'} or choose another --out (--overwrite "
+                            "replaces only detect's own files, unedited)")
     return [out / n for n in sorted(names & there)]
 
 
@@ -249,8 +252,10 @@ def main(argv: list[str]) -> None:
     if not kept:
         raise LaughlabError("no readable audio among the inputs")
     named = kept
-    record = read_record(Path(ns.out) / MANIFEST) if ns.score else None   # an earlier detect's labels: not truths
-    ours = frozenset((Path(ns.out) / n).resolve() for n in (record[0] if record else ()))
+    # an earlier detect's labels are not truths: those its manifest lists, in --out or in an input's own folder
+    # (a review: labels a detect had written beside the recordings were scored as their annotations)
+    folders = {Path(ns.out)} | {Path(f).parent for f, _, _ in named} if ns.score else set()
+    ours = frozenset((d / n).resolve() for d in folders for n in ((read_record(d / MANIFEST) or ((),))[0]))
     truths = DS.find_truths(named, durations, ours) if ns.score else {}   # checked before any work
     try:
         model, score = Yamnet(), LaughterScore()

@@ -112,6 +112,9 @@ def find_truths(named: list, durations: dict, ours: frozenset) -> dict[str, tupl
         if ann is not None:
             found[name] = (ann, truth_rows(ann, durations[name]))
     if not found:
+        each = any(name != Path(f).stem and ".ch" in name for f, name, _ in named)   # --channels each
         raise LaughlabError("--score: no input has an annotation beside it (NAME.truth.csv, NAME.txt, NAME.TextGrid "
-                            "or NAME.eaf next to NAME.wav; docs/detector.md)")
+                            "or NAME.eaf next to NAME.wav" + ("; with --channels each, one a channel: NAME.ch1.txt, "
+                                                               "NAME.ch2.txt, ..." if each else "")
+                            + "; docs/detector.md)")
     return found

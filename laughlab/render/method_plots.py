@@ -18,14 +18,15 @@ STYLES = ("-", "--", ":", "-.")
 
 #: the panels: (title, unit, channels with their legend names); a panel is drawn when its first channel is there
 PANELS = (
-    ("Lung pressure (DiLorenzo et al. 2008, Eqs. 1-4)", "cm H2O", (("lung_pressure", "lung pressure"),)),
-    ("Target from the audio (Sec. 6: Butterworth low-pass of |audio|)", "0-1",
-     (("pressure", "pressure target"), ("env", "|audio| low-passed"))),
+    ("Lung pressure (DiLorenzo et al. 2008, Eqs. 1-4) and its target from the audio (Sec. 6)", "cm H2O",
+     (("lung_pressure", "lung pressure (simulated)"), ("pressure", "target from the audio"))),
+    ("Pressure target from the audio (DiLorenzo et al. 2008, Sec. 6: |audio| low-passed, fitted)", "cm H2O",
+     (("pressure", "target from the audio"),)),
     ("Muscle activations (Hill model, Sec. 5.1)", "0-1",
      (("act_abdomen", "abdomen"), ("act_diaphragm", "diaphragm"), ("act_inner_ic", "inner intercostals"),
       ("act_outer_ic", "outer intercostals"))),
     ("Airflow (out positive)", "L/s", (("airflow", "airflow"),)),
-    ("Fourier blend between calm and intense (Unuma et al. 1995, Eq. 3)", "0 calm - 1 intense",
+    ("Fourier blend s, calm 0 to intense 1, past 1 extrapolated (Unuma et al. 1995, Eq. 3)", "s; MCS",
      (("fourier_s", "blend s"), ("mcs", "MCS"))),
     ("Torso following the head (Ding et al. 2014)", "deg",
      (("follow_head_pitch", "head pitch"), ("torso_pitch", "torso pitch"), ("shoulder_angle", "shoulders"))),
@@ -41,10 +42,11 @@ CHANNELS = tuple(dict.fromkeys(k for _, _, lines in PANELS for k, _ in lines))
 
 
 def method_panels(data: dict) -> list:
-    """The panels whose first channel the run wrote, each with the lines it has."""
+    """The panels whose first channel the run wrote, each with the lines it has (the pressure target alone only
+    without the simulated lungs, beside which it is drawn)."""
     out = []
     for title, unit, lines in PANELS:
-        if lines[0][0] in data:
+        if lines[0][0] in data and not (lines[0][0] == "pressure" and "lung_pressure" in data):
             out.append((title, unit, [(k, name) for k, name in lines if k in data]))
     return out
 
@@ -69,23 +71,29 @@ def method_figure(path: Path, times: np.ndarray, data: dict, title: str = "", no
     fig, axes = plt.subplots(len(panels), 1, figsize=(width, 0.35 + 1.35 * len(panels)), dpi=150, sharex=True,
                              layout="constrained", squeeze=False)
     axes = axes[:, 0]
+    hatched = input_end_s is not None and len(times) > 0 and input_end_s < float(times[-1])
+    if hatched:
+        note = "; ".join(n for n in (note, "hatched: silence after the input (run_out)") if n)
     for ax, (head, unit, lines) in zip(axes, panels):
         for i, (key, name) in enumerate(lines):
             y = np.asarray(data[key], float)
             if key == "f0":   # unvoiced frames are 0 Hz in the channel: gaps here, not drops to 0
                 y = np.where(y > 0, y, np.nan)
             ax.plot(times, y, lw=1.0, ls=STYLES[i % len(STYLES)], label=name)
-        if input_end_s is not None and len(times) and input_end_s < float(times[-1]):
+        if hatched:   # named once in the title: in each legend it widened the legends past a column's axes
             ax.axvspan(input_end_s, float(times[-1]), facecolor="none", edgecolor="0.6", hatch="///", lw=0,
-                       zorder=0, label="after the input: silence (run_out)")
+                       zorder=0)
         ax.set_ylabel(unit, fontsize=layout.panel_title if col else 8)
-        # the axes start after the y label: a title at the left wraps to the axes' width, not the figure's
-        ax.set_title(wrapped(head, width - 0.7, layout.panel_title) if col else head, fontsize=layout.panel_title,
+        # the axes start after the y label and its ticks: a title at the left wraps to the axes' width (a review:
+        # at the figure's width less 0.7 in, titles were cut at the right edge)
+        ax.set_title(wrapped(head, width - 1.0, layout.panel_title) if col else head, fontsize=layout.panel_title,
                      loc="left")
         ax.spines[["top", "right"]].set_visible(False)
         ax.grid(alpha=0.3, linewidth=0.5)
-        if len(lines) > 1 or ax.get_legend_handles_labels()[1][1:]:
-            ax.legend(fontsize=layout.legend, frameon=False, ncols=2 if col else 4, loc="upper right")
+        if len(lines) > 1:
+            # a column's legend in one column when its names are long: two spilled past the axes (a review)
+            ncols = (1 if max(len(n) for _, n in lines) > 14 else 2) if col else 4
+            ax.legend(fontsize=layout.legend, frameon=False, ncols=ncols, loc="best")   # least over the data
         if col:
             thin_ticks(ax, x=6, y=3)
     axes[-1].set_xlabel("time (s)")
