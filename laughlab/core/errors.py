@@ -39,6 +39,11 @@ def shown_path(path, limit: int = 200) -> str:
     return text if len(text) <= limit else f"{text[:limit // 2]}...{text[-40:]} ({len(text)} characters)"
 
 
+def number_word(n: int) -> str:
+    """``two``, ``three``, ``four``; a larger count in digits ("three inputs share the name 'f'": it said two)."""
+    return {2: "two", 3: "three", 4: "four"}.get(n, str(n))
+
+
 def nearest(name: str, valid) -> str | None:
     """The name in ``valid`` nearest ``name`` (difflib), or None (a researcher's review: ``scheduler.gama`` listed
     the valid keys but did not name the one meant, as a mistyped top-level key did)."""

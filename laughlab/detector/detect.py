@@ -19,10 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError, one_line_parser, shown_names
-
-#: a few small numbers in words, as the lines write them ("three inputs share the name 'f'": it said two)
-_WORDS = {2: "two", 3: "three", 4: "four"}
+from laughlab.core.errors import LaughlabError, number_word, one_line_parser, shown_names
 from laughlab.core.interrupts import deferred
 from laughlab.core.outfiles import edited_since, read_record, record_text, remove, unwrite
 from laughlab.core.summary import duration_text, factor_text
@@ -76,7 +73,8 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
         apart = len({f.resolve().parent for f in both}) > 1
         fix = (f"give their folder instead ({common}: each file found in it is named by its path from it) or run "
                "them separately (--out)" if apart else "run them separately (--out)")
-        raise LaughlabError(f"{_WORDS.get(len(both), len(both))} inputs share the name {dup[0]!r} ({', '.join(map(str, both))}): "
+        listed = ", ".join(map(str, both))
+        raise LaughlabError(f"{number_word(len(both))} inputs share the name {dup[0]!r} ({listed}): "
                             "their label files "
                             f"would collide; {fix}")
     return out

@@ -23,7 +23,8 @@ COLUMNS = ("file", "annotation", "bouts", "found", "precision", "recall", "f1", 
 
 def annotation_for(path: Path, name: str, ours: frozenset) -> Path | None:
     """The annotation of input ``name`` (a file's stem, ``NAME.ch2`` for a channel) beside its recording ``path``;
-    ``ours``, the files an earlier detect wrote into ``--out`` (its ``NAME.txt`` labels), are not annotations."""
+    ``ours``, the files an earlier detect's manifest lists (its ``NAME.txt`` labels, in its ``--out``, which may be
+    the recordings' own folder), are not annotations."""
     stem = Path(name).name
     for ext in ANNOTATIONS:
         p = path.with_name(stem + ext)
@@ -35,17 +36,12 @@ def annotation_for(path: Path, name: str, ours: frozenset) -> Path | None:
 def truth_rows(annotation: Path, duration_s: float) -> list[dict]:
     """The annotation's rows (``kind``, ``onset_s``, ``offset_s``), checked as a corpus folder's are: one line
     naming the file and the line for an unknown label, overlapping bouts or a time past the recording's end."""
-    from laughlab.harness.corpus import check_truth_csv
+    from laughlab.harness.corpus import check_truth_csv, truth_file_rows
 
     if annotation.name.endswith(".truth.csv"):
         check_truth_csv(annotation, duration_s)
-        with annotation.open(newline="", encoding="utf-8") as fh:
-            rows = list(csv.DictReader(fh))
-    else:
-        from laughlab.corpora.annotations import read
-
-        rows = read(annotation, duration_s).truth_rows()
-    return [{"kind": r["kind"], "onset_s": float(r["onset_s"]), "offset_s": float(r["offset_s"])} for r in rows]
+    return [{"kind": r["kind"], "onset_s": float(r["onset_s"]), "offset_s": float(r["offset_s"])}
+            for r in truth_file_rows(annotation, duration_s)]
 
 
 def score_rows(results: list, truths: dict[str, tuple[Path, list[dict]]]) -> list[dict]:
@@ -104,8 +100,8 @@ def score_summary(rows: list[dict], unscored: int) -> str:
 
 def find_truths(named: list, durations: dict, ours: frozenset) -> dict[str, tuple[Path, list[dict]]]:
     """``--score``: every input's annotation read and checked before any work (one line for the first bad one);
-    ``ours``: the files an earlier detect wrote into ``--out`` (resolved).  None at all is an error that says where
-    they are looked for."""
+    ``ours``: the files earlier detects wrote (resolved: :func:`annotation_for`).  None at all is an error that says
+    where they are looked for."""
     found = {}
     for f, name, _ in named:
         ann = annotation_for(Path(f), name, ours)

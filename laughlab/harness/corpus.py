@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from laughlab.core.errors import LaughlabError, first_line, shown_names
+from laughlab.core.errors import LaughlabError, first_line, number_word, shown_names
 from laughlab.core.summary import counted
 from laughlab.io.audio import AUDIO_SUFFIXES, WAV_FORMATS
 
@@ -149,7 +149,7 @@ def _warn_thin(truth: Path, item: str) -> None:
     if truth in _WARNED:
         return
     _WARNED.add(truth)
-    kinds = [r["kind"] for r in _rows(truth)]
+    kinds = [r["kind"] for r in truth_file_rows(truth)]
     if "bout" not in kinds:
         why = (f"holds no laughter bout: {item} counts as a recording without laughter (its false starts count, "
                "its detector scores are blank)")
@@ -161,8 +161,9 @@ def _warn_thin(truth: Path, item: str) -> None:
     print(f"laughlab: warning: {truth} {why}", file=sys.stderr)
 
 
-def _rows(truth: Path) -> list[dict]:
-    """A truth file's rows (``kind``...): a ``truth.csv`` or an annotation (:mod:`laughlab.corpora.annotations`)."""
+def truth_file_rows(truth: Path, duration_s: float | None = None) -> list[dict]:
+    """A truth file's rows (``kind``, ``onset_s``, ``offset_s``...: strings from a ``truth.csv``), a ``truth.csv`` or
+    an annotation (:mod:`laughlab.corpora.annotations`, checked against ``duration_s``)."""
     import csv
 
     from laughlab.corpora.annotations import read
@@ -170,7 +171,7 @@ def _rows(truth: Path) -> list[dict]:
     if truth.name.endswith(".truth.csv"):
         with truth.open(newline="", encoding="utf-8") as fh:
             return list(csv.DictReader(fh))
-    return read(truth).truth_rows()
+    return read(truth, duration_s).truth_rows()
 
 
 def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None = None) -> list[Item]:
@@ -204,7 +205,7 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
         stems.setdefault(f.stem, []).append(f.name)
     for stem, names in stems.items():   # a review: NAME.flac beside NAME.mp3 ran both as trial rec-NAME, into one
         if len(names) > 1:              # folder, and the second stopped the experiment with an OSError
-            raise LaughlabError(f"corpus folder {folder}: {({2: 'two', 3: 'three'}).get(len(names), len(names))} "
+            raise LaughlabError(f"corpus folder {folder}: {number_word(len(names))} "
                                 f"recordings share the name {stem!r} "
                                 f"({', '.join(names)}): "
                                 f"their trials (rec-{stem}) and their annotation ({stem}.truth.csv, {stem}.txt, ...) "
