@@ -340,7 +340,8 @@ def test_replaying_the_amplitudes_gives_the_runs_mcs_exactly(tmp_path):
 
 @pytest.mark.parametrize("overrides, wanted", [
     ((), {"fig3_1_calibration.png", "fig3_2_mcs.png", "fig4_1_energy.png", "fig4_2_energy.png"}),
-    (("extractor=pressure",), {"fig3_1_calibration.png", "fig4_1_energy.png", "fig4_2_energy.png"}),
+    (("extractor=pressure",), {"fig3_1_calibration.png", "fig4_1_energy.png", "fig4_2_energy.png",
+                               "method.png"}),   # its pressure target: the method's own signals
     # no clip and an energy of 0: no Fig. 4.2 (an MCS over an empty panel, a researcher's review), Fig. 3.2 has the MCS
     (("scheduler=none",), {"fig3_1_calibration.png", "fig3_2_mcs.png"}),
 ])
