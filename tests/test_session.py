@@ -337,3 +337,9 @@ def test_the_documented_examples_run_as_written_and_give_every_frame(where, reco
     exec(compile(_examples()[where].replace('"laugh.wav"', repr(str(recording))), where, "exec"), ns)
     info = sf.info(recording)
     assert len(read) == ns["s"].metrics["n_frames"] == n_frames_for(info.frames, info.samplerate, 60)
+
+
+def test_a_vmc_host_that_does_not_resolve_is_said_when_the_session_is_made():
+    """An API user's review: output.vmc.host=no.such.host.invalid was raised only by the first feed."""
+    with pytest.raises(LaughlabError, match=r"^output.vmc: cannot reach host 'no-such-host.invalid': "):
+        Session(["detector=none", "output.vmc.host=no-such-host.invalid"], sample_rate=16000, outputs=["vmc"])
