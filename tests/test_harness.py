@@ -371,7 +371,9 @@ def test_report_goes_next_to_the_run_unless_out_is_given(small_run, tmp_path):
     assert "- the run" not in text                 # a results.json without Hydra's record of its command
     # with it, the experiment's own command too (a review: a report named only its report step)
     (run / ".hydra").mkdir()
-    (run / ".hydra" / "overrides.yaml").write_text("- experiment=smoke\n- harness.corpus.profiles=[intense]\n")
+    # (overwrite=true and progress=off are how it was run, not what it computes: left out)
+    (run / ".hydra" / "overrides.yaml").write_text("- experiment=smoke\n- overwrite=true\n"
+                                                   "- harness.corpus.profiles=[intense]\n- progress=off\n")
     r = laughlab("report", run, "--out", "reports/tiny", cwd=work)
     text = (work / "reports" / "tiny" / "README.md").read_text()
     assert (f"- the run: `python -m laughlab experiment=smoke 'harness.corpus.profiles=[intense]' "

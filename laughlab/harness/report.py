@@ -178,10 +178,14 @@ def _run_command(run_dir: Path, doc: dict) -> list[str]:
     the corpus it needs first (a review: the reports named only their report step)."""
     import shlex
 
+    from laughlab.core.overrides import without_command_keys
+
     given = _overrides_of(run_dir)
     if given is None:
         return []
-    task = given + [f"hydra.run.dir={run_dir}"]
+    # what the experiment computes: not overwrite=true or progress=off (a run made again into its folder recorded
+    # overwrite=true, and the committed report's command then told readers to replace their own run)
+    task = without_command_keys(given) + [f"hydra.run.dir={run_dir}"]
     real = (((doc.get("config") or {}).get("harness") or {}).get("corpus") or {}).get("real") or {}
     first = " (after `python -m laughlab corpus fetch`: the real corpus)" if real.get("sets") else ""
     return [f"- the run{first}: `python -m laughlab {' '.join(shlex.quote(o) for o in task)}`"]
@@ -290,7 +294,8 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
     if linked:   # in figures/ but not inline (a review found them there unmentioned)
         lines += ["More figures of the same input, per condition (not shown inline): " + ", ".join(
             f"[{name}](figures/{name})" for name in linked) + " (Fig. 3.2: the MCS with a zoom on one bout; "
-            "the filmstrip: the character at telling moments; method: the method's own signals).", ""]
+            "the filmstrip: the character at telling moments"
+            + ("; method: the method's own signals" if any("_method" in n for n in linked) else "") + ").", ""]
     if any(p.stem not in ("metrics", "timing") for p in figs.glob("*.pdf")):
         lines += ["Each run figure above has a vector PDF of the same name beside it in `figures/`, for print.", ""]
     lines += ["## By profile", ""]
