@@ -61,6 +61,7 @@ def method_figure(path: Path, times: np.ndarray, data: dict, title: str = "", no
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from laughlab.render.plots import hatch_note, shade_run_out
     from laughlab.render.savefig import save_figure
 
     panels = method_panels(data)
@@ -71,18 +72,14 @@ def method_figure(path: Path, times: np.ndarray, data: dict, title: str = "", no
     fig, axes = plt.subplots(len(panels), 1, figsize=(width, 0.35 + 1.35 * len(panels)), dpi=150, sharex=True,
                              layout="constrained", squeeze=False)
     axes = axes[:, 0]
-    hatched = input_end_s is not None and len(times) > 0 and input_end_s < float(times[-1])
-    if hatched:
-        note = "; ".join(n for n in (note, "hatched: silence after the input (run_out)") if n)
+    note = hatch_note(note, times, input_end_s, named=False)   # in each legend it widened them past a column's axes
     for ax, (head, unit, lines) in zip(axes, panels):
         for i, (key, name) in enumerate(lines):
             y = np.asarray(data[key], float)
             if key == "f0":   # unvoiced frames are 0 Hz in the channel: gaps here, not drops to 0
                 y = np.where(y > 0, y, np.nan)
             ax.plot(times, y, lw=1.0, ls=STYLES[i % len(STYLES)], label=name)
-        if hatched:   # named once in the title: in each legend it widened the legends past a column's axes
-            ax.axvspan(input_end_s, float(times[-1]), facecolor="none", edgecolor="0.6", hatch="///", lw=0,
-                       zorder=0)
+        shade_run_out(ax, times, input_end_s, named=False)
         ax.set_ylabel(unit, fontsize=layout.panel_title if col else 8)
         # the axes start after the y label and its ticks: a title at the left wraps to the axes' width (a review:
         # at the figure's width less 0.7 in, titles were cut at the right edge)

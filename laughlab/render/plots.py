@@ -30,18 +30,27 @@ def _shade_bouts(ax, bouts) -> None:
         ax.axvspan(b[0], b[1], color="0.9", zorder=0, label="laughter bout (truth)" if i == 0 else None)
 
 
-def _shade_run_out(ax, times, input_end_s: float | None, named: bool = True) -> None:
+def shade_run_out(ax, times, input_end_s: float | None, named: bool = True) -> None:
     """Hatch the frames after the input's end, the silence ``run_out=true`` added to play the last clip out (a
     review: the figures drew it as the laugh's own); ``named`` in the legend, else by the title
-    (:func:`_head`: a column's legends had no room for it, and were cut by the figure's edge)."""
-    if not _ran_out(times, input_end_s):
+    (:func:`hatch_note`: a column's legends had no room for it, and were cut by the figure's edge).  Every figure
+    of a run hatches it so (this module's and :mod:`laughlab.render.method_plots`)."""
+    if not ran_out(times, input_end_s):
         return
     ax.axvspan(input_end_s, float(times[-1]), facecolor="none", edgecolor="0.6", hatch="///", lw=0, zorder=0,
                label="after the input: silence (run_out)" if named else None)
 
 
-def _ran_out(times, input_end_s: float | None) -> bool:
+def ran_out(times, input_end_s: float | None) -> bool:
+    """The frames go on past ``input_end_s``, where the input ended (``run_out``)."""
     return input_end_s is not None and len(times) > 0 and input_end_s < float(times[-1])
+
+
+def hatch_note(note: str, times, input_end_s: float | None, named: bool) -> str:
+    """``note`` with the hatching named, for a figure whose legends do not name it (``named`` False)."""
+    if not named and ran_out(times, input_end_s):
+        return "; ".join(n for n in (note, "hatched: silence after the input (run_out)") if n)
+    return note
 
 
 def _set_xlim(ax, lo: float, hi: float) -> None:
@@ -80,7 +89,7 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     curves are raised to ``power`` like the final MCS (listing 5.2).  Left (``layout="column"``: top): the
     whole run; right (below): the ``window_s`` seconds with the most laughter, where the
     individual calls and the effect of rise and fall can be seen.  ``input_end_s``: where the input ended, when
-    ``run_out`` went on in silence (:func:`_shade_run_out`; the same in every figure of this module).
+    ``run_out`` went on in silence (:func:`shade_run_out`; the same in every figure of this module).
     """
     col = layout.column
     raw = np.asarray(mcs_raw, float)
@@ -102,7 +111,7 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     t0, t1 = busiest_window(times, raw * inside if np.any(raw * inside > 0) else raw, window_s)
     for ax, lo, hi in ((ax_all, times[0] if len(times) else 0, times[-1] if len(times) else 1), (ax_zoom, t0, t1)):
         _shade_bouts(ax, bouts)
-        _shade_run_out(ax, times, input_end_s, not layout.column)
+        shade_run_out(ax, times, input_end_s, not layout.column)
         for k, (y, color, lw, style, label) in enumerate(curves if ax is ax_zoom else curves[:1]):
             # the unfiltered signal over the filtered ones, which otherwise hide it where they agree
             ax.plot(times, y, color=color, lw=lw, ls=style, label=label, zorder=3 if k == 0 else 2,
@@ -122,7 +131,7 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     ax_zoom.set_title(f"zoom: {t0:.1f}-{t1:.1f} s", fontsize=layout.panel_title)
     head = "MCS and rise/fall (cf. van Duijn 2014, Fig. 3.2)" if col else \
         "Motion control signal and rise/fall (cf. van Duijn 2014, Fig. 3.2)"
-    fig.suptitle(_head(title or head, _hatch_note(note, times, input_end_s, layout), layout), fontsize=layout.title)
+    fig.suptitle(_head(title or head, hatch_note(note, times, input_end_s, not layout.column), layout), fontsize=layout.title)
     handles = {}
     for ax in (ax_zoom, ax_all):
         for h, lab in zip(*ax.get_legend_handles_labels()):
@@ -132,13 +141,6 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     save_figure(fig, path, pdf)
     plt.close(fig)
     return path
-
-
-def _hatch_note(note: str, times, input_end_s: float | None, layout: Layout) -> str:
-    """A column's figure names the run_out hatching in its title (its legend has no room)."""
-    if layout.column and _ran_out(times, input_end_s):
-        return "; ".join(n for n in (note, "hatched: silence after the input (run_out)") if n)
-    return note
 
 
 def _head(title: str, note: str, layout: Layout) -> str:
@@ -299,7 +301,7 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
         top, bottom = axes[0, col], axes[1, col]
         for ax in (top, bottom):
             _shade_bouts(ax, bouts)
-            _shade_run_out(ax, times, input_end_s, not layout.column)
+            shade_run_out(ax, times, input_end_s, not layout.column)
             if calibration_s > 0:
                 ax.axvspan(times[0], times[0] + calibration_s, color="tab:orange", alpha=0.15, lw=0,
                            label="calibration")
@@ -319,7 +321,7 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
     axes[1, 0].set_ylabel(mcs_label)
     head = "Calibration, min/max amplitude fixed or drifting (cf. van Duijn 2014, Fig. 3.1)" if narrow else \
         "Calibration and min/max falloff (cf. van Duijn 2014, Fig. 3.1)"
-    fig.suptitle(_head(title or head, _hatch_note(note, times, input_end_s, layout), layout), fontsize=layout.title)
+    fig.suptitle(_head(title or head, hatch_note(note, times, input_end_s, not layout.column), layout), fontsize=layout.title)
     handles = {}
     for ax in (axes[0, 0], axes[1, 0]):
         for h, lab in zip(*ax.get_legend_handles_labels()):
@@ -350,7 +352,7 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     fig, (ax1, ax2) = _energy_axes(layout)
     for ax in (ax1, ax2):
         _shade_bouts(ax, bouts)
-        _shade_run_out(ax, times, input_end_s, not layout.column)
+        shade_run_out(ax, times, input_end_s, not layout.column)
         _setup_axis(ax)
     ax1.plot(times, mcs, color="tab:red", lw=0.8)
     ax1.set_ylabel("MCS")
@@ -374,7 +376,7 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
         thin_ticks(ax1, ax2, axp, x=6, y=3)
     head = "Laughing energy (cf. van Duijn 2014, Fig. 4.1)" if layout.column else \
         "The laughing energy process (cf. van Duijn 2014, Fig. 4.1)"
-    ax1.set_title(_head(title or head, _hatch_note(note, times, input_end_s, layout), layout), fontsize=layout.title)
+    ax1.set_title(_head(title or head, hatch_note(note, times, input_end_s, not layout.column), layout), fontsize=layout.title)
     _legend_with_clip_key(fig, [ax2, axp], blocks, layout)
     _label_blocks(fig, ax2, blocks, [line, prim], top, layout.block_label)
     _closed_gate_note(ax2, energy, blocks, gate, layout)
@@ -424,7 +426,7 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     fig, (ax1, ax2) = _energy_axes(layout)
     for ax in (ax1, ax2):
         _shade_bouts(ax, bouts)
-        _shade_run_out(ax, times, input_end_s, not layout.column)
+        shade_run_out(ax, times, input_end_s, not layout.column)
     ax1.plot(times, mcs, color="tab:red", lw=0.8, label="MCS")
     ax1.set_ylabel("MCS")
     ax1.set_ylim(-0.02, 1.05)
@@ -439,7 +441,7 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     _set_xlim(ax2, times[0] if len(times) else 0, end or 1)
     head = "Energy and clips (cf. van Duijn 2014, Fig. 4.2)" if layout.column else \
         "Laughing energy and clip selection (cf. van Duijn 2014, Fig. 4.2)"
-    ax1.set_title(_head(title or head, _hatch_note(note, times, input_end_s, layout), layout), fontsize=layout.title)
+    ax1.set_title(_head(title or head, hatch_note(note, times, input_end_s, not layout.column), layout), fontsize=layout.title)
     for ax in (ax1, ax2):
         _setup_axis(ax)
     if layout.column:
