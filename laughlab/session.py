@@ -24,7 +24,6 @@ from __future__ import annotations
 import functools
 import numbers
 import queue
-import socket
 import tempfile
 import threading
 import weakref
@@ -253,11 +252,7 @@ class Session:
         pipe = pipeline.build(cfg)
         pipe.source.close()
         for sink in pipe.sinks:   # a VMC host that does not resolve: said here, not at the first feed (a review)
-            if sink.name == "vmc":
-                try:
-                    socket.getaddrinfo(sink.params.host, int(sink.params.port), type=socket.SOCK_DGRAM)
-                except OSError as exc:
-                    raise LaughlabError(f"output.vmc: cannot reach host {sink.params.host!r}: {exc}") from None
+            getattr(sink, "check_host", lambda: None)()
         if getattr(pipe.scheduler, "offline_plan", False):
             raise LaughlabError(pipeline._offline_only(pipe.scheduler, "a session fed as it goes"))
         self._frames: list[SessionFrame] = []

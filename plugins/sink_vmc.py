@@ -126,13 +126,26 @@ class VmcSink(Sink):
 
         self.avatar = sink_character(self.params)
 
+    def check_host(self) -> None:
+        """The host resolves, or the line :meth:`open` would say: a ``Session`` says it when it is made (an API
+        user's review: it came at the first feed), before any frame."""
+        import socket
+
+        try:
+            socket.getaddrinfo(self.params.host, int(self.params.port), type=socket.SOCK_DGRAM)
+        except OSError as exc:
+            raise self._unreachable(exc) from None
+
+    def _unreachable(self, exc: OSError) -> LaughlabError:
+        return LaughlabError(f"output.vmc: cannot reach host {self.params.host!r}: {exc}")
+
     def open(self, run) -> None:
         super().open(run)
         p = self.params
         try:
             self.sender = VmcSender(p.host, p.port)
         except OSError as exc:
-            raise LaughlabError(f"output.vmc: cannot reach host {p.host!r}: {exc}") from None
+            raise self._unreachable(exc) from None
         self.bones = BoneMap(run.skeleton, upper_chest=p.upper_chest)
         if self.avatar is not None:   # the avatar's own bones and height
             from laughlab.avatar.retarget import vmc_rest
