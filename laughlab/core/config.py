@@ -263,13 +263,9 @@ def misplaced_parameter(group: str, current: str, key: str, explicit: bool = Fal
 
 
 def _nearest_top_level(key: str) -> str | None:
-    """The configuration's top-level key or group nearest ``key`` (difflib; None if none is close)."""
-    import difflib
-
+    """The configuration's top-level key or group nearest ``key`` (:func:`~laughlab.core.errors.nearest`)."""
     # experiment: a group of its own, not a plugin's (a review: experimnt=smoke got no "did you mean")
-    names = [k for k in _top_level_keys() if k != "hydra"] + list(GROUP_KINDS) + ["experiment"]
-    found = difflib.get_close_matches(key, names, n=1, cutoff=0.6)
-    return found[0] if found else None
+    return nearest(key, [k for k in _top_level_keys() if k != "hydra"] + list(GROUP_KINDS) + ["experiment"])
 
 
 def _plugin_sink_key(rest: str, overrides: list[str]) -> str | None:

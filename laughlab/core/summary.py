@@ -36,11 +36,12 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     src = cfg.input.name
     what = f"{Path(str(cfg.input.path)).name}" if src == "file" else f"{src} input"
     peak = metrics.get("input_peak")
+    silent = peak is not None and peak < 10 ** (SILENT_DBFS / 20)
     loudest = max(metrics.get("input_channel_peaks") or [0.0])   # a silent mix of channels that are not silent
-    if peak is not None and peak < 10 ** (SILENT_DBFS / 20) and loudest >= 10 ** (SILENT_DBFS / 20):
+    if silent and loudest >= 10 ** (SILENT_DBFS / 20):
         what += (f" (silent when its {len(metrics['input_channel_peaks'])} channels are mixed: they cancel out, "
                  f"each alone up to {20 * math.log10(loudest):.0f} dBFS; input.channel=0 reads the first alone)")
-    elif peak is not None and peak < 10 ** (SILENT_DBFS / 20):   # a review: a silent file ran without a word
+    elif silent:   # a review: a silent file ran without a word
         what += f" (silent: {silent_text(peak)}" + \
             ("; is the microphone muted? input.device=NAME_OR_INDEX chooses another" if src == "mic" else "") + ")"
     # samples a float file holds that no sound is: said, not only counted in metrics.json (a new-user review)
@@ -59,7 +60,7 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
         what += f", then {float(metrics['run_out_s']):.1f} s of silence to end its last clip (run_out)"
     elif metrics.get("clip_at_end"):
         what += f" (ends mid-{metrics['clip_at_end']}: run_out=true plays it out)"
-    why = "" if peak is not None and peak < 10 ** (SILENT_DBFS / 20) else no_clip_text(metrics)   # silence: said
+    why = "" if silent else no_clip_text(metrics)   # silence is said already
     # one bracket, not two back to back (a review: "(a DC offset ...) (no full-body clip ...)")
     what = what[:-1] + "; " + why[2:] if why and what.endswith(")") else what + why
     chain = " > ".join(str(cfg[g].name) + (" (fused)" if g == "detector" and cfg[g].get("fuse") else "")

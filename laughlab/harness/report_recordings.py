@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from laughlab.harness.report_format import fmt
+from laughlab.harness.report_format import fmt, heading
 
 #: the columns, in this order, those the experiment measured on the recordings (at most :data:`MOST`)
 PREFERRED = ("bouts_answered", "detector_f1", "false_starts_per_min", "onset_latency_median_s", "miss_rate",
@@ -34,7 +34,7 @@ def recordings_table(run_dir: Path, doc: dict) -> list[str]:
     lines = ["", "## Each of your recordings", "",
              "The recordings of `harness.corpus.folder`, one row each under each condition (the mean over its run "
              "seeds; the tables above pool every input); n/a where the recording has nothing to measure.", "",
-             "| recording | condition | " + " | ".join(f"{m} {_arrow(doc, m)}".rstrip() for m in have) + " |",
+             "| recording | condition | " + " | ".join(heading(m, doc["metrics"][m]) for m in have) + " |",
              "|---|---|" + "---|" * len(have)]
     for name in inputs:
         for c in conds:
@@ -51,8 +51,3 @@ def recordings_table(run_dir: Path, doc: dict) -> list[str]:
 
 def _number(v) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
-def _arrow(doc: dict, metric: str) -> str:
-    better = doc["metrics"][metric].get("higher_is_better")
-    return "↑" if better else "↓" if better is False else ""
