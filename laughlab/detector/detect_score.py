@@ -16,32 +16,17 @@ from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
 
-#: where an input's annotation is looked for, beside it, in this order (as a corpus folder's: corpus.py)
-ANNOTATIONS = (".truth.csv", ".txt", ".TextGrid", ".eaf")
 COLUMNS = ("file", "annotation", "bouts", "found", "precision", "recall", "f1", "segments_outside", "seconds")
 
 
-def annotation_for(path: Path, name: str, ours: frozenset) -> Path | None:
-    """The annotation of input ``name`` (a file's stem, ``NAME.ch2`` for a channel) beside its recording ``path``;
-    ``ours``, the files an earlier detect's manifest lists (its ``NAME.txt`` labels, in its ``--out``, which may be
-    the recordings' own folder), are not annotations."""
-    stem = Path(name).name
-    for ext in ANNOTATIONS:
-        p = path.with_name(stem + ext)
-        if p.is_file() and p.resolve() not in ours:
-            return p
-    return None
-
-
 def truth_rows(annotation: Path, duration_s: float) -> list[dict]:
-    """The annotation's rows (``kind``, ``onset_s``, ``offset_s``), checked as a corpus folder's are: one line
-    naming the file and the line for an unknown label, overlapping bouts or a time past the recording's end."""
-    from laughlab.harness.corpus import check_truth_csv, truth_file_rows
+    """The annotation's rows (``kind``, ``onset_s``, ``offset_s`` in s), checked as a corpus folder's are
+    (:func:`laughlab.harness.corpus.checked_truth_rows`: one line naming the file for an unknown label, overlapping
+    bouts or a time past the recording's end)."""
+    from laughlab.harness.corpus import checked_truth_rows
 
-    if annotation.name.endswith(".truth.csv"):
-        check_truth_csv(annotation, duration_s)
     return [{"kind": r["kind"], "onset_s": float(r["onset_s"]), "offset_s": float(r["offset_s"])}
-            for r in truth_file_rows(annotation, duration_s)]
+            for r in checked_truth_rows(annotation, duration_s)]
 
 
 def score_rows(results: list, truths: dict[str, tuple[Path, list[dict]]]) -> list[dict]:
@@ -100,11 +85,13 @@ def score_summary(rows: list[dict], unscored: int) -> str:
 
 def find_truths(named: list, durations: dict, ours: frozenset) -> dict[str, tuple[Path, list[dict]]]:
     """``--score``: every input's annotation read and checked before any work (one line for the first bad one);
-    ``ours``: the files earlier detects wrote (resolved: :func:`annotation_for`).  None at all is an error that says
+    ``ours``: the files earlier detects' manifests list (resolved), which are not annotations.  None at all is an error that says
     where they are looked for."""
+    from laughlab.harness.corpus import annotation_beside
+
     found = {}
     for f, name, _ in named:
-        ann = annotation_for(Path(f), name, ours)
+        ann = annotation_beside(Path(f), Path(name).name, ours)
         if ann is not None:
             found[name] = (ann, truth_rows(ann, durations[name]))
     if not found:

@@ -119,28 +119,39 @@ def check_truth_csv(path: Path, duration: float | None) -> None:
                                 f"{a0:g}-{a1:g} s")
 
 
-def _truth_beside(f: Path, duration: float | None) -> str | None:
-    """``NAME.truth.csv``, else an annotation ``NAME.txt`` (Audacity labels), ``NAME.TextGrid`` or ``NAME.eaf``,
-    parsed now (overlaps, labels, times past the end raise LaughlabError)."""
-    truth = f.with_name(f.stem + ".truth.csv")
-    if truth.exists():
-        check_truth_csv(truth, duration)
-        return str(truth)
-    for ext in (".txt", ".TextGrid", ".eaf"):
-        ann = f.with_name(f.stem + ext)
-        if ann.exists():
-            from laughlab.corpora.annotations import read
+#: a recording's annotation beside it, looked for in this order (a corpus folder's, ``detect --score``'s)
+ANNOTATION_SUFFIXES = (".truth.csv", ".txt", ".TextGrid", ".eaf")
 
-            read(ann, duration)
-            return str(ann)
+
+def annotation_beside(recording: Path, stem: str | None = None, skip: frozenset = frozenset()) -> Path | None:
+    """``NAME.truth.csv``, else an annotation ``NAME.txt`` (Audacity labels), ``NAME.TextGrid`` or ``NAME.eaf`` beside
+    ``recording`` (``NAME`` its stem, or ``stem``: ``NAME.ch2`` for a channel), not one of ``skip`` (resolved
+    paths: the labels an earlier ``detect`` wrote); None without one."""
+    for ext in ANNOTATION_SUFFIXES:
+        p = recording.with_name((stem or recording.stem) + ext)
+        if p.is_file() and p.resolve() not in skip:
+            return p
     return None
+
+
+def checked_truth_rows(truth: Path, duration: float | None) -> list[dict]:
+    """A truth file's rows, checked (overlaps, labels, times past the end raise LaughlabError naming the file)."""
+    if truth.name.endswith(".truth.csv"):
+        check_truth_csv(truth, duration)
+    return truth_file_rows(truth, duration)   # an annotation's reader checks it
+
+
+def _truth_beside(f: Path, duration: float | None) -> tuple[str, list[dict]] | None:
+    """The recording's truth file (:func:`annotation_beside`) and its rows, parsed now (:func:`checked_truth_rows`)."""
+    truth = annotation_beside(f)
+    return None if truth is None else (str(truth), checked_truth_rows(truth, duration))
 
 
 #: the annotations a warning was printed for (a corpus is read twice: the showcase's check, then the trials)
 _WARNED: set = set()
 
 
-def _warn_thin(truth: Path, item: str) -> None:
+def _warn_thin(truth: Path, item: str, rows: list[dict]) -> None:
     """One warning line for an annotation that holds no bout (an empty export: the recording counts as one without
     laughter) or bouts but no calls (the intensity metrics are left blank for it): a new-user review found both
     taken without a word, the report's n one short."""
@@ -149,7 +160,7 @@ def _warn_thin(truth: Path, item: str) -> None:
     if truth in _WARNED:
         return
     _WARNED.add(truth)
-    kinds = [r["kind"] for r in truth_file_rows(truth)]
+    kinds = [r["kind"] for r in rows]
     if "bout" not in kinds:
         why = (f"holds no laughter bout: {item} counts as a recording without laughter (its false starts count, "
                "its detector scores are blank)")
@@ -213,13 +224,14 @@ def folder_items(folder: str | Path, on_bad: str = "stop", skipped: list | None 
     items, bad = [], []
     for f in files:
         try:
-            truth = _truth_beside(f, check_audio(f))
+            found = _truth_beside(f, check_audio(f))
         except LaughlabError as exc:
             bad.append({"file": f.name, "reason": str(exc)})
             continue
-        items.append(Item(f"rec-{f.stem}", ("input=file", f"input.path={f.resolve()}"), "recording", None, truth))
-        if truth:
-            _warn_thin(Path(truth), f"rec-{f.stem}")
+        items.append(Item(f"rec-{f.stem}", ("input=file", f"input.path={f.resolve()}"), "recording", None,
+                          found and found[0]))
+        if found:
+            _warn_thin(Path(found[0]), f"rec-{f.stem}", found[1])
     if bad and on_bad == "stop":
         listed = "; ".join(f"{b['file']}: {b['reason']}" for b in bad)
         raise LaughlabError(f"corpus folder {folder}: {len(bad)} of {counted(len(files), 'file')} "
