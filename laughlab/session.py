@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from laughlab.core.errors import LaughlabError
+from laughlab.core.errors import LaughlabError, NoAudio
 from laughlab.core.overrides import override_key
 
 
@@ -328,7 +328,7 @@ class Session:
             self._finalizer.detach()
             self._src.samples.put(None)
             self._thread.join()
-            if not self._fed and str(self._state.error) == "the input holds no audio frames":   # no frame, no file
+            if not self._fed and isinstance(self._state.error, NoAudio):   # no frame, no file
                 self._state.error = None   # (a review: a game that quit before any audio got "holds no audio")
             try:
                 return self._new()

@@ -18,6 +18,11 @@ class StoppedBySignal(LaughlabError):
     exit_code = 130
 
 
+class NoAudio(LaughlabError):
+    """The input ended before its first frame (``pipeline.execute``): a ``Session`` closed before any audio returns
+    no frame instead, without matching the line's words."""
+
+
 class UnknownParameter(LaughlabError):
     """A key that the plugin's ``Params`` does not have; ``key`` is that key (the pipeline adds which other
     plugins of the group have it: ``laughlab.core.config.misplaced_parameter``)."""

@@ -21,7 +21,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from laughlab.core import blame, interrupts, plugins
 from laughlab.core.bases import Context, RunInfo
-from laughlab.core.errors import LaughlabError, UnknownParameter
+from laughlab.core.errors import LaughlabError, NoAudio, UnknownParameter
 from laughlab.core.frame import Frame
 from laughlab.core.mixer import Mixer, mid_clip
 from laughlab.core.outfiles import unwrite
@@ -377,7 +377,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
                 if bar is not None:
                     bar.update(n_chunk)
         if k == 0:
-            raise LaughlabError("the input holds no audio frames")
+            raise NoAudio("the input holds no audio frames")
         if rec.i:
             hand_over()
             if bar is not None:
