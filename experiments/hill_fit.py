@@ -290,8 +290,10 @@ def figure_7_drawn(comparison: dict, column: bool = False):
             ax.plot(np.arange(1, len(h) + 1), h, color=colour, ls=style, lw=1.2 if column else 1.6,
                     label=f"{COLUMN_NAMES.get(method, name) if column else name}: {r['error']:.2f} in "
                           f"{r['seconds']:.2f} s")
-        ax.plot([PAPER["simplex"]["evals"]], [PAPER["simplex"]["error"]], "s", color="tab:green",
-                ms=5 if column else 7, mfc="none", label="paper: simplex 0.18 @ ~400")
+        # the paper's "simplex" is OPT++'s parallel direct search (DiLorenzo et al. 2008, 6.2), laughlab's pds: its
+        # colour, not Nelder-Mead's (a sweep researcher's review)
+        ax.plot([PAPER["simplex"]["evals"]], [PAPER["simplex"]["error"]], "s", color=OPTIMISERS["pds"][0],
+                ms=5 if column else 7, mfc="none", label="paper: simplex (parallel direct search) 0.18 @ ~400")
         ax.plot([PAPER["annealing"]["evals"]], [PAPER["annealing"]["error"]], "o", color="tab:orange",
                 ms=5 if column else 7, mfc="none", label="paper: annealing 0.16 @ ~1800")
         ax.set_xscale("log")

@@ -267,6 +267,17 @@ def test_compare_methods_records_running_best():
         assert h[-1] < h[0]                 # each method improved on its first guess (a flat history passed above)
 
 
+
+def test_compare_methods_counts_the_polish_inside_the_budget():
+    """A sweep researcher's review: at max_evals=500 pds spent 647 evaluations and cma 520 (the Levenberg-Marquardt
+    polish came on top), against 500 for Nelder-Mead and annealing; Fig. 7 compared unequal budgets."""
+    target, calls = oracle([np.array([0.12, 0.1, 0.02, 0.0, 6.0, 0.0, 5.0])])
+    out = hf.compare_methods(target, FPS, 0, methods=("pds", "cma", "nelder-mead"), max_evals=90,
+                             fit_params=hf.FitParams(polish_evals=40, init_points=15, popsize=12))
+    assert all(r["evals"] <= 90 and len(r["history"]) <= 90 for r in out.values()), \
+        {m: r["evals"] for m, r in out.items()}
+    assert out["pds"]["evals"] > 50   # the polish ran in what the search left (50 evaluations at most without it)
+
 def test_fit_params_validate():
     with pytest.raises(ValueError):
         hf.FitParams(method="genetic")
