@@ -78,6 +78,36 @@ def test_a_misspelt_harness_key_added_with_plus_is_one_line(tmp_path, override, 
     assert out.code == 2 and "unknown parameter harness." in out.stderr and not (tmp_path / "sw").exists()
 
 
+@pytest.mark.parametrize("override, line", [
+    ("harness.corpus.seed=5", "harness.corpus.seed: harness.corpus takes profiles, seeds, duration_s, folder, on_bad, "
+                              "real; did you mean harness.corpus.seeds?"),
+    ("harness.corpus.real.sedd=1", "harness.corpus.real.sedd: harness.corpus.real takes sets, split, scenes, "
+                                   "duration_s, snr_db, seed, if_missing; did you mean harness.corpus.real.seed?"),
+    ("harness.jobz=2", "harness.jobz: harness takes name, conditions, corpus, run_seeds, showcase, jobs, keep_trials, "
+                       "plots; did you mean harness.jobs?"),   # the experiment's own keys (smoke's: the shared ones)
+    ("harness.bogus=2", "harness.bogus: harness takes name, conditions, corpus, run_seeds, showcase, jobs, "
+                        "keep_trials, plots"),
+])
+def test_a_misspelt_harness_key_without_plus_names_the_setting_meant(tmp_path, override, line):
+    """A sweep researcher's review: ``harness.corpus.seed=1,2`` said only 'unknown parameter harness.corpus.seed'
+    where the ``+`` form above named ``seeds``; the same line now, in a run and in a sweep, from the keys the
+    experiment's configuration has there (an experiment's own section too: hill_fit's ``harness.fit``)."""
+    run = tmp_path / "run"
+    out = fuzz.run_cli(["experiment=smoke", override, f"hydra.run.dir={run}", "progress=off"])
+    assert out.code == 2 and out.stderr == f"laughlab: error: unknown parameter {line}\n" and not run.exists()
+    swept = override.replace("=5", "=1,2").replace("=2", "=1,2")
+    out = fuzz.run_cli(["-m", "experiment=smoke", swept, f"hydra.sweep.dir={tmp_path / 'sw'}"])
+    assert out.code == 2 and out.stderr == f"laughlab: error: unknown parameter {line}\n"
+    assert not (tmp_path / "sw").exists()
+
+
+def test_a_misspelt_key_of_an_experiments_own_section_names_its_keys(tmp_path):
+    out = fuzz.run_cli(["experiment=hill_fit", "harness.fit.metod=cma", f"hydra.run.dir={tmp_path / 'run'}"])
+    assert out.code == 2 and out.stderr.startswith("laughlab: error: unknown parameter harness.fit.metod: harness.fit "
+                                                   "takes method, max_evals, ") and out.stderr.endswith(
+        "; did you mean harness.fit.method?\n") and out.stderr.count("\n") == 1
+
+
 VALUES = st.one_of(st.none(), st.booleans(), st.integers(-3, 3), st.floats(allow_nan=True), st.text(max_size=5),
                    st.lists(st.one_of(st.integers(-2, 2), st.text(max_size=3)), max_size=3),
                    st.dictionaries(st.text(max_size=3), st.integers(), max_size=2))

@@ -175,6 +175,12 @@ def composition_error(exc: Exception, overrides: list[str] = ()) -> str:
         if key.startswith("hydra.launcher."):   # the basic launcher has no n_jobs (a review)
             return (f"unknown parameter {key} of this launcher; Hydra's basic launcher runs one job at a time, "
                     f"hydra/launcher=joblib takes n_jobs")
+        if "." in key and group not in (*GROUP_KINDS, "hydra"):   # harness.corpus.seed=1: its node's keys
+            from laughlab.core.keyhints import unknown_in_node
+
+            named = unknown_in_node(key, lambda: compose_config([o for o in overrides if is_group(override_key(o))]))
+            if named:
+                return named
         if "." not in key and group not in GROUP_KINDS:   # a top-level key mistyped: the nearest one (sed=3)
             near = _nearest_top_level(key)
             if near:

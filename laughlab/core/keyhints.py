@@ -122,3 +122,25 @@ def under_output(path: str, options: dict[str, set], current) -> str:
         return f"there is no parameter output.{path}: an output's parameters go under its name, {keys}{add}"
     valid = sorted(f"output.{k}" for o in chosen for k in options.get(o, ()) if "." in k)
     return f"unknown parameter output.{path}; valid: {', '.join(valid) or '(none)'}"
+
+
+def unknown_in_node(key: str, compose) -> str | None:
+    """``unknown parameter a.b.c: a.b takes x, y; did you mean a.b.y?`` for a key of no plugin group that its node in
+    the configuration ``compose()`` gives (the command's group choices: the experiment's ``harness.corpus``) does
+    not have; None when the node is not there or has the key (a sweep researcher's review:
+    ``harness.corpus.seed=1,2`` said only "unknown parameter", where ``+harness.corpus.seed`` named ``seeds``)."""
+    from omegaconf import DictConfig, OmegaConf
+
+    from laughlab.core.errors import nearest
+
+    head, _, last = key.rpartition(".")
+    try:
+        node = OmegaConf.select(compose(), head)
+    except Exception:   # the listing is a courtesy
+        return None
+    if not isinstance(node, DictConfig) or last in node:
+        return None
+    keys = [str(k) for k in node]
+    near = nearest(last, keys)
+    return f"unknown parameter {key}: {head} takes {', '.join(keys)}" + (f"; did you mean {head}.{near}?" if near
+                                                                          else "")
