@@ -604,11 +604,13 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
         unfinish(half / name)
     r = laughlab("report", half)
     assert r.returncode == 0 and r.stderr.count("\n") == 1, r.stderr
-    assert r.stderr.startswith(f"laughlab: warning: {half}: 2 of 4 sweep points unfinished ({', '.join(gone)}): run the "
-                               "sweep's command again to finish it: python -m laughlab -m experiment=energy_ablation ")
+    # each named by its folder and its values (a sweep researcher's review: '2' alone beside the others' values)
+    named = [f"{g} (scheduler.overrule_c=3 scheduler.decrease_per_s={d})" for g, d in zip(gone, ("6", "20"))]
+    assert r.stderr.startswith(f"laughlab: warning: {half}: 2 of 4 sweep points unfinished ({', '.join(named)}): run "
+                               "the sweep's command again to finish it: python -m laughlab -m experiment=energy_ablation ")
     text = (half / "report" / "README.md").read_text()
     assert (f"**PARTIAL: 2 of the sweep's 4 points have no results** (unfinished: "
-            f"{', '.join(f'`{g}`' for g in gone)})") in text.splitlines()[4]
+            f"{', '.join(f'`{g}`' for g in named)})") in text.splitlines()[4]
     assert "- sweep points: 2 of 4 planned; swept: scheduler.decrease_per_s, scheduler.overrule_c\n" in text
     assert "scheduler.overrule_c=1.5" not in text.split("fixed at every point")[1].splitlines()[0]
     # no point finished (a review: "run an experiment first" for a started sweep)
@@ -664,7 +666,7 @@ def test_a_finished_sweep_of_runs_counts_as_finished(tmp_path):
                                               f"view {sweep / '0'}\n"), r.stderr
     marker = json.loads((sweep / "1" / ".laughlab-run.json").read_text())
     (sweep / "1" / ".laughlab-run.json").write_text(json.dumps({**marker, "complete": False}))
-    assert unfinished(sweep) == (2, ["1"])
+    assert unfinished(sweep) == (2, ["1 (seed=2)"])   # its folder and its values
 
 
 def _bad_corpus(folder):
@@ -1028,3 +1030,37 @@ def test_each_of_your_recordings_gets_a_row_under_each_condition(tmp_path):
                           "| a | x | 0.5 | 0.5 |", "| a | y | 0.5 | 0.25 |", "| b | y | n/a | n/a |"]
     (tmp_path / "metrics.jsonl").write_text(rec("intense-s00", "x", 0, bouts_answered=1.0))
     assert recordings_table(tmp_path, doc) == []               # no folder recording: no section
+
+
+def test_a_sweep_run_over_with_overwrite_reports_its_own_points_and_a_parent_folder_is_refused(tmp_path):
+    """A sweep researcher's review: a sweep of 4 points, then one of 2 other points into the same folder with
+    overwrite=true; the report took the old points 2 and 3 in beside the new ones, drew heatmaps over
+    'overwrite', and its 'run the sweep's command again' carried overwrite=true (which redoes, not resumes). And
+    `report` on the folder above two sweeps said to report each point's folder, not each sweep's."""
+    common = ["-m", "experiment=energy_ablation", "extractor.rise_per_s=24", "scheduler.min_inactive_s=2",
+              "harness.corpus.seeds=1", "harness.corpus.profiles=[intense]", "harness.corpus.duration_s=3"]
+    sweep = tmp_path / "sweeps" / "s"
+    r = laughlab(*common, "scheduler.overrule_c=1.5,3", "scheduler.decrease_per_s=6,20", f"hydra.sweep.dir={sweep}")
+    assert r.returncode == 0, r.stderr
+    r = laughlab(*common, "scheduler.overrule_c=2", "scheduler.decrease_per_s=6,30", f"hydra.sweep.dir={sweep}",
+                 "overwrite=true")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.parent.name for p in sweep.glob("*/results.json")) == ["0", "1", "2", "3"]   # 2, 3: the old
+    r = laughlab("report", sweep, "--out", tmp_path / "rep")
+    assert r.returncode == 0 and r.stderr == (f"laughlab: warning: {sweep}: 2 folders with results here (2, 3) are no "
+                                              "point of this sweep (an earlier sweep's, run over with overwrite=true): "
+                                              "left out of the report\n"), r.stderr
+    text = (tmp_path / "rep" / "README.md").read_text()
+    assert "- sweep points: 2; swept: scheduler.decrease_per_s\n" in text and "overwrite" not in text.split(
+        "- the sweep:")[1].split("\n")[0]
+    rows = [ln for ln in text.splitlines() if ln.startswith(("| 6 |", "| 30 |", "| 20 |"))]
+    assert [ln.split(" | ")[0] for ln in rows] == ["| 6", "| 30"]
+    assert "- fixed at every point: " in text and "scheduler.overrule_c=2" in text.split("- fixed at every point:")[1]
+    assert not list((tmp_path / "rep" / "figures").glob("heatmap_*"))   # one swept key: a line plot, no heatmap
+    # the folder above the sweep (and another one): each sweep named, nothing written
+    shutil.copytree(sweep, tmp_path / "sweeps" / "t")
+    r = laughlab("report", tmp_path / "sweeps")
+    assert r.returncode == 2 and r.stderr == (f"laughlab: error: {tmp_path / 'sweeps'} is no run or sweep folder; it "
+                                              "holds 2 sweeps (s, t): report each on its own, python -m laughlab "
+                                              f"report {sweep}\n"), r.stderr
+    assert not (tmp_path / "sweeps" / "report").exists()

@@ -264,8 +264,8 @@ def test_the_figures_of_a_sweep_report(tmp_path, saved):
     assert pdfs == {n: (tmp_path / "rep" / "figures" / n).read_bytes() for n in pdfs}
     assert "energy_ablation sweep: each point the mean of" in " ".join(heat.texts)
     # a cell's CI under its mean, but not for a point of one trial (its "interval" is its value: it read ±0)
-    assert sum(bool(re.fullmatch(r"[\d.]+\n±[\d.]+", t)) for t in heat.texts) == (0 if per == 1 else 4)
-    assert ("no ± where every point has one trial" in " ".join(heat.texts).replace("\n", " ")) == (per == 1)
+    assert sum(bool(re.fullmatch(CELL, t)) for t in heat.texts) == (0 if per == 1 else 4)
+    assert ("none where every point has one trial" in " ".join(heat.texts).replace("\n", " ")) == (per == 1)
     flat = re.findall(r"`(\w+)` \(", readme.split("No figure for")[1].split("\n")[0]) if "No figure for" in readme \
         else []
     # every metric of the table has a heatmap, or the report says why not
@@ -559,8 +559,27 @@ def test_heatmap_cells_of_different_values_read_differently(tmp_path, saved):
     points = [{"params": {"a": a, "b": b}, "r": {"mean": v, "ci95": [v - 0.01, v + 0.01], "n": 4}}
               for (a, b), v in zip([("1", "1"), ("2", "1"), ("1", "2"), ("2", "2")], (0.7812, 0.7849, 0.79, 0.80))]
     heatmaps(points, "a", "b", ["intensity_r_clip"], lambda p, m: p["r"], tmp_path / "h.png", info, "t")
-    cells = [t.split("\n")[0] for t in saved[-1].texts if re.fullmatch(r"[\d.]+\n±[\d.]+", t)]
+    cells = [t.split("\n")[0] for t in saved[-1].texts if re.fullmatch(CELL, t)]
     assert sorted(cells) == ["0.781", "0.785", "0.79", "0.8"]
+
+
+#: a heatmap cell: its mean over its 95% interval
+CELL = r"[\d.]+\n\[[\d.]+, [\d.]+\]"
+
+
+def test_a_heatmap_cell_gives_its_interval_not_a_plus_minus_past_a_fractions_range(tmp_path, saved):
+    """A sweep researcher's review: a miss rate of 0.0833 with its interval [0, 0.25] was written '0.0833 ±0.12',
+    which reads as reaching below 0; the cell now gives the interval itself, within the values' range."""
+    from laughlab.harness.sweep_figures import heatmaps
+
+    info = {"miss_rate": {"higher_is_better": False, "units": "fraction"}}
+    points = [{"params": {"a": a, "b": b}, "r": {"mean": v, "ci95": ci, "n": 12}}
+              for (a, b), v, ci in zip([("1", "1"), ("2", "1"), ("1", "2"), ("2", "2")], (0.0833, 0.0, 0.25, 0.5),
+                                       ([0.0, 0.25], [0.0, 0.0], [0.0833, 0.4167], [0.3333, 0.6667]))]
+    heatmaps(points, "a", "b", ["miss_rate"], lambda p, m: p["r"], tmp_path / "h.png", info, "t")
+    cells = sorted(t for t in saved[-1].texts if re.fullmatch(CELL, t))
+    assert cells == ["0\n[0, 0]", "0.0833\n[0, 0.25]", "0.25\n[0.083, 0.42]", "0.5\n[0.33, 0.67]"], cells
+    assert not any("±" in t for t in saved[-1].texts)
 
 
 def test_a_heatmap_cell_of_single_trials_has_no_plus_minus_and_no_clip_is_no_value(tmp_path, saved):
@@ -575,11 +594,11 @@ def test_a_heatmap_cell_of_single_trials_has_no_plus_minus_and_no_clip_is_no_val
     heatmaps(one, "a", "b", ["intensity_r_clip"], lambda p, m: p["r"], tmp_path / "h.png", info, "t")
     texts = saved[-1].texts
     assert {"0.5", "0.6", "0.7", "0.8"} <= set(texts)   # the cells, each its value alone
-    assert not any("±" in t for t in texts if t[:1].isdigit()) and any("those of one trial" in t for t in texts)
-    # a cell with a point of 3 trials and one of 1: its ± is the 3-trial point's half-width alone (0.1)
+    assert not any("\n" in t for t in texts if t[:1].isdigit()) and any("those of one trial" in t for t in texts)
+    # a cell with a point of 3 trials and one of 1: its interval is the 3-trial point's alone
     mixed = one[:3] + [{"params": {"a": "2", "b": "2"}, "r": {"mean": 0.8, "ci95": [0.7, 0.9], "n": 3}}]
     heatmaps(mixed, "a", "b", ["intensity_r_clip"], lambda p, m: p["r"], tmp_path / "h2.png", info, "t")
-    assert [t for t in saved[-1].texts if "±" in t and t[0].isdigit()] == ["0.8\n±0.1"]
+    assert [t for t in saved[-1].texts if re.fullmatch(CELL, t)] == ["0.8\n[0.7, 0.9]"]
     # scheduler=none: no clip played (cutoff_rate has no value), so its offset tail's 0 is no value
     doc = {"metrics": {"offset_tail_s": {"higher_is_better": False}, "cutoff_rate": {"higher_is_better": False}},
            "results": {"none": {"offset_tail_s": {"mean": 0.0, "ci95": [0.0, 0.0], "n": 4},
@@ -597,8 +616,8 @@ def test_a_heatmap_cell_of_single_trials_has_no_plus_minus_and_no_clip_is_no_val
         return NO_VALUE if vacuous(doc, m, p["cond"]) else p["r"]
 
     heatmaps(pts, "a", "b", ["offset_tail_s"], shown, tmp_path / "h3.png", info, "t")
-    cells = sorted(t for t in saved[-1].texts if t[:1].isdigit() and "±" in t or t == "n/a")
-    assert cells == ["0\n±0", "0.4\n±0.1", "0.4\n±0.1", "n/a"], cells   # energy's 0 stays: it played clips
+    cells = sorted(t for t in saved[-1].texts if re.fullmatch(CELL, t) or t == "n/a")
+    assert cells == ["0\n[0, 0]", "0.4\n[0.3, 0.5]", "0.4\n[0.3, 0.5]", "n/a"], cells   # energy's 0 stays: it played clips
 
 
 class _ClipCount:

@@ -357,6 +357,12 @@ def write_report(run_dir: str | Path, out: str | Path | None = None, command: st
     if (root / "results.json").exists():
         results, write = root / "results.json", experiment_report
     elif root.is_dir() and any(root.rglob("results.json")):
+        sweeps = [] if (root / "multirun.yaml").is_file() else sorted({m.parent for m in root.rglob("multirun.yaml")})
+        if sweeps:   # a folder above sweeps (a review: "report each point's folder", or another tool's results.json)
+            named = shown_names([str(s.relative_to(root)) for s in sweeps])
+            raise LaughlabError(f"{run_dir} is no run or sweep folder; it holds {len(sweeps)} sweep"
+                                f"{'s' if len(sweeps) > 1 else ''} ({named}): report each on its own, "
+                                f"python -m laughlab report {shlex.quote(str(sweeps[0]))}")
         results, write = next(root.rglob("results.json")), sweep_report
     else:
         from laughlab.harness.sweep_plan import missing_text, unfinished

@@ -80,9 +80,11 @@ def _panel_heading(m: str, info: dict, z: dict) -> str:
 def heatmaps(points, a, b, metrics, result, path, info, title: str, width: str = "page") -> None:
     """One heatmap per metric over parameters ``a`` (x) and ``b`` (y); bright is better in each.
 
-    A cell is the mean of its points' means (over the other swept parameters) and, under it, ``±h``: the mean
-    half-width of those points' 95 % bootstrap intervals.  The colour range spans the cells' means, widened to a
-    point's median interval width where the means differ by less, so that noise does not fill the scale.
+    A cell is the mean of its points' means (over the other swept parameters) and, under it, ``[lo, hi]``: those
+    points' 95 % bootstrap intervals, their ends averaged (it was ``±h``, the mean half-width, which read as
+    ``0.0833 ±0.12`` for a fraction whose interval is [0, 0.25]: a sweep researcher's review).  The colour range
+    spans the cells' means, widened to a point's median interval width where the means differ by less, so that
+    noise does not fill the scale.
     ``width``: ``page`` (3 panels a row) or ``column`` (3.5 in, one a row, no text under 7 pt: :data:`SIZES`)."""
     z = _sizes(width)
     xs = sorted({p["params"].get(a, "") for p in points}, key=order)
@@ -90,13 +92,14 @@ def heatmaps(points, a, b, metrics, result, path, info, title: str, width: str =
     fig, axes = panel_grid(len(metrics), *z["heat"])
     widened, most, single = [], 1, False
     for ax, m in zip(axes, metrics):
-        grid, half = np.full((len(ys), len(xs)), np.nan), np.full((len(ys), len(xs)), np.nan)
+        grid = np.full((len(ys), len(xs)), np.nan)
+        ends = np.full((len(ys), len(xs), 2), np.nan)
         widths, lows, highs = [], [], []
         for i, y in enumerate(ys):
             for j, x in enumerate(xs):
                 rs = [result(p, m) for p in points if p["params"].get(a, "") == x and p["params"].get(b, "") == y]
                 cis = [_ci(r) for r in rs if math.isfinite(_ci(r)[0])]
-                # a point of one trial has no interval (its "[v, v]" read as ±0, a new-user review): no ± from it
+                # a point of one trial has no interval (its "[v, v]" read as ±0, a new-user review): none from it
                 spread = [_ci(r) for r in rs if math.isfinite(_ci(r)[0]) and (r.get("n") or 0) >= 2]
                 most = max(most, len(cis))
                 single = single or len(spread) < len(cis)
@@ -105,7 +108,7 @@ def heatmaps(points, a, b, metrics, result, path, info, title: str, width: str =
                     lows += [c[1] for c in cis]
                     highs += [c[2] for c in cis]
                 if spread:
-                    half[i, j] = np.mean([(c[2] - c[1]) / 2 for c in spread])
+                    ends[i, j] = np.mean([c[1] for c in spread]), np.mean([c[2] for c in spread])
                     widths += [c[2] - c[1] for c in spread]
         lo, hi = np.nanmin(grid), np.nanmax(grid)
         noise = float(np.median(widths)) if widths else 0.0
@@ -123,7 +126,8 @@ def heatmaps(points, a, b, metrics, result, path, info, title: str, width: str =
             bright = np.mean(im.cmap(im.norm(grid[i, j]))[:3]) > 0.5
             colour = ("0.35" if not math.isfinite(grid[i, j])   # n/a on the blank cell, not white on white
                       else "k" if bright else "w")
-            spread = f"\n±{fmt(half[i, j], 2)}" if math.isfinite(half[i, j]) else ""
+            spread = (f"\n[{fmt(ends[i, j, 0], 2)}, {fmt(ends[i, j, 1], 2)}]" if math.isfinite(ends[i, j, 0])
+                      else "")
             ax.text(j, i, text + spread, ha="center", va="center", fontsize=z["cell"], color=colour, linespacing=1.1)
         ax.set_xticks(range(len(xs)), xs, fontsize=z["ticks"])
         ax.set_yticks(range(len(ys)), ys, fontsize=z["ticks"])
@@ -137,8 +141,8 @@ def heatmaps(points, a, b, metrics, result, path, info, title: str, width: str =
         cb.ax.tick_params(labelsize=z["bar_ticks"])
     notes = ["Each cell: the mean of its point's trials"
              + (f" (averaged over the other swept parameters: up to {most} points a cell)" if most > 1 else "")
-             + "; under it ± the half-width of a point's 95% bootstrap CI (the mean over the cell's points"
-             + (", those of one trial, which have none, left out; no ± where every point has one trial)." if single
+             + "; under it a point's 95% bootstrap CI (the ends averaged over the cell's points"
+             + (", those of one trial, which have none, left out; none where every point has one trial)." if single
                 else ").")]
     if widened:
         notes.append("Colour range widened to a point's median CI width, as the cells differ by less: "

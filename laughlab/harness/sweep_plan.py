@@ -15,10 +15,11 @@ from itertools import product
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
-from laughlab.core.overrides import override_key
+from laughlab.core.overrides import COMMAND_ONLY, override_key
 
-#: override keys that are not a point's parameters (the report's points leave them out too)
-NOT_PARAMS = ("experiment", "hydra")
+#: override keys that are not a point's parameters (the report's points leave them out too): the experiment, Hydra's
+#: own, and the command's (``overwrite``, ``progress``: a sweep run again with overwrite=true read it as swept)
+NOT_PARAMS = ("experiment", "hydra", *COMMAND_ONLY)
 
 
 def multirun(root: Path) -> dict | None:
@@ -37,6 +38,12 @@ def multirun(root: Path) -> dict | None:
 def planned_points(root: Path) -> list[dict[str, str]] | None:
     """Each planned point's swept values, ``{key: value}`` as its ``.hydra/overrides.yaml`` writes them, in the
     sweeper's order; None when ``root`` has no readable ``multirun.yaml`` or a sweep the parser cannot list."""
+    plan = _plan(root)
+    return None if plan is None else plan[1]
+
+
+def _plan(root: Path) -> tuple[dict[str, str], list[dict[str, str]]] | None:
+    """(the parameters every planned point shares, each point's swept values), or None (:func:`planned_points`)."""
     from laughlab.core.sweepcheck import sweep_values
 
     hydra = multirun(Path(root))
@@ -49,15 +56,46 @@ def planned_points(root: Path) -> list[dict[str, str]] | None:
         params = {}   # a sweep over experiments composes the sweeper without them (laughlab.core.sweepcheck)
     extra = [f"{k}={v}" for k, v in params.items() if override_key(k) not in given]
     try:
-        _, sweeps = sweep_values(task + extra)
+        base, sweeps = sweep_values(task + extra)
     except LaughlabError:
         return None
     keys = list(sweeps)
-    return [dict(v.split("=", 1) for v in combo) for combo in product(*(sweeps[k] for k in keys))]
+    swept = {override_key(values[0]) for values in sweeps.values()}
+    fixed = {k: v for k, v in _params(_as_written(base)).items() if override_key(k) not in swept}
+    return fixed, [dict(v.split("=", 1) for v in combo) for combo in product(*(sweeps[k] for k in keys))]
+
+
+def _as_written(overrides: list[str]) -> list[str]:
+    """``overrides`` as Hydra's basic sweeper writes them into a point's ``overrides.yaml`` (``harness.plots=false``
+    is written ``harness.plots=False``); one it cannot read, as given."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    out = []
+    for o in overrides:
+        try:
+            (ov,) = OverridesParser.create().parse_overrides([o])
+            out.append(f"{ov.get_key_element()}={ov.get_value_element_as_str()}")   # ~key: ~key=null, as Hydra
+        except (HydraException, ValueError):
+            out.append(o)
+    return out
 
 
 def _params(overrides: list) -> dict[str, str]:
     return dict(str(o).split("=", 1) for o in overrides if "=" in str(o) and not str(o).startswith(NOT_PARAMS))
+
+
+def stale_points(root: Path, params: dict[Path, dict[str, str]]) -> list[Path]:
+    """The point folders of ``params`` (``{folder: its parameters}``) that are no point of the sweep in ``root``: an
+    earlier sweep's, left there when ``overwrite=true`` ran a sweep of fewer or other points over it (a sweep
+    researcher's review: its report mixed both sweeps, unsaid).  None are stale when the plan is unknown."""
+    plan = _plan(Path(root))
+    if plan is None:
+        return []
+    fixed, points = plan
+    wanted = [{**fixed, **point} for point in points]
+    return [job for job, p in params.items() if {k: v for k, v in p.items() if not k.startswith(NOT_PARAMS)}
+            not in wanted]
 
 
 def _job_params(job: Path) -> dict[str, str] | None:
@@ -69,29 +107,32 @@ def _job_params(job: Path) -> dict[str, str] | None:
         return None
 
 
-def _matches(plan: dict, params: dict) -> bool:
-    return all(params.get(k) == v for k, v in plan.items() if not override_key(k).startswith(NOT_PARAMS))
-
-
 def unfinished(root: Path) -> tuple[int, list[str]] | None:
     """``(planned points, [each unfinished point])`` of the sweep in ``root``, or None when its plan is unknown
-    (no ``multirun.yaml``).  A point is named by its folder when Hydra made one (``2``), else by its values."""
+    (no ``multirun.yaml``).  A point is named by its values, after its folder when Hydra made one
+    (``2 (scheduler.overrule_c=1.5 scheduler.decrease_per_s=20)``: a review found ``2`` alone beside the others'
+    values).  A folder matches a point when it has the plan's every parameter, the fixed ones too (an earlier
+    sweep's folder with other fixed values is not this sweep's point: :func:`stale_points`)."""
     root = Path(root)
-    plan = planned_points(root)
+    plan = _plan(root)
     if plan is None:
         return None
+    fixed, points = plan
     jobs = {p: _job_params(p) for p in sorted({h.parent for h in root.glob("**/.hydra")}) if p != root}
+    jobs = {job: {k: v for k, v in params.items() if not k.startswith(NOT_PARAMS)}
+            for job, params in jobs.items() if params is not None}
     from laughlab.core.rundir import finished
 
-    done = [params for job, params in jobs.items() if params is not None and finished(job)]
+    done = [params for job, params in jobs.items() if finished(job)]
     missing = []
-    for point in plan:
-        if any(_matches(point, params) for params in done):
+    for point in points:
+        want = {**fixed, **point}
+        if want in done:
             continue
-        folder = next((job for job, params in jobs.items() if params is not None and _matches(point, params)), None)
-        missing.append(str(folder.relative_to(root)) if folder is not None
-                       else " ".join(f"{k}={v}" for k, v in point.items()))
-    return len(plan), missing
+        folder = next((job for job, params in jobs.items() if params == want), None)
+        values = " ".join(f"{k}={v}" for k, v in point.items())
+        missing.append(f"{folder.relative_to(root)} ({values})" if folder is not None else values)
+    return len(points), missing
 
 
 def swept_keys(root: Path) -> list[str]:
@@ -110,15 +151,17 @@ def missing_text(root: Path, planned: int, missing: list[str]) -> str:
 
 
 def sweep_command(root: Path) -> str:
-    """The sweep's own command, from ``multirun.yaml`` (empty when there is none): its overrides, then Hydra's own
-    as given (``hydra/launcher=submitit_slurm``, ``hydra.launcher.*``: a reader reran a Slurm or joblib sweep in one
-    process, the launcher was not named), and the folder it is in."""
+    """The sweep's own command, from ``multirun.yaml`` (empty when there is none): its overrides (not ``overwrite``
+    or ``progress``), then Hydra's own as given (``hydra/launcher=submitit_slurm``, ``hydra.launcher.*``: a reader
+    reran a Slurm or joblib sweep in one process, the launcher was not named), and the folder it is in."""
     hydra = multirun(Path(root))
     if hydra is None:
         return ""
     given = hydra.get("overrides") or {}
-    task = [str(o) for o in [*(given.get("task") or []), *(given.get("hydra") or [])]]
-    task = [o for o in task if not o.startswith(("hydra.mode=", "hydra.sweep.dir="))] + [f"hydra.sweep.dir={root}"]
+    # without the command's overwrite=true (run again, it would redo the finished points, not resume) and progress
+    task = [str(o) for o in given.get("task") or [] if override_key(o) not in ("overwrite", "progress")]
+    task = [o for o in [*task, *map(str, given.get("hydra") or [])]
+            if not o.startswith(("hydra.mode=", "hydra.sweep.dir="))] + [f"hydra.sweep.dir={root}"]
     return f"python -m laughlab -m {' '.join(shlex.quote(o) for o in task)}"
 
 
