@@ -79,6 +79,8 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
+import numpy as np
+
 from laughlab import hookimpl
 from laughlab.core.bases import Scheduler
 from laughlab.concat.costs import Concatenation, c_cont, c_dur, choose, label_runs, optimal, stretch
@@ -86,7 +88,7 @@ from laughlab.core.errors import LaughlabError
 from laughlab.core.frame import ClipEvent
 from laughlab.core.plugins import check_range
 from laughlab.detector.model import clip_allowed, clip_drive
-from laughlab.concat.segments import HELD, PSEUDO_PHONEMES, segment_db
+from laughlab.concat.segments import HELD, PSEUDO_PHONEMES, pose_features, segment_db
 
 ENERGY_SCALE = 40.0
 """Scale of the ``energy`` channel: MCS 1 reads as the energy of rofl, the largest clip energy."""
@@ -169,6 +171,11 @@ class ConcatScheduler(Scheduler):
     def __init__(self, params=None, ctx=None):
         super().__init__(params, ctx)
         self.db = segment_db(self.ctx.clips)
+        # the pose the first segment joins: the idle clip's, which the character shows before any segment
+        # (Ding et al.'s Eq. 8 joins two segments; with no segment before, the first was chosen by its duration
+        # alone and a run began mid-gesture, an arm out: a study researcher's review)
+        lib = self.ctx.clips
+        self._idle = lambda t: pose_features(lib.skeleton, lib.idle.sample_many(np.array([t])))[0]
         self._plan: list | None = None        # [(first frame, n frames, label, segment index)]
         self.planned: Concatenation | None = None
         self.reset()
@@ -227,7 +234,7 @@ class ConcatScheduler(Scheduler):
             raise LaughlabError(f"cannot plan label {bad[0]!r}; choose from: {', '.join(PSEUDO_PHONEMES)}")
         dt = self.ctx.dt
         runs = label_runs(labels)
-        self.planned = optimal([(lab, n * dt) for lab, _, n in runs], self.db, self.params.gamma)
+        self.planned = optimal([(lab, n * dt) for lab, _, n in runs], self.db, self.params.gamma, self._idle(0.0))
         self._plan = [(start, n, lab, i) for (lab, start, n), i in zip(runs, self.planned.indices)]
         self._plan_frames = len(labels)
         self._unit = -1
@@ -252,7 +259,8 @@ class ConcatScheduler(Scheduler):
                 choice = self._plan[self._unit][3]
             else:
                 target = self._mean[label]
-                choice = choose(db, label, target, p.gamma, self.segment)
+                joins = self.segment if self.segment is not None else self._idle(t)
+                choice = choose(db, label, target, p.gamma, joins)
             self._start(frame, choice, target, "next")
         elif self.segment is not None:
             seg = db[self.segment]
@@ -302,6 +310,8 @@ class ConcatScheduler(Scheduler):
             self._cost_closed += (1.0 - p.gamma) * c_cont(db.last[self.segment], db.first[choice])
             frame.events.append(ClipEvent(t, "stop", old.clip, old.energy, self.speed, reason=reason,
                                           offset_s=old.start_s, end_s=old.end_s))
+        else:   # the first segment joins the idle pose shown (as plan's optimal total counts it)
+            self._cost_closed += (1.0 - p.gamma) * c_cont(self._idle(t), db.first[choice])
         self.speed = stretch(seg.duration_s, target, p.speed_min, p.speed_max)
         self.segment, self._seg_start_t, self._unit_start = choice, t, k
         frame.events.append(ClipEvent(t, "start", seg.clip, seg.energy, self.speed, blend_s=p.blend_s,

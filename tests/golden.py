@@ -218,8 +218,9 @@ def main() -> None:
                 (GOLDEN_DIR / name / f"{f}.gz").write_bytes(gzip.compress(data, compresslevel=9, mtime=0))
     dropped = sorted(set(doc.get("yamnet_cpu", {})) - {family})
     yamnet = {family: {n: runs[n] for n in YAMNET_RUNS}}
+    note = {k: v for k, v in doc.items() if k == "yamnet_cpu_note"}   # kept: why only some families are recorded
     GOLDEN.write_text(json.dumps({"environment": {**platform_tag(), "cpu": family}, "runs": runs,
-                                  "yamnet_cpu": yamnet}, indent=1, sort_keys=True) + "\n")
+                                  "yamnet_cpu": yamnet, **note}, indent=1, sort_keys=True) + "\n")
     print(f"wrote {GOLDEN} and {GOLDEN_DIR}" + (f"; dropped the YAMNet bytes of {', '.join(dropped)} (record them "
                                                "there with --update-cpu)" if dropped else ""))
 

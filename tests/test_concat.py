@@ -261,7 +261,7 @@ def test_greedy_starts_a_segment_of_the_class_at_each_label_change(lib, db):
     assert [k for k, _ in at_change] == CHANGES
     # predicted duration: running mean of the class, the DB mean counting as one observation
     means = {c: [db.mean_duration(c)] for c in PSEUDO_PHONEMES}
-    prev = None
+    prev = idle_feature(lib, 0.0)   # the first segment joins the idle pose shown
     for k, e in st_:
         chosen = [i for i in db.candidates(LABELS[k]) if db[i].clip == e.clip and db[i].start_s == e.offset_s]
         assert len(chosen) == 1 and db[chosen[0]].end_s == e.end_s
@@ -387,7 +387,7 @@ def test_optimal_mode_plays_the_dp_plan(lib, db):
         s.step(Frame(0, 0.0, DT, {"mcs": 0.0}))
     labels = ["silence"] * 30 + ["a"] * 18 + ["silence"] * 12 + ["e"] * 15 + ["ic"] * 24 + ["silence"] * 30
     plan = s.plan(labels)
-    want = C.optimal(C.to_sequence(labels, DT), db, 0.5)
+    want = C.optimal(C.to_sequence(labels, DT), db, 0.5, idle_feature(lib, 0.0))
     assert plan.indices == want.indices and plan.cost == pytest.approx(want.cost)
     frames, _ = drive(s, labels)
     st_ = starts(frames)
@@ -461,9 +461,37 @@ def test_mixer_plays_the_segments_at_their_stretched_clip_time(lib):
             t = frames[k].time_s
             want = lib[e.clip].sample(e.offset_s + (t - frames[k0].time_s) * e.speed)
             w = (t - frames[k0].time_s) / e.blend_s
-            if w >= 1.0 or k0 == 0:  # after the join's linear blend (none at the first frame): the segment
+            if w >= 1.0:  # after the join's linear blend: the segment
                 np.testing.assert_allclose(poses[k], want, atol=1e-6)
                 checked += 1
-            else:  # during the blend: from the pose shown before the join to the segment
-                np.testing.assert_allclose(poses[k], poses[k0 - 1] + w * (want - poses[k0 - 1]), atol=1e-6)
-    assert checked >= 60  # frames checked after a blend (the rest are checked during one)
+            else:  # during the blend: from the pose shown before the join (the idle pose at the first) to the segment
+                before = poses[k0 - 1] if k0 else lib.idle.sample(0.0)
+                np.testing.assert_allclose(poses[k], before + w * (want - before), atol=1e-6)
+    assert checked >= 50  # frames checked after a blend (the rest are checked during one)
+
+
+def idle_feature(lib, t):
+    """The continuity feature of the idle pose at ``t`` (what the first segment joins)."""
+    from laughlab.concat.segments import pose_features
+
+    return pose_features(lib.skeleton, lib.idle.sample_many(np.array([t])))[0]
+
+
+def test_a_run_starts_at_the_idle_pose_and_its_first_segment_joins_it(lib, db):
+    """A study researcher's review: every scheduler=concat stimulus opened mid-gesture (an arm out), where the
+    other conditions opened at rest: the first segment was chosen by its duration alone (Eq. 8's continuity has
+    no segment before it) and the mixer snapped to it. The first segment now joins the idle pose by Eq. 8 and
+    the mixer blends into it from that pose over blend_s, as at any join."""
+    s, mixer = make(lib), Mixer(lib)
+    frames, poses = drive(s, LABELS, mixer=mixer)
+    np.testing.assert_allclose(poses[0], lib.idle.sample(0.0), atol=1e-9)   # frame 0: the idle pose, w = 0
+    (k0, first), = [(k, e) for k, e in starts(frames)][:1]
+    assert k0 == 0
+    cand = db.candidates(LABELS[0])
+    i = [j for j in cand if db[j].clip == first.clip and db[j].start_s == first.offset_s][0]
+    joins = C.c_cont(idle_feature(lib, 0.0), db.first[cand])
+    # the chosen segment's join with the idle pose is among the class's closest: no farther than the median
+    assert C.c_cont(idle_feature(lib, 0.0), db.first[i]) <= np.median(joins)
+    # what the duration alone chose before (the point1 piece of the review's videos) joins it worse
+    alone = C.choose(db, LABELS[0], db.mean_duration(LABELS[0]), 0.5, None)
+    assert C.c_cont(idle_feature(lib, 0.0), db.first[alone]) > C.c_cont(idle_feature(lib, 0.0), db.first[i])

@@ -131,10 +131,14 @@ def _check_gamma(gamma: float) -> float:
 
 
 def _prev_feature(db: SegmentDB, prev) -> np.ndarray | None:
+    """The feature the next segment joins: ``prev`` a segment (its index or itself), or a pose feature (an array:
+    the idle pose shown before the first segment, :func:`laughlab.concat.segments.pose_features`)."""
     if prev is None:
         return None
     if isinstance(prev, Segment):
         return np.asarray(prev.last, dtype=np.float64)
+    if isinstance(prev, np.ndarray):
+        return np.asarray(prev, dtype=np.float64)
     return db.last[int(prev)]
 
 
@@ -149,8 +153,8 @@ def local_costs(db: SegmentDB, candidates, d_target: float, gamma: float, prev=N
     d_target : float
         Target duration d(p) (s).
     gamma : float
-    prev : int or Segment, optional
-        The previous segment; without it the continuity term is 0.
+    prev : int, Segment or ndarray, optional
+        The previous segment, or the pose feature shown before it; without it the continuity term is 0.
     """
     cand = np.asarray(candidates)
     cost = gamma * c_dur(db.durations[cand], d_target)
@@ -199,8 +203,8 @@ def greedy(sequence: Sequence[tuple[str, float]], db: SegmentDB, gamma: float, p
     db : SegmentDB
     gamma : float
         Weight of the duration cost, in [0, 1].
-    prev : int or Segment, optional
-        The segment played before the sequence (continuity of the first choice).
+    prev : int, Segment or ndarray, optional
+        The segment played before the sequence, or the pose feature shown (continuity of the first choice).
 
     Returns
     -------

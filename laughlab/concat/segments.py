@@ -362,6 +362,13 @@ def cut_points(speed: np.ndarray, rules: SegmentRules = SegmentRules(), loop: bo
     return sorted(cuts)
 
 
+def pose_features(skeleton, poses) -> np.ndarray:
+    """The continuity feature (Ding et al. 2014, Eq. 8) of each pose of ``poses`` (BVH channel vectors, (N, C)):
+    the world positions of :data:`KEY_JOINTS` in cm, (N, 3 * 9), as a segment's ``first`` and ``last``."""
+    key = [skeleton.index(n) for n in KEY_JOINTS]
+    return forward_kinematics(skeleton, np.atleast_2d(poses))[:, key].reshape(len(np.atleast_2d(poses)), -1)
+
+
 def build(library, rules: SegmentRules = SegmentRules()) -> SegmentDB:
     """Cut and label every clip of ``library`` (see the module docstring).
 

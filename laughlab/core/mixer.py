@@ -63,8 +63,10 @@ class Mixer:
         if self._pending:  # the blend starts from the pose shown last: render it now
             self._rendered.append(self._render(self._pending))
             self._pending = []
-        if self.last_pose is not None and blend_s > 0.0:
-            self.blend_from = self.last_pose.copy()
+        if blend_s > 0.0:   # from the pose shown last; before any, the idle pose this frame would show (a clip
+            # started on the first frame snapped to its pose: every concat run began mid-gesture, a study's review)
+            self.blend_from = (self.last_pose.copy() if self.last_pose is not None
+                               else self.idle.sample_rows(np.array([t - self.idle_start]))[0])
             self.blend_start, self.blend_s = t, blend_s
         else:
             self.blend_from = None
