@@ -216,7 +216,16 @@ def test_simulated_participants_in_chromium_and_the_planted_effect_recovered(stu
     assert found == len(d["questions"])
     with open(report / "tidy.csv") as f:
         tidy = list(csv.DictReader(f))
-    assert len({row["participant"] for row in tidy}) == 5
+    # the one who closed the tab is left out as incomplete, and said so (a study researcher's review: a dropout
+    # was counted as included, unsaid); with complete: false it would be kept
+    assert len({row["participant"] for row in tidy}) == 4
+    trials5 = d["participants"]["5"]["trials"]
+    att5, att_given = sum(t["attention"] for t in trials5), sum(t["attention"] for t in trials5[:3])
+    want = (f"incomplete: {3 * len(d['questions'])} of {len(trials5) * len(d['questions'])} ratings"
+            + (f", {att_given} of {att5} attention items" if att5 else ""))
+    with open(report / "exclusions.csv") as f:
+        assert list(csv.DictReader(f)) == [{"participant": "5", "reason": want}]
+    assert "4 included, 1 excluded" in (report / "README.md").read_text()
 
 
 @pytest.mark.browser
@@ -500,6 +509,32 @@ def test_on_a_static_host_the_page_keeps_the_answers_and_its_csv_is_analysed(stu
     text = (tmp_path / "rep2" / "README.md").read_text()
     assert text.splitlines()[2:5] == [f"`python -m laughlab study analyze {folder} --out {tmp_path / 'rep2'}`", "",
                                       NO_DESIGN]
+
+
+def test_a_participant_who_left_part_way_is_excluded_as_incomplete_unless_kept():
+    """A study researcher's review: a participant whose answers stop after 2 of 16 trials, before either attention
+    item, was 'included' with no word; missing attention items did not count as failed ones."""
+    import pandas as pd
+
+    from laughlab.study.exclusions import exclusions, expected_counts
+
+    def rows(p, trials, attention):
+        out = [{"participant": p, "kind": "audio_check", "value": 1.0, "expected": None, "text": "hat"}]
+        out += [{"participant": p, "kind": "rating", "value": float(1 + (t + q) % 7), "expected": None, "text": ""}
+                for t in range(trials) for q in range(2)]
+        return out + [{"participant": p, "kind": "attention", "value": 2.0, "expected": 2.0, "text": ""}] * attention
+
+    df = pd.DataFrame(rows(1, 16, 2) + rows(2, 2, 0) + rows(3, 16, 1))
+    design = {"questions": [{"id": "a"}, {"id": "b"}],
+              "participants": {str(p): {"trials": [{"attention": t in (5, 11)} for t in range(16)]} for p in (1, 2, 3)}}
+    want = expected_counts(design, df)
+    assert want == {1: (32, 2), 2: (32, 2), 3: (32, 2)}
+    rules = {"audio_check": True, "attention_max_fail": 0, "straightline": True, "complete": True}
+    assert exclusions(df, rules, None, want) == {2: ["incomplete: 4 of 32 ratings, 0 of 2 attention items"],
+                                                 3: ["incomplete: 32 of 32 ratings, 1 of 2 attention items"]}
+    assert exclusions(df, {**rules, "complete": False}, None, want) == {}
+    # without a design: the most any participant gave
+    assert expected_counts(None, df) == {1: (32, 2), 2: (32, 2), 3: (32, 2)}
 
 
 def test_the_reasons_of_the_exclusions_are_counted_once_each():
@@ -933,3 +968,17 @@ def test_power_from_a_simulated_pilot_says_so_and_its_figure_is_for_a_page(study
             "model's spreads, not a pilot's") in r.stderr
     with Image.open(tmp_path / "pw" / "power.png") as im:
         assert im.size[0] >= 1000
+
+
+def test_analyzing_a_database_no_participant_has_made_yet_names_what_is_beside_it(tmp_path):
+    """A study researcher's review: the README's `study analyze STUDY/responses.sqlite` before any participant said
+    only 'no database or CSV at ...', with study simulate's simulated.sqlite beside it."""
+    (tmp_path / "study").mkdir()
+    (tmp_path / "study" / "simulated.sqlite").write_bytes(b"")
+    out = fuzz.run_cli(["study", "analyze", str(tmp_path / "study" / "responses.sqlite")])
+    assert out.code == 2 and out.stderr == (f"laughlab: error: no database or CSV at {tmp_path / 'study' / 'responses.sqlite'}"
+                                            " (no participant has answered yet; beside it: simulated.sqlite, e.g. "
+                                            "study simulate's)\n")
+    out = fuzz.run_cli(["study", "analyze", str(tmp_path / "elsewhere" / "responses.sqlite")])
+    assert out.code == 2 and out.stderr.endswith("responses.sqlite\n")
+    assert not (tmp_path / "study" / "responses-report").exists()

@@ -12,7 +12,8 @@ Steps, each written to the report folder:
 2. ``exclusions.csv``: each excluded participant and why: the audio check (no attempt was the
    word, or none stored), attention items (more failed than ``attention_max_fail``; a slider item
    fails more than 5 % of the scale away from the value asked for), straight-lining (every rating
-   of every question the same value, over at least four ratings).
+   of every question the same value, over at least four ratings), an incomplete session (fewer ratings
+   or attention items than the participant's trials ask for): :mod:`laughlab.study.exclusions`.
 3. ``means.csv``: per question and condition the mean of the participants' means, its SD, n and a
    95 % t interval (participants are the unit, so the interval is over people, not trials).
 4. ``model.csv``, ``variance.csv``: per question a linear mixed model
@@ -65,36 +66,9 @@ from laughlab.core.errors import LaughlabError
 from laughlab.study import db as DB
 from laughlab.study.answers import load
 from laughlab.study.design import identical_conditions
+from laughlab.study.exclusions import (DEFAULT_RULES, exclusions, expected_counts,  # noqa: F401 (its API)
+                                      reason_counts)
 from laughlab.study.reportdir import REPORT_FILES, check_out, put  # noqa: F401 (REPORT_FILES: the report's files)
-
-DEFAULT_RULES = {"audio_check": True, "attention_max_fail": 0, "straightline": True}
-
-
-# -- exclusions -----------------------------------------------------------------------------------------------------
-
-def exclusions(df, rules: dict, slider_range: float | None = None) -> dict[int, list[str]]:
-    """Participant -> the reasons they are excluded (see the module doc); only participants with a reason."""
-    out: dict[int, list[str]] = {}
-    tol = 0.05 * slider_range if slider_range else 1e-9
-    for p, g in df.groupby("participant"):
-        why = []
-        if rules.get("audio_check", True):
-            chk = g[g["kind"] == "audio_check"]
-            if chk.empty:
-                why.append("no audio check stored")
-            elif not (chk["value"] == 1).any():
-                why.append(f"audio check failed (typed {chk['text'].iloc[0].replace('|', ', ')!r})")
-        att = g[g["kind"] == "attention"]
-        failed = int((np.abs(att["value"] - att["expected"]) > tol).sum())
-        if failed > int(rules.get("attention_max_fail", 0)):
-            why.append(f"failed {failed} of {len(att)} attention items")
-        ratings = g[g["kind"] == "rating"]["value"]
-        if rules.get("straightline", True) and len(ratings) >= 4 and ratings.nunique() == 1:
-            why.append(f"straight-lining: all {len(ratings)} ratings were {ratings.iloc[0]:g}")
-        if why:
-            out[int(p)] = why
-    return out
-
 
 # -- statistics -----------------------------------------------------------------------------------------------------
 
@@ -346,7 +320,7 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
     questions = [q["id"] for q in (design or {}).get("questions", [])] or \
         sorted(set(df.loc[df["kind"] == "rating", "question"]))
     same = identical_conditions(design)   # the riddle's SS and LS: one video, so no contrast (module doc, step 5)
-    excluded = exclusions(df, rules, slider)
+    excluded = exclusions(df, rules, slider, expected_counts(design, df))
     ratings = df[(df["kind"] == "rating") & df["value"].notna()]
     tidy = ratings[~ratings["participant"].astype(int).isin(excluded)].reset_index(drop=True)
     if tidy.empty:
@@ -417,27 +391,6 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
     check_out(out, overwrite)  # again: the fit takes a while, and the folder may have been filled meanwhile
     put(tmp, out)
     return out
-
-
-def reason_counts(excluded: dict) -> str:
-    """The exclusions' reasons, each kind once with how many participants it excluded (the reasons' words before
-    any detail in brackets), each number the values it took: ``no audio check stored: 12; failed 1 or 2 of 2
-    attention items: 2`` (a review read "all N ratings were N: 1" as placeholders left unfilled)."""
-    import re
-
-    kinds: dict = {}
-    for reasons in excluded.values():
-        for r in reasons:
-            text = r.split(" (")[0]
-            kinds.setdefault(re.sub(r"\d+(\.\d+)?", "N", text), []).append(re.split(r"(\d+(?:\.\d+)?)", text))
-    out = []
-    for parts in sorted(kinds.values(), key=len, reverse=True):   # most participants first, ties as met
-        words = list(parts[0])
-        for i in range(1, len(words), 2):   # the numbers: each slot's values, as taken
-            seen = sorted({p[i] for p in parts}, key=float)
-            words[i] = seen[0] if len(seen) == 1 else " or ".join(seen) if len(seen) <= 3 else f"{seen[0]}-{seen[-1]}"
-        out.append(f"{''.join(words)}: {len(parts)}")
-    return "; ".join(out)
 
 
 #: the report's line when no design was found or given (CSV answers without --design)

@@ -59,8 +59,11 @@ def load(source, design_dir=None):
                                 f"{design_dir}'s is {design.get('id')}): give its own study folder as --design, or "
                                 "leave --design out (the database holds its design)")
         design = design or stored
-    else:
-        raise LaughlabError(f"no database or CSV at {source}")
+    else:   # before any participant: the study folder may hold only study simulate's database (a review)
+        beside = sorted(p.name for p in source.parent.glob("*.sqlite")) if source.parent.is_dir() else []
+        raise LaughlabError(f"no database or CSV at {source}" + (
+            f" (no participant has answered yet; beside it: {', '.join(beside)}, e.g. study simulate's)" if beside
+            else ""))
     if not rows:
         raise LaughlabError(f"{source} holds no answers yet")
     rows = _once(rows)

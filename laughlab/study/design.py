@@ -107,7 +107,7 @@ def check_preset(doc: dict) -> dict:
     need(isinstance(att["value"], (int, float)) and lo <= att["value"] <= hi,
          f"attention.value must lie on the scale, {lo}..{hi}")
     doc["attention"] = att
-    doc["exclusions"] = {"audio_check": True, "attention_max_fail": 0, "straightline": True,
+    doc["exclusions"] = {"audio_check": True, "attention_max_fail": 0, "straightline": True, "complete": True,
                          **(doc.get("exclusions") or {})}
     doc.setdefault("consent", "<p>Do you agree to take part?</p>")
     ins = doc.setdefault("instructions", [])
