@@ -195,7 +195,8 @@ class Session:
     outputs : list of str
         Output groups to write or stream as well (``files``, ``gltf``, ``vmc``, ``viewer``...); none by default.
     out_dir : path or None
-        Where outputs and ``metrics.json`` go (a new temporary folder, removed at :meth:`close`, when None).
+        Where outputs and ``metrics.json`` go (a new temporary folder, removed at :meth:`close`, when None: then
+        only the streaming outputs, ``vmc`` and ``viewer``, may be asked for; a file-writing one needs ``out_dir``).
     calibration_s : float
         The rms extractor's calibration phase at the start (s; van Duijn 2014, 3.1.1): 0, as for a file.
     overwrite : bool
@@ -251,6 +252,10 @@ class Session:
                                     "choose another out_dir or pass overwrite=True")
         pipe = pipeline.build(cfg)
         pipe.source.close()
+        writers = [s.name for s in pipe.sinks if not getattr(s, "streaming", False)]
+        if out_dir is None and writers:   # they went to a temporary folder, gone at close() (a game dev's review)
+            raise LaughlabError(f"outputs={out!r} writes files ({', '.join(writers)}): give out_dir=PATH, or they "
+                                "would go to a temporary folder removed at close()")
         for sink in pipe.sinks:   # a VMC host that does not resolve: said here, not at the first feed (a review)
             getattr(sink, "check_host", lambda: None)()
         if getattr(pipe.scheduler, "offline_plan", False):

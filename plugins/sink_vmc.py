@@ -26,6 +26,10 @@ from laughlab.io.vmc import (DEFAULT_PORT, VRM_PRESETS, BoneMap, VmcEncoder, Vmc
 from laughlab.motion.skeleton import rest_pose
 
 
+#: frames in a row, each less than half a frame after the one before, that make a burst (:meth:`VmcSink.write`)
+BURST = 8
+
+
 @dataclass
 class VmcParams:
     """Parameters of the ``vmc`` sink.
@@ -61,6 +65,9 @@ class VmcParams:
         When the stream ends (the input's end, Ctrl-C, a failure) send one more frame at rest: every
         blendshape sent at 0 and the neutral standing pose (arms down), then ``Blend/Apply``.  Receivers (VSeeFace,
         Warudo, EVMC4U) keep the last values they got, so without it the avatar stays frozen mid-laugh.
+    rest_blend_s : float
+        Before that frame, go back to it over this long (s) from the last frame sent, pose and blendshapes linearly,
+        a frame every 1/fps (0: the rest frame at once, which a game showed as a pop: a game developer's review).
     """
 
     host: str = "127.0.0.1"
@@ -72,6 +79,7 @@ class VmcParams:
     vrm_presets: bool = False
     report: bool = True
     rest_on_stop: bool = True
+    rest_blend_s: float = 0.25
     character: Optional[str] = None
 
     def __post_init__(self) -> None:
@@ -79,6 +87,7 @@ class VmcParams:
             raise ValueError("host must not be empty")
         _check_host(self.host)
         check_range("port", self.port, 1, 65535)
+        check_range("rest_blend_s", self.rest_blend_s, 0, 5)
         if self.realtime not in ("auto", "on", "off"):
             raise ValueError(f"realtime must be auto, on or off (got {self.realtime!r})")
         if self.max_packet_bytes != 0:
@@ -160,6 +169,9 @@ class VmcSink(Sink):
         self._names: dict[str, str] = {}
         self._sent: dict[str, None] = {}   # the blendshape names sent, in order (the rest frame zeroes them)
         self._t = 0.0                       # the time of the last frame sent (s)
+        self._last: tuple | None = None     # the last frame's pose (BVH channels) and blendshapes, for the rest blend
+        self._sent_ns = None                # when the last frame left, and the frames that left in bursts
+        self.early = self._in_row = 0
         self._stopped = self._rested = False
         self._summary: dict | None = None
 
@@ -194,11 +206,20 @@ class VmcSink(Sink):
                 captured = int(capture[i]) if capture is not None else None
             msgs = self.encoder.messages(float(chunk.times[i]), pos[i], rot[i], zip(names, values[i]))
             self.sender.send(self.encoder.packets(msgs))
+            now = clock()
+            # a burst: 8 or more frames in a row, each less than half a frame after the one before; UDP receivers
+            # drop what comes faster than they read (a Session fed a whole file lost 130 of 336 frames with no
+            # datagram dropped here: a game developer's review); a microphone's block of two frames is no burst
+            early = self._sent_ns is not None and now - self._sent_ns < 5e8 / self.run.fps
+            self._in_row = self._in_row + 1 if early else 0
+            self.early += BURST if self._in_row == BURST else self._in_row > BURST
+            self._sent_ns = now
             self._t = float(chunk.times[i])
             if captured is not None:
                 self.lat_ms.values.append((clock() - captured) / 1e6)
             self.n += 1
         self.lat_ms.settle()
+        self._last = (np.nan_to_num(np.asarray(chunk.poses[-1], dtype=np.float64)), names, values[-1])
 
     def _finish(self) -> None:
         if self._stopped:   # abort() after close()
@@ -216,9 +237,22 @@ class VmcSink(Sink):
         and ends at (the idle clip's first frame: arms down, hips 95 cm up), Blend/Apply.  It was the skeleton's
         T-pose (``rest_pose``), so every receiver's avatar ended a session with its arms straight out (a game
         developer's review); a pose of zeros had put the hips on the floor (diff-review 12)."""
-        pos, rot = self.bones.local(self._neutral()[None])
-        msgs = self.encoder.messages(self._t + 1.0 / self.run.fps, pos[0], rot[0], ((k, 0.0) for k in self._sent))
+        fps, neutral = self.run.fps, self._neutral()
+        steps = int(round(self.params.rest_blend_s * fps)) if self._last is not None else 0
+        for j in range(1, steps + 1):   # from the last frame towards rest, paced at the frame clock
+            w = j / (steps + 1)
+            last, names, values = self._last
+            pos, rot = self.bones.local((last + w * (neutral - last))[None])
+            msgs = self.encoder.messages(self._t + j / fps, pos[0], rot[0],
+                                         ((k, (1.0 - w) * v) for k, v in zip(names, values)))
+            time.sleep(1.0 / fps)
+            self.sender.send(self.encoder.packets(msgs), strict=False)
+        pos, rot = self.bones.local(neutral[None])
+        msgs = self.encoder.messages(self._t + (steps + 1) / fps, pos[0], rot[0], ((k, 0.0) for k in self._sent))
+        if steps:
+            time.sleep(1.0 / fps)
         self.sender.send(self.encoder.packets(msgs), strict=False)   # its error warned of: the frames went out
+        self.rest_frames = steps + 1
 
     def _neutral(self) -> np.ndarray:
         """The pose the character stands in at rest: the idle clip at its start (the run's clip library, which
@@ -235,7 +269,8 @@ class VmcSink(Sink):
     def metrics(self) -> dict:
         """Frames sent and the capture-to-send latency (ms) for ``metrics.json``."""
         s = self._summary or self._latency()
-        out = {"vmc_frames": int(self.n), "vmc_dropped_datagrams": int(self.sender.dropped)}
+        out = {"vmc_frames": int(self.n), "vmc_dropped_datagrams": int(self.sender.dropped),
+               "vmc_early_frames": int(self.early)}
         for key in ("p50", "p90", "p99", "max"):  # None (JSON null) when nothing was measured
             out[f"vmc_latency_ms_{key}"] = s[key] if s["n"] else None
         return out
@@ -248,9 +283,14 @@ class VmcSink(Sink):
             how = "paced at the frame clock" if self.paced else \
                 ("live" if self.live else "not paced: as fast as computed")
             dropped = f", {self.sender.dropped} datagrams dropped" if self.sender.dropped else ""
+            if self.early > self.run.fps:   # more than a second's frames in bursts
+                dropped += (f"; {self.early} frames left in bursts, faster than the frame clock: a receiver may drop "
+                            "frames that come faster than it reads (realtime=on paces a file; feed a Session a block a "
+                            "frame)")
             try:
                 # the rest frame counted apart: a receiver counts one message more than the frames (a review)
-                rest = " and a rest frame" if self._rested else ""
+                rest = ("" if not self._rested else " and a rest frame" if self.rest_frames == 1 else
+                        f" and {self.rest_frames} frames back to rest")
                 print(f"vmc: {self.n} frame{'' if self.n == 1 else 's'}{rest} to {self.params.host}:{self.params.port} ({how}{dropped}); latency "
                       f"audio block -> OSC send: median {s['p50']:.2f} ms, p90 {s['p90']:.2f} ms, max "
                       f"{s['max']:.2f} ms", file=sys.stdout, flush=True)

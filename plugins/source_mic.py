@@ -111,8 +111,14 @@ class MicSource(Source):
                 raise LaughlabError(f"{which} cannot record at input.sample_rate={self.params.sample_rate} "
                                     f"({cause}): {fix}") from None
             which = "no default audio input device" if device is None else f"input.device={device!r} cannot record"
-            raise LaughlabError(f"no usable microphone: {which} ({cause}); connect one, or name "
-                                "it with input.device=NAME_OR_INDEX (python -m sounddevice lists them)") from None
+            try:   # none at all: 'python -m sounddevice lists them' printed an empty line (a game developer's review)
+                inputs = [d for d in sd.query_devices() if d.get("max_input_channels", 0) > 0]
+            except Exception:
+                inputs = None
+            how = ("this machine has no audio input device (PortAudio finds none): connect a microphone, or stream "
+                   "a recording with input=file input.path=LAUGH.wav" if inputs == [] else
+                   "connect one, or name it with input.device=NAME_OR_INDEX (python -m sounddevice lists them)")
+            raise LaughlabError(f"no usable microphone: {which} ({cause}); {how}") from None
         self._sd, self._device = sd, device
         self.sample_rate = self.params.sample_rate
         d = self.params.duration_s

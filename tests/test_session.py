@@ -257,6 +257,17 @@ def test_a_session_dropped_unclosed_is_collected_and_its_thread_ends():
     assert "laughlab-session" not in [t.name for t in threading.enumerate()]
 
 
+def test_file_outputs_without_out_dir_are_refused_streams_are_not():
+    """A game developer's review: Session(..., outputs=["files"]) with no out_dir wrote into a temporary folder and
+    removed it at close(), so the files asked for were never there; now one line asks for out_dir."""
+    for outputs in (["files"], ["gltf"], ["files", "vmc"]):
+        with pytest.raises(LaughlabError, match=r"^outputs=\[.*\] writes files \(.*\): give out_dir=PATH, or they "
+                                                r"would go to a temporary folder removed at close\(\)$"):
+            Session(["detector=none"], sample_rate=16000, outputs=outputs)
+    with Session(["detector=none"], sample_rate=16000, outputs=["vmc"]) as s:   # a stream: nothing to keep
+        assert len(s.feed(np.zeros(1600, np.float32))) == 6
+
+
 def test_streaming_outputs_go_at_the_pace_the_program_feeds():
     """outputs=["viewer"] held the first feed until a browser page opened (a game's loop stood still), and
     ["vmc"] slept each feed to the frame clock: the program feeding the samples sets the pace."""

@@ -108,13 +108,24 @@ def test_microphone_without_sounddevice_says_the_install_command_for_this_instal
         _build_mic()
 
 
+class NoDevice:
+    """sounddevice on a machine where PortAudio has no default input; ``devices``: what query_devices lists (None:
+    a sounddevice that cannot list them)."""
+    def __init__(self, devices=None):
+        self.devices = devices
+
+    def check_input_settings(self, **kw):
+        raise Exception("Error querying device -1")
+
+    def query_devices(self):
+        if self.devices is None:
+            raise Exception("cannot list")
+        return self.devices
+
+
 def test_microphone_without_an_input_device_says_how_to_choose_one(monkeypatch):
     """A review: 'no usable microphone: Error querying device -1' (PortAudio's words) said neither what was wrong
     nor what to do."""
-    class NoDevice:
-        def check_input_settings(self, **kw):
-            raise Exception("Error querying device -1")
-
     monkeypatch.setitem(sys.modules, "sounddevice", NoDevice())
     with pytest.raises(LaughlabError) as e:
         _build_mic()
@@ -123,6 +134,18 @@ def test_microphone_without_an_input_device_says_how_to_choose_one(monkeypatch):
                             "them)")
     with pytest.raises(LaughlabError, match=r"^no usable microphone: input.device=3 cannot record \(Error "):
         _build_mic("input.device=3")
+
+
+def test_a_machine_with_no_audio_input_at_all_is_told_so(monkeypatch):
+    """A game developer's review: on a machine without a sound card the hint 'python -m sounddevice lists them'
+    printed an empty line; PortAudio finding no input device at all is said, with a recording as the way on."""
+    monkeypatch.setitem(sys.modules, "sounddevice",
+                        NoDevice([{"name": "HDMI", "max_input_channels": 0, "max_output_channels": 2}]))
+    with pytest.raises(LaughlabError) as e:
+        _build_mic()
+    assert str(e.value) == ("no usable microphone: no default audio input device (Error querying device -1); this "
+                            "machine has no audio input device (PortAudio finds none): connect a microphone, or "
+                            "stream a recording with input=file input.path=LAUGH.wav")
 
 
 def test_a_microphone_that_cannot_record_at_the_rate_says_the_rate_it_can(monkeypatch):

@@ -396,7 +396,8 @@ def test_the_stream_ends_with_one_frame_at_rest(tmp_path, how):
     Now the input's end, or a failure, sends one frame at rest after the last: the blendshapes sent at 0, the
     skeleton's rest pose, Blend/Apply last."""
     with Receiver() as rx:
-        pipe = pipeline.build(config(rx.port, "input.duration_s=0.5", "face=facs", realtime="off", rest_on_stop=True))
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.5", "face=facs", realtime="off", rest_on_stop=True,
+                                     rest_blend_s=0))   # the rest frame at once (the blend to it: the test below)
         if how == "failure":
             step = pipe.face.step
 
@@ -441,6 +442,35 @@ def test_the_stream_ends_with_one_frame_at_rest(tmp_path, how):
     assert times[-1] == pytest.approx(times[-2] + 1 / 30)
 
 
+def test_the_stream_returns_to_rest_over_rest_blend_s_paced(tmp_path, capsys):
+    """A game developer's review: the rest frame came in one frame after the last, hips from 0.715 to 0.95 m and a
+    29 degree turn undone at once, a pop in the game. Now the pose and the blendshapes go linearly from the last
+    frame to rest over rest_blend_s (0.25 s: 7.5 -> 8 frames at 30 fps), a frame every 1/fps, then the rest frame."""
+    import time
+
+    with Receiver() as rx:
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.5", "face=facs", realtime="off", rest_on_stop=True,
+                                     rest_blend_s=0.25))
+        t0 = time.perf_counter()
+        pipeline.execute(pipe, tmp_path, {})
+        took = time.perf_counter() - t0
+        rx.drain()
+    frames = rx.frames()
+    assert len(frames) == 15 + 8 + 1
+    check_frames(frames, 20)
+    blend = [{m[2][0]: m[2][1] for m in f if m[1] == "/VMC/Ext/Blend/Val"} for f in frames[14:]]
+    key = max(blend[0], key=blend[0].get)   # the blendshape highest at the last frame: down in equal steps to 0
+    assert blend[0][key] > 0.1 and blend[-1][key] == 0.0
+    np.testing.assert_allclose([b[key] for b in blend], blend[0][key] * (1 - np.arange(10) / 9), atol=1e-6)
+    hips = [next(m[2][2] for m in f if m[1] == "/VMC/Ext/Bone/Pos" and m[2][0] == "Hips") for f in frames[14:]]
+    np.testing.assert_allclose(np.diff(hips), (hips[-1] - hips[0]) / 9, atol=1e-6)   # linear, to the rest height
+    assert hips[-1] == pytest.approx(0.95, abs=1e-6)
+    times = [m[2][0] for f in frames for m in f if m[1] == "/VMC/Ext/T"]
+    np.testing.assert_allclose(np.diff(times[14:]), 1 / 30, atol=1e-6)
+    assert took >= 9 / 30   # paced: a burst of them would be lost by a receiver that reads slower
+    assert f"vmc: 15 frames and 9 frames back to rest to 127.0.0.1:{rx.port} (not paced" in capsys.readouterr().out
+
+
 def test_rest_on_stop_false_sends_the_frames_only(tmp_path):
     with Receiver() as rx:
         pipeline.execute(pipeline.build(config(rx.port, "input.duration_s=0.5", realtime="off", rest_on_stop=False)),
@@ -455,7 +485,8 @@ def test_the_rest_frame_goes_out_before_the_files_are_written_and_is_said(tmp_pa
     streaming sink closes first (the csv is listed before it here), and its line names the rest frame."""
     closed = []
     with Receiver() as rx:
-        pipe = pipeline.build(config(rx.port, "input.duration_s=0.5", realtime="off", rest_on_stop=True))
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.5", realtime="off", rest_on_stop=True,
+                                     rest_blend_s=0))
         assert [s.name for s in pipe.sinks] == ["csv", "vmc"]
         for sink in pipe.sinks:
             def logged(close=sink.close, name=sink.name):
@@ -516,7 +547,7 @@ def test_the_closing_line_of_one_frame_says_frame(tmp_path, capsys):
     cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
     (tmp_path / "run").mkdir()
     pipeline.execute(pipeline.build(cfg), tmp_path / "run")
-    assert "vmc: 1 frame and a rest frame to 127.0.0.1:39599 (not paced" in capsys.readouterr().out
+    assert "vmc: 1 frame and 16 frames back to rest to 127.0.0.1:39599 (not paced" in capsys.readouterr().out
 
 
 GODETTE = Path(__file__).parent / "assets" / "avatars" / "Godette_vrm_v4.vrm"
@@ -580,3 +611,22 @@ def test_character_goes_to_the_stream_and_a_bad_one_stops_the_run_in_one_line(tm
     cfg.character = str(tmp_path / "nobody.vrm")
     with pytest.raises(LaughlabError, match="nobody.vrm"):
         pipeline.build(cfg)
+
+
+def test_frames_sent_in_a_burst_are_counted_and_said(tmp_path, capsys):
+    """A game developer's review: output.vmc.realtime=off (and a Session fed a whole file) sent hundreds of frames at
+    once; the receiver got 343 of 409 (206 of 336) while the sink said 0 datagrams dropped. Such bursts (8 or more
+    frames in a row, each less than half a frame after the one before) are counted in metrics.json
+    (vmc_early_frames) and, beyond a second's frames, said in the closing line; a paced stream has none."""
+    with Receiver() as rx:
+        pipe = pipeline.build(config(rx.port, "input.duration_s=2.0", realtime="off", rest_on_stop=False))
+        pipeline.execute(pipe, tmp_path / "a", {})
+        fast = next(s for s in pipe.sinks if s.name == "vmc").metrics()
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.5", realtime="on", rest_on_stop=False))
+        pipeline.execute(pipe, tmp_path / "b", {})
+        paced = next(s for s in pipe.sinks if s.name == "vmc").metrics()
+        rx.drain()
+    assert fast["vmc_frames"] == 60 and fast["vmc_early_frames"] > 30 and paced["vmc_early_frames"] == 0
+    out = capsys.readouterr().out.splitlines()
+    assert "frames left in bursts, faster than the frame clock: a receiver may drop" in out[0]
+    assert "burst" not in out[1]
