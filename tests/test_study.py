@@ -982,3 +982,14 @@ def test_analyzing_a_database_no_participant_has_made_yet_names_what_is_beside_i
     out = fuzz.run_cli(["study", "analyze", str(tmp_path / "elsewhere" / "responses.sqlite")])
     assert out.code == 2 and out.stderr.endswith("responses.sqlite\n")
     assert not (tmp_path / "study" / "responses-report").exists()
+
+
+def test_a_reports_tidy_csv_given_back_as_answers_says_what_it_is(tmp_path):
+    """A study researcher's review: a report's tidy.csv analysed again said only 'no ratings are left after the
+    exclusions (12 participants excluded: no audio check stored: 12)'; tidy.csv holds the ratings alone."""
+    shutil.copy(Path(__file__).resolve().parents[1] / "reports" / "study_demo" / "tidy.csv", tmp_path / "tidy.csv")
+    out = fuzz.run_cli(["study", "analyze", str(tmp_path / "tidy.csv"), "--out", str(tmp_path / "rep")])
+    assert out.code == 2 and out.stderr == (
+        "laughlab: error: no ratings are left after the exclusions (12 participants excluded: no audio check stored: "
+        "12); these answers have no audio-check or attention rows, as a report's tidy.csv (its ratings only): analyze "
+        "the database or the participants' answer files\n") and not (tmp_path / "rep").exists()

@@ -323,10 +323,14 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
     excluded = exclusions(df, rules, slider, expected_counts(design, df))
     ratings = df[(df["kind"] == "rating") & df["value"].notna()]
     tidy = ratings[~ratings["participant"].astype(int).isin(excluded)].reset_index(drop=True)
-    if tidy.empty:
+    if tidy.empty:   # a report's tidy.csv given back as answers has ratings only (a study researcher's review)
+        tidy_csv = not df["kind"].isin(["audio_check", "attention"]).any() and rules.get("audio_check", True)
         raise LaughlabError(f"no ratings are left after the exclusions ({len(excluded)} "
                             f"participant{'' if len(excluded) == 1 else 's'} excluded: "
-                            f"{reason_counts(excluded)})")
+                            f"{reason_counts(excluded)})" + (
+                                "; these answers have no audio-check or attention rows, as a report's tidy.csv (its "
+                                "ratings only): analyze the database or the participants' answer files" if tidy_csv
+                                else ""))
     questions = [q for q in questions if q in set(tidy["question"])]
     means = condition_means(tidy, conditions, questions)
     fixed, variances, cons, notes, warned = [], [], [], {}, {}
