@@ -52,3 +52,34 @@ def test_a_run_with_clips_or_without_a_scheduler_or_a_blip_says_nothing(tmp_path
 
 def _column(run, name) -> int:
     return (run / "channels.csv").read_text().splitlines()[0].split(",").index(name)
+
+
+def test_energy_and_gate_that_never_met_are_said_apart():
+    """An animator's review: a real laugh (ovos' Evil_Laugh_Male_6, 48 kHz) under the default pipeline started no
+    clip and the run said nothing: the gate had opened (after the laugh) and the energy had peaked at 12 (while the
+    gate was shut), so neither reason held. The third one: they never met on a frame."""
+    from types import SimpleNamespace
+
+    from laughlab.core.recorder import Recorder
+    from laughlab.core.summary import no_clip_text
+
+    sch = SimpleNamespace(name="energy", actions=[SimpleNamespace(energy=5.0), SimpleNamespace(energy=10.0)])
+    rec = Recorder(0, 0)
+    rec._tally({"clip_gate": np.array([0.0, 0.0, 0.2, 1.0, 1.0]), "energy": np.array([3.0, 12.4, 8.0, 0.2, 0.1])})
+    m = rec.no_clip(sch)
+    assert m == {"no_clip": "apart", "energy_peak": 12.4, "energy_allowed_peak": 0.2, "mildest_clip_energy": 5.0}
+    assert no_clip_text(m) == (" (no full-body clip: the laughing energy peaked at 12.4 while the laughter detector "
+                               "held clips back, and reached 0.2 while it allowed them, under the mildest clip's 5)")
+    rec._tally({"clip_gate": np.array([0.6]), "energy": np.array([5.0])})   # they meet once: no reason to give
+    assert rec.no_clip(sch) == {}
+
+
+def test_the_reviews_real_laugh_says_why(tmp_path):
+    from laughlab.corpora.fetch import corpus_dir
+
+    laugh = corpus_dir() / "files" / "ovos" / "male-Evil_Laugh_Male_6-Himan-1359990674.wav"
+    if not laugh.exists():
+        pytest.skip("the corpus is not fetched (make corpus)")
+    out, m = _run(tmp_path, "evil", "input=file", f"input.path={laugh}")
+    assert m["no_clip"] == "apart" and m["energy_peak"] > 5 > m["energy_allowed_peak"], m
+    assert "while the laughter detector held clips back" in out

@@ -22,8 +22,8 @@ class Recorder:
         self.keys: tuple | None = None
         self.writers: dict = {}   # channel -> the stages that wrote it on the first frame (pipeline.first_frame)
         self.done = 0  # frames handed out in earlier chunks
-        # over the run: clip starts, the largest clip_gate and energy (:meth:`no_clip`)
-        self.starts, self.gate_max, self.energy_max = 0, None, 0.0
+        # over the run: clip starts, the largest clip_gate and energy, the energy while clips were allowed (no_clip)
+        self.starts, self.gate_max, self.energy_max, self.energy_allowed_max = 0, None, 0.0, 0.0
         self._reset()
 
     def _reset(self) -> None:
@@ -87,13 +87,19 @@ class Recorder:
             self.gate_max = max(self.gate_max or 0.0, float(vals["clip_gate"].max()))
         if len(vals.get("energy", ())):
             self.energy_max = max(self.energy_max, float(vals["energy"].max()))
+            allowed = vals["energy"][vals["clip_gate"] >= 0.5] if len(vals.get("clip_gate", ())) else vals["energy"]
+            if len(allowed):
+                self.energy_allowed_max = max(self.energy_allowed_max, float(allowed.max()))
 
     def no_clip(self, scheduler) -> dict:
         """Why a run with a scheduler started no full-body clip, for ``metrics.json`` and the run's line (a
         review: a real laugh under the default detector, or under ``body=hill``, played none, and nothing said
         why): ``no_clip`` ``"gate"`` (a detector's ``clip_gate`` never reached 0.5,
         :func:`laughlab.detector.model.clip_allowed`) or ``"energy"`` (the laughing energy peaked under the
-        mildest clip's e(a): ``energy_peak``, ``mildest_clip_energy``); empty otherwise."""
+        mildest clip's e(a): ``energy_peak``, ``mildest_clip_energy``) or ``"apart"`` (both reached theirs, but the
+        energy stayed under e(a) on every frame the gate allowed clips: ``energy_allowed_peak`` too; an animator's
+        review: a real laugh's energy peaked at 12 while the gate was shut, and the run said nothing); empty
+        otherwise."""
         if self.starts or getattr(scheduler, "name", "none") == "none":
             return {}
         if self.gate_max is not None and self.gate_max < 0.5:
@@ -101,4 +107,7 @@ class Recorder:
         mildest = min((float(a.energy) for a in getattr(scheduler, "actions", ())), default=None)
         if mildest is not None and self.energy_max < mildest:
             return {"no_clip": "energy", "energy_peak": self.energy_max, "mildest_clip_energy": mildest}
+        if mildest is not None and self.gate_max is not None and self.energy_allowed_max < mildest:
+            return {"no_clip": "apart", "energy_peak": self.energy_max, "energy_allowed_peak": self.energy_allowed_max,
+                    "mildest_clip_energy": mildest}
         return {}

@@ -87,6 +87,10 @@ def no_clip_text(metrics: dict) -> str:
     if why == "energy" and float(metrics.get("duration_s") or 0) >= 1.0:   # a blip is not expected to start one
         return (f" (no full-body clip: the laughing energy peaked at {metrics['energy_peak']:.1f}, under the mildest "
                 f"clip's {metrics['mildest_clip_energy']:g})")
+    if why == "apart":
+        return (f" (no full-body clip: the laughing energy peaked at {metrics['energy_peak']:.1f} while the laughter "
+                f"detector held clips back, and reached {metrics['energy_allowed_peak']:.1f} while it allowed them, "
+                f"under the mildest clip's {metrics['mildest_clip_energy']:g})")
     return ""
 
 
