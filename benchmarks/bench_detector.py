@@ -268,7 +268,8 @@ def tts_sets(work: Path) -> dict[str, Path]:
             "espeak_sentence": ("espeak-ng", [(None, SENTENCE)])}
     out = {}
     for name, (prog, items) in jobs.items():
-        if not shutil.which(prog):
+        if not shutil.which(prog):   # said, not a row gone without a word (a docs review)
+            print(f"note: {prog} is not installed, so no {name} row (Debian: apt-get install {prog})", file=sys.stderr)
             continue
         parts = []
         for i, (voice, text) in enumerate(items):

@@ -168,7 +168,8 @@ def test_one_arkit_named_morph_does_not_switch_off_the_vrm_expressions(tmp_path)
 @pytest.mark.parametrize("edit, says", [
     # said before the run's face gives anything: laughlab's faces together (a review read it as the run's own count)
     (None, "face: up to 11 of 15 morphs of {name} driven by laughlab's faces together (this run's face: counted in "
-           "character.glb's scenes[0].extras.laughlab.face, and for a video in metrics.json), through the VRM expressions aa, ih, ee, happy, relaxed, sad, angry, "
+           "metrics.json for a video, in character.glb's scenes[0].extras.laughlab.face for output=gltf), through the "
+           "VRM expressions aa, ih, ee, happy, relaxed, sad, angry, "
            "blinkLeft, blinkRight"),
     (lambda d: d["extensions"]["VRM"]["blendShapeMaster"].update(blendShapeGroups=[]),
      "face: 0 of 15 morphs of {name} driven: no ARKit-named morph and no VRM expression laughlab maps"),

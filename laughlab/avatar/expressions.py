@@ -224,8 +224,8 @@ def face_route(avatar: Avatar, channels=FACE_MORPHS) -> dict:
     # character.glb and metrics.json count (a review read "11 of 15" as the run's, against the files' 9)
     up_to = "up to " if set(channels) == set(FACE_MORPHS) and n else ""
     # where the run's own count is (a review looked for it in a gltf run's metrics.json, which has it for a video)
-    by = (" by laughlab's faces together (this run's face: counted in character.glb's scenes[0].extras.laughlab.face, "
-          "and for a video in metrics.json)" if up_to else "")
+    by = (" by laughlab's faces together (this run's face: counted in metrics.json for a video, in character.glb's "
+          "scenes[0].extras.laughlab.face for output=gltf)" if up_to else "")
     line = (f"face: {up_to}{n} of {total} morphs of {avatar.path.name} driven{by}, through {' and '.join(how)}"
             if how else
             f"face: {avatar.path.name} has no morph targets, so its face will not move" if not total else
