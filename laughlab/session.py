@@ -271,10 +271,16 @@ class Session:
         self._closed = self._fed = False
         self._lock = threading.Lock()
         src, tmp, out_dir = self._src, self._tmp, self.out_dir
+        from laughlab.harness.results import provenance
+
+        # what made the folder, as a command's metrics.json says it (a reproducibility review: a Session's had no
+        # commit, versions or CPU family), and the session's own arguments
+        made = {"provenance": {**provenance(None), "session": {"overrides": overrides, "sample_rate": int(sample_rate),
+                                                              "outputs": out}}}
 
         def run() -> None:   # holds no reference to the session: an unclosed one is still collected
             try:
-                state.metrics = pipeline.execute(pipe, out_dir)
+                state.metrics = pipeline.execute(pipe, out_dir, None, made)
             except BaseException as exc:   # handed to the caller's thread by feed() or close()
                 state.error = exc
             finally:

@@ -658,7 +658,7 @@ def test_a_single_run_records_what_made_it(tmp_path):
     r = laughlab("input=file", f"input.path={wav}", "~output.plots", f"hydra.run.dir={tmp_path / 'run'}")
     assert r.returncode == 0, r.stderr
     made = json.loads((tmp_path / "run" / "metrics.json").read_text())["provenance"]
-    assert made == {"git_hash": git_hash(), "versions": versions(),
+    assert made == {"git_hash": git_hash(), "versions": versions(), "input_path": str(wav.resolve()),
                     "input_sha256": hashlib.sha256(wav.read_bytes()).hexdigest()}
     r = laughlab("input.duration_s=1", "~output.plots", f"hydra.run.dir={tmp_path / 'synth'}")
     assert json.loads((tmp_path / "synth" / "metrics.json").read_text())["provenance"]["input_sha256"] is None

@@ -354,3 +354,27 @@ def test_a_vmc_host_that_does_not_resolve_is_said_when_the_session_is_made():
     """An API user's review: output.vmc.host=no.such.host.invalid was raised only by the first feed."""
     with pytest.raises(LaughlabError, match=r"^output.vmc: cannot reach host 'no-such-host.invalid': "):
         Session(["detector=none", "output.vmc.host=no-such-host.invalid"], sample_rate=16000, outputs=["vmc"])
+
+
+def test_a_sessions_metrics_say_what_made_them(tmp_path):
+    """A reproducibility review: a Session's metrics.json had no commit, versions or CPU family (a command's has
+    them), nor the session's own arguments; a command's records its input's absolute path too (with
+    hydra.job.chdir=true its .hydra/config.yaml keeps '../a44.wav', which does not lead there from the run)."""
+    import json
+
+    import soundfile as sf
+
+    with Session(["detector=none", "~output.plots"], sample_rate=16000, outputs=["files"], out_dir=tmp_path / "s") as s:
+        s.feed(np.zeros(3200, np.float32))
+    made = json.loads((tmp_path / "s" / "metrics.json").read_text())["provenance"]
+    assert made["session"] == {"overrides": ["detector=none", "~output.plots"], "sample_rate": 16000,
+                               "outputs": ["files"]}
+    assert made["input_path"] is None and made["input_sha256"] is None and "cpu_family" in made["versions"]
+    assert set(made) >= {"git_hash", "versions"}
+    sf.write(tmp_path / "a.wav", np.zeros(1600, np.float32), 16000)
+    (tmp_path / "cwd").mkdir()
+    r = laughlab("input=file", "input.path=../a.wav", "detector=none", "~output.plots", "hydra.job.chdir=true",
+                 f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path / "cwd")
+    assert r.returncode == 0, r.stderr
+    made = json.loads((tmp_path / "run" / "metrics.json").read_text())["provenance"]
+    assert made["input_path"] == str((tmp_path / "a.wav").resolve()) and len(made["input_sha256"]) == 64

@@ -140,11 +140,14 @@ def versions() -> dict:
 
 def provenance(input_path: str | None = None) -> dict:
     """What a single run's ``metrics.json`` records to be made again: laughlab's commit and the versions (as an
-    experiment's ``results.json``), and the sha256 of the input file (None for synthetic or live input)."""
+    experiment's ``results.json``), and the input file's absolute path and sha256 (None for synthetic or live
+    input; a reproducibility review: with ``hydra.job.chdir=true`` the run's ``.hydra/config.yaml`` keeps the path as
+    given, ``../a44.wav``, which does not lead to it from the run folder)."""
     from laughlab.core.outfiles import file_sha256
 
     digest = file_sha256(input_path) if input_path else None
-    return {"git_hash": git_hash(), "versions": versions(), "input_sha256": digest}
+    where = str(Path(input_path).expanduser().resolve()) if input_path else None
+    return {"git_hash": git_hash(), "versions": versions(), "input_path": where, "input_sha256": digest}
 
 
 def plugin_origins() -> dict:
