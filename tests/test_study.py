@@ -993,3 +993,47 @@ def test_a_reports_tidy_csv_given_back_as_answers_says_what_it_is(tmp_path):
         "laughlab: error: no ratings are left after the exclusions (12 participants excluded: no audio check stored: "
         "12); these answers have no audio-check or attention rows, as a report's tidy.csv (its ratings only): analyze "
         "the database or the participants' answer files\n") and not (tmp_path / "rep").exists()
+
+
+def test_a_folder_with_the_servers_database_and_downloaded_answers_reads_both_once(study, tmp_path):
+    """A study-server review: a participant whose last answer did not reach the server downloaded their file; a folder
+    of that file and the server's responses.sqlite was analysed from the file alone, the database skipped unsaid.
+    Both are read now, an answer in both counted once; study simulate's database is never mixed with people's."""
+    import csv as _csv
+
+    from laughlab.study import db as DB
+    from laughlab.study.answers import load
+
+    d = design_of(study)
+    rows = []
+    for p in (1, 2):
+        e = d["participants"][str(p)]
+        rows.append({"participant": p, "order_row": e["order_row"], "trial": 0, "stimulus": "", "condition": "",
+                     "audio_id": "", "kind": "audio_check", "question": "audio_check", "value": 1.0, "text": "hat",
+                     "received_at": DB.utc_now(), "session": f"s{p}"})
+        for t, trial in enumerate(e["trials"], 1):
+            for k, q in enumerate([q["id"] for q in d["questions"]] + (["attention"] if trial["attention"] else [])):
+                rows.append({"participant": p, "order_row": e["order_row"], "trial": t, "stimulus": trial["stimulus"],
+                             "condition": trial["condition"], "audio_id": trial["audio_id"],
+                             "kind": "attention" if q == "attention" else "rating", "question": q,
+                             "value": float(d["attention"]["value"]) if q == "attention" else float(1 + (t + k) % 7),
+                             "expected": float(d["attention"]["value"]) if q == "attention" else None, "text": "",
+                             "received_at": DB.utc_now(), "session": f"s{p}"})
+    folder = tmp_path / "merge"
+    folder.mkdir()
+    people = DB.open_db(folder / "responses.sqlite", d, "people")
+    last = len(d["participants"]["1"]["trials"])
+    DB.insert_answers(people, [r for r in rows if not (r["participant"] == 1 and r["trial"] == last)])   # lost
+    with open(folder / "participant_001_answers.csv", "w", newline="") as f:   # the download: all of participant 1
+        w = _csv.DictWriter(f, fieldnames=list(DB.COLUMNS))
+        w.writeheader()
+        for r in rows:
+            if r["participant"] == 1:
+                w.writerow({c: r.get(c) for c in DB.COLUMNS})
+    df, got = load(folder)
+    assert len(df) == len(rows) and got["id"] == d["id"]   # every answer once, the lost trial from the file
+    assert len(df[(df["participant"] == 1) & (df["trial"] == last)]) >= len(d["questions"])
+    DB.open_db(folder / "simulated.sqlite", d, "simulated")
+    out = fuzz.run_cli(["study", "analyze", str(folder), "--out", str(tmp_path / "rep")])
+    assert out.code == 2 and out.stderr == (f"laughlab: error: {folder} holds study simulate's simulated.sqlite beside "
+                                            "answer files: move it out, or analyze it on its own\n")

@@ -42,23 +42,25 @@ def load(source, design_dir=None):
     design = load_design(Path(design_dir).expanduser()) if design_dir is not None else None
     if source.is_dir():
         files = sorted(source.glob("*.csv"))
+        dbs = sorted(source.glob("*.sqlite"))
         if not files:   # a study folder holds its answers in a database: name it (a new-user review)
-            dbs = sorted(p.name for p in source.glob("*.sqlite"))
             raise LaughlabError(f"{source} holds no .csv files of answers" + (
-                f"; its answers are in {' and '.join(dbs)}: python -m laughlab study analyze {shlex.quote(str(source / dbs[0]))}"
-                if dbs else ""))
-        rows = [r for f in files for r in read_csv(f, design)]
+                f"; its answers are in {' and '.join(d.name for d in dbs)}: python -m laughlab study analyze "
+                f"{shlex.quote(str(dbs[0]))}" if dbs else ""))
+        # a database beside the files is read with them (a study-server review: a participant's downloaded file
+        # beside the server's database was analysed alone, the database skipped unsaid); an answer in both counts once
+        simulated = [db.name for db in dbs if DB.participants_kind(db) == "simulated"]
+        if simulated:   # simulated participants are never mixed with people's answers
+            raise LaughlabError(f"{source} holds study simulate's {', '.join(simulated)} beside answer files: move it "
+                                "out, or analyze it on its own")
+        rows = [r for db in dbs for r in _database_rows(db, design, design_dir)]
+        design = design or next((DB.stored_design(db) for db in dbs if DB.stored_design(db)), None)
+        rows += [r for f in files for r in read_csv(f, design)]
     elif source.suffix.lower() == ".csv":
         rows = read_csv(source, design)
     elif source.is_file():
-        rows = DB.rows(source)
-        stored = DB.stored_design(source)
-        if design is not None and stored is not None and stored.get("id") != design.get("id"):
-            # answers to other videos (or another design) read against this one's (a user-study review)
-            raise LaughlabError(f"{source} holds the answers of another study (design {stored.get('id')}; "
-                                f"{design_dir}'s is {design.get('id')}): give its own study folder as --design, or "
-                                "leave --design out (the database holds its design)")
-        design = design or stored
+        rows = _database_rows(source, design, design_dir)
+        design = design or DB.stored_design(source)
     else:   # before any participant: the study folder may hold only study simulate's database (a review)
         beside = sorted(p.name for p in source.parent.glob("*.sqlite")) if source.parent.is_dir() else []
         raise LaughlabError(f"no database or CSV at {source}" + (
@@ -75,6 +77,17 @@ def load(source, design_dir=None):
     for c in ("stimulus", "condition", "audio_id", "kind", "question", "text"):
         df[c] = df[c].fillna("").astype(str)
     return df, design
+
+
+def _database_rows(source: Path, design: dict | None, design_dir) -> list[dict]:
+    """A database's answers, refused when its stored design is not ``design`` (answers to other videos read against
+    this one's: a user-study review)."""
+    stored = DB.stored_design(source)
+    if design is not None and stored is not None and stored.get("id") != design.get("id"):
+        raise LaughlabError(f"{source} holds the answers of another study (design {stored.get('id')}; "
+                            f"{design_dir}'s is {design.get('id')}): give its own study folder as --design, or "
+                            "leave --design out (the database holds its design)")
+    return DB.rows(source)
 
 
 def _once(rows: list[dict]) -> list[dict]:
