@@ -86,7 +86,8 @@ def _params(overrides: list) -> dict[str, str]:
 
 
 def stale_points(root: Path, params: dict[Path, dict[str, str]]) -> list[Path]:
-    """The point folders of ``params`` (``{folder: its parameters}``) that are no point of the sweep in ``root``: an
+    """The point folders of ``params`` (``{folder: its parameters}``, without :data:`NOT_PARAMS`, as a point's
+    ``overrides.yaml`` read by :func:`_params`) that are no point of the sweep in ``root``: an
     earlier sweep's, left there when ``overwrite=true`` ran a sweep of fewer or other points over it (a sweep
     researcher's review: its report mixed both sweeps, unsaid).  None are stale when the plan is unknown."""
     plan = _plan(Path(root))
@@ -94,8 +95,7 @@ def stale_points(root: Path, params: dict[Path, dict[str, str]]) -> list[Path]:
         return []
     fixed, points = plan
     wanted = [{**fixed, **point} for point in points]
-    return [job for job, p in params.items() if {k: v for k, v in p.items() if not k.startswith(NOT_PARAMS)}
-            not in wanted]
+    return [job for job, p in params.items() if p not in wanted]
 
 
 def _job_params(job: Path) -> dict[str, str] | None:
@@ -119,8 +119,7 @@ def unfinished(root: Path) -> tuple[int, list[str]] | None:
         return None
     fixed, points = plan
     jobs = {p: _job_params(p) for p in sorted({h.parent for h in root.glob("**/.hydra")}) if p != root}
-    jobs = {job: {k: v for k, v in params.items() if not k.startswith(NOT_PARAMS)}
-            for job, params in jobs.items() if params is not None}
+    jobs = {job: params for job, params in jobs.items() if params is not None}
     from laughlab.core.rundir import finished
 
     done = [params for job, params in jobs.items() if finished(job)]

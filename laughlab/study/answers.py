@@ -53,7 +53,7 @@ def load(source, design_dir=None):
         if simulated:   # simulated participants are never mixed with people's answers
             raise LaughlabError(f"{source} holds study simulate's {', '.join(simulated)} beside answer files: move it "
                                 "out, or analyze it on its own")
-        design = design or next((DB.stored_design(db) for db in dbs if DB.stored_design(db)), None)
+        design = design or next(filter(None, map(DB.stored_design, dbs)), None)
         rows = [r for db in dbs for r in _database_rows(db, design, design_dir or dbs[0])]   # one study's
         rows += [r for f in files for r in read_csv(f, design)]
     elif source.suffix.lower() == ".csv":
