@@ -16,6 +16,7 @@ import subprocess
 import sys
 import threading
 import urllib.error
+import urllib.parse
 import urllib.request
 from pathlib import Path
 
@@ -162,14 +163,142 @@ def test_bad_posts_get_4xx_are_logged_and_never_stored(study, tmp_path):
         assert len(log) == len(bad) + 5 and all(json.loads(line)["status"] >= 400 for line in log)
         # the consent text promises that no IP address is kept (a review: each line had the client's address)
         assert all("client" not in json.loads(line) for line in log) and "127.0.0.1" not in "".join(log)
+        # a well-formed answer before its session started, or before consent, is refused and not stored (a review:
+        # the server stored answers from a page that never asked for consent)
+        assert srv.post("/api/response", good) == (409, {"laughlab": True, "error": "session s-1 was never started "
+                                                                                     "(api/start): reload the page"})
+        assert srv.post("/api/event", {"participant": 1, "session": "s-1", "event": "consent"})[0] == 409
+        start = {"participant": 1, "session": "s-1", "design": d["id"], "user_agent": "test"}
+        assert srv.post("/api/start", start) == (200, {"laughlab": True, "answered": [], "audio_check": False,
+                                                       "consented": False})
+        assert srv.post("/api/response", good)[0] == 403
+        assert srv.post("/api/check", {"participant": 1, "session": "s-1", "attempts": ["hat"]})[0] == 403
+        assert srv.post("/api/event", {"participant": 1, "session": "s-1", "event": "finish"})[0] == 403
+        assert srv.rows() == []
+        # another participant's session is not theirs to post from
+        assert srv.post("/api/start", {**start, "participant": 2})[0] == 409
+        assert srv.post("/api/event", {"participant": 2, "session": "s-1", "event": "consent"})[0] == 409
+        assert srv.post("/api/event", {"participant": 1, "session": "s-1", "event": "consent"})[0] == 200
         # the good one is stored once; the same trial again is refused (a forged or replayed post)
         assert srv.post("/api/response", good)[0] == 201
         assert srv.post("/api/response", good)[0] == 409
         stored = srv.rows()
         assert len(stored) == len(good["answers"])
         assert {(r[2], r[3]) for r in stored} == {(q, float(v)) for q, v in good["answers"].items()}
+        # one who comes back in a new session is not asked again: the server says they consented
+        back = srv.post("/api/start", {**start, "session": "s-2"})
+        assert back == (200, {"laughlab": True, "answered": [1], "audio_check": False, "consented": True})
+        assert len((tmp_path / "r.sqlite.rejected.log").read_text().splitlines()) == len(bad) + 5 + 8
     finally:
         srv.close()
+
+
+def test_a_decline_is_stored_and_nothing_after_it(study, tmp_path):
+    d = design_of(study)
+    srv = Served(study, tmp_path / "r.sqlite")
+    try:
+        t1 = d["participants"]["2"]["trials"][0]
+        assert srv.post("/api/start", {"participant": 2, "session": "a", "design": d["id"]})[0] == 200
+        assert srv.post("/api/event", {"participant": 2, "session": "a", "event": "decline"})[0] == 200
+        post = {"participant": 2, "session": "a", "trial": 1, "stimulus": t1["stimulus"],
+                "answers": {q["id"]: 4 for q in d["questions"]} | ({"attention": 2} if t1["attention"] else {})}
+        assert srv.post("/api/response", post)[0] == 403
+    finally:
+        srv.close()
+    from laughlab.study import db as DB
+
+    (row,) = DB.sessions(tmp_path / "r.sqlite")
+    assert row["participant"] == 2 and row["declined_at"] and row["consent_at"] is None
+    assert srv.rows() == []
+
+
+def test_a_panel_id_gets_the_next_free_participant_number_and_keeps_it(study, tmp_path):
+    """Prolific's PROLIFIC_PID (or MTurk's workerId) in the page's URL: api/assign gives it a participant number,
+    the same on every visit; numbers typed by hand are not given again; a full study says so."""
+    from laughlab.study import db as DB
+
+    d = design_of(study)
+    srv = Served(study, tmp_path / "r.sqlite")
+    try:
+        ask = lambda ext: srv.post("/api/assign", {"external_id": ext, "design": d["id"]})  # noqa: E731
+        assert srv.post("/api/start", {"participant": 1, "session": "by-hand", "design": d["id"]})[0] == 200
+        assert ask("5f1a2b3c4d5e6f7a8b9c0d1e")[1]["participant"] == 2        # 1 is taken by a number typed by hand
+        assert ask("60aa")[1]["participant"] == 3
+        assert ask("5f1a2b3c4d5e6f7a8b9c0d1e")[1]["participant"] == 2        # coming back: the same number
+        numbers = sorted(int(n) for n in d["participants"])
+        for i in range(len(numbers) - 3):
+            assert ask(f"w{i}")[0] == 200
+        status, reply = ask("one-too-many")
+        assert status == 409 and "every participant number of this study is taken" in reply["error"]
+        assert ask("bad id!")[0] == 422 and ask("")[0] == 422
+        assert srv.post("/api/assign", {"external_id": "x", "design": "other"})[0] == 409
+    finally:
+        srv.close()
+    got = DB.assignments(tmp_path / "r.sqlite")
+    assert [a["participant"] for a in got] == numbers[1:]
+    assert got[0]["external_id"] == "5f1a2b3c4d5e6f7a8b9c0d1e" and got[0]["consent_at"] is None
+    # `study assignments`: the same as CSV, printed or into a new file (never over one)
+    out = fuzz.run_cli(["study", "assignments", str(tmp_path / "r.sqlite")])
+    assert out.code == 0, out.stderr
+    table = list(csv.DictReader(out.stdout.splitlines()))
+    assert [(r["external_id"], int(r["participant"])) for r in table] == [(a["external_id"], a["participant"])
+                                                                          for a in got]
+    assert list(table[0]) == ["external_id", "participant", "assigned_at", "consent_at", "declined_at", "finished_at"]
+    assert fuzz.run_cli(["study", "assignments", str(tmp_path / "r.sqlite"), "--out", str(tmp_path / "pay.csv")]).code == 0
+    again = fuzz.run_cli(["study", "assignments", str(tmp_path / "r.sqlite"), "--out", str(tmp_path / "pay.csv")])
+    assert again.code == 2 and "never overwritten" in again.stderr and again.stderr.count("\n") == 1
+    assert (tmp_path / "pay.csv").read_text() == out.stdout
+    nothing = fuzz.run_cli(["study", "assignments", str(tmp_path)])
+    assert nothing.code == 2 and "no study database" in nothing.stderr
+
+
+def _until(page, expr: str, timeout_s: float = 30.0):
+    """Poll ``expr`` in the page until it is truthy; its value."""
+    import time
+
+    t0 = time.time()
+    while not (got := page.eval(f"(() => {{ try {{ return {expr}; }} catch (e) {{ return null; }} }})()")):
+        assert time.time() - t0 < timeout_s, f"{expr} never held; the page shows: {page.eval('document.body.innerText')}"
+        time.sleep(0.2)
+    return got
+
+
+@pytest.mark.browser
+def test_a_prolific_link_gets_a_number_and_consent_is_asked_once(study, tmp_path):
+    """A Prolific URL (?PROLIFIC_PID=...) is given a participant number by the server and the page goes on with it;
+    after consent, a reload is not asked again (the server says so), and a second ID gets the next number; the same
+    link on a static host (no server) says it needs the study's server."""
+    from laughlab.study import db as DB
+    from laughlab.viewer.browser import Page
+
+    d = design_of(study)
+    srv = Served(study, tmp_path / "responses.sqlite")
+    pid = "5f1a2b3c4d5e6f7a8b9c0d1e"
+    page = Page(f"{srv.url}/index.html?PROLIFIC_PID={pid}&STUDY_ID=s1&SESSION_ID=x9")
+    try:
+        _until(page, "document.body.innerText.includes('I agree')")
+        query = dict(urllib.parse.parse_qsl(page.eval("location.search.slice(1)")))
+        assert query == {"PROLIFIC_PID": pid, "STUDY_ID": "s1", "SESSION_ID": "x9", "participant": "1"}
+        page.eval("[...document.querySelectorAll('button')].find((b) => b.innerText.includes('I agree')).click()")
+        _until(page, "!!document.querySelector('#jspsych-instructions-next')")
+        page.eval("window.beforeReload = true; location.reload()")
+        # consent given: the reload goes to the instructions (nothing answered yet), not to consent again
+        _until(page, "!window.beforeReload && !!document.querySelector('#jspsych-instructions-next')")
+        assert "I agree" not in page.eval("document.body.innerText")
+        page.eval(f"location.href = '{srv.url}/index.html?PROLIFIC_PID=other'")
+        _until(page, "location.search.includes('participant=2')")
+        assert [e for e in page.problems() if "favicon.ico" not in e] == []
+    finally:
+        page.close()
+        srv.close()
+    assert [(a["external_id"], a["participant"], bool(a["consent_at"])) for a in DB.assignments(srv.db)] == \
+        [(pid, 1, True), ("other", 2, False)]
+    static = Page((study / "index.html").as_uri() + f"?PROLIFIC_PID={pid}")
+    try:
+        said = _until(static, "document.querySelector('.study-fatal') && document.body.innerText")
+    finally:
+        static.close()
+    assert "not served by the study's server" in said and d["id"]
 
 
 @pytest.mark.browser
@@ -608,6 +737,81 @@ def test_exclusions_name_each_participant_and_the_reason(study, tmp_path):
         assert out.code == 2 and "not a study report" in out.stderr and out.stderr.count("\n") == 1, out.stderr
     assert (tmp_path / "rep" / "notes.txt").read_text() == "mine" and (tmp_path / "rep" / "means.csv").exists()
     assert (mine / "README.md").read_text() == "# My thesis\n" and sorted(p.name for p in mine.iterdir()) == ["README.md"]
+
+
+def test_the_report_says_who_came_agreed_and_stayed_and_leaves_out_answers_without_consent(study, tmp_path):
+    """Through the server: participant 1 answers everything in one page load, 2 in two page loads one after the
+    other (came back), 3 in two tabs at once (answers interleaved), 4 declines, 6 consents and leaves; 5's answers
+    are in the database without a consent (as a database from before the server refused them). The report's line
+    counts them by hand, and 5 is excluded for it."""
+    from laughlab.study import db as DB
+
+    d = design_of(study)
+    srv = Served(study, tmp_path / "responses.sqlite")
+
+    def trial_post(p, session, t):
+        hi = d["points"]
+        post = {"participant": p, "session": session, "trial": t["trial"], "stimulus": t["stimulus"],
+                "answers": {q["id"]: 1 + (t["trial"] + k + p) % hi for k, q in enumerate(d["questions"])}}
+        if t["attention"]:
+            post["answers"]["attention"] = d["attention"]["value"]
+        return post
+
+    def begin(p, session, consent=True):
+        assert srv.post("/api/start", {"participant": p, "session": session, "design": d["id"]})[0] == 200
+        if consent:
+            assert srv.post("/api/event", {"participant": p, "session": session, "event": "consent"})[0] == 200
+
+    def check(p, session):
+        word = d["audio_check"]["files"][d["participants"][str(p)]["audio_check"]]["answer"]
+        assert srv.post("/api/check", {"participant": p, "session": session, "attempts": [word]})[0] == 201
+
+    try:
+        trials = {p: d["participants"][str(p)]["trials"] for p in range(1, 7)}
+        begin(1, "one")
+        check(1, "one")
+        for t in trials[1]:
+            assert srv.post("/api/response", trial_post(1, "one", t))[0] == 201
+        assert srv.post("/api/event", {"participant": 1, "session": "one", "event": "finish"})[0] == 200
+        begin(2, "two-a")
+        check(2, "two-a")
+        half = len(trials[2]) // 2
+        for t in trials[2][:half]:
+            assert srv.post("/api/response", trial_post(2, "two-a", t))[0] == 201
+        begin(2, "two-b", consent=False)
+        for t in trials[2][half:]:
+            assert srv.post("/api/response", trial_post(2, "two-b", t))[0] == 201
+        begin(3, "three-a")
+        begin(3, "three-b", consent=False)
+        check(3, "three-a")
+        for i, t in enumerate(trials[3]):
+            assert srv.post("/api/response", trial_post(3, "three-a" if i % 2 else "three-b", t))[0] == 201
+        begin(4, "four", consent=False)
+        assert srv.post("/api/event", {"participant": 4, "session": "four", "event": "decline"})[0] == 200
+        begin(6, "six")
+    finally:
+        srv.close()
+    rows = [{"participant": 5, "order_row": 0, "trial": 0, "stimulus": "", "condition": "", "audio_id": "",
+             "kind": "audio_check", "question": "audio_check", "value": 1.0, "text": "hat", "expected": None,
+             "rt_ms": 0, "received_at": DB.utc_now(), "session": "old"}]
+    rows += [{"participant": 5, "order_row": 0, "trial": t["trial"], "stimulus": t["stimulus"],
+              "kind": "attention" if q == "attention" else "rating", "question": q, "value": float(v), "text": "",
+              "expected": float(v) if q == "attention" else None, "condition": t["condition"],
+              "audio_id": t["audio_id"], "session": "old", "received_at": DB.utc_now()}
+             for t in trials[5] for q, v in trial_post(5, "old", t)["answers"].items()]
+    DB.insert_answers(srv.db, rows)
+    out = fuzz.run_cli(["study", "analyze", str(srv.db), "--out", str(tmp_path / "rep")])
+    assert out.code == 0, out.stderr
+    readme = (tmp_path / "rep" / "README.md").read_text()
+    assert ("5 participants opened the page (7 page loads): 4 gave consent, 1 declined (nothing of theirs is "
+            "stored), 1 reached the end. 2 answered from more than one page load; 1 of them from two at once, their "
+            "answers interleaved in time (two tabs or devices: participant 3).") in readme
+    with open(tmp_path / "rep" / "exclusions.csv") as f:
+        found = [(int(r["participant"]), r["reason"]) for r in csv.DictReader(f)]
+    assert found == [(5, "no consent recorded (answers in the database without it)")]
+    report = json.loads((tmp_path / "rep" / "report.json").read_text())
+    assert report["participation"] == {"opened": 5, "page_loads": 7, "consented": 4, "declined": 1, "finished": 1,
+                                       "came_back": 2, "two_at_once": [3]}
 
 
 def test_simulated_answers_never_mix_with_peoples(study, tmp_path):

@@ -13,7 +13,8 @@ Steps, each written to the report folder:
    word, or none stored), attention items (more failed than ``attention_max_fail``; a slider item
    fails more than 5 % of the scale away from the value asked for), straight-lining (every rating
    of every question the same value, over at least four ratings), an incomplete session (fewer ratings
-   or attention items than the participant's trials ask for): :mod:`laughlab.study.exclusions`.
+   or attention items than the participant's trials ask for), answers in a database without consent:
+   :mod:`laughlab.study.exclusions`.
 3. ``means.csv``: per question and condition the mean of the participants' means, its SD, n and a
    95 % t interval (participants are the unit, so the interval is over people, not trials).
 4. ``model.csv``, ``variance.csv``: per question a linear mixed model
@@ -50,7 +51,8 @@ Steps, each written to the report folder:
 6. ``fig_means.png`` (condition means with their 95 % CIs, participants' means as dots; an interval past
    the scale's end marked there with its bound) and ``fig_participants.png`` (one line per participant
    across the conditions), each also as a PDF (``laughlab.study.plots``); ``README.md``
-   with the tables; ``report.json`` with everything as numbers.
+   with the tables and who came, agreed and stayed (:mod:`laughlab.study.participation`); ``report.json`` with
+   everything as numbers.
 """
 from __future__ import annotations
 
@@ -68,6 +70,7 @@ from laughlab.study.answers import load
 from laughlab.study.design import identical_conditions
 from laughlab.study.exclusions import (DEFAULT_RULES, exclusions, expected_counts,  # noqa: F401 (its API)
                                       reason_counts)
+from laughlab.study.participation import line as participation_line, participation, unconsented
 from laughlab.study.reportdir import REPORT_FILES, check_out, put  # noqa: F401 (REPORT_FILES: the report's files)
 
 # -- statistics -----------------------------------------------------------------------------------------------------
@@ -320,7 +323,8 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
     questions = [q["id"] for q in (design or {}).get("questions", [])] or \
         sorted(set(df.loc[df["kind"] == "rating", "question"]))
     same = identical_conditions(design)   # the riddle's SS and LS: one video, so no contrast (module doc, step 5)
-    excluded = exclusions(df, rules, slider, expected_counts(design, df))
+    dbs = sorted(source.glob("*.sqlite")) if source.is_dir() else [source] if kind else []
+    excluded = exclusions(df, rules, slider, expected_counts(design, df), unconsented(dbs))
     ratings = df[(df["kind"] == "rating") & df["value"].notna()]
     tidy = ratings[~ratings["participant"].astype(int).isin(excluded)].reset_index(drop=True)
     if tidy.empty:   # a report's tidy.csv given back as answers has ratings only (a study researcher's review)
@@ -385,6 +389,7 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
            "simulated": kind == "simulated",
            "planted": DB.stored(source, "simulation") if kind == "simulated" else None,
            "excluded": {str(p): r for p, r in excluded.items()}, "included": n_all - len(excluded),
+           "participation": participation(dbs, df),
            "conditions": conditions, "questions": questions, "model_notes": notes,
            "untested": [list(p) for p in same if set(p) <= set(conditions)],
            "model_warnings": {q: w for q, w in warned.items() if w},
@@ -417,6 +422,8 @@ def _markdown(doc: dict, source: Path, command: str, has_design: bool = True) ->
     lines += [
              f"{doc['participants']} participants, {doc['included']} included, "
              f"{doc['participants'] - doc['included']} excluded (`exclusions.csv`).", ""]
+    if participation_line(doc.get("participation") or {}):
+        lines += [participation_line(doc["participation"]), ""]
     for p, reasons in doc["excluded"].items():
         lines.append(f"- participant {p}: {'; '.join(reasons)}")
     lines += ["", "## Condition means (95 % CI over participants)", "",

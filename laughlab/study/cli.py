@@ -1,4 +1,4 @@
-"""``python -m laughlab study build|serve|analyze|power``: the perception study from stimuli to report."""
+"""``python -m laughlab study build|serve|simulate|analyze|power|assignments``: the perception study from stimuli to report."""
 from __future__ import annotations
 
 import argparse
@@ -16,6 +16,8 @@ from stimuli to a report:
   python -m laughlab study serve runs/stimuli-study           -> http://127.0.0.1:8765/?participant=1
   python -m laughlab study analyze runs/stimuli-study/responses.sqlite   -> .../responses-report/
   python -m laughlab study power runs/stimuli-study --contrast laugh_energy:smile_only --effect 0.5
+a recruitment panel (Prolific): give it the link ...?PROLIFIC_PID={{%PROLIFIC_PID%}}, the server gives each ID a
+participant number; python -m laughlab study assignments runs/stimuli-study  -> who to pay (CSV)
 """
 
 
@@ -66,6 +68,10 @@ def parser() -> argparse.ArgumentParser:
     a.add_argument("--width", choices=("page", "column"), default="page",
                    help="the figures for a page (default) or 3.5 in wide for one column of a two-column paper, no "
                         "text under 7 pt")
+    g = sub.add_parser("assignments", help="the panel IDs (Prolific, MTurk) the server gave participant numbers, "
+                                           "with consent and finish times: for paying and approving (CSV)")
+    g.add_argument("source", help="responses.sqlite, or the study folder holding it")
+    g.add_argument("--out", help="write the CSV here (a new file) instead of printing it")
     w = sub.add_parser("power", help="participants needed to detect an effect (simulation, the same model)")
     w.add_argument("study_dir", help="a study folder (its design: conditions, stimuli, orders, scale)")
     w.add_argument("--contrast", required=True, help="A:B, e.g. laugh_energy:smile_only")
@@ -118,8 +124,40 @@ def _run(ns) -> None:
         written = sorted(f.name for f in out.iterdir() if f.name in REPORT_FILES)   # (a review: it named 3 of 10)
         print(f"laughlab: report written to {out}/: README.md (read it first), "
               f"{', '.join(n for n in written if n != 'README.md')}")
+    elif ns.cmd == "assignments":
+        assignments(ns)
     else:
         run_power(ns)
+
+
+def assignments(ns) -> None:
+    """The panel IDs as CSV: external_id, participant, assigned_at, consent_at, declined_at, finished_at."""
+    import csv
+    import io
+
+    from laughlab.study import db as DB
+
+    source = Path(ns.source).expanduser()
+    path = source / DB.DEFAULT_NAMES["people"] if source.is_dir() else source
+    if DB.participants_kind(path) is None:
+        raise LaughlabError(f"no study database at {path}" + (" (no participant has opened the page yet)"
+                                                                if source.is_dir() else ""))
+    rows = DB.assignments(path)
+    text = io.StringIO()
+    w = csv.DictWriter(text, ["external_id", "participant", "assigned_at", "consent_at", "declined_at",
+                              "finished_at"], lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    if not ns.out:
+        sys.stdout.write(text.getvalue())
+        return
+    out = Path(ns.out).expanduser()
+    if out.exists():
+        raise LaughlabError(f"{out} exists; give another --out (it is never overwritten)")
+    tmp = out.with_name(f".{out.name}.part")
+    tmp.write_text(text.getvalue())
+    tmp.replace(out)
+    print(f"laughlab: {len(rows)} panel ID{'' if len(rows) == 1 else 's'} written to {out}", file=sys.stderr)
 
 
 def _handler(httpd):

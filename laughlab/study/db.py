@@ -12,7 +12,12 @@ Tables (``responses.sqlite`` in the study folder unless ``--db`` says otherwise)
     it is refused.
 ``sessions``
     one row per page load: ``session``, ``participant``, ``started_at``, ``consent_at``,
-    ``finished_at``, ``user_agent``.
+    ``finished_at``, ``user_agent``, ``declined_at`` (since 2026-11-30: a decline was not stored).  Answers
+    are stored only from a session the participant started, and only once they gave consent in one of
+    their sessions (:func:`consented`).
+``assignments``
+    a recruitment panel's ID for a participant (``external_id``: Prolific's ``PROLIFIC_PID``, MTurk's
+    ``workerId``) and the participant number the server gave it (:func:`assign`), with ``assigned_at``.
 ``study``
     ``design_id`` and the design itself (``design``, JSON), so the database alone can be analysed and
     is never mixed with another study's; ``participants``: ``people`` (``study serve``) or
@@ -46,13 +51,19 @@ CREATE TABLE IF NOT EXISTS answers (
   UNIQUE (participant, trial, question));
 CREATE TABLE IF NOT EXISTS sessions (
   session TEXT PRIMARY KEY, participant INTEGER NOT NULL, started_at TEXT NOT NULL, consent_at TEXT,
-  finished_at TEXT, user_agent TEXT);
+  finished_at TEXT, user_agent TEXT, declined_at TEXT);
+CREATE TABLE IF NOT EXISTS assignments (
+  external_id TEXT PRIMARY KEY, participant INTEGER NOT NULL UNIQUE, assigned_at TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS study (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 """
 
 
 class Duplicate(LaughlabError):
     """An answer that is already stored."""
+
+
+class SessionRefused(LaughlabError):
+    """A post from a session that was not started, or started for another participant."""
 
 
 def utc_now() -> str:
@@ -84,6 +95,8 @@ def open_db(path: Path, design: dict, participants: str = "people") -> Path:
             raise LaughlabError(f"{path} is a database of something else (tables {', '.join(sorted(tables)[:3])}); "
                                 "give another --db")
         conn.executescript(SCHEMA)
+        if "declined_at" not in {r[1] for r in conn.execute("PRAGMA table_info(sessions)")}:
+            conn.execute("ALTER TABLE sessions ADD COLUMN declined_at TEXT")   # a database from before 2026-11-30
     except sqlite3.DatabaseError as exc:
         raise LaughlabError(f"{path} is not a study database ({exc}); give another --db") from None
     try:
@@ -176,16 +189,88 @@ def insert_answers(path: Path, rows: list[dict]) -> None:
 
 
 def session_event(path: Path, session: str, participant: int, event: str, user_agent: str = "") -> None:
-    """``start`` inserts the session; ``consent``/``finish`` stamp it (the first time)."""
+    """``start`` inserts the session (:class:`SessionRefused` if it is another participant's); ``consent``,
+    ``decline`` and ``finish`` stamp it (the first time), and only a session ``participant`` started."""
     conn = connect(path)
     try:
         with _transaction(conn):
-            conn.execute("INSERT OR IGNORE INTO sessions (session, participant, started_at, user_agent) "
-                         "VALUES (?, ?, ?, ?)", (session, participant, utc_now(), user_agent))
-            column = {"consent": "consent_at", "finish": "finished_at"}.get(event)
+            if event == "start":
+                conn.execute("INSERT OR IGNORE INTO sessions (session, participant, started_at, user_agent) "
+                             "VALUES (?, ?, ?, ?)", (session, participant, utc_now(), user_agent))
+            _check_session(conn, session, participant)
+            column = {"consent": "consent_at", "decline": "declined_at", "finish": "finished_at"}.get(event)
             if column:
                 conn.execute(f"UPDATE sessions SET {column} = COALESCE({column}, ?) WHERE session = ?",
                              (utc_now(), session))
+    finally:
+        conn.close()
+
+
+def _check_session(conn: sqlite3.Connection, session: str, participant: int) -> None:
+    row = conn.execute("SELECT participant FROM sessions WHERE session = ?", (session,)).fetchone()
+    if row is None:
+        raise SessionRefused(f"session {session} was never started (api/start): reload the page")
+    if row[0] != participant:
+        raise SessionRefused(f"session {session} belongs to participant {row[0]}, not {participant}: reload the page")
+
+
+def check_session(path: Path, session: str, participant: int) -> bool:
+    """:class:`SessionRefused` unless ``participant`` started ``session``; whether they gave consent (in any of
+    their sessions: one who comes back is not asked again)."""
+    conn = connect(path)
+    try:
+        _check_session(conn, session, participant)
+        return consented(conn, participant)
+    finally:
+        conn.close()
+
+
+def consented(conn: sqlite3.Connection, participant: int) -> bool:
+    return conn.execute("SELECT 1 FROM sessions WHERE participant = ? AND consent_at IS NOT NULL",
+                        (participant,)).fetchone() is not None
+
+
+def assign(path: Path, external_id: str, numbers: list[int]) -> int | None:
+    """The participant number of a panel's ID: the one it was given before, else the first of ``numbers`` never
+    given and never used (no session of it: numbers typed by hand stay theirs); None when every number is taken.
+    One transaction, so two participants arriving at once get two numbers."""
+    conn = connect(path)
+    try:
+        with _transaction(conn):
+            row = conn.execute("SELECT participant FROM assignments WHERE external_id = ?", (external_id,)).fetchone()
+            if row:
+                return int(row[0])
+            taken = {r[0] for r in conn.execute("SELECT participant FROM assignments UNION "
+                                                "SELECT participant FROM sessions")}
+            free = next((n for n in numbers if n not in taken), None)
+            if free is not None:
+                conn.execute("INSERT INTO assignments VALUES (?, ?, ?)", (external_id, free, utc_now()))
+            return free
+    finally:
+        conn.close()
+
+
+def assignments(path: Path) -> list[dict]:
+    """Each panel ID with its participant number and that participant's sessions' consent, decline and finish
+    (the first of each), for paying and approving submissions."""
+    conn = _reader(path)
+    try:
+        cur = conn.execute(
+            "SELECT a.external_id, a.participant, a.assigned_at, MIN(s.consent_at), MIN(s.declined_at), "
+            "MIN(s.finished_at) FROM assignments a LEFT JOIN sessions s ON s.participant = a.participant "
+            "GROUP BY a.external_id ORDER BY a.participant")
+        keys = ("external_id", "participant", "assigned_at", "consent_at", "declined_at", "finished_at")
+        return [dict(zip(keys, r)) for r in cur]
+    finally:
+        conn.close()
+
+
+def sessions(path: Path) -> list[dict]:
+    """Every session's row (older databases: ``declined_at`` None)."""
+    conn = _reader(path)
+    try:
+        conn.row_factory = sqlite3.Row
+        return [{"declined_at": None, **dict(r)} for r in conn.execute("SELECT * FROM sessions ORDER BY started_at")]
     finally:
         conn.close()
 

@@ -22,6 +22,7 @@ from importlib import resources
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, read_json_object
+from laughlab.study.exclusions import DEFAULT_RULES
 
 SCALES = ("likert", "slider")
 #: the kinds of rows a study stores (``kind`` column)
@@ -107,8 +108,7 @@ def check_preset(doc: dict) -> dict:
     need(isinstance(att["value"], (int, float)) and lo <= att["value"] <= hi,
          f"attention.value must lie on the scale, {lo}..{hi}")
     doc["attention"] = att
-    doc["exclusions"] = {"audio_check": True, "attention_max_fail": 0, "straightline": True, "complete": True,
-                         **(doc.get("exclusions") or {})}
+    doc["exclusions"] = {**DEFAULT_RULES, **(doc.get("exclusions") or {})}
     doc.setdefault("consent", "<p>Do you agree to take part?</p>")
     ins = doc.setdefault("instructions", [])
     doc["instructions"] = [ins] if isinstance(ins, str) else list(ins)

@@ -9,12 +9,16 @@
   participant who left part way (a study researcher's review: one who stopped after 2 of 16 trials, before any
   attention item, was counted as included, unsaid).  The trials are the design's for that participant (with
   ``--design`` or a database); without a design, the most any participant gave.  ``complete: false`` keeps them.
+- ``consent`` (since 2026-11-30): answers in a server's database with no consent in any of the participant's
+  sessions there (``laughlab.study.participation.unconsented``: a database from before the server refused them, or
+  edited).  Answer files from a static host carry no consent record and are not judged by it.
 """
 from __future__ import annotations
 
 import numpy as np
 
-DEFAULT_RULES = {"audio_check": True, "attention_max_fail": 0, "straightline": True, "complete": True}
+DEFAULT_RULES = {"audio_check": True, "attention_max_fail": 0, "straightline": True, "complete": True,
+                 "consent": True}
 
 
 def expected_counts(design: dict | None, df) -> dict[int, tuple[int, int]]:
@@ -33,13 +37,17 @@ def expected_counts(design: dict | None, df) -> dict[int, tuple[int, int]]:
 
 
 def exclusions(df, rules: dict, slider_range: float | None = None,
-               expected: dict[int, tuple[int, int]] | None = None) -> dict[int, list[str]]:
+               expected: dict[int, tuple[int, int]] | None = None,
+               unconsented: set[int] = frozenset()) -> dict[int, list[str]]:
     """Participant -> the reasons they are excluded (see the module doc); only participants with a reason.
-    ``expected``: each participant's ratings and attention items (:func:`expected_counts`) for ``complete``."""
+    ``expected``: each participant's ratings and attention items (:func:`expected_counts`) for ``complete``;
+    ``unconsented``: the participants a database holds answers of without consent, for ``consent``."""
     out: dict[int, list[str]] = {}
     tol = 0.05 * slider_range if slider_range else 1e-9
     for p, g in df.groupby("participant"):
         why = []
+        if rules.get("consent", True) and int(p) in unconsented:
+            why.append("no consent recorded (answers in the database without it)")
         if rules.get("audio_check", True):
             chk = g[g["kind"] == "audio_check"]
             if chk.empty:

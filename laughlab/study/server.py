@@ -5,8 +5,13 @@ ranges); this module adds four JSON endpoints the page posts to (``Content-Type:
 at most :data:`MAX_BODY` bytes):
 
 =================  ===========================================================================
+``api/assign``     ``{external_id, design}``: a recruitment panel's ID for the participant (Prolific's
+                   ``PROLIFIC_PID``, MTurk's ``workerId`` in the page's URL) gets a participant number,
+                   the same one each time it comes back, the next free one otherwise (409 when
+                   every number is taken)
 ``api/start``      ``{participant, session, design, user_agent}``: opens a session; answers the
-                   trials already stored and whether the audio check is (the page resumes there)
+                   trials already stored, whether the audio check is, and whether the participant
+                   gave consent (the page resumes there; one who did is not asked again)
 ``api/response``   ``{participant, session, trial, stimulus, answers: {question: value}, rt_ms,
                    shown_at, answered_at, user_agent}``: one trial's answers, stored in one
                    transaction (``laughlab.study.db``)
@@ -15,6 +20,11 @@ at most :data:`MAX_BODY` bytes):
 ``api/event``      ``{participant, session, event}``: ``consent``, ``decline``, ``finish``
 =================  ===========================================================================
 
+Answers (``api/response``, ``api/check``) and events are taken only from a session the participant
+started (409 otherwise: another participant's session, or none), and answers and ``finish`` only once
+the participant gave consent (403: since 2026-11-30; a review found answers stored from a page that
+never asked, and declines not stored).
+
 Everything is checked against the design before it is stored: the participant must be one of the
 design's, the trial that participant's, the stimulus the one shown in that trial, the questions
 exactly the trial's (the attention item only where the design puts one), every value a number on
@@ -22,7 +32,7 @@ the scale (a whole number for Likert), times and texts short.  Anything else is 
 and one JSON line in ``<db>.rejected.log`` (time, path, status, reason, the body's start: no client
 address, as the default consent text promises that no IP address is kept),
 and is never stored: 400 malformed JSON, 404 unknown endpoint, 409 already stored or another
-study's page, 411 no length, 413 too large, 415 not JSON, 422 not in the design or out of range.
+study's page or another participant's session, 403 no consent, 411 no length, 413 too large, 415 not JSON, 422 not in the design or out of range.
 """
 from __future__ import annotations
 
@@ -42,6 +52,7 @@ from laughlab.viewer.server import DEFAULT_PORT, _Handler, http_server
 
 MAX_BODY = 16 * 1024
 _SESSION = re.compile(r"[A-Za-z0-9-]{1,64}")
+_EXTERNAL = re.compile(r"[A-Za-z0-9_.@-]{1,128}")
 
 
 class Refused(LaughlabError):
@@ -111,7 +122,7 @@ class StudyHandler(_Handler):
         raw = b""
         try:
             action = {"api/start": self.start, "api/response": self.response, "api/check": self.check,
-                      "api/event": self.event}.get(route)
+                      "api/event": self.event, "api/assign": self.assign}.get(route)
             if action is None:
                 raise Refused(404, f"no endpoint {route[:80]!r}")
             length = self.headers.get("Content-Length")
@@ -133,7 +144,7 @@ class StudyHandler(_Handler):
         except Refused as exc:
             self._refuse(exc.status, str(exc), route, raw)
             return
-        except DB.Duplicate as exc:
+        except (DB.Duplicate, DB.SessionRefused) as exc:
             self._refuse(409, str(exc), route, raw)
             return
         self._reply(status, payload)
@@ -169,6 +180,10 @@ class StudyHandler(_Handler):
             raise Refused(422, "session must be 1-64 letters, digits or -")
         return p, entry, session
 
+    def _consented(self, p: int, session: str) -> None:
+        if not DB.check_session(self.db, session, p):
+            raise Refused(403, f"participant {p} has not given consent: nothing is stored before it")
+
     # -- endpoints --------------------------------------------------------------------------------------------------
     def start(self, body: dict):
         _keys(body, {"participant", "session", "design", "user_agent"})
@@ -177,7 +192,21 @@ class StudyHandler(_Handler):
             raise Refused(409, "this page belongs to another build of the study: reload it")
         DB.session_event(self.db, session, p, "start", _text(body, "user_agent", 512))
         answered, checked = DB.progress(self.db, p)
-        return 200, {"answered": answered, "audio_check": checked}
+        return 200, {"answered": answered, "audio_check": checked, "consented": DB.check_session(self.db, session, p)}
+
+    def assign(self, body: dict):
+        _keys(body, {"external_id", "design"})
+        if body.get("design") != self.design["id"]:
+            raise Refused(409, "this page belongs to another build of the study: reload it")
+        ext = body.get("external_id")
+        if not isinstance(ext, str) or not _EXTERNAL.fullmatch(ext):
+            raise Refused(422, "external_id must be 1-128 letters, digits or _.@-")
+        numbers = sorted(int(n) for n in self.design["participants"])
+        p = DB.assign(self.db, ext, numbers)
+        if p is None:
+            raise Refused(409, f"every participant number of this study is taken ({len(numbers)}): build it for "
+                               "more participants")
+        return 200, {"participant": p}
 
     def response(self, body: dict):
         _keys(body, {"participant", "session", "trial", "stimulus", "answers", "rt_ms", "shown_at", "answered_at",
@@ -207,6 +236,7 @@ class StudyHandler(_Handler):
         rows = [{**common, "kind": "attention" if q == "attention" else "rating", "question": q, "value": v,
                  "text": "", "expected": float(self.design["attention"]["value"]) if q == "attention" else None}
                 for q, v in values.items()]
+        self._consented(p, session)   # after the body's checks: a malformed post is told what is wrong with it
         DB.insert_answers(self.db, rows)
         return 201, {"stored": len(rows)}
 
@@ -226,6 +256,7 @@ class StudyHandler(_Handler):
                "rt_ms": _number(body.get("rt_ms", 0), "rt_ms", 0, 86_400_000), "shown_at": None,
                "answered_at": None, "received_at": DB.utc_now(), "session": session,
                "user_agent": _text(body, "user_agent", 512)}
+        self._consented(p, session)
         DB.insert_answers(self.db, [row])
         return 201, {"stored": 1, "passed": passed}
 
@@ -234,6 +265,8 @@ class StudyHandler(_Handler):
         p, _, session = self._participant(body)
         if body.get("event") not in ("consent", "decline", "finish"):
             raise Refused(422, "event must be consent, decline or finish")
+        if body["event"] == "finish":
+            self._consented(p, session)
         DB.session_event(self.db, session, p, body["event"])
         return 200, {}
 

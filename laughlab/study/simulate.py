@@ -93,9 +93,11 @@ async def participant(browser, url: str, design: dict, p: int, answer, keyboard:
     entry = design["participants"][str(p)]
     try:
         await page.goto(f"{url.rstrip('/')}/index.html?participant={p}")
-        first = await page.wait_for_selector("button:has-text('I agree'), button:has-text('Go on')")
-        if "agree" in (await first.inner_text()):
-            await _click_or_key(page, keyboard, "Enter", "button:has-text('I agree')")
+        first = await page.wait_for_selector("button:has-text('I agree'), button:has-text('Go on'), "
+                                             "#jspsych-instructions-next")
+        if await first.get_attribute("id") == "jspsych-instructions-next" or "agree" in (await first.inner_text()):
+            if "agree" in (await first.inner_text()):   # not asked again by the server after an earlier consent
+                await _click_or_key(page, keyboard, "Enter", "button:has-text('I agree')")
             for _ in design["instructions"]:
                 await page.wait_for_selector("#jspsych-instructions-next")
                 await _click_or_key(page, keyboard, "ArrowRight", "#jspsych-instructions-next")

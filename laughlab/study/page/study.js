@@ -1,6 +1,7 @@
 /* laughlab's study page: a jsPsych 8 timeline built from design.js (window.STUDY).
  *
- * The participant comes from the URL (?participant=N) or a start form.  With `study serve`
+ * The participant comes from the URL (?participant=N), a recruitment panel's ID in it (?PROLIFIC_PID=...,
+ * given a number by `study serve`: api/assign) or a start form.  With `study serve`
  * behind the page every rating is posted as soon as it is given (POST api/response) and the
  * server answers which trials are already done, so a closed tab resumes where it stopped;
  * on a static host the answers stay in this browser (localStorage) and the end page offers
@@ -284,7 +285,7 @@
     };
   }
 
-  function run(p, P, done, checked) {
+  function run(p, P, done, checked, consented) {
     const total = P.trials.length;
     const jsPsych = initJsPsych({show_progress_bar: true, auto_update_progress_bar: false,
                                  message_progress_bar: "Progress"});
@@ -294,7 +295,9 @@
     const timeline = [{type: jsPsychPreload, video: todo.map((t) => t.file), continue_after_error: true,
                        audio: checked ? [] : [S.audio_check.files[P.audio_check].file],
                        message: "<p>Loading the videos&hellip;</p>"}];
-    if (fresh) {
+    // the server knows whether this participant gave consent (it stores nothing before it); a static host: a
+    // fresh start asks
+    if (consented === null ? fresh : !consented) {
       timeline.push({
         type: jsPsychHtmlButtonResponse, choices: ["I agree", "I do not agree"], on_load: focusButton,
         stimulus: `<div class="study-text"><h1>${esc(S.title)}</h1>${S.consent}</div>`,
@@ -304,6 +307,8 @@
           if (!agree) jsPsych.abortExperiment("<p>You chose not to take part. Thank you; you may close this page.</p>");
         },
       });
+    }
+    if (fresh) {
       timeline.push({type: jsPsychInstructions, show_clickable_nav: true, key_forward: "ArrowRight",
                      key_backward: "ArrowLeft", button_label_next: "Next", button_label_previous: "Back",   // jsPsych adds &lt; and &gt;
                      pages: S.instructions.map((s) => `<div class="study-text">${s}</div>`), on_load: focusButton});
@@ -351,8 +356,29 @@
     document.body.innerHTML = `<div class="study-text study-fatal"><h1>${esc(S.title)}</h1><p>${esc(message)}</p></div>`;
   }
 
+  // a recruitment panel's ID in the URL: Prolific's PROLIFIC_PID, MTurk's workerId, or external_id
+  const PANEL_KEYS = ["PROLIFIC_PID", "workerId", "external_id"];
+
+  async function assign(key) {  // the server gives the panel's ID a participant number, the same one each time
+    const r = await api("api/assign", {external_id: params.get(key), design: S.id});
+    if (!(r.data && r.data.laughlab)) {
+      fatal(`This link gives a ${key}, but this page is not served by the study's server, which gives each ` +
+            "participant their number: please tell the researcher.");
+    } else if (!r.ok) {
+      fatal(r.data.error || "The study server refused this page.");
+    } else {
+      params.set("participant", String(r.data.participant));
+      window.location.replace(window.location.pathname + "?" + params.toString());
+    }
+  }
+
   async function main() {
     const raw = params.get("participant");
+    const panel = PANEL_KEYS.find((k) => params.get(k));
+    if (!raw && panel) {
+      await assign(panel);
+      return;
+    }
     const p = raw && /^\d+$/.test(raw) ? String(parseInt(raw, 10)) : null;
     if (!p || !S.participants[p]) {
       startForm(raw ? `Participant ${raw} is not part of this study; please check the number.` : "");
@@ -360,6 +386,7 @@
     }
     const P = S.participants[p];
     state.rows = loadLocal(p);
+    let consented = null;
     const r = await api("api/start", {participant: Number(p), session: session, design: S.id, user_agent: ua});
     const done = new Set();
     let checked = false;
@@ -368,12 +395,13 @@
       state.server = true;
       r.data.answered.forEach((t) => done.add(t));
       checked = Boolean(r.data.audio_check);
+      consented = Boolean(r.data.consented);
     } else {  // a static host: this browser's own record says what is done
       for (const row of state.rows) {
         if (row.kind === "audio_check") checked = true; else done.add(row.trial);
       }
     }
-    run(p, P, done, checked);
+    run(p, P, done, checked, consented);
   }
 
   window.laughlabStudy = {rows: () => state.rows, csv: csv, flush: flush, server: () => state.server};

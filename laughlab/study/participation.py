@@ -1,0 +1,68 @@
+"""Who came, who agreed and who stayed: ``study analyze``'s participation line from the server's sessions (page loads)
+and the answers' sessions (since 2026-11-30: a study-server review found attrition, declines and participants working
+in two tabs at once not reported).
+
+- from the databases' ``sessions`` table: participants who opened the page, gave consent, declined (and never
+  consented: nothing of theirs is stored), reached the end page;
+- from the answers (a database's or answer files'): participants whose answers came from more than one page load
+  (they came back), and of those, the ones whose two page loads' answers interleave in time (two tabs at once, or two
+  devices: a trial shown twice, or answers given out of order).
+
+:func:`unconsented` names the participants a database holds answers of but no consent for (a database written
+before the server refused them, or edited): ``study analyze`` leaves them out (the rule ``consent``).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from laughlab.study import db as DB
+
+
+def unconsented(dbs: list[Path]) -> set[int]:
+    """Participants with answers in one of ``dbs`` and no consent in any of their sessions there."""
+    answered, agreed = set(), set()
+    for path in dbs:
+        answered |= set(DB.participants_stored(path))
+        agreed |= {int(s["participant"]) for s in DB.sessions(path) if s["consent_at"]}
+    return answered - agreed
+
+
+def _two_at_once(df) -> set[int]:
+    """Participants whose answers from two sessions interleave in time (received by the server, else given)."""
+    out = set()
+    at = df["received_at"].where(df["received_at"].fillna("") != "", df["answered_at"]).fillna("")
+    for p, g in df.assign(at=at)[at != ""].groupby("participant"):
+        spans = sorted((grp["at"].min(), grp["at"].max()) for _, grp in g.groupby("session"))
+        if any(b[0] < a[1] for a, b in zip(spans, spans[1:])):
+            out.add(int(p))
+    return out
+
+
+def participation(dbs: list[Path], df) -> dict:
+    """The counts (module doc); the sessions' part is None without a database."""
+    out: dict = {}
+    if dbs:
+        rows = [s for path in dbs for s in DB.sessions(path)]
+        by = lambda key: {int(s["participant"]) for s in rows if s[key]}   # noqa: E731
+        agreed = by("consent_at")
+        out.update(opened=len({int(s["participant"]) for s in rows}), page_loads=len(rows), consented=len(agreed),
+                   declined=len(by("declined_at") - agreed), finished=len(by("finished_at")))
+    sessions = df[df["session"].fillna("") != ""].groupby("participant")["session"].nunique()
+    out.update(came_back=int((sessions > 1).sum()), two_at_once=sorted(_two_at_once(df)))
+    return out
+
+
+def line(doc: dict) -> str:
+    """The report's sentence: ``31 participants opened the page (34 page loads): 30 gave consent, 1 declined, 26
+    reached the end. 3 answered from more than one page load; 1 of them from two at once (participant 7).``"""
+    parts = []
+    if "opened" in doc:
+        parts.append(f"{doc['opened']} participant{'' if doc['opened'] == 1 else 's'} opened the page "
+                     f"({doc['page_loads']} page loads): {doc['consented']} gave consent, {doc['declined']} declined "
+                     f"(nothing of theirs is stored), {doc['finished']} reached the end.")
+    if doc.get("came_back"):
+        two = doc["two_at_once"]
+        parts.append(f"{doc['came_back']} answered from more than one page load" + (
+            f"; {len(two)} of them from two at once, their answers interleaved in time (two tabs or devices: "
+            f"participant{'' if len(two) == 1 else 's'} {', '.join(map(str, two))})." if two else " (they came back)."))
+    return " ".join(parts)
