@@ -16,6 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
+from laughlab.core import blame
 from laughlab.io.audio import cut_frames, frame_edges
 from laughlab.core.bases import REQUIRED, Context, Source
 from laughlab.core.errors import LaughlabError
@@ -107,15 +108,25 @@ def run_frames(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0, f
     ext, det, sch, body, face = stages
     frames = []
     audio = _audio(seconds, sample_rate, seed)
+    mixer.offsets_by = blame.who("body", body)
     try:
         for k, block in enumerate(cut_frames([audio], sample_rate, fps)):
             frame = Frame(k, k / fps, 1.0 / fps, {}, None, {}, {}, [], 0.0)
-            ext.step(block, frame)
-            det.step(block, frame)
-            sch.step(frame)
+            if k == 0:   # as a run's first frame: a step of the wrong signature, an extractor without mcs, one line
+                blame.first_step("extractor", ext, block, frame)
+                blame.check_extractor(frame.control, ext)
+                blame.first_step("detector", det, block, frame)
+                blame.first_step("scheduler", sch, frame)
+            else:
+                ext.step(block, frame)
+                det.step(block, frame)
+                sch.step(frame)
             mixer.advance(frame)   # a clip the library lacks: the run's line
-            body.step(frame)
-            face.step(frame)
+            for stage, plugin in (("body", body), ("face", face)):
+                if k == 0:
+                    blame.first_step(stage, plugin, frame)
+                else:
+                    plugin.step(frame)
             mixer.note(frame)
             frames.append(frame)
         mixer.take()               # a joint the skeleton lacks: the run's line
@@ -197,7 +208,7 @@ def check_plugin(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0,
     ``params``, a mapping as ``face.KEY=VALUE`` sets them) pass the checks of the command line.  An extractor,
     detector, scheduler, body or face (:func:`run_frames`, ``seconds`` of seeded synthetic laughter): it writes its
     kind's channels (an extractor ``mcs``, a body ``chest``/``belly``, a face ``smile``/``jaw``/``blink``/
-    ``eyes_closed``) in [0, 1] (a body's ``chest``/``belly`` are shape weights, 0 rest and 1 the expanded shape,
+    ``eyes_closed``) in [0, 1] (a body's ``chest``/``belly`` are shape weights, 0 the base and 1 the expanded shape,
     which may extrapolate beyond them, as ``body=hill`` squeezes below rest and ``body=fourier`` above its intense
     clip), the same names every frame, finite numbers only; ``arkit.*`` names are ARKit's;
     offsets name the skeleton's joints; events are clips of the library; a second plugin on the same seed gives
@@ -225,7 +236,9 @@ def check_plugin(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0,
         if not bad:
             once = [_values(frames, a) for a in ("control", "channels")]
             if [_values(run_frames(cls, params, **kw), a) for a in ("control", "channels")] != once:
-                bad.append("two plugins on the same seed give different values: draw from self.ctx.rng only")
+                bad.append("two plugins on the same seed give different values: keep state on self (not in the module "
+                           "or the class: a second run, or an experiment's next trial, starts from it) and draw "
+                           "randomness from self.ctx.rng only")
             elif plugin.kind in ("extractor", "detector"):   # a scheduler that plans ahead (scheduler=concat)
                 run_frames(cls, params, **kw, plugin=plugin)     # runs them over the input, then reset()s them
                 again = run_frames(cls, params, **kw, plugin=plugin)

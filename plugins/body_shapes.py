@@ -39,7 +39,8 @@ class ShapesBody(Body):
     ``chest(t) = offset + gain * (1 - S_chest(MCS(t)))`` (Eq. 3.3) and
     ``belly(t) = offset + gain * S_belly(MCS(t))`` (Eq. 3.4), where ``S`` is the
     thesis' Smoother.  Dimensionless shape-key weights: 1 = the sculpted
-    expanded shape, 0 = rest, outside [0, 1] = extrapolated.
+    expanded shape, 0 = the mesh's base shape, outside [0, 1] = extrapolated; in
+    silence the chest is 1 (full) and the belly 0.
     """
 
     name = "shapes"

@@ -787,7 +787,7 @@ def test_a_sweep_over_experiments_ends_with_a_hint_report_takes(tmp_path, capsys
 
 @pytest.mark.parametrize("args,line", [
     (["corpus"], "python -m laughlab corpus: name a command: fetch, list, lock (see --help)"),
-    (["study"], "python -m laughlab study: name a command: build, serve, simulate, analyze, power (see --help)"),
+    (["study"], "python -m laughlab study: name a command: build, serve, simulate, analyze, assignments, power (see --help)"),
     (["corpus", "fetchh"], "python -m laughlab corpus: unknown command 'fetchh': its commands are fetch, list, lock "
                            "(see --help)"),
 ])

@@ -24,6 +24,16 @@ def face(name, step, base=GoodFace):
     return type(name, (base,), {"name": name, "step": step})
 
 
+_COUNT = [0]
+
+
+def _counting_smile(self, frame):
+    """A module-level counter (a plugin author's review): an experiment's trials then depend on their order."""
+    _COUNT[0] += 1
+    GoodFace.step(self, frame)
+    frame.channels["smile"] = min(1.0, (_COUNT[0] % 100) / 100)
+
+
 def _random_smile(self, frame):   # a draw from numpy's global generator, not self.ctx.rng
     import numpy as np
 
@@ -81,9 +91,10 @@ class Leaky(Sink):   # writes straight into the run folder, names no file and ha
      "arkit.JawOpen: not ARKit blendshape names"),
     (face("sometimes", lambda self, f: (GoodFace.step(self, f), f.index == 5 and f.channels.update(x=1.0))),
      "frame 5 writes other channels than frame 0 (x)"),
-    (face("dice", _random_smile), "two plugins on the same seed give different values: draw from self.ctx.rng"),
+    (face("dice", _random_smile), "two plugins on the same seed give different values: keep state on self"),
+    (face("counts", _counting_smile), "and draw randomness from self.ctx.rng only"),
     (Untidy, "after a run and reset() its values differ from a new one's"),
-    (Wanders, "body 'wanders': the body wrote an offset for joint 'Tail', which the skeleton does not have"),
+    (Wanders, "wrote an offset for joint 'Tail', which the skeleton does not have"),
     (Dances, "scheduler 'dances': the scheduler started clip 'macarena' at 0.05 s (frame 3), which the clip "
              "library does not hold"),
 ])

@@ -248,8 +248,8 @@ def test_a_scheduler_or_body_writing_what_the_character_lacks_is_one_line(tmp_pa
         "hold (no clip 'nosuchclip'; have lean_front1, ") and r.stderr.count("\n") == 1
     r = laughlab("plugins_dir=p", "body=badbody", "input.duration_s=2", "hydra.run.dir=run", cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.startswith(
-        "laughlab: error: the body wrote an offset for joint 'nosuchjoint', which the skeleton does not have (its "
-        "joints: hips, spine, ") and r.stderr.count("\n") == 1
+        f"laughlab: error: body 'badbody' ({tmp_path / 'p' / 's.py'}) wrote an offset for joint 'nosuchjoint', which "
+        "the skeleton does not have (its joints: hips, spine, ") and r.stderr.count("\n") == 1
     assert not (tmp_path / "run").exists()
 
 
@@ -493,3 +493,13 @@ def test_a_face_writing_an_earlier_stages_channel_is_said_once(tmp_path, how, mo
                     "docs/architecture.md)"]
     with open(tmp_path / "r" / "channels.csv", newline="") as f:
         assert {row["energy"] for row in csv.DictReader(f)} == {"0.300000"}
+
+
+def test_config_files_in_a_plugins_dirs_group_folders_are_said_not_read(tmp_path):
+    """A plugin author's review: myplugins/body/sway.yaml (a Hydra group file) was ignored, silently."""
+    (tmp_path / "p" / "body").mkdir(parents=True)
+    (tmp_path / "p" / "body" / "sway.yaml").write_text("gain: 2\n")
+    r = laughlab("plugins_dir=p", "detector=none", "input.duration_s=1", "hydra.run.dir=run", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr.startswith(f"laughlab: warning: body/sway.yaml in plugins_dir {tmp_path / 'p'} not read: a "
+                               "plugin's defaults are its Params dataclass")

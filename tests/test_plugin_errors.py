@@ -98,6 +98,13 @@ def test_a_plugin_that_raises_as_it_is_built_is_named(registered):
     assert r.stderr.splitlines()[-1].startswith("laughlab: error: face 'boom' (") and r.stderr.count("laughlab:") == 1
 
 
+def _refused(tmp_path, said: str, *args: str) -> None:
+    """The run of ``args`` (1 s, into tmp_path/run) exits 1 with the one line ``said`` and writes nothing."""
+    r = run_cli(*args, "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 1 and r.stderr == f"laughlab: error: {said}\n", r.stderr
+    assert not (tmp_path / "run").exists() or not any((tmp_path / "run").iterdir())
+
+
 def test_an_extractor_that_writes_no_mcs_is_named_not_laughlab(registered, tmp_path):
     class Loudness(Extractor):
         name = "loudness"
@@ -106,12 +113,82 @@ def test_an_extractor_that_writes_no_mcs_is_named_not_laughlab(registered, tmp_p
             frame.control["loud"] = float(abs(block).max(initial=0.0))
 
     registered(Loudness, "register_extractors")
-    r = run_cli("extractor=loudness", "detector=none", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}")
-    assert r.returncode == 1 and r.stderr == (
-        f"laughlab: error: extractor 'loudness' ({__file__}, Loudness.step) wrote no mcs at frame 0 (it wrote loud): "
-        "every extractor writes frame.control['mcs'] (0-1), the signal the detector, scheduler, body and face read; "
-        "nothing was written\n"), r.stderr
+    _refused(tmp_path, f"extractor 'loudness' ({__file__}, Loudness.step) wrote no mcs at frame 0 (it wrote loud): "
+             "every extractor writes frame.control['mcs'] (0-1), the signal the detector, scheduler, body and face "
+             "read; nothing was written", "extractor=loudness", "detector=none")
+
+
+class Peak(Extractor):
+    """An extractor whose mcs is given per test (a plugin author's review, 2026-11-30)."""
+    name = "peak"
+    value = None
+
+    def step(self, block, frame):
+        frame.control["mcs"] = type(self).value(block, frame)
+
+
+@pytest.mark.parametrize("value, says", [
+    (lambda block, f: abs(block) * 2, "wrote mcs as ndarray, shape (267,) at frame 0: mcs is one number a frame, 0-1"),
+    (lambda block, f: "0.3", "wrote mcs as str at frame 0: mcs is one number a frame, 0-1"),
+])
+def test_an_extractors_mcs_that_is_not_one_number_is_its_line_not_a_later_stages(registered, tmp_path, value, says):
+    """An array or a text as mcs: the next stage that read it (a built-in detector or scheduler) raised, and its line
+    asked for a report to laughlab."""
+    registered(type("Peak", (Peak,), {"value": staticmethod(value), "__module__": __name__}), "register_extractors")
+    r = run_cli("extractor=peak", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 1 and r.stderr.startswith(f"laughlab: error: extractor 'peak' ({__file__}, Peak.step) "
+                                                     f"{says}") and r.stderr.count("\n") == 1, r.stderr
     assert not (tmp_path / "run").exists() or not any((tmp_path / "run").iterdir())
+
+
+@pytest.mark.parametrize("value", [5.0, -0.5])
+def test_an_mcs_outside_0_1_is_refused_naming_the_extractor(registered, tmp_path, value):
+    """architecture.md: mcs is 0-1; a value of 5 went into channels.csv and an energy of 65, exit 0."""
+    registered(type("Peak", (Peak,), {"value": staticmethod(lambda b, f: value if f.index >= 30 else 0.0),
+                                      "__module__": __name__}), "register_extractors")
+    _refused(tmp_path, f"channel 'mcs' is {value:g} at frame 30: the motion control signal is 0-1 "
+             "(docs/architecture.md); a bug in the plugin that writes it, extractor 'peak' (laughlab's own plugins: "
+             "please report it); nothing was written", "extractor=peak", "detector=none")
+
+
+class Sway(laughlab.Body):
+    name = "sway"
+    offset = None
+
+    def step(self, frame):
+        frame.channels.update(chest=1.0, belly=0.0)
+        frame.offsets["spine"] = type(self).offset(frame)
+
+
+@pytest.mark.parametrize("offset, shown", [((5.0, 1.0), "(5.0, 1.0)"), ((1.0, 2.0, 3.0, 4.0), "(1.0, 2.0, 3.0, 4.0)"),
+                                           ((float("nan"), 0.0, 0.0), "(nan, 0.0, 0.0)"), ("abc", "abc")])
+def test_a_body_offset_that_is_not_three_finite_angles_is_one_line_naming_body_and_joint(registered, tmp_path,
+                                                                                         offset, shown):
+    """A 2-tuple ended in a 45-line traceback in the mixer; a NaN said only 'pose column 6'."""
+    registered(type("Sway", (Sway,), {"offset": staticmethod(lambda f: offset if f.index >= 7 else (0.0, 0.0, 0.0)),
+                                      "__module__": __name__}), "register_bodies")
+    _refused(tmp_path, f"body 'sway' ({__file__}) offsets joint 'spine' by {shown} at frame 7: an offset is three "
+             "finite angles (z, x, y) in degrees; a bug in the plugin that writes it (laughlab's own plugins: please "
+             "report it); nothing was written", "body=sway", "detector=none")
+
+
+def test_a_step_of_another_kinds_signature_is_one_line(registered, tmp_path):
+    """A body written with an extractor's step(self, block, frame): a 39-line traceback through the pipeline."""
+    class Wrong(laughlab.Body):
+        name = "wrong_sig"
+
+        def step(self, block, frame):
+            frame.channels.update(chest=1.0, belly=0.0)
+
+    registered(Wrong, "register_bodies")
+    r = run_cli("body=wrong_sig", "detector=none", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 1 and r.stderr.startswith(
+        f"laughlab: error: body 'wrong_sig' ({__file__}, Wrong.step) cannot be called as a body's step(self, frame) ("
+        ) and r.stderr.endswith("): docs/architecture.md, 'Writing a plugin'\n") and r.stderr.count("\n") == 1, r.stderr
+    from laughlab.testing import ContractError, check_plugin
+
+    with pytest.raises(ContractError, match=r"cannot be called as a body's step\(self, frame\)"):
+        check_plugin(Wrong)
 
 
 def test_arkit_names_that_are_not_arkits_are_warned_once(capsys):

@@ -220,7 +220,7 @@ class Body(Plugin):
 
     @abstractmethod
     def step(self, frame: Frame) -> None:
-        """Read ``frame.control``; write the body's channels (``chest``, ``belly``: shape weights, 0 rest, 1 the
+        """Read ``frame.control``; write the body's channels (``chest``, ``belly``: shape weights, 0 the base, 1 the
         expanded shape, which may extrapolate) and ``frame.offsets``: joint rotations added to the clip pose (joint ->
         (Z, X, Y) degrees, BVH order)."""
 

@@ -140,13 +140,38 @@ def check_finite(vals: dict, poses, first_frame: int, raw=None, owner=None) -> N
             v = raw(k, j) if raw is not None else arr[j]
             raise PluginBug(f"channel {k!r} is {'None' if v is None else arr[j]} at frame {first_frame + j}: "
                             f"{whose(k, owner)}; nothing was written")
+    mcs = vals.get("mcs")
+    if mcs is not None and len(mcs) and not ((mcs >= -1e-9) & (mcs <= 1.0 + 1e-9)).all():
+        j = int(np.argmax((mcs < -1e-9) | (mcs > 1.0 + 1e-9)))
+        raise PluginBug(f"channel 'mcs' is {mcs[j]:g} at frame {first_frame + j}: the motion control signal is 0-1 "
+                        f"(docs/architecture.md); {whose('mcs', owner)}; nothing was written")
     if len(poses) and not np.isfinite(poses).all():
         j, c = (int(x[0]) for x in np.nonzero(~np.isfinite(poses)))
         raise PluginBug(f"pose column {c} is {poses[j, c]} at frame {first_frame + j}: a non-finite joint "
                         f"value, {WHOSE}; nothing was written")
 
 
-def check_extractor(control: dict, extractor) -> None:
+def who(kind: str, plugin) -> str:
+    """``body 'sway' (its file)``: a plugin as a line names it."""
+    return f"{kind} '{plugin.name}' ({_source_file(type(plugin))})"
+
+
+def first_step(kind: str, plugin, *args) -> None:
+    """A stage's first step.  A ``step`` that cannot be called with its kind's arguments (a body written with an
+    extractor's ``step(self, block, frame)``: a plugin author's review met a 39-line traceback) is said in one line
+    naming the plugin and the signature its kind has; a TypeError raised inside the plugin is left to :func:`mark`."""
+    try:
+        plugin.step(*args)
+    except TypeError as exc:
+        if exc.__traceback__ is None or exc.__traceback__.tb_next is not None:   # the plugin's code ran: its own
+            raise
+        cls = type(plugin)
+        want = "step(self, block, frame)" if kind in ("extractor", "detector") else "step(self, frame)"
+        raise PluginBug(f"{kind} '{plugin.name}' ({_source_file(cls)}, {cls.__name__}.step) cannot be called as a "
+                        f"{kind}'s {want} ({exc}): docs/architecture.md, 'Writing a plugin'") from None
+
+
+def check_extractor(control: dict, extractor, writers: dict | None = None) -> None:
     """On a run's first frame: the extractor wrote ``control['mcs']``, which the detectors, schedulers, bodies and
     faces read (docs/architecture.md, "Writing a plugin").  An extractor without it stopped the run in the next
     stage that read it, a built-in one, whose line asked for a report to laughlab (a plugin authors' review)."""
@@ -156,6 +181,16 @@ def check_extractor(control: dict, extractor) -> None:
         raise PluginBug(f"extractor '{extractor.name}' ({_source_file(cls)}, {cls.__name__}.step) wrote no mcs at "
                         f"frame 0 (it wrote {wrote}): every extractor writes frame.control['mcs'] (0-1), the signal "
                         "the detector, scheduler, body and face read; nothing was written")
+    mcs = control["mcs"]
+    if isinstance(mcs, bool) or not isinstance(mcs, (int, float)) and not (
+            hasattr(mcs, "dtype") and getattr(mcs, "ndim", 1) == 0 and mcs.dtype.kind in "fiu"):
+        cls = type(extractor)
+        shape = f", shape {mcs.shape}" if hasattr(mcs, "shape") else ""
+        raise PluginBug(f"extractor '{extractor.name}' ({_source_file(cls)}, {cls.__name__}.step) wrote mcs as "
+                        f"{type(mcs).__name__}{shape} at frame 0: mcs is one number a frame, 0-1 (a plugin author's "
+                        "review: a later stage, one of laughlab's, was blamed); nothing was written")
+    if writers is not None:   # a line about mcs names the extractor (:meth:`Recorder._owner`)
+        writers.setdefault("mcs", [("extractor", extractor.name)])
 
 
 class WatchedChannels(dict):

@@ -6,6 +6,8 @@ channels, as Blender's action blend-in is (van Duijn 2014, 5.5).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from laughlab.core.errors import LaughlabError
@@ -39,6 +41,7 @@ class Mixer:
         self.idle = library.idle
         self.idle_blend_s = idle_blend_s
         self._col = {name: 3 + 3 * i for i, name in enumerate(self.skeleton.names)}
+        self.offsets_by = "the body"   # the run names it: "body 'sway' (its file)"
         self.reset()
 
     def reset(self) -> None:
@@ -125,7 +128,7 @@ class Mixer:
                 self.blend_from = None
             else:
                 bf = self.blend_from
-        self._pending.append((src, local, bf, w, frame.offsets or None))
+        self._pending.append((src, local, bf, w, frame.offsets or None, frame.index))
 
     def take(self) -> np.ndarray:
         """The poses of the frames noted since the last call, one row per frame (BVH channel vectors)."""
@@ -160,15 +163,30 @@ class Mixer:
         for i, r in enumerate(recipes):
             if r[4]:
                 row = out[i]
-                for joint, (z, x, y) in r[4].items():
+                for joint, rot in r[4].items():
                     c = col.get(joint)
                     if c is None:   # a body's bug: one line naming the joint, not a KeyError through the pipeline
-                        raise LaughlabError(f"the body wrote an offset for joint {joint!r}, which the skeleton does not "
-                                            f"have (its joints: {', '.join(col)})")
+                        raise LaughlabError(f"{self.offsets_by} wrote an offset for joint {joint!r}, which the "
+                                            f"skeleton does not have (its joints: {', '.join(col)})")
+                    try:
+                        z, x, y = rot
+                        ok = math.isfinite(z + x + y)
+                    except (TypeError, ValueError):
+                        ok = False
+                    if not ok:   # a plugin author's review: a 2-tuple ended in a traceback, a NaN named no joint
+                        raise bad_offset(self.offsets_by, joint, rot, r[5])
                     row[c] += z
                     row[c + 1] += x
                     row[c + 2] += y
         return out
+
+
+def bad_offset(who: str, joint: str, rot, index: int) -> LaughlabError:
+    """The line for a joint offset that is not three finite angles (a body's bug)."""
+    from laughlab.core.blame import WHOSE, PluginBug
+
+    return PluginBug(f"{who} offsets joint {joint!r} by {str(rot)[:60]} at frame {index}: an offset is three finite "
+                     f"angles (z, x, y) in degrees; {WHOSE}; nothing was written")
 
 
 def mid_clip(mixer) -> bool:

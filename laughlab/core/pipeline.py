@@ -330,17 +330,18 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             energy scheduler's KeyError was laughlab's), and a stage that writes a channel an earlier one wrote is
             said (a plugin author's review: a face writing energy replaced the scheduler's in every file)."""
             frame.channels = watched = blame.WatchedChannels()
-            for stage, plugin, step in (("extractor", ext, ext.step), ("detector", det, det.step)):
+            for stage, plugin in (("extractor", ext), ("detector", det)):
                 watched.stage = (stage, plugin.name)
-                step(block, frame)
+                blame.first_step(stage, plugin, block, frame)
                 if plugin is ext:
-                    blame.check_extractor(frame.control, ext)
+                    blame.check_extractor(frame.control, ext, watched.writers)
             watched.stage = ("scheduler", sch.name)
-            sch.step(frame)
+            blame.first_step("scheduler", sch, frame)
             advance(frame)
+            mixer.offsets_by = blame.who("body", body)   # a bad offset's line names it
             for stage, plugin in (("body", body), ("face", face)):
                 watched.stage = (stage, plugin.name)
-                plugin.step(frame)
+                blame.first_step(stage, plugin, frame)
             blame.warn_clashes(watched)
         tail = []   # [input samples, frames] once the input has ended (run_out)
 

@@ -93,6 +93,7 @@ def load_plugin_dir(path: str | Path) -> list[str]:
         raise LaughlabError(f"plugins_dir {str(path)!r} is not a folder{more}")
     loaded = []
     local_package(folder)
+    _warn_group_files(folder)
     from laughlab.core import background
 
     background.local_package(folder)   # the helper process unpickles a background sink of the folder by name
@@ -122,6 +123,21 @@ def load_plugin_dir(path: str | Path) -> list[str]:
             raise
         loaded.append(mod_name)
     return loaded
+
+
+_GROUP_FILES_SAID: set = set()
+
+
+def _warn_group_files(folder: Path) -> None:
+    """One warning (once a process) for config files in a plugins_dir's group folders (``body/sway.yaml``, the
+    Hydra way): they are not read, only ``experiment/*.yaml`` is; a plugin's defaults are its ``Params`` (a plugin
+    author's review: such a file was ignored, silently)."""
+    files = sorted(str(f.relative_to(folder)) for g in (*_GROUPS, "output") for f in (folder / g).glob("*.yaml"))
+    if files and str(folder) not in _GROUP_FILES_SAID:
+        _GROUP_FILES_SAID.add(str(folder))
+        print(f"laughlab: warning: {', '.join(files[:3])}{' ...' if len(files) > 3 else ''} in plugins_dir {folder} "
+              "not read: a plugin's defaults are its Params dataclass (set them as GROUP.KEY=VALUE or in an "
+              "experiment/NAME.yaml, the one kind of config file a plugins_dir holds)", file=sys.stderr)
 
 
 def _raised_at(exc: BaseException) -> str:

@@ -261,7 +261,7 @@ class Renderer:
         weights : dict
             ARKit weights of the face (floats).
         chest, belly : float
-            Body shape weights (0 rest, 1 expanded).
+            Body shape weights (0 the base shape, 1 expanded).
         """
         ss = self.ss
         pts = positions if end_positions is None else np.concatenate([positions, end_positions])
