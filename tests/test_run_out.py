@@ -70,21 +70,34 @@ def test_the_run_goes_on_in_silence_until_the_blend_back_to_idle_is_done(runs):
     m = json.loads((root / "on" / "metrics.json").read_text())
     assert m["duration_s"] == pytest.approx(3.0) and m["n_frames"] == frames
     assert m["run_out_s"] == pytest.approx((frames - 3 * FPS) / FPS) and "clip_at_end" not in m
-    assert f"3.0 s of synthetic input, then {m['run_out_s']:.1f} s of silence to end its last clip (run_out)" \
+    assert f"3.0 s of synthetic input, then {m['run_out_s']:.1f} s of silence to bring it to rest (run_out)" \
         in on.stdout
     # standing: the hips at the idle pose's height, where the cut run's last frame is elsewhere
     assert abs(_last_pose(root / "on")[1] - 95.0) < 2.0
     assert _last_pose(root / "off") != _last_pose(root / "on")
 
 
-def test_an_input_that_ends_at_idle_is_not_extended(tmp_path):
-    """0.5 s of the synthetic laughter ends before any clip: run_out changes no byte."""
+def test_an_input_that_ends_before_any_clip_runs_out_until_the_face_is_at_rest(tmp_path):
+    """0.5 s of the synthetic laughter ends before any clip, the smile still fading (0.032, falling 0.0033 a frame):
+    run_out plays silence until it has (an animator's review: a baked laugh ended on a 0.29 smile), and no longer."""
     a = laughlab("input.duration_s=0.5", "detector=none", "~output.plots", f"hydra.run.dir={tmp_path / 'a'}")
     b = laughlab("input.duration_s=0.5", "detector=none", "~output.plots", "run_out=true",
                  f"hydra.run.dir={tmp_path / 'b'}")
     assert a.returncode == b.returncode == 0
-    for name in ("channels.csv", "events.csv", "motion.bvh"):
-        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+    cut, out = _rows(tmp_path / "a"), _rows(tmp_path / "b")
+    assert out[:len(cut)] == cut and _events(tmp_path / "a") == _events(tmp_path / "b") == []
+    with open(tmp_path / "b" / "channels.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    smile = [float(r["smile"]) for r in rows]
+    last_input = len(cut) - 2   # the input's last frame
+    # the first frame that did not move ends it: the smile reached 0 one frame before
+    assert smile[last_input] > 0.03 and smile[-1] == smile[-2] == 0.0 and smile[-3] > 0.0
+    assert all(float(r["mcs"]) == 0.0 and float(r["jaw"]) == 0.0 for r in rows[last_input + 1:])
+    # a run whose face is already at rest gains nothing: the settled run again, from its own wav
+    c = laughlab("input=file", f"input.path={tmp_path / 'b' / 'input.wav'}", "detector=none", "~output.plots",
+                 "run_out=true", f"hydra.run.dir={tmp_path / 'c'}")
+    assert c.returncode == 0, c.stderr
+    assert len(_rows(tmp_path / "c")) == len(out)
 
 
 def test_the_silence_is_bounded(tmp_path, monkeypatch):

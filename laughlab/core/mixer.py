@@ -193,3 +193,20 @@ def mid_clip(mixer) -> bool:
     """A clip other than a looping idle plays, or the blend back to idle runs (``run_out`` goes on while it does): a
     review found ``scheduler=concat``'s idle segments, a looping clip, kept ``run_out`` going to its 20 s cap."""
     return (mixer.clip is not None and not mixer.clip.loop) or mixer.blend_from is not None
+
+
+#: a face whose ``smile`` and ``jaw`` moved less than this in the last frame (weights) has settled: ``run_out`` ends
+FACE_STILL = 1e-3
+
+
+def settling(mixer, before, frame) -> bool:
+    """``run_out`` goes on: :func:`mid_clip`, or the face still returns to rest, its ``smile`` or ``jaw`` moving by
+    more than :data:`FACE_STILL` from the frame ``before`` to ``frame`` (since 2026-11-30; a review of baked assets in
+    Blender: the body stood at rest and the face still smiled at 0.29, face=facs' smile falling 0.2 a second)."""
+    if mid_clip(mixer):
+        return True
+    if before is None or frame is None:
+        return False
+    a, b = before.channels, frame.channels
+    return abs(b.get("smile", 0.0) - a.get("smile", 0.0)) > FACE_STILL or \
+        abs(b.get("jaw", 0.0) - a.get("jaw", 0.0)) > FACE_STILL

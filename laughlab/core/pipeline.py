@@ -23,7 +23,7 @@ from laughlab.core import blame, interrupts, plugins
 from laughlab.core.bases import Context, RunInfo
 from laughlab.core.errors import LaughlabError, NoAudio, UnknownParameter
 from laughlab.core.frame import Frame
-from laughlab.core.mixer import Mixer, mid_clip
+from laughlab.core.mixer import Mixer, settling
 from laughlab.core.outfiles import unwrite
 from laughlab.core.recorder import Recorder
 from laughlab.core.framesample import FrameSample
@@ -346,19 +346,19 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         tail = []   # [input samples, frames] once the input has ended (run_out)
 
         def run_out():
-            """After the input: silent frames while a clip plays or its blend back to idle runs (``run_out``; a game
-            developer's review: a baked laugh ended with the body half-way down a rofl). Each block is a frame's
-            samples as the input's frames are cut (:func:`laughlab.io.audio.frame_edges`)."""
+            """After the input: silent frames while a clip plays, its blend back to idle runs or the face returns to
+            rest (``run_out``, :func:`laughlab.core.mixer.settling`), each a frame's samples as the input's are cut."""
             tail.extend((samples, k))
             if not pipe.run.run_out or k == 0:
                 return
             per_frame = rate / ctx.fps   # samples a frame
-            while mid_clip(mixer) and (k - tail[1]) * dt < RUN_OUT_MAX_S:
+            while settling(mixer, before, frame) and (k - tail[1]) * dt < RUN_OUT_MAX_S:
                 yield np.zeros(int(round((k + 1) * per_frame)) - int(round(k * per_frame)), np.float32)
 
+        frame = None
         for block in itertools.chain(src.blocks(), run_out()):
             t0 = clock()
-            frame = Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)
+            before, frame = frame, Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)
             if k:
                 ext_step(block, frame)
                 det_step(block, frame)

@@ -57,7 +57,7 @@ def summary_line(cfg, metrics: dict, out_dir: Path, seconds: float, skip=frozens
     # the last frame mid-clip, or the silence run_out added (a game developer's review: a baked laugh ended with
     # the body half-way down a rofl, and nothing said how to let it finish)
     if metrics.get("run_out_s"):
-        what += f", then {float(metrics['run_out_s']):.1f} s of silence to end its last clip (run_out)"
+        what += f", then {float(metrics['run_out_s']):.1f} s of silence to bring it to rest (run_out)"
     elif metrics.get("clip_at_end"):
         what += f" (ends mid-{metrics['clip_at_end']}: run_out=true plays it out)"
     why = "" if silent else no_clip_text(metrics)   # silence is said already
