@@ -412,7 +412,7 @@ def run(cfg, out_dir) -> dict:
     if annotated is not None:
         overall["input_calls_found"] = len(result.calls)
         overall["input_calls_annotated"] = annotated
-    with open(out_dir / "calls.csv", "w", newline="") as fh:
+    with open(out_dir / "calls.csv", "w", newline="", encoding="utf-8") as fh:
         if rows:
             writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
             writer.writeheader()

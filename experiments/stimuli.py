@@ -289,7 +289,8 @@ class Rendered:
             (self.path.parent / f"{sid}.mp4").unlink(missing_ok=True)
             del self._lines[sid]
         if self._lines or self.path.exists():
-            self.path.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in self._lines.values()))
+            self.path.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in self._lines.values()),
+                                 encoding="utf-8")
 
     def add(self, sid: str, key: str, row: list) -> None:
         import os
@@ -520,7 +521,7 @@ def run(cfg, out_dir) -> dict:
            "muted": sorted(muted), "n_stimuli": len(manifest),
            "audio_items": [u[0] for u in units], "participants": n_participants,
            "latin_square_rows": len(williams(len(conditions))), "loudness_target_lufs": target,
-           "orders": [str(p.relative_to(out_dir)) for p in orders]}
+           "orders": [p.relative_to(out_dir).as_posix() for p in orders]}   # the same file on every OS
     character = OmegaConf.select(cfg, "character", default=None)
     doc["character"] = ({"file": Path(str(character)).name, "sha256": _sha256(Path(str(character)).expanduser())}
                         if character else "mannequin")  # which body the participants saw

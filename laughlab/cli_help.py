@@ -36,7 +36,7 @@ def help_text(extra: dict | None = None) -> str:
              "your own plugin modules: plugins_dir=PATH, docs/architecture.md 'Writing a plugin'; its",
              "experiment/NAME.yaml files are experiment=NAME, docs/experiments.md):"]
     defaults = {}
-    for line in conf_dir().joinpath("config.yaml").read_text().splitlines():
+    for line in conf_dir().joinpath("config.yaml").read_text(encoding="utf-8").splitlines():
         m = re.match(r"\s+- (\w+): (\w+)", line)
         if m:
             defaults[m.group(1)] = m.group(2)

@@ -67,7 +67,7 @@ class ArkitSink(Sink):
             self._columns = [n for n in ARKIT_BLENDSHAPES if n in present]
             if not self._columns:
                 return
-            self._f = open(self.staging.path(self.run.out_dir / "face_arkit.csv"), "w", newline="")
+            self._f = open(self.staging.path(self.run.out_dir / "face_arkit.csv"), "w", newline="", encoding="utf-8")
             self._f.write(",".join(["time", *self._columns]) + "\n")
         if not self._columns:
             return

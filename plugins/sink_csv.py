@@ -50,7 +50,7 @@ class CsvSink(Sink):
     def open(self, run) -> None:
         super().open(run)
         self.staging = Staging()
-        self._f = open(self.staging.path(run.out_dir / "channels.csv"), "w", newline="")
+        self._f = open(self.staging.path(run.out_dir / "channels.csv"), "w", newline="", encoding="utf-8")
         self._events: list = []
         self._columns = None
 
@@ -71,7 +71,7 @@ class CsvSink(Sink):
 
     def close(self):
         self._f.close()
-        with open(self.staging.path(self.run.out_dir / "events.csv"), "w", newline="") as f:
+        with open(self.staging.path(self.run.out_dir / "events.csv"), "w", newline="", encoding="utf-8") as f:
             w = csv.writer(f, lineterminator="\n")
             w.writerow(EVENT_COLUMNS)
             for ev in self._events:

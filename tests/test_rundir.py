@@ -611,3 +611,31 @@ def test_a_stop_while_the_marker_is_written_leaves_no_part_file(tmp_path, monkey
     claim.abandon()
     claim.release()
     assert not run.exists()
+
+
+@pytest.mark.parametrize("positional", [True, False], ids=["pread", "lseek"])
+def test_the_lock_says_whose_it_is_with_or_without_pread(tmp_path, monkeypatch, positional):
+    """laughlab.core.oslock: Windows has no pread/pwrite (a portability review: every run ended in a traceback there),
+    so the holder's pid is also written and read with lseek and write/read; a second process is refused the lock and
+    reads the pid either way, and gets the lock once the holder lets go."""
+    from laughlab.core import oslock
+
+    if not positional:
+        monkeypatch.delattr(os, "pread")
+        monkeypatch.delattr(os, "pwrite")
+    lock = tmp_path / ".laughlab.lock"
+    child = ("import os, sys\nfrom laughlab.core import oslock\n"
+             + ("" if positional else "del os.pread, os.pwrite\n")
+             + "fd = os.open(sys.argv[1], os.O_RDWR)\nprint(oslock.try_lock(fd), oslock.read_head(fd).decode().strip())\n")
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        assert oslock.try_lock(fd)
+        oslock.write_head(fd, b"123456789\n")
+        oslock.write_head(fd, b"4242\n")   # the file becomes the new pid alone
+        other = subprocess.run([sys.executable, "-c", child, str(lock)], capture_output=True, text=True, timeout=60)
+        assert other.stdout.split() == ["False", "4242"], other.stderr
+    finally:
+        os.close(fd)
+    other = subprocess.run([sys.executable, "-c", child, str(lock)], capture_output=True, text=True, timeout=60)
+    assert other.stdout.split() == ["True", "4242"], other.stderr
+    assert lock.read_bytes() == b"4242\n"

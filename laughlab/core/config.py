@@ -41,8 +41,8 @@ def outputs_writing(sink: str) -> str:
     option first, then the default), or ``+output.NAME={}`` when none does."""
     options = []
     for f in sorted(conf_dir().joinpath("output").iterdir(), key=lambda f: f.name):
-        if f.name.endswith(".yaml") and f.name != "trial.yaml" and re.search(rf"^{re.escape(sink)}:", f.read_text(),
-                                                                             re.M):   # trial: the harness' own
+        if f.name.endswith(".yaml") and f.name != "trial.yaml" and re.search(
+                rf"^{re.escape(sink)}:", f.read_text(encoding="utf-8"), re.M):   # trial: the harness' own
             options.append(f.name[:-5])
     options.sort(key=lambda o: (o != sink, o != "files", o))
     if not options:
@@ -432,7 +432,7 @@ def _top_level_keys() -> tuple[str, ...]:
     """The settings at the top of ``config.yaml`` (``seed``, ``fps``, ``character``...), in the file's order."""
     import yaml
 
-    doc = yaml.safe_load(conf_dir().joinpath("config.yaml").read_text()) or {}
+    doc = yaml.safe_load(conf_dir().joinpath("config.yaml").read_text(encoding="utf-8")) or {}
     return tuple(k for k in doc if k != "defaults")
 
 

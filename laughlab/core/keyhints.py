@@ -35,7 +35,7 @@ def option_keys(folder, kind: str | None) -> dict[str, set]:
     if folder is not None and folder.is_dir():
         for f in folder.iterdir():
             if f.name.endswith(".yaml"):
-                doc = OmegaConf.to_container(OmegaConf.create(f.read_text()), resolve=False) or {}
+                doc = OmegaConf.to_container(OmegaConf.create(f.read_text(encoding="utf-8")), resolve=False) or {}
                 keys[f.name[:-5]] = _paths(doc) - {"name", "defaults"}
     if kind is not None:
         from laughlab.core import plugins

@@ -399,7 +399,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             metrics.update((more() if callable(more) else None) or {})
         metrics.update(extra or {})
         tmp = out_dir / ".metrics.json.part"
-        tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+        tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True) + "\n", encoding="utf-8")
         os.replace(tmp, out_dir / "metrics.json")
         return metrics
     except BaseException as exc:

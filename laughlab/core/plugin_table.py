@@ -34,6 +34,7 @@ def chosen_by(kind: str, name: str) -> str:
     if group != "output":   # its own option, and the presets of other names that run it (detector=yamnet_fused)
         presets = sorted(f.name[:-5] for f in conf_dir().joinpath(group).iterdir()
                          if f.name.endswith(".yaml") and f.name[:-5] != name
-                         and re.search(rf"^(name: *{re.escape(name)}|  - {re.escape(name)}) *$", f.read_text(), re.M))
+                         and re.search(rf"^(name: *{re.escape(name)}|  - {re.escape(name)}) *$",
+                                       f.read_text(encoding="utf-8"), re.M))
         return f"{group}={name}" + (f" (also {', '.join(f'{group}={p}' for p in presets)})" if presets else "")
     return outputs_writing(name)

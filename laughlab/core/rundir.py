@@ -2,7 +2,8 @@
 
 :func:`claim` is called before anything is written into the directory:
 
-* it takes an exclusive ``flock`` on ``DIR/.laughlab.lock`` (the process id inside) for the life
+* it takes an exclusive lock (:mod:`laughlab.core.oslock`: ``flock``, Windows' ``msvcrt.locking``) on
+  ``DIR/.laughlab.lock`` (the process id inside) for the life
   of the process; a second run into the same directory ends at once with one line naming the
   directory and the first run's pid.  The OS releases the lock on any exit, a crash included,
   so a stale lock cannot exist: the next run simply gets it;
@@ -29,7 +30,7 @@ import json
 import os
 from pathlib import Path
 
-from laughlab.core import interrupts
+from laughlab.core import interrupts, oslock
 from laughlab.core.errors import LaughlabError, shown_names
 from laughlab.core.outfiles import remove as _remove
 from laughlab.core.overrides import given_value
@@ -87,6 +88,8 @@ class Claim:
         """After a failure: remove the marker and put back the earlier run this one was replacing (or remove
         the folder if this run created it and it is empty).  The marker's temporary file goes too: a stop signal
         that came while the marker was written left it (a clean clone's fuzz run hit it, SIGTERM at 1.42 s)."""
+        if oslock.fcntl is None:   # Windows: an open file cannot be deleted (the lock goes with it, as at exit)
+            self.release()
         for name in (MARKER, MARKER_PART):
             (self.path / name).unlink(missing_ok=True)
         if _put_back(self.path):
@@ -105,6 +108,7 @@ class Claim:
             os.close(self.fd)
         except OSError:
             pass
+        self.fd = -1   # a second release closes nothing (the number may be another file's by then)
 
 
 def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset(),
@@ -126,8 +130,6 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
     refused without ``overwrite=true``); one that can resumes, with or without ``overwrite=true`` (the same
     command), and the run aside goes when it finishes.
     """
-    import fcntl
-
     path = Path(path)
     if path.exists() and not path.is_dir():
         raise LaughlabError(f"hydra.run.dir {path} exists and is not a folder")
@@ -139,15 +141,12 @@ def claim(path: str | Path, overwrite: bool = False, ours: frozenset = frozenset
     except OSError as exc:
         verb = "write into" if not created else "create"   # a review: an existing read-only folder was "created"
         raise LaughlabError(f"cannot {verb} the run directory {path}: {exc.strerror or exc}") from None
-    try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        other = os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+    if not oslock.try_lock(fd):
+        other = oslock.read_head(fd).decode(errors="replace").strip() or "unknown"
         os.close(fd)
         raise InUse(f"{path} is in use by another laughlab run (pid {other}); wait for it to finish or "
-                    f"choose another {where}") from None
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+                    f"choose another {where}")
+    oslock.write_head(fd, f"{os.getpid()}\n".encode())
     try:
         entries = {p.name for p in path.iterdir()} - OWN - set(ours)
         (path / MARKER_PART).unlink(missing_ok=True)   # a run killed as it wrote its marker (a test hit it)
@@ -245,7 +244,7 @@ def _hydra_files(path: Path) -> dict:
     """The run's ``.hydra/*.yaml`` texts (kept in the marker, so that a refused sweep job can put back what
     Hydra wrote over them)."""
     hydra = path / ".hydra"
-    return {p.name: p.read_text() for p in sorted(hydra.glob("*.yaml"))} if hydra.is_dir() else {}
+    return {p.name: p.read_text(encoding="utf-8") for p in sorted(hydra.glob("*.yaml"))} if hydra.is_dir() else {}
 
 
 def _put_back(path: Path) -> bool:
@@ -278,7 +277,7 @@ def restore_hydra(path: str | Path, running: bool = False) -> bool:
         if p.name not in marker["hydra"]:
             p.unlink()
     for name, text in marker["hydra"].items():
-        (hydra / name).write_text(text)
+        (hydra / name).write_text(text, encoding="utf-8")
     return True
 
 
@@ -294,17 +293,14 @@ def record(path: str | Path, name: str) -> None:
 
 def holder(path: str | Path) -> str | None:
     """The pid of the laughlab run that holds ``path``'s lock now (a run still going), or None."""
-    import fcntl
-
     try:
-        fd = os.open(Path(path) / LOCK, os.O_RDONLY)
+        fd = os.open(Path(path) / LOCK, os.O_RDONLY if oslock.fcntl is not None else os.O_RDWR)
     except OSError:
         return None
     try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        return None
-    except BlockingIOError:
-        return os.pread(fd, 32, 0).decode(errors="replace").strip() or "unknown"
+        if oslock.try_lock(fd, shared=True):
+            return None
+        return oslock.read_head(fd).decode(errors="replace").strip() or "unknown"
     except OSError:
         return None
     finally:
@@ -320,14 +316,14 @@ def finished(path: Path) -> bool:
 
 def _read_marker(path: Path) -> dict | None:
     try:
-        return json.loads((path / MARKER).read_text())
+        return json.loads((path / MARKER).read_text(encoding="utf-8"))
     except (OSError, ValueError):
         return None
 
 
 def _write_marker(path: Path, doc: dict) -> None:
     tmp = path / MARKER_PART
-    tmp.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n")
+    tmp.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n", encoding="utf-8")
     os.replace(tmp, path / MARKER)
 
 

@@ -112,7 +112,7 @@ def check_sweep_folder(overrides: list[str]) -> None:
         return
     folder = Path(given).expanduser()
     try:
-        before = yaml.safe_load((folder / "multirun.yaml").read_text())["hydra"]["overrides"]["task"]
+        before = yaml.safe_load((folder / "multirun.yaml").read_text(encoding="utf-8"))["hydra"]["overrides"]["task"]
     except (OSError, yaml.YAMLError, KeyError, TypeError):
         return   # no earlier sweep there (or not one laughlab can read): the jobs' own checks hold
     # Hydra's own settings (hydra.launcher.n_jobs, hydra/launcher=joblib) are not in multirun.yaml's task list, and

@@ -158,7 +158,7 @@ def write_lock(path: Path, work: Path | None = None, progress=print) -> dict:
             progress(f"[{i}/{len(PACKAGES)}] {pkg.name} {pkg.version}: {kept} file{'' if kept == 1 else 's'} selected")
     lock = {"packages": packages, "files": dict(sorted(files.items()))}
     part = path.with_name(path.name + ".part")
-    part.write_text(dump_lock(lock))
+    part.write_text(dump_lock(lock), encoding="utf-8")
     os.replace(part, path)
     return lock
 
@@ -239,7 +239,7 @@ def write_manifest(root: Path, lock: dict | None = None) -> Path:
                      "channels": e["channels"], "sha256": e["sha256"]})
     out = root / "manifest.csv"
     part = out.with_name("manifest.csv.part")
-    with part.open("w", newline="") as fh:
+    with part.open("w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, fieldnames=MANIFEST_COLUMNS, lineterminator="\n")
         w.writeheader()
         w.writerows(rows)
@@ -254,7 +254,7 @@ def available(root: Path | None = None) -> dict[str, Path]:
     if not man.exists():
         return {}
     lock = load_lock()
-    with man.open() as fh:
+    with man.open(encoding="utf-8") as fh:
         ids = [r["id"] for r in csv.DictReader(fh)]
     return {i: file_path(i, lock["files"][i], root) for i in ids if i in lock["files"]
             and file_path(i, lock["files"][i], root).exists()}

@@ -211,7 +211,7 @@ TRUTH_COLUMNS = ("kind", "bout", "onset_s", "offset_s", "intensity")
 
 
 def write_truth(path: Path, rows: list[dict]) -> None:
-    with path.open("w", newline="") as fh:
+    with path.open("w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, fieldnames=TRUTH_COLUMNS, lineterminator="\n")
         w.writeheader()
         for r in rows:
@@ -230,7 +230,7 @@ def write_set(out_dir: Path, kind: str, split: str, n: int, duration_s: float, s
             "version": 2, "lock": hashlib.sha256(json.dumps(load_lock()["files"], sort_keys=True).encode())
             .hexdigest()[:16], "annotations": ann_mod.digest()}
     stamp = out_dir / "set.json"
-    if stamp.exists() and json.loads(stamp.read_text()) == spec:
+    if stamp.exists() and json.loads(stamp.read_text(encoding="utf-8")) == spec:
         return sorted(out_dir.glob("*.wav"))
     pool = Pool.of_split(split)
     if kind == "real" and not pool.annotations:
@@ -270,6 +270,6 @@ def write_set(out_dir: Path, kind: str, split: str, n: int, duration_s: float, s
             write_truth(out_dir / f"{name}.truth.csv", rows)
             paths.append(out_dir / f"{name}.wav")
     tmp = stamp.with_name("set.json.part")
-    tmp.write_text(json.dumps(spec))
+    tmp.write_text(json.dumps(spec), encoding="utf-8")
     os.replace(tmp, stamp)
     return paths

@@ -176,7 +176,7 @@ def write_or_check(text: str, out, bundled: Path, check: bool, what: str, summar
     exits 3 instead of 1 (the YAMNet heads: fitted on YAMNet's scores, which XNNPACK rounds by CPU family,
     so their bytes hold on the CPU family they were fitted on only)."""
     if check:
-        old = bundled.read_text()
+        old = bundled.read_text(encoding="utf-8")
         if old == text:
             print(f"the bundled {what} is reproduced byte for byte")
             return 0
@@ -188,7 +188,7 @@ def write_or_check(text: str, out, bundled: Path, check: bool, what: str, summar
                 return 3
         print(f"the refit differs from the bundled {what}")
         return 1
-    Path(out).write_text(text)
+    Path(out).write_text(text, encoding="utf-8")
     print(f"wrote {out}: {summary}")
     return 0
 

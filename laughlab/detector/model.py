@@ -295,7 +295,7 @@ class Model:
     @classmethod
     def load(cls, path=None) -> "Model":
         if path is None:
-            text = resources.files("laughlab").joinpath("data", "detector.json").read_text()
+            text = resources.files("laughlab").joinpath("data", "detector.json").read_text(encoding="utf-8")
         else:
             with open(path, encoding="utf-8") as fh:
                 text = fh.read()

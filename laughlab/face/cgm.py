@@ -314,7 +314,7 @@ class CGMSet:
                                  "meta": self.meta, "labels": sorted(self.models)})
             np.savez(path, __header__=np.array(header), **arrays)
         else:
-            path.write_text(self.dumps())
+            path.write_text(self.dumps(), encoding="utf-8")
         return path
 
     @classmethod
@@ -327,7 +327,7 @@ class CGMSet:
                 models = {k: CGM(f[f"{k}/Z"], f[f"{k}/sigma"], int(f[f"{k}/n"]), f[f"{k}/theta_mean"])
                           for k in head["labels"]}
             return cls(models, head["context"], head["outputs"], head.get("meta"))
-        return cls.from_dict(json.loads(path.read_text()))
+        return cls.from_dict(json.loads(path.read_text(encoding="utf-8")))
 
 
 # ---------------------------------------------------------------------- training data
@@ -452,11 +452,11 @@ def main(argv: list[str] | None = None) -> int:
     text = fit_default().dumps()
     out = Path(args.out)
     if args.check:
-        same = out.exists() and out.read_text() == text
+        same = out.exists() and out.read_text(encoding="utf-8") == text
         print(f"{out}: {'up to date' if same else 'DIFFERS from a fresh fit'}")
         return 0 if same else 1
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text)
+    out.write_text(text, encoding="utf-8")
     print(f"wrote {out}")
     return 0
 

@@ -154,7 +154,8 @@ def run_experiment(cfg, out_dir: Path, base_overrides: list[str] | None = None, 
     if kept:
         print(f"{name}: resuming: {len(kept)} of {counted(len(trials), 'trial')} were done, running {len(todo)}",
               file=sys.stderr)
-    journal.path.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in kept))  # drop stale lines
+    journal.path.write_text("".join(json.dumps(r, sort_keys=True) + "\n" for r in kept),
+                            encoding="utf-8")  # drop stale lines
     new = run_trials(todo, jobs, progress, desc=name, on_record=journal.add)
     run.records = sorted([*kept, *new], key=lambda r: (r["condition"], r["input"], r["seed"]))
     write_records(out_dir / "metrics.jsonl", run.records)

@@ -309,7 +309,7 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
     lines += ["## Metrics", "", "| metric | units | definition |", "|---|---|---|"]
     for m, info in doc["metrics"].items():
         lines.append(f"| {m} | {info['units']} | {info['description']} |")
-    (out / "README.md").write_text("\n".join(lines) + "\n")
+    (out / "README.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
     return out / "README.md"
 
 
@@ -318,7 +318,7 @@ def _overrides_of(run_dir: Path) -> list[str] | None:
     import yaml
 
     try:
-        given = yaml.safe_load((run_dir / ".hydra" / "overrides.yaml").read_text()) or []
+        given = yaml.safe_load((run_dir / ".hydra" / "overrides.yaml").read_text(encoding="utf-8")) or []
     except (OSError, yaml.YAMLError):
         return None
     return [str(o) for o in given] if isinstance(given, list) else None   # not Hydra's list: none

@@ -169,7 +169,7 @@ def json_clean(obj):
 
 def write_json(path: Path, obj) -> None:
     tmp = path.with_name(f".{path.name}.part")
-    tmp.write_text(json.dumps(json_clean(obj), indent=2, sort_keys=False) + "\n")
+    tmp.write_text(json.dumps(json_clean(obj), indent=2, sort_keys=False) + "\n", encoding="utf-8")
     tmp.replace(path)
 
 

@@ -162,7 +162,7 @@ def journal_records(path: Path) -> list[dict]:
     if not path.exists():
         return []
     out = []
-    for line in path.read_text().splitlines():
+    for line in path.read_text(encoding="utf-8").splitlines():
         try:
             out.append(json.loads(line))
         except ValueError:  # the last line of a killed run
@@ -205,7 +205,7 @@ class Journal:
 
         record.update(trial_hash=trial_hash(trial), input_sha256=input_hash(trial.item),
                       experiment_hash=self.experiment_hash, code_hash=self.code)
-        with open(self.path, "a") as f:
+        with open(self.path, "a", encoding="utf-8") as f:
             f.write(json.dumps(json_clean(record), sort_keys=True) + "\n")
             f.flush()
             os.fsync(f.fileno())
@@ -285,7 +285,7 @@ def write_records(path: Path, records: list[dict]) -> None:
     from laughlab.harness.results import json_clean
 
     tmp = path.with_name(f".{path.name}.part")
-    with open(tmp, "w") as f:
+    with open(tmp, "w", encoding="utf-8") as f:
         for r in records:
             f.write(json.dumps(json_clean(r), sort_keys=True) + "\n")
     tmp.replace(path)

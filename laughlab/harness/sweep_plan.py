@@ -30,7 +30,7 @@ def multirun(root: Path) -> dict | None:
     if not path.is_file():
         return None
     try:
-        return (yaml.safe_load(path.read_text()) or {}).get("hydra") or {}
+        return (yaml.safe_load(path.read_text(encoding="utf-8")) or {}).get("hydra") or {}
     except (OSError, yaml.YAMLError, AttributeError):
         return None
 
@@ -102,7 +102,7 @@ def _job_params(job: Path) -> dict[str, str] | None:
     import yaml
 
     try:
-        return _params(yaml.safe_load((job / ".hydra" / "overrides.yaml").read_text()) or [])
+        return _params(yaml.safe_load((job / ".hydra" / "overrides.yaml").read_text(encoding="utf-8")) or [])
     except (OSError, yaml.YAMLError, TypeError):
         return None
 

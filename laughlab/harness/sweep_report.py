@@ -28,7 +28,7 @@ def _sweep_points(root: Path) -> list[dict]:
     for rj in sorted(root.rglob("results.json")):
         job = rj.parent
         ov_file = job / ".hydra" / "overrides.yaml"
-        overrides = yaml.safe_load(ov_file.read_text()) if ov_file.exists() else []
+        overrides = yaml.safe_load(ov_file.read_text(encoding="utf-8")) if ov_file.exists() else []
         params = dict(o.split("=", 1) for o in overrides if "=" in o and not o.startswith(NOT_PARAMS))
         points.append({"dir": job, "params": params, "doc": read_results(rj)})
     return points
@@ -224,5 +224,5 @@ def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None 
         name = f"line_{varying[0]}.png"
         line_plots(points, varying[0], heat_metrics, shown, figs / name, doc0["metrics"], title, width)
         lines += [f"![{varying[0]}](figures/{name})", "", vector_link(name), ""]
-    (out / "README.md").write_text("\n".join(lines) + "\n")
+    (out / "README.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
     return out / "README.md"

@@ -111,7 +111,7 @@ class TrialData:
         d = Path(run_dir)
         ch = pd.read_csv(d / "channels.csv")
         ev = pd.read_csv(d / "events.csv", keep_default_na=False, na_values={"end": [""]})
-        m = json.loads((d / "metrics.json").read_text()) if (d / "metrics.json").exists() else {}
+        m = json.loads((d / "metrics.json").read_text(encoding="utf-8")) if (d / "metrics.json").exists() else {}
         fps = float(m.get("fps") or 1.0 / np.median(np.diff(ch.time)))
         tp = Path(truth) if truth else d / "truth.csv"
         return cls(ch, ev, fps, Truth.load(tp) if tp.exists() else None, m,

@@ -210,7 +210,7 @@ class ClipLibrary:
         index = folder / "library.json"
         if not index.is_file():
             raise ValueError(f"clip library index {index} not found")
-        meta = json.loads(index.read_text())
+        meta = json.loads(index.read_text(encoding="utf-8"))
         fps = float(meta["fps"])
         if meta.get("skeleton", "humanoid") not in SKELETONS:
             raise ValueError(f"{index}: unknown skeleton {meta.get('skeleton')!r}")

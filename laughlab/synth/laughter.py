@@ -590,5 +590,5 @@ class SyntheticLaughter:
             return "" if math.isnan(v) else repr(v)
 
         lines = [",".join(TRUTH_COLUMNS)] + [",".join(cell(v) for v in row) for row in self._truth_rows()]
-        with open(path, "w", newline="") as fh:
+        with open(path, "w", newline="", encoding="utf-8") as fh:
             fh.write("\n".join(lines) + "\n")

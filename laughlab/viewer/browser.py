@@ -123,7 +123,7 @@ class Page:
         """Kill Chromium and every process it started (renderer, GPU, zygote: its process group)."""
         try:
             os.killpg(self.proc.pid, signal.SIGKILL)
-        except (ProcessLookupError, PermissionError):
+        except (ProcessLookupError, PermissionError, AttributeError):   # AttributeError: Windows has no killpg
             self.proc.kill()
         self.proc.wait()
 

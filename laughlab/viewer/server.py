@@ -42,7 +42,7 @@ def _channels(run_dir: Path) -> dict[str, np.ndarray]:
 
 
 def _channels_file(path: Path) -> dict[str, np.ndarray]:
-    with open(path, newline="") as f:
+    with open(path, newline="", encoding="utf-8") as f:
         rows = list(csv.reader(f))
     head, body = rows[0], rows[1:]
     short = next((i + 2 for i, r in enumerate(body) if len(r) != len(head)), None)
@@ -71,7 +71,7 @@ def _clips(run_dir: Path, duration: float) -> list[dict]:
     """The played clips (start, stop, energy) from ``events.csv``, paired as the plots pair them."""
     from laughlab.core.frame import ClipEvent, clip_blocks
 
-    with open(run_dir / "events.csv", newline="") as f:
+    with open(run_dir / "events.csv", newline="", encoding="utf-8") as f:
         events = [ClipEvent(float(e["time"]), e["event"], e["clip"], float(e["energy"]))
                   for e in csv.DictReader(f)]
     names = sorted({e.clip for e in events})
@@ -194,7 +194,7 @@ def assets(run_dir: str | Path, character: str | Path | None = None) -> dict[str
     n = len(motion)
     duration = n / fps
     if (run_dir / "metrics.json").exists():   # and the input's own length (the frames span up to a frame more)
-        m = json.loads((run_dir / "metrics.json").read_text())
+        m = json.loads((run_dir / "metrics.json").read_text(encoding="utf-8"))
         fps = float(m.get("fps", fps))
         duration = float(m.get("duration_s") or n / fps)
     ch = _read(run_dir / "channels.csv", _channels_file)
@@ -339,7 +339,7 @@ def _not_the_pages(out: Path) -> list[str] | None:
     if not (out.is_dir() and all((out / f).is_file() for f in PAGE_FILES)):
         return None
     try:
-        audio = json.loads((out / "run.json").read_text()).get("audio")
+        audio = json.loads((out / "run.json").read_text(encoding="utf-8")).get("audio")
     except (ValueError, OSError, AttributeError):
         return None
     # the vendored packages' folders (three, three_vrm...): a page of an earlier laughlab holds other files of
