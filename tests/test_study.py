@@ -54,10 +54,10 @@ def design_of(study_dir: Path) -> dict:
 class Served:
     """``study serve`` in a thread on a free port."""
 
-    def __init__(self, study_dir: Path, db: Path):
+    def __init__(self, study_dir: Path, db: Path, **kw):
         from laughlab.study.server import server
 
-        self.httpd = server(study_dir, db, 0, quiet=True)
+        self.httpd = server(study_dir, db, 0, quiet=True, **kw)
         self.url = f"http://127.0.0.1:{self.httpd.server_address[1]}"
         self.db = db
         threading.Thread(target=self.httpd.serve_forever, daemon=True).start()
@@ -214,29 +214,46 @@ def test_a_decline_is_stored_and_nothing_after_it(study, tmp_path):
 
 def test_a_panel_id_gets_the_next_free_participant_number_and_keeps_it(study, tmp_path):
     """Prolific's PROLIFIC_PID (or MTurk's workerId) in the page's URL: api/assign gives it a participant number,
-    the same on every visit; numbers typed by hand are not given again; a full study says so."""
+    the same on every visit; numbers typed by hand are not given again; a number given to an ID answers to it only;
+    a declined number is given again at once, one held without consent after half an hour; a full study says so."""
     from laughlab.study import db as DB
 
     d = design_of(study)
     srv = Served(study, tmp_path / "r.sqlite")
     try:
         ask = lambda ext: srv.post("/api/assign", {"external_id": ext, "design": d["id"]})  # noqa: E731
-        assert srv.post("/api/start", {"participant": 1, "session": "by-hand", "design": d["id"]})[0] == 200
+        start = lambda p, s, **kw: srv.post("/api/start", {"participant": p, "session": s, "design": d["id"], **kw})  # noqa: E731,E501
+        assert start(1, "by-hand")[0] == 200
         assert ask("5f1a2b3c4d5e6f7a8b9c0d1e")[1]["participant"] == 2        # 1 is taken by a number typed by hand
         assert ask("60aa")[1]["participant"] == 3
         assert ask("5f1a2b3c4d5e6f7a8b9c0d1e")[1]["participant"] == 2        # coming back: the same number
+        # a study-pilot review: ?participant=2 typed by hand went on with the panel participant's study
+        status, reply = start(2, "typed")
+        assert status == 403 and "through the recruitment site's link only" in reply["error"]
+        assert start(2, "other-id", external_id="60aa")[0] == 403
+        assert start(2, "p2", external_id="5f1a2b3c4d5e6f7a8b9c0d1e")[0] == 200
+        assert srv.post("/api/event", {"participant": 2, "session": "p2", "event": "consent"})[0] == 200
+        # 60aa declines: its number goes to the next ID at once
+        assert start(3, "p3", external_id="60aa")[0] == 200
+        assert srv.post("/api/event", {"participant": 3, "session": "p3", "event": "decline"})[0] == 200
+        assert ask("after-decline")[1]["participant"] == 3
         numbers = sorted(int(n) for n in d["participants"])
         for i in range(len(numbers) - 3):
             assert ask(f"w{i}")[0] == 200
         status, reply = ask("one-too-many")
-        assert status == 409 and "every participant number of this study is taken" in reply["error"]
-        assert ask("bad id!")[0] == 422 and ask("")[0] == 422
+        assert status == 409 and "the study is full for now" in reply["error"]
+        bad = ask("bad id!")
+        assert bad[0] == 422 and "please tell the researcher" in bad[1]["error"] and ask("")[0] == 422
         assert srv.post("/api/assign", {"external_id": "x", "design": "other"})[0] == 409
     finally:
         srv.close()
+    # half an hour on, the numbers held without consent go to new IDs; the one that consented (2) stays its ID's
+    assert DB.assign(srv.db, "late", numbers, hold_s=0) == 3
+    assert DB.assigned_to(srv.db, 2) == "5f1a2b3c4d5e6f7a8b9c0d1e"
+    assert DB.assign(srv.db, "5f1a2b3c4d5e6f7a8b9c0d1e", numbers, hold_s=0) == 2
     got = DB.assignments(tmp_path / "r.sqlite")
-    assert [a["participant"] for a in got] == numbers[1:]
-    assert got[0]["external_id"] == "5f1a2b3c4d5e6f7a8b9c0d1e" and got[0]["consent_at"] is None
+    assert [(a["external_id"], a["participant"]) for a in got] == [("5f1a2b3c4d5e6f7a8b9c0d1e", 2), ("late", 3)]
+    assert got[0]["consent_at"] is not None and got[1]["consent_at"] is None
     # `study assignments`: the same as CSV, printed or into a new file (never over one)
     out = fuzz.run_cli(["study", "assignments", str(tmp_path / "r.sqlite")])
     assert out.code == 0, out.stderr
@@ -264,6 +281,23 @@ def _until(page, expr: str, timeout_s: float = 30.0):
 
 
 @pytest.mark.browser
+def test_study_serve_panel_takes_no_number_typed_by_hand(study, tmp_path):
+    """``study serve --panel``: a study recruited on Prolific only; a number typed by hand (one never given to a
+    panel's ID) is refused, so no one outside the panel fills a row of the Latin square."""
+    d = design_of(study)
+    srv = Served(study, tmp_path / "r.sqlite", panel=True)
+    try:
+        status, reply = srv.post("/api/start", {"participant": 4, "session": "s", "design": d["id"]})
+        assert status == 403 and "through the recruitment site's link only" in reply["error"]
+        n = srv.post("/api/assign", {"external_id": "abc", "design": d["id"]})[1]["participant"]
+        assert srv.post("/api/start", {"participant": n, "session": "s", "design": d["id"],
+                                       "external_id": "abc"})[0] == 200
+    finally:
+        srv.close()
+    out = fuzz.run_cli(["study", "serve", "--help"])
+    assert "--panel" in out.stdout
+
+
 def test_a_prolific_link_gets_a_number_and_consent_is_asked_once(study, tmp_path):
     """A Prolific URL (?PROLIFIC_PID=...) is given a participant number by the server and the page goes on with it;
     after consent, a reload is not asked again (the server says so), and a second ID gets the next number; the same
@@ -287,6 +321,12 @@ def test_a_prolific_link_gets_a_number_and_consent_is_asked_once(study, tmp_path
         assert "I agree" not in page.eval("document.body.innerText")
         page.eval(f"location.href = '{srv.url}/index.html?PROLIFIC_PID=other'")
         _until(page, "location.search.includes('participant=2')")
+        # an empty ID, or the panel's placeholder left in: a line for the participant, not the number form (a
+        # study-pilot review: anyone's number could be typed there)
+        for pid, said in (("", "is empty"), ("{{%PROLIFIC_PID%}}", "not filled in by the recruitment site")):
+            page.eval(f"location.href = '{srv.url}/index.html?PROLIFIC_PID={urllib.parse.quote(pid)}&STUDY_ID=s1'")
+            text = _until(page, "document.querySelector('.study-fatal') && document.body.innerText")
+            assert said in text and "participant number" not in text
         assert [e for e in page.problems() if "favicon.ico" not in e] == []
     finally:
         page.close()

@@ -50,6 +50,8 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--db", help="the database (default: STUDY_DIR/responses.sqlite)")
     s.add_argument("--port", type=port_number, default=DEFAULT_PORT, help="port (a free one if it is taken)")
     s.add_argument("--host", default="127.0.0.1", help="address to listen on (0.0.0.0: the lab's other computers)")
+    s.add_argument("--panel", action="store_true", help="participants come only through a recruitment site's link "
+                                                        "(?PROLIFIC_PID=...): no number typed by hand is taken")
     m = sub.add_parser("simulate", help="simulated participants in headless Chromium do the whole study, "
                                         "answers drawn from a planted effect (a demo, and the tests)")
     m.add_argument("study_dir")
@@ -168,14 +170,17 @@ def _handler(httpd):
 def serve(ns) -> None:
     from laughlab.study.server import server
 
-    httpd = server(ns.study_dir, ns.db, ns.port, ns.host)
+    httpd = server(ns.study_dir, ns.db, ns.port, ns.host, panel=ns.panel)
     from laughlab.viewer.server import serve_until_interrupted, shown_url
 
     everywhere = httpd.server_address[0] in ("0.0.0.0", "", "::")
     handler = _handler(httpd)
     n = len(handler.design["participants"])
     wide = "listening on every network: other computers open it at this computer's address; " if everywhere else ""
-    print(f"laughlab: serving {ns.study_dir} at {shown_url(httpd)}/?participant=1 (participants 1..{n}; "
+    link = "/?PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}&SESSION_ID={{%SESSION_ID%}}" if ns.panel \
+        else "/?participant=1"
+    who = "a recruitment site's link only, " if ns.panel else ""
+    print(f"laughlab: serving {ns.study_dir} at {shown_url(httpd)}{link} ({who}participants 1..{n}; "
           f"{wide}answers into {handler.db}; Ctrl-C to stop)", flush=True)
 
     serve_until_interrupted(httpd)

@@ -12,7 +12,8 @@ Tables (``responses.sqlite`` in the study folder unless ``--db`` says otherwise)
     it is refused.
 ``sessions``
     one row per page load: ``session``, ``participant``, ``started_at``, ``consent_at``,
-    ``finished_at``, ``user_agent``, ``declined_at`` (since 2026-11-30: a decline was not stored).  Answers
+    ``finished_at``, ``user_agent``, ``declined_at`` (since 2026-11-30: a decline was not stored), ``external_id``
+    (the panel's ID the page came with, if any).  Answers
     are stored only from a session the participant started, and only once they gave consent in one of
     their sessions (:func:`consented`).
 ``assignments``
@@ -51,7 +52,7 @@ CREATE TABLE IF NOT EXISTS answers (
   UNIQUE (participant, trial, question));
 CREATE TABLE IF NOT EXISTS sessions (
   session TEXT PRIMARY KEY, participant INTEGER NOT NULL, started_at TEXT NOT NULL, consent_at TEXT,
-  finished_at TEXT, user_agent TEXT, declined_at TEXT);
+  finished_at TEXT, user_agent TEXT, declined_at TEXT, external_id TEXT);
 CREATE TABLE IF NOT EXISTS assignments (
   external_id TEXT PRIMARY KEY, participant INTEGER NOT NULL UNIQUE, assigned_at TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS study (key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -95,8 +96,10 @@ def open_db(path: Path, design: dict, participants: str = "people") -> Path:
             raise LaughlabError(f"{path} is a database of something else (tables {', '.join(sorted(tables)[:3])}); "
                                 "give another --db")
         conn.executescript(SCHEMA)
-        if "declined_at" not in {r[1] for r in conn.execute("PRAGMA table_info(sessions)")}:
-            conn.execute("ALTER TABLE sessions ADD COLUMN declined_at TEXT")   # a database from before 2026-11-30
+        have = {r[1] for r in conn.execute("PRAGMA table_info(sessions)")}
+        for column in ("declined_at", "external_id"):   # a database from before 2026-11-30
+            if column not in have:
+                conn.execute(f"ALTER TABLE sessions ADD COLUMN {column} TEXT")
     except sqlite3.DatabaseError as exc:
         raise LaughlabError(f"{path} is not a study database ({exc}); give another --db") from None
     try:
@@ -188,15 +191,18 @@ def insert_answers(path: Path, rows: list[dict]) -> None:
         conn.close()
 
 
-def session_event(path: Path, session: str, participant: int, event: str, user_agent: str = "") -> None:
-    """``start`` inserts the session (:class:`SessionRefused` if it is another participant's); ``consent``,
-    ``decline`` and ``finish`` stamp it (the first time), and only a session ``participant`` started."""
+def session_event(path: Path, session: str, participant: int, event: str, user_agent: str = "",
+                  external_id: str | None = None) -> None:
+    """``start`` inserts the session (:class:`SessionRefused` if it is another participant's), with the panel's ID
+    the page came with; ``consent``, ``decline`` and ``finish`` stamp it (the first time), and only a session
+    ``participant`` started."""
     conn = connect(path)
     try:
         with _transaction(conn):
             if event == "start":
-                conn.execute("INSERT OR IGNORE INTO sessions (session, participant, started_at, user_agent) "
-                             "VALUES (?, ?, ?, ?)", (session, participant, utc_now(), user_agent))
+                conn.execute("INSERT OR IGNORE INTO sessions (session, participant, started_at, user_agent, "
+                             "external_id) VALUES (?, ?, ?, ?, ?)",
+                             (session, participant, utc_now(), user_agent, external_id))
             _check_session(conn, session, participant)
             column = {"consent": "consent_at", "decline": "declined_at", "finish": "finished_at"}.get(event)
             if column:
@@ -230,22 +236,49 @@ def consented(conn: sqlite3.Connection, participant: int) -> bool:
                         (participant,)).fetchone() is not None
 
 
-def assign(path: Path, external_id: str, numbers: list[int]) -> int | None:
-    """The participant number of a panel's ID: the one it was given before, else the first of ``numbers`` never
-    given and never used (no session of it: numbers typed by hand stay theirs); None when every number is taken.
-    One transaction, so two participants arriving at once get two numbers."""
+#: a panel's number held this long (s) without consent is given to the next ID (a study-pilot review: fake IDs took
+#: every number in 0.03 s, for good); a decline gives it back at once
+HOLD_S = 30 * 60
+
+
+def assign(path: Path, external_id: str, numbers: list[int], hold_s: float = HOLD_S) -> int | None:
+    """The participant number of a panel's ID: the one it was given before, else the first of ``numbers`` free; None
+    when every number is taken.  Free: never given and never used by hand (a session without a panel's ID), or given
+    to an ID that declined, or that gave no consent within ``hold_s`` (that ID loses it: coming back, it gets
+    another).  A number whose holder consented is theirs for good.  One transaction, so two participants arriving at
+    once get two numbers."""
     conn = connect(path)
     try:
         with _transaction(conn):
             row = conn.execute("SELECT participant FROM assignments WHERE external_id = ?", (external_id,)).fetchone()
             if row:
                 return int(row[0])
-            taken = {r[0] for r in conn.execute("SELECT participant FROM assignments UNION "
-                                                "SELECT participant FROM sessions")}
+            now = datetime.now(timezone.utc)
+            for ext, p, at in conn.execute("SELECT external_id, participant, assigned_at FROM assignments").fetchall():
+                mine = conn.execute("SELECT MAX(consent_at IS NOT NULL), MAX(declined_at IS NOT NULL) FROM sessions "
+                                    "WHERE participant = ? AND external_id = ?", (p, ext)).fetchone()
+                if mine[0]:
+                    continue
+                old = (now - datetime.fromisoformat(at.replace("Z", "+00:00"))).total_seconds() > hold_s
+                if mine[1] or old:
+                    conn.execute("DELETE FROM assignments WHERE external_id = ?", (ext,))
+            taken = {r[0] for r in conn.execute(
+                "SELECT participant FROM assignments UNION SELECT participant FROM sessions "
+                "WHERE external_id IS NULL OR consent_at IS NOT NULL")}
             free = next((n for n in numbers if n not in taken), None)
             if free is not None:
                 conn.execute("INSERT INTO assignments VALUES (?, ?, ?)", (external_id, free, utc_now()))
             return free
+    finally:
+        conn.close()
+
+
+def assigned_to(path: Path, participant: int) -> str | None:
+    """The panel's ID ``participant``'s number is given to now, or None."""
+    conn = connect(path)
+    try:
+        row = conn.execute("SELECT external_id FROM assignments WHERE participant = ?", (participant,)).fetchone()
+        return row[0] if row else None
     finally:
         conn.close()
 
@@ -258,6 +291,7 @@ def assignments(path: Path) -> list[dict]:
         cur = conn.execute(
             "SELECT a.external_id, a.participant, a.assigned_at, MIN(s.consent_at), MIN(s.declined_at), "
             "MIN(s.finished_at) FROM assignments a LEFT JOIN sessions s ON s.participant = a.participant "
+            "AND s.external_id = a.external_id "
             "GROUP BY a.external_id ORDER BY a.participant")
         keys = ("external_id", "participant", "assigned_at", "consent_at", "declined_at", "finished_at")
         return [dict(zip(keys, r)) for r in cur]
@@ -266,11 +300,12 @@ def assignments(path: Path) -> list[dict]:
 
 
 def sessions(path: Path) -> list[dict]:
-    """Every session's row (older databases: ``declined_at`` None)."""
+    """Every session's row (older databases: ``declined_at`` and ``external_id`` None)."""
     conn = _reader(path)
     try:
         conn.row_factory = sqlite3.Row
-        return [{"declined_at": None, **dict(r)} for r in conn.execute("SELECT * FROM sessions ORDER BY started_at")]
+        return [{"declined_at": None, "external_id": None, **dict(r)}
+                for r in conn.execute("SELECT * FROM sessions ORDER BY started_at")]
     finally:
         conn.close()
 

@@ -74,7 +74,7 @@ def check_preset(doc: dict) -> dict:
             raise LaughlabError(f"study preset: {msg}")
 
     known = {"title", "scale", "points", "slider", "questions", "consent", "instructions", "end", "audio_check",
-             "attention", "completion_url", "exclusions"}
+             "attention", "completion_url", "decline_url", "exclusions"}
     unknown = sorted(set(doc) - known)
     need(not unknown, f"unknown key(s) {', '.join(unknown)}; valid: {', '.join(sorted(known))}")
     doc = dict(doc)
@@ -114,6 +114,7 @@ def check_preset(doc: dict) -> dict:
     doc["instructions"] = [ins] if isinstance(ins, str) else list(ins)
     doc.setdefault("end", "<p>Thank you.</p>")
     doc.setdefault("completion_url", None)
+    doc.setdefault("decline_url", None)
     return doc
 
 
@@ -193,7 +194,8 @@ def make_design(run_dir: Path, preset: dict, preset_name: str, audio_files: list
         "audio_check": {"attempts": preset["audio_check"]["attempts"], "files": audio_files},
         "consent": text["consent"], "end": text["end"],
         "instructions": [s.format(**fill) for s in preset["instructions"]],
-        "completion_url": preset["completion_url"], "exclusions": preset["exclusions"],
+        "completion_url": preset["completion_url"], "decline_url": preset["decline_url"],
+        "exclusions": preset["exclusions"],
         "latin_square_rows": rows, "minutes": minutes,
         "stimuli": {m["stimulus_id"]: {"file": m["file"], "condition": m["condition"], "audio_id": m["audio_id"],
                                        "duration_s": float(m["duration_s"]), "sha256": m["sha256"]}

@@ -3,7 +3,8 @@ and the answers' sessions (since 2026-11-30: a study-server review found attriti
 in two tabs at once not reported).
 
 - from the databases' ``sessions`` table: participants who opened the page, gave consent, declined (and never
-  consented: nothing of theirs is stored), reached the end page;
+  consented: nothing of theirs is stored), reached the end page; a participant is their panel ID when they came with
+  one (a number given again after a decline is then two people), else their number;
 - from the answers (a database's or answer files'): participants whose answers came from more than one page load
   (they came back), and of those, the ones whose two page loads' answers interleave in time (two tabs at once, or two
   devices: a trial shown twice, or answers given out of order).
@@ -43,9 +44,11 @@ def participation(dbs: list[Path], df) -> dict:
     out: dict = {}
     if dbs:
         rows = [s for path in dbs for s in DB.sessions(path)]
-        by = lambda key: {int(s["participant"]) for s in rows if s[key]}   # noqa: E731
+        # a person: their panel ID, else their number (a panel's number given again after a decline is two people)
+        who = lambda s: s["external_id"] or int(s["participant"])   # noqa: E731
+        by = lambda key: {who(s) for s in rows if s[key]}   # noqa: E731
         agreed = by("consent_at")
-        out.update(opened=len({int(s["participant"]) for s in rows}), page_loads=len(rows), consented=len(agreed),
+        out.update(opened=len({who(s) for s in rows}), page_loads=len(rows), consented=len(agreed),
                    declined=len(by("declined_at") - agreed), finished=len(by("finished_at")))
     sessions = df[df["session"].fillna("") != ""].groupby("participant")["session"].nunique()
     out.update(came_back=int((sessions > 1).sum()), two_at_once=sorted(_two_at_once(df)))

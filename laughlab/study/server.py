@@ -7,9 +7,12 @@ at most :data:`MAX_BODY` bytes):
 =================  ===========================================================================
 ``api/assign``     ``{external_id, design}``: a recruitment panel's ID for the participant (Prolific's
                    ``PROLIFIC_PID``, MTurk's ``workerId`` in the page's URL) gets a participant number,
-                   the same one each time it comes back, the next free one otherwise (409 when
-                   every number is taken)
-``api/start``      ``{participant, session, design, user_agent}``: opens a session; answers the
+                   the same one each time it comes back, the next free one otherwise
+                   (``db.assign``: a number held without consent for half an hour, or declined, is
+                   given again; 409 when every number is taken)
+``api/start``      ``{participant, session, design, user_agent[, external_id]}``: opens a session (a
+                   number given to a panel's ID only with that ID: 403; ``--panel``: every number);
+                   answers the
                    trials already stored, whether the audio check is, and whether the participant
                    gave consent (the page resumes there; one who did is not asked again)
 ``api/response``   ``{participant, session, trial, stimulus, answers: {question: value}, rt_ms,
@@ -108,6 +111,7 @@ class StudyHandler(_Handler):
     db: Path = Path()
     log: Path = Path()
     quiet: bool = False
+    panel_only: bool = False   # study serve --panel
     _lock = threading.Lock()
 
     # -- plumbing ---------------------------------------------------------------------------------------------------
@@ -185,12 +189,26 @@ class StudyHandler(_Handler):
             raise Refused(403, f"participant {p} has not given consent: nothing is stored before it")
 
     # -- endpoints --------------------------------------------------------------------------------------------------
+    def _external(self, body: dict) -> str:
+        ext = body.get("external_id")
+        if not isinstance(ext, str) or not _EXTERNAL.fullmatch(ext):
+            raise Refused(422, f"this link's ID from the recruitment site ({str(ext)[:40]!r}) is not one the study can "
+                               "take (1-128 letters, digits or _.@-): please tell the researcher")
+        return ext
+
     def start(self, body: dict):
-        _keys(body, {"participant", "session", "design", "user_agent"})
+        _keys(body, {"participant", "session", "design", "user_agent", "external_id"})
         p, _, session = self._participant(body)
         if body.get("design") != self.design["id"]:
             raise Refused(409, "this page belongs to another build of the study: reload it")
-        DB.session_event(self.db, session, p, "start", _text(body, "user_agent", 512))
+        ext = self._external(body) if body.get("external_id") is not None else None
+        held = DB.assigned_to(self.db, p)
+        # a number given to a panel's ID answers only to it (a study-pilot review: ?participant=7 typed by hand went
+        # on with another participant's study); --panel: no number typed by hand at all
+        if (held is not None or self.panel_only) and (ext is None or ext != held):
+            raise Refused(403, f"participant {p} takes part through the recruitment site's link only: please open "
+                               "the study from there")
+        DB.session_event(self.db, session, p, "start", _text(body, "user_agent", 512), ext)
         answered, checked = DB.progress(self.db, p)
         return 200, {"answered": answered, "audio_check": checked, "consented": DB.check_session(self.db, session, p)}
 
@@ -198,14 +216,12 @@ class StudyHandler(_Handler):
         _keys(body, {"external_id", "design"})
         if body.get("design") != self.design["id"]:
             raise Refused(409, "this page belongs to another build of the study: reload it")
-        ext = body.get("external_id")
-        if not isinstance(ext, str) or not _EXTERNAL.fullmatch(ext):
-            raise Refused(422, "external_id must be 1-128 letters, digits or _.@-")
+        ext = self._external(body)
         numbers = sorted(int(n) for n in self.design["participants"])
         p = DB.assign(self.db, ext, numbers)
         if p is None:
-            raise Refused(409, f"every participant number of this study is taken ({len(numbers)}): build it for "
-                               "more participants")
+            raise Refused(409, f"the study is full for now (its {len(numbers)} places are taken): please return it on "
+                               "the recruitment site, or try again in half an hour")
         return 200, {"participant": p}
 
     def response(self, body: dict):
@@ -288,12 +304,13 @@ def files_of(study_dir: Path) -> dict[str, Path]:
 
 
 def server(study_dir, db: str | Path | None = None, port: int = DEFAULT_PORT, host: str = "127.0.0.1",
-           quiet: bool = False, participants: str = "people"):
+           quiet: bool = False, participants: str = "people", panel: bool = False):
     """The study's server (not yet serving): the page's files and the endpoints above.  ``participants``
-    (``people`` or ``simulated``) chooses the default database and is checked against a given one."""
+    (``people`` or ``simulated``) chooses the default database and is checked against a given one; ``panel``: every
+    participant comes through a recruitment site's link (``api/assign``), none by a number typed by hand."""
     study_dir = Path(study_dir).expanduser()
     design = load_design(study_dir)
     db_path = DB.open_db(Path(db).expanduser() if db else study_dir / DB.DEFAULT_NAMES[participants], design,
                          participants)
     return http_server(files_of(study_dir), port, base=StudyHandler, host=host, design=design, db=db_path,
-                       log=db_path.with_name(db_path.name + ".rejected.log"), quiet=quiet)
+                       log=db_path.with_name(db_path.name + ".rejected.log"), quiet=quiet, panel_only=panel)

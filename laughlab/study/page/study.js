@@ -304,7 +304,11 @@
         on_finish: (data) => {
           const agree = data.response === 0;
           send("api/event", {participant: Number(p), session: session, event: agree ? "consent" : "decline"});
-          if (!agree) jsPsych.abortExperiment("<p>You chose not to take part. Thank you; you may close this page.</p>");
+          // a panel's participant returns the study there (decline_url: e.g. Prolific's no-consent code)
+          const back = S.decline_url ? `<p><a class="jspsych-btn study-link" href="${esc(S.decline_url)}">` +
+            "Return to the recruitment site</a></p>" : "";
+          if (!agree) jsPsych.abortExperiment(`<p>You chose not to take part. Thank you; ${back ? "please return " +
+            "the study on the recruitment site:" : "you may close this page."}</p>${back}`);
         },
       });
     }
@@ -315,7 +319,8 @@
     } else {
       timeline.push({type: jsPsychHtmlButtonResponse, choices: ["Go on"], on_load: focusButton,
                      stimulus: `<div class="study-text"><h1>Welcome back</h1><p>Your answers so far are saved; ` +
-                       `the study goes on with video ${todo.length ? todo[0].trial : total} of ${total}.</p></div>`});
+                       (todo.length ? `the study goes on with video ${todo[0].trial} of ${total}.`
+                         : "you have rated every video already: thank you.") + "</p></div>"});
     }
     if (!checked) timeline.push(audioCheck(p, P));
     for (const t of todo) {
@@ -358,9 +363,11 @@
 
   // a recruitment panel's ID in the URL: Prolific's PROLIFIC_PID, MTurk's workerId, or external_id
   const PANEL_KEYS = ["PROLIFIC_PID", "workerId", "external_id"];
+  const panelKey = PANEL_KEYS.find((k) => params.has(k));
+  const panelId = panelKey ? params.get(panelKey).trim() : null;
 
   async function assign(key) {  // the server gives the panel's ID a participant number, the same one each time
-    const r = await api("api/assign", {external_id: params.get(key), design: S.id});
+    const r = await api("api/assign", {external_id: panelId, design: S.id});
     if (!(r.data && r.data.laughlab)) {
       fatal(`This link gives a ${key}, but this page is not served by the study's server, which gives each ` +
             "participant their number: please tell the researcher.");
@@ -374,9 +381,13 @@
 
   async function main() {
     const raw = params.get("participant");
-    const panel = PANEL_KEYS.find((k) => params.get(k));
-    if (!raw && panel) {
-      await assign(panel);
+    if (panelKey && (!panelId || panelId.includes("{{"))) {  // a study-pilot review: an empty one gave the number form
+      fatal(`This link's ${panelKey} is ${panelId ? "not filled in by the recruitment site" : "empty"}: please ` +
+            "return to the recruitment site and tell the researcher.");
+      return;
+    }
+    if (!raw && panelKey) {
+      await assign(panelKey);
       return;
     }
     const p = raw && /^\d+$/.test(raw) ? String(parseInt(raw, 10)) : null;
@@ -387,7 +398,9 @@
     const P = S.participants[p];
     state.rows = loadLocal(p);
     let consented = null;
-    const r = await api("api/start", {participant: Number(p), session: session, design: S.id, user_agent: ua});
+    const begin = {participant: Number(p), session: session, design: S.id, user_agent: ua};
+    if (panelId) begin.external_id = panelId;   // a number given to a panel's ID answers to it only
+    const r = await api("api/start", begin);
     const done = new Set();
     let checked = false;
     if (r.data && r.data.laughlab) {
