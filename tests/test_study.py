@@ -323,8 +323,8 @@ def test_a_prolific_link_gets_a_number_and_consent_is_asked_once(study, tmp_path
         _until(page, "location.search.includes('participant=2')")
         # an empty ID, or the panel's placeholder left in: a line for the participant, not the number form (a
         # study-pilot review: anyone's number could be typed there)
-        for pid, said in (("", "is empty"), ("{{%PROLIFIC_PID%}}", "not filled in by the recruitment site")):
-            page.eval(f"location.href = '{srv.url}/index.html?PROLIFIC_PID={urllib.parse.quote(pid)}&STUDY_ID=s1'")
+        for link_id, said in (("", "is empty"), ("{{%PROLIFIC_PID%}}", "not filled in by the recruitment site")):
+            page.eval(f"location.href = '{srv.url}/index.html?PROLIFIC_PID={urllib.parse.quote(link_id)}&STUDY_ID=s1'")
             text = _until(page, "document.querySelector('.study-fatal') && document.body.innerText")
             assert said in text and "participant number" not in text
         assert [e for e in page.problems() if "favicon.ico" not in e] == []
