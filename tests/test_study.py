@@ -444,6 +444,23 @@ def test_answers_another_tab_gave_first_are_not_said_to_be_saved(study, tmp_path
         srv.close()
     assert lost and given[1].saved is True and given[1].status == "All your answers are saved.", given[1].status
 
+    # every trial given first by the other tab: this page is told nothing of its own was stored (a study-pilot
+    # review: it read "the first ones given are kept, and the rest are saved" with none of its answers stored)
+    def all_given(path, rows):
+        real(path, rows)
+        if any(r["trial"] > 0 for r in rows):
+            raise DB.Duplicate("already stored")
+
+    monkeypatch.setattr(DB, "insert_answers", all_given)
+    srv = Served(study, tmp_path / "responses3.sqlite")
+    try:
+        given = S.run_sync(srv.url, d, [1], S.planted(d, {}, seed=3))
+    finally:
+        srv.close()
+    assert given[1].saved is False and given[1].status == (
+        "Your answers here had all been given already in another tab or window of this page: those are kept, and "
+        "nothing from this one."), given[1].status
+
 
 def test_every_study_command_fails_in_one_line(study, tmp_path):
     bad = tmp_path / "bad.csv"

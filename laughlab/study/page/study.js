@@ -18,8 +18,9 @@
   const session = (window.crypto && crypto.randomUUID) ? crypto.randomUUID()
     : Date.now().toString(16) + Math.random().toString(16).slice(2);
   const ua = navigator.userAgent;
-  // refused: posts the server refused (4xx); given: of them, answers already stored (409: another tab of the page)
-  const state = {server: false, rows: [], pending: [], flushing: null, keys: null, refused: 0, given: 0};
+  // refused: posts the server refused (4xx); given: of them, answers already stored (409: another tab of the page);
+  // kept: this page's trials the server stored
+  const state = {server: false, rows: [], pending: [], flushing: null, keys: null, refused: 0, given: 0, kept: 0};
   const now = () => new Date().toISOString();
   const esc = (s) => String(s).replace(/[&<>"']/g, (c) => ({"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;",
                                                               "'": "&#39;"}[c]));
@@ -61,6 +62,7 @@
         // a 409 on a retry: the first try reached the server and only its reply was lost (a diff review: it was
         // called another tab's answer); otherwise not stored, and the end page says so (a review: it said "All
         // your answers are saved")
+        if (r.ok && post.path === "api/response") state.kept += 1;   // this page's answers the server stored
         if (!r.ok && !(r.status === 409 && post.tried)) {
           console.warn(`laughlab study: ${post.path} refused (${r.status}): ${r.data && r.data.error}`);
           if (r.status === 409) state.given += 1; else state.refused += 1;
@@ -275,9 +277,11 @@
             : !sent ? "Some answers could not be sent: please download them and send the file as asked."
               : state.refused ? "Some of your answers were refused by the server: please download them and send " +
                 "the file as asked."
-                : state.given ? "Some of your answers had already been given in another tab or window of this " +
-                  "page: the first ones given are kept, and the rest are saved."
-                  : "All your answers are saved.";
+                : state.given && !state.kept ? "Your answers here had all been given already in another tab or " +
+                  "window of this page: those are kept, and nothing from this one."
+                  : state.given ? "Some of your answers had already been given in another tab or window of this " +
+                    "page: the first ones given are kept, and the rest are saved."
+                    : "All your answers are saved.";
           status.dataset.saved = String(state.server && sent && !state.refused && !state.given);
         });
         focusButton();
