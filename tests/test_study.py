@@ -414,13 +414,18 @@ def test_answers_another_tab_gave_first_are_not_said_to_be_saved(study, tmp_path
             raise DB.Duplicate("participant 1 trial 2 is already stored")
         real(path, rows)
 
-    monkeypatch.setattr(DB, "insert_answers", other_tab_first)
     d = design_of(study)
-    srv = Served(study, tmp_path / "responses.sqlite")
-    try:
-        given = S.run_sync(srv.url, d, [1], S.planted(d, {}, seed=3))
-    finally:
-        srv.close()
+
+    def participant_1(insert, db):
+        """Participant 1 through the whole page, the server storing with ``insert``."""
+        monkeypatch.setattr(DB, "insert_answers", insert)
+        srv = Served(study, tmp_path / db)
+        try:
+            return S.run_sync(srv.url, d, [1], S.planted(d, {}, seed=3))[1]
+        finally:
+            srv.close()
+
+    given = {1: participant_1(other_tab_first, "responses.sqlite")}
     assert given[1].saved is False
     assert given[1].status == ("Some of your answers had already been given in another tab or window of this page: "
                                "the first ones given are kept, and the rest are saved."), given[1].status
@@ -436,12 +441,7 @@ def test_answers_another_tab_gave_first_are_not_said_to_be_saved(study, tmp_path
             lost.append(1)
             raise ConnectionAbortedError("the reply is lost")
 
-    monkeypatch.setattr(DB, "insert_answers", reply_lost)
-    srv = Served(study, tmp_path / "responses2.sqlite")
-    try:
-        given = S.run_sync(srv.url, d, [1], S.planted(d, {}, seed=3))
-    finally:
-        srv.close()
+    given = {1: participant_1(reply_lost, "responses2.sqlite")}
     assert lost and given[1].saved is True and given[1].status == "All your answers are saved.", given[1].status
 
     # every trial given first by the other tab: this page is told nothing of its own was stored (a study-pilot
@@ -451,12 +451,7 @@ def test_answers_another_tab_gave_first_are_not_said_to_be_saved(study, tmp_path
         if any(r["trial"] > 0 for r in rows):
             raise DB.Duplicate("already stored")
 
-    monkeypatch.setattr(DB, "insert_answers", all_given)
-    srv = Served(study, tmp_path / "responses3.sqlite")
-    try:
-        given = S.run_sync(srv.url, d, [1], S.planted(d, {}, seed=3))
-    finally:
-        srv.close()
+    given = {1: participant_1(all_given, "responses3.sqlite")}
     assert given[1].saved is False and given[1].status == (
         "Your answers here had all been given already in another tab or window of this page: those are kept, and "
         "nothing from this one."), given[1].status
