@@ -312,3 +312,36 @@ def test_a_third_party_metric_that_never_applies_is_warned_with_its_exception(re
     records[1]["metrics"]["jaw_open_mean_t"] = 0.3   # it applied once: no word
     warn_unmeasured(records)
     assert capsys.readouterr().err == ""
+
+
+def test_a_slow_plugin_is_named_by_the_run(registered, tmp_path):
+    """A plugin author's review: a body taking 20 ms a frame showed only as "frame loop 0.82x" (and a VMC stream's
+    latency grew to 420 ms, unsaid). Every 64th frame is timed stage by stage (metrics.json stage_ms); the run's
+    line names the slowest stage when the stages take over half a frame."""
+    import json
+    import time as _time
+
+    class Slow(laughlab.Body):
+        name = "slow_body"
+
+        def step(self, frame):
+            _time.sleep(0.012)
+            frame.channels.update(chest=1.0, belly=0.0)
+
+    registered(Slow, "register_bodies")
+    r = run_cli("body=slow_body", "detector=none", "input.duration_s=2.2", "~output.plots",
+                f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 0, r.stderr
+    stages = json.loads((tmp_path / "run" / "metrics.json").read_text())["stage_ms"]
+    assert set(stages) == {"extractor rms", "detector none", "scheduler energy", "mixer", "body slow_body",
+                           "face smile"}
+    assert stages["body slow_body"] >= 12.0 and max(stages, key=stages.get) == "body slow_body"
+    assert f"; body slow_body {stages['body slow_body']:.1f} ms a frame of 16.7) -> " in r.stdout, r.stdout
+
+
+def test_the_slowest_stage_is_said_only_past_half_a_frame():
+    from laughlab.core.stages import slowest
+
+    assert slowest({"body a": 5.0, "face b": 3.0}, 60.0) == ""                     # 8.0 ms of 16.7: under half
+    assert slowest({"body a": 5.0, "face b": 3.5}, 60.0) == "; body a 5.0 ms a frame of 16.7"
+    assert slowest({}, 60.0) == ""

@@ -24,6 +24,7 @@ from laughlab.core.bases import Context, RunInfo
 from laughlab.core.errors import LaughlabError, NoAudio, UnknownParameter
 from laughlab.core.frame import Frame
 from laughlab.core.mixer import Mixer, settling
+from laughlab.core.stages import SAMPLE, Stepper
 from laughlab.core.outfiles import unwrite
 from laughlab.core.recorder import Recorder
 from laughlab.core.framesample import FrameSample
@@ -325,24 +326,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         ext_step, det_step, sch_step, body_step, face_step = ext.step, det.step, sch.step, body.step, face.step
         advance, note, add, record_ns = mixer.advance, mixer.note, rec.add, times.values.append
 
-        def first_frame(block, frame) -> None:
-            """Frame 0's steps, checked: the extractor wrote what every later stage reads (a review: without mcs, the
-            energy scheduler's KeyError was laughlab's), and a stage that writes a channel an earlier one wrote is
-            said (a plugin author's review: a face writing energy replaced the scheduler's in every file)."""
-            frame.channels = watched = blame.WatchedChannels()
-            for stage, plugin in (("extractor", ext), ("detector", det)):
-                watched.stage = (stage, plugin.name)
-                blame.first_step(stage, plugin, block, frame)
-                if plugin is ext:
-                    blame.check_extractor(frame.control, ext, watched.writers)
-            watched.stage = ("scheduler", sch.name)
-            blame.first_step("scheduler", sch, frame)
-            advance(frame)
-            mixer.offsets_by = blame.who("body", body)   # a bad offset's line names it
-            for stage, plugin in (("body", body), ("face", face)):
-                watched.stage = (stage, plugin.name)
-                blame.first_step(stage, plugin, frame)
-            blame.warn_clashes(watched)
+        stepper = Stepper(ext, det, sch, body, face, mixer)   # frame 0 checked, every SAMPLE-th timed
         tail = []   # [input samples, frames] once the input has ended (run_out)
 
         def run_out():
@@ -359,15 +343,17 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         for block in itertools.chain(src.blocks(), run_out()):
             t0 = clock()
             before, frame = frame, Frame(k, k * dt, dt, {}, None, {}, {}, [], 0.0)
-            if k:
+            if k % SAMPLE:
                 ext_step(block, frame)
                 det_step(block, frame)
                 sch_step(frame)
                 advance(frame)
                 body_step(frame)
                 face_step(frame)
+            elif k:
+                stepper.timed(block, frame)
             else:
-                first_frame(block, frame)
+                stepper.checked(block, frame)
             note(frame)
             add(frame, t0)
             record_ns(clock() - t0)
@@ -389,7 +375,7 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
             written += sink.close() or []
         if hasattr(src, "save_artifacts"):
             artifacts = src.save_artifacts(out_dir)
-        metrics = _metrics(pipe, times, k, tail[0] / rate, wall)
+        metrics = {**_metrics(pipe, times, k, tail[0] / rate, wall), "stage_ms": stepper.stage_ms()}
         if k > tail[1]:
             metrics["run_out_s"] = (k - tail[1]) * dt   # the silent frames after the input
         elif mixer.clip is not None and not mixer.clip.loop:   # said by the summary line: the last frame is mid-clip

@@ -20,7 +20,7 @@ class Recorder:
     def __init__(self, n: int, n_channels: int, names: dict | None = None):
         self.n, self.n_channels, self.names = n, n_channels, names   # names: stage -> plugin, for the contract
         self.keys: tuple | None = None
-        self.writers: dict = {}   # channel -> the stages that wrote it on the first frame (pipeline.first_frame)
+        self.writers: dict = {}   # channel -> the stages that wrote it on the first frame (stages.Stepper.checked)
         self.done = 0  # frames handed out in earlier chunks
         # over the run: clip starts, the largest clip_gate and energy, the energy while clips were allowed (no_clip)
         self.starts, self.gate_max, self.energy_max, self.energy_allowed_max = 0, None, 0.0, 0.0

@@ -108,7 +108,9 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
     - a stream paced at the frame clock (``output=vmc`` on a file): real time by design;
     - otherwise the whole command's real-time factor (audio seconds per second waited), then the frame loop's
       (``metrics.json``: ``realtime_factor``, the plugins and the writers), and for a video its rendered
-      frames per second, the part that takes the time.
+      frames per second, the part that takes the time;
+    - and in the last two, the slowest stage when the stages take over half a frame's time
+      (:func:`laughlab.core.stages.slowest`, from ``stage_ms``).
     """
     fps = float(metrics.get("fps") or cfg.get("fps") or 60.0)
     if str(cfg.input.name) == "mic":
@@ -118,10 +120,13 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
         if lag > BEHIND_S or lost:   # the compute kept up, the session did not: a sink or a stall held it up
             said += f"; fell behind the microphone by {lag:.2f} s" + (f", audio lost {lost} times" if lost else "")
         return said
+    from laughlab.core.stages import slowest
+
+    slow = slowest(metrics.get("stage_ms") or {}, fps)   # a stage that takes over half a frame, named
     for sink, what in (("vmc", "the vmc stream"), ("viewer", "the live viewer")):
         node = (cfg.get("output") or {}).get(sink)
         if node is not None and str(node.get("realtime", "auto")) in ("auto", "on"):
-            return f"paced at the frame clock for {what}"
+            return f"paced at the frame clock for {what}{slow}"
     dur = float(metrics.get("duration_s") or 0.0)
     parts = [f"{factor_text(dur / seconds)}x real time" if seconds > 0 else "instant"]
     if metrics.get("video_frames"):
@@ -130,7 +135,7 @@ def speed(cfg, metrics: dict, seconds: float) -> str:
                      if rate is not None and rate == rate else f"video: {counted(int(metrics['video_frames']), 'frame')}")
     elif metrics.get("realtime_factor"):
         parts.append(f"frame loop {factor_text(float(metrics['realtime_factor']))}x")
-    return "; ".join(parts)
+    return "; ".join(parts) + slow
 
 
 def counted(n: int, word: str) -> str:
