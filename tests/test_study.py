@@ -1293,3 +1293,32 @@ def test_a_folder_with_the_servers_database_and_downloaded_answers_reads_both_on
     out = fuzz.run_cli(["study", "analyze", str(folder), "--out", str(tmp_path / "rep")])
     assert out.code == 2 and out.stderr == (f"laughlab: error: {folder} holds study simulate's simulated.sqlite beside "
                                             "answer files: move it out, or analyze it on its own\n")
+
+
+def test_a_study_built_for_more_participants_takes_its_database_on(study, tmp_path, capsys):
+    """A study-pilot review: the page's own advice when every number was taken (build it for more participants)
+    ended with serve refusing the database ("holds the responses of another study"), stranding everyone assigned.
+    The same study for more participants (same questions, checks and videos; the earlier participants' trials the
+    same) takes the database on; another study is still refused."""
+    from laughlab.core.errors import LaughlabError
+    from laughlab.study import db as DB
+    from laughlab.study.design import design_id
+
+    full = design_of(study)
+    small = {**full, "participants": {p: e for p, e in full["participants"].items() if int(p) <= 2}}
+    small["id"] = design_id(small)
+    assert small["id"] != full["id"]
+    db = DB.open_db(tmp_path / "responses.sqlite", small)
+    DB.session_event(db, "s", 1, "start")
+    capsys.readouterr()
+    DB.open_db(db, full)
+    assert DB.stored_design(db)["id"] == full["id"]
+    assert capsys.readouterr().err == (f"laughlab: note: {db} now belongs to this build of the study, the same one "
+                                       f"for {len(full['participants'])} participants where it had 2\n")
+    other = {**full, "questions": full["questions"][:1]}
+    other["id"] = design_id(other)
+    with pytest.raises(LaughlabError, match="holds the responses of another study"):
+        DB.open_db(db, other)
+    fewer = {**small, "id": small["id"]}   # the smaller build again: not an extension of the larger
+    with pytest.raises(LaughlabError, match="holds the responses of another study"):
+        DB.open_db(db, fewer)

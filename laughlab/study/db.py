@@ -33,6 +33,7 @@ import csv
 import io
 import json
 import sqlite3
+import sys
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -110,8 +111,18 @@ def open_db(path: Path, design: dict, participants: str = "people") -> Path:
                              (design["id"], json.dumps(design, sort_keys=True), participants))
             return path
         if row[0] != design["id"]:
-            raise LaughlabError(f"{path} holds the responses of another study (design {row[0]}, this one is "
-                                f"{design['id']}); give another --db")
+            from laughlab.study.design import extends
+
+            old = json.loads((conn.execute("SELECT value FROM study WHERE key = 'design'").fetchone() or ["{}"])[0])
+            if not extends(design, old):
+                raise LaughlabError(f"{path} holds the responses of another study (design {row[0]}, this one is "
+                                    f"{design['id']}); give another --db")
+            with _transaction(conn):   # the same study built for more participants: its answers stay valid
+                conn.execute("UPDATE study SET value = ? WHERE key = 'design_id'", (design["id"],))
+                conn.execute("UPDATE study SET value = ? WHERE key = 'design'", (json.dumps(design, sort_keys=True),))
+            print(f"laughlab: note: {path} now belongs to this build of the study, the same one for "
+                  f"{len(design['participants'])} participants where it had {len(old.get('participants') or {})}",
+                  file=sys.stderr)
         held = _participants(conn)
         if held != participants:
             other = DEFAULT_NAMES[participants]

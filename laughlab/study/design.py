@@ -215,6 +215,17 @@ def design_id(doc: dict) -> str:
     return hashlib.sha256(json.dumps(keep, sort_keys=True).encode()).hexdigest()[:16]
 
 
+def extends(new: dict, old: dict) -> bool:
+    """Whether ``new`` is ``old`` built for more participants: the same questions, scale, checks and stimulus files,
+    and every participant of ``old`` with the same trials (a study-pilot review: a study rebuilt for more
+    participants refused its database, stranding everyone already assigned)."""
+    same = ("questions", "scale", "points", "slider", "attention", "audio_check")
+    shas = lambda d: {sid: s.get("sha256") for sid, s in (d.get("stimuli") or {}).items()}   # noqa: E731
+    before, after = old.get("participants") or {}, new.get("participants") or {}
+    return all(new.get(k) == old.get(k) for k in same) and shas(new) == shas(old) and len(after) > len(before) \
+        and all(after.get(p) == entry for p, entry in before.items())
+
+
 def load_design(study_dir: Path) -> dict:
     path = Path(study_dir) / "design.json"
     if not Path(study_dir).exists():   # a review: "is not a study folder" of a path that is not there at all
