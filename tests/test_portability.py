@@ -75,3 +75,27 @@ def test_a_run_and_its_report_under_a_locale_that_is_not_utf8(tmp_path):
                          capture_output=True, text=True, cwd=tmp_path, timeout=600)
     assert rep.returncode == 0, rep.stderr
     assert "\u2191" in (tmp_path / "rep" / "README.md").read_text(encoding="utf-8")
+
+
+def test_the_browser_is_found_where_each_os_puts_it(tmp_path, monkeypatch):
+    """Chromium was looked for only under Debian's names on the PATH; Chrome or Edge where macOS and Windows install
+    them, or LAUGHLAB_CHROMIUM, serve too."""
+    import pytest
+
+    from laughlab.core.errors import LaughlabError
+    from laughlab.viewer import browser
+
+    fake = tmp_path / "chrome.exe"
+    fake.write_text("", encoding="utf-8")
+    monkeypatch.setattr(browser.shutil, "which", lambda name: None)
+    monkeypatch.setattr(browser, "INSTALLED", ("/nowhere/Chromium", str(fake)))
+    monkeypatch.delenv("LAUGHLAB_CHROMIUM", raising=False)
+    assert browser.chromium() == str(fake)
+    monkeypatch.setattr(browser, "INSTALLED", ())
+    with pytest.raises(LaughlabError, match="set LAUGHLAB_CHROMIUM"):
+        browser.chromium()
+    monkeypatch.setenv("LAUGHLAB_CHROMIUM", str(fake))
+    assert browser.chromium() == str(fake)
+    monkeypatch.setenv("LAUGHLAB_CHROMIUM", str(tmp_path / "missing"))
+    with pytest.raises(LaughlabError, match="is not a file"):
+        browser.chromium()

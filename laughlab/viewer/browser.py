@@ -21,10 +21,29 @@ import urllib.request
 from laughlab.core.errors import LaughlabError
 
 
+#: where Chromium-family browsers install themselves on macOS and Windows (a portability review: only Debian's
+#: names on the PATH were looked for)
+INSTALLED = ("/Applications/Chromium.app/Contents/MacOS/Chromium",
+             "/Applications/Google Chrome.app/Contents/MacOS/Google Chrome",
+             *(os.path.join(os.environ.get(root, ""), *rel) for root in ("PROGRAMFILES", "PROGRAMFILES(X86)",
+                                                                         "LOCALAPPDATA")
+               for rel in (("Google", "Chrome", "Application", "chrome.exe"),
+                           ("Microsoft", "Edge", "Application", "msedge.exe")) if os.environ.get(root)))
+
+
 def chromium() -> str:
-    exe = shutil.which("chromium") or shutil.which("chromium-browser")
+    """The browser for the headless pages: ``LAUGHLAB_CHROMIUM``, else Chromium or Chrome on the PATH, else where
+    macOS and Windows install Chromium, Chrome or Edge."""
+    given = os.environ.get("LAUGHLAB_CHROMIUM")
+    if given:
+        if not os.path.isfile(given):
+            raise LaughlabError(f"LAUGHLAB_CHROMIUM={given} is not a file: give the browser's program")
+        return given
+    exe = next(filter(None, map(shutil.which, ("chromium", "chromium-browser", "google-chrome", "chrome"))), None) \
+        or next((path for path in INSTALLED if os.path.isfile(path)), None)
     if exe is None:
-        raise LaughlabError("this needs Debian's chromium: make browser (apt-get install chromium)")
+        raise LaughlabError("this needs Chromium or Chrome: on Debian make browser (apt-get install chromium); "
+                            "elsewhere install Chrome, or set LAUGHLAB_CHROMIUM to a Chromium-family browser's program")
     return exe
 
 
