@@ -244,6 +244,8 @@ def test_a_panel_id_gets_the_next_free_participant_number_and_keeps_it(study, tm
         assert status == 409 and "the study is full for now" in reply["error"]
         bad = ask("bad id!")
         assert bad[0] == 422 and "please tell the researcher" in bad[1]["error"] and ask("")[0] == 422
+        log = (tmp_path / "r.sqlite.rejected.log").read_text()   # the panel's IDs stay out of the log
+        assert "bad id!" not in log and "60aa" not in log and "<panel ID>" in log
         assert srv.post("/api/assign", {"external_id": "x", "design": "other"})[0] == 409
     finally:
         srv.close()

@@ -290,3 +290,15 @@ def test_a_stimulus_variance_at_zero_is_not_called_harmless():
         "The fit converged; the stimulus variance is at or near zero (stimuli differ no more than the rating noise, so "
         "the model is in effect one without that random intercept), so the tests below count the stimuli as not "
         "varying: with few stimuli per condition they are then liberal (below).")
+
+
+def test_power_says_when_the_effect_nears_the_scales_end():
+    """A statistician's review: study power accepted base + effect at the scale's very end and reported power 'for
+    effect 1' while the ratings, cut at 7, carried about 0.63 of it."""
+    from laughlab.study.power import near_end_note
+
+    assert near_end_note(1.0, 4.0, (1, 7)) == ""                        # 5: two points from the end
+    assert near_end_note(1.0, 6.0, (1, 7)).startswith(
+        "power: note: the base rating 6 and the effect +1 reach 7, within a point of the scale's end (7)")
+    assert "(1)" in near_end_note(-2.5, 4.0, (1, 7))                   # 1.5: near the bottom
+    assert near_end_note(1.0, 6.0, None) == ""

@@ -262,6 +262,8 @@ def run_power(ns) -> None:
         var, icpt, q, simulated = W.pilot_variance(ns.pilot, ns.question)
         source = f"pilot {ns.pilot} ({q}{', simulated participants' if simulated else ''})"
     W.check_effect(ns.effect, icpt, scale_range(design))   # before the simulations: they take minutes
+    if W.near_end_note(ns.effect, icpt, scale_range(design)):
+        print(W.near_end_note(ns.effect, icpt, scale_range(design)), file=sys.stderr, flush=True)
     rows = W.power(design, (a, b), ns.effect, ns.participants, ns.sims, ns.alpha, var, icpt, ns.seed,
                    progress=lambda m: print(m, file=sys.stderr, flush=True))
     if ns.sims < 100:   # a power of 0.8 from 5 simulations is 0.38-0.96 (Wilson): say so, not only in the CSV

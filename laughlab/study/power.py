@@ -106,6 +106,22 @@ def check_effect(effect, intercept: float, scale: tuple[float, float] | None) ->
     return float(effect)
 
 
+def near_end_note(effect: float, intercept: float, scale: tuple[float, float] | None) -> str:
+    """A note when ``intercept + effect`` lies within a point of the scale's end ("" otherwise): ratings cannot pass
+    the end, so the effect shows smaller on the scale than planted and the power is for that smaller one (a
+    statistician's review: +1 over a base of 6 on 1..7 showed as 0.63, over 4 as 0.95)."""
+    if scale is None:
+        return ""
+    lo, hi = scale
+    top = intercept + effect
+    if lo + 1 <= top <= hi - 1:
+        return ""
+    end = hi if effect > 0 else lo
+    return (f"power: note: the base rating {intercept:g} and the effect {effect:+g} reach {top:g}, within a point of "
+            f"the scale's end ({end:g}): ratings cannot pass it, so the effect shows smaller than {abs(effect):g} on "
+            "the scale, and the power below is for that smaller effect")
+
+
 def wilson(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
     """The 95 % Wilson score interval of ``k`` successes in ``n`` trials."""
     if n == 0:

@@ -164,8 +164,14 @@ class StudyHandler(_Handler):
 
     def _refuse(self, status: int, reason: str, route: str, raw: bytes) -> None:
         # no client address: the consent text promises that no IP address is kept (a review found it here)
-        line = {"time": DB.utc_now(), "path": route[:100], "status": status,
-                "reason": reason, "body": raw[:200].decode("utf-8", "replace")}
+        body = raw[:200].decode("utf-8", "replace")
+        try:   # a panel's ID stays out of the log (a study-pilot review found refused PIDs there)
+            ext = json.loads(raw).get("external_id")
+            if isinstance(ext, str) and ext:
+                body, reason = body.replace(ext, "<panel ID>"), reason.replace(ext[:40], "<panel ID>")
+        except (ValueError, AttributeError):
+            pass
+        line = {"time": DB.utc_now(), "path": route[:100], "status": status, "reason": reason, "body": body}
         with self._lock:
             with open(self.log, "a", encoding="utf-8") as f:
                 f.write(json.dumps(line) + "\n")
