@@ -250,7 +250,11 @@ def test_a_panel_id_gets_the_next_free_participant_number_and_keeps_it(study, tm
     finally:
         srv.close()
     # half an hour on, the numbers held without consent go to new IDs; the one that consented (2) stays its ID's
+    DB.session_event(srv.db, "slow-page", 4, "start", external_id=DB.assigned_to(srv.db, 4))   # w0's page, open
     assert DB.assign(srv.db, "late", numbers, hold_s=0) == 3
+    # the page of an ID whose number went to another cannot consent or answer as that number (a re-read)
+    with pytest.raises(DB.SessionRefused, match="went to another participant after half an hour"):
+        DB.session_event(srv.db, "slow-page", 4, "consent")
     assert DB.assigned_to(srv.db, 2) == "5f1a2b3c4d5e6f7a8b9c0d1e"
     assert DB.assign(srv.db, "5f1a2b3c4d5e6f7a8b9c0d1e", numbers, hold_s=0) == 2
     got = DB.assignments(tmp_path / "r.sqlite")

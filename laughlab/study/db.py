@@ -224,11 +224,16 @@ def session_event(path: Path, session: str, participant: int, event: str, user_a
 
 
 def _check_session(conn: sqlite3.Connection, session: str, participant: int) -> None:
-    row = conn.execute("SELECT participant FROM sessions WHERE session = ?", (session,)).fetchone()
+    row = conn.execute("SELECT participant, external_id FROM sessions WHERE session = ?", (session,)).fetchone()
     if row is None:
         raise SessionRefused(f"session {session} was never started (api/start): reload the page")
     if row[0] != participant:
         raise SessionRefused(f"session {session} belongs to participant {row[0]}, not {participant}: reload the page")
+    if row[1] is not None:   # a panel's page: its number may have gone to another ID after half an hour (assign)
+        held = conn.execute("SELECT external_id FROM assignments WHERE participant = ?", (participant,)).fetchone()
+        if held is None or held[0] != row[1]:
+            raise SessionRefused("this page's place in the study went to another participant after half an hour "
+                                 "without consent: reload the page to take part")
 
 
 def check_session(path: Path, session: str, participant: int) -> bool:
