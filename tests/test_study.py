@@ -327,6 +327,9 @@ def test_a_prolific_link_gets_a_number_and_consent_is_asked_once(study, tmp_path
         assert "I agree" not in page.eval("document.body.innerText")
         page.eval(f"location.href = '{srv.url}/index.html?PROLIFIC_PID=other'")
         _until(page, "location.search.includes('participant=2')")
+        # a number in the URL that is not the ID's (edited, or given to another after half an hour): the ID's own
+        page.eval(f"location.href = '{srv.url}/index.html?PROLIFIC_PID=other&participant=1'")
+        _until(page, "location.search.includes('participant=2') && document.body.innerText.includes('I agree')")
         # an empty ID, or the panel's placeholder left in: a line for the participant, not the number form (a
         # study-pilot review: anyone's number could be typed there)
         for link_id, said in (("", "is empty"), ("{{%PROLIFIC_PID%}}", "not filled in by the recruitment site")):

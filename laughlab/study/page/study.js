@@ -62,7 +62,8 @@
         // a 409 on a retry: the first try reached the server and only its reply was lost (a diff review: it was
         // called another tab's answer); otherwise not stored, and the end page says so (a review: it said "All
         // your answers are saved")
-        if (r.ok && post.path === "api/response") state.kept += 1;   // this page's answers the server stored
+        // this page's answers the server stored (a 409 on a retry: its first try was)
+        if ((r.ok || (r.status === 409 && post.tried)) && post.path === "api/response") state.kept += 1;
         if (!r.ok && !(r.status === 409 && post.tried)) {
           console.warn(`laughlab study: ${post.path} refused (${r.status}): ${r.data && r.data.error}`);
           if (r.status === 409) state.given += 1; else state.refused += 1;
@@ -370,17 +371,22 @@
   const panelKey = PANEL_KEYS.find((k) => params.has(k));
   const panelId = panelKey ? params.get(panelKey).trim() : null;
 
-  async function assign(key) {  // the server gives the panel's ID a participant number, the same one each time
+  // the server gives the panel's ID a participant number, the same one each time while it holds it; the page goes
+  // on with it (a number in the URL that is not the ID's: another one given after half an hour without consent)
+  async function assign(key, raw) {
     const r = await api("api/assign", {external_id: panelId, design: S.id});
     if (!(r.data && r.data.laughlab)) {
       fatal(`This link gives a ${key}, but this page is not served by the study's server, which gives each ` +
             "participant their number: please tell the researcher.");
     } else if (!r.ok) {
       fatal(r.data.error || "The study server refused this page.");
-    } else {
+    } else if (String(r.data.participant) !== raw) {
       params.set("participant", String(r.data.participant));
       window.location.replace(window.location.pathname + "?" + params.toString());
+    } else {
+      return true;
     }
+    return false;
   }
 
   async function main() {
@@ -390,10 +396,7 @@
             "return to the recruitment site and tell the researcher.");
       return;
     }
-    if (!raw && panelKey) {
-      await assign(panelKey);
-      return;
-    }
+    if (panelKey && !(await assign(panelKey, raw))) return;
     const p = raw && /^\d+$/.test(raw) ? String(parseInt(raw, 10)) : null;
     if (!p || !S.participants[p]) {
       startForm(raw ? `Participant ${raw} is not part of this study; please check the number.` : "");
