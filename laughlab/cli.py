@@ -28,8 +28,7 @@ from laughlab.core.summary import duration_text, summary_line  # noqa: F401 - su
 _STARTED_AS_PROCESS = False   # python -m laughlab, not a call from another program (tests)
 #: the run directory this process holds (laughlab.core.rundir), from before Hydra writes into it to the end
 _CLAIM = None
-#: when the command started (time.monotonic()): the process' start for ``python -m laughlab``; None in a sweep
-#: (each job's summary times the job)
+#: when the command started (time.monotonic()): the process' start; None in a sweep (each job's summary times it)
 _STARTED: float | None = None
 _HYDRA_FLAGS = {"--help", "-h", "--hydra-help", "--cfg", "-c", "--info", "-i", "--version",
                 "--shell-completion", "-sc", "--resolve", "--package", "-p", "--config-path", "-cp",
@@ -103,11 +102,9 @@ def preflight(argv: list[str]):
 
 
 def run_composed(cfg) -> None:
-    """Run one job on the configuration :func:`preflight` composed, as ``hydra.main`` would.
-
-    The same steps as Hydra's own single run (``hydra.core.utils.run_job``: the run directory,
-    ``.hydra/`` with config, hydra and overrides, the job's logging), without composing the
-    configuration twice more (about 0.3 s of every run's start-up).
+    """Run one job on the configuration :func:`preflight` composed, as ``hydra.main`` would: the same steps as
+    Hydra's own single run (``hydra.core.utils.run_job``: the run directory, ``.hydra/`` with config, hydra and
+    overrides, the job's logging), without composing the configuration twice more (about 0.3 s of every start-up).
     """
     from hydra._internal.callbacks import Callbacks
     from hydra.core.utils import run_job
@@ -410,7 +407,9 @@ def _main(argv: list[str]) -> None:
             load_plugin_dirs(_overrides(argv))
             register_plugin_configs()
             check_overrides(_overrides(argv))
-            if multirun and not hydra_only:   # every swept value, before the launcher starts a job
+            if not multirun:   # --cfg job: a mistyped key in one line, as a run says it (Hydra's took five lines)
+                compose_config([o for o in _overrides(argv) if "=" in o or o[:1] == "~"], job_name="cli")
+            elif not hydra_only:   # every swept value, before the launcher starts a job
                 from laughlab.core.sweepcheck import check_sweep
 
                 check_sweep(_overrides(argv), preflight)

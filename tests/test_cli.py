@@ -872,3 +872,13 @@ def test_a_mistyped_plugin_parameter_names_the_nearest(args, line, tmp_path):
     assert r.returncode == 2 and r.stderr == f"laughlab: error: {r.stderr.split('error: ')[1]}"
     assert r.stderr.startswith(f"laughlab: error: {line}"), r.stderr
     assert not (tmp_path / "r").exists()
+
+
+def test_cfg_job_with_a_mistyped_key_is_one_line_as_a_run(tmp_path):
+    """A plugin author's review: ``body.bogus=1 --cfg job`` printed Hydra's five lines ("Could not override ...")
+    and exit 1, where the run says it in one line with exit 2; --cfg job of good settings still prints them."""
+    bad = laughlab("body=shapes", "body.bogus=1", "--cfg", "job", cwd=tmp_path)
+    assert bad.returncode == 2 and bad.stderr == ("laughlab: error: unknown parameter body.bogus; valid: chest, belly, "
+                                                  "chest_gain, belly_gain, chest_offset, belly_offset\n"), bad.stderr
+    good = laughlab("face=facs", "~output.plots", "--cfg", "job", cwd=tmp_path)
+    assert good.returncode == 0 and "name: facs" in good.stdout and "plots:" not in good.stdout, good.stderr
