@@ -321,6 +321,9 @@ def test_a_prolific_link_gets_a_number_and_consent_is_asked_once(study, tmp_path
         assert query == {"PROLIFIC_PID": pid, "STUDY_ID": "s1", "SESSION_ID": "x9", "participant": "1"}
         page.eval("[...document.querySelectorAll('button')].find((b) => b.innerText.includes('I agree')).click()")
         _until(page, "!!document.querySelector('#jspsych-instructions-next')")
+        # an accessibility review: the focus sat on the disabled Back (Enter did nothing); every page was "Study"
+        _until(page, "document.activeElement && document.activeElement.id === 'jspsych-instructions-next'")
+        assert page.eval("document.title") == d["title"]
         page.eval("window.beforeReload = true; location.reload()")
         # consent given: the reload goes to the instructions (nothing answered yet), not to consent again
         _until(page, "!window.beforeReload && !!document.querySelector('#jspsych-instructions-next')")
@@ -328,13 +331,15 @@ def test_a_prolific_link_gets_a_number_and_consent_is_asked_once(study, tmp_path
         page.eval(f"location.href = '{srv.url}/index.html?PROLIFIC_PID=other'")
         _until(page, "location.search.includes('participant=2')")
         # a number in the URL that is not the ID's (edited, or given to another after half an hour): the ID's own
-        page.eval(f"location.href = '{srv.url}/index.html?PROLIFIC_PID=other&participant=1'")
-        _until(page, "location.search.includes('participant=2') && document.body.innerText.includes('I agree')")
+        page.eval(f"window.beforeNav = true; location.href = '{srv.url}/index.html?PROLIFIC_PID=other&participant=1'")
+        _until(page, "!window.beforeNav && location.search.includes('participant=2') && "
+                     "document.body.innerText.includes('I agree')")
         # an empty ID, or the panel's placeholder left in: a line for the participant, not the number form (a
         # study-pilot review: anyone's number could be typed there)
         for link_id, said in (("", "is empty"), ("{{%PROLIFIC_PID%}}", "not filled in by the recruitment site")):
-            page.eval(f"location.href = '{srv.url}/index.html?PROLIFIC_PID={urllib.parse.quote(link_id)}&STUDY_ID=s1'")
-            text = _until(page, "document.querySelector('.study-fatal') && document.body.innerText")
+            page.eval(f"window.beforeNav = true; location.href = "
+                      f"'{srv.url}/index.html?PROLIFIC_PID={urllib.parse.quote(link_id)}&STUDY_ID=s1'")
+            text = _until(page, "!window.beforeNav && document.querySelector('.study-fatal') && document.body.innerText")
             assert said in text and "participant number" not in text
         assert [e for e in page.problems() if "favicon.ico" not in e] == []
     finally:

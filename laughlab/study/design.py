@@ -178,8 +178,13 @@ def make_design(run_dir: Path, preset: dict, preset_name: str, audio_files: list
     n = max(len(p["trials"]) for p in participants.values())
     seconds = sum(durations.values()) / max(len(durations), 1)
     minutes = max(1, round(n * (seconds + 8 * len(preset["questions"]) / 2 + 2) / 60 + 2))
+    slider = preset["scale"] == "slider"   # {scale} and {keys}: the texts fit a slider too (an accessibility review)
+    lo, hi = (preset["slider"]["min"], preset["slider"]["max"]) if slider else (1, preset["points"])
     fill = {"minutes": minutes, "n_questions": len(preset["questions"]), "points": preset["points"],
-            "value": preset["attention"]["value"]}
+            "value": preset["attention"]["value"],
+            "scale": f"a slider from {lo} to {hi}" if slider else f"a scale from 1 to {hi}",
+            "keys": ("Move each slider with the mouse or the arrow keys, then press Enter" if slider else
+                     f"Choose with the mouse, or press the keys 1 to {hi} and then Enter")}
     text = {k: preset[k].format(**fill) for k in ("consent", "end")}
     doc = {
         "format": 1,

@@ -114,6 +114,16 @@
   function likertKeys() {  // 1..9 choose a point of the focused (else the first unanswered) question; Enter submits
     const form = document.querySelector("#jspsych-survey-likert-form");
     const groups = Array.from(form.querySelectorAll(".jspsych-survey-likert-opts"));
+    // each question names its radio group for a screen reader (an accessibility review: "radio 2", no question)
+    form.querySelectorAll(".jspsych-survey-likert-statement").forEach((l, i) => {
+      l.id = `study-q${i}`;
+      const g = l.nextElementSibling;
+      if (g && g.classList.contains("jspsych-survey-likert-opts")) {
+        g.setAttribute("role", "radiogroup");
+        g.setAttribute("aria-labelledby", l.id);
+        g.querySelectorAll("li").forEach((li) => li.setAttribute("role", "none"));
+      }
+    });
     const open = () => groups.find((g) => !g.querySelector("input:checked"));
     const first = open();
     if (first) first.querySelector("input").focus();
@@ -138,6 +148,13 @@
   }
   function sliderKeys() {  // the slider has the focus (arrows move it); Enter goes on once it was moved
     const slider = document.querySelector("#jspsych-html-slider-response-response");
+    const question = document.querySelector(".study-question");
+    if (question) {   // its question names it (an accessibility review: read as 'slider 50')
+      question.id = "study-slider-question";
+      slider.setAttribute("aria-labelledby", question.id);
+    }
+    const shown = document.querySelector("#study-slider-value");
+    slider.addEventListener("input", () => { if (shown) shown.textContent = slider.value; });
     slider.focus();
     onKeys((e) => {
       if (e.key !== "Enter") return;
@@ -146,8 +163,8 @@
       if (next && !next.disabled) next.click();
     });
   }
-  function focusButton() {
-    const b = document.querySelector(".jspsych-btn");
+  function focusButton() {   // the page's way on: an instructions page's Next, else its first enabled button
+    const b = document.querySelector("#jspsych-instructions-next") || document.querySelector(".jspsych-btn:not(:disabled)");
     if (b) b.focus();
   }
 
@@ -205,6 +222,9 @@
         `<p class="study-question">${esc(q.prompt)}</p>`,
       labels: q.labels.map(esc), min: S.slider.min, max: S.slider.max, step: S.slider.step,
       slider_start: (S.slider.min + S.slider.max) / 2, require_movement: true, button_label: "Continue",
+      // the value, shown: an attention item asks for one (an accessibility review: "choose 2" on an unlabelled 0-100)
+      prompt: `<p class="study-value" aria-hidden="true">Your answer: <span id="study-slider-value">` +
+        `${(S.slider.min + S.slider.max) / 2}</span></p>`,
       on_load: sliderKeys,
       on_finish: (data) => {
         offKeys();
@@ -233,7 +253,7 @@
         `<button type="button" id="study-play" class="jspsych-btn">&#9654; Play the word</button></p>` +
         `<p><label for="study-word">The word:</label> <input id="study-word" name="word" type="text" ` +
         `autocomplete="off" autocapitalize="none" spellcheck="false" required></p>` +
-        (attempts.length ? `<p class="study-warn">That was not the word: please check your sound and try again ` +
+        (attempts.length ? `<p class="study-warn" role="alert">That was not the word: please check your sound and try again ` +
           `(${S.audio_check.attempts - attempts.length} tries left).</p>` : ""),
       on_load: () => {
         document.getElementById("study-play").addEventListener("click", () => {
@@ -264,7 +284,7 @@
       "Finish and return</a></p>" : "";
     return {
       type: jsPsychHtmlButtonResponse, choices: [],
-      stimulus: `<div class="study-end">${S.end}<p id="study-status">Saving your answers&hellip;</p>${link}` +
+      stimulus: `<div class="study-end">${S.end}<p id="study-status" role="status">Saving your answers&hellip;</p>${link}` +
         `<p><button type="button" id="study-download" class="jspsych-btn">Download my answers (CSV)</button></p>` +
         "</div>",
       on_load: () => {
@@ -308,7 +328,10 @@
         stimulus: `<div class="study-text"><h1>${esc(S.title)}</h1>${S.consent}</div>`,
         on_finish: (data) => {
           const agree = data.response === 0;
-          send("api/event", {participant: Number(p), session: session, event: agree ? "consent" : "decline"});
+          // a consent the server refuses (the panel's place went to another after half an hour) is said, not
+          // passed over into the study (an accessibility review)
+          api("api/event", {participant: Number(p), session: session, event: agree ? "consent" : "decline"})
+            .then((r) => { if (state.server && r.status === 409 && r.data && r.data.error) fatal(r.data.error); });
           // a panel's participant returns the study there (decline_url: e.g. Prolific's no-consent code)
           const back = S.decline_url ? `<p><a class="jspsych-btn study-link" href="${esc(S.decline_url)}">` +
             "Return to the recruitment site</a></p>" : "";
@@ -320,7 +343,8 @@
     if (fresh) {
       timeline.push({type: jsPsychInstructions, show_clickable_nav: true, key_forward: "ArrowRight",
                      key_backward: "ArrowLeft", button_label_next: "Next", button_label_previous: "Back",   // jsPsych adds &lt; and &gt;
-                     pages: S.instructions.map((s) => `<div class="study-text">${s}</div>`), on_load: focusButton});
+                     pages: S.instructions.map((s) => `<div class="study-text">${s}</div>`), on_load: focusButton,
+                     on_page_change: focusButton});
     } else {
       timeline.push({type: jsPsychHtmlButtonResponse, choices: ["Go on"], on_load: focusButton,
                      stimulus: `<div class="study-text"><h1>Welcome back</h1><p>Your answers so far are saved; ` +
@@ -352,7 +376,7 @@
     const jsPsych = initJsPsych();
     jsPsych.run([{
       type: jsPsychSurveyHtmlForm, autofocus: "study-participant", button_label: "Start",
-      preamble: `<div class="study-text"><h1>${esc(S.title)}</h1>${message ? `<p class="study-warn">${esc(message)}</p>` : ""}</div>`,
+      preamble: `<div class="study-text"><h1>${esc(S.title)}</h1>${message ? `<p class="study-warn" role="alert">${esc(message)}</p>` : ""}</div>`,
       html: '<p><label for="study-participant">Your participant number:</label> ' +
         '<input id="study-participant" name="participant" type="number" min="1" step="1" inputmode="numeric" required></p>',
       on_finish: (data) => {
@@ -390,6 +414,7 @@
   }
 
   async function main() {
+    document.title = S.title;   // every screen was titled "Study"
     const raw = params.get("participant");
     if (panelKey && (!panelId || panelId.includes("{{"))) {  // a study-pilot review: an empty one gave the number form
       fatal(`This link's ${panelKey} is ${panelId ? "not filled in by the recruitment site" : "empty"}: please ` +
