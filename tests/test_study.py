@@ -334,6 +334,12 @@ def test_a_prolific_link_gets_a_number_and_consent_is_asked_once(study, tmp_path
         page.eval(f"window.beforeNav = true; location.href = '{srv.url}/index.html?PROLIFIC_PID=other&participant=1'")
         _until(page, "!window.beforeNav && location.search.includes('participant=2') && "
                      "document.body.innerText.includes('I agree')")
+        # half an hour on the consent page: the number went to another ID; the consent is refused and said (an
+        # accessibility review: the page went on to the instructions, the refusal in the console only)
+        assert DB.assign(srv.db, "newcomer", sorted(int(n) for n in d["participants"]), hold_s=0) == 2
+        page.eval("[...document.querySelectorAll('button')].find((b) => b.innerText.includes('I agree')).click()")
+        said = _until(page, "document.querySelector('.study-fatal') && document.body.innerText")
+        assert "went to another participant after half an hour" in said
         # an empty ID, or the panel's placeholder left in: a line for the participant, not the number form (a
         # study-pilot review: anyone's number could be typed there)
         for link_id, said in (("", "is empty"), ("{{%PROLIFIC_PID%}}", "not filled in by the recruitment site")):
@@ -341,12 +347,13 @@ def test_a_prolific_link_gets_a_number_and_consent_is_asked_once(study, tmp_path
                       f"'{srv.url}/index.html?PROLIFIC_PID={urllib.parse.quote(link_id)}&STUDY_ID=s1'")
             text = _until(page, "!window.beforeNav && document.querySelector('.study-fatal') && document.body.innerText")
             assert said in text and "participant number" not in text
-        assert [e for e in page.problems() if "favicon.ico" not in e] == []
+        # (the refused consent above: its 409 and the page's warning about it)
+        assert [e for e in page.problems() if "favicon.ico" not in e and "409" not in e] == []
     finally:
         page.close()
         srv.close()
     assert [(a["external_id"], a["participant"], bool(a["consent_at"])) for a in DB.assignments(srv.db)] == \
-        [(pid, 1, True), ("other", 2, False)]
+        [(pid, 1, True), ("newcomer", 2, False)]
     static = Page((study / "index.html").as_uri() + f"?PROLIFIC_PID={pid}")
     try:
         said = _until(static, "document.querySelector('.study-fatal') && document.body.innerText")

@@ -44,9 +44,9 @@
       return {ok: false, status: 0, data: null};
     }
   }
-  function send(path, body) {  // queued in order; a network failure is retried with the next post
+  function send(path, body, onRefused) {  // queued in order; a network failure is retried with the next post
     if (!state.server) return Promise.resolve(true);
-    state.pending.push({path: path, body: body, tried: false});
+    state.pending.push({path: path, body: body, tried: false, onRefused: onRefused});
     return flush();
   }
   function flush() {
@@ -67,6 +67,7 @@
         if (!r.ok && !(r.status === 409 && post.tried)) {
           console.warn(`laughlab study: ${post.path} refused (${r.status}): ${r.data && r.data.error}`);
           if (r.status === 409) state.given += 1; else state.refused += 1;
+          if (post.onRefused) post.onRefused(r);
         }
         state.pending.shift();
       }
@@ -330,8 +331,8 @@
           const agree = data.response === 0;
           // a consent the server refuses (the panel's place went to another after half an hour) is said, not
           // passed over into the study (an accessibility review)
-          api("api/event", {participant: Number(p), session: session, event: agree ? "consent" : "decline"})
-            .then((r) => { if (state.server && r.status === 409 && r.data && r.data.error) fatal(r.data.error); });
+          send("api/event", {participant: Number(p), session: session, event: agree ? "consent" : "decline"},
+               (r) => { if (r.status === 409 && r.data && r.data.error) fatal(r.data.error); });
           // a panel's participant returns the study there (decline_url: e.g. Prolific's no-consent code)
           const back = S.decline_url ? `<p><a class="jspsych-btn study-link" href="${esc(S.decline_url)}">` +
             "Return to the recruitment site</a></p>" : "";
