@@ -98,7 +98,8 @@ class Page:
         r = self.call("Runtime.evaluate", expression=expr, awaitPromise=True, returnByValue=True)
         if "exceptionDetails" in r:
             raise LaughlabError(f"page error: {r['exceptionDetails'].get('text')}")
-        return r["result"].get("value")
+        # no result: the page navigated away while it was evaluated (its context gone); nothing to give
+        return r.get("result", {}).get("value")
 
     def wait_ready(self, timeout_s: float = 60.0) -> None:
         t0 = time.time()
