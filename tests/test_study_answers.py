@@ -269,10 +269,10 @@ def test_the_included_per_order_row_are_counted():
     5 and 9 excluded."""
     import pandas as pd
 
-    from laughlab.study.analyze import _order_rows
+    from laughlab.study.participation import order_rows
 
     df = pd.DataFrame({"participant": [1, 1, 5, 9, 2, 6, 3], "order_row": [0, 0, 0, 0, 1, 1, 2]})
-    assert _order_rows(df, {5: ["x"], 9: ["y"]}) == {0: [1, 3], 1: [2, 2], 2: [1, 1]}
+    assert order_rows(df, {5: ["x"], 9: ["y"]}) == {0: [1, 3], 1: [2, 2], 2: [1, 1]}
 
 
 def test_a_stimulus_variance_at_zero_is_not_called_harmless():
@@ -302,3 +302,15 @@ def test_power_says_when_the_effect_nears_the_scales_end():
         "power: note: the base rating 6 and the effect +1 reach 7, within a point of the scale's end (7)")
     assert "(1)" in near_end_note(-2.5, 4.0, (1, 7))                   # 1.5: near the bottom
     assert near_end_note(1.0, 6.0, None) == ""
+
+
+def test_means_near_the_scales_end_are_said():
+    """A statistician's review: near an end the scale compresses differences; the report said nothing of it."""
+    from laughlab.study.analyze import near_end
+
+    means = [{"question": "naturalness", "condition": "a", "mean": 4.0},
+             {"question": "naturalness", "condition": "b", "mean": 6.25}]
+    assert near_end(means, [1.0, 7.0]) == ("Within a point of the scale's end (1..7): naturalness b 6.25. Ratings "
+                                           "cannot pass the end, so differences involving these means show smaller "
+                                           "than they are.")
+    assert near_end(means[:1], [1.0, 7.0]) == "" and near_end(means, None) == ""

@@ -67,10 +67,10 @@ import numpy as np
 from laughlab.core.errors import LaughlabError
 from laughlab.study import db as DB
 from laughlab.study.answers import load
-from laughlab.study.design import identical_conditions
+from laughlab.study.design import identical_conditions, scale_range
 from laughlab.study.exclusions import (DEFAULT_RULES, exclusions, expected_counts,  # noqa: F401 (its API)
                                       reason_counts)
-from laughlab.study.participation import line as participation_line, participation, unconsented
+from laughlab.study.participation import line as participation_line, order_rows, participation, unconsented
 from laughlab.study.reportdir import REPORT_FILES, check_out, put  # noqa: F401 (REPORT_FILES: the report's files)
 
 # -- statistics -----------------------------------------------------------------------------------------------------
@@ -390,7 +390,8 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
            "simulated": kind == "simulated",
            "planted": DB.stored(source, "simulation") if kind == "simulated" else None,
            "excluded": {str(p): r for p, r in excluded.items()}, "included": n_all - len(excluded),
-           "participation": participation(dbs, df), "order_rows": _order_rows(df, excluded),
+           "participation": participation(dbs, df), "order_rows": order_rows(df, excluded),
+           "scale_range": list(scale_range(design)) if design and design.get("scale") == "likert" else None,
            "conditions": conditions, "questions": questions, "model_notes": notes,
            "untested": [list(p) for p in same if set(p) <= set(conditions)],
            "model_warnings": {q: w for q, w in warned.items() if w},
@@ -403,18 +404,19 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
     return out
 
 
-def _order_rows(df, excluded: dict) -> dict[int, list[int]]:
-    """Latin-square row -> [included participants, participants] (a statistician's review: excluding two of a
-    row's three moved the contrasts by 0.1 with no order effect in the model, and nothing showed the imbalance)."""
-    import pandas as pd
-
-    rows: dict[int, list[int]] = {}
-    for p, r in df.groupby("participant")["order_row"].first().items():
-        if not pd.isna(r):
-            entry = rows.setdefault(int(r), [0, 0])
-            entry[0] += int(p) not in excluded
-            entry[1] += 1
-    return dict(sorted(rows.items()))
+def near_end(means: list[dict], scale) -> str:
+    """The README's line for condition means within a point of the scale's end ("" when none): ratings cannot pass
+    it, so differences there show smaller than they are (a statistician's review: +1 over a base of 6 on 1..7 showed
+    as 0.63)."""
+    if not scale:
+        return ""
+    lo, hi = scale
+    close = [f"{m['question']} {m['condition']} {m['mean']:.2f}" for m in means
+             if m.get("mean") == m.get("mean") and (m["mean"] <= lo + 1 or m["mean"] >= hi - 1)]
+    if not close:
+        return ""
+    return (f"Within a point of the scale's end ({lo:g}..{hi:g}): {', '.join(close)}. Ratings cannot pass the end, so "
+            "differences involving these means show smaller than they are.")
 
 
 #: the report's line when no design was found or given (CSV answers without --design)
@@ -451,6 +453,9 @@ def _markdown(doc: dict, source: Path, command: str, has_design: bool = True) ->
     for m in doc["means"]:
         lines.append(f"| {m['question']} | {m['condition']} | {_fmt(m['mean'])} | "
                      f"[{_fmt(m['ci_low'])}, {_fmt(m['ci_high'])}] | {m['n_participants']} |")
+    near = near_end(doc["means"], doc.get("scale_range"))
+    if near:
+        lines += ["", near]
     lines += ["", "![condition means](fig_means.png)", "", "![participants](fig_participants.png)", "",
               "## Mixed model per question", "",
               "`value ~ condition + (1 | participant) + (1 | stimulus)`, REML, statsmodels MixedLM "

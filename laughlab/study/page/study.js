@@ -186,8 +186,9 @@
     return qs;
   }
   function header(t, total, what) {
-    return `<p class="study-count" id="study-trial" data-trial="${t.trial}" data-stimulus="${esc(t.stimulus)}">` +
-           `Video ${t.trial} of ${total}${what ? ": " + what : ""}</p>`;
+    // a heading: the trial and rating screens had none (an accessibility review)
+    return `<h2 class="study-count" id="study-trial" data-trial="${t.trial}" data-stimulus="${esc(t.stimulus)}">` +
+           `Video ${t.trial} of ${total}${what ? ": " + what : ""}</h2>`;
   }
 
   function ratings(jsPsych, p, P, t, total, shown) {
