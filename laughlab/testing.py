@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from laughlab.core import blame
+from laughlab.core.stages import Stepper
 from laughlab.io.audio import cut_frames, frame_edges
 from laughlab.core.bases import REQUIRED, Context, Source
 from laughlab.core.errors import LaughlabError
@@ -108,25 +108,19 @@ def run_frames(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0, f
     ext, det, sch, body, face = stages
     frames = []
     audio = _audio(seconds, sample_rate, seed)
-    mixer.offsets_by = blame.who("body", body)
+    first = Stepper(ext, det, sch, body, face, mixer)
     try:
         for k, block in enumerate(cut_frames([audio], sample_rate, fps)):
             frame = Frame(k, k / fps, 1.0 / fps, {}, None, {}, {}, [], 0.0)
             if k == 0:   # as a run's first frame: a step of the wrong signature, an extractor without mcs, one line
-                blame.first_step("extractor", ext, block, frame)
-                blame.check_extractor(frame.control, ext)
-                blame.first_step("detector", det, block, frame)
-                blame.first_step("scheduler", sch, frame)
+                first.checked(block, frame, warn=False)
             else:
                 ext.step(block, frame)
                 det.step(block, frame)
                 sch.step(frame)
-            mixer.advance(frame)   # a clip the library lacks: the run's line
-            for stage, plugin in (("body", body), ("face", face)):
-                if k == 0:
-                    blame.first_step(stage, plugin, frame)
-                else:
-                    plugin.step(frame)
+                mixer.advance(frame)   # a clip the library lacks: the run's line
+                body.step(frame)
+                face.step(frame)
             mixer.note(frame)
             frames.append(frame)
         mixer.take()               # a joint the skeleton lacks: the run's line

@@ -216,7 +216,7 @@ class VmcSink(Sink):
             self._sent_ns = now
             self._t = float(chunk.times[i])
             if captured is not None:
-                self.lat_ms.values.append((clock() - captured) / 1e6)
+                self.lat_ms.values.append((now - captured) / 1e6)
             self.n += 1
         self.lat_ms.settle()
         self._last = (np.nan_to_num(np.asarray(chunk.poses[-1], dtype=np.float64)), names, values[-1])
@@ -239,9 +239,9 @@ class VmcSink(Sink):
         developer's review); a pose of zeros had put the hips on the floor (diff-review 12)."""
         fps, neutral = self.run.fps, self._neutral()
         steps = int(round(self.params.rest_blend_s * fps)) if self._last is not None else 0
+        last, names, values = self._last if steps else (None, (), ())
         for j in range(1, steps + 1):   # from the last frame towards rest, paced at the frame clock
             w = j / (steps + 1)
-            last, names, values = self._last
             pos, rot = self.bones.local((last + w * (neutral - last))[None])
             msgs = self.encoder.messages(self._t + j / fps, pos[0], rot[0],
                                          ((k, (1.0 - w) * v) for k, v in zip(names, values)))

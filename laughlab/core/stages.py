@@ -23,10 +23,11 @@ class Stepper:
         self.ext, self.det, self.sch, self.body, self.face, self.mixer = ext, det, sch, body, face, mixer
         self.ns: dict[str, list[int]] = {}
 
-    def checked(self, block, frame) -> None:
+    def checked(self, block, frame, warn: bool = True) -> None:
         """Frame 0's steps, checked: a step of another kind's signature, an extractor without ``mcs`` (a review:
-        the energy scheduler's KeyError was laughlab's), and a stage that writes a channel an earlier one wrote (a
-        plugin author's review: a face writing energy replaced the scheduler's in every file) are said."""
+        the energy scheduler's KeyError was laughlab's), and, with ``warn``, a stage that writes a channel an earlier
+        one wrote (a plugin author's review: a face writing energy replaced the scheduler's in every file) are said
+        (``laughlab.testing.run_frames`` steps a plugin's first frame so, ``warn`` off)."""
         frame.channels = watched = blame.WatchedChannels()
         for stage, plugin in (("extractor", self.ext), ("detector", self.det)):
             watched.stage = (stage, plugin.name)
@@ -40,7 +41,8 @@ class Stepper:
         for stage, plugin in (("body", self.body), ("face", self.face)):
             watched.stage = (stage, plugin.name)
             blame.first_step(stage, plugin, frame)
-        blame.warn_clashes(watched)
+        if warn:
+            blame.warn_clashes(watched)
 
     def timed(self, block, frame) -> None:
         """One frame's steps as the fast loop takes them, each stage's time kept (ns)."""

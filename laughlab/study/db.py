@@ -203,10 +203,10 @@ def insert_answers(path: Path, rows: list[dict]) -> None:
 
 
 def session_event(path: Path, session: str, participant: int, event: str, user_agent: str = "",
-                  external_id: str | None = None) -> None:
+                  external_id: str | None = None) -> bool:
     """``start`` inserts the session (:class:`SessionRefused` if it is another participant's), with the panel's ID
     the page came with; ``consent``, ``decline`` and ``finish`` stamp it (the first time), and only a session
-    ``participant`` started."""
+    ``participant`` started.  Whether the participant has given consent (:func:`consented`), after the event."""
     conn = connect(path)
     try:
         with _transaction(conn):
@@ -219,6 +219,7 @@ def session_event(path: Path, session: str, participant: int, event: str, user_a
             if column:
                 conn.execute(f"UPDATE sessions SET {column} = COALESCE({column}, ?) WHERE session = ?",
                              (utc_now(), session))
+            return consented(conn, participant)
     finally:
         conn.close()
 

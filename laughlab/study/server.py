@@ -214,9 +214,9 @@ class StudyHandler(_Handler):
         if (held is not None or self.panel_only) and (ext is None or ext != held):
             raise Refused(403, f"participant {p} takes part through the recruitment site's link only: please open "
                                "the study from there")
-        DB.session_event(self.db, session, p, "start", _text(body, "user_agent", 512), ext)
+        agreed = DB.session_event(self.db, session, p, "start", _text(body, "user_agent", 512), ext)
         answered, checked = DB.progress(self.db, p)
-        return 200, {"answered": answered, "audio_check": checked, "consented": DB.check_session(self.db, session, p)}
+        return 200, {"answered": answered, "audio_check": checked, "consented": agreed}
 
     def assign(self, body: dict):
         _keys(body, {"external_id", "design"})
