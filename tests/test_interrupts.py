@@ -51,6 +51,69 @@ def test_a_ctrl_c_raised_inside_a_del_stops_the_run_in_one_line(tmp_path):
     assert not (tmp_path / "run").exists()                  # and left nothing behind
 
 
+# a face that prints a line of its own at frame 10, and at frame 30 is where a SIGHUP arrives inside an exec whose
+# bare except prints the generated code and raises again (scipy's decorator module: a signal during
+# ``import scipy.spatial``, a fuzz case)
+NOISY = '''
+import sys
+
+import laughlab
+from laughlab import Face
+
+
+class Noisy(Face):
+    name = "noisy"
+
+    def step(self, frame):
+        if frame.index == 10:
+            print("a library's own line before", file=sys.stderr)
+        if frame.index == 30:
+            try:
+                exec("import signal; signal.raise_signal(signal.SIGHUP)")
+            except:  # noqa: E722
+                print("Error in generated code:", file=sys.stderr)
+                print("def delaunay_plot_2d(tri, ax):", file=sys.stderr, end="")
+                print("\\n    return _call_(_func_, tri, ax)", file=sys.stderr)
+                raise
+        frame.channels.update(jaw=0.0, smile=0.5, blink=0.0, eyes_closed=0.0)
+
+
+@laughlab.hookimpl
+def register_faces(register):
+    register(Noisy)
+'''
+
+
+def test_what_a_library_prints_as_the_stop_signal_passes_through_it_is_not_printed(tmp_path):
+    (tmp_path / "plugins").mkdir()
+    (tmp_path / "plugins" / "noisy.py").write_text(NOISY, encoding="utf-8")
+    r = subprocess.run([sys.executable, "-m", "laughlab", "plugins_dir=plugins", "face=noisy", "input.duration_s=5",
+                        "hydra.run.dir=run", "progress=off"], capture_output=True, text=True, cwd=tmp_path,
+                       timeout=300)
+    assert r.returncode == 130, r.stderr
+    # before the signal a library's line is its own; after it only laughlab's one line
+    assert r.stderr == ("a library's own line before\n"
+                        "laughlab: error: interrupted; the run's partial output was removed\n"), r.stderr
+    assert not (tmp_path / "run").exists()
+
+
+def test_after_a_stop_signal_stderr_passes_laughlabs_own_whole_lines_only():
+    import io
+
+    from laughlab.core.quiet import OwnLinesOnly
+
+    out = io.StringIO()
+    err = OwnLinesOnly(out)
+    print("Error in generated code:", file=err)
+    err.write("laugh")
+    err.write("lab: error: interrupted\nhalf a line of a library's")
+    print("laughlab: kept the session", file=err)
+    assert out.getvalue() == "laughlab: error: interrupted\n"   # the library's half line took the next one in
+    err.write("\nlaughlab: kept\n")
+    assert out.getvalue() == "laughlab: error: interrupted\nlaughlab: kept\n"
+    assert err.encoding == out.encoding
+
+
 def test_check_raises_only_after_a_stop_signal_and_before_the_command_is_done(monkeypatch):
     from laughlab.core import interrupts
 

@@ -37,6 +37,9 @@ finished = False
 
 _ignored = False
 
+#: the command is the whole process (``python -m laughlab``, :func:`keep_lost_interrupts_quiet`), not a call in a test
+_whole_process = False
+
 
 def reset() -> None:
     """A new command (in the same process: the tests) handles stop signals again."""
@@ -55,6 +58,10 @@ def _record(signum) -> None:
     if signum == _HUP:
         _away_from_the_terminal()
     received = received or signum
+    if _whole_process:   # what a library prints as the KeyboardInterrupt passes through it is not the one line
+        from laughlab.core.quiet import own_lines_only
+
+        own_lines_only()
     # the command is stopping: another stop signal would cut its clean-up in two, and the processes the clean-up
     # starts inherit the signal ignored (the terminal's Ctrl-C reaches every process of the command: loky's pgrep,
     # run to end its workers, died of it and printed tracebacks, a review); Ctrl-\ (SIGQUIT) still ends it at once
@@ -113,8 +120,11 @@ def _unraisable(info) -> None:
 
 
 def keep_lost_interrupts_quiet() -> None:
-    """For the whole process (``python -m laughlab``): :func:`_unraisable` as ``sys.unraisablehook``."""
+    """For the whole process (``python -m laughlab``): :func:`_unraisable` as ``sys.unraisablehook``, and after a
+    stop signal ``sys.stderr`` keeps laughlab's own lines only (:func:`laughlab.core.quiet.own_lines_only`)."""
+    global _whole_process
     sys.unraisablehook = _unraisable
+    _whole_process = True
 
 
 def finish(whole_process: bool = True) -> None:

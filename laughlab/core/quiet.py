@@ -63,3 +63,37 @@ def to_devnull(fd: int) -> None:
         os.dup2(null, fd)
     finally:
         os.close(null)
+
+
+class OwnLinesOnly:
+    """``sys.stderr`` after a stop signal (:func:`laughlab.core.interrupts.keep_lost_interrupts_quiet`): only
+    laughlab's own lines (``laughlab: ...``) pass, whole lines at a time; what a library prints as the signal's
+    ``KeyboardInterrupt`` goes through it is dropped (scipy's decorator module prints "Error in generated code:" and
+    the function's source for whatever an ``exec`` raises, a signal during ``import scipy.spatial`` among them: a
+    fuzz case's SIGHUP, three lines before the one)."""
+
+    def __init__(self, stream):
+        self.stream, self._line = stream, ""
+
+    def write(self, text: str) -> int:
+        self._line += text
+        *lines, self._line = self._line.split("\n")
+        for line in lines:
+            if line.startswith("laughlab:"):
+                self.stream.write(line + "\n")
+        return len(text)
+
+    def flush(self) -> None:
+        try:
+            self.stream.flush()
+        except (OSError, ValueError):
+            pass
+
+    def __getattr__(self, name):   # fileno, encoding, isatty...: the stream's own
+        return getattr(self.stream, name)
+
+
+def own_lines_only() -> None:
+    """From now on ``sys.stderr`` carries laughlab's own lines only (:class:`OwnLinesOnly`); once."""
+    if not isinstance(sys.stderr, OwnLinesOnly) and sys.stderr is not None:
+        sys.stderr = OwnLinesOnly(sys.stderr)
