@@ -223,7 +223,7 @@ def _done_line(text: str) -> None:
     try:
         print(text, flush=True)
     except BrokenPipeError:
-        _quiet_stdout()
+        quiet.stdout_gone()
 
 
 def _in_sweep() -> bool:
@@ -339,7 +339,7 @@ def _main(argv: list[str]) -> None:
         except LaughlabError as exc:
             fail(str(exc))
         except BrokenPipeError:  # piped into head: stop quietly
-            _quiet_stdout()
+            quiet.stdout_gone()
         return
     for name in commands:
         if argv[:1] == [name]:
@@ -348,7 +348,7 @@ def _main(argv: list[str]) -> None:
             except LaughlabError as exc:
                 fail(str(exc))
             except BrokenPipeError:  # e.g. piped into head: stop quietly
-                _quiet_stdout()
+                quiet.stdout_gone()
             except OSError as exc:
                 fail(os_error_line(exc, argv[1] if len(argv) > 1 else "."))
             return
@@ -371,7 +371,7 @@ def _main(argv: list[str]) -> None:
         except LaughlabError as exc:
             fail(str(exc))
         except BrokenPipeError:  # e.g. piped into head: stop quietly
-            _quiet_stdout()
+            quiet.stdout_gone()
         return
     if argv and "=" in argv[0] and set(argv[1:]) & set(commands):   # plugins_dir=my report RUN: Hydra's "Error
         fail(f"{min(set(argv[1:]) & set(commands))} is a command: it comes first")   # parsing override" (a review)
@@ -451,6 +451,7 @@ def _main(argv: list[str]) -> None:
 
     before = rundir.sweep_state(argv) if multirun else None
     guard_submitit(lambda: progress_words(argv))   # a submitit job without a result: one line, not a traceback
+    out = sys.stdout = quiet.PipeMayClose(sys.stdout)   # --info | head: Hydra's lines into a closed pipe, quietly
     try:
         hydra.main(config_path=f"pkg://{CONFIG_MODULE}", config_name="config", version_base="1.3")(task)()
     except BaseException as exc:   # one line for the whole sweep: how far it got (its jobs say nothing, fail())
@@ -462,6 +463,8 @@ def _main(argv: list[str]) -> None:
 
         fail(interrupted_line(argv), code=130)
     finally:
+        out.flush()
+        sys.stdout = out.stream
         after = rundir.sweep_state(argv) if before is not None else None
         for job in [j for j, m in (after[2] if after else {}).items() if before[2].get(j) == m]:
             # no run finished there, but Hydra may have written this sweep's .hydra/ over the finished run's (a
@@ -489,10 +492,3 @@ def _absolute_plugins_dir(argv: list[str]) -> list[str]:
                 a = f"{key}={full}"
         out.append(a)
     return out
-
-
-def _quiet_stdout() -> None:
-    """After a broken pipe (``... | head``): what is still buffered for stdout goes nowhere, silently."""
-    from laughlab.core.quiet import to_devnull
-
-    to_devnull(sys.stdout.fileno())

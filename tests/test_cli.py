@@ -561,10 +561,11 @@ def test_out_of_range_command_options_are_one_line(tmp_path, args, message):
     assert r.returncode == 2 and message in r.stderr and r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
 
 
-@pytest.mark.parametrize("argv", [["corpus", "list"], ["plugins"]])
+@pytest.mark.parametrize("argv", [["corpus", "list"], ["plugins"], ["--info"], ["--cfg", "job"]])
 def test_output_piped_into_a_reader_that_stops_ends_quietly(argv):
     """``python -m laughlab corpus list | head -1``: the reader goes away before the command writes; the command
-    ends quietly (it said 'cannot write list: Broken pipe')."""
+    ends quietly (it said 'cannot write list: Broken pipe'; Hydra's ``--info`` printed 2,284 lines of logging's
+    tracebacks)."""
     p = subprocess.Popen([sys.executable, "-m", "laughlab", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          text=True)
     p.stdout.close()   # long before the command has imported what it needs and printed

@@ -65,6 +65,36 @@ def to_devnull(fd: int) -> None:
         os.close(null)
 
 
+def stdout_gone() -> None:
+    """After a broken pipe (``... | head``): what is still buffered for stdout goes nowhere, silently."""
+    to_devnull(sys.stdout.fileno())
+
+
+class PipeMayClose:
+    """``sys.stdout`` where Hydra writes (``--info``, ``--cfg job``, a sweep's lines): once the reader has gone
+    (``... | head``) the rest goes nowhere, silently (Hydra's ``--info`` printed 2,284 lines of logging's tracebacks,
+    ``--cfg job`` Hydra's traceback and exit 1)."""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self.stream.write(text)
+        except BrokenPipeError:
+            stdout_gone()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            self.stream.flush()
+        except BrokenPipeError:
+            stdout_gone()
+
+    def __getattr__(self, name):
+        return getattr(self.stream, name)
+
+
 class OwnLinesOnly:
     """``sys.stderr`` after a stop signal (:func:`laughlab.core.interrupts.keep_lost_interrupts_quiet`): only
     laughlab's own lines (``laughlab: ...``) pass, whole lines at a time; what a library prints as the signal's
