@@ -170,7 +170,7 @@ def test_bad_posts_get_4xx_are_logged_and_never_stored(study, tmp_path):
         assert srv.post("/api/event", {"participant": 1, "session": "s-1", "event": "consent"})[0] == 409
         start = {"participant": 1, "session": "s-1", "design": d["id"], "user_agent": "test"}
         assert srv.post("/api/start", start) == (200, {"laughlab": True, "answered": [], "audio_check": False,
-                                                       "consented": False})
+                                                       "audio_check_passed": None, "consented": False})
         assert srv.post("/api/response", good)[0] == 403
         assert srv.post("/api/check", {"participant": 1, "session": "s-1", "attempts": ["hat"]})[0] == 403
         assert srv.post("/api/event", {"participant": 1, "session": "s-1", "event": "finish"})[0] == 403
@@ -187,7 +187,8 @@ def test_bad_posts_get_4xx_are_logged_and_never_stored(study, tmp_path):
         assert {(r[2], r[3]) for r in stored} == {(q, float(v)) for q, v in good["answers"].items()}
         # one who comes back in a new session is not asked again: the server says they consented
         back = srv.post("/api/start", {**start, "session": "s-2"})
-        assert back == (200, {"laughlab": True, "answered": [1], "audio_check": False, "consented": True})
+        assert back == (200, {"laughlab": True, "answered": [1], "audio_check": False, "audio_check_passed": None,
+                              "consented": True})
         assert len((tmp_path / "r.sqlite.rejected.log").read_text().splitlines()) == len(bad) + 5 + 8
     finally:
         srv.close()
@@ -210,6 +211,55 @@ def test_a_decline_is_stored_and_nothing_after_it(study, tmp_path):
     (row,) = DB.sessions(tmp_path / "r.sqlite")
     assert row["participant"] == 2 and row["declined_at"] and row["consent_at"] is None
     assert srv.rows() == []
+
+
+def test_a_failed_sound_check_ends_the_study_there_and_on_every_return(study, tmp_path):
+    """A review: after the last wrong try of the sound check the page went on through every video, the answers then
+    excluded.  By default (audio_check.on_fail: end) the page thanks them and ends, the server takes no answer of
+    theirs, a return shows the end again, and ``study assignments`` says the check failed; ``continue`` goes on."""
+    import shutil
+
+    from laughlab.study import db as DB
+    from laughlab.study import simulate as S
+
+    d = design_of(study)
+    assert d["audio_check_on_fail"] == "end" and d["screened_out_url"] is None
+    srv = Served(study, tmp_path / "r.sqlite")
+    try:
+        given = S.run_sync(srv.url, d, [1, 2], S.planted(d, {}, seed=3), behaviours={1: "deaf"})
+        again = S.run_sync(srv.url, d, [1], S.planted(d, {}, seed=3))[1]
+        t1 = d["participants"]["1"]["trials"][0]
+        post = {"participant": 1, "session": "b", "trial": 1, "stimulus": t1["stimulus"],
+                "answers": {q["id"]: 4 for q in d["questions"]} | ({"attention": 2} if t1["attention"] else {})}
+        assert srv.post("/api/start", {"participant": 1, "session": "b", "design": d["id"]})[1]["audio_check_passed"] \
+            is False
+        refused = srv.post("/api/response", post)
+    finally:
+        srv.close()
+    n = d["audio_check"]["attempts"]
+    assert given[1].screened_out and len(given[1].audio_attempts) == n and given[1].answers == {}
+    assert "could not confirm that you hear the videos' sound" in given[1].status and "close this page" in given[1].status
+    assert not given[2].screened_out and given[2].saved and len(given[2].answers) >= len(d["participants"]["2"]["trials"])
+    assert again.screened_out and again.audio_attempts == [] and again.answers == {}   # the end again, no new try
+    assert refused[0] == 403 and refused[1]["error"] == "participant 1 did not pass the sound check: the study ended there"
+    assert [r for r in srv.rows() if r[0] == 1] == [(1, 0, "audio_check", 0.0, "audio_check", "", "")]
+    assert given[1].csv.startswith("participant,") and ",audio_check,audio_check,0," in given[1].csv
+
+    # on_fail: continue (the design's only change; the id does not hold it): the page goes on, as before
+    cont = tmp_path / "continue"
+    shutil.copytree(study, cont)
+    for name in ("design.json", "design.js"):
+        text = (cont / name).read_text(encoding="utf-8")
+        assert text.count('"audio_check_on_fail": "end"') == 1
+        (cont / name).write_text(text.replace('"audio_check_on_fail": "end"', '"audio_check_on_fail": "continue"'),
+                                 encoding="utf-8")
+    srv = Served(cont, tmp_path / "c.sqlite")
+    try:
+        went_on = S.run_sync(srv.url, design_of(cont), [1], S.planted(d, {}, seed=3), behaviours={1: "deaf"})[1]
+    finally:
+        srv.close()
+    assert not went_on.screened_out and went_on.saved and len(went_on.answers) >= len(t1) and went_on.audio_attempts
+    assert DB.progress(tmp_path / "c.sqlite", 1) == (list(range(1, len(d["participants"]["1"]["trials"]) + 1)), False)
 
 
 def test_a_panel_id_gets_the_next_free_participant_number_and_keeps_it(study, tmp_path):
@@ -266,7 +316,8 @@ def test_a_panel_id_gets_the_next_free_participant_number_and_keeps_it(study, tm
     table = list(csv.DictReader(out.stdout.splitlines()))
     assert [(r["external_id"], int(r["participant"])) for r in table] == [(a["external_id"], a["participant"])
                                                                           for a in got]
-    assert list(table[0]) == ["external_id", "participant", "assigned_at", "consent_at", "declined_at", "finished_at"]
+    assert list(table[0]) == ["external_id", "participant", "assigned_at", "consent_at", "declined_at", "finished_at",
+                              "sound_check"]
     assert fuzz.run_cli(["study", "assignments", str(tmp_path / "r.sqlite"), "--out", str(tmp_path / "pay.csv")]).code == 0
     again = fuzz.run_cli(["study", "assignments", str(tmp_path / "r.sqlite"), "--out", str(tmp_path / "pay.csv")])
     assert again.code == 2 and "never overwritten" in again.stderr and again.stderr.count("\n") == 1
@@ -1343,3 +1394,14 @@ def test_a_study_built_for_more_participants_takes_its_database_on(study, tmp_pa
     fewer = {**small, "id": small["id"]}   # the smaller build again: not an extension of the larger
     with pytest.raises(LaughlabError, match="holds the responses of another study"):
         DB.open_db(db, fewer)
+
+
+def test_a_sound_check_on_fail_other_than_end_or_continue_is_one_line():
+    from laughlab.core.errors import LaughlabError
+    from laughlab.study.design import check_preset
+
+    q = [{"id": "x", "prompt": "How?"}]
+    assert check_preset({"questions": q})["audio_check"]["on_fail"] == "end"   # the default ends the study there
+    assert check_preset({"questions": q, "audio_check": {"on_fail": "continue"}})["audio_check"]["on_fail"] == "continue"
+    with pytest.raises(LaughlabError, match=r"^study preset: audio_check.on_fail must be end or continue \(got 'skip'\)$"):
+        check_preset({"questions": q, "audio_check": {"on_fail": "skip"}})

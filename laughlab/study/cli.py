@@ -133,7 +133,8 @@ def _run(ns) -> None:
 
 
 def assignments(ns) -> None:
-    """The panel IDs as CSV: external_id, participant, assigned_at, consent_at, declined_at, finished_at."""
+    """The panel IDs as CSV: external_id, participant, assigned_at, consent_at, declined_at, finished_at,
+    sound_check."""
     import csv
     import io
 
@@ -147,7 +148,7 @@ def assignments(ns) -> None:
     rows = DB.assignments(path)
     text = io.StringIO()
     w = csv.DictWriter(text, ["external_id", "participant", "assigned_at", "consent_at", "declined_at",
-                              "finished_at"], lineterminator="\n")
+                              "finished_at", "sound_check"], lineterminator="\n")
     w.writeheader()
     w.writerows(rows)
     if not ns.out:

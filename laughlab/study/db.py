@@ -302,16 +302,19 @@ def assigned_to(path: Path, participant: int) -> str | None:
 
 def assignments(path: Path) -> list[dict]:
     """Each panel ID with its participant number and that participant's sessions' consent, decline and finish
-    (the first of each), for paying and approving submissions."""
+    (the first of each) and sound check (``passed``, ``failed`` or empty), for paying and approving submissions
+    (a failed check ends the study by default: a screen-out)."""
     conn = _reader(path)
     try:
         cur = conn.execute(
             "SELECT a.external_id, a.participant, a.assigned_at, MIN(s.consent_at), MIN(s.declined_at), "
-            "MIN(s.finished_at) FROM assignments a LEFT JOIN sessions s ON s.participant = a.participant "
+            "MIN(s.finished_at), (SELECT value FROM answers WHERE participant = a.participant AND kind = "
+            "'audio_check') FROM assignments a LEFT JOIN sessions s ON s.participant = a.participant "
             "AND s.external_id = a.external_id "
             "GROUP BY a.external_id ORDER BY a.participant")
-        keys = ("external_id", "participant", "assigned_at", "consent_at", "declined_at", "finished_at")
-        return [dict(zip(keys, r)) for r in cur]
+        keys = ("external_id", "participant", "assigned_at", "consent_at", "declined_at", "finished_at", "sound_check")
+        check = {None: "", 1.0: "passed", 0.0: "failed"}
+        return [{**dict(zip(keys, r)), "sound_check": check[r[6]]} for r in cur]
     finally:
         conn.close()
 
@@ -327,17 +330,17 @@ def sessions(path: Path) -> list[dict]:
         conn.close()
 
 
-def progress(path: Path, participant: int) -> tuple[list[int], bool]:
-    """The trials a participant has answered and whether their audio check is stored."""
+def progress(path: Path, participant: int) -> tuple[list[int], bool | None]:
+    """The trials a participant has answered and their audio check: passed (True), failed (False) or not stored."""
     conn = connect(path)
     try:
         trials = [r[0] for r in conn.execute("SELECT DISTINCT trial FROM answers WHERE participant = ? AND trial > 0 "
                                              "ORDER BY trial", (participant,))]
-        checked = conn.execute("SELECT 1 FROM answers WHERE participant = ? AND kind = 'audio_check'",
-                               (participant,)).fetchone() is not None
+        checked = conn.execute("SELECT value FROM answers WHERE participant = ? AND kind = 'audio_check'",
+                               (participant,)).fetchone()
     finally:
         conn.close()
-    return trials, checked
+    return trials, None if checked is None else checked[0] == 1
 
 
 def rows(path: Path) -> list[dict]:

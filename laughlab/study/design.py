@@ -74,7 +74,7 @@ def check_preset(doc: dict) -> dict:
             raise LaughlabError(f"study preset: {msg}")
 
     known = {"title", "scale", "points", "slider", "questions", "consent", "instructions", "end", "audio_check",
-             "attention", "completion_url", "decline_url", "exclusions"}
+             "attention", "completion_url", "decline_url", "screened_out_url", "exclusions"}
     unknown = sorted(set(doc) - known)
     need(not unknown, f"unknown key(s) {', '.join(unknown)}; valid: {', '.join(sorted(known))}")
     doc = dict(doc)
@@ -98,9 +98,10 @@ def check_preset(doc: dict) -> dict:
         need(isinstance(q.get("prompt"), str) and q["prompt"], f"question {q['id']} needs a prompt")
         labels = q.setdefault("labels", ["", ""])
         need(isinstance(labels, list) and len(labels) == 2, f"question {q['id']}: labels are the two ends [low, high]")
-    ac = {"words": ["hat"], "attempts": 3, **(doc.get("audio_check") or {})}
+    ac = {"words": ["hat"], "attempts": 3, "on_fail": "end", **(doc.get("audio_check") or {})}
     need(isinstance(ac["words"], list) and ac["words"], "audio_check.words must be a non-empty list")
     need(isinstance(ac["attempts"], int) and ac["attempts"] >= 1, "audio_check.attempts must be >= 1")
+    need(ac["on_fail"] in ("end", "continue"), f"audio_check.on_fail must be end or continue (got {ac['on_fail']!r})")
     doc["audio_check"] = ac
     att = {"count": 0, "value": 1, "prompt": "Please choose {value} here.", **(doc.get("attention") or {})}
     need(isinstance(att["count"], int) and att["count"] >= 0, "attention.count must be a whole number >= 0")
@@ -115,6 +116,7 @@ def check_preset(doc: dict) -> dict:
     doc.setdefault("end", "<p>Thank you.</p>")
     doc.setdefault("completion_url", None)
     doc.setdefault("decline_url", None)
+    doc.setdefault("screened_out_url", None)
     return doc
 
 
@@ -197,9 +199,11 @@ def make_design(run_dir: Path, preset: dict, preset_name: str, audio_files: list
         "questions": preset["questions"],
         "attention": {**preset["attention"], "prompt": preset["attention"]["prompt"].format(**fill)},
         "audio_check": {"attempts": preset["audio_check"]["attempts"], "files": audio_files},
+        "audio_check_on_fail": preset["audio_check"]["on_fail"],   # not in the id: the answers are the same kind
         "consent": text["consent"], "end": text["end"],
         "instructions": [s.format(**fill) for s in preset["instructions"]],
         "completion_url": preset["completion_url"], "decline_url": preset["decline_url"],
+        "screened_out_url": preset["screened_out_url"],
         "exclusions": preset["exclusions"],
         "latin_square_rows": rows, "minutes": minutes,
         "stimuli": {m["stimulus_id"]: {"file": m["file"], "condition": m["condition"], "audio_id": m["audio_id"],

@@ -216,7 +216,8 @@ class StudyHandler(_Handler):
                                "the study from there")
         agreed = DB.session_event(self.db, session, p, "start", _text(body, "user_agent", 512), ext)
         answered, checked = DB.progress(self.db, p)
-        return 200, {"answered": answered, "audio_check": checked, "consented": agreed}
+        return 200, {"answered": answered, "audio_check": checked is not None, "audio_check_passed": checked,
+                     "consented": agreed}
 
     def assign(self, body: dict):
         _keys(body, {"external_id", "design"})
@@ -259,6 +260,8 @@ class StudyHandler(_Handler):
                  "text": "", "expected": float(self.design["attention"]["value"]) if q == "attention" else None}
                 for q, v in values.items()]
         self._consented(p, session)   # after the body's checks: a malformed post is told what is wrong with it
+        if self.design.get("audio_check_on_fail") == "end" and DB.progress(self.db, p)[1] is False:
+            raise Refused(403, f"participant {p} did not pass the sound check: the study ended there")
         DB.insert_answers(self.db, rows)
         return 201, {"stored": len(rows)}
 

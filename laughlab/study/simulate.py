@@ -33,6 +33,7 @@ class Given:
     audio_attempts: list = field(default_factory=list)
     saved: bool | None = None
     status: str = ""  # the end page's line about saving
+    screened_out: bool = False  # the page ended after a failed sound check (audio_check.on_fail: end)
     seconds: float = 0.0
     csv: str = ""  # the page's own record of the answers (its "Download my answers" CSV)
 
@@ -94,8 +95,10 @@ async def participant(browser, url: str, design: dict, p: int, answer, keyboard:
     try:
         await page.goto(f"{url.rstrip('/')}/index.html?participant={p}")
         first = await page.wait_for_selector("button:has-text('I agree'), button:has-text('Go on'), "
-                                             "#jspsych-instructions-next")
-        if await first.get_attribute("id") == "jspsych-instructions-next" or "agree" in (await first.inner_text()):
+                                             "#jspsych-instructions-next, #study-screened-out")
+        if await first.get_attribute("id") == "study-screened-out":   # back after a failed sound check
+            pass
+        elif await first.get_attribute("id") == "jspsych-instructions-next" or "agree" in (await first.inner_text()):
             if "agree" in (await first.inner_text()):   # not asked again by the server after an earlier consent
                 await _click_or_key(page, keyboard, "Enter", "button:has-text('I agree')")
             for _ in design["instructions"]:
@@ -105,7 +108,7 @@ async def participant(browser, url: str, design: dict, p: int, answer, keyboard:
             await _click_or_key(page, keyboard, "Enter", "button:has-text('Go on')")
         word = design["audio_check"]["files"][entry["audio_check"]]["answer"]
         for k in range(int(design["audio_check"]["attempts"])):
-            box = await page.wait_for_selector("#study-word, #study-trial, #study-status")
+            box = await page.wait_for_selector("#study-word, #study-trial, #study-status, #study-screened-out")
             if await box.get_attribute("id") != "study-word":
                 break
             typed = f"not{word}{k}" if behaviour == "deaf" else word
@@ -121,8 +124,9 @@ async def participant(browser, url: str, design: dict, p: int, answer, keyboard:
         done = 0
         while True:
             el = await page.wait_for_selector("#jspsych-survey-likert-form, #jspsych-html-slider-response-response, "
-                                              "#study-status", timeout=timeout_s * 1000)
-            if await el.get_attribute("id") == "study-status":
+                                              "#study-status, #study-screened-out", timeout=timeout_s * 1000)
+            if await el.get_attribute("id") in ("study-status", "study-screened-out"):
+                given.screened_out = await el.get_attribute("id") == "study-screened-out"
                 break
             if stop_after is not None and done >= stop_after:
                 break
@@ -135,7 +139,10 @@ async def participant(browser, url: str, design: dict, p: int, answer, keyboard:
             await page.wait_for_function(f"!document.querySelector('#study-trial[data-trial=\"{trial}\"]') || "
                                          "!document.querySelector('#jspsych-survey-likert-form, "
                                          "#jspsych-html-slider-response-response')")
-        if stop_after is None:
+        if stop_after is None and given.screened_out:
+            given.status = (await page.text_content("#study-screened-out p")).strip()
+            given.csv = await page.evaluate("window.laughlabStudy.csv()")
+        elif stop_after is None:
             await page.wait_for_selector("#study-status[data-saved]")
             given.saved = await page.get_attribute("#study-status", "data-saved") == "true"
             given.status = await page.text_content("#study-status")

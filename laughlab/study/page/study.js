@@ -237,7 +237,17 @@
     }))};
   }
 
-  function audioCheck(p, P) {
+  // after the last wrong try of the sound check (audio_check.on_fail: end): the study ends there, with thanks and
+  // the panel's screen-out link (a review: it had gone on through every video, whose answers were then excluded)
+  function screenedOut() {
+    const back = S.screened_out_url ? `<p><a class="jspsych-btn study-link" href="${esc(S.screened_out_url)}">` +
+      "Return to the recruitment site</a></p>" : "";
+    return `<div class="study-text" id="study-screened-out"><h1>Thank you</h1><p role="status">The sound check ` +
+      "could not confirm that you hear the videos' sound, which this study needs, so it ends here. Thank you for " +
+      `your time; ${back ? "please return to the recruitment site:" : "you may close this page."}</p>${back}</div>`;
+  }
+
+  function audioCheck(jsPsych, p, P) {
     const word = S.audio_check.files[P.audio_check];
     const attempts = [];
     const norm = (s) => String(s).toLowerCase().replace(/[^a-z\u00c0-\u024f]/g, "");
@@ -275,6 +285,7 @@
                {text: attempts.join("|"), rt_ms: rt});
           send("api/check", {participant: Number(p), session: session, attempts: attempts, rt_ms: rt,
                              user_agent: ua});
+          if (!passed() && S.audio_check_on_fail === "end") jsPsych.abortExperiment(screenedOut());
         }
       },
     };
@@ -314,13 +325,17 @@
 
   function run(p, P, done, checked, consented) {
     const total = P.trials.length;
+    if (checked === false && S.audio_check_on_fail === "end") {   // back after a failed sound check: the end again
+      initJsPsych().run([{type: jsPsychHtmlButtonResponse, choices: [], stimulus: screenedOut()}]);
+      return;
+    }
     const jsPsych = initJsPsych({show_progress_bar: true, auto_update_progress_bar: false,
                                  message_progress_bar: "Progress"});
     const todo = P.trials.filter((t) => !done.has(t.trial));
     const count = {n: total - todo.length};
-    const fresh = count.n === 0 && !checked;
+    const fresh = count.n === 0 && checked === null;
     const timeline = [{type: jsPsychPreload, video: todo.map((t) => t.file), continue_after_error: true,
-                       audio: checked ? [] : [S.audio_check.files[P.audio_check].file],
+                       audio: checked !== null ? [] : [S.audio_check.files[P.audio_check].file],
                        message: "<p>Loading the videos&hellip;</p>"}];
     // the server knows whether this participant gave consent (it stores nothing before it); a static host: a
     // fresh start asks
@@ -353,7 +368,7 @@
                        (todo.length ? `the study goes on with video ${todo[0].trial} of ${total}.`
                          : "you have rated every video already: thank you.") + "</p></div>"});
     }
-    if (!checked) timeline.push(audioCheck(p, P));
+    if (checked === null) timeline.push(audioCheck(jsPsych, p, P));
     for (const t of todo) {
       const shown = {at: "", count: count};
       timeline.push({
@@ -436,16 +451,16 @@
     if (panelId) begin.external_id = panelId;   // a number given to a panel's ID answers to it only
     const r = await api("api/start", begin);
     const done = new Set();
-    let checked = false;
+    let checked = null;   // the sound check: null not done, true passed, false failed
     if (r.data && r.data.laughlab) {
       if (!r.ok) { fatal(r.data.error || "The study server refused this page."); return; }
       state.server = true;
       r.data.answered.forEach((t) => done.add(t));
-      checked = Boolean(r.data.audio_check);
+      checked = r.data.audio_check ? r.data.audio_check_passed !== false : null;
       consented = Boolean(r.data.consented);
     } else {  // a static host: this browser's own record says what is done
       for (const row of state.rows) {
-        if (row.kind === "audio_check") checked = true; else done.add(row.trial);
+        if (row.kind === "audio_check") checked = Number(row.value) === 1; else done.add(row.trial);
       }
     }
     run(p, P, done, checked, consented);
