@@ -143,8 +143,9 @@ def _check_frames(kind: str, frames: list, clips, skeleton) -> list[str]:
 
     bad: list[str] = []
     first = frames[0]
-    written = set(first.control if kind == "extractor" else first.channels)
-    needed = ("mcs",) if kind == "extractor" else REQUIRED.get(kind, ())
+    where = "control" if kind in ("extractor", "detector") else "channels"   # a detector's outputs are controls
+    written = set(getattr(first, where))
+    needed = {"extractor": ("mcs",), "detector": ("laughter", "laugh_gate")}.get(kind) or REQUIRED.get(kind, ())
     missing = [c for c in needed if c not in written]
     if missing:
         bad.append(f"writes no {', '.join(missing)} (a {kind} writes {', '.join(needed)})")
@@ -164,13 +165,21 @@ def _check_frames(kind: str, frames: list, clips, skeleton) -> list[str]:
                 continue
             break
     shapes = ("chest", "belly") if kind == "body" else ()   # shape weights: outside [0, 1] they extrapolate
-    unit = [c for c in (*needed, *(k for k in written if k.startswith("arkit."))) if c not in shapes]
+    unit = [c for c in (*needed, *(k for k in written if k.startswith("arkit.")),
+                        *(("clip_gate",) if kind == "detector" and "clip_gate" in written else ())) if c not in shapes]
     for c in unit:
-        vals = [getattr(f, "control" if kind == "extractor" else "channels").get(c, 0.0) for f in frames]
+        vals = [getattr(f, where).get(c, 0.0) for f in frames]
         out = [i for i, v in enumerate(vals) if isinstance(v, (int, float)) and not -TOL <= v <= 1.0 + TOL]
         if out:
             j = out[0]
             bad.append(f"{c} is {vals[j]} at frame {j}: a weight in [0, 1]")
+    if kind == "detector":   # laugh_gate alone gates nothing: the character laughed on (a plugin author's review)
+        shut = [f for f in frames if f.control.get("laugh_gate", 1.0) < 0.5 and "mcs_ungated" not in f.control
+                and f.control.get("mcs", 0.0) > 0.0]
+        if shut:
+            bad.append(f"laugh_gate is {shut[0].control['laugh_gate']:g} at frame {shut[0].index} but mcs "
+                       f"{shut[0].control['mcs']:g} is not gated: a detector gates the driving signals with "
+                       "laughlab.detector.model.apply_gate(frame, gain)")
     unknown = sorted(k[6:] for k in written if k.startswith("arkit.") and k[6:] not in ARKIT_BLENDSHAPES)
     if unknown:
         bad.append(f"arkit.{', arkit.'.join(unknown)}: not ARKit blendshape names "
@@ -201,8 +210,9 @@ def check_plugin(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0,
     Every kind: the class registers (a ``name``, its kind's methods, ``Params`` a dataclass) and its defaults (or
     ``params``, a mapping as ``face.KEY=VALUE`` sets them) pass the checks of the command line.  An extractor,
     detector, scheduler, body or face (:func:`run_frames`, ``seconds`` of seeded synthetic laughter): it writes its
-    kind's channels (an extractor ``mcs``, a body ``chest``/``belly``, a face ``smile``/``jaw``/``blink``/
-    ``eyes_closed``) in [0, 1] (a body's ``chest``/``belly`` are shape weights, 0 the base and 1 the expanded shape,
+    kind's channels (an extractor ``mcs``, a detector ``laughter``/``laugh_gate`` (and ``clip_gate`` if it writes
+    one), a body ``chest``/``belly``, a face ``smile``/``jaw``/``blink``/``eyes_closed``) in [0, 1], and a
+    detector whose ``laugh_gate`` is shut gates ``mcs`` (``laughlab.detector.model.apply_gate``) (a body's ``chest``/``belly`` are shape weights, 0 the base and 1 the expanded shape,
     which may extrapolate beyond them, as ``body=hill`` squeezes below rest and ``body=fourier`` above its intense
     clip), the same names every frame, finite numbers only; ``arkit.*`` names are ARKit's;
     offsets name the skeleton's joints; events are clips of the library; a second plugin on the same seed gives

@@ -39,3 +39,31 @@ def test_truth_frames_mark_the_frames_inside_bouts(tmp_path):
     t.write_text("kind,bout,onset_s,offset_s,intensity\nbout,0,0.1000,0.2000,1.0\n")
     y = truth_frames(str(t), 20, 1 / 60)   # frame centres (k + 0.5) / 60
     assert np.flatnonzero(y).tolist() == [6, 7, 8, 9, 10, 11]
+
+
+def test_every_detector_a_run_compares_has_a_curve_a_plugins_and_an_overridden_one_too():
+    """A plugin author's review: a detector of their own was in the table but not among the curves, and a
+    condition's detector.* overrides were dropped from them."""
+    from laughlab_experiments.detector_eval import OWN_THRESHOLD, SCORES, curves
+
+    conds = {"none": ["detector=none"], "yamnet": ["detector=yamnet"], "mine": ["detector=modlaugh"],
+             "low": ["detector=yamnet", "detector.threshold=0.3"], "again": ["detector=modlaugh", "seed=2"]}
+    got = curves(conds)
+    assert [(n, d, own, key, at) for n, d, own, key, at in got] == [
+        ("yamnet (head)", "yamnet", (), "laughter", SCORES["yamnet (head)"][2]),
+        ("yamnet classes", "yamnet", (), "laughter_classes", SCORES["yamnet classes"][2]),
+        ("modlaugh", "modlaugh", (), "laughter", OWN_THRESHOLD),
+        ("yamnet (head) (threshold=0.3)", "yamnet", ("detector.threshold=0.3",), "laughter",
+         SCORES["yamnet (head)"][2]),
+        ("yamnet classes (threshold=0.3)", "yamnet", ("detector.threshold=0.3",), "laughter_classes",
+         SCORES["yamnet classes"][2])]
+    assert curves({"none": ["detector=none"]}) == []
+
+
+def test_a_detector_of_ones_own_is_drawn_with_its_threshold(tmp_path):
+    from laughlab_experiments.detector_eval import pr_figure
+
+    y = np.array([True, True, False, False] * 50)
+    fig, out = pr_figure({"modlaugh": y * 0.9 + 0.05}, y, thresholds={"modlaugh": 0.5})
+    assert out["scores"]["modlaugh"]["at_gate_threshold"] == {"threshold": 0.5, "precision": 1.0, "recall": 1.0}
+    assert out["scores"]["modlaugh"]["average_precision"] == 1.0

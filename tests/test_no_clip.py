@@ -74,6 +74,21 @@ def test_energy_and_gate_that_never_met_are_said_apart():
     assert rec.no_clip(sch) == {}
 
 
+def test_a_plugins_laugh_gate_that_never_opened_is_the_reason():
+    """A plugin author's review: a detector of their own (no clip_gate) whose laugh_gate stayed shut gated mcs to 0,
+    and the run blamed "the laughing energy peaked at 0.0"."""
+    from types import SimpleNamespace
+
+    from laughlab.core.recorder import Recorder
+
+    sch = SimpleNamespace(name="energy", actions=[SimpleNamespace(energy=5.0)])
+    rec = Recorder(0, 0)
+    rec._tally({"laugh_gate": np.array([0.0, 0.2, 0.4]), "energy": np.zeros(3)})
+    assert rec.no_clip(sch) == {"no_clip": "gate"}
+    rec._tally({"laugh_gate": np.array([0.9]), "energy": np.zeros(1)})   # it opened once: the energy's reason
+    assert rec.no_clip(sch)["no_clip"] == "energy"
+
+
 def test_the_reviews_real_laugh_says_why(tmp_path):
     from laughlab.corpora.fetch import corpus_dir
 

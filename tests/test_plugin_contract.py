@@ -81,7 +81,23 @@ class Leaky(Sink):   # writes straight into the run folder, names no file and ha
         return [self.run.out_dir / "frames.txt"]
 
 
+def detector(name, step):
+    from laughlab import Detector
+
+    return type(name, (Detector,), {"name": name, "step": step})
+
+
+def _shut_gate(self, block, frame):   # writes a shut gate but leaves mcs as it was: the character laughs on
+    frame.control.update(laughter=0.0, laugh_gate=0.0)
+
+
 @pytest.mark.parametrize("cls, says", [
+    (detector("loud", lambda self, b, f: f.control.update(laughter=50.0, laugh_gate=1.0)),
+     "laughter is 50.0 at frame 0: a weight in [0, 1]"),
+    (detector("gate_only", lambda self, b, f: f.control.update(laugh_gate=1.0)),
+     "wrote no laughter at frame 0: every detector writes frame.control['laughter'] and ['laugh_gate']"),
+    (detector("returns", lambda self, b, f: 0.5), "wrote no laughter and no laugh_gate at frame 0"),
+    (detector("shut", _shut_gate), "laugh_gate is 0 at frame 4 but mcs 0.00430146 is not gated: a detector gates"),
     (face("no_eyes", lambda self, f: f.channels.update(smile=0.1, jaw=0.1, blink=0.0)), "writes no eyes_closed"),
     (face("grins", lambda self, f: f.channels.update(smile=2.0, jaw=0.0, blink=0.0, eyes_closed=0.0)),
      "smile is 2.0 at frame 0: a weight in [0, 1]"),
@@ -269,6 +285,9 @@ def doc_module(path: str) -> types.ModuleType:
 
 def test_the_docs_loud_extractor_and_giggle_face_keep_the_contract():
     check_plugin(doc_module("myplugins/loud.py").Loud)
+    loudness = doc_module("myplugins/loudness.py").Loudness   # the detector, at the synthetic's rate and a file's
+    check_plugin(loudness)
+    check_plugin(loudness, sample_rate=44100)
     giggle = doc_module("myplugins/giggle.py")
     check_plugin(giggle.Giggle)
     check_plugin(giggle.Giggle, {"gain": 3.0, "tau_s": 0.5})

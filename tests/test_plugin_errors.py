@@ -151,6 +151,53 @@ def test_an_mcs_outside_0_1_is_refused_naming_the_extractor(registered, tmp_path
              "please report it); nothing was written", "extractor=peak", "detector=none")
 
 
+class Scores(laughlab.Detector):
+    name = "scores"
+
+    def step(self, block, frame):
+        type(self).value(self, frame)
+
+
+def test_a_detector_that_writes_no_laughter_is_named(registered, tmp_path):
+    """A plugin author's review: a detector that returned its score ran to the end, exit 0, its metrics n/a."""
+    registered(type("Scores", (Scores,), {"value": lambda self, f: 0.5, "__module__": __name__}),
+               "register_detectors")
+    _refused(tmp_path, f"detector 'scores' ({__file__}, Scores.step) wrote no laughter and no laugh_gate at frame 0: "
+             "every detector writes frame.control['laughter'] and ['laugh_gate'] (0-1) and gates the driving signals "
+             "with laughlab.detector.model.apply_gate(frame, gain) (docs/architecture.md); nothing was written",
+             "detector=scores")
+
+
+@pytest.mark.parametrize("key, what", [("laughter", "a detector's laughter probability"),
+                                       ("laugh_gate", "a detector's gate")])
+def test_a_detectors_value_outside_0_1_is_refused_naming_it(registered, tmp_path, key, what):
+    """A laughter of 50 went into channels.csv and the probability metrics, exit 0 (a plugin author's review)."""
+    def value(self, f):
+        f.control.update(laughter=0.5, laugh_gate=1.0)
+        f.control[key] = 50.0 if f.index >= 20 else 0.5
+
+    registered(type("Scores", (Scores,), {"value": value, "__module__": __name__}), "register_detectors")
+    _refused(tmp_path, f"channel {key!r} is 50 at frame 20: {what} is 0-1 (docs/architecture.md); a bug in the plugin "
+             "that writes it, detector 'scores' (laughlab's own plugins: please report it); nothing was written",
+             "detector=scores")
+
+
+def test_a_gain_above_1_is_the_detectors_bug_not_the_extractors(registered, tmp_path):
+    """apply_gate(frame, 2.0) drove mcs to 1.6, and the line blamed the built-in rms extractor."""
+    from laughlab.detector.model import apply_gate
+
+    def value(self, f):
+        f.control.update(laughter=1.0, laugh_gate=1.0)
+        apply_gate(f, 2.0)
+
+    registered(type("Scores", (Scores,), {"value": value, "__module__": __name__}), "register_detectors")
+    r = run_cli("detector=scores", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}")
+    last = r.stderr.strip().splitlines()[-1]
+    assert r.returncode == 1 and "apply_gate: the gain is 0-1 (got 2.0)" in r.stderr, r.stderr
+    assert "detector 'scores'" in last and "extractor 'rms'" not in r.stderr, last
+    assert not (tmp_path / "run").exists() or not any((tmp_path / "run").iterdir())
+
+
 class Sway(laughlab.Body):
     name = "sway"
     offset = None

@@ -127,6 +127,11 @@ class PluginBug(LaughlabError):
 WHOSE = "a bug in the plugin that writes it (laughlab's own plugins: please report it)"
 
 
+#: the controls that are 0-1, and what each is
+UNIT = {"mcs": "the motion control signal", "laughter": "a detector's laughter probability",
+        "laugh_gate": "a detector's gate", "clip_gate": "a detector's clip gate"}
+
+
 def check_finite(vals: dict, poses, first_frame: int, raw=None, owner=None) -> None:
     """The guard before every writer: a NaN or infinite channel or pose value is a plugin's bug, never output.
 
@@ -140,11 +145,12 @@ def check_finite(vals: dict, poses, first_frame: int, raw=None, owner=None) -> N
             v = raw(k, j) if raw is not None else arr[j]
             raise PluginBug(f"channel {k!r} is {'None' if v is None else arr[j]} at frame {first_frame + j}: "
                             f"{whose(k, owner)}; nothing was written")
-    mcs = vals.get("mcs")
-    if mcs is not None and len(mcs) and not ((mcs >= -1e-9) & (mcs <= 1.0 + 1e-9)).all():
-        j = int(np.argmax((mcs < -1e-9) | (mcs > 1.0 + 1e-9)))
-        raise PluginBug(f"channel 'mcs' is {mcs[j]:g} at frame {first_frame + j}: the motion control signal is 0-1 "
-                        f"(docs/architecture.md); {whose('mcs', owner)}; nothing was written")
+    for k, what in UNIT.items():   # a detector's too (a plugin author's review: laughter 50 went into the metrics)
+        v = vals.get(k)
+        if v is not None and len(v) and not ((v >= -1e-9) & (v <= 1.0 + 1e-9)).all():
+            j = int(np.argmax((v < -1e-9) | (v > 1.0 + 1e-9)))
+            raise PluginBug(f"channel {k!r} is {v[j]:g} at frame {first_frame + j}: {what} is 0-1 "
+                            f"(docs/architecture.md); {whose(k, owner)}; nothing was written")
     if len(poses) and not np.isfinite(poses).all():
         j, c = (int(x[0]) for x in np.nonzero(~np.isfinite(poses)))
         raise PluginBug(f"pose column {c} is {poses[j, c]} at frame {first_frame + j}: a non-finite joint "
@@ -191,6 +197,28 @@ def check_extractor(control: dict, extractor, writers: dict | None = None) -> No
                         "review: a later stage, one of laughlab's, was blamed); nothing was written")
     if writers is not None:   # a line about mcs names the extractor (:meth:`Recorder._owner`)
         writers.setdefault("mcs", [("extractor", extractor.name)])
+
+
+def check_detector(control: dict, detector, writers: dict | None = None) -> None:
+    """On a run's first frame: the detector wrote ``laughter`` and ``laugh_gate``, one number each (a plugin
+    author's review: one that wrote neither, or returned its score, ran to the end, exit 0, its metrics n/a)."""
+    cls = type(detector)
+    where = f"detector '{detector.name}' ({_source_file(cls)}, {cls.__name__}.step)"
+    missing = [k for k in ("laughter", "laugh_gate") if k not in control]
+    if missing:
+        raise PluginBug(f"{where} wrote no {' and no '.join(missing)} at frame 0: every detector writes "
+                        "frame.control['laughter'] and ['laugh_gate'] (0-1) and gates the driving signals with "
+                        "laughlab.detector.model.apply_gate(frame, gain) (docs/architecture.md); nothing was written")
+    for k in ("laughter", "laugh_gate"):
+        v = control[k]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) and not (
+                hasattr(v, "dtype") and getattr(v, "ndim", 1) == 0 and v.dtype.kind in "fiu"):
+            raise PluginBug(f"{where} wrote {k} as {type(v).__name__} at frame 0: one number a frame, 0-1; nothing "
+                            "was written")
+    if writers is not None:
+        for k in ("laughter", "laugh_gate", "clip_gate"):
+            if k in control:
+                writers.setdefault(k, [("detector", detector.name)])
 
 
 class WatchedChannels(dict):

@@ -24,6 +24,7 @@ class Recorder:
         self.done = 0  # frames handed out in earlier chunks
         # over the run: clip starts, the largest clip_gate and energy, the energy while clips were allowed (no_clip)
         self.starts, self.gate_max, self.energy_max, self.energy_allowed_max = 0, None, 0.0, 0.0
+        self.laugh_gate_max = None   # a detector's laugh_gate (one without a clip_gate: a plugin's)
         self._reset()
 
     def _reset(self) -> None:
@@ -85,6 +86,8 @@ class Recorder:
         self.starts += sum(ev.kind == "start" for ev in self.events)
         if len(vals.get("clip_gate", ())):
             self.gate_max = max(self.gate_max or 0.0, float(vals["clip_gate"].max()))
+        if len(vals.get("laugh_gate", ())):
+            self.laugh_gate_max = max(self.laugh_gate_max or 0.0, float(vals["laugh_gate"].max()))
         if len(vals.get("energy", ())):
             self.energy_max = max(self.energy_max, float(vals["energy"].max()))
             allowed = vals["energy"][vals["clip_gate"] >= 0.5] if len(vals.get("clip_gate", ())) else vals["energy"]
@@ -102,7 +105,8 @@ class Recorder:
         otherwise."""
         if self.starts or getattr(scheduler, "name", "none") == "none":
             return {}
-        if self.gate_max is not None and self.gate_max < 0.5:
+        gate = self.gate_max if self.gate_max is not None else self.laugh_gate_max   # a gate that never opened
+        if gate is not None and gate < 0.5:
             return {"no_clip": "gate"}
         mildest = min((float(a.energy) for a in getattr(scheduler, "actions", ())), default=None)
         if mildest is not None and self.energy_max < mildest:

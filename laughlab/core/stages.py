@@ -34,6 +34,8 @@ class Stepper:
             blame.first_step(stage, plugin, block, frame)
             if plugin is self.ext:
                 blame.check_extractor(frame.control, self.ext, watched.writers)
+            else:
+                blame.check_detector(frame.control, self.det, watched.writers)
         watched.stage = ("scheduler", self.sch.name)
         blame.first_step("scheduler", self.sch, frame)
         self.mixer.advance(frame)

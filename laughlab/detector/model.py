@@ -447,6 +447,8 @@ def apply_gate(frame, gain: float) -> None:
     the pseudo-phoneme label is ``silence``.  Other controls (``rms``, ``intensity``,
     ``f0``) are measurements of the sound and pass unchanged.
     """
+    if not 0.0 <= gain <= 1.0:   # a gain above 1 drove mcs past 1, blamed on the extractor (a plugin author's review)
+        raise ValueError(f"apply_gate: the gain is 0-1 (got {gain!r})")
     c = frame.control
     for k in GATED_GAIN:
         if k in c:
