@@ -142,6 +142,30 @@ def test_elan_annotations(tmp_path, bouts):
         A.read(p, 2.0)
 
 
+@pytest.mark.parametrize("tier", ["Laughter", "BOUTS", "laughs_A"])
+def test_a_conversations_laughter_tier_is_found_by_its_name(tmp_path, tier):
+    """A conversation analyst's review: a TextGrid with tiers speakerA and Laughter was refused ("no tier 'bouts'");
+    any case of bouts/laughter, or the one tier whose name holds 'laugh', is read, in a TextGrid and an EAF alike."""
+    from praatio import textgrid
+    from praatio.utilities.constants import Interval
+
+    tg = textgrid.Textgrid()
+    tg.addTier(textgrid.IntervalTier("speakerA", [Interval(0.0, 0.5, "hello")], 0, 2.0))
+    tg.addTier(textgrid.IntervalTier(tier, [Interval(0.2, 1.0, "x")], 0, 2.0))
+    tg.save(str(tmp_path / "a.TextGrid"), format="long_textgrid", includeBlankSpaces=True)
+    assert A.read(tmp_path / "a.TextGrid", 2.0).bouts == [(0.2, 1.0)]
+    p = tmp_path / "a.eaf"
+    p.write_text(EAF.format(bouts=tier, slot4='TIME_VALUE="400"'))
+    assert A.read(p, 2.0).bouts == [(0.2, 1.0)]
+    tg.addTier(textgrid.IntervalTier("laugh_B", [Interval(1.2, 1.5, "x")], 0, 2.0))
+    tg.save(str(tmp_path / "b.TextGrid"), format="long_textgrid", includeBlankSpaces=True)
+    if tier == "laughs_A":   # two candidates: which one is said
+        with pytest.raises(LaughlabError, match=r"2 whose names hold 'laugh' \(laughs_A, laugh_B\): name the one"):
+            A.read(tmp_path / "b.TextGrid", 2.0)
+    else:
+        assert A.read(tmp_path / "b.TextGrid", 2.0).bouts == [(0.2, 1.0)]
+
+
 # ------------------------------------------------------------------ fetching, with a stand-in registry
 @pytest.fixture
 def fake_registry(tmp_path, monkeypatch):

@@ -165,7 +165,10 @@ def test_a_stopped_detect_closes_its_progress_before_the_error_line(tmp_path, mo
     r = laughlab("detect", str(tmp_path / "a.wav"), "--out", str(tmp_path / "out"), "--progress", "on")
     assert r.returncode == 130 and not (tmp_path / "out").exists()
     lines = r.stderr.splitlines()
-    assert lines[-2].startswith("detect: 0.0/1.0 s of audio, ") and lines[-1] == "laughlab: error: interrupted"
+    assert lines[-2].startswith("detect: 0.0/1.0 s of audio, ")
+    # what was written is said (a review: "interrupted" left the user to guess): nothing, until every input is done
+    assert lines[-1] == (f"laughlab: error: interrupted after 0 of 1 input(s); nothing was written to "
+                         f"{tmp_path / 'out'} (detect writes when every input is done)")
 
 
 def test_ends_never_pass_the_recording_and_names_are_quoted_in_the_csv(tmp_path):
@@ -523,3 +526,73 @@ def test_detect_finds_no_laughter_in_steady_white_noise(tmp_path):
     sf.write(tmp_path / "laugh.wav", x + quiet, sr, subtype="PCM_16")
     r = laughlab("detect", str(tmp_path / "laugh.wav"), "--out", str(tmp_path / "o2"))
     assert r.returncode == 0 and "1 laughter segment(s)" in r.stdout, r.stdout
+
+
+def _damaged_flac(path):
+    """A FLAC whose header reads and whose first block does not (a file damaged past its header)."""
+    x = np.random.default_rng(0).standard_normal(48000) * 0.1
+    sf.write(path, x, 48000)
+    data = path.read_bytes()
+    path.write_bytes(data[:8300] + b"\0" * 20000)
+
+
+def test_every_unreadable_input_is_named_at_once_before_any_work(tmp_path):
+    """A review: the first unreadable file alone was named; a file damaged past its header stopped the batch only
+    at its turn, after the others' work (450 s of audio, then nothing written)."""
+    sf.write(tmp_path / "a.wav", np.zeros(16000), 16000)
+    (tmp_path / "notes.wav").write_text("not audio", encoding="utf-8")
+    _damaged_flac(tmp_path / "zz_last.flac")
+    r = laughlab("detect", str(tmp_path), "--out", str(tmp_path / "out"))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith("laughlab: error: 2 inputs cannot be read: ") and "notes.wav" in r.stderr
+    assert "zz_last.flac after 0.0 s" in r.stderr and r.stderr.endswith("(--skip-unreadable leaves such files out)\n")
+    assert not (tmp_path / "out").exists()
+    r = laughlab("detect", str(tmp_path), "--out", str(tmp_path / "out"), "--skip-unreadable")
+    assert r.returncode == 0 and r.stderr.count("laughlab: skipped: ") == 2, r.stderr
+    assert "2 skipped" in r.stdout
+
+
+def test_overwrite_says_what_it_removed_of_an_earlier_batch(tmp_path):
+    """A review: a run of one recording with --overwrite into a batch's folder removed the others' files unsaid."""
+    for name in ("a", "b"):
+        sf.write(tmp_path / f"{name}.wav", np.zeros(16000), 16000)
+    out = tmp_path / "out"
+    assert laughlab("detect", str(tmp_path / "a.wav"), str(tmp_path / "b.wav"), "--out", str(out)).returncode == 0
+    r = laughlab("detect", str(tmp_path / "a.wav"), "--out", str(out), "--overwrite")
+    assert r.returncode == 0 and (out / "a.TextGrid").exists() and not (out / "b.TextGrid").exists()
+    assert f"laughlab: --overwrite removed 2 files an earlier detect wrote into {out} for recordings this run did " \
+           "not read (b.TextGrid, b.txt)" in r.stderr, r.stderr
+    refused = laughlab("detect", str(tmp_path / "a.wav"), "--out", str(out))
+    assert "its other recordings' files too" in refused.stderr
+
+
+@pytest.mark.parametrize("out", ["-", " "])
+def test_out_dash_is_refused_in_one_line(tmp_path, out):
+    sf.write(tmp_path / "a.wav", np.zeros(16000), 16000)
+    r = laughlab("detect", str(tmp_path / "a.wav"), "--out", out, cwd=tmp_path)
+    assert r.returncode == 2 and "detect writes files into a folder" in r.stderr and r.stderr.count("\n") == 1
+    assert not (tmp_path / "-").exists()
+
+
+def test_formats_as_praat_spells_them(tmp_path):
+    sf.write(tmp_path / "a.wav", np.zeros(16000), 16000)
+    r = laughlab("detect", str(tmp_path / "a.wav"), "--out", str(tmp_path / "out"), "--formats", "TextGrid,CSV")
+    assert r.returncode == 0, r.stderr
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [".laughlab-detect.json", "a.TextGrid", "segments.csv"]
+
+
+def test_a_file_damaged_late_is_skipped_on_a_line_of_its_own_and_off_the_bars_total(tmp_path):
+    """A review: the skip notice was printed into the progress bar's line, and the bar ended at 89% (its total held
+    the damaged file's header duration)."""
+    sf.write(tmp_path / "a.wav", np.zeros(16000 * 2), 16000)
+    x = np.random.default_rng(1).standard_normal(48000 * 6) * 0.1
+    sf.write(tmp_path / "late.flac", x, 48000)
+    data = (tmp_path / "late.flac").read_bytes()
+    (tmp_path / "late.flac").write_bytes(data[:len(data) // 2] + b"\0" * (len(data) // 2))
+    r = laughlab("detect", str(tmp_path), "--out", str(tmp_path / "out"), "--skip-unreadable", "--progress", "on")
+    assert r.returncode == 0, r.stderr
+    lines = r.stderr.replace("\r", "\n").splitlines()
+    skipped = [ln for ln in lines if "skipped: " in ln]
+    assert len(skipped) == 1 and skipped[0].startswith("laughlab: skipped: cannot decode "), lines
+    last = [ln for ln in lines if ln.startswith("detect: ")][-1]
+    assert last.startswith("detect: 100%") or "2.0/2.0 s" in last, last

@@ -34,6 +34,13 @@ class LogProgress:
     def close(self) -> None:
         self._line(time.monotonic())
 
+    def write(self, line: str, file=None) -> None:
+        """A line of its own among the progress lines (as ``tqdm.write`` puts one above a bar)."""
+        print(line, file=file or self.stream, flush=True)
+
+    def refresh(self) -> None:
+        """(A bar redraws; a log's next line says the new total.)"""
+
 
 def bar(total, desc: str, log_unit: str, digits: int | None = None, **tqdm_kwargs):
     """Progress on stderr: a tqdm bar on a terminal (``tqdm_kwargs``: its unit, format...), or

@@ -110,22 +110,39 @@ def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) 
         raise LaughlabError(f"bad TextGrid {path}: {first_line(exc)}") from None
     if tg is None:   # Praat's "Save as binary file" (a review: praatio's "'utf-8' codec can't decode byte 0xa0")
         raise LaughlabError(f"bad TextGrid {path}: binary Praat files are not read; save it in Praat as a text file")
-    bouts = "bouts" if "bouts" in tg.tierNames else "laughter" if "laughter" in tg.tierNames else None
-    if bouts is None:   # a tier 'laughter' alone: what `laughlab detect` writes, corrected in Praat
-        raise LaughlabError(f"bad TextGrid {path}: it has no tier 'bouts' (nor 'laughter', as laughlab detect "
-                            f"writes) (tiers: {', '.join(tg.tierNames)})")
+    bouts, calls = bout_tier(tg.tierNames, f"bad TextGrid {path}")
     # intervals numbered as Praat numbers them, the empty ones counted (a review: the 2nd was called #1), and the
     # empty ones (no text, or blanks) not labels
-    labels = [_tier_label(tier, i, a, b, t) for tier in (bouts, "calls") if tier in tg.tierNames
+    labels = [_tier_label(tier, i, a, b, t, kind) for tier, kind in ((bouts, "bouts"), (calls, "calls")) if tier
               for i, (a, b, t) in enumerate(tg.getTier(tier).entries, 1) if t.strip()]
     return check(Annotation(str(path), labels), duration_s)
 
 
-def _tier_label(tier: str, i: int, start: float, end: float, text: str) -> Label:
-    """Interval ``i`` of a TextGrid's or an ELAN file's tier as a label: the bouts tier's (``bouts``, or detect's
-    ``laughter``) ``laugh``, ``laughter``, ``x`` or empty text is a laugh; the calls tier's ``call``, ``x`` or
-    empty text a call; any other text is checked as it is (the same in both readers: a diff review)."""
-    want = "call" if tier == "calls" else "laugh"
+def bout_tier(names, bad: str) -> tuple[str, str | None]:
+    """The bouts tier and the calls tier (or None) among a TextGrid's or an ELAN file's tier ``names``: ``bouts``, or
+    ``laughter`` as ``laughlab detect`` writes, in any case (``Laughter``), else the one tier whose name holds
+    "laugh" (``laughs_A``: a conversation's annotation has a tier per speaker and more; a review met
+    ``speakerA``/``Laughter`` refused); ``bad``: the start of the line when there is none, or several."""
+    low = {n.lower(): n for n in reversed(list(names))}
+    bouts = low.get("bouts") or low.get("laughter")
+    if bouts is None:
+        laughs = [n for n in names if "laugh" in n.lower()]
+        if len(laughs) > 1:
+            raise LaughlabError(f"{bad}: it has no tier 'bouts' or 'laughter' and {len(laughs)} whose names hold "
+                                f"'laugh' ({', '.join(laughs)}): name the one to read 'bouts'")
+        if not laughs:
+            raise LaughlabError(f"{bad}: it has no tier 'bouts' (nor 'laughter', as laughlab detect writes, nor one "
+                                f"whose name holds 'laugh') (tiers: {', '.join(names)})")
+        bouts = laughs[0]
+    return bouts, low.get("calls")
+
+
+def _tier_label(tier: str, i: int, start: float, end: float, text: str, kind: str = "bouts") -> Label:
+    """Interval ``i`` of a TextGrid's or an ELAN file's tier as a label: the bouts tier's (``kind`` ``bouts``:
+    ``bouts``, or detect's ``laughter``) ``laugh``, ``laughter``, ``x`` or empty text is a laugh; the calls tier's
+    (``kind`` ``calls``) ``call``, ``x`` or empty text a call; any other text is checked as it is (the same in both
+    readers: a diff review)."""
+    want = "call" if kind == "calls" else "laugh"
     text = text.strip().lower()
     ok = (want, "x", "") + (("laughter",) if want == "laugh" else ())
     return Label(float(start), float(end), want if text in ok else text, f"{tier} #{i}")
@@ -149,17 +166,14 @@ def read_eaf_annotation(path: str | Path, duration_s: float | None = None) -> An
     except ValueError:
         raise LaughlabError(f"bad ELAN file {path}: a TIME_VALUE is not a whole number of milliseconds") from None
     tiers = {t.get("TIER_ID"): t for t in root.iter("TIER")}
-    bouts = "bouts" if "bouts" in tiers else "laughter" if "laughter" in tiers else None
-    if bouts is None:
-        raise LaughlabError(f"bad ELAN file {path}: it has no tier 'bouts' (nor 'laughter', as laughlab detect "
-                            f"writes) (tiers: {', '.join(str(t) for t in tiers)})")
+    bouts, calls = bout_tier([str(t) for t in tiers], f"bad ELAN file {path}")
     labels = []
-    for tier in (bouts, "calls"):
+    for tier, kind in ((bouts, "bouts"), (calls, "calls")):
         for i, ann in enumerate(tiers[tier].iter("ALIGNABLE_ANNOTATION") if tier in tiers else (), 1):
             a, b = slots.get(ann.get("TIME_SLOT_REF1")), slots.get(ann.get("TIME_SLOT_REF2"))
             if a is None or b is None:   # an unaligned slot (ELAN allows them): no time to check against
                 raise LaughlabError(f"{path}:{tier} #{i}: the annotation has no time (an unaligned time slot)")
-            labels.append(_tier_label(tier, i, a, b, ann.findtext("ANNOTATION_VALUE") or ""))
+            labels.append(_tier_label(tier, i, a, b, ann.findtext("ANNOTATION_VALUE") or "", kind))
     return check(Annotation(str(path), labels), duration_s)
 
 

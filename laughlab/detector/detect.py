@@ -136,7 +136,8 @@ def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Pat
     held = sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) if out.is_dir() else []
     if held and not overwrite:
         raise LaughlabError(f"{out} already holds files ({shown_names(held)}); choose another --out or add --overwrite "
-                            f"(replaces the segment files an earlier detect wrote there, keeps the rest)")
+                            f"(replaces everything an earlier detect wrote there, its other recordings' files too; "
+                            "keeps files of yours)")
     names, sums = read_record(out / MANIFEST) or (set(), {})
     # a label file edited since detect wrote it (corrected in Praat or Audacity: the documented loop) is the user's
     # now (a diff review: --overwrite replaced the corrections without a word)
@@ -152,6 +153,14 @@ def out_folder_check(out: Path, overwrite: bool, planned: list[str]) -> list[Pat
                             f"{'it; move it' if one else 'them; move them'} or choose another --out (--overwrite "
                             "replaces only detect's own files, unedited)")
     return [out / n for n in sorted(names & there)]
+
+
+def read_start(path: Path) -> None:
+    """Decode a recording's first block (a second): a file damaged right past its header fails here, before any
+    work, as :func:`read_mono` would fail at its turn."""
+    from laughlab.io.audio import read_blocks
+
+    next(iter(read_blocks(path, 1.0)), None)
 
 
 def read_mono(path: Path, channel: int | None = None):
@@ -173,9 +182,14 @@ def read_mono(path: Path, channel: int | None = None):
 def main(argv: list[str]) -> None:
     ap = one_line_parser(prog="python -m laughlab detect",
                          description="Laughter segments of recordings (YAMNet and a head fitted on the corpus' "
-                                     "train split; offline: centred windows, smoothed both ways).")
+                                     "train split; offline: centred windows, smoothed both ways). Writes "
+                                     "segments.csv (file, start, end in seconds, probability; a row a segment) and "
+                                     "per recording NAME.txt (Audacity) and NAME.TextGrid (Praat, tier laughter); "
+                                     "docs/detector.md, 'Offline'.")
     ap.add_argument("paths", nargs="+", help="audio files or folders")
-    ap.add_argument("--out", default="laughter_segments", help="output folder (default: laughter_segments)")
+    ap.add_argument("--out", default="laughter_segments",
+                    help="output folder (default: laughter_segments), written when every input is done; one that "
+                         "already holds files is refused without --overwrite")
     ap.add_argument("--threshold", type=float, default=0.5, help="laughter probability threshold (default 0.5)")
     ap.add_argument("--min-length", type=float, default=0.2, help="shortest segment kept (s, default 0.2)")
     ap.add_argument("--hop", type=float, default=0.5, help="time between model windows (s, default 0.5)")
@@ -186,11 +200,13 @@ def main(argv: list[str]) -> None:
     ap.add_argument("--channels", choices=("mix", "each"), default="mix",
                     help="mix: a recording's channels mixed (default); each: every channel of a multichannel "
                          "recording its own input, NAME.ch1, NAME.ch2, ... (a dyad, one speaker a channel)")
-    ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto")
+    ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
+                    help="a progress bar on stderr: auto (default) when the inputs are over a minute in all")
     ap.add_argument("--overwrite", action="store_true",
-                    help="write into an --out folder that already holds files: the segment files an earlier detect "
-                         "wrote there are replaced by this run's (or removed), other files kept; a file of yours by "
-                         "a name this run writes (NAME.TextGrid beside NAME.wav) is refused")
+                    help="write into an --out folder that already holds files: everything an earlier detect wrote "
+                         "there is replaced by this run's output, its files of recordings this run does not read "
+                         "removed (said in a line); files of yours are kept, and one by a name this run writes "
+                         "(NAME.TextGrid beside NAME.wav) is refused")
     ap.add_argument("--score", action="store_true",
                     help="score the segments against each input's annotation beside it (NAME.truth.csv, NAME.txt, "
                          "NAME.TextGrid or NAME.eaf): bouts found, frame precision, recall and F1, segments outside "
@@ -210,7 +226,10 @@ def main(argv: list[str]) -> None:
         # window earlier)
         raise LaughlabError(f"--smooth must be a positive odd number of windows (a centred average: 1, 3, 5, ...; "
                             f"got {ns.smooth})")
-    formats = tuple(f.strip() for f in ns.formats.split(",") if f.strip())
+    if ns.out.strip() in ("-", ""):
+        raise LaughlabError(f"--out {ns.out!r}: detect writes files into a folder (segments.csv and a label file a "
+                            "recording); give a folder's name")
+    formats = tuple(f.strip().lower() for f in ns.formats.split(",") if f.strip())   # TextGrid as Praat spells it
     bad = [f for f in formats if f not in FORMATS]
     if bad or not formats:
         raise LaughlabError(f"unknown format {bad[0] if bad else '(none)'}: choose from {', '.join(FORMATS)}")
@@ -231,22 +250,38 @@ def main(argv: list[str]) -> None:
     stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n, _ in named], formats) + scored)
     total_s, kept, gone, durations = 0.0, [], [], {}   # gone: the names of the inputs left out (--skip-unreadable)
 
+    bar = None
+
     def unreadable(name: str, exc: LaughlabError) -> None:
-        """An input that cannot be read stops the batch, or with --skip-unreadable is left out in one stderr line."""
+        """An input found unreadable while the batch runs stops it, or with --skip-unreadable is left out in one
+        stderr line (above the progress bar, not into its line; its seconds taken off the bar's total)."""
         if not ns.skip_unreadable:
             raise LaughlabError(f"{exc} (--skip-unreadable leaves such files out)") from None
-        print(f"laughlab: skipped: {exc}", file=sys.stderr)
+        if bar is not None:
+            bar.total = max(bar.n, bar.total - durations.get(name, 0.0))
+            bar.write(f"laughlab: skipped: {exc}", file=sys.stderr)
+            bar.refresh()
+        else:
+            print(f"laughlab: skipped: {exc}", file=sys.stderr)
         gone.append(name)
 
-    for f, name, channel in named:  # every input checked before any work or any file written
-        try:
+    bad = []
+    for f, name, channel in named:  # every input checked before any work or any file written: its header and first
+        try:                        # block decoded (a file damaged past its header stopped the batch at its turn)
             info = probe_file(f)
+            read_start(f)
         except LaughlabError as exc:
-            unreadable(name, exc)
+            bad.append((name, exc))
             continue
         kept.append((f, name, channel))
         durations[name] = info.frames / info.samplerate
         total_s += durations[name]
+    if bad and not ns.skip_unreadable:   # every one in the line, not the first alone (a review)
+        raise LaughlabError(f"{len(bad)} input{'s' if len(bad) > 1 else ''} cannot be read: "
+                            + "; ".join(str(exc) for _, exc in bad[:5]) + ("; ..." if len(bad) > 5 else "")
+                            + " (--skip-unreadable leaves such files out)")
+    for name, exc in bad:
+        unreadable(name, exc)
     if not kept:
         raise LaughlabError("no readable audio among the inputs")
     named = kept
@@ -260,7 +295,6 @@ def main(argv: list[str]) -> None:
     except ModelFileError as exc:
         raise LaughlabError(str(exc)) from None
     show = ns.progress == "on" or (ns.progress == "auto" and total_s > 60.0)
-    bar = None
     if show:  # seconds of audio, to 0.1 s
         from laughlab.core.progress import bar as progress_bar
 
@@ -280,6 +314,14 @@ def main(argv: list[str]) -> None:
             p = S.smooth(p, ns.smooth)
             dur = len(x) / sr
             results.append((name, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f, channel))
+    except KeyboardInterrupt:   # before any file is written: say so (a review: "interrupted" left it to guess)
+        if bar is not None:
+            bar.close()
+            bar = None
+        from laughlab.core.interrupts import exit_interrupted
+
+        exit_interrupted(f"interrupted after {len(results)} of {len(named)} input(s); nothing was written to "
+                         f"{ns.out} (detect writes when every input is done)")
     finally:   # also on Ctrl-C: the error line then starts a line of its own, not the end of the bar's (a review)
         if bar is not None:
             bar.close()
@@ -314,11 +356,16 @@ def main(argv: list[str]) -> None:
     clip = re.compile("|".join(f"{re.escape(g)}_laugh_[0-9]+\\.wav" for g in gone) or "(?!)")   # their clips
     kept_old = {p for p in stale if p.relative_to(out).as_posix() in theirs
                 or clip.fullmatch(p.relative_to(out).as_posix())}
+    dropped = sorted(set(stale) - set(written) - kept_old)
     with deferred():   # the old files' removal and the manifest that says so, not cut in two by a Ctrl-C
-        unwrite(sorted(set(stale) - set(written) - kept_old), out)   # --overwrite: an earlier detect's files not written now
+        unwrite(dropped, out)   # --overwrite: an earlier detect's files not written now
         done = sorted(rel(written) | rel(kept_old))
         S.atomic_write(out / MANIFEST, record_text(out, done))
     wall = time.perf_counter() - t0
+    if dropped:   # a review: a run of one recording into a batch's folder removed the other recordings' files unsaid
+        print(f"laughlab: --overwrite removed {len(dropped)} file{'s' if len(dropped) > 1 else ''} an earlier detect "
+              f"wrote into {out} "
+              f"for recordings this run did not read ({shown_names(rel(dropped))})", file=sys.stderr)
     print(summary_line(results, gone, wall, out)
           + DS.score_summary(score_rows, sum(r[0] not in truths for r in results)))
 
