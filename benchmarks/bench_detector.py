@@ -296,6 +296,14 @@ def main() -> None:
     ap.add_argument("--no-cost", action="store_true", help="leave out the per-frame cost rows")
     ns = ap.parse_args()
     dets = [d for d in ns.detectors.split(",") if d]
+    from laughlab.core.config import group_options
+
+    known = group_options("detector")
+    odd = [d for d in dets if d not in known]
+    if odd:   # a plugin author's review: a detector of their own ended in a traceback here
+        sys.exit(f"bench_detector: unknown detector {odd[0]!r} (laughlab's: {', '.join(known)}); this benchmark "
+                 "runs laughlab's own detectors: compare one of your own with python -m laughlab "
+                 "experiment=detector_eval plugins_dir=DIR (docs/experiments.md)")
     res = {"machine": platform.platform(), "python": platform.python_version(), "data": "test split"}
     res["cost"] = [] if ns.no_cost else [step_cost(sr, detector=d) for d in ("yamnet", "laugh") for sr in (44100, 16000)]
     # the default spreads a window's network over 4 frames; all of it on the window's frame; in a helper thread

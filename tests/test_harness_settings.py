@@ -160,3 +160,20 @@ def test_an_experiments_own_key_near_a_shared_name_is_not_refused():
         check_harness(h, added={"condition"})
     with pytest.raises(LaughlabError, match=r"did you mean harness\.conditions\?"):
         check_harness(h)   # no command line: every key
+
+
+def test_a_mistyped_showcase_names_the_nearest_input():
+    """A plugin author's review: harness.showcase=mixed-10dB-00 listed three other inputs and cut off the one that
+    existed (mixed-20dB-00)."""
+    from types import SimpleNamespace
+
+    import pytest
+
+    from laughlab.core.errors import LaughlabError
+    from laughlab.harness.experiment import showcase_item
+
+    items = [SimpleNamespace(id=i) for i in ("mixed-s00", "intense-s00", "giggle-s00", "mixed-20dB-00")]
+    with pytest.raises(LaughlabError, match=r"^harness.showcase 'mixed-10dB-00' is not an input of the corpus \(did "
+                                            r"you mean 'mixed-20dB-00'\? 4 inputs: mixed-s00, intense-s00, giggle-s00, "
+                                            r"\.\.\.\) nor a synthetic one"):
+        showcase_item({"showcase": "mixed-10dB-00"}, items)

@@ -28,7 +28,7 @@ from pathlib import Path
 
 from omegaconf import OmegaConf
 
-from laughlab.core.errors import LaughlabError, shown_names
+from laughlab.core.errors import LaughlabError, nearest, shown_names
 from laughlab.core.overrides import without_command_keys
 from laughlab.core.summary import counted
 from laughlab.harness import results as res
@@ -101,10 +101,13 @@ def showcase_item(h: dict, items: list[Item]) -> Item | None:
         prof, _, seed = show.rpartition("-s")
         if seed.isdigit() and prof in PROFILES:
             item = synthetic_items([prof], [int(seed)], float((h.get("corpus") or {}).get("duration_s", 30.0)))[0]
-    if item is None:
+    if item is None:   # the nearest named first (a plugin author's review: mixed-10dB-00 with mixed-20dB-00 cut off)
         ids = [i.id for i in items]
-        raise LaughlabError(f"harness.showcase {show!r} is not an input of the corpus ({shown_names(ids)}) nor a "
-                            f"synthetic one (PROFILE-sSEED: {', '.join(PROFILES)}); set one, or harness.showcase=null")
+        near = nearest(show, ids)
+        meant = f"did you mean {near!r}? " if near else ""
+        raise LaughlabError(f"harness.showcase {show!r} is not an input of the corpus ({meant}{len(ids)} inputs: "
+                            f"{shown_names(ids)}) nor a synthetic one (PROFILE-sSEED: {', '.join(PROFILES)}); set one, "
+                            "or harness.showcase=null")
     return item
 
 
