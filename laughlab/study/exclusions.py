@@ -15,7 +15,22 @@
 """
 from __future__ import annotations
 
+import re
+
 import numpy as np
+
+
+def shown_typed(text: str) -> str:
+    """A participant's typed attempts as a report shows them: letters, digits, spaces and ' . , - kept, anything
+    else a ``?`` (a security review: ``<img src=x onerror=...>`` went raw into the report's README.md)."""
+    return re.sub(r"[^\w\s'.,-]", "?", str(text).replace("|", ", "))
+
+
+def cell_safe(value):
+    """A text cell a spreadsheet would run as a formula (``=``, ``+``, ``-``, ``@``, tab, CR first) with a ``'``
+    before it (OWASP's CSV injection rule; a security review: a user agent ``=HYPERLINK(...)`` in tidy.csv)."""
+    return "'" + value if isinstance(value, str) and value[:1] in ("=", "+", "-", "@", "\t", "\r") else value
+
 
 DEFAULT_RULES = {"audio_check": True, "attention_max_fail": 0, "straightline": True, "complete": True,
                  "consent": True}
@@ -53,7 +68,7 @@ def exclusions(df, rules: dict, slider_range: float | None = None,
             if chk.empty:
                 why.append("no audio check stored")
             elif not (chk["value"] == 1).any():
-                why.append(f"audio check failed (typed {chk['text'].iloc[0].replace('|', ', ')!r})")
+                why.append(f"audio check failed (typed {shown_typed(chk['text'].iloc[0])!r})")
         att = g[g["kind"] == "attention"]
         failed = int((np.abs(att["value"] - att["expected"]) > tol).sum())
         if failed > int(rules.get("attention_max_fail", 0)):

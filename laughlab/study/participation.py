@@ -62,7 +62,7 @@ def line(doc: dict) -> str:
     if "opened" in doc:
         parts.append(f"{doc['opened']} participant{'' if doc['opened'] == 1 else 's'} opened the page "
                      f"({doc['page_loads']} page loads): {doc['consented']} gave consent, {doc['declined']} declined "
-                     f"(nothing of theirs is stored), {doc['finished']} reached the end.")
+                     f"(no answer of theirs is stored), {doc['finished']} reached the end.")
     if doc.get("came_back"):
         two = doc["two_at_once"]
         parts.append(f"{doc['came_back']} answered from more than one page load" + (

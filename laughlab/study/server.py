@@ -54,6 +54,9 @@ from laughlab.study.design import load_design, normalise_word, scale_range
 from laughlab.viewer.server import DEFAULT_PORT, _Handler, http_server
 
 MAX_BODY = 16 * 1024
+#: the refused-posts log stops at this size (bytes); the logs that reached it in this process
+LOG_MAX = 10 * 1024 * 1024
+_FULL: set = set()
 _SESSION = re.compile(r"[A-Za-z0-9-]{1,64}")
 _EXTERNAL = re.compile(r"[A-Za-z0-9_.@-]{1,128}")
 
@@ -85,6 +88,10 @@ def _text(body: dict, key: str, limit: int, required: bool = False) -> str:
     v = body.get(key, "")
     if not isinstance(v, str) or len(v) > limit or (required and not v):
         raise Refused(422, f"{key} must be a text of at most {limit} characters")
+    try:
+        v.encode("utf-8")
+    except UnicodeEncodeError:   # a lone surrogate ('\ud800'): SQLite's error dropped the connection
+        raise Refused(422, f"{key} is not valid text (a lone surrogate)") from None
     return v
 
 
@@ -121,6 +128,12 @@ class StudyHandler(_Handler):
             return
         super().do_GET()
 
+    def do_HEAD(self):  # noqa: N802
+        if self.path.startswith("/api/"):
+            self.send_error(405)
+            return
+        super().do_HEAD()
+
     def do_POST(self):  # noqa: N802
         route = self.path.split("?", 1)[0].lstrip("/")
         raw = b""
@@ -130,7 +143,7 @@ class StudyHandler(_Handler):
             if action is None:
                 raise Refused(404, f"no endpoint {route[:80]!r}")
             length = self.headers.get("Content-Length")
-            if length is None or not length.isdigit():
+            if length is None or not (length.isascii() and length.isdigit()):   # not '²' (a security review)
                 raise Refused(411, "a Content-Length is needed")
             if int(length) > MAX_BODY:
                 self.close_connection = True  # the body is not read
@@ -140,7 +153,7 @@ class StudyHandler(_Handler):
                 raise Refused(415, "the body must be application/json")
             try:
                 body = json.loads(raw.decode("utf-8"))
-            except (UnicodeDecodeError, ValueError):
+            except (UnicodeDecodeError, ValueError, RecursionError):   # nested 100,000 deep: a dropped connection
                 raise Refused(400, "the body is not JSON") from None
             if not isinstance(body, dict):
                 raise Refused(400, "the body must be a JSON object")
@@ -164,17 +177,23 @@ class StudyHandler(_Handler):
 
     def _refuse(self, status: int, reason: str, route: str, raw: bytes) -> None:
         # no client address: the consent text promises that no IP address is kept (a review found it here)
-        body = raw[:200].decode("utf-8", "replace")
-        try:   # a panel's ID stays out of the log (a study-pilot review found refused PIDs there)
-            ext = json.loads(raw).get("external_id")
+        body = raw.decode("utf-8", "replace")
+        try:   # a panel's ID stays out of the log (a study-pilot review found refused PIDs there), before the body is
+            ext = json.loads(raw).get("external_id")   # cut (a security review: its start was left at the cut)
             if isinstance(ext, str) and ext:
                 body, reason = body.replace(ext, "<panel ID>"), reason.replace(ext[:40], "<panel ID>")
-        except (ValueError, AttributeError):
+        except (ValueError, AttributeError, RecursionError):
             pass
-        line = {"time": DB.utc_now(), "path": route[:100], "status": status, "reason": reason, "body": body}
-        with self._lock:
-            with open(self.log, "a", encoding="utf-8") as f:
-                f.write(json.dumps(line) + "\n")
+        line = {"time": DB.utc_now(), "path": route[:100], "status": status, "reason": reason, "body": body[:200]}
+        with self._lock:   # at most LOG_MAX bytes: a client posting refusals all day filled the disk (a security review)
+            size = self.log.stat().st_size if self.log.exists() else 0
+            if size + 1000 >= LOG_MAX:   # said once, as the log's last line
+                line = None if self.log in _FULL else {"time": DB.utc_now(), "note": f"the log reached {LOG_MAX} "
+                                                       "bytes: later refusals are not logged"}
+                _FULL.add(self.log)
+            if line is not None:
+                with open(self.log, "a", encoding="utf-8") as f:
+                    f.write(json.dumps(line) + "\n")
         if not self.quiet:
             print(f"study: refused {route[:60]} ({status}): {reason}", file=sys.stderr, flush=True)
         self._reply(status, {"error": reason})
@@ -273,6 +292,8 @@ class StudyHandler(_Handler):
         if not isinstance(attempts, list) or not 1 <= len(attempts) <= n or \
                 not all(isinstance(a, str) and len(a) <= 64 and "|" not in a for a in attempts):
             raise Refused(422, f"attempts must be 1..{n} texts of at most 64 characters")
+        for k in range(len(attempts)):
+            _text({"attempt": attempts[k]}, "attempt", 64)
         word = self.design["audio_check"]["files"][entry["audio_check"]]["answer"]
         passed = normalise_word(attempts[-1]) == normalise_word(word)
         row = {"participant": p, "order_row": entry["order_row"], "trial": 0, "stimulus": "", "condition": "",
@@ -287,11 +308,15 @@ class StudyHandler(_Handler):
 
     def event(self, body: dict):
         _keys(body, {"participant", "session", "event"})
-        p, _, session = self._participant(body)
+        p, entry, session = self._participant(body)
         if body.get("event") not in ("consent", "decline", "finish"):
             raise Refused(422, "event must be consent, decline or finish")
         if body["event"] == "finish":
             self._consented(p, session)
+            answered, n = len(DB.progress(self.db, p)[0]), len(entry["trials"])
+            if answered < n:   # a security review: a finish posted by hand put a finished_at in the payment list
+                raise Refused(409, f"participant {p} has answered {answered} of {n} trials: the study is finished "
+                                   "with the last")
         DB.session_event(self.db, session, p, body["event"])
         return 200, {}
 
@@ -307,7 +332,10 @@ def files_of(study_dir: Path) -> dict[str, Path]:
         top = study_dir / name
         for f in ([top] if top.is_file() else sorted(top.rglob("*")) if top.is_dir() else []):
             rel = f.relative_to(study_dir).as_posix()
-            if f.is_file() and not any(part.startswith(".") for part in rel.split("/")) and rel != "design.json":
+            # no symbolic link (a security review: stimuli/x.mp4 -> ../design.json sent the audio check's words)
+            linked = any((study_dir / "/".join(rel.split("/")[:k])).is_symlink() for k in range(1, rel.count("/") + 2))
+            if f.is_file() and not linked and not any(part.startswith(".") for part in rel.split("/")) \
+                    and rel != "design.json":
                 out[rel] = f
     return dict(sorted(out.items()))
 
@@ -321,5 +349,8 @@ def server(study_dir, db: str | Path | None = None, port: int = DEFAULT_PORT, ho
     design = load_design(study_dir)
     db_path = DB.open_db(Path(db).expanduser() if db else study_dir / DB.DEFAULT_NAMES[participants], design,
                          participants)
+    # loopback=False: a study behind a reverse proxy (HTTPS on its own domain) is reached by the proxy's Host, and its
+    # page is public by nature
     return http_server(files_of(study_dir), port, base=StudyHandler, host=host, design=design, db=db_path,
-                       log=db_path.with_name(db_path.name + ".rejected.log"), quiet=quiet, panel_only=panel)
+                       loopback=False, log=db_path.with_name(db_path.name + ".rejected.log"), quiet=quiet,
+                       panel_only=panel)

@@ -143,6 +143,8 @@ class _LiveHandler(_Handler):
     def do_GET(self):  # noqa: N802 - http.server's name
         if self.path.split("?", 1)[0] != "/events":
             return super().do_GET()
+        if self.foreign_host():
+            return
         self.send_response(200)
         self.send_header("Content-Type", "text/event-stream")
         self.send_header("Cache-Control", "no-store")

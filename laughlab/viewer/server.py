@@ -351,12 +351,43 @@ def _not_the_pages(out: Path) -> list[str] | None:
         p.name for p in out.iterdir() if p.name not in (*PAGE_FILES, "vendor", PART, OLD) and p.name != audio)
 
 
+#: the names a server on this computer alone answers to (``Host``): another name reaching it is a web page's trick
+#: (DNS rebinding: a page of another site whose name the attacker points at 127.0.0.1 reads the run)
+LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+
+
 class _Handler(SimpleHTTPRequestHandler):
     files: dict = {}
     #: what a 404 says is not part of (the study's server says "this study's page": a review read the viewer's words)
     served = "this run's viewer"
+    #: a client that sends nothing for this long is let go (a security review: 200 half-sent requests held 200
+    #: threads, and at the open-files limit the server refused everyone)
+    timeout = 60
+    #: listening on this computer alone (127.0.0.1, ::1): only its own names are answered (:data:`LOOPBACK_NAMES`)
+    loopback = False
+
+    def foreign_host(self) -> bool:
+        """Refuse (403) a request naming another host while the server listens on this computer alone."""
+        if not self.loopback:
+            return False
+        host = (self.headers.get("Host") or "").strip().lower()
+        name = host[1:host.index("]")] if host.startswith("[") and "]" in host else host.rsplit(":", 1)[0]
+        if not host or name in LOOPBACK_NAMES:   # no Host (HTTP/1.0): no browser, no rebinding
+            return False
+        self.send_error(403, "this server answers to localhost and 127.0.0.1 only")
+        return True
+
+    def do_HEAD(self):  # noqa: N802 - http.server's name
+        """As GET without the body (SimpleHTTPRequestHandler's own answered from the working folder: a security
+        review read the study database's size and time that way)."""
+        self._send(head=True)
 
     def do_GET(self):  # noqa: N802 - http.server's name
+        self._send()
+
+    def _send(self, head: bool = False) -> None:
+        if self.foreign_host():
+            return
         name = self.path.split("?", 1)[0].lstrip("/") or "index.html"
         data = self.files.get(name)
         if data is None:
@@ -386,7 +417,8 @@ class _Handler(SimpleHTTPRequestHandler):
             self.send_header("Content-Range", f"bytes {start}-{end}/{len(body)}")
         self.send_header("Cache-Control", "no-store")
         self.end_headers()
-        self.wfile.write(body[start:end + 1])
+        if not head:
+            self.wfile.write(body[start:end + 1])
 
     def log_message(self, *args):  # quiet: the command prints its one line
         pass
@@ -403,7 +435,8 @@ def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: 
     (a free port if that one is taken); ``base`` a subclass of the handler adding routes, ``attrs`` its
     class attributes (also used by ``laughlab.study.server``); ``flag``: how the user set the host, for the
     error line (``output.viewer.host=`` for the live viewer)."""
-    handler = type("Handler", (base or _Handler,), {"files": files, **attrs})
+    handler = type("Handler", (base or _Handler,), {"files": files, "loopback": host in ("127.0.0.1", "::1", "localhost"),
+                                                    **attrs})
     handler.extensions_map = {**SimpleHTTPRequestHandler.extensions_map, ".js": "text/javascript",
                               ".glb": "model/gltf-binary", ".json": "application/json", ".wav": "audio/wav",
                               ".mp4": "video/mp4", ".css": "text/css"}
