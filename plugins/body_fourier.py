@@ -9,6 +9,17 @@ Every frame the driver plays Eq. 3 between them with ``s`` driven by the
 smoothed motion control signal, extrapolating (``s > 1``) when the laughter
 is strong, and writes the result as joint rotation offsets that the mixer
 adds to whatever clip plays.
+
+Departure (ours): the paper gives each motion one period ``T_Theta`` (2.2); a
+laughing motion has two, the 4.5 Hz shake and the ~1.2 s rocking, in no
+small whole ratio, so one period would need dozens of harmonics where the
+paper uses "usually 3, and 7 at most".  Each motion is therefore band-split
+into a *shake* layer (``shake_min_hz``-``shake_max_hz``) and a *sway* layer
+(below ``sway_max_hz``), each fitted as its own rescaled Fourier model with
+its own period (:class:`LaughMotion`), and Eq. 3 blends layer by layer (a
+layer absent from one motion blends from zero amplitude).  Eq. 3's constant
+terms are left out by default (``posture_gain`` 0: the offsets add to a clip
+whose posture they would shift).
 """
 from __future__ import annotations
 

@@ -337,3 +337,19 @@ def test_experiment_fourier_blend(registered, tmp_path):
                  "plots/fig4_2_energy.png", "metrics.json"):
         assert (tmp_path / name).is_file(), name
     assert doc["runs"]["fourier"]["duration_s"] == pytest.approx(3.0)
+
+
+def test_a_motion_with_a_shake_and_a_rocking_is_fitted_as_two_layers_each_with_its_own_period():
+    """The departure from 2.2's one period: a 4.5 Hz shake on a 1.25 s rocking (in no small whole ratio) gives a
+    shake layer of period 1 / 4.5 s and a sway layer of 1.25 s, each with the paper's 3 harmonics."""
+    from laughlab_plugins.body_fourier import CHANNELS, FourierParams, fit_motion
+
+    dt = 1 / 60
+    t = np.arange(int(10 / dt)) * dt
+    y = np.zeros((t.size, len(CHANNELS)))
+    y[:, CHANNELS.index("left_clavicle_Zrotation")] = 3.0 * np.sin(2 * np.pi * 4.5 * t)
+    y[:, CHANNELS.index("spine2_Xrotation")] = 5.0 * np.sin(2 * np.pi * 0.8 * t)
+    m = fit_motion(y, dt, False, FourierParams())
+    assert m.shake.period_s == pytest.approx(1 / 4.5, rel=0.01)
+    assert m.sway.period_s == pytest.approx(1.25, rel=0.02)
+    assert m.shake.n_harmonics == 3 and m.sway.n_harmonics == 3

@@ -486,8 +486,6 @@ def test_one_force_unit_of_the_table_is_force_unit_cmh2o_on_the_wall_it_moves():
     assert t.gain[5] == pytest.approx(0.0980665 * p.diaphragm_area_l_per_m * 6.0)      # diaphragm
     assert t.gain[6] == pytest.approx(0.0980665 * p.ribcage_area_l_per_m * 6.0)       # inner intercostals
     assert t.gain[7] == pytest.approx(0.0980665 * p.ribcage_area_l_per_m * 6.0)       # outer intercostals
-    # full diaphragm effort (F_max 5) presses 5 x 6 = 30 cm H2O on its wall
-    assert 5.0 * t.gain[5] / (0.0980665 * p.diaphragm_area_l_per_m) == pytest.approx(30.0)
     double = Torso(TorsoParams(force_unit_cmh2o=12.0))
     np.testing.assert_allclose(double.gain[:8], 2 * t.gain[:8])                      # every table muscle scales
     np.testing.assert_allclose(double.gain[8:], t.gain[8:])                          # the clavicles' torque does not

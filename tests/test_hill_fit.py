@@ -31,8 +31,9 @@ def test_primitive_is_one_period_of_a_raised_cosine():
     ab, ii, di = GROUPS.index("abdomen"), GROUPS.index("inner_intercostals"), GROUPS.index("diaphragm")
     # the abdomen rises and holds: at half its period u = 0.5, u - sin(pi) / (2 pi) = 0.5
     assert a[0, ab] == pytest.approx(0.8 * 0.5)
-    assert a[0, ii] == pytest.approx(0.4 * hf.bump(1.12, 1.02, 5.0)) == pytest.approx(0.4)  # ribcage: abdomen's timing
-    assert a[1, di] == pytest.approx(0.1 * hf.bump(1.15, 1.05, 4.0))
+    assert a[0, ii] == pytest.approx(0.4)   # ribcage on the abdomen's timing: half its period, (1 - cos pi) / 2 = 1
+    # the diaphragm at f 4 Hz, 0.1 s after its start: 0.1 (1 - cos 0.8 pi) / 2, by hand
+    assert a[1, di] == pytest.approx(0.1 * (1 + 0.8090169943749475) / 2) == pytest.approx(0.09045084971874737)
     assert a[:, [GROUPS.index("outer_intercostals")]].sum() == 0     # laughing is expiratory
     assert len(hf.PARAMS) == 7
 
@@ -132,12 +133,21 @@ def test_level_segmentation_follows_3_to_10_calls_a_second(rate, n, seed):
 
 
 def test_pressure_valleys_merge_fast_calls_the_level_does_not():
-    rms, p = level_and_pressure(*calls_audio(8.0, 10, duty=0.8, breath=0.02, levels=(0.3, 0.1)))
-    assert len(hf.segment_calls(p, FPS)) < 8                           # the paper's way: 5 Hz merges calls
-    assert len(hf.find_calls(p, FPS, hf.FitParams(), level=rms)) == 10
-    assert len(hf.find_calls(p, FPS, hf.FitParams(segment="pressure"), level=rms)) < 8
+    """The paper's segmentation at the pressure's valleys against the frame RMS's (the default), on a real fast
+    laugh of the corpus' test split (hedgewars' HillBilly-Laugh, 20 annotated calls in 4.2 s at 44.1 kHz): since the
+    extractor subtracts its noise floor (2026-11-29) the synthetic calls' valleys all resolve, but on this laugh
+    the pressure still merges calls, 10 found, where the level finds 17 (on the 26 laughs: 208 and 281 of 302)."""
+    import soundfile as sf
+
+    from laughlab.corpora.fetch import corpus_dir
+
+    x, sr = sf.read(corpus_dir() / "sets" / "real-test" / "hedgewars__HillBilly-Laugh.wav", dtype="float32",
+                    always_2d=True)
+    rms, p = level_and_pressure(x.mean(axis=1), sr)
+    by_level = len(hf.find_calls(p, FPS, hf.FitParams(), level=rms))
+    by_pressure = len(hf.find_calls(p, FPS, hf.FitParams(segment="pressure"), level=rms))
+    assert by_level >= 17 and by_pressure <= by_level - 5, (by_level, by_pressure)
     assert hf.find_calls(p, FPS, hf.FitParams()) == hf.segment_calls(p, FPS)   # no level: the pressure's
-    assert hf.segment_calls_level(np.zeros(50), FPS) == []
 
 
 def problem(target, state=None, fit=None, t0=0.0):

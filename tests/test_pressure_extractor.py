@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 from omegaconf import OmegaConf
-from scipy.signal import lfilter
+from scipy.signal import lfilter, lfilter_zi
 
 from laughlab.core import pipeline
 from laughlab.core import plugins
@@ -59,7 +59,9 @@ def test_streaming_equals_offline_bit_for_bit():
     sr, fps = 16000, 60
     audio = (rng.standard_normal(sr * 2) * np.abs(np.sin(np.arange(sr * 2) * 2 * np.pi * 5 / sr))).astype(np.float32)
     ext = PressureExtractor(None, Context(fps=fps, sample_rate=sr))
-    whole = lfilter(ext.b, ext.a, np.abs(audio.astype(np.float64)))
+    x = np.abs(audio.astype(np.float64))
+    first = int(round(sr / fps))      # the first frame's block: the filter starts at rest at its mean level
+    whole = lfilter(ext.b, ext.a, x, zi=lfilter_zi(ext.b, ext.a) * x[:first].mean())[0]
     ends = np.round(np.arange(1, 121) * sr / fps).astype(int) - 1
     a = frames_of(PressureExtractor(None, Context(fps=fps, sample_rate=sr)), audio, sr, fps)
     b = frames_of(PressureExtractor(None, Context(fps=fps, sample_rate=sr)), audio, sr, fps, [160, 1024, 37, 4096, 5])
@@ -67,26 +69,68 @@ def test_streaming_equals_offline_bit_for_bit():
     assert a == b                                                         # any chunking, every control
 
 
-def test_linear_fit_and_normalisation_by_hand():
-    p = PressureParams(slope_cmh2o=2.0, intercept_cmh2o=0.0, reference_cmh2o=0.5, floor_fraction=0.3,
-                       peak_prior=0.1, prior_weight=1.0, intensity=1.0, mcs_full_cmh2o=1.0)
+def test_linear_fit_noise_floor_and_normalisation_by_hand():
+    """Envelope values set by hand (empty blocks keep them), values worked out by hand from the module's equations:
+    raw = 2 env + 0.5; the floor is the lowest raw of the last 3 frames; the excess over it is normalised by the
+    mean of (prior_weight 1 x the highest excess so far) and the peaks counted so far; a peak counts the frame
+    after it (it must be a local maximum)."""
+    p = PressureParams(slope_cmh2o=2.0, intercept_cmh2o=0.5, reference_cmh2o=0.5, floor_fraction=0.3,
+                       prior_weight=1.0, intensity=1.0, mcs_full_cmh2o=1.0, noise_window_s=3 / 60, peak_over_noise=1.0)
     ext = PressureExtractor(p, Context(fps=60, sample_rate=8000))
-    # feed pressure_raw values directly through the peak picker: peaks of 0.4 (env 0.2)
-    raws = [0.0, 0.4, 0.0, 0.0, 0.4, 0.0]
-    for r in raws:
-        ext._peak(r)
-    # two peaks seen: mean = (1 * 0.1 + 0.4 + 0.4) / 3 = 0.3
-    assert ext.mean_peak == pytest.approx(0.3)
-    f = Frame()
-    ext.env = 0.15                       # raw = 2 * 0.15 = 0.3 = the mean peak: r = 1
-    ext._prev = (0.0, 0.0)
-    block = np.zeros(0, dtype=np.float32)  # empty block keeps the envelope
-    ext.step(block, f)
-    assert f.control["pressure_raw"] == pytest.approx(0.3)
-    # r = 0.3 / mean; the frame's own raw 0.3 is not a peak yet (needs the next frame)
-    r = 0.3 / ext.mean_peak
-    assert f.control["pressure"] == pytest.approx(0.5 * max(0.0, r - 0.3) / 0.7)
-    assert f.control["mcs"] == pytest.approx(min(1.0, f.control["pressure"] / 1.0))
+    envs = [0.05, 0.05, 0.25, 0.05, 0.05, 0.35, 0.05, 0.15, 0.15, 0.15]
+    out = []
+    for e in envs:
+        ext.env = e
+        f = Frame()
+        ext.step(np.zeros(0, dtype=np.float32), f)
+        out.append(dict(f.control))
+    assert [round(c["pressure_raw"], 12) for c in out] == [0.6, 0.6, 1.0, 0.6, 0.6, 1.2, 0.6, 0.8, 0.8, 0.8]
+    pressure = [c["pressure"] for c in out]
+    # frame 2: excess 0.4, the highest so far and the only term of the mean: r = 1, the reference
+    assert pressure[2] == pytest.approx(0.5)
+    # frame 3 counts the peak 0.4; frame 5: excess 0.6, mean (0.6 + 0.4) / 2 = 0.5, r = 1.2
+    assert pressure[5] == pytest.approx(0.5 * (1.2 - 0.3) / 0.7)
+    assert out[5]["mcs"] == pytest.approx(0.5 * 0.9 / 0.7)
+    # frame 6 counts the peak 0.6: mean (0.6 + 0.4 + 0.6) / 3; frame 7's excess 0.2 is r = 0.375
+    assert pressure[7] == pytest.approx(0.5 * (0.2 / (1.6 / 3) - 0.3) / 0.7)
+    # frame 8 counts frame 7's 0.2 (0.3 of the mean is 0.16, the floor's 0.1 above the intercept): mean 1.8 / 4
+    assert pressure[8] == pytest.approx(0.5 * (0.2 / 0.45 - 0.3) / 0.7)
+    assert ext.peak_count == 3 and ext.peak_sum == pytest.approx(1.2)
+    # frame 9: the last 3 frames all 0.8, the floor rose to it: no excess, no pressure
+    assert ext.noise == pytest.approx(0.8) and pressure[9] == 0.0
+    assert [pressure[k] for k in (0, 1, 3, 4, 6)] == [0.0] * 5
+
+
+def test_the_recordings_level_does_not_matter():
+    """The paper's normalisation "accounts for differences in recording levels": the same laugh at any gain from
+    -60 dB to full scale gives the same pressure (the noise floor and the peaks scale with it)."""
+    sr, fps = 16000, 60
+    t = np.arange(sr * 4) / sr
+    rng = np.random.default_rng(1)
+    calls = np.where((t > 1.0) & ((t % 0.22) < 0.09), 1.0, 0.0)
+    audio = (0.5 * calls * np.sin(2 * np.pi * 250 * t) + 0.003 * rng.standard_normal(t.size)).astype(np.float32)
+    ref = [f["pressure"] for f in frames_of(PressureExtractor(None, Context(fps=fps, sample_rate=sr)), audio, sr, fps)]
+    assert max(ref) > 0.05
+    for gain in (0.3, 0.01, 0.001):
+        got = [f["pressure"] for f in frames_of(PressureExtractor(None, Context(fps=fps, sample_rate=sr)),
+                                                 (audio * np.float32(gain)), sr, fps)]
+        np.testing.assert_allclose(got, ref, rtol=1e-4, atol=1e-9)
+
+
+def test_a_rooms_steady_noise_drives_no_pressure():
+    """Two seconds of white noise at -60, -50 and -40 dBFS before the calls: the noise floor takes it (the fixed
+    prior had left -40 dBFS at 0 but a level-free one without the floor drove the full reference)."""
+    sr, fps = 16000, 60
+    rng = np.random.default_rng(2)
+    t = np.arange(sr * 4) / sr
+    calls = np.where((t > 2.0) & ((t % 0.22) < 0.09), 1.0, 0.0)
+    for db in (-60, -50, -40):
+        noise = 10 ** (db / 20) * rng.standard_normal(t.size)
+        audio = (0.3 * calls * np.sin(2 * np.pi * 250 * t) + noise).astype(np.float32)
+        p = [f["pressure"] for f in frames_of(PressureExtractor(None, Context(fps=fps, sample_rate=sr)), audio, sr,
+                                              fps)]
+        assert max(p[:2 * fps]) == 0.0, db
+        assert max(p[2 * fps:]) > 0.05, db
 
 
 def test_fit_line_recovers_a_line():
@@ -106,11 +150,11 @@ def test_intensity_scales_the_pressure():
 
 
 def test_average_call_maps_to_the_reference():
-    """16 equal calls: each is counted once as a peak, the mean peak is (prior + 16 h) / 17, and a
-    call's peak maps to reference * (h / mean - floor) / (1 - floor), -> reference as calls accumulate."""
+    """16 equal calls after 50 ms of silence: each is counted once as a peak, and as the prior (the highest excess
+    so far) and the peaks are all the call's height, every call, the first too, maps to the reference."""
     sr, fps = 16000, 60
     t = np.arange(sr * 4) / sr
-    env = np.where((t % 0.25) < 0.1, 1.0, 0.0)
+    env = np.where((t >= 0.05) & (((t - 0.05) % 0.25) < 0.1), 1.0, 0.0)
     audio = (0.2 * env * np.sign(np.sin(2 * np.pi * 300 * t))).astype(np.float32)
     ext = PressureExtractor(None, Context(fps=fps, sample_rate=sr))
     frames = frames_of(ext, audio, sr, fps)
@@ -118,15 +162,15 @@ def test_average_call_maps_to_the_reference():
     p = np.array([f["pressure"] for f in frames])
     h = raw[-60:].max()
     assert h == pytest.approx(0.2 * (1 - np.exp(-2 * np.pi * 5.0 * 0.1)), rel=0.002)   # a 0.1 s pulse through 5 Hz
-    assert ext.peak_count == 1 + 16
-    mean = (0.05 + ext.peak_sum - 0.05) / 17
-    assert ext.mean_peak == pytest.approx(mean)
-    assert mean == pytest.approx((0.05 + 16 * h) / 17, rel=1e-3)
-    # the last call's peak is scaled by the mean of the 15 peaks before it (a peak counts one frame later)
-    before = (ext.peak_sum - ext.last_peak) / (ext.peak_count - 1)
-    assert p[-15:].max() == pytest.approx(0.1 * (ext.last_peak / before - 0.3) / 0.7, rel=1e-9)
-    assert 0.1 < p[-15:].max() < 0.112                 # -> the reference, 0.1 cm H2O, as the prior fades
-    assert p[-60:].min() == 0.0                         # the floor clears the gaps
+    assert ext.peak_count == 16
+    calls = [p[int((0.05 + 0.25 * i) * fps):int((0.05 + 0.25 * (i + 1)) * fps)].max() for i in range(16)]
+    # the reference, 0.1 cm H2O, from the first call on: 1.3 % under it once the 2 s floor window has left the first
+    # silence (the floor is then the valleys' ~1 % of a call, exp(-2 pi 5 Hz 0.15 s))
+    np.testing.assert_allclose(calls[:8], 0.1, rtol=3e-4)
+    np.testing.assert_allclose(calls[8:], 0.1 * (1 - np.exp(-2 * np.pi * 5 * 0.15)), rtol=0.006)
+    assert ext.mean_peak == pytest.approx(h, rel=0.01)
+    gaps = [p[int((0.05 + 0.25 * i + 0.2) * fps)] for i in range(15)]
+    assert max(gaps) == 0.0                               # the floor fraction clears the gaps
 
 
 def test_nonfinite_samples_count_as_silence():
@@ -150,7 +194,8 @@ def test_outputs_finite_and_mcs_in_unit_interval(samples):
 
 def test_params_validate():
     for bad in (dict(cutoff_hz=0), dict(slope_cmh2o=0.0), dict(reference_cmh2o=0), dict(floor_fraction=1.0),
-                dict(intensity=-1), dict(peak_prior=0)):
+                dict(intensity=-1), dict(slope_cmh2o=-1.0), dict(noise_window_s=0),
+                dict(peak_over_noise=-1)):
         with pytest.raises(ValueError):
             PressureParams(**bad)
     with pytest.raises(ValueError):

@@ -45,8 +45,9 @@ volume leaving the lungs and ``P_lung(x) ~ P* - S x`` (``P*`` the intermediate
 value of loop 1), ``x = dt sqrt((P* - S x)/k)`` is a quadratic solved in closed
 form (:func:`implicit_volume`) and refined by one Newton step on the exact
 (Boyle) end-of-step pressure; Eqs. 3, 2 and 1 then run exactly as in the
-paper.  A steady squeeze of the chest at ``r`` L/s then holds
-``P_lung - P_atm = k r^2``, which the explicit loop only reaches as dt -> 0.
+paper.  A steady squeeze of the chest at ``r`` L/s then drives an outflow ``Q``
+that follows ``r`` (0.996 ``r`` in the test) and holds ``P_lung - P_atm = k Q^2``,
+which the explicit loop only reaches as dt -> 0.
 ``scheme="explicit"`` is the paper's loop as printed.
 
 Transmural pressure (Fig. 5 of the paper, after Mines 1993; the samples are not

@@ -54,10 +54,10 @@ class FitParams:
         Seed of the Latin hypercube and of the annealing.
     settle_s : float
         Look-ahead of the simulation after the call (s).  A call's primitives
-        must end by then (``t0 + 1/f <= length + settle_s``), and the pressure
-        they leave there (a tail pushing on, or the chest wall springing back
-        and breathing in) is penalised, so each call hands the next a quiet
-        torso.  Uses no audio beyond the call.
+        must end by then (``t0 + 1/f <= length + settle_s``), and the negative
+        pressure they leave there (the chest wall springing back and breathing
+        in; a tail pushing on is not penalised) counts against them, so each
+        call hands the next a quiet torso.  Uses no audio beyond the call.
     settle_weight : float
         Weight of that penalty against the call's error (0: the paper's cost alone).
     release_after_s : float
@@ -71,8 +71,9 @@ class FitParams:
         normalised by a near-zero target, is not reported (NaN; on the held-out
         real laughs such calls had errors up to 75 and made the mean
         meaningless).  0.05 (chosen on the train split: 0.05, 0.10 and 0.15 gave
-        the same median error there, 0.05 fits the most calls); the paper's
-        segmentation drops peaks below 0.15.
+        the same median error there, 0.05 fits the most calls); the paper gives
+        no threshold (laughlab's segmentation drops peaks below 0.15 of the
+        curve's 99th percentile, ``segment_calls``'s ``min_height_frac``).
     segment : str
         Where the calls are cut: ``level`` (default), at the valleys of the
         recording's frame RMS (:func:`segment_calls_level`), when :func:`fit` is
@@ -250,8 +251,8 @@ class CallProblem:
         """``(cost, error)`` of scaled parameter sets ``u (batch, 7)``; counts evaluations.
 
         ``error`` is the paper's: RMS error over the call / RMS of the target;
-        ``cost`` adds ``settle_weight`` times the RMS pressure in the
-        look-ahead, on the same scale.
+        ``cost`` adds ``settle_weight`` times the RMS of the negative pressure
+        in the look-ahead (``min(p, 0)``), on the same scale.
         """
         u = np.atleast_2d(u)
         p, _ = self.simulate(self.to_physical(u))

@@ -26,7 +26,7 @@ isometric).  It is implemented as written.  Numerically that is negative
 damping while lengthening; the integrator treats only the positive part of the
 damping implicitly (see :class:`Torso`).
 
-The exponent of ``F_PE`` is capped at 50 (``l~ > 5.5``) to avoid overflow; no
+The exponent of ``F_PE`` is capped at 50 (``10 (l~ - 1) - 5 = 50``: ``l~ > 6.5``) to avoid overflow; no
 simulation gets near it.
 
 Parameter table (paper, 5.1): abdominals k_PE 16.0, b_PE 0.16, v_max 8.0,
