@@ -161,7 +161,7 @@ def bad_files(tmp_path_factory):
     (["-m", "seed=1,2", "--foo"], "unknown option '--foo'"),
     # a review: a mistyped showcase was found after every trial; seed= was recorded but changed nothing
     (["experiment=smoke", "harness.showcase=rec-laugh_x"], "harness.showcase 'rec-laugh_x' is not an input of the "
-     "corpus (mild-s00, mild-s01, intense-s00, ...) nor a synthetic one (PROFILE-sSEED: mixed, mild, "),
+     "corpus (4 inputs: mild-s00, mild-s01, intense-s00, ...) nor a synthetic one (PROFILE-sSEED: mixed, mild, "),
     (["experiment=smoke", "harness.showcase=mild-sx"], "harness.showcase 'mild-sx' is not an input of the corpus"),
     (["experiment=smoke", "seed=5"], "seed= does not apply to an experiment: its runs' seeds are harness.corpus.seeds"),
     (["-m", "experiment=smoke", "seed=5,6"], "seed= does not apply to an experiment"),

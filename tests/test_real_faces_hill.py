@@ -86,7 +86,8 @@ def test_hill_finds_the_calls_of_held_out_laughs(laughs):
         pressure_ok.append(abs(len(segment_calls(target, fps)) - n) <= 1)
     print(f"calls within +/-1: level {np.mean(level_ok):.2f}, pressure {np.mean(pressure_ok):.2f}")
     assert np.mean(level_ok) >= 0.6                      # measured 0.69
-    assert np.mean(level_ok) > np.mean(pressure_ok) + 0.3  # the paper's way: 0.23
+    # the paper's way: 0.50 (0.23 before the pressure extractor's noise floor, 2026-11-29, deepened its valleys)
+    assert np.mean(level_ok) > np.mean(pressure_ok) + 0.1
 
 
 def test_hill_fits_the_example_laugh(laughs):
@@ -97,5 +98,5 @@ def test_hill_fits_the_example_laugh(laughs):
     res = fit(target, fps, FitParams(), level=level)
     assert abs(len(res.calls) - n) <= 1                 # measured 7 of 8
     s = res.summary()
-    assert s["error_median"] <= 0.18                     # measured 0.134
+    assert s["error_median"] <= 0.18                     # measured 0.134 (the level-free pressure: 0.141)
     assert s["evals_mean"] <= 1000 + 200 + 49            # the budget: max_evals + polish (+ one batch)

@@ -60,17 +60,25 @@ class Served:
         self.httpd = server(study_dir, db, 0, quiet=True, **kw)
         self.url = f"http://127.0.0.1:{self.httpd.server_address[1]}"
         self.db = db
+        self.keys = {}   # participant -> the key their consent was given, sent with their later posts as the page does
         threading.Thread(target=self.httpd.serve_forever, daemon=True).start()
 
-    def post(self, route: str, body, content_type="application/json", raw: bytes | None = None) -> tuple[int, dict]:
+    def post(self, route: str, body, content_type="application/json", raw: bytes | None = None,
+             keyed: bool = True) -> tuple[int, dict]:
+        who = body.get("participant") if isinstance(body, dict) else None
+        if raw is None and keyed and who in self.keys and "key" not in body:
+            body = {**body, "key": self.keys[who]}
         data = raw if raw is not None else json.dumps(body).encode()
         req = urllib.request.Request(self.url + route, data=data, method="POST",
                                      headers={"Content-Type": content_type})
         try:
             with urllib.request.urlopen(req, timeout=10) as r:
-                return r.status, json.loads(r.read())
+                status, reply = r.status, json.loads(r.read())
         except urllib.error.HTTPError as e:
-            return e.code, json.loads(e.read() or b"{}")
+            status, reply = e.code, json.loads(e.read() or b"{}")
+        if isinstance(reply, dict) and reply.get("key") and who is not None:
+            self.keys[who] = reply["key"]
+        return status, reply
 
     def oversized(self, route: str, length: int) -> int:
         """The status of a post announcing ``length`` bytes: the server answers before the body is sent
@@ -222,12 +230,23 @@ def test_a_failed_sound_check_ends_the_study_there_and_on_every_return(study, tm
     from laughlab.study import db as DB
     from laughlab.study import simulate as S
 
+    from laughlab.viewer.browser import Page
+
     d = design_of(study)
     assert d["audio_check_on_fail"] == "end" and d["screened_out_url"] is None
     srv = Served(study, tmp_path / "r.sqlite")
     try:
         given = S.run_sync(srv.url, d, [1, 2], S.planted(d, {}, seed=3), behaviours={1: "deaf"})
-        again = S.run_sync(srv.url, d, [1], S.planted(d, {}, seed=3))[1]
+        elsewhere = S.run_sync(srv.url, d, [1], S.planted(d, {}, seed=3))[1]   # another browser: not theirs
+        key = DB.participant_key(srv.db, 1)
+        srv.keys[1] = key
+        page = Page(f"{srv.url}/index.html?participant=1")   # back in their own browser (its key kept)
+        try:
+            _until(page, "document.body.innerText.includes('another browser')")
+            page.eval(f"localStorage.setItem('laughlab-study-{d['id']}-p1-key', '{key}'); location.reload()")
+            back = _until(page, "document.querySelector('#study-screened-out') && document.body.innerText")
+        finally:
+            page.close()
         t1 = d["participants"]["1"]["trials"][0]
         post = {"participant": 1, "session": "b", "trial": 1, "stimulus": t1["stimulus"],
                 "answers": {q["id"]: 4 for q in d["questions"]} | ({"attention": 2} if t1["attention"] else {})}
@@ -240,7 +259,7 @@ def test_a_failed_sound_check_ends_the_study_there_and_on_every_return(study, tm
     assert given[1].screened_out and len(given[1].audio_attempts) == n and given[1].answers == {}
     assert "could not confirm that you hear the videos' sound" in given[1].status and "close this page" in given[1].status
     assert not given[2].screened_out and given[2].saved and len(given[2].answers) >= len(d["participants"]["2"]["trials"])
-    assert again.screened_out and again.audio_attempts == [] and again.answers == {}   # the end again, no new try
+    assert "could not confirm" in back and elsewhere.refused and "another browser" in elsewhere.status
     assert refused[0] == 403 and refused[1]["error"] == "participant 1 did not pass the sound check: the study ended there"
     assert [r for r in srv.rows() if r[0] == 1] == [(1, 0, "audio_check", 0.0, "audio_check", "", "")]
     assert given[1].csv.startswith("participant,") and ",audio_check,audio_check,0," in given[1].csv
@@ -1475,3 +1494,35 @@ def test_a_participants_texts_reach_the_reports_as_text():
     assert [cell_safe(v) for v in ("+1", "-2", "@x", "Mozilla/5.0", 3.0, "")] == ["'+1", "'-2", "'@x", "Mozilla/5.0",
                                                                                 3.0, ""]
     assert shown_typed("<img src=x onerror=alert(3)>|hat") == "?img src?x onerror?alert?3??, hat"
+
+
+def test_no_one_but_the_participants_browser_answers_for_them_after_consent(study, tmp_path):
+    """A security review: a participant's number (or panel ID) was all it took to start a session as them, answer
+    their trials, fail their sound check or post their end.  The consent takes their browser's key; every later
+    post must carry it."""
+    from laughlab.study import db as DB
+
+    d = design_of(study)
+    srv = Served(study, tmp_path / "r.sqlite")
+    t1 = d["participants"]["6"]["trials"][0]
+    answer = {"participant": 6, "session": "evil", "trial": 1, "stimulus": t1["stimulus"],
+              "answers": {q["id"]: 4 for q in d["questions"]} | ({"attention": 2} if t1["attention"] else {})}
+    try:
+        assert srv.post("/api/start", {"participant": 6, "session": "mine", "design": d["id"]})[0] == 200
+        status, reply = srv.post("/api/event", {"participant": 6, "session": "mine", "event": "consent",
+                                                "key": "k" * 20})
+        assert status == 200 and reply["key"] == "k" * 20 == DB.participant_key(srv.db, 6)
+        theirs = "participant 6 takes part in another browser or on another device: please go on there"
+        for route, body in (("/api/start", {"participant": 6, "session": "evil", "design": d["id"]}),
+                            ("/api/response", answer), ("/api/check", {"participant": 6, "session": "evil",
+                                                                       "attempts": ["x"]}),
+                            ("/api/event", {"participant": 6, "session": "evil", "event": "finish"})):
+            for key in (None, "wrong-key-0123456789"):
+                status, reply = srv.post(route, {**body, **({"key": key} if key else {})}, keyed=False)
+                assert status == 403 and reply["error"].startswith(theirs), (route, key, reply)
+        assert srv.post("/api/response", {**answer, "session": "mine"})[0] == 201   # their own browser's key
+        bad = srv.post("/api/event", {"participant": 7, "session": "x", "event": "consent", "key": "short"})
+        assert bad[0] in (403, 409, 422)
+    finally:
+        srv.close()
+    assert [r[0] for r in srv.rows()] == [6] * len(answer["answers"])

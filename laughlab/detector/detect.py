@@ -365,7 +365,7 @@ def main(argv: list[str]) -> None:
     if dropped:   # a review: a run of one recording into a batch's folder removed the other recordings' files unsaid
         print(f"laughlab: --overwrite removed {len(dropped)} file{'s' if len(dropped) > 1 else ''} an earlier detect "
               f"wrote into {out} "
-              f"for recordings this run did not read ({shown_names(rel(dropped))})", file=sys.stderr)
+              f"for recordings this run did not read ({shown_names(sorted(rel(dropped)))})", file=sys.stderr)
     print(summary_line(results, gone, wall, out)
           + DS.score_summary(score_rows, sum(r[0] not in truths for r in results)))
 

@@ -57,6 +57,7 @@ CREATE TABLE IF NOT EXISTS sessions (
 CREATE TABLE IF NOT EXISTS assignments (
   external_id TEXT PRIMARY KEY, participant INTEGER NOT NULL UNIQUE, assigned_at TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS study (key TEXT PRIMARY KEY, value TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS participant_keys (participant INTEGER PRIMARY KEY, key TEXT NOT NULL);
 """
 
 
@@ -244,6 +245,25 @@ def check_session(path: Path, session: str, participant: int) -> bool:
     try:
         _check_session(conn, session, participant)
         return consented(conn, participant)
+    finally:
+        conn.close()
+
+
+def participant_key(path: Path, participant: int, give: bool = False, key: str | None = None) -> str | None:
+    """The key of ``participant``'s browser, taken with their consent (None before); ``give``: take ``key`` (the
+    page's own, made before it posts the consent, so a reload right after finds it) or make one, if there is none.
+    Every later post of theirs carries it, so no one else can answer as them (a security review: their number, or
+    their panel ID, was all it took to answer, screen them out or end their study)."""
+    import secrets
+
+    conn = connect(path)
+    try:
+        with _transaction(conn):
+            if give:
+                conn.execute("INSERT OR IGNORE INTO participant_keys VALUES (?, ?)",
+                             (participant, key or secrets.token_urlsafe(18)))
+            row = conn.execute("SELECT key FROM participant_keys WHERE participant = ?", (participant,)).fetchone()
+            return row[0] if row else None
     finally:
         conn.close()
 

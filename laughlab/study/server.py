@@ -58,6 +58,7 @@ MAX_BODY = 16 * 1024
 LOG_MAX = 10 * 1024 * 1024
 _FULL: set = set()
 _SESSION = re.compile(r"[A-Za-z0-9-]{1,64}")
+_KEY = re.compile(r"[A-Za-z0-9_-]{16,64}")
 _EXTERNAL = re.compile(r"[A-Za-z0-9_.@-]{1,128}")
 
 
@@ -179,9 +180,12 @@ class StudyHandler(_Handler):
         # no client address: the consent text promises that no IP address is kept (a review found it here)
         body = raw.decode("utf-8", "replace")
         try:   # a panel's ID stays out of the log (a study-pilot review found refused PIDs there), before the body is
-            ext = json.loads(raw).get("external_id")   # cut (a security review: its start was left at the cut)
+            sent = json.loads(raw)   # cut (a security review: its start was left at the cut); a key too
+            ext, key = sent.get("external_id"), sent.get("key")
             if isinstance(ext, str) and ext:
                 body, reason = body.replace(ext, "<panel ID>"), reason.replace(ext[:40], "<panel ID>")
+            if isinstance(key, str) and key:
+                body = body.replace(key, "<key>")
         except (ValueError, AttributeError, RecursionError):
             pass
         line = {"time": DB.utc_now(), "path": route[:100], "status": status, "reason": reason, "body": body[:200]}
@@ -209,6 +213,13 @@ class StudyHandler(_Handler):
             raise Refused(422, "session must be 1-64 letters, digits or -")
         return p, entry, session
 
+    def _key(self, p: int, body: dict) -> None:
+        """Refuse a post for ``p`` without the key their browser was given when they consented (403)."""
+        key = DB.participant_key(self.db, p)
+        if key is not None and body.get("key") != key:
+            raise Refused(403, f"participant {p} takes part in another browser or on another device: please go on "
+                               "there (tell the researcher if you cannot)")
+
     def _consented(self, p: int, session: str) -> None:
         if not DB.check_session(self.db, session, p):
             raise Refused(403, f"participant {p} has not given consent: nothing is stored before it")
@@ -222,8 +233,9 @@ class StudyHandler(_Handler):
         return ext
 
     def start(self, body: dict):
-        _keys(body, {"participant", "session", "design", "user_agent", "external_id"})
+        _keys(body, {"participant", "session", "design", "user_agent", "external_id", "key"})
         p, _, session = self._participant(body)
+        self._key(p, body)
         if body.get("design") != self.design["id"]:
             raise Refused(409, "this page belongs to another build of the study: reload it")
         ext = self._external(body) if body.get("external_id") is not None else None
@@ -252,8 +264,9 @@ class StudyHandler(_Handler):
 
     def response(self, body: dict):
         _keys(body, {"participant", "session", "trial", "stimulus", "answers", "rt_ms", "shown_at", "answered_at",
-                     "user_agent"})
+                     "user_agent", "key"})
         p, entry, session = self._participant(body)
+        self._key(p, body)
         t = _int(body, "trial")
         if not 1 <= t <= len(entry["trials"]):
             raise Refused(422, f"participant {p} has no trial {t} (1..{len(entry['trials'])})")
@@ -285,8 +298,9 @@ class StudyHandler(_Handler):
         return 201, {"stored": len(rows)}
 
     def check(self, body: dict):
-        _keys(body, {"participant", "session", "attempts", "rt_ms", "user_agent"})
+        _keys(body, {"participant", "session", "attempts", "rt_ms", "user_agent", "key"})
         p, entry, session = self._participant(body)
+        self._key(p, body)
         attempts = body.get("attempts")
         n = int(self.design["audio_check"]["attempts"])
         if not isinstance(attempts, list) or not 1 <= len(attempts) <= n or \
@@ -307,8 +321,9 @@ class StudyHandler(_Handler):
         return 201, {"stored": 1, "passed": passed}
 
     def event(self, body: dict):
-        _keys(body, {"participant", "session", "event"})
+        _keys(body, {"participant", "session", "event", "key"})
         p, entry, session = self._participant(body)
+        self._key(p, body)
         if body.get("event") not in ("consent", "decline", "finish"):
             raise Refused(422, "event must be consent, decline or finish")
         if body["event"] == "finish":
@@ -317,8 +332,14 @@ class StudyHandler(_Handler):
             if answered < n:   # a security review: a finish posted by hand put a finished_at in the payment list
                 raise Refused(409, f"participant {p} has answered {answered} of {n} trials: the study is finished "
                                    "with the last")
-        DB.session_event(self.db, session, p, body["event"])
-        return 200, {}
+        agreed = DB.session_event(self.db, session, p, body["event"])
+        # the participant's key, given with their consent (and to the page that holds it): every later post carries it
+        if not (agreed and body["event"] == "consent"):
+            return 200, {}
+        key = body.get("key")
+        if key is not None and (not isinstance(key, str) or not _KEY.fullmatch(key)):
+            raise Refused(422, "key must be 16-64 letters, digits, - or _")
+        return 200, {"key": DB.participant_key(self.db, p, give=True, key=key)}
 
 
 def files_of(study_dir: Path) -> dict[str, Path]:

@@ -34,6 +34,7 @@ class Given:
     saved: bool | None = None
     status: str = ""  # the end page's line about saving
     screened_out: bool = False  # the page ended after a failed sound check (audio_check.on_fail: end)
+    refused: bool = False  # the page refused the participant at once (its line in status)
     seconds: float = 0.0
     csv: str = ""  # the page's own record of the answers (its "Download my answers" CSV)
 
@@ -95,7 +96,10 @@ async def participant(browser, url: str, design: dict, p: int, answer, keyboard:
     try:
         await page.goto(f"{url.rstrip('/')}/index.html?participant={p}")
         first = await page.wait_for_selector("button:has-text('I agree'), button:has-text('Go on'), "
-                                             "#jspsych-instructions-next, #study-screened-out")
+                                             "#jspsych-instructions-next, #study-screened-out, .study-fatal")
+        if "study-fatal" in (await first.get_attribute("class") or ""):   # refused (another browser's participant)
+            given.status, given.refused = (await first.inner_text()).strip(), True
+            return given
         if await first.get_attribute("id") == "study-screened-out":   # back after a failed sound check
             pass
         elif await first.get_attribute("id") == "jspsych-instructions-next" or "agree" in (await first.inner_text()):

@@ -20,7 +20,9 @@
   const ua = navigator.userAgent;
   // refused: posts the server refused (4xx); given: of them, answers already stored (409: another tab of the page);
   // kept: this page's trials the server stored
-  const state = {server: false, rows: [], pending: [], flushing: null, keys: null, refused: 0, given: 0, kept: 0};
+  // key: the participant's key the server gave this browser with their consent (every later post carries it)
+  const state = {server: false, rows: [], pending: [], flushing: null, keys: null, refused: 0, given: 0, kept: 0,
+                 key: null, p: null};
   const now = () => new Date().toISOString();
   const esc = (s) => String(s).replace(/[&<>"']/g, (c) => ({"&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;",
                                                               "'": "&#39;"}[c]));
@@ -32,6 +34,11 @@
   }
   function loadLocal(p) {
     try { return JSON.parse(localStorage.getItem(storeKey(p)) || "[]"); } catch (e) { return []; }
+  }
+  const keyName = (p) => `laughlab-study-${S.id}-p${p}-key`;
+  function keepKey(key) {   // the key of this browser's participant: kept for a reload, sent with every post
+    state.key = key;
+    try { localStorage.setItem(keyName(state.p), key); } catch (e) { /* private mode: this page's life only */ }
   }
   async function api(path, body) {
     try {
@@ -54,7 +61,8 @@
     state.flushing = (async () => {
       while (state.pending.length) {
         const post = state.pending[0];
-        const r = await api(post.path, post.body);
+        const r = await api(post.path, state.key ? Object.assign({key: state.key}, post.body) : post.body);
+        if (r.ok && r.data && r.data.key) keepKey(r.data.key);
         if (r.status === 0 || r.status >= 500) {  // keep it for the next try; the server may have stored it
           post.tried = true;
           return false;
@@ -345,6 +353,13 @@
         stimulus: `<div class="study-text"><h1>${esc(S.title)}</h1>${S.consent}</div>`,
         on_finish: (data) => {
           const agree = data.response === 0;
+          // the participant's key, this browser's own, before the consent is posted (it carries it; a reload right
+          // after finds it here)
+          if (agree && !state.key) {
+            const bytes = new Uint8Array(18);
+            crypto.getRandomValues(bytes);
+            keepKey(Array.from(bytes, (b) => b.toString(16).padStart(2, "0")).join(""));
+          }
           // a consent the server refuses (the panel's place went to another after half an hour) is said, not
           // passed over into the study (an accessibility review)
           send("api/event", {participant: Number(p), session: session, event: agree ? "consent" : "decline"},
@@ -446,9 +461,12 @@
     }
     const P = S.participants[p];
     state.rows = loadLocal(p);
+    state.p = p;
+    try { state.key = localStorage.getItem(keyName(p)); } catch (e) { state.key = null; }
     let consented = null;
     const begin = {participant: Number(p), session: session, design: S.id, user_agent: ua};
     if (panelId) begin.external_id = panelId;   // a number given to a panel's ID answers to it only
+    if (state.key) begin.key = state.key;
     const r = await api("api/start", begin);
     const done = new Set();
     let checked = null;   // the sound check: null not done, true passed, false failed
