@@ -955,8 +955,10 @@ def test_the_report_says_who_came_agreed_and_stayed_and_leaves_out_answers_witho
         found = [(int(r["participant"]), r["reason"]) for r in csv.DictReader(f)]
     assert found == [(5, "no consent recorded (answers in the database without it)")]
     report = json.loads((tmp_path / "rep" / "report.json").read_text())
+    # this test's posts are a script's, each trial at once after the last: said (they are not excluded for it)
     assert report["participation"] == {"opened": 5, "page_loads": 7, "consented": 4, "declined": 1, "finished": 1,
-                                       "came_back": 2, "two_at_once": [3]}
+                                       "came_back": 2, "two_at_once": [3], "too_fast": [1, 2, 3, 5]}
+    assert "its video lasts, which the page cannot do (a script?): participants 1, 2, 3, 5." in readme
 
 
 def test_simulated_answers_never_mix_with_peoples(study, tmp_path):
@@ -1526,3 +1528,29 @@ def test_no_one_but_the_participants_browser_answers_for_them_after_consent(stud
     finally:
         srv.close()
     assert [r[0] for r in srv.rows()] == [6] * len(answer["answers"])
+
+
+def test_answers_faster_than_the_videos_play_are_said():
+    """A security review: six scripted participants answered the whole study in under a second each and were all
+    included.  A trial whose answers reached the server sooner after the previous trial's than its video lasts is
+    named in the report (not excluded: the panel's records decide)."""
+    import pandas as pd
+
+    from laughlab.study.participation import line, participation
+
+    def rows(p, times):
+        return [{"participant": p, "trial": t, "stimulus": f"s{t}", "kind": "rating", "question": "q",
+                 "session": f"x{p}", "received_at": at, "answered_at": at} for t, at in enumerate(times, 1)]
+
+    df = pd.DataFrame(rows(1, ["2026-11-29T10:00:00.000Z", "2026-11-29T10:00:02.500Z", "2026-11-29T10:00:05.100Z"])
+                      + rows(2, ["2026-11-29T10:00:00.000Z", "2026-11-29T10:00:00.300Z", "2026-11-29T10:00:00.600Z"])
+                      + rows(3, ["2026-11-29T10:00:00.000Z", "2026-11-29T10:00:09.000Z"]))
+    late = rows(4, ["2026-11-29T10:00:00.000Z", "2026-11-29T10:00:09.000Z", "2026-11-29T10:00:09.100Z"])
+    late[1]["answered_at"], late[2]["answered_at"] = "2026-11-29T10:00:03.000Z", "2026-11-29T10:00:06.000Z"
+    df = pd.concat([df, pd.DataFrame(late)])   # a page's answers kept through a network failure: sent together
+    durations = {"s1": 2.0, "s2": 2.0, "s3": 2.0}
+    doc = participation([], df, durations)
+    assert doc["too_fast"] == [2]
+    assert line(doc).endswith("1 answered a trial sooner after the one before than its video lasts, which the page "
+                              "cannot do (a script?): participant 2.")
+    assert "too_fast" not in participation([], df)   # no design: nothing to judge by

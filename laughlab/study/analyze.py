@@ -393,7 +393,9 @@ def analyze(source, out=None, design_dir=None, overwrite: bool = False, width: s
            "simulated": kind == "simulated",
            "planted": DB.stored(source, "simulation") if kind == "simulated" else None,
            "excluded": {str(p): r for p, r in excluded.items()}, "included": n_all - len(excluded),
-           "participation": participation(dbs, df), "order_rows": order_rows(df, excluded),
+           "participation": participation(dbs, df, {s: v.get("duration_s") for s, v in
+                                                    ((design or {}).get("stimuli") or {}).items()}),
+           "order_rows": order_rows(df, excluded),
            "scale_range": list(scale_range(design)) if design and design.get("scale") == "likert" else None,
            "conditions": conditions, "questions": questions, "model_notes": notes,
            "untested": [list(p) for p in same if set(p) <= set(conditions)],

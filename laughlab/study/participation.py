@@ -7,7 +7,8 @@ in two tabs at once not reported); and how the included fill the Latin square's 
   one (a number given again after a decline is then two people), else their number;
 - from the answers (a database's or answer files'): participants whose answers came from more than one page load
   (they came back), and of those, the ones whose two page loads' answers interleave in time (two tabs at once, or two
-  devices: a trial shown twice, or answers given out of order).
+  devices: a trial shown twice, or answers given out of order), and with the design, those who answered a trial
+  sooner after the one before than its video lasts (no page can: a script), said and not excluded.
 
 :func:`unconsented` names the participants a database holds answers of but no consent for (a database written
 before the server refused them, or edited): ``study analyze`` leaves them out (the rule ``consent``).
@@ -15,6 +16,8 @@ before the server refused them, or edited): ``study analyze`` leaves them out (t
 from __future__ import annotations
 
 from pathlib import Path
+
+import pandas as pd
 
 from laughlab.study import db as DB
 
@@ -39,8 +42,33 @@ def _two_at_once(df) -> set[int]:
     return out
 
 
-def participation(dbs: list[Path], df) -> dict:
-    """The counts (module doc); the sessions' part is None without a database."""
+def _too_fast(df, durations: dict) -> set[int]:
+    """Participants a trial of whose answers reached the server sooner after their previous trial's than its video
+    lasts: no page can (a trial's questions come after its video), a script can (a security review: six made-up
+    participants answered the whole study in under a second each, and every one was included)."""
+    out = set()
+    rows = df[(df["kind"] != "audio_check") & (df["received_at"].fillna("") != "")]
+    for p, g in rows.groupby("participant"):
+        first = g.groupby("trial").agg(at=("received_at", "min"), given=("answered_at", "min"),
+                                       stimulus=("stimulus", "first")).sort_index()
+        if len(first) < 2:
+            continue
+        need = 0.9 * first["stimulus"].map(durations).iloc[1:]   # 0.9: a post's sending against its receipt
+
+        def gap(col):
+            return pd.to_datetime(first[col], utc=True, errors="coerce").diff().dt.total_seconds().iloc[1:]
+
+        # both the server's clock and the page's: answers a page kept through a network failure arrive together
+        # with the next (their times given are the trials' own)
+        given = gap("given")
+        if ((gap("at") < need) & (given.isna() | (given < need)) & need.notna()).any():
+            out.add(int(p))
+    return out
+
+
+def participation(dbs: list[Path], df, durations: dict | None = None) -> dict:
+    """The counts (module doc); the sessions' part is None without a database; ``durations``: each stimulus' video
+    length (s), from the design, for the participants who answered faster than the videos play."""
     out: dict = {}
     if dbs:
         rows = [s for path in dbs for s in DB.sessions(path)]
@@ -52,6 +80,8 @@ def participation(dbs: list[Path], df) -> dict:
                    declined=len(by("declined_at") - agreed), finished=len(by("finished_at")))
     sessions = df[df["session"].fillna("") != ""].groupby("participant")["session"].nunique()
     out.update(came_back=int((sessions > 1).sum()), two_at_once=sorted(_two_at_once(df)))
+    if durations:
+        out["too_fast"] = sorted(_too_fast(df, durations))
     return out
 
 
@@ -68,6 +98,10 @@ def line(doc: dict) -> str:
         parts.append(f"{doc['came_back']} answered from more than one page load" + (
             f"; {len(two)} of them from two at once, their answers interleaved in time (two tabs or devices: "
             f"participant{'' if len(two) == 1 else 's'} {', '.join(map(str, two))})." if two else " (they came back)."))
+    fast = doc.get("too_fast")
+    if fast:   # said, not excluded: check them against the panel's records (docs/study.md, "Online")
+        parts.append(f"{len(fast)} answered a trial sooner after the one before than its video lasts, which the page "
+                     f"cannot do (a script?): participant{'' if len(fast) == 1 else 's'} {', '.join(map(str, fast))}.")
     return " ".join(parts)
 
 
