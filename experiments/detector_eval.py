@@ -29,6 +29,8 @@ SCORES = {
 
 #: a detector of one's own (not in :data:`SCORES`): its ``laughter`` control, the threshold taken as 0.5
 OWN_THRESHOLD = 0.5
+#: the parameter that sets the gate's threshold on each score (a condition's ``detector.open_at=0.8``)
+GATE_PARAM = {"laughter": "open_at", "laughter_classes": "class_open"}
 
 
 def curves(conditions: dict) -> list[tuple[str, str, tuple, str, float]]:
@@ -47,7 +49,9 @@ def curves(conditions: dict) -> list[tuple[str, str, tuple, str, float]]:
         tag = f" ({', '.join(o.split('.', 1)[1] for o in own)})" if own else ""
         named = [(n, key, at) for n, (d, key, at) in SCORES.items() if d == option] or \
             [(option, "laughter", OWN_THRESHOLD)]
-        out += [(n + tag, option, own, key, at) for n, key, at in named]
+        given = dict(o.split("=", 1) for o in own)   # a threshold the condition sets marks its operating point
+        out += [(n + tag, option, own, key, float(given.get(f"detector.{GATE_PARAM[key]}", at)))
+                for n, key, at in named]
     return out
 
 

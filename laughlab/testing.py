@@ -174,8 +174,9 @@ def _check_frames(kind: str, frames: list, clips, skeleton) -> list[str]:
             j = out[0]
             bad.append(f"{c} is {vals[j]} at frame {j}: a weight in [0, 1]")
     if kind == "detector":   # laugh_gate alone gates nothing: the character laughed on (a plugin author's review)
-        shut = [f for f in frames if f.control.get("laugh_gate", 1.0) < 0.5 and "mcs_ungated" not in f.control
-                and f.control.get("mcs", 0.0) > 0.0]
+        num = lambda v: isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)  # noqa: E731
+        shut = [f for f in frames if num(f.control.get("laugh_gate", 1.0)) and f.control["laugh_gate"] < 0.5
+                and "mcs_ungated" not in f.control and num(f.control.get("mcs", 0.0)) and f.control["mcs"] > 0.0]
         if shut:
             bad.append(f"laugh_gate is {shut[0].control['laugh_gate']:g} at frame {shut[0].index} but mcs "
                        f"{shut[0].control['mcs']:g} is not gated: a detector gates the driving signals with "

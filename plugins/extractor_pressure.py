@@ -46,7 +46,10 @@ animator's knob.  Per frame:
    paper's normalisation "accounts for differences in recording levels"
    (a fidelity review: the prior was a fixed 0.05 full scale, and a laugh
    10 dB quieter drove a third of the pressure, 20 dB quieter almost none;
-   the first calls of a loud one up to 5 times the reference).  A call of
+   the first calls of a loud one up to 5 times the reference).  Known limit: after
+   digital silence (a pre-roll of zeros, a dropout) or a fade-in the floor holds
+   the silence's level until the window has passed it, so steady noise there
+   drives the torso for up to ``noise_window_s`` (a diff review).  A call of
    average height maps to ``reference_cmh2o`` times ``intensity``.
    ``floor_fraction`` (0.15; 0.3 before the noise floor, which clears the
    quiet between calls itself: chosen on the corpus' train split, where 0.3

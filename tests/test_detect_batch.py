@@ -596,3 +596,13 @@ def test_a_file_damaged_late_is_skipped_on_a_line_of_its_own_and_off_the_bars_to
     assert len(skipped) == 1 and skipped[0].startswith("laughlab: skipped: cannot decode "), lines
     last = [ln for ln in lines if ln.startswith("detect: ")][-1]
     assert last.startswith("detect: 100%") or "2.0/2.0 s" in last, last
+
+
+def test_overwrite_with_fewer_formats_says_nothing_of_other_recordings(tmp_path):
+    """A diff review: the same recording's files of a format no longer asked for were said to be other
+    recordings'."""
+    sf.write(tmp_path / "a.wav", np.zeros(16000), 16000)
+    out = tmp_path / "out"
+    assert laughlab("detect", str(tmp_path / "a.wav"), "--out", str(out)).returncode == 0
+    r = laughlab("detect", str(tmp_path / "a.wav"), "--out", str(out), "--overwrite", "--formats", "csv")
+    assert r.returncode == 0 and "removed" not in r.stderr and not (out / "a.TextGrid").exists()

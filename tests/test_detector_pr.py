@@ -58,6 +58,10 @@ def test_every_detector_a_run_compares_has_a_curve_a_plugins_and_an_overridden_o
         ("yamnet classes (threshold=0.3)", "yamnet", ("detector.threshold=0.3",), "laughter_classes",
          SCORES["yamnet classes"][2])]
     assert curves({"none": ["detector=none"]}) == []
+    # a threshold the condition sets is its curve's operating point (a diff review: marked at the default)
+    strict = curves({"strict": ["detector=yamnet", "detector.open_at=0.8", "detector.class_open=0.3"]})
+    assert [(n, at) for n, _, _, _, at in strict] == [("yamnet (head) (class_open=0.3, open_at=0.8)", 0.8),
+                                                       ("yamnet classes (class_open=0.3, open_at=0.8)", 0.3)]
 
 
 def test_a_detector_of_ones_own_is_drawn_with_its_threshold(tmp_path):

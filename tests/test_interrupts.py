@@ -200,3 +200,21 @@ def test_a_ctrl_c_in_an_event_loop_cancels_the_coroutine_whose_clean_up_then_run
     answered", 5 s later)."""
     r = subprocess.run([sys.executable, "-c", ASYNC, "ours"], capture_output=True, text=True, timeout=60)
     assert r.stdout == "stopped ['answered'] True 2\n", r.stdout + r.stderr
+
+
+def test_laughlabs_line_reaches_the_real_stderr_while_a_thread_silences_fd_2_after_a_stop_signal(capfd, monkeypatch):
+    """A diff review: after the filter took sys.stderr, say() no longer knew it for the real one and wrote the
+    interrupt line to fd 2, which a detector thread had sent to /dev/null."""
+    import sys
+
+    from laughlab.core import quiet
+
+    monkeypatch.setattr(sys, "stderr", sys.__stderr__)
+    quiet.own_lines_only()
+    try:
+        with quiet.quiet_stderr():
+            quiet.say("laughlab: error: interrupted")
+            print("a library's line", file=sys.stderr)
+    finally:
+        sys.stderr = sys.stderr.stream
+    assert capfd.readouterr().err == "laughlab: error: interrupted\n"

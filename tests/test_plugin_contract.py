@@ -97,6 +97,8 @@ def _shut_gate(self, block, frame):   # writes a shut gate but leaves mcs as it 
     (detector("gate_only", lambda self, b, f: f.control.update(laugh_gate=1.0)),
      "wrote no laughter at frame 0: every detector writes frame.control['laughter'] and ['laugh_gate']"),
     (detector("returns", lambda self, b, f: 0.5), "wrote no laughter and no laugh_gate at frame 0"),
+    (detector("nogate", lambda self, b, f: f.control.update(laughter=0.5, laugh_gate=None if f.index == 3 else 1.0)),
+     "control 'laugh_gate' is None (NoneType) at frame 3: a finite number"),
     (detector("shut", _shut_gate), "laugh_gate is 0 at frame 4 but mcs 0.00430146 is not gated: a detector gates"),
     (face("no_eyes", lambda self, f: f.channels.update(smile=0.1, jaw=0.1, blink=0.0)), "writes no eyes_closed"),
     (face("grins", lambda self, f: f.channels.update(smile=2.0, jaw=0.0, blink=0.0, eyes_closed=0.0)),

@@ -1554,3 +1554,26 @@ def test_answers_faster_than_the_videos_play_are_said():
     assert line(doc).endswith("1 answered a trial sooner after the one before than its video lasts, which the page "
                               "cannot do (a script?): participant 2.")
     assert "too_fast" not in participation([], df)   # no design: nothing to judge by
+
+
+def test_a_consents_key_and_a_number_typed_by_hand_hold_against_a_diff_reviews_cases(study, tmp_path):
+    """A malformed key is refused before the consent is stored (it was stored, with no key kept); two consents at
+    once leave one key, the first's (the second was handed it); a page typed by hand whose number went to a panel's
+    ID after half an hour cannot consent as it (both held the number)."""
+    from laughlab.study import db as DB
+
+    d = design_of(study)
+    srv = Served(study, tmp_path / "r.sqlite")
+    try:
+        assert srv.post("/api/start", {"participant": 4, "session": "a", "design": d["id"]})[0] == 200
+        assert srv.post("/api/event", {"participant": 4, "session": "a", "event": "consent", "key": "x!"})[0] == 422
+        assert DB.participant_key(srv.db, 4) is None
+        assert not any(s["consent_at"] for s in DB.sessions(srv.db) if s["participant"] == 4)
+        assert DB.participant_key(srv.db, 5, give=True, key="A" * 20) == "A" * 20
+        assert DB.participant_key(srv.db, 5, give=True, key="B" * 20) == "A" * 20   # the server compares: 403
+        assert srv.post("/api/start", {"participant": 1, "session": "typed", "design": d["id"]})[0] == 200
+        assert DB.assign(srv.db, "panel-id", sorted(int(n) for n in d["participants"]), hold_s=0) == 1
+        status, reply = srv.post("/api/event", {"participant": 1, "session": "typed", "event": "consent"})
+        assert status == 409 and "went to another participant" in reply["error"]
+    finally:
+        srv.close()

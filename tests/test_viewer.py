@@ -557,3 +557,31 @@ def test_a_server_on_this_computer_answers_its_own_names_only_and_head_as_get():
     finally:
         httpd.shutdown()
         httpd.server_close()
+
+
+def test_an_answer_longer_than_the_read_timeout_is_sent_whole(monkeypatch):
+    """A diff review: the 60 s timeout meant for reading a request also limited the whole answer's sending, so a
+    video to a participant on a slow link was cut off after a minute (here 0.5 s against a 2 MB answer read slowly)."""
+    import socket
+    import time
+
+    monkeypatch.setattr(V._Handler, "timeout", 0.5)
+    body = b"x" * (2 * 1024 * 1024)
+    httpd = V.http_server({"video.mp4": body}, 0)
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    try:
+        s = socket.create_connection(httpd.server_address[:2])
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 16384)
+        s.sendall(b"GET /video.mp4 HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n")
+        got, t0 = b"", time.time()
+        while len(got) < len(body) and time.time() - t0 < 30:
+            d = s.recv(65536)
+            if not d:
+                break
+            got += d
+            time.sleep(0.02)
+        s.close()
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+    assert time.time() - t0 > 1.0 and got.endswith(body[-1000:]) and len(got) > len(body), (len(got), time.time() - t0)

@@ -362,10 +362,12 @@ def main(argv: list[str]) -> None:
         done = sorted(rel(written) | rel(kept_old))
         S.atomic_write(out / MANIFEST, record_text(out, done))
     wall = time.perf_counter() - t0
-    if dropped:   # a review: a run of one recording into a batch's folder removed the other recordings' files unsaid
-        print(f"laughlab: --overwrite removed {len(dropped)} file{'s' if len(dropped) > 1 else ''} an earlier detect "
-              f"wrote into {out} "
-              f"for recordings this run did not read ({shown_names(sorted(rel(dropped)))})", file=sys.stderr)
+    read = set(S.output_names([r[0] for r in results], FORMATS)) | set(S.clip_names(results, ("audio",)))
+    others = sorted(n for n in rel(dropped) if n not in read and not any(
+        n.startswith(f"{r[0]}_laugh_") for r in results))
+    if others:   # a review: a run of one recording into a batch's folder removed the other recordings' files unsaid
+        print(f"laughlab: --overwrite removed {len(others)} file{'s' if len(others) > 1 else ''} an earlier detect "
+              f"wrote into {out} for recordings this run did not read ({shown_names(others)})", file=sys.stderr)
     print(summary_line(results, gone, wall, out)
           + DS.score_summary(score_rows, sum(r[0] not in truths for r in results)))
 

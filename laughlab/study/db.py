@@ -231,11 +231,12 @@ def _check_session(conn: sqlite3.Connection, session: str, participant: int) -> 
         raise SessionRefused(f"session {session} was never started (api/start): reload the page")
     if row[0] != participant:
         raise SessionRefused(f"session {session} belongs to participant {row[0]}, not {participant}: reload the page")
-    if row[1] is not None:   # a panel's page: its number may have gone to another ID after half an hour (assign)
-        held = conn.execute("SELECT external_id FROM assignments WHERE participant = ?", (participant,)).fetchone()
-        if held is None or held[0] != row[1]:
-            raise SessionRefused("this page's place in the study went to another participant after half an hour "
-                                 "without consent: reload the page to take part")
+    held = conn.execute("SELECT external_id FROM assignments WHERE participant = ?", (participant,)).fetchone()
+    # a panel's page: its number may have gone to another ID after half an hour (assign); a number typed by hand
+    # likewise (a diff review: its reader consented after the number went to a panel's ID, and both held it)
+    if (row[1] is not None and (held is None or held[0] != row[1])) or (row[1] is None and held is not None):
+        raise SessionRefused("this page's place in the study went to another participant after half an hour "
+                             "without consent: reload the page to take part")
 
 
 def check_session(path: Path, session: str, participant: int) -> bool:

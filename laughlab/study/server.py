@@ -326,6 +326,9 @@ class StudyHandler(_Handler):
         self._key(p, body)
         if body.get("event") not in ("consent", "decline", "finish"):
             raise Refused(422, "event must be consent, decline or finish")
+        key = body.get("key")
+        if key is not None and (not isinstance(key, str) or not _KEY.fullmatch(key)):   # before anything is stored
+            raise Refused(422, "key must be 16-64 letters, digits, - or _")
         if body["event"] == "finish":
             self._consented(p, session)
             answered, n = len(DB.progress(self.db, p)[0]), len(entry["trials"])
@@ -336,10 +339,15 @@ class StudyHandler(_Handler):
         # the participant's key, given with their consent (and to the page that holds it): every later post carries it
         if not (agreed and body["event"] == "consent"):
             return 200, {}
-        key = body.get("key")
-        if key is not None and (not isinstance(key, str) or not _KEY.fullmatch(key)):
-            raise Refused(422, "key must be 16-64 letters, digits, - or _")
-        return 200, {"key": DB.participant_key(self.db, p, give=True, key=key)}
+        import secrets
+
+        offered = key or secrets.token_urlsafe(18)
+        stored = DB.participant_key(self.db, p, give=True, key=offered)
+        if stored != offered:
+            # two pages consenting at once (a diff review: the second was handed the first one's key)
+            raise Refused(403, f"participant {p} takes part in another browser or on another device: please go on "
+                               "there (tell the researcher if you cannot)")
+        return 200, {"key": stored}
 
 
 def files_of(study_dir: Path) -> dict[str, Path]:

@@ -360,8 +360,8 @@ class _Handler(SimpleHTTPRequestHandler):
     files: dict = {}
     #: what a 404 says is not part of (the study's server says "this study's page": a review read the viewer's words)
     served = "this run's viewer"
-    #: a client that sends nothing for this long is let go (a security review: 200 half-sent requests held 200
-    #: threads, and at the open-files limit the server refused everyone)
+    #: a client that sends nothing for this long while its request is read is let go (a security review: 200
+    #: half-sent requests held 200 threads, and at the open-files limit the server refused everyone)
     timeout = 60
     #: listening on this computer alone (127.0.0.1, ::1): only its own names are answered (:data:`LOOPBACK_NAMES`)
     loopback = False
@@ -417,8 +417,10 @@ class _Handler(SimpleHTTPRequestHandler):
             self.send_header("Content-Range", f"bytes {start}-{end}/{len(body)}")
         self.send_header("Cache-Control", "no-store")
         self.end_headers()
-        if not head:
+        if not head:   # no time limit on the answer (a slow link's video took more than a minute: it was cut off)
+            self.connection.settimeout(None)
             self.wfile.write(body[start:end + 1])
+            self.connection.settimeout(self.timeout)
 
     def log_message(self, *args):  # quiet: the command prints its one line
         pass
