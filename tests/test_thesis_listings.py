@@ -74,7 +74,7 @@ def test_listing_5_2(db):
     # Over 600 ticks the falloff (0.001 per tick) moves min and max 0.6 dB each: they never cross and maxAmp
     # never reaches laughlab's floor (set far below), so neither of our guards acts
     p = RmsParams(min_amp=-60.0, max_amp=-3.0, max_floor=-1e9)
-    blocks = blocks_at([10 ** (d / 20) for d in db])
+    blocks = blocks_at([10 ** (d / 10) for d in db])   # loudness d itself: 10 log10 of an RMS of 10^(d/10)
     got = run_extractor(p, blocks)
     want = T.listing_5_2([10 * math.log10(rms(b)) for b in blocks], -60.0, -3.0)
     assert got[:, 1] == pytest.approx(want, abs=1e-9)

@@ -13,8 +13,8 @@ with (Eq. 7) ``C_dur(d, d') = exp(|d - d'|) - 1`` and (Eq. 8)
 Units.  Durations are in seconds.  The pose features of the segments are
 key-joint positions in cm; :func:`c_cont` measures them in metres
 (``CONT_UNIT_CM = 100``), so C_cont is a squared distance in m^2 summed over the
-key joints.  Then a 0.3 s duration mismatch (C_dur 0.35) weighs about as much
-as a 20 cm jump of three joints (0.12 m^2), which keeps both terms in play at
+key joints.  Then a 0.3 s duration mismatch (C_dur 0.35) weighs about three
+times a 20 cm jump of three joints (0.12 m^2): the same order, which keeps both terms in play at
 the paper's kind of gamma; in cm^2 the continuity term would swamp the duration
 term for any gamma < 0.999.  The paper gives no units.
 
