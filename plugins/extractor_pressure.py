@@ -49,7 +49,9 @@ animator's knob.  Per frame:
    the first calls of a loud one up to 5 times the reference).  Known limit: after
    digital silence (a pre-roll of zeros, a dropout) or a fade-in the floor holds
    the silence's level until the window has passed it, so steady noise there
-   drives the torso for up to ``noise_window_s`` (a diff review).  A call of
+   drives the torso for up to ``noise_window_s`` (a diff review; restarting the
+   filter and the floor after exact zeros mended that but lost every call of a
+   noise-gated signal, whose calls each follow zeros).  A call of
    average height maps to ``reference_cmh2o`` times ``intensity``.
    ``floor_fraction`` (0.15; 0.3 before the noise floor, which clears the
    quiet between calls itself: chosen on the corpus' train split, where 0.3
@@ -143,8 +145,8 @@ class PressureParams:
 
     def __post_init__(self) -> None:
         check_range("cutoff_hz", self.cutoff_hz, 0, 1000, lo_open=True)
-        if not self.slope_cmh2o > 0 or self.slope_cmh2o == float("inf"):   # louder is more pressure
-            raise ValueError(f"slope_cmh2o must be a positive number (got {self.slope_cmh2o})")
+        if not 1e-9 <= self.slope_cmh2o < float("inf"):   # louder is more pressure (1e-320 divided by zero)
+            raise ValueError(f"slope_cmh2o must be a positive number from 1e-9 (got {self.slope_cmh2o})")
         check_range("intercept_cmh2o", self.intercept_cmh2o, -1e6, 1e6)
         check_range("reference_cmh2o", self.reference_cmh2o, 0, lo_open=True)
         check_range("floor_fraction", self.floor_fraction, 0, 1)
@@ -153,7 +155,7 @@ class PressureParams:
         check_range("intensity", self.intensity, 0)
         check_range("noise_window_s", self.noise_window_s, 0, 60, lo_open=True)
         check_range("peak_over_noise", self.peak_over_noise, 0, 1e6)
-        check_range("prior_weight", self.prior_weight, 0, lo_open=True)
+        check_range("prior_weight", self.prior_weight, 1e-6)
         check_range("peak_min_fraction", self.peak_min_fraction, 0, 1)
         check_range("valley_fraction", self.valley_fraction, 0, 1)
         check_range("mcs_full_cmh2o", self.mcs_full_cmh2o, 0, lo_open=True)

@@ -195,7 +195,7 @@ def test_outputs_finite_and_mcs_in_unit_interval(samples):
 def test_params_validate():
     for bad in (dict(cutoff_hz=0), dict(slope_cmh2o=0.0), dict(reference_cmh2o=0), dict(floor_fraction=1.0),
                 dict(intensity=-1), dict(slope_cmh2o=-1.0), dict(noise_window_s=0),
-                dict(peak_over_noise=-1)):
+                dict(peak_over_noise=-1), dict(slope_cmh2o=1e-320), dict(prior_weight=1e-320)):
         with pytest.raises(ValueError):
             PressureParams(**bad)
     with pytest.raises(ValueError):
