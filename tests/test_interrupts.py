@@ -218,3 +218,20 @@ def test_laughlabs_line_reaches_the_real_stderr_while_a_thread_silences_fd_2_aft
     finally:
         sys.stderr = sys.stderr.stream
     assert capfd.readouterr().err == "laughlab: error: interrupted\n"
+
+
+def test_another_threads_half_line_does_not_take_laughlabs_line_with_it():
+    """A diff review: the filter kept one partial line for every thread, so a library's unfinished write in another
+    thread glued itself to the front of laughlab's line, which was then dropped."""
+    import io
+    import threading
+
+    from laughlab.core.quiet import OwnLinesOnly
+
+    out = io.StringIO()
+    err = OwnLinesOnly(out)
+    t = threading.Thread(target=lambda: err.write("a library's half line "))
+    t.start()
+    t.join()
+    err.write("laughlab: error: interrupted\n")
+    assert out.getvalue() == "laughlab: error: interrupted\n"

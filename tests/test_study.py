@@ -1577,3 +1577,18 @@ def test_a_consents_key_and_a_number_typed_by_hand_hold_against_a_diff_reviews_c
         assert status == 409 and "went to another participant" in reply["error"]
     finally:
         srv.close()
+
+
+def test_a_number_typed_by_hand_is_held_from_its_first_page_load_not_renewed(study, tmp_path):
+    """A diff review: a script starting the page again every 29 minutes kept a number held for good."""
+    import sqlite3
+
+    from laughlab.study import db as DB
+
+    d = design_of(study)
+    db = DB.open_db(tmp_path / "r.sqlite", d, "people")
+    DB.session_event(db, "first", 3, "start")
+    with sqlite3.connect(db) as con:
+        con.execute("UPDATE sessions SET started_at = '2026-01-01T00:00:00.000Z' WHERE session = 'first'")
+    DB.session_event(db, "again", 3, "start")   # a minute ago, say
+    assert DB.assign(db, "panel-id", [3], hold_s=60) == 3

@@ -104,14 +104,20 @@ class OwnLinesOnly:
     fuzz case's SIGHUP, three lines before the one)."""
 
     def __init__(self, stream):
-        self.stream, self._line = stream, ""
+        self.stream = stream
+        self._lock = threading.Lock()   # a thread's partial line does not glue to another's (a diff review)
+        self._partial: dict = {}
 
     def write(self, text: str) -> int:
-        self._line += text
-        *lines, self._line = self._line.split("\n")
-        for line in lines:
-            if line.startswith("laughlab:"):
-                self.stream.write(line + "\n")
+        me = threading.get_ident()
+        with self._lock:
+            line = self._partial.pop(me, "") + text
+            *lines, rest = line.split("\n")
+            if rest:
+                self._partial[me] = rest
+            for line in lines:
+                if line.startswith("laughlab:"):
+                    self.stream.write(line + "\n")
         return len(text)
 
     def flush(self) -> None:

@@ -305,7 +305,8 @@ def assign(path: Path, external_id: str, numbers: list[int], hold_s: float = HOL
                 "WHERE consent_at IS NOT NULL")}
             # a number typed by hand (no panel ID) is held as a panel's is: for half an hour without consent (a
             # security review: 24 page loads by hand took every place from the panel for good)
-            for p, at in conn.execute("SELECT participant, MAX(started_at) FROM sessions WHERE external_id IS NULL "
+            # from its first page load: a script starting again every 29 minutes does not renew it (a diff review)
+            for p, at in conn.execute("SELECT participant, MIN(started_at) FROM sessions WHERE external_id IS NULL "
                                       "GROUP BY participant").fetchall():
                 if (now - datetime.fromisoformat(at.replace("Z", "+00:00"))).total_seconds() <= hold_s:
                     taken.add(p)
