@@ -212,16 +212,23 @@ class EnergyScheduler(Scheduler):
         p, dt = self.params, frame.dt
         L = self._produce(energy_drive(frame.control), dt, p.floor_zero)
         allowed = clip_allowed(frame.control)
+        # the playing clip first: it consumes its tick, or ends on it (a fidelity review, 2026-11-29: constraint 2
+        # read its energy from before the tick, so a clip ending on it still blocked that tick's candidates)
+        consumed, was_active = 0.0, None
+        for a in self.actions:
+            if a.active:
+                was_active = a
+                if not self._finish_if_done(a, frame):
+                    consumed = a.energy * a.speed / a.duration_s * dt
+                    L -= consumed
+                a.inactive_s = 0.0
         active = self.active
         limit = active.energy * p.overrule_c if active is not None else 0.0
         min_inactive = p.min_inactive_s
         best_e = -1.0
         best: list[_Action] = []
         for a in self.actions:
-            if a.active:
-                if not self._finish_if_done(a, frame):
-                    L -= a.energy * a.speed / a.duration_s * dt
-                a.inactive_s = 0.0
+            if a is was_active:
                 continue
             if allowed and L > a.energy and a.energy > limit and a.inactive_s > min_inactive:
                 if a.energy > best_e:
@@ -232,7 +239,9 @@ class EnergyScheduler(Scheduler):
         if best:
             chosen = best[0] if len(best) == 1 else best[int(self.ctx.rng.integers(len(best)))]
             self._start(chosen, frame)
-            L -= chosen.energy * chosen.speed / chosen.duration_s * dt  # it plays from this frame
+            # it plays from this frame, and the clip it overrules gives its tick back: Eq. 4.1 subtracts one clip's
+            # e(a)/l(a) a step (both consumed on the overrule tick: 0.83 of a step where the equation has 0.92)
+            L += consumed - chosen.energy * chosen.speed / chosen.duration_s * dt
         if p.floor_zero and L < 0.0:
             L = 0.0
         return L

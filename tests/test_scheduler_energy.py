@@ -228,3 +228,29 @@ def test_listing_reads_the_active_energy_per_action():
         assert start_b in (stop_a, stop_a + 1)
         same_tick.add(start_b == stop_a)
     assert same_tick == {True, False}
+
+
+def test_on_the_overrule_tick_only_the_new_clip_consumes():
+    """Eq. 4.1 subtracts one clip's e(a)/l(a) a step (a fidelity review: the overruled clip and the new one both
+    consumed on the overrule tick).  a (e 5, 1 s) starts at frame 5, b (e 10, 2 s) overrules it at frame 10
+    (c = 1.5, speeds 1); by hand the energy's step on frame 10 is 1 (the MCS, gain 60/s at 60 fps) - 10/2/60 =
+    0.916667, where both consuming gave 1 - 5/60 - 10/120 = 0.833333."""
+    clips = [FakeClip("a", 5.0, 1.0), FakeClip("b", 10.0, 2.0)]
+    frames = drive(make(clips, overrule_c=1.5, speed_min=1.0, speed_max=1.0), [1.0] * 12)
+    assert events(frames)[:3] == [(5, "start", "a", ""), (10, "stop", "a", "overruled"), (10, "start", "b", "")]
+    energy = [f.channels["energy"] for f in frames]
+    assert energy[10] - energy[9] == pytest.approx(1.0 - 10.0 / 2.0 / 60.0)
+    assert energy[9] - energy[8] == pytest.approx(1.0 - 5.0 / 1.0 / 60.0)   # a alone before
+
+
+def test_a_clip_ending_on_a_tick_does_not_block_that_ticks_candidates():
+    """Constraint 2 reads the clip playing after this tick's end (a fidelity review: a clip finishing on tick 7 still
+    blocked b on it, b started on the tick after).  a (e 2, 0.1 s) from frame 2; b (e 3 < 2 x c = 4) cannot overrule
+    it, and starts on the tick a ends."""
+    clips = [FakeClip("a", 2.0, 0.1), FakeClip("b", 3.0, 1.0)]
+    s = make(clips, overrule_c=2.0, speed_min=1.0, speed_max=1.0, min_inactive_s=100.0)
+    s.actions[[x.name for x in s.actions].index("b")].inactive_s = 200.0   # b may start; a restarts never
+    s.actions[[x.name for x in s.actions].index("a")].inactive_s = 200.0
+    ev = events(drive(s, [1.0] * 14))
+    # a ends on frame 9 (six steps of 1/60 s sum to just under 0.1 s, so the seventh ends it), and b starts there
+    assert ev[:3] == [(2, "start", "a", ""), (9, "stop", "a", "finished"), (9, "start", "b", "")], ev
