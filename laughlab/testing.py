@@ -174,7 +174,8 @@ def _check_frames(kind: str, frames: list, clips, skeleton) -> list[str]:
             j = out[0]
             bad.append(f"{c} is {vals[j]} at frame {j}: a weight in [0, 1]")
     if kind == "detector":   # laugh_gate alone gates nothing: the character laughed on (a plugin author's review)
-        num = lambda v: isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)  # noqa: E731
+        from laughlab.core.blame import one_number as num
+
         shut = [f for f in frames if num(f.control.get("laugh_gate", 1.0)) and f.control["laugh_gate"] < 0.5
                 and "mcs_ungated" not in f.control and num(f.control.get("mcs", 0.0)) and f.control["mcs"] > 0.0]
         if shut:

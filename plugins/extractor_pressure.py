@@ -209,8 +209,13 @@ class PressureExtractor(Extractor):
         """Running mean of the peak heights of the excess over the noise floor, with ``prior_weight`` peaks of the
         highest excess so far (at least ``peak_over_noise`` times the noise floor) as the prior."""
         p = self.params
-        prior = max(self.top, p.peak_over_noise * (self.noise - p.intercept_cmh2o), SILENCE * p.slope_cmh2o)
-        return (p.prior_weight * prior + self.peak_sum) / (p.prior_weight + self.peak_count)
+        return (p.prior_weight * max(self.top, self._least()) + self.peak_sum) / (p.prior_weight + self.peak_count)
+
+    def _least(self) -> float:
+        """The least a peak or the prior is: ``peak_over_noise`` times the noise floor (less the fit's intercept),
+        and never under :data:`SILENCE`."""
+        p = self.params
+        return max(p.peak_over_noise * (self.noise - p.intercept_cmh2o), SILENCE * p.slope_cmh2o)
 
     def _floor(self, raw: float) -> float:
         """The noise floor: the lowest ``pressure_raw`` of the last ``noise_window_s`` (a monotonic queue)."""
@@ -239,9 +244,7 @@ class PressureExtractor(Extractor):
         p2, p1 = self._prev
         if not self.armed and raw < p.valley_fraction * self.last_peak:
             self.armed = True
-        if self.armed and p1 > p2 and p1 >= raw and p1 > max(p.peak_min_fraction * self.mean_peak,
-                                                              p.peak_over_noise * (self.noise - p.intercept_cmh2o),
-                                                              SILENCE * p.slope_cmh2o):
+        if self.armed and p1 > p2 and p1 >= raw and p1 > max(p.peak_min_fraction * self.mean_peak, self._least()):
             self.peak_sum += p1
             self.peak_count += 1.0
             self.last_peak = p1

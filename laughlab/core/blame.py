@@ -177,6 +177,12 @@ def first_step(kind: str, plugin, *args) -> None:
                         f"{kind}'s {want} ({exc}): docs/architecture.md, 'Writing a plugin'") from None
 
 
+def one_number(v) -> bool:
+    """A plain number (int, float, or a numpy scalar or 0-d array of one), not a bool, a text or an array."""
+    return not isinstance(v, bool) and (isinstance(v, (int, float)) or (
+        hasattr(v, "dtype") and getattr(v, "ndim", 1) == 0 and v.dtype.kind in "fiu"))
+
+
 def check_extractor(control: dict, extractor, writers: dict | None = None) -> None:
     """On a run's first frame: the extractor wrote ``control['mcs']``, which the detectors, schedulers, bodies and
     faces read (docs/architecture.md, "Writing a plugin").  An extractor without it stopped the run in the next
@@ -188,8 +194,7 @@ def check_extractor(control: dict, extractor, writers: dict | None = None) -> No
                         f"frame 0 (it wrote {wrote}): every extractor writes frame.control['mcs'] (0-1), the signal "
                         "the detector, scheduler, body and face read; nothing was written")
     mcs = control["mcs"]
-    if isinstance(mcs, bool) or not isinstance(mcs, (int, float)) and not (
-            hasattr(mcs, "dtype") and getattr(mcs, "ndim", 1) == 0 and mcs.dtype.kind in "fiu"):
+    if not one_number(mcs):
         cls = type(extractor)
         shape = f", shape {mcs.shape}" if hasattr(mcs, "shape") else ""
         raise PluginBug(f"extractor '{extractor.name}' ({_source_file(cls)}, {cls.__name__}.step) wrote mcs as "
@@ -210,11 +215,9 @@ def check_detector(control: dict, detector, writers: dict | None = None) -> None
                         "frame.control['laughter'] and ['laugh_gate'] (0-1) and gates the driving signals with "
                         "laughlab.detector.model.apply_gate(frame, gain) (docs/architecture.md); nothing was written")
     for k in ("laughter", "laugh_gate"):
-        v = control[k]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) and not (
-                hasattr(v, "dtype") and getattr(v, "ndim", 1) == 0 and v.dtype.kind in "fiu"):
-            raise PluginBug(f"{where} wrote {k} as {type(v).__name__} at frame 0: one number a frame, 0-1; nothing "
-                            "was written")
+        if not one_number(control[k]):
+            raise PluginBug(f"{where} wrote {k} as {type(control[k]).__name__} at frame 0: one number a frame, 0-1; "
+                            "nothing was written")
     if writers is not None:
         for k in ("laughter", "laugh_gate", "clip_gate"):
             if k in control:

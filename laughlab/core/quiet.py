@@ -48,7 +48,7 @@ def say(line: str) -> None:
     """Print ``line`` on stderr; while fd 2 is silenced (another thread building an interpreter), on the real one
     (a review: an error line printed in that window was lost)."""
     with _STATE["lock"]:
-        err = getattr(sys.stderr, "stream", sys.stderr) if isinstance(sys.stderr, OwnLinesOnly) else sys.stderr
+        err = sys.stderr.stream if isinstance(sys.stderr, OwnLinesOnly) else sys.stderr
         if _STATE["depth"] and _STATE["saved"] is not None and err is sys.__stderr__:
             sys.stderr.flush()
             os.write(_STATE["saved"], (line + "\n").encode(errors="replace"))

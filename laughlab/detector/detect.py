@@ -22,7 +22,7 @@ from pathlib import Path
 from laughlab.core.errors import LaughlabError, number_word, one_line_parser, shown_names
 from laughlab.core.interrupts import deferred
 from laughlab.core.outfiles import edited_since, read_record, record_text, remove, unwrite
-from laughlab.core.summary import duration_text, factor_text
+from laughlab.core.summary import counted, duration_text, factor_text
 from laughlab.io.audio import AUDIO_SUFFIXES
 
 FORMATS = ("csv", "audacity", "textgrid", "elan", "audio")
@@ -277,7 +277,7 @@ def main(argv: list[str]) -> None:
         durations[name] = info.frames / info.samplerate
         total_s += durations[name]
     if bad and not ns.skip_unreadable:   # every one in the line, not the first alone (a review)
-        raise LaughlabError(f"{len(bad)} input{'s' if len(bad) > 1 else ''} cannot be read: "
+        raise LaughlabError(f"{counted(len(bad), 'input')} cannot be read: "
                             + "; ".join(str(exc) for _, exc in bad[:5]) + ("; ..." if len(bad) > 5 else "")
                             + " (--skip-unreadable leaves such files out)")
     for name, exc in bad:
@@ -362,12 +362,12 @@ def main(argv: list[str]) -> None:
         done = sorted(rel(written) | rel(kept_old))
         S.atomic_write(out / MANIFEST, record_text(out, done))
     wall = time.perf_counter() - t0
-    read = set(S.output_names([r[0] for r in results], FORMATS)) | set(S.clip_names(results, ("audio",)))
+    read = set(S.output_names([r[0] for r in results], FORMATS))   # and their clips, any number of them
     others = sorted(n for n in rel(dropped) if n not in read and not any(
         n.startswith(f"{r[0]}_laugh_") for r in results))
     if others:   # a review: a run of one recording into a batch's folder removed the other recordings' files unsaid
-        print(f"laughlab: --overwrite removed {len(others)} file{'s' if len(others) > 1 else ''} an earlier detect "
-              f"wrote into {out} for recordings this run did not read ({shown_names(others)})", file=sys.stderr)
+        print(f"laughlab: --overwrite removed {counted(len(others), 'file')} an earlier detect wrote into {out} for "
+              f"recordings this run did not read ({shown_names(others)})", file=sys.stderr)
     print(summary_line(results, gone, wall, out)
           + DS.score_summary(score_rows, sum(r[0] not in truths for r in results)))
 

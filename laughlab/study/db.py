@@ -73,6 +73,11 @@ def utc_now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
+def _age_s(at: str, now: datetime) -> float:
+    """Seconds from ``at`` (a :func:`utc_now` stamp) to ``now``."""
+    return (now - datetime.fromisoformat(at.replace("Z", "+00:00"))).total_seconds()
+
+
 def connect(path: Path) -> sqlite3.Connection:
     conn = sqlite3.connect(str(path), timeout=30, isolation_level=None)
     conn.execute("PRAGMA journal_mode=WAL")
@@ -297,7 +302,7 @@ def assign(path: Path, external_id: str, numbers: list[int], hold_s: float = HOL
                                     "WHERE participant = ? AND external_id = ?", (p, ext)).fetchone()
                 if mine[0]:
                     continue
-                old = (now - datetime.fromisoformat(at.replace("Z", "+00:00"))).total_seconds() > hold_s
+                old = _age_s(at, now) > hold_s
                 if mine[1] or old:
                     conn.execute("DELETE FROM assignments WHERE external_id = ?", (ext,))
             taken = {r[0] for r in conn.execute(
@@ -308,7 +313,7 @@ def assign(path: Path, external_id: str, numbers: list[int], hold_s: float = HOL
             # from its first page load: a script starting again every 29 minutes does not renew it (a diff review)
             for p, at in conn.execute("SELECT participant, MIN(started_at) FROM sessions WHERE external_id IS NULL "
                                       "GROUP BY participant").fetchall():
-                if (now - datetime.fromisoformat(at.replace("Z", "+00:00"))).total_seconds() <= hold_s:
+                if _age_s(at, now) <= hold_s:
                     taken.add(p)
             free = next((n for n in numbers if n not in taken), None)
             if free is not None:

@@ -108,8 +108,6 @@ def line(doc: dict) -> str:
 def order_rows(df, excluded: dict) -> dict[int, list[int]]:
     """Latin-square row -> [included participants, participants] (a statistician's review: excluding two of a
     row's three moved the contrasts by 0.1 with no order effect in the model, and nothing showed the imbalance)."""
-    import pandas as pd
-
     rows: dict[int, list[int]] = {}
     for p, r in df.groupby("participant")["order_row"].first().items():
         if not pd.isna(r):

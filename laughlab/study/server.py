@@ -107,6 +107,12 @@ def _time(body: dict, key: str) -> str | None:
     return v
 
 
+def _elsewhere(p: int) -> Refused:
+    """403: participant ``p``'s key is another browser's."""
+    return Refused(403, f"participant {p} takes part in another browser or on another device: please go on there "
+                        "(tell the researcher if you cannot)")
+
+
 def _keys(body: dict, allowed: set[str]) -> None:
     extra = sorted(set(body) - allowed)
     if extra:
@@ -123,17 +129,13 @@ class StudyHandler(_Handler):
     _lock = threading.Lock()
 
     # -- plumbing ---------------------------------------------------------------------------------------------------
-    def do_GET(self):  # noqa: N802 - http.server's name
-        if self.path.startswith("/api/"):
-            self._reply(405, {"error": "the study's endpoints take POST"})
-            return
-        super().do_GET()
-
-    def do_HEAD(self):  # noqa: N802
-        if self.path.startswith("/api/"):
+    def _send(self, head: bool = False) -> None:   # GET and HEAD
+        if not self.path.startswith("/api/"):
+            super()._send(head)
+        elif head:
             self.send_error(405)
-            return
-        super().do_HEAD()
+        else:
+            self._reply(405, {"error": "the study's endpoints take POST"})
 
     def do_POST(self):  # noqa: N802
         route = self.path.split("?", 1)[0].lstrip("/")
@@ -217,8 +219,7 @@ class StudyHandler(_Handler):
         """Refuse a post for ``p`` without the key their browser was given when they consented (403)."""
         key = DB.participant_key(self.db, p)
         if key is not None and body.get("key") != key:
-            raise Refused(403, f"participant {p} takes part in another browser or on another device: please go on "
-                               "there (tell the researcher if you cannot)")
+            raise _elsewhere(p)
 
     def _consented(self, p: int, session: str) -> None:
         if not DB.check_session(self.db, session, p):
@@ -306,8 +307,8 @@ class StudyHandler(_Handler):
         if not isinstance(attempts, list) or not 1 <= len(attempts) <= n or \
                 not all(isinstance(a, str) and len(a) <= 64 and "|" not in a for a in attempts):
             raise Refused(422, f"attempts must be 1..{n} texts of at most 64 characters")
-        for k in range(len(attempts)):
-            _text({"attempt": attempts[k]}, "attempt", 64)
+        for a in attempts:   # and valid text (a lone surrogate)
+            _text({"attempt": a}, "attempt", 64)
         word = self.design["audio_check"]["files"][entry["audio_check"]]["answer"]
         passed = normalise_word(attempts[-1]) == normalise_word(word)
         row = {"participant": p, "order_row": entry["order_row"], "trial": 0, "stimulus": "", "condition": "",
@@ -343,10 +344,8 @@ class StudyHandler(_Handler):
 
         offered = key or secrets.token_urlsafe(18)
         stored = DB.participant_key(self.db, p, give=True, key=offered)
-        if stored != offered:
-            # two pages consenting at once (a diff review: the second was handed the first one's key)
-            raise Refused(403, f"participant {p} takes part in another browser or on another device: please go on "
-                               "there (tell the researcher if you cannot)")
+        if stored != offered:   # two pages consenting at once (a diff review: the second was handed the first one's key)
+            raise _elsewhere(p)
         return 200, {"key": stored}
 
 

@@ -97,13 +97,14 @@ async def participant(browser, url: str, design: dict, p: int, answer, keyboard:
         await page.goto(f"{url.rstrip('/')}/index.html?participant={p}")
         first = await page.wait_for_selector("button:has-text('I agree'), button:has-text('Go on'), "
                                              "#jspsych-instructions-next, #study-screened-out, .study-fatal")
+        first_id, text = await first.get_attribute("id"), (await first.inner_text()).strip()
         if "study-fatal" in (await first.get_attribute("class") or ""):   # refused (another browser's participant)
-            given.status, given.refused = (await first.inner_text()).strip(), True
+            given.status, given.refused = text, True
             return given
-        if await first.get_attribute("id") == "study-screened-out":   # back after a failed sound check
+        if first_id == "study-screened-out":   # back after a failed sound check
             pass
-        elif await first.get_attribute("id") == "jspsych-instructions-next" or "agree" in (await first.inner_text()):
-            if "agree" in (await first.inner_text()):   # not asked again by the server after an earlier consent
+        elif first_id == "jspsych-instructions-next" or "agree" in text:
+            if "agree" in text:   # not asked again by the server after an earlier consent
                 await _click_or_key(page, keyboard, "Enter", "button:has-text('I agree')")
             for _ in design["instructions"]:
                 await page.wait_for_selector("#jspsych-instructions-next")

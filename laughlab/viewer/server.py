@@ -437,8 +437,7 @@ def http_server(files: dict, port: int = DEFAULT_PORT, base: type = None, host: 
     (a free port if that one is taken); ``base`` a subclass of the handler adding routes, ``attrs`` its
     class attributes (also used by ``laughlab.study.server``); ``flag``: how the user set the host, for the
     error line (``output.viewer.host=`` for the live viewer)."""
-    handler = type("Handler", (base or _Handler,), {"files": files, "loopback": host in ("127.0.0.1", "::1", "localhost"),
-                                                    **attrs})
+    handler = type("Handler", (base or _Handler,), {"files": files, "loopback": host in LOOPBACK_NAMES, **attrs})
     handler.extensions_map = {**SimpleHTTPRequestHandler.extensions_map, ".js": "text/javascript",
                               ".glb": "model/gltf-binary", ".json": "application/json", ".wav": "audio/wav",
                               ".mp4": "video/mp4", ".css": "text/css"}

@@ -35,7 +35,7 @@
   function loadLocal(p) {
     try { return JSON.parse(localStorage.getItem(storeKey(p)) || "[]"); } catch (e) { return []; }
   }
-  const keyName = (p) => `laughlab-study-${S.id}-p${p}-key`;
+  const keyName = (p) => storeKey(p) + "-key";
   function keepKey(key) {   // the key of this browser's participant: kept for a reload, sent with every post
     state.key = key;
     try { localStorage.setItem(keyName(state.p), key); } catch (e) { /* private mode: this page's life only */ }
@@ -247,9 +247,12 @@
 
   // after the last wrong try of the sound check (audio_check.on_fail: end): the study ends there, with thanks and
   // the panel's screen-out link (a review: it had gone on through every video, whose answers were then excluded)
+  function returnLink(url) {   // back to the recruitment site (decline_url, screened_out_url), or ""
+    return url ? `<p><a class="jspsych-btn study-link" href="${esc(url)}">Return to the recruitment site</a></p>` : "";
+  }
+
   function screenedOut() {
-    const back = S.screened_out_url ? `<p><a class="jspsych-btn study-link" href="${esc(S.screened_out_url)}">` +
-      "Return to the recruitment site</a></p>" : "";
+    const back = returnLink(S.screened_out_url);
     return `<div class="study-text" id="study-screened-out"><h1>Thank you</h1><p role="status">The sound check ` +
       "could not confirm that you hear the videos' sound, which this study needs, so it ends here. Thank you for " +
       `your time; ${back ? "please return to the recruitment site:" : "you may close this page."}</p>${back}</div>`;
@@ -365,8 +368,7 @@
           send("api/event", {participant: Number(p), session: session, event: agree ? "consent" : "decline"},
                (r) => { if (r.status === 409 && r.data && r.data.error) fatal(r.data.error); });
           // a panel's participant returns the study there (decline_url: e.g. Prolific's no-consent code)
-          const back = S.decline_url ? `<p><a class="jspsych-btn study-link" href="${esc(S.decline_url)}">` +
-            "Return to the recruitment site</a></p>" : "";
+          const back = returnLink(S.decline_url);
           if (!agree) jsPsych.abortExperiment(`<p>You chose not to take part. Thank you; ${back ? "please return " +
             "the study on the recruitment site:" : "you may close this page."}</p>${back}`);
         },
