@@ -108,19 +108,14 @@ def run_frames(cls: type, params=None, *, seconds: float = 4.0, seed: int = 0, f
     ext, det, sch, body, face = stages
     frames = []
     audio = _audio(seconds, sample_rate, seed)
-    first = Stepper(ext, det, sch, body, face, mixer)
+    stepper = Stepper(ext, det, sch, body, face, mixer)
     try:
         for k, block in enumerate(cut_frames([audio], sample_rate, fps)):
             frame = Frame(k, k / fps, 1.0 / fps, {}, None, {}, {}, [], 0.0)
             if k == 0:   # as a run's first frame: a step of the wrong signature, an extractor without mcs, one line
-                first.checked(block, frame, warn=False)
+                stepper.checked(block, frame, warn=False)
             else:
-                ext.step(block, frame)
-                det.step(block, frame)
-                sch.step(frame)
-                mixer.advance(frame)   # a clip the library lacks: the run's line
-                body.step(frame)
-                face.step(frame)
+                stepper.step(block, frame)   # the mixer's advance: a clip the library lacks, the run's line
             mixer.note(frame)
             frames.append(frame)
         mixer.take()               # a joint the skeleton lacks: the run's line

@@ -46,6 +46,16 @@ class Stepper:
         if warn:
             blame.warn_clashes(watched)
 
+    def step(self, block, frame) -> None:
+        """One frame's steps in their order, untimed (``laughlab.testing.run_frames``; a run's fast loop steps the
+        same through bound methods)."""
+        self.ext.step(block, frame)
+        self.det.step(block, frame)
+        self.sch.step(frame)
+        self.mixer.advance(frame)
+        self.body.step(frame)
+        self.face.step(frame)
+
     def timed(self, block, frame) -> None:
         """One frame's steps as the fast loop takes them, each stage's time kept (ns)."""
         clock, ns = time.perf_counter_ns, self.ns
