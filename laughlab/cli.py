@@ -329,6 +329,9 @@ def main(argv: list[str] | None = None) -> None:
         if not interrupts.interrupted(exc):
             raise
         fail("interrupted", code=130)
+    finally:   # Hydra's record of the job, cleared as a process' end would: in-process, the next call's
+        from hydra.core.hydra_config import HydraConfig   # experiment repeated this one's overrides (a CI flake)
+        HydraConfig.instance().cfg = None
 
 
 def _main(argv: list[str]) -> None:

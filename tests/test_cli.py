@@ -883,3 +883,22 @@ def test_cfg_job_with_a_mistyped_key_is_one_line_as_a_run(tmp_path):
                                                   "chest_gain, belly_gain, chest_offset, belly_offset\n"), bad.stderr
     good = laughlab("face=facs", "~output.plots", "--cfg", "job", cwd=tmp_path)
     assert good.returncode == 0 and "name: facs" in good.stdout and "plots:" not in good.stdout, good.stderr
+
+
+def test_a_command_called_in_process_leaves_no_overrides_to_the_next_experiment(registered, tmp_path):
+    """A clean clone's CI: after ``main([... '~output.plots' ...])`` in the same process, Hydra still held that
+    job's overrides, so the next experiment run from Python repeated them in its runs (fourier_blend lost its
+    Fig. 4.2).  Each way out of ``main`` (a job, ``--cfg job``, an error) leaves none."""
+    from hydra.core.hydra_config import HydraConfig
+
+    from laughlab.core.config import compose_config
+    from laughlab.harness.experiment import _task_overrides
+    from laughlab_experiments import fourier_blend
+
+    for args in (("face=facs", "~output.plots", "--cfg", "job"), ("~output.plots", "input.duration_s=1",
+                 f"hydra.run.dir={tmp_path / 'run'}"), ("~output.plots", "body.bogus=1")):
+        laughlab(*args, cwd=tmp_path)
+        assert not HydraConfig.initialized() and _task_overrides() == [], args
+    cfg = compose_config(["experiment=fourier_blend", "harness.corpus.duration_s=1"])
+    fourier_blend.run(cfg, tmp_path / "exp")
+    assert (tmp_path / "exp" / "plots" / "fig4_2_energy.png").is_file()
