@@ -319,6 +319,7 @@ def main(argv: list[str] | None = None) -> None:
     global _STARTED, _STARTED_AS_PROCESS
     interrupts.install()  # SIGTERM cleans up as Ctrl-C does
     interrupts.reset()
+    quiet.closed_streams_to_devnull()
     _STARTED_AS_PROCESS = argv is None
     _STARTED = clock.process_start() if argv is None else time.monotonic()  # argv given: called in-process
     try:

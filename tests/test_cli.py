@@ -573,6 +573,15 @@ def test_output_piped_into_a_reader_that_stops_ends_quietly(argv):
     assert p.wait(timeout=120) == 0 and err == "", err
 
 
+def test_a_closed_standard_output_or_error_is_no_traceback(tmp_path):
+    """``--cfg job >&-`` (stdout closed: Python's ``sys.stdout`` is None) printed three tracebacks and exit 1; what
+    would have gone there goes nowhere, as ``print`` drops it, and a mistake's exit code still says it."""
+    sh = f"cd {tmp_path} && {sys.executable} -m laughlab"
+    shown = subprocess.run(["sh", "-c", f"{sh} --cfg job >&-; echo $?; {sh} bogus=1 2>&- ; echo $?"],
+                           capture_output=True, text=True, timeout=120)
+    assert shown.stdout.split() == ["0", "2"] and shown.stderr == "", shown.stderr
+
+
 @pytest.mark.parametrize("args, says", [
     (["+fsp=30"], "unknown setting 'fsp': + adds a key that nothing reads"),        # a typo of fps, was ignored
     (["+foo.bar=1"], "unknown setting 'foo.bar'"),

@@ -71,6 +71,14 @@ def stdout_gone() -> None:
     to_devnull(sys.stdout.fileno())
 
 
+def closed_streams_to_devnull() -> None:
+    """A standard stream the caller closed (``2>&-``, ``>&-``: Python's ``sys.stdout`` is None) takes writes into
+    /dev/null, as ``print`` drops them (``--cfg job >&-`` printed three tracebacks and exit 1)."""
+    for name in ("stdout", "stderr"):
+        if getattr(sys, name) is None:
+            setattr(sys, name, open(os.devnull, "w", encoding="utf-8"))  # noqa: SIM115 - for the process' life
+
+
 class PipeMayClose:
     """``sys.stdout`` where Hydra writes (``--info``, ``--cfg job``, a sweep's lines): once the reader has gone
     (``... | head``) the rest goes nowhere, silently (Hydra's ``--info`` printed 2,284 lines of logging's tracebacks,
