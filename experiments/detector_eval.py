@@ -188,27 +188,26 @@ def extra(run) -> dict:
     lines = curves(run.conditions)
     if not items or not lines:
         return {}
-    wanted = {(d, own) for _, d, own, _, _ in lines}
-    own = sorted(w for w in wanted if w[0] not in {d for d, _, _ in SCORES.values()})
-    for w in own:   # a plugin's detector stepped alone (control: mcs 0 only) that cannot be: said, no curve
+    paths = [next(o.split("=", 1)[1] for o in i.overrides if o.startswith("input.path=")) for i in items]
+    first = {}   # the first recording's scores, each detector stepped over it once
+    for w in sorted({(d, own) for _, d, own, _, _ in lines}):
         try:
-            frame_scores(w[0], next(o.split("=", 1)[1] for o in items[0].overrides if o.startswith("input.path=")),
-                         overrides=w[1])
-        except Exception as exc:  # noqa: BLE001 - a plugin's own code
+            first[w] = frame_scores(w[0], paths[0], overrides=w[1])
+        except Exception as exc:  # noqa: BLE001 - a plugin's own code stepped alone (frame.control: mcs 0 only)
+            if w[0] in {d for d, _, _ in SCORES.values()}:
+                raise
             print(f"laughlab: warning: detector_eval: no PR curve of detector={w[0]}: stepped alone over a recording "
                   f"(frame.control holds mcs 0 only) it raised {type(exc).__name__}: {exc}", file=sys.stderr)
-            wanted.discard(w)
-    lines = [ln for ln in lines if (ln[1], ln[2]) in wanted]
+    lines = [ln for ln in lines if (ln[1], ln[2]) in first]
     if not lines:
         return {}
     pooled: dict = {name: [] for name, *_ in lines}
     ys = []
-    for item in items:
-        path = next(o.split("=", 1)[1] for o in item.overrides if o.startswith("input.path="))
-        got = {w: frame_scores(w[0], path, overrides=w[1]) for w in sorted(wanted)}
+    for k, path in enumerate(paths):
+        got = first if k == 0 else {w: frame_scores(w[0], path, overrides=w[1]) for w in first}
         dt = next(iter(got.values()))[1]
         n = len(next(iter(got.values()))[0]["laughter"])
-        ys.append(truth_frames(item.truth, n, dt))
+        ys.append(truth_frames(items[k].truth, n, dt))
         for name, d, own, key, _ in lines:
             pooled[name].append(got[(d, own)][0][key])
     y = np.concatenate(ys)

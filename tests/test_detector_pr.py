@@ -71,3 +71,37 @@ def test_a_detector_of_ones_own_is_drawn_with_its_threshold(tmp_path):
     fig, out = pr_figure({"modlaugh": y * 0.9 + 0.05}, y, thresholds={"modlaugh": 0.5})
     assert out["scores"]["modlaugh"]["at_gate_threshold"] == {"threshold": 0.5, "precision": 1.0, "recall": 1.0}
     assert out["scores"]["modlaugh"]["average_precision"] == 1.0
+
+
+def test_each_detector_is_stepped_over_each_recording_once_and_a_plugin_that_cannot_be_is_said(tmp_path, monkeypatch,
+                                                                                                capsys):
+    """The last session's note: a plugin's detector was stepped over the first recording twice (a probe, then the
+    curve); a plugin that raises stepped alone is one warning and no curve, the others drawn."""
+    from types import SimpleNamespace
+
+    from omegaconf import OmegaConf
+
+    import laughlab_experiments.detector_eval as de
+
+    calls = []
+
+    def scores(det, path, fps=60.0, overrides=()):
+        calls.append((det, path, overrides))
+        if det == "broken":
+            raise KeyError("mcs_raw")
+        return {"laughter": np.linspace(0, 1, 40), "laughter_classes": np.linspace(1, 0, 40)}, 1 / 60
+
+    monkeypatch.setattr(de, "frame_scores", scores)
+    monkeypatch.setattr(de, "truth_frames", lambda truth, n, dt: np.arange(n) >= n // 2)
+    items = [SimpleNamespace(truth=f"t{k}.json", profile="real", overrides=[f"input.path=r{k}.wav"]) for k in range(3)]
+    run = SimpleNamespace(items=items, out_dir=tmp_path, cfg=OmegaConf.create({}),
+                          conditions={"y": ["detector=yamnet"], "mine": ["detector=modlaugh"],
+                                      "b": ["detector=broken"]})
+    out = de.extra(run)["detector_pr"]
+    assert sorted(calls) == sorted([(d, f"r{k}.wav", ()) for d in ("yamnet", "modlaugh") for k in range(3)] +
+                                   [("broken", "r0.wav", ())])
+    assert sorted(out["scores"]) == ["modlaugh", "yamnet (head)", "yamnet classes"]
+    assert out["scores"]["modlaugh"]["average_precision"] == 1.0   # the rising score on the second half's truth
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no PR curve of detector=broken" in err and "KeyError" in err
+    assert (tmp_path / "plots" / "detector_pr.png").is_file()
