@@ -28,6 +28,7 @@ def _plugins_dir_unloaded():
     """Plugins a test loads from a ``plugins_dir`` outside the command line (a ``Session``, ``load_plugin_dirs``) are
     unloaded after it, as a process' end would, as ``fuzz.run_cli`` does for the command line: test_session's
     ``boom`` extractor was listed among another file's choices in the same worker (a clean clone's run)."""
+    from laughlab.core import own_experiments
     from laughlab.core.plugins import pm
 
     before = {name for name, _ in pm.list_name_plugin()}
@@ -36,6 +37,7 @@ def _plugins_dir_unloaded():
         if name not in before and name.startswith("laughlab_local_plugins."):
             pm.unregister(plugin)
             sys.modules.pop(name, None)
+    own_experiments.forget_plugins_dirs()   # a plugins_dir's smoke.yaml refused every later experiment=smoke
 
 
 @pytest.fixture(scope="module")

@@ -42,6 +42,19 @@ def load_folder(folder: Path, conf) -> None:
             load_file(file, plugins.plugins_dir_origin(file), conf)
 
 
+def forget_plugins_dirs() -> None:
+    """Forget every plugins_dir's experiments, as a process' end would (a ``plugins_dir`` of the tests' in-process
+    commands left its ``smoke.yaml`` refused, and every later ``experiment=smoke`` in that process with it)."""
+    from hydra.core.config_store import ConfigStore
+
+    from laughlab.core.plugins import from_plugins_dir
+
+    stored = ConfigStore.instance().repo.get("experiment", {})
+    for name in [n for n, origin in ORIGINS.items() if from_plugins_dir(origin)]:
+        LOCAL.pop(name, None), ORIGINS.pop(name), BAD.pop(name, None)
+        stored.pop(f"{name}.yaml", None)
+
+
 def load_installed(conf) -> None:
     """The experiment files the installed packages register (once a process)."""
     global _loaded_installed
