@@ -60,15 +60,17 @@ def unmeasured(doc: dict) -> list[str]:
 def _clear_best(doc: dict, metric: str, conds: list[str]) -> str | None:
     """The condition with the best mean of ``metric`` when its 95 % interval is apart from every other
     condition's (:func:`~laughlab.harness.results.separated`); None when the intervals overlap, the
-    metric has no better direction, fewer than two conditions have a value, or one of them has a single trial."""
+    metric has no better direction, fewer than two conditions have a value, or one of them has fewer than ``FEW``
+    trials."""
     if doc["metrics"][metric]["higher_is_better"] is None or is_compute(metric):
         return None
     rs = {c: doc["results"][c][metric] for c in conds}
     have = [c for c, r in rs.items() if r["n"] and r["mean"] is not None and math.isfinite(r["mean"])
             and not vacuous(doc, metric, c)]
     # a single trial's "interval" is its value: two of them never overlap, so one trial apiece bolded a winner every
-    # time (a new-user review); a best needs at least two trials under every condition compared
-    if len(have) < 2 or any(rs[c]["n"] < 2 for c in have):
+    # time (a new-user review); two trials' [0, 0] did too (a data user's review): a best needs FEW (10) trials
+    # under every condition compared, the number below which a cell says its n
+    if len(have) < 2 or any(rs[c]["n"] < FEW for c in have):
         return None
     sign = 1 if doc["metrics"][metric]["higher_is_better"] else -1
     best = max(have, key=lambda c: sign * rs[c]["mean"])
@@ -227,7 +229,7 @@ def experiment_report(run_dir: Path, out: Path, command: str, width: str = "page
         # a bootstrap of a handful covers less
         lines[-1:-1] = ["", f"(n=K): a mean of fewer than {FEW} trials (e.g. the few inputs holding that kind of "
                         "sound); its bootstrap interval is narrower than a 95% interval should be: read it as the "
-                        "spread of those trials."]
+                        "spread of those trials, never in bold."]
     nones = [c for c in conditions_of(doc) if "detector=none" in doc["conditions"].get(c, ())]
     if 0 < len(nones) < len(conditions_of(doc)) and any(m in doc["metrics"] for m in DETECTOR_OWN):
         # compared with detectors, detector=none's own detector metrics were bolded (a review)

@@ -57,7 +57,8 @@ def mean_ci(values) -> dict:
     """Mean, 95 % CI (seeded percentile bootstrap of the mean), sd and n of the finite values.
 
     One value, or values all equal: the interval is [mean, mean].  The percentile interval lies
-    within [min, max] of the values, so it respects whatever bounds the metric has.
+    within [min, max] of the values, so it respects whatever bounds the metric has.  The sd of one value is
+    undefined: NaN (``null`` in results.json; it was 0, a data user's review).
     """
     x = _finite(values)
     n = len(x)
@@ -65,7 +66,7 @@ def mean_ci(values) -> dict:
         return {"mean": float("nan"), "ci95": [float("nan"), float("nan")], "std": float("nan"), "n": 0}
     if np.all(x == x[0]):  # one value, or all the same (their computed mean can be an ulp off the value)
         m = float(x[0]) + 0.0  # -0.0 as 0.0
-        return {"mean": m, "ci95": [m, m], "std": 0.0, "n": n}
+        return {"mean": m, "ci95": [m, m], "std": 0.0 if n > 1 else float("nan"), "n": n}
     m = float(x.mean())
     ci = stats.bootstrap((x,), np.mean, n_resamples=N_RESAMPLES, method="percentile", vectorized=True,
                          rng=np.random.default_rng(0)).confidence_interval
