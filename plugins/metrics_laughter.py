@@ -46,7 +46,8 @@ def _kinetic(trial):
 def intensity_r_clip(trial):
     """Pearson r between laughter intensity I(t) and the playing clip's energy e(t + lag), best lag in [0, 2] s.
 
-    I: ground-truth call intensity (or RMS) smoothed over 1 s; e: ``clip_energy`` channel.
+    I: the truth's graded call intensity, else the RMS inside its calls (throughout without a truth), smoothed
+    over 1 s (``TrialData.laughter_intensity``); e: ``clip_energy`` channel.
     """
     return _tracking(trial, _clip_energy(trial))[0]
 

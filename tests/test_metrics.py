@@ -62,6 +62,27 @@ def test_intensity_tracking_with_a_delayed_copy():
     assert math.isnan(m["intensity_r_kinetic"])          # no motion.bvh
 
 
+def test_ungraded_calls_take_the_sounds_loudness_inside_them_as_the_intensity():
+    """A data user's review: the real corpus' and an annotation's calls all carry intensity 1.0, so I(t) was call
+    activity there (a loud and a faint call alike) while the synthetic inputs' was the planted intensity.  Now calls
+    of one value take the rms inside them, 0 outside (speech around them does not count); graded calls their own."""
+    from laughlab.harness.trialdata import moving_average
+
+    calls = [(0, 2.0, 3.0, 1.0), (0, 5.0, 6.0, 1.0)]
+    rms = lambda t: np.where(t < 4.0, 0.8, 0.2)   # noqa: E731 - a loud call, then a faint one; loud talk at 0-2 s
+    t = trial(tr=truth([(2.0, 6.0, 1.0)], calls), rms=rms)
+    assert not t.truth.graded
+    inside = ((t.times >= 2.0) & (t.times < 3.0)) * 0.8 + ((t.times >= 5.0) & (t.times < 6.0)) * 0.2
+    want = moving_average(inside, 10)
+    np.testing.assert_allclose(t.laughter_intensity, want / want.max())
+    assert t.laughter_intensity[:15].max() == 0.0           # the talk before the bout is not laughter
+    graded = trial(tr=truth([(2.0, 6.0, 1.0)], [(0, 2.0, 3.0, 0.9), (0, 5.0, 6.0, 0.3)]), rms=rms)
+    assert graded.truth.graded
+    np.testing.assert_allclose(graded.laughter_intensity, moving_average(graded.truth.intensity(graded.times), 10))
+    plain = trial(rms=rms)                                  # no truth: the loudness throughout
+    np.testing.assert_allclose(plain.laughter_intensity, moving_average(rms(plain.times), 10) / 0.8)
+
+
 def test_onset_latency_miss_rate_offset_and_silent_starts():
     tr = truth([(1.0, 3.0, 0.5), (6.0, 8.0, 0.9), (12.0, 13.0, 0.4)])
     ev = [(1.5, "start", "lean_front1", 5, 1.0, ""),          # 0.5 s into bout 0

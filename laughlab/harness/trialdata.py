@@ -71,6 +71,12 @@ class Truth:
             out |= (times >= on) & (times < off)
         return out
 
+    @property
+    def graded(self) -> bool:
+        """Whether the calls' intensities say how strong each call is (the synthetic generator's do); calls that all
+        carry one value (the real corpus' and an annotation's 1.0) say where the laughter is, not how strong."""
+        return self.calls["intensity"].nunique() > 1
+
     def intensity(self, times: np.ndarray) -> np.ndarray:
         """Laughter intensity at ``times``: the call's intensity inside a call, 0 elsewhere."""
         out = np.zeros(len(times))
@@ -153,21 +159,25 @@ class TrialData:
 
     @cached_property
     def laughter_intensity(self) -> np.ndarray:
-        """Laughter intensity per frame, smoothed over 1 s.
+        """Laughter intensity I(t) per frame (0-1), smoothed over 1 s.
 
-        Ground truth when there is one (call intensity inside calls); otherwise
-        the RMS of the audio (``rms`` channel, or 10^(intensity/20) from the
-        ``intensity`` control in dB), normalised by its maximum.
+        The ground truth's call intensities when they are graded (:attr:`Truth.graded`: the synthetic inputs);
+        when its calls are not graded (real recordings, annotations), the sound's loudness inside them, 0 outside
+        (until 2026-11-30 the calls' 1.0: a data user's review found I(t) was then call activity, not intensity);
+        without a truth, the loudness throughout.  The loudness: the ``rms`` channel, or 10^(intensity/20) from
+        the ``intensity`` control in dB, normalised by its maximum.
         """
         n = max(1, int(round(SMOOTH_S * self.fps)))
-        if self.truth is not None:
+        if self.truth is not None and self.truth.graded:
             return moving_average(self.truth.intensity(self.times), n)
         if "rms" in self.channels:
             x = self.channels["rms"].to_numpy()
         elif "intensity" in self.channels:
             x = 10 ** (self.channels["intensity"].to_numpy() / 20.0)
         else:
-            raise KeyError("no ground truth and no rms or intensity channel to measure laughter intensity")
+            raise KeyError("no graded ground truth and no rms or intensity channel to measure laughter intensity")
+        if self.truth is not None:   # where the truth's calls are
+            x = x * (self.truth.intensity(self.times) > 0)
         x = moving_average(x, n)
         return x / x.max() if x.max() > 0 else x
 
