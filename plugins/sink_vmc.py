@@ -55,7 +55,7 @@ class VmcParams:
         upper case (``JawOpen``), as some VRM perfect-sync avatars name their clips.
     vrm_presets : bool
         Also send the VRM 0.x preset clips ``A`` (jawOpen), ``Joy`` (smile),
-        ``Blink_L``, ``Blink_R`` for avatars without perfect-sync clips.
+        ``Blink_L``, ``Blink_R`` for avatars without perfect-sync clips (the blinks times 1 - Joy).
     report : bool
         Print the frame count and the measured latency when the run ends.
     character : str or None
@@ -193,6 +193,13 @@ class VmcSink(Sink):
                 have = [weights[k] for k in names if k in weights]
                 if have:
                     weights[preset] = np.mean(have, axis=0)
+            # VRoid's Joy closes the eyes itself: the blinks blend out as Joy rises (VRM 1.0's overrideBlink
+            # "blend"; UniVRM 0.x receivers apply no such rule), or the eyelids went through the face (a VTuber's
+            # review: Joy 1.0 with Blink_L and Blink_R 0.59 in 170 of 367 frames)
+            if "Joy" in weights:
+                for blink in ("Blink_L", "Blink_R"):
+                    if blink in weights:
+                        weights[blink] = weights[blink] * (1.0 - weights["Joy"])
         names = [self._blend_name(k) if k not in VRM_PRESETS else k for k in weights]
         self._sent.update(dict.fromkeys(names))
         values = np.array([weights[k] for k in weights]).reshape(len(weights), n).T.tolist() if weights else [[]] * n
@@ -240,18 +247,20 @@ class VmcSink(Sink):
         fps, neutral = self.run.fps, self._neutral()
         steps = int(round(self.params.rest_blend_s * fps)) if self._last is not None else 0
         last, names, values = self._last if steps else (None, (), ())
-        for j in range(1, steps + 1):   # from the last frame towards rest, paced at the frame clock
-            w = j / (steps + 1)
-            pos, rot = self.bones.local((last + w * (neutral - last))[None])
-            msgs = self.encoder.messages(self._t + j / fps, pos[0], rot[0],
-                                         ((k, (1.0 - w) * v) for k, v in zip(names, values)))
-            time.sleep(1.0 / fps)
-            self.sender.send(self.encoder.packets(msgs), strict=False)
-        pos, rot = self.bones.local(neutral[None])
-        msgs = self.encoder.messages(self._t + (steps + 1) / fps, pos[0], rot[0], ((k, 0.0) for k in self._sent))
-        if steps:
-            time.sleep(1.0 / fps)
-        self.sender.send(self.encoder.packets(msgs), strict=False)   # its error warned of: the frames went out
+        try:
+            for j in range(1, steps + 1):   # from the last frame towards rest, paced at the frame clock
+                w = j / (steps + 1)
+                pos, rot = self.bones.local((last + w * (neutral - last))[None])
+                msgs = self.encoder.messages(self._t + j / fps, pos[0], rot[0],
+                                             ((k, (1.0 - w) * v) for k, v in zip(names, values)))
+                time.sleep(1.0 / fps)
+                self.sender.send(self.encoder.packets(msgs), strict=False)
+            if steps:
+                time.sleep(1.0 / fps)
+        finally:   # a second Ctrl-C or SIGTERM while easing back: the frame at rest at once (the avatar stayed
+            pos, rot = self.bones.local(neutral[None])   # mid-laugh, a VTuber's review)
+            msgs = self.encoder.messages(self._t + (steps + 1) / fps, pos[0], rot[0], ((k, 0.0) for k in self._sent))
+            self.sender.send(self.encoder.packets(msgs), strict=False)   # its error warned of: the frames went out
         self.rest_frames = steps + 1
 
     def _neutral(self) -> np.ndarray:

@@ -263,6 +263,23 @@ def test_file_input_is_paced_at_the_frame_clock(tmp_path):
     check_frames(frames, len(SMILE_TO_ARKIT) + 4)
 
 
+def test_the_vrm_presets_blinks_blend_out_as_joy_rises(tmp_path):
+    """A VTuber's review: VRoid's Joy closes the eyes itself, and Blink_L/Blink_R 0.59 came with Joy 1.0 in 170 of
+    367 frames (the eyelids through the face); they are scaled by 1 - Joy, as VRM 1.0's overrideBlink "blend"."""
+    with Receiver() as rx:
+        cfg = config(rx.port, "input.duration_s=3", "face=facs", vrm_presets=True, realtime="off")
+        pipeline.execute(pipeline.build(cfg), tmp_path, {})
+        rx.drain()
+    vals = [dict((m[2][0], m[2][1]) for m in f if m[1] == "/VMC/Ext/Blend/Val") for f in rx.frames()]
+    assert len(vals) == 90
+    for v in vals:
+        joy = (v["mouthSmileLeft"] + v["mouthSmileRight"]) / 2
+        assert v["Joy"] == pytest.approx(joy, abs=1e-6)
+        for side in ("Left", "Right"):
+            assert v[f"Blink_{side[0]}"] == pytest.approx(v[f"eyeBlink{side}"] * (1 - joy), abs=1e-6)
+    assert max(v["Joy"] for v in vals) > 0.5 and max(v["eyeBlinkLeft"] for v in vals) > 0.3   # both were driven
+
+
 class ReplayMic(MicSource):
     """The ``mic`` source with a file in place of the device: blocks arrive at real time, as captured."""
 

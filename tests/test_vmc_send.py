@@ -202,3 +202,54 @@ def test_a_host_name_that_resolves_to_ipv6_first_is_sent_to_over_ipv4(monkeypatc
             assert s.sock.family == socket.AF_INET6
         finally:
             s.close()
+
+
+def test_a_second_ctrl_c_while_easing_back_still_sends_the_frame_at_rest(tmp_path, monkeypatch):
+    """A VTuber's review: Ctrl-C, then Ctrl-C again within the 0.25 s of frames easing back to rest, left the avatar
+    mid-laugh (smile 0.95, eyes shut, an arm up): the second interrupt stopped the easing and nothing followed."""
+    from pythonosc.osc_bundle import OscBundle
+    from pythonosc.osc_message import OscMessage
+
+    import laughlab_plugins.sink_vmc as sink_vmc
+
+    cfg = compose_config(["input.duration_s=1.0", "fps=30", "face=facs"])
+    cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+    cfg.output = {"vmc": {"host": "127.0.0.1", "port": 39539, "realtime": "off", "report": False}}
+    pipe = pipeline.build(cfg)
+    sent = []
+    fake = Refusing([OSError(errno.EMSGSIZE, "unused")])
+    fake.sendto = lambda data, address: sent.append(bytes(data))
+    with_fake(monkeypatch, fake)
+    sink = next(s for s in pipe.sinks if s.name == "vmc")
+    rest, sleeps = sink._send_rest, []
+
+    def second_ctrl_c(seconds):
+        sleeps.append(seconds)
+        if len(sleeps) == 3:   # the third frame on the way back
+            raise KeyboardInterrupt
+
+    def easing_interrupted():
+        monkeypatch.setattr(sink_vmc.time, "sleep", second_ctrl_c)
+        rest()
+
+    sink._send_rest = easing_interrupted
+    with pytest.raises(KeyboardInterrupt):
+        pipeline.execute(pipe, tmp_path, {})
+
+    def messages(data):
+        if data.startswith(b"#bundle"):
+            for item in OscBundle(data):
+                yield from messages(item.dgram if isinstance(item, OscMessage) else item.dgram)
+        else:
+            yield OscMessage(data)
+
+    frames = []
+    for data in sent:
+        for m in messages(data):
+            if m.address == "/VMC/Ext/T":
+                frames.append({})
+            elif m.address == "/VMC/Ext/Blend/Val":
+                frames[-1][m.params[0]] = m.params[1]
+    assert len(frames) == 30 + 2 + 1   # the run's, two eased back, the frame at rest
+    assert max(frames[29].values()) > 0.3 and set(frames[-1]) == set(frames[29])
+    assert all(v == 0.0 for v in frames[-1].values())
