@@ -41,7 +41,8 @@ class VmcParams:
     port : int
         Receiver's UDP port (39539: the VMC protocol's usual port).
     realtime : str
-        ``auto``: a live source (``input=mic``) is sent as it comes; any other
+        ``auto``: a live source (``input=mic``) is sent as it comes (the frames after its end,
+        ``run_out``, at the frame clock); any other
         input is paced at the frame clock (frame k sent (k + 1)/fps after the
         start, when its audio would have been captured live).  ``on`` / ``off``
         force pacing on or off (off: as fast as the pipeline runs).
@@ -172,6 +173,7 @@ class VmcSink(Sink):
         self._last: tuple | None = None     # the last frame's pose (BVH channels) and blendshapes, for the rest blend
         self._sent_ns = None                # when the last frame left, and the frames that left in bursts
         self.early = self._in_row = 0
+        self._tail_k = None                 # the first frame after a live input's end (run_out)
         self._stopped = self._rested = False
         self._summary: dict | None = None
 
@@ -205,10 +207,14 @@ class VmcSink(Sink):
         values = np.array([weights[k] for k in weights]).reshape(len(weights), n).T.tolist() if weights else [[]] * n
         capture = getattr(chunk, "capture_ns", None)
         clock = time.perf_counter_ns
+        end = chunk.input_end_s if self.live and self.params.realtime == "auto" else None
         for i in range(n):
             k = self.n
             if self.paced:
                 captured = self.pacer.wait(k)
+            elif end is not None and chunk.times[i] >= end:   # run_out after a live input: the rest of the clip
+                self._tail_k = k if self._tail_k is None else self._tail_k   # at the frame clock from its first
+                captured = self.pacer.wait(k - self._tail_k)   # frame (it went out 9x too fast: a VTuber's review)
             else:
                 captured = int(capture[i]) if capture is not None else None
             msgs = self.encoder.messages(float(chunk.times[i]), pos[i], rot[i], zip(names, values[i]))

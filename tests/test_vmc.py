@@ -280,6 +280,24 @@ def test_the_vrm_presets_blinks_blend_out_as_joy_rises(tmp_path):
     assert max(v["Joy"] for v in vals) > 0.5 and max(v["eyeBlinkLeft"] for v in vals) > 0.3   # both were driven
 
 
+def test_run_out_after_a_live_input_goes_out_at_the_frame_clock(tmp_path):
+    """A VTuber's review: Ctrl-C on a microphone session with run_out=true (which its closing line suggests) sent the
+    rest of the clip, 330 frames of 5.5 s, in 0.61 s.  The frames after a live input's end are paced."""
+    with Receiver() as rx:
+        cfg = config(rx.port, "input.duration_s=3", "run_out=true", realtime="auto")
+        pipe = pipeline.build(cfg)
+        pipe.source.live = True   # as the microphone's: its own frames are not paced (they come at real time)
+        pipeline.execute(pipe, tmp_path, {})
+        rx.drain()
+    frames = rx.frames()
+    times = [next(m[2][0] for m in f if m[1] == "/VMC/Ext/T") for f in frames]
+    arrival = np.array([f[-1][0] for f in frames]) / 1e9
+    tail = [i for i, t in enumerate(times) if t >= 3.0]
+    assert len(frames) == 90 + len(tail) and len(tail) >= 10   # the input's frames, then the clip played out
+    assert arrival[tail[-1]] - arrival[tail[0]] >= (len(tail) - 1) / 30 - 0.02
+    assert arrival[89] - arrival[0] < 0.5 * 89 / 30             # the input's own frames as they came
+
+
 class ReplayMic(MicSource):
     """The ``mic`` source with a file in place of the device: blocks arrive at real time, as captured."""
 
