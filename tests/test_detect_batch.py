@@ -48,8 +48,14 @@ def test_skip_unreadable_leaves_out_each_damaged_file_and_says_so(tmp_path):
     assert len(lines) == 2 and all(line.startswith("laughlab: skipped: ") for line in lines)
     assert "b_notes.wav" in lines[0] and "c_cut.flac" in lines[1]
     assert r.stdout.startswith("laughlab: 1 file(s), 1 without laughter, 2 skipped, 2.0 s of audio, 0 laughter segment(s)")
-    assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a_tone.TextGrid", "a_tone.txt", "segments.csv"]
+    assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a_tone.TextGrid", "a_tone.txt",
+                                                                          "recordings.csv", "segments.csv"]
     assert list(csv.DictReader((out / "segments.csv").open())) == []
+    # the tone has no segment, and its row says so (a data user's review: no laughter looked like not read), with
+    # the settings that made it
+    assert list(csv.DictReader((out / "recordings.csv").open())) == [
+        {"file": "a_tone", "duration_s": "2.0000", "segments": "0", "laughter_s": "0.0000", "threshold": "0.5",
+         "min_length_s": "0.2", "hop_s": "0.5", "smooth_windows": "3", "channels": "mix"}]
     (rec / "a_tone.wav").unlink()
     r = laughlab("detect", str(rec), "--out", str(tmp_path / "out2"), "--skip-unreadable")
     assert r.returncode == 2 and "no readable audio among the inputs" in r.stderr.strip().splitlines()[-1]
@@ -93,10 +99,12 @@ def test_overwrite_keeps_the_earlier_labels_of_a_file_skipped_now(tmp_path):
     r = laughlab("detect", str(rec), "--out", str(out), "--overwrite", "--skip-unreadable")
     assert r.returncode == 0, r.stderr
     assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a_tone.TextGrid", "a_tone.txt",
-                                                                          "d_tone.TextGrid", "d_tone.txt", "segments.csv"]
+                                                                          "d_tone.TextGrid", "d_tone.txt",
+                                                                          "recordings.csv", "segments.csv"]
     (rec / "d_tone.wav").unlink()   # gone for good: the next --overwrite removes its labels as stale
     assert laughlab("detect", str(rec), "--out", str(out), "--overwrite").returncode == 0
-    assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a_tone.TextGrid", "a_tone.txt", "segments.csv"]
+    assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a_tone.TextGrid", "a_tone.txt",
+                                                                          "recordings.csv", "segments.csv"]
 
 
 def test_detect_writes_annotations_a_corpus_folder_reads(tmp_path):
@@ -261,7 +269,7 @@ def test_a_folders_hidden_files_and_folders_are_not_inputs(tmp_path):
     r = laughlab("detect", str(rec), "--out", str(out))
     assert r.returncode == 0, r.stderr
     assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.name[0] != ".") == \
-        ["day1", "day1/take1.TextGrid", "day1/take1.txt", "segments.csv"]
+        ["day1", "day1/take1.TextGrid", "day1/take1.txt", "recordings.csv", "segments.csv"]
     r = laughlab("detect", str(rec / "day1" / "._take1.wav"), "--out", str(tmp_path / "o2"))
     assert r.returncode == 2 and "._take1.wav" in r.stderr
 
@@ -449,7 +457,7 @@ def test_an_out_folder_inside_the_input_folder_is_not_read_back(tmp_path):
     assert r.returncode == 0, r.stderr
     assert r.stdout.startswith("laughlab: 1 file(s), 3.0 s of audio, 1 laughter segment(s)")
     assert sorted(p.relative_to(rec).as_posix() for p in rec.rglob("*") if p.is_file() and p.name[0] != ".") == [
-        "a.wav", "labels/a_laugh_0.wav", "labels/segments.csv"]
+        "a.wav", "labels/a_laugh_0.wav", "labels/recordings.csv", "labels/segments.csv"]
     # a folder holding only an earlier detect's clips: the line says why none is read
     r = laughlab("detect", str(rec / "labels"), "--out", str(rec / "labels"), "--overwrite")
     assert r.returncode == 2 and r.stderr.strip() == (
@@ -460,7 +468,8 @@ def test_an_out_folder_inside_the_input_folder_is_not_read_back(tmp_path):
     r = laughlab("detect", str(rec), "--out", str(rec / "labB"), "--formats", "csv,audio", "--threshold", "0")
     assert r.returncode == 0, r.stderr
     assert r.stdout.startswith("laughlab: 1 file(s), 3.0 s of audio, 1 laughter segment(s)")
-    assert sorted(p.name for p in (rec / "labB").iterdir() if p.name[0] != ".") == ["a_laugh_0.wav", "segments.csv"]
+    assert sorted(p.name for p in (rec / "labB").iterdir() if p.name[0] != ".") == [
+        "a_laugh_0.wav", "recordings.csv", "segments.csv"]
     # a clip given by name is read: only a folder's search leaves them out
     r = laughlab("detect", str(rec / "labels" / "a_laugh_0.wav"), "--out", str(tmp_path / "clip"))
     assert r.returncode == 0 and r.stdout.startswith("laughlab: 1 file(s)"), r.stderr
@@ -493,7 +502,7 @@ def test_a_detect_stopped_while_writing_its_clips_leaves_nothing_of_its_own(tmp_
     assert laughlab(*args).returncode == 0
     before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
     assert sorted(map(str, before)) == [".laughlab-detect.json", "a.txt", "a_laugh_0.wav", "b.txt", "b_laugh_0.wav",
-                                        "segments.csv"]
+                                        "recordings.csv", "segments.csv"]
     calls.clear()
     monkeypatch.setattr(S, "write_clip", stopped)
     for name in ("a", "b"):   # longer recordings: every file would change
@@ -578,7 +587,8 @@ def test_formats_as_praat_spells_them(tmp_path):
     sf.write(tmp_path / "a.wav", np.zeros(16000), 16000)
     r = laughlab("detect", str(tmp_path / "a.wav"), "--out", str(tmp_path / "out"), "--formats", "TextGrid,CSV")
     assert r.returncode == 0, r.stderr
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [".laughlab-detect.json", "a.TextGrid", "segments.csv"]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        ".laughlab-detect.json", "a.TextGrid", "recordings.csv", "segments.csv"]
 
 
 def test_a_file_damaged_late_is_skipped_on_a_line_of_its_own_and_off_the_bars_total(tmp_path):

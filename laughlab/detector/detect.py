@@ -3,7 +3,7 @@
 Files and folders (searched recursively for audio files soundfile reads) go through
 :func:`laughlab.detector.segments.laughter_prob` (YAMNet and the head, centred windows,
 smoothed both ways), then a threshold and a minimum length.  Writes into ``--out``
-(default ``laughter_segments``): ``segments.csv`` for all inputs, and per input
+(default ``laughter_segments``): ``segments.csv`` and ``recordings.csv`` for all inputs, and per input
 ``NAME.txt`` (Audacity labels) and ``NAME.TextGrid`` (Praat), on request ``NAME.eaf`` (ELAN) and each laugh's
 audio (``NAME_laugh_K.wav``); ``NAME`` is a file's stem, or for a file found in
 a given folder its path from that folder (:func:`inputs`).  A progress bar on stderr
@@ -183,7 +183,8 @@ def main(argv: list[str]) -> None:
     ap = one_line_parser(prog="python -m laughlab detect",
                          description="Laughter segments of recordings (YAMNet and a head fitted on the corpus' "
                                      "train split; offline: centred windows, smoothed both ways). Writes "
-                                     "segments.csv (file, start, end in seconds, probability; a row a segment) and "
+                                     "segments.csv (file, start, end in seconds, probability; a row a segment), "
+                                     "recordings.csv (a row a recording, with the settings) and "
                                      "per recording NAME.txt (Audacity) and NAME.TextGrid (Praat, tier laughter); "
                                      "docs/detector.md, 'Offline'.")
     ap.add_argument("paths", nargs="+", help="audio files or folders")
@@ -346,7 +347,9 @@ def main(argv: list[str]) -> None:
         S.atomic_write(out / MANIFEST, json.dumps({"files": names, "sha256": {n: sums[n] for n in names if n in sums}},
                                                   indent=1) + "\n")
         written = S.write_outputs(out, results, formats,   # all or none
-                                  {"scores.csv": DS.scores_text(score_rows)} if ns.score else None)
+                                  {"scores.csv": DS.scores_text(score_rows)} if ns.score else None,
+                                  {"threshold": ns.threshold, "min_length_s": ns.min_length, "hop_s": ns.hop,
+                                   "smooth_windows": ns.smooth, "channels": ns.channels})
     except BaseException:   # a Ctrl-C or a full disk: a folder this run made goes (its manifest alone was left)
         if fresh:
             remove(out)
@@ -383,8 +386,8 @@ def _channels(path: Path) -> int:
 
 
 def summary_line(results: list, skipped: list[str], wall: float, out: Path) -> str:   # skipped: their names
-    """The closing line: files, audio, segments, how many files had none (they have no row in segments.csv, and an
-    empty TextGrid tier), how many were skipped, and the speed."""
+    """The closing line: files, audio, segments, how many files had none (no row in segments.csv, a row in
+    recordings.csv, an empty TextGrid tier), how many were skipped, and the speed."""
     n = sum(len(r[2]) for r in results)
     audio_s = sum(r[1] for r in results)
     none = sum(1 for r in results if not r[2])
