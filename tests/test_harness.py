@@ -7,6 +7,7 @@ import shutil
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
 import soundfile as sf
 from hypothesis import given, settings
@@ -275,6 +276,12 @@ def test_report_tables_and_figures(tiny_run, tmp_path):
     readme = write_report(out, tmp_path / "rep", "python -m laughlab report X")
     text = readme.read_text()
     assert text.startswith("# tiny")
+    # the trials behind the tables, a row each: their means are the table's (a data user's review: JSON only)
+    trials, doc = pd.read_csv(tmp_path / "rep" / "trials.csv"), json.loads((out / "results.json").read_text())
+    assert list(trials.columns[:5]) == ["condition", "input", "profile", "seed", "duration_s"]
+    assert len(trials) == doc["n_trials"] and "[trials.csv](trials.csv)" in text
+    for cond, rows in trials.groupby("condition"):
+        assert rows["miss_rate"].mean() == pytest.approx(doc["results"][cond]["miss_rate"]["mean"])
     assert "| metric | units | energy mean [95% CI] | none mean [95% CI] |" in text
     # synthetic laughter holds no cough: no row of n/a, one line naming it
     results = text.split("## Metrics")[0]
@@ -583,6 +590,14 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     fall = {json.loads(d.read_text())["config"]["extractor"]["fall_per_s"] for d in docs}
     assert fall == {12.0}                        # fall tied to rise / 2
     readme = write_report(sweep, tmp_path / "rep", "cmd")
+    # every trial a row with its point and swept settings (a data user's review: the records did not say their point)
+    trials = pd.read_csv(tmp_path / "rep" / "trials.csv")
+    assert list(trials.columns[:3]) == ["point", "scheduler.decrease_per_s", "scheduler.overrule_c"]
+    assert len(trials) == 4 and sorted(set(zip(trials["scheduler.decrease_per_s"], trials["scheduler.overrule_c"]))) \
+        == [(6, 1.5), (6, 3.0), (20, 1.5), (20, 3.0)]
+    for _, row in trials.iterrows():   # each row the metric of its own point's results
+        doc = json.loads((sweep / str(row["point"]) / "results.json").read_text())
+        assert row["miss_rate"] == pytest.approx(doc["results"]["energy"]["miss_rate"]["mean"])
     text = readme.read_text()
     assert "swept: scheduler.decrease_per_s, scheduler.overrule_c" in text
     assert len(list((tmp_path / "rep" / "figures").glob("heatmap_*.png"))) == 1

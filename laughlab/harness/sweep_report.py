@@ -224,5 +224,16 @@ def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None 
         name = f"line_{varying[0]}.png"
         line_plots(points, varying[0], heat_metrics, shown, figs / name, doc0["metrics"], title, width)
         lines += [f"![{varying[0]}](figures/{name})", "", vector_link(name), ""]
+    from laughlab.harness.report_trials import trials_text
+
+    dirs = {str(p["dir"]): p for p in points}   # a point once (its conditions are its trials' own column)
+    swept = [k for k in varying if k != "condition"]
+    (out / "trials.csv").write_text(trials_text(
+        [(Path(d).relative_to(root).as_posix(), {k: p["params"].get(k, "") for k in swept}, Path(d))
+         for d, p in sorted(dirs.items(), key=lambda kv: [_order(kv[1]["params"].get(k, "")) for k in swept])],
+        list(doc0["metrics"])), encoding="utf-8")
+    lines[lines.index("## Every point") - 1:lines.index("## Every point") - 1] = [
+        "- every trial of every point, a row each with its point's swept settings and every metric: "
+        "[trials.csv](trials.csv)"]
     (out / "README.md").write_text("\n".join(lines) + "\n", encoding="utf-8")
     return out / "README.md"
