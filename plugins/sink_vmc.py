@@ -50,7 +50,8 @@ class VmcParams:
         Largest UDP datagram; a frame's messages are split into several OSC
         bundles below it (1400 fits an Ethernet frame).  0: one bundle per frame.
     upper_chest : bool
-        Send the UpperChest bone; False folds its rotation into Chest (avatars without one).
+        Send the UpperChest bone; False folds its rotation into Chest (avatars without one; a ``character``
+        without one needs no setting).
     blend_case : str
         ``arkit``: ARKit's spelling (``jawOpen``); ``capitalized``: first letter
         upper case (``JawOpen``), as some VRM perfect-sync avatars name their clips.
@@ -156,7 +157,10 @@ class VmcSink(Sink):
             self.sender = VmcSender(p.host, p.port)
         except OSError as exc:
             raise self._unreachable(exc) from None
-        self.bones = BoneMap(run.skeleton, upper_chest=p.upper_chest)
+        # an avatar without an UpperChest: Neck's offset is from its Chest (a VTuber's review: with UpperChest sent, a
+        # receiver that has none put Neck 8 cm low under Chest and lost the upper-chest bend)
+        upper = p.upper_chest and (self.avatar is None or "upperChest" in self.avatar.bones)
+        self.bones = BoneMap(run.skeleton, upper_chest=upper)
         if self.avatar is not None:   # the avatar's own bones and height
             from laughlab.avatar.retarget import vmc_rest
 

@@ -632,6 +632,25 @@ def test_with_your_avatar_the_bones_at_rest_land_on_its_joints_and_the_hips_move
     assert plain[0, 0, 1] == pytest.approx(0.95, abs=0.01)
 
 
+def test_an_avatar_without_an_upper_chest_gets_none_and_its_neck_from_its_chest(tmp_path):
+    """A VTuber's review: Godette has no UpperChest, yet UpperChest was sent, so a receiver applying the positions put
+    Neck at laughlab's offset from an UpperChest it lacks: 8 cm low under its Chest, the upper-chest bend lost."""
+    from laughlab.avatar.load import load_avatar
+
+    with Receiver() as rx:
+        cfg = config(rx.port, "input.duration_s=0.5", realtime="off")
+        cfg.character = str(GODETTE)
+        pipeline.execute(pipeline.build(cfg), tmp_path, {})
+        rx.drain()
+    sent = [{m[2][0]: m[2][1:] for m in f if m[1] == "/VMC/Ext/Bone/Pos"} for f in rx.frames()]
+    assert len(sent) == 15 and all("UpperChest" not in f and "Chest" in f for f in sent)
+    avatar = load_avatar(GODETTE)
+    neck, chest = (avatar.rest_world[avatar.bones[b], :3, 3] for b in ("neck", "chest"))
+    want = np.asarray(avatar.turn).T @ (neck - chest) * [-1, 1, 1]   # laughlab's frame, then Unity's (-x, y, z)
+    np.testing.assert_allclose(sent[0]["Neck"][:3], want, atol=1e-6)
+    assert want[1] > 0.15   # the review's 0.162 m, where 0.081 went out
+
+
 def test_character_goes_to_the_stream_and_a_bad_one_stops_the_run_in_one_line(tmp_path):
     from laughlab.core.errors import LaughlabError
 
