@@ -638,8 +638,8 @@ def test_detect_writes_three_formats_that_read_back(tmp_path):
                      r"in (.+) \((\S+)x real time\) -> (.+)/", r.stdout.strip())
     assert m and m[5] == str(out) and m[4] == factor_text(float(m[4])) and re.fullmatch(r"\d+(\.\d+)? s|\d+ min \d\d s", m[3])
     assert float(m[1]) == round(len(x) / sr + 0.25, 1)
-    assert {p.name for p in out.iterdir() if p.name[0] != "."} == {"segments.csv", "a.txt", "a.TextGrid", "short8k.txt",
-                                               "short8k.TextGrid"}
+    assert {p.name for p in out.iterdir() if p.name[0] != "."} == {"segments.csv", "recordings.csv", "a.txt",
+                                                                   "a.TextGrid", "short8k.txt", "short8k.TextGrid"}
     segs = S.read_folder(out)
     assert segs["a"] and segs.get("short8k", []) == []
     assert segs["a"][0].start < 2.0 and all(s.end <= len(x) / sr for s in segs["a"])
@@ -727,7 +727,8 @@ def test_detect_replaces_nothing_without_asking_and_leaves_no_stale_segments(tmp
     r = laughlab("detect", str(tmp_path / "in" / "a.wav"), "--out", str(out), "--overwrite")
     assert r.returncode == 0, r.stderr
     assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a.TextGrid", "a.txt", "notes.md",
-                                                                          "notes.txt", "segments.csv"]
+                                                                          "notes.txt", "recordings.csv",
+                                                                          "segments.csv"]
     assert (out / "a.txt").read_text() == "" and (out / "notes.md").read_text() == "mine\n"
     assert (out / "notes.txt").read_text() == "mine too\n"
     assert (out / "segments.csv").read_text() == "file,start,end,probability\n"
@@ -844,8 +845,8 @@ def test_a_detect_stopped_while_writing_leaves_nothing_a_later_overwrite_refuses
     assert laughlab("detect", str(tmp_path / "c.wav"), "--out", str(out)).returncode == 0
     real = S.write_outputs
 
-    def stopped(out_dir, results, formats, extra=None):
-        real(out_dir, results[:1], formats, extra)   # the first input's files are written, then the user stops it
+    def stopped(out_dir, results, formats, extra=None, settings=None):   # the first input's own files written
+        real(out_dir, results[:1], tuple(f for f in formats if f != "csv"), extra, settings)   # then a stop
         raise KeyboardInterrupt
 
     monkeypatch.setattr(S, "write_outputs", stopped)
@@ -855,7 +856,7 @@ def test_a_detect_stopped_while_writing_leaves_nothing_a_later_overwrite_refuses
     r = laughlab("detect", str(tmp_path / "a.wav"), str(tmp_path / "b.wav"), "--out", str(out), "--overwrite")
     assert r.returncode == 0, r.stderr
     assert sorted(p.name for p in out.iterdir() if p.name[0] != ".") == ["a.TextGrid", "a.txt", "b.TextGrid",
-                                                                          "b.txt", "segments.csv"]
+                                                                          "b.txt", "recordings.csv", "segments.csv"]
 
 
 def test_detect_keeps_a_trees_layout_and_its_repeated_take_names(tmp_path):
@@ -874,8 +875,8 @@ def test_detect_keeps_a_trees_layout_and_its_repeated_take_names(tmp_path):
     r = laughlab("detect", str(rec), "--out", str(out), "--formats", "csv,textgrid,elan")
     assert r.returncode == 0, r.stderr
     got = sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file() and p.name[0] != ".")
-    assert got == ["day1/take1.TextGrid", "day1/take1.eaf", "day2/take1.TextGrid", "day2/take1.eaf", "segments.csv",
-                   "solo.TextGrid", "solo.eaf"]
+    assert got == ["day1/take1.TextGrid", "day1/take1.eaf", "day2/take1.TextGrid", "day2/take1.eaf", "recordings.csv",
+                   "segments.csv", "solo.TextGrid", "solo.eaf"]
     eaf = out / "day2" / "take1.eaf"   # its link to the recording works from its own folder
     media = ET.fromstring(eaf.read_text()).find("HEADER").find("MEDIA_DESCRIPTOR")
     assert (eaf.parent / media.get("RELATIVE_MEDIA_URL")).resolve() == (rec / "day2" / "take1.wav").resolve()

@@ -323,7 +323,10 @@ def read_folder(folder: str | Path) -> dict[str, list[Segment]]:
             out[f.stem] = segs
         elif f.suffix == ".csv":
             with f.open(newline="", encoding="utf-8") as fh:
-                for r in csv.DictReader(fh):
+                rows = csv.DictReader(fh)   # not a table of segments (detect's recordings.csv, scores.csv): passed by
+                if not {"file", "start", "end"} <= set(rows.fieldnames or ()):
+                    continue
+                for r in rows:
                     stem = Path(r["file"]).stem
                     from_csv.setdefault(stem, []).append(Segment(float(r["start"]), float(r["end"])))
     for stem, segs in from_csv.items():  # a file's label file, when there is one, is what counts
