@@ -302,6 +302,8 @@ class VmcSink(Sink):
             how = "paced at the frame clock" if self.paced else \
                 ("live" if self.live else "not paced: as fast as computed")
             dropped = f", {self.sender.dropped} datagrams dropped" if self.sender.dropped else ""
+            if self.sender.refused:   # the kernel said nothing listens there (a connected socket; Linux, macOS)
+                dropped += f", {self.sender.refused} sends refused: nothing listened there"
             if self.early > self.run.fps:   # more than a second's frames in bursts
                 dropped += (f"; {self.early} frames left in bursts, faster than the frame clock: a receiver may drop "
                             "frames that come faster than it reads (realtime=on paces a file; feed a Session a block a "

@@ -251,16 +251,19 @@ def test_the_command_keeps_a_session_stopped_by_a_signal(tmp_path, sig, key):
     run = tmp_path / "run"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path / "fake"), str(ROOT)]),
            "FAKE_SD_SIGNAL_AT": "90", "FAKE_SD_SIGNAL": sig}
-    p = subprocess.run([sys.executable, "-m", "laughlab", "input=mic", "input.calibration_s=0",
-                        "output=[files,vmc]", "~output.plots", "output.vmc.port=39591",
-                        f"hydra.run.dir={run}"],
-                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=120,
-                       preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # not inherited as ignored
+    from test_vmc import Receiver
+
+    with Receiver() as rx:   # someone listens: else a note says nobody does
+        p = subprocess.run([sys.executable, "-m", "laughlab", "input=mic", "input.calibration_s=0",
+                            "output=[files,vmc]", "~output.plots", f"output.vmc.port={rx.port}",
+                            f"hydra.run.dir={run}"],
+                           cwd=ROOT, env=env, capture_output=True, text=True, timeout=120,
+                           preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # not inherited as ignored
     assert p.returncode == 0, p.stderr
     assert p.stderr.count("\n") == 1 and f"laughlab: {key}: the input ended after 1.5 s and the session is kept" \
         in p.stderr, p.stderr
     # live (the stand-in microphone hands its blocks over as fast as they are read, so the line also says the burst)
-    assert "vmc: 91 frames and 16 frames back to rest to 127.0.0.1:39591 (live" in p.stdout, p.stdout
+    assert f"vmc: 91 frames and 16 frames back to rest to 127.0.0.1:{rx.port} (live" in p.stdout, p.stdout
     metrics = json.loads((run / "metrics.json").read_text())
     assert metrics["input_stopped_by"] == sig and metrics["n_frames"] == 91 == metrics["vmc_frames"]
     assert len(pd.read_csv(run / "channels.csv")) == 91

@@ -558,10 +558,11 @@ def test_a_closed_stdout_keeps_the_streamed_session(tmp_path):
     read, write = os.pipe()
     os.close(read)   # nobody reads the command's stdout
     try:
-        p = subprocess.run([sys.executable, "-m", "laughlab", "input.duration_s=0.3", "output=vmc",
-                            "output.vmc.realtime=off", "output.vmc.port=39593", "detector=none",
-                            f"hydra.run.dir={tmp_path / 'run'}"], stdout=write, stderr=subprocess.PIPE, text=True,
-                           timeout=120)
+        with Receiver() as rx:   # someone listens: else a note says nobody does
+            p = subprocess.run([sys.executable, "-m", "laughlab", "input.duration_s=0.3", "output=vmc",
+                                "output.vmc.realtime=off", f"output.vmc.port={rx.port}", "detector=none",
+                                f"hydra.run.dir={tmp_path / 'run'}"], stdout=write, stderr=subprocess.PIPE,
+                               text=True, timeout=120)
     finally:
         os.close(write)
     assert p.returncode == 0 and p.stderr == "", p.stderr

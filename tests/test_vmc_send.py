@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import errno
 import json
+import re
 import socket
 
 import pytest
@@ -72,14 +73,18 @@ def test_send_errors_drop_and_count_the_datagrams_and_the_run_keeps_its_files(tm
     assert (tmp_path / "channels.csv").exists()
     out = capsys.readouterr()
     lines = out.err.splitlines()
-    # one line per kind of error, with the address and the cause; nobody listening (refused) is silent
+    # one line per kind of error, with the address and the cause; nobody listening (refused): one note, counted
+    note = "laughlab: note: output.vmc: nothing listens at 255.255.255.255:39539 (yet): is the receiver running, on "
+    assert [x for x in lines if x.startswith(note)] == [note + "this port? The stream goes on"], out.err
+    lines = [x for x in lines if not x.startswith(note)]
     assert len(lines) == 4, out.err
     assert all(x.startswith("laughlab: warning: output.vmc: cannot send to 255.255.255.255:39539 (") for x in lines)
     for cause in ("does not take the datagrams as fast", "Network is unreachable", "No route to host",
                   "No buffer space"):
         assert sum(cause in x for x in lines) == 1, (cause, lines)
     assert "cannot write" not in out.err
-    assert f"(not paced: as fast as computed, {dropped} datagrams dropped)" in out.out
+    assert f"(not paced: as fast as computed, {dropped} datagrams dropped, {refused} sends refused: nothing listened " \
+           "there)" in out.out
 
 
 class Failing:
@@ -253,3 +258,23 @@ def test_a_second_ctrl_c_while_easing_back_still_sends_the_frame_at_rest(tmp_pat
     assert len(frames) == 30 + 2 + 1   # the run's, two eased back, the frame at rest
     assert max(frames[29].values()) > 0.3 and set(frames[-1]) == set(frames[29])
     assert all(v == 0.0 for v in frames[-1].values())
+
+
+def test_a_port_nobody_listens_on_is_said_once_and_the_stream_goes_on(tmp_path):
+    """A VTuber's review: output.vmc.port=39999 with nothing listening streamed 351 frames to nobody, exit 0, not a
+    word.  The socket is connected, so the kernel says so (ICMP port unreachable): one note, the count in the
+    closing line, and the run as before."""
+    from inprocess import laughlab
+
+    probe = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
+    probe.close()   # a port nothing listens on now
+    r = laughlab("input.duration_s=0.5", "output=[files,vmc]", "~output.plots", "output.vmc.realtime=off",
+                 f"output.vmc.port={port}", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == (f"laughlab: note: output.vmc: nothing listens at 127.0.0.1:{port} (yet): is the receiver "
+                        "running, on this port? The stream goes on\n"), r.stderr
+    refused = re.search(r", (\d+) sends refused: nothing listened there\)", r.stdout)
+    assert refused and int(refused[1]) >= 1, r.stdout
+    assert json.loads((tmp_path / "run" / "metrics.json").read_text())["vmc_frames"] == 30

@@ -374,7 +374,8 @@ class VmcSender:
     for ARP, and a blocking ``sendto`` froze the frame loop for those 3 s (review-live 2).  Other send errors
     that pass (:data:`TRANSIENT_ERRNOS`: no route, no buffer space) drop the datagram too; the first of each
     kind is said once on stderr with the address and the cause, never as a fault of the run's folder.
-    ``ConnectionRefusedError`` (nobody listening on that port) is UDP's normal case: silent.  An error that
+    ``ConnectionRefusedError`` (nobody listening on that port; the socket is connected so that the kernel says it)
+    goes on, counted (``refused``) and said once as a note.  An error that
     would come back on every send (an IPv6 link-local address without its scope, a datagram too large for
     the path) raises :class:`VmcSendError`, one line with the address and the cause: the run stops rather
     than run to its end sending nothing (diff-review 7).  ``SO_BROADCAST`` is set on IPv4, so a broadcast
@@ -395,8 +396,13 @@ class VmcSender:
         self.sock.setblocking(False)
         if info[0] == socket.AF_INET:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+        try:   # connected, the kernel says when nothing listens there (Linux, macOS: ICMP port unreachable)
+            self.sock.connect(self.address)
+        except OSError:   # not now (no route yet): sent to as before, the errors said at send
+            pass
         self.packets = 0   # datagrams handed to the socket
         self.dropped = 0   # datagrams dropped: the socket could not take them, or refused them
+        self.refused = 0   # sends the receiver's machine answered "nothing listens on that port"
         self.failed: VmcSendError | None = None   # the error that ended the stream
         self._said: set = set()
 
@@ -406,8 +412,11 @@ class VmcSender:
         for p in packets:
             try:
                 self.sock.sendto(p, self.address)
-            except ConnectionRefusedError:  # nobody listening (ICMP port unreachable): UDP goes on
-                pass
+            except ConnectionRefusedError:  # nobody listening (ICMP port unreachable): UDP goes on, said once (a
+                self.refused += 1           # VTuber's review: a wrong port streamed to nobody without a word)
+                if self.refused == 1:
+                    print(f"laughlab: note: output.vmc: nothing listens at {self.where} (yet): is the receiver "
+                          "running, on this port? The stream goes on", file=sys.stderr, flush=True)
             except BlockingIOError:
                 self._drop("BlockingIOError", "the network does not take the datagrams as fast as they come: is "
                                               "the receiver switched off or asleep?")
