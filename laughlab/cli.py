@@ -331,8 +331,9 @@ def main(argv: list[str] | None = None) -> None:
             raise
         fail("interrupted", code=130)
     finally:   # Hydra's record of the job, cleared as a process' end would: in-process, the next call's
-        from hydra.core.hydra_config import HydraConfig   # experiment repeated this one's overrides (a CI flake)
-        HydraConfig.instance().cfg = None
+        held = sys.modules.get("hydra.core.hydra_config")   # experiment repeated this one's overrides (a CI
+        if held is not None:                                 # flake); a command without Hydra does not import it
+            held.HydraConfig.instance().cfg = None
 
 
 def _main(argv: list[str]) -> None:

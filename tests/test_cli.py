@@ -580,6 +580,15 @@ def test_a_closed_standard_output_or_error_is_no_traceback(tmp_path):
     shown = subprocess.run(["sh", "-c", f"{sh} --cfg job >&-; echo $?; {sh} bogus=1 2>&- ; echo $?"],
                            capture_output=True, text=True, timeout=120)
     assert shown.stdout.split() == ["0", "2"] and shown.stderr == "", shown.stderr
+    # descriptor 1 itself is /dev/null's (a diff review: the next file opened took fd 1, where a child's writes went)
+    probe = ("import os, sys, tempfile\nfrom laughlab.core import quiet\nquiet.closed_streams_to_devnull()\n"
+             "f = tempfile.TemporaryFile()\nsys.stderr.write(str(f.fileno()) + ' ' + os.readlink('/proc/self/fd/1'))")
+    import os
+
+    held = subprocess.run([sys.executable, "-c", probe], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                          timeout=60, preexec_fn=lambda: (os.close(0), os.close(1)))   # <&- >&-
+    fd, where = held.stderr.split()
+    assert int(fd) not in (1, 2) and where == "/dev/null", held.stderr
 
 
 @pytest.mark.parametrize("args, says", [

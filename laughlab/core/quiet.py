@@ -60,6 +60,8 @@ def to_devnull(fd: int) -> None:
     """File descriptor ``fd`` goes to /dev/null for the rest of the process: standard output after a broken pipe
     (``... | head``), or standard output and error on a terminal that hung up (SIGHUP; a write there fails)."""
     null = os.open(os.devnull, os.O_WRONLY)
+    if null == fd:   # fd was closed (>&-): /dev/null took its number, and stays
+        return
     try:
         os.dup2(null, fd)
     finally:
@@ -74,9 +76,10 @@ def stdout_gone() -> None:
 def closed_streams_to_devnull() -> None:
     """A standard stream the caller closed (``2>&-``, ``>&-``: Python's ``sys.stdout`` is None) takes writes into
     /dev/null, as ``print`` drops them (``--cfg job >&-`` printed three tracebacks and exit 1)."""
-    for name in ("stdout", "stderr"):
-        if getattr(sys, name) is None:
-            setattr(sys, name, open(os.devnull, "w", encoding="utf-8"))  # noqa: SIM115 - for the process' life
+    for fd, name in ((1, "stdout"), (2, "stderr")):
+        if getattr(sys, name) is None:   # the descriptor itself held by /dev/null: the next file opened is not
+            to_devnull(fd)               # given fd 1 or 2, where a child's or C's writes would land in it
+            setattr(sys, name, open(fd, "w", encoding="utf-8", closefd=False))  # noqa: SIM115 - for the process
 
 
 class PipeMayClose:
