@@ -21,6 +21,7 @@ from laughlab.core.errors import LaughlabError
 from laughlab.core.plugins import check_range
 from laughlab.core.quiet import to_devnull
 from laughlab.core.framesample import FrameSample
+from laughlab.core.interrupts import deferred
 from laughlab.io.vmc import (DEFAULT_PORT, VRM_PRESETS, BoneMap, VmcEncoder, VmcSender, arkit_weights,
                           latency_summary)
 from laughlab.motion.skeleton import rest_pose
@@ -257,6 +258,9 @@ class VmcSink(Sink):
         fps, neutral = self.run.fps, self._neutral()
         steps = int(round(self.params.rest_blend_s * fps)) if self._last is not None else 0
         last, names, values = self._last if steps else (None, (), ())
+        pos, rot = self.bones.local(neutral[None])   # the frame at rest, made before the way back to it
+        rest = self.encoder.packets(self.encoder.messages(self._t + (steps + 1) / fps, pos[0], rot[0],
+                                                          ((k, 0.0) for k in self._sent)))
         try:
             for j in range(1, steps + 1):   # from the last frame towards rest, paced at the frame clock
                 w = j / (steps + 1)
@@ -267,10 +271,9 @@ class VmcSink(Sink):
                 self.sender.send(self.encoder.packets(msgs), strict=False)
             if steps:
                 time.sleep(1.0 / fps)
-        finally:   # a second Ctrl-C or SIGTERM while easing back: the frame at rest at once (the avatar stayed
-            pos, rot = self.bones.local(neutral[None])   # mid-laugh, a VTuber's review)
-            msgs = self.encoder.messages(self._t + (steps + 1) / fps, pos[0], rot[0], ((k, 0.0) for k in self._sent))
-            self.sender.send(self.encoder.packets(msgs), strict=False)   # its error warned of: the frames went out
+        finally:   # a second Ctrl-C or SIGTERM while easing back: the frame at rest at once, a third one held off
+            with deferred():   # until it is sent (the avatar stayed mid-laugh, a VTuber's review)
+                self.sender.send(rest, strict=False)   # its error warned of: the frames went out
         self.rest_frames = steps + 1
 
     def _neutral(self) -> np.ndarray:

@@ -616,3 +616,18 @@ def test_overwrite_with_fewer_formats_says_nothing_of_other_recordings(tmp_path)
     assert laughlab("detect", str(tmp_path / "a.wav"), "--out", str(out)).returncode == 0
     r = laughlab("detect", str(tmp_path / "a.wav"), "--out", str(out), "--overwrite", "--formats", "csv")
     assert r.returncode == 0 and "removed" not in r.stderr and not (out / "a.TextGrid").exists()
+
+
+def test_a_folder_of_segments_passes_by_detects_own_tables_and_names_a_csv_without_the_columns(tmp_path):
+    """A diff review: skipping every CSV without file,start,end (so that detect's recordings.csv could be read
+    back) scored a peer's 'filename,start,end' table as no segment at all, silently."""
+    from laughlab.core.errors import LaughlabError
+    from laughlab.detector import segments as S
+
+    (tmp_path / "segments.csv").write_text("file,start,end,probability\na,0.5,1.0,0.9\n")
+    (tmp_path / "recordings.csv").write_text("file,duration_s,segments,laughter_s\na,2.0,1,0.5\n")
+    assert S.read_folder(tmp_path) == {"a": [S.Segment(0.5, 1.0)]}
+    (tmp_path / "peer.csv").write_text("filename,start,end\nb,0.1,0.2\n")
+    with pytest.raises(LaughlabError, match="peer.csv: a table of segments needs the columns file, start, end "
+                                            r"\(it has filename, start, end\)"):
+        S.read_folder(tmp_path)

@@ -595,9 +595,16 @@ def test_sweep_through_hydra_multirun_and_its_report(tmp_path):
     assert list(trials.columns[:3]) == ["point", "scheduler.decrease_per_s", "scheduler.overrule_c"]
     assert len(trials) == 4 and sorted(set(zip(trials["scheduler.decrease_per_s"], trials["scheduler.overrule_c"]))) \
         == [(6, 1.5), (6, 3.0), (20, 1.5), (20, 3.0)]
-    for _, row in trials.iterrows():   # each row the metric of its own point's results
-        doc = json.loads((sweep / str(row["point"]) / "results.json").read_text())
-        assert row["miss_rate"] == pytest.approx(doc["results"]["energy"]["miss_rate"]["mean"])
+    import yaml
+
+    for _, row in trials.iterrows():   # each row its own point's: its settings, its trial, its metric
+        point = sweep / str(row["point"])
+        given = dict(o.split("=", 1) for o in yaml.safe_load((point / ".hydra" / "overrides.yaml").read_text()))
+        assert float(given["scheduler.decrease_per_s"]) == row["scheduler.decrease_per_s"]
+        assert float(given["scheduler.overrule_c"]) == row["scheduler.overrule_c"]
+        (record,) = [json.loads(line) for line in (point / "metrics.jsonl").read_text().splitlines()]
+        assert record["trial_hash"] == row["trial_hash"]
+        assert row["clip_entropy"] == pytest.approx(record["metrics"]["clip_entropy"])
     text = readme.read_text()
     assert "swept: scheduler.decrease_per_s, scheduler.overrule_c" in text
     assert len(list((tmp_path / "rep" / "figures").glob("heatmap_*.png"))) == 1

@@ -79,6 +79,9 @@ def test_ungraded_calls_take_the_sounds_loudness_inside_them_as_the_intensity():
     graded = trial(tr=truth([(2.0, 6.0, 1.0)], [(0, 2.0, 3.0, 0.9), (0, 5.0, 6.0, 0.3)]), rms=rms)
     assert graded.truth.graded
     np.testing.assert_allclose(graded.laughter_intensity, moving_average(graded.truth.intensity(graded.times), 10))
+    blank = trial(tr=truth([(2.0, 6.0, 1.0)], [(b, on, off, np.nan) for b, on, off, _ in calls]), rms=rms)
+    assert not blank.truth.graded   # blank intensities (unknown): inside the calls all the same (it was 0 throughout)
+    np.testing.assert_allclose(blank.laughter_intensity, want / want.max())
     plain = trial(rms=rms)                                  # no truth: the loudness throughout
     np.testing.assert_allclose(plain.laughter_intensity, moving_average(rms(plain.times), 10) / 0.8)
 

@@ -51,7 +51,8 @@ def forget_plugins_dirs() -> None:
 
     stored = ConfigStore.instance().repo.get("experiment", {})
     for name in [n for n, origin in ORIGINS.items() if from_plugins_dir(origin)]:
-        LOCAL.pop(name, None), ORIGINS.pop(name), BAD.pop(name, None)
+        for table in (LOCAL, ORIGINS, BAD):
+            table.pop(name, None)
         stored.pop(f"{name}.yaml", None)
 
 

@@ -259,7 +259,8 @@ def write_clip(path: Path, media: Path, seg: Segment, channel: int | None = None
 
 def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...],
                   extra: dict[str, str] | None = None, settings: dict | None = None) -> list[Path]:
-    """Write ``segments.csv``, ``recordings.csv`` (with ``settings``: :func:`recordings_text`) and per-input ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf`` (and with ``audio`` each
+    """Write ``segments.csv``, ``recordings.csv`` (with ``settings``: :func:`recordings_text`) and per-input
+    ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf`` (and with ``audio`` each
     laugh as ``NAME_laugh_K.wav``, from the recording, the results' fourth item), and ``extra``'s files (name ->
     text: ``scores.csv``); all of them or none.
 
@@ -323,9 +324,12 @@ def read_folder(folder: str | Path) -> dict[str, list[Segment]]:
             out[f.stem] = segs
         elif f.suffix == ".csv":
             with f.open(newline="", encoding="utf-8") as fh:
-                rows = csv.DictReader(fh)   # not a table of segments (detect's recordings.csv, scores.csv): passed by
+                rows = csv.DictReader(fh)
                 if not {"file", "start", "end"} <= set(rows.fieldnames or ()):
-                    continue
+                    if f.name in ("recordings.csv", "scores.csv"):   # detect's own tables, not of segments
+                        continue
+                    raise LaughlabError(f"{f}: a table of segments needs the columns file, start, end (it has "
+                                        f"{', '.join(rows.fieldnames or []) or 'none'})")
                 for r in rows:
                     stem = Path(r["file"]).stem
                     from_csv.setdefault(stem, []).append(Segment(float(r["start"]), float(r["end"])))

@@ -34,6 +34,14 @@ def moving_average(x: np.ndarray, n: int) -> np.ndarray:
     return num / den
 
 
+def _inside(rows: pd.DataFrame, times: np.ndarray) -> np.ndarray:
+    """Which of ``times`` lie inside one of ``rows``' ``[onset_s, offset_s)`` intervals."""
+    out = np.zeros(len(times), dtype=bool)
+    for on, off in rows[["onset_s", "offset_s"]].itertuples(index=False):
+        out |= (times >= on) & (times < off)
+    return out
+
+
 @dataclass
 class Truth:
     """Ground truth of a laughter recording: bouts and calls (from ``truth.csv``).
@@ -66,16 +74,17 @@ class Truth:
 
     def in_bouts(self, times: np.ndarray) -> np.ndarray:
         """Which of ``times`` lie inside an annotated bout (onset included, offset not)."""
-        out = np.zeros(len(times), dtype=bool)
-        for on, off in self.bouts[["onset_s", "offset_s"]].itertuples(index=False):
-            out |= (times >= on) & (times < off)
-        return out
+        return _inside(self.bouts, times)
+
+    def in_calls(self, times: np.ndarray) -> np.ndarray:
+        """Which of ``times`` lie inside an annotated call (onset included, offset not), whatever its intensity."""
+        return _inside(self.calls, times)
 
     @property
     def graded(self) -> bool:
         """Whether the calls' intensities say how strong each call is (the synthetic generator's do); calls that all
         carry one value (the real corpus' and an annotation's 1.0) say where the laughter is, not how strong."""
-        return self.calls["intensity"].nunique() > 1
+        return self.calls["intensity"].dropna().nunique() > 1   # blanks (unknown) do not grade
 
     def intensity(self, times: np.ndarray) -> np.ndarray:
         """Laughter intensity at ``times``: the call's intensity inside a call, 0 elsewhere."""
@@ -176,8 +185,8 @@ class TrialData:
             x = 10 ** (self.channels["intensity"].to_numpy() / 20.0)
         else:
             raise KeyError("no graded ground truth and no rms or intensity channel to measure laughter intensity")
-        if self.truth is not None:   # where the truth's calls are
-            x = x * (self.truth.intensity(self.times) > 0)
+        if self.truth is not None:   # where the truth's calls are (their intensity blank or 0 too: a diff review)
+            x = x * self.truth.in_calls(self.times)
         x = moving_average(x, n)
         return x / x.max() if x.max() > 0 else x
 
