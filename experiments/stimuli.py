@@ -26,7 +26,7 @@ the rendering and the role is presentation:
 ==== ======== ======== ==============================================================
 id   role     response rendering
 ==== ======== ======== ==============================================================
-SS   speaking smile    smile_only, audio muted (the agent smiles silently)
+SS   speaking smile    smile_only, the jaw shut, audio muted (the agent smiles silently)
 SL   speaking laugh    laugh_energy with the laughter audio
 LS   listening smile   as SS
 LL   listening laugh   as SL

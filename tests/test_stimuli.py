@@ -115,6 +115,27 @@ def test_riddle_preset_through_the_command_line(tmp_path):
     assert "stimuli: 8 videos" in r.stdout and f"; the study page: python -m laughlab study build {out}\n" in r.stdout
 
 
+def test_the_riddles_silent_smiles_keep_the_mouth_shut_and_its_laughs_open_it(tmp_path):
+    """A video producer's review: SS and LS (a silent smile) drove the jaw from the muted laugh, so the smile
+    stimuli showed a laughing mouth without a sound (dark mouth pixels as many as the laugh's).  Their jaw stays
+    shut; the smile is there; SL's jaw opens on the same input."""
+    import pandas as pd
+    from omegaconf import OmegaConf
+
+    from laughlab.core import pipeline
+    from laughlab.core.config import compose_app
+
+    conds = OmegaConf.to_container(compose_config(["experiment=stimuli", "harness.preset=riddle"]).harness.conditions)
+    got = {}
+    for cond in ("SS", "LS", "SL"):
+        cfg = compose_app([*conds[cond], "input.profile=intense", "input.duration_s=4", "seed=0", "~output.plots"])
+        pipeline.execute(pipeline.build(cfg), tmp_path / cond, {})
+        got[cond] = pd.read_csv(tmp_path / cond / "channels.csv")
+    for cond in ("SS", "LS"):
+        assert got[cond]["jaw"].max() == 0.0 and got[cond]["smile"].max() > 0.5, cond
+    assert got["SL"]["jaw"].max() > 0.5
+
+
 def test_normalise_loudness():
     rng = np.random.default_rng(0)
     x = (0.05 * rng.standard_normal(16000 * 2)).astype(np.float32)
