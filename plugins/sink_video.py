@@ -151,6 +151,9 @@ class VideoParams:
         if self.fps is not None:
             check_range("fps", self.fps, 1, 240)
         check_range("crf", self.crf, 0, 51)
+        if self.crf == 0:   # x264's lossless mode switches to the High 4:4:4 Predictive profile (a video review)
+            raise ValueError("crf 0 is lossless H.264 (the High 4:4:4 Predictive profile), which Safari, QuickTime "
+                             "and PowerPoint do not play; use 1 or more (18 looks lossless)")
         if self.preset not in PRESETS:
             raise ValueError(f"preset must be one of {', '.join(PRESETS)} (got {self.preset!r})")
         check_range("threads", self.threads, 1, 64)
@@ -158,8 +161,15 @@ class VideoParams:
         check_range("inset_size", self.inset_size, 0.1, 0.9)
         check_range("audio_bitrate_k", self.audio_bitrate_k, 16, 512)
         check_range("audio_rate", self.audio_rate, 8000, 96000)
+        if self.audio_rate not in AAC_RATES:   # ffmpeg's AAC encoder wrote nothing, in a line naming no setting
+            raise ValueError(f"audio_rate must be a rate AAC takes: {', '.join(map(str, AAC_RATES))} (got "
+                             f"{self.audio_rate})")
         if self.character and self.style != "character":
             raise ValueError(f"a character (avatar) is drawn in style=character only (got style={self.style})")
+
+
+#: the sample rates AAC (MPEG-4 audio's sampling frequency index) takes, within audio_rate's range
+AAC_RATES = (8000, 11025, 12000, 16000, 22050, 24000, 32000, 44100, 48000, 64000, 88200, 96000)
 
 
 class VideoSink(Sink):

@@ -220,6 +220,36 @@ def test_bad_parameters(bad):
         plugins.create("sink", "video", bad, Context())
 
 
+@pytest.mark.parametrize("bad, says", [
+    ({"crf": 0}, "crf 0 is lossless H.264 (the High 4:4:4 Predictive profile)"),   # plays in Chromium, not Safari
+    ({"audio_rate": 12345}, "audio_rate must be a rate AAC takes"),                # ffmpeg wrote nothing, unnamed
+    ({"audio_rate": 44000}, "audio_rate must be a rate AAC takes")])
+def test_settings_a_player_or_ffmpeg_would_refuse_are_named(bad, says):
+    """A video producer's review: crf=0 made a High 4:4:4 Predictive stream (the docs say H.264 High), and
+    audio_rate=12345 ended in ffmpeg's 'Nothing was written into output file', naming no setting."""
+    with pytest.raises(LaughlabError) as err:
+        plugins.create("sink", "video", bad, Context())
+    assert says in str(err.value)
+
+
+def test_ntsc_rates_are_written_as_1001_fractions_and_a_name_like_a_protocol_is_a_file(tmp_path):
+    """29.97 was written as 2997/100 (the docs say 30000/1001), and a relative 'take1:laugh.wav' was read by
+    ffmpeg as a protocol (output=video only: 'Protocol not found')."""
+    from laughlab.io.video import _rate, ffmpeg_input
+
+    assert [_rate(f) for f in (29.97, 23.976, 59.94, 30, 25, 12.5)] == [
+        "30000/1001", "24000/1001", "60000/1001", "30", "25", "25/2"]
+    import soundfile as sf
+
+    odd = tmp_path / "take1:laugh.wav"
+    sf.write(odd, np.zeros(8000), 16000)
+    import contextlib
+
+    with contextlib.chdir(tmp_path):
+        assert ffmpeg_input("take1:laugh.wav") == f"file:{odd}"
+        assert probe("take1:laugh.wav")["audio"]["sample_rate"] == 16000
+
+
 def test_video_fps_above_animation_fps_is_refused(tmp_path):
     sink = VideoSink(VideoParams(fps=60.0, audio=False), Context(fps=30))
     with pytest.raises(LaughlabError, match="must not exceed"):

@@ -63,7 +63,7 @@ class VideoEncoder:
         cmd = [ffmpeg_exe(), "-nostdin", "-y", "-hide_banner", "-loglevel", "error",
                "-f", "rawvideo", "-pix_fmt", "rgb24", "-s", f"{width}x{height}", "-framerate", rate, "-i", "pipe:0"]
         if audio is not None:
-            cmd += ["-i", str(audio)]
+            cmd += ["-i", ffmpeg_input(audio)]
         cmd += ["-map", "0:v:0"] + (["-map", "1:a:0"] if audio is not None else [])
         cmd += COLOR + ["-c:v", "libx264", "-preset", preset, "-crf", str(crf), "-pix_fmt", "yuv420p",
                         "-threads", str(threads), "-fps_mode", "cfr", "-r", rate, "-movflags", "+faststart"]
@@ -120,10 +120,19 @@ class VideoEncoder:
             self._err.close()
 
 
+def ffmpeg_input(path: str | Path) -> str:
+    """A file for ``ffmpeg -i``: absolute, after ``file:``, so that a name like ``take1:laugh.wav`` or ``file,x.wav``
+    is not read as a protocol or options (a video producer's review: 'Protocol not found' for output=video only)."""
+    return f"file:{Path(path).resolve()}"
+
+
 def _rate(fps: float) -> str:
     """ffmpeg's rate string: an integer, or a fraction for rates like 29.97."""
     from fractions import Fraction
 
+    ntsc = round(float(fps) * 1.001)   # 23.976, 29.97, 59.94 are N*1000/1001 (limit_denominator gave 2997/100)
+    if ntsc > 0 and abs(float(fps) - ntsc * 1000 / 1001) < 0.005 and abs(float(fps) - round(float(fps))) > 1e-9:
+        return f"{ntsc * 1000}/1001"
     fr = Fraction(float(fps)).limit_denominator(1001)
     return str(fr.numerator) if fr.denominator == 1 else f"{fr.numerator}/{fr.denominator}"
 
@@ -135,7 +144,8 @@ def probe(path: str | Path) -> dict:
     ``height``, ``fps``) and ``audio`` (``codec``, ``sample_rate``) or None, and ``color``: the
     video's colour tags as ffmpeg prints them after the pixel format (``"tv, bt709"``), "" if none.
     """
-    r = subprocess.run([ffmpeg_exe(), "-hide_banner", "-nostdin", "-i", str(path)], capture_output=True, text=True)
+    r = subprocess.run([ffmpeg_exe(), "-hide_banner", "-nostdin", "-i", ffmpeg_input(path)], capture_output=True,
+                       text=True)
     err = r.stderr
     out: dict = {"duration_s": None, "video": None, "audio": None, "color": ""}
     m = re.search(r"Duration: (\d+):(\d+):(\d+(?:\.\d+)?)", err)
@@ -156,7 +166,7 @@ def probe(path: str | Path) -> dict:
 
 def decode_frames(path: str | Path, width: int, height: int) -> np.ndarray:
     """Every video frame of a file as ``(N, height, width, 3)`` uint8 (decoded by ffmpeg)."""
-    r = subprocess.run([ffmpeg_exe(), "-nostdin", "-loglevel", "error", "-i", str(path), "-map", "0:v:0",
+    r = subprocess.run([ffmpeg_exe(), "-nostdin", "-loglevel", "error", "-i", ffmpeg_input(path), "-map", "0:v:0",
                         "-f", "rawvideo", "-pix_fmt", "rgb24", "-"], capture_output=True)
     if r.returncode != 0:
         raise LaughlabError(f"cannot decode {path}: {r.stderr.decode(errors='replace').strip()}")
@@ -165,7 +175,7 @@ def decode_frames(path: str | Path, width: int, height: int) -> np.ndarray:
 
 def decode_audio(path: str | Path, sample_rate: int = 48000) -> np.ndarray:
     """The first audio stream of a file as mono float32 samples at ``sample_rate`` (decoded by ffmpeg)."""
-    r = subprocess.run([ffmpeg_exe(), "-nostdin", "-loglevel", "error", "-i", str(path), "-map", "0:a:0",
+    r = subprocess.run([ffmpeg_exe(), "-nostdin", "-loglevel", "error", "-i", ffmpeg_input(path), "-map", "0:a:0",
                         "-ac", "1", "-ar", str(sample_rate), "-f", "f32le", "-"], capture_output=True)
     if r.returncode != 0:
         raise LaughlabError(f"cannot decode audio of {path}: {r.stderr.decode(errors='replace').strip()}")
