@@ -114,6 +114,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
+from laughlab.core.errors import LaughlabError
 from laughlab.core.outfiles import file_sha256 as _sha256   # the manifest's hashes
 
 MANIFEST_COLUMNS = ("stimulus_id", "file", "sha256", "condition", "audio_id", "duration_s", "seed", "fps")
@@ -202,7 +203,6 @@ def normalise_loudness(samples: np.ndarray, sample_rate: int, target_lufs: float
     """
     import pyloudnorm
 
-    from laughlab.core.errors import LaughlabError
 
     x = np.asarray(samples, dtype=np.float64)
     if len(x) < int(0.4 * sample_rate) + 1:
@@ -431,7 +431,12 @@ def run(cfg, out_dir) -> dict:
             for s in seeds:
                 audio_id = item.id if len(seeds) == 1 else f"{item.id}-seed{s}"
                 samples, rate = _item_audio(item, base, s, work)
-                norm, info = normalise_loudness(samples, rate, target, max_peak)
+                origin = f"synthetic:{item.profile}" if item.seed is not None else \
+                    Path(item.overrides[-1].split("=", 1)[1]).name
+                try:
+                    norm, info = normalise_loudness(samples, rate, target, max_peak)
+                except LaughlabError as exc:   # which recording (a video producer's review: 'silent audio' alone)
+                    raise LaughlabError(f"stimulus audio {origin}: {exc}; take it out of the corpus folder") from None
                 if info["limited"]:
                     print(f"stimuli: warning: {audio_id} reaches {info['loudness_out_lufs']:.1f} LUFS, not "
                           f"{target:g}: the gain was limited to keep the peak at {max_peak:g} dBFS", file=sys.stderr)
@@ -443,8 +448,6 @@ def run(cfg, out_dir) -> dict:
                     _write_wav(silent, np.zeros_like(norm), rate)
                 audio_files[(item.id, s)] = (wav, silent)
                 units.append((audio_id, item, s))
-                origin = f"synthetic:{item.profile}" if item.seed is not None else \
-                    Path(item.overrides[-1].split("=", 1)[1]).name
                 audio_rows.append([audio_id, origin, rate, f"{len(samples) / rate:.6f}",
                                    f"{info['loudness_in_lufs']:.3f}", f"{info['gain_db']:.3f}",
                                    f"{info['loudness_out_lufs']:.3f}", f"{info['peak_out_dbfs']:.3f}",

@@ -136,6 +136,20 @@ def test_the_riddles_silent_smiles_keep_the_mouth_shut_and_its_laughs_open_it(tm
     assert got["SL"]["jaw"].max() > 0.5
 
 
+def test_a_silent_recording_among_the_stimuli_is_named(tmp_path):
+    """A video producer's review: a silent WAV in the corpus folder stopped the run with 'cannot normalise the
+    loudness of silent audio', naming no file."""
+    import soundfile as sf
+
+    (tmp_path / "rec").mkdir()
+    sf.write(tmp_path / "rec" / "quiet.wav", np.zeros(32000), 16000)
+    r = laughlab("experiment=stimuli", f"harness.corpus.folder={tmp_path / 'rec'}", "harness.corpus.profiles=[]",
+                 f"hydra.run.dir={tmp_path / 'out'}", cwd=tmp_path)
+    assert r.returncode == 2 and r.stderr == ("laughlab: error: stimulus audio quiet.wav: cannot normalise the "
+                                              "loudness of silent audio; take it out of the corpus folder\n"), r.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_normalise_loudness():
     rng = np.random.default_rng(0)
     x = (0.05 * rng.standard_normal(16000 * 2)).astype(np.float32)
