@@ -203,7 +203,6 @@ def normalise_loudness(samples: np.ndarray, sample_rate: int, target_lufs: float
     """
     import pyloudnorm
 
-
     x = np.asarray(samples, dtype=np.float64)
     if len(x) < int(0.4 * sample_rate) + 1:
         raise LaughlabError(f"loudness needs at least 0.4 s of audio (got {len(x) / sample_rate:.2f} s)")
