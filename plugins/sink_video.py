@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import shutil
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -317,6 +318,13 @@ class VideoSink(Sink):
             shutil.rmtree(self.tmp_dir, ignore_errors=True)
         if self.m == 0:
             raise LaughlabError("output.video: no frames to encode")
+        if self.params.audio and self.params.audio_path:   # a video producer's review: 10 s on a frozen frame, unsaid
+            from laughlab.io.video import probe
+
+            audio_s, picture_s = probe(self.audio)["duration_s"], self.m / self.vfps
+            if audio_s is not None and audio_s > picture_s + 1.0 / self.vfps:
+                print(f"laughlab: warning: output.video.audio_path {self.params.audio_path} lasts {audio_s:.2f} s, "
+                      f"the picture {picture_s:.2f} s: its last frame stays on screen for the rest", file=sys.stderr)
         return self.staging.commit()
 
     def metrics(self) -> dict:

@@ -338,3 +338,22 @@ def test_scratch_folders_of_processes_that_are_gone_are_removed_others_kept(tmp_
     mine = scratch_dir()
     assert mine.parent == tmp_path and mine.name.startswith(f"{SCRATCH_PREFIX}{os.getpid()}-") and mine.is_dir()
     assert not dead.exists() and alive.exists() and old.exists()
+
+
+def test_an_audio_path_longer_than_the_picture_is_said(tmp_path):
+    """A video producer's review: output.video.audio_path of 12 s on a 2 s run made an MP4 of 12 s, 10 of them on a
+    frozen last frame, without a word.  One warning line; an audio_path as long as the picture says nothing."""
+    import soundfile as sf
+
+    from inprocess import laughlab
+
+    for name, seconds in (("long.wav", 6.0), ("same.wav", 1.5)):
+        sf.write(tmp_path / name, 0.1 * np.sin(np.arange(int(16000 * seconds)) / 10), 16000)
+    r = laughlab("input.duration_s=1.5", "output=video", f"output.video.audio_path={tmp_path / 'long.wav'}",
+                 "~output.plots", f"hydra.run.dir={tmp_path / 'a'}")
+    assert r.returncode == 0 and r.stderr == (f"laughlab: warning: output.video.audio_path {tmp_path / 'long.wav'} "
+                                              "lasts 6.00 s, the picture 1.50 s: its last frame stays on screen for "
+                                              "the rest\n"), r.stderr
+    r = laughlab("input.duration_s=1.5", "output=video", f"output.video.audio_path={tmp_path / 'same.wav'}",
+                 "~output.plots", f"hydra.run.dir={tmp_path / 'b'}")
+    assert r.returncode == 0 and r.stderr == "", r.stderr
