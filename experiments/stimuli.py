@@ -117,6 +117,11 @@ from omegaconf import OmegaConf
 from laughlab.core.errors import LaughlabError
 from laughlab.core.outfiles import file_sha256 as _sha256   # the manifest's hashes
 
+#: a muted condition's mouth, shut, by face: the smile face's jaw takes an input range above the MCS' 1, so it never
+#: opens (a silent smile's jaw followed the muted laugh: a laughing mouth without a sound, a video producer's review);
+#: a face not named here keeps its mouth as it is, said in a note
+SHUT_MOUTH = {"smile": ("face.jaw.min_e=1.0", "face.jaw.max_e=2.0")}
+
 MANIFEST_COLUMNS = ("stimulus_id", "file", "sha256", "condition", "audio_id", "duration_s", "seed", "fps")
 AUDIO_COLUMNS = ("audio_id", "source", "sample_rate", "duration_s", "loudness_in_lufs", "gain_db",
                  "loudness_out_lufs", "peak_out_dbfs", "limited")
@@ -347,6 +352,18 @@ def _write_wav(path: Path, samples: np.ndarray, rate: int) -> None:
     tmp.replace(path)
 
 
+def _shut_mouth(overrides: list[str], cond: str) -> tuple:
+    """The overrides that keep a muted condition's mouth shut under the face ``overrides`` choose (:data:`SHUT_MOUTH`);
+    none, and a note, for a face without such settings."""
+    from laughlab.harness.runner import _compose
+
+    face = _compose(overrides).face.name
+    if face not in SHUT_MOUTH:
+        print(f"stimuli: note: face={face} has no setting that keeps a silent smile's mouth shut: {cond}'s mouth "
+              "follows the muted laugh", file=sys.stderr)
+    return SHUT_MOUTH.get(face, ())
+
+
 def _render(overrides: list[str], video: dict, run_dir: Path, csv_too: bool = False) -> dict:
     """Run the pipeline with the ``video`` sink (and ``csv``) into ``run_dir``; return the video sink's metrics."""
     from laughlab.core import pipeline
@@ -456,6 +473,8 @@ def run(cfg, out_dir) -> dict:
         keep_runs = bool(h.get("keep_runs"))
         jobs = []
         for cond, cond_overrides in conditions.items():
+            if cond in muted:
+                cond_overrides = [*cond_overrides, *_shut_mouth([*base, *cond_overrides], cond)]
             for audio_id, item, s in units:
                 sid = f"{cond}-{audio_id}"
                 wav, silent = audio_files[(item.id, s)]

@@ -125,15 +125,22 @@ def test_the_riddles_silent_smiles_keep_the_mouth_shut_and_its_laughs_open_it(tm
     from laughlab.core import pipeline
     from laughlab.core.config import compose_app
 
-    conds = OmegaConf.to_container(compose_config(["experiment=stimuli", "harness.preset=riddle"]).harness.conditions)
+    from laughlab_experiments.stimuli import _shut_mouth
+
+    h = OmegaConf.to_container(compose_config(["experiment=stimuli", "harness.preset=riddle"]).harness, resolve=True)
+    conds, muted = h["conditions"], set(h["presets"]["riddle"]["muted"])
     got = {}
     for cond in ("SS", "LS", "SL"):
-        cfg = compose_app([*conds[cond], "input.profile=intense", "input.duration_s=4", "seed=0", "~output.plots"])
+        shut = _shut_mouth(conds[cond], cond) if cond in muted else ()
+        cfg = compose_app([*conds[cond], *shut, "input.profile=intense", "input.duration_s=4", "seed=0",
+                           "~output.plots"])
         pipeline.execute(pipeline.build(cfg), tmp_path / cond, {})
         got[cond] = pd.read_csv(tmp_path / cond / "channels.csv")
     for cond in ("SS", "LS"):
         assert got[cond]["jaw"].max() == 0.0 and got[cond]["smile"].max() > 0.5, cond
     assert got["SL"]["jaw"].max() > 0.5
+    # another face renders as before, said in a note (face=facs has no setting that keeps its mouth shut)
+    assert _shut_mouth([*conds["SS"], "face=facs"], "SS") == ()
 
 
 def test_a_silent_recording_among_the_stimuli_is_named(tmp_path):
