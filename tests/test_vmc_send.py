@@ -23,6 +23,9 @@ def test_the_socket_never_blocks_and_may_broadcast():
     try:
         assert s.sock.getblocking() is False and s.sock.gettimeout() == 0.0
         assert s.sock.getsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST) == 1
+        # connected (the kernel then says when nothing listens), so it sends with send(): BSD and macOS refuse
+        # sendto() with an address on a connected socket (EISCONN)
+        assert s.connected and s.sock.getpeername() == ("127.0.0.1", 39539)
     finally:
         s.close()
 
@@ -38,6 +41,9 @@ class Refusing:
         if self.k % 3:
             raise self.errors[self.k % len(self.errors)]
         self.sent += 1
+
+    def send(self, data):   # the sender's socket is connected (VmcSender.connected)
+        return self.sendto(data, None)
 
     def close(self):
         pass
@@ -96,6 +102,9 @@ class Failing:
     def sendto(self, data, address):
         self.k += 1
         raise self.error
+
+    def send(self, data):
+        return self.sendto(data, None)
 
     def close(self):
         self.closed = True

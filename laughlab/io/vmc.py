@@ -396,8 +396,10 @@ class VmcSender:
         self.sock.setblocking(False)
         if info[0] == socket.AF_INET:
             self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_BROADCAST, 1)
+        self.connected = False
         try:   # connected, the kernel says when nothing listens there (Linux, macOS: ICMP port unreachable)
             self.sock.connect(self.address)
+            self.connected = True   # then send(), not sendto(): BSD and macOS refuse an address (EISCONN)
         except OSError:   # not now (no route yet): sent to as before, the errors said at send
             pass
         self.packets = 0   # datagrams handed to the socket
@@ -411,7 +413,10 @@ class VmcSender:
         ``strict=False`` (the frame at rest, the stream's last) is dropped and said like a passing one."""
         for p in packets:
             try:
-                self.sock.sendto(p, self.address)
+                if self.connected:
+                    self.sock.send(p)
+                else:
+                    self.sock.sendto(p, self.address)
             except ConnectionRefusedError:  # nobody listening (ICMP port unreachable): UDP goes on, said once (a
                 self.refused += 1           # VTuber's review: a wrong port streamed to nobody without a word)
                 if self.refused == 1:
