@@ -1569,8 +1569,8 @@ def test_a_consents_key_and_a_number_typed_by_hand_hold_against_a_diff_reviews_c
         assert srv.post("/api/event", {"participant": 4, "session": "a", "event": "consent", "key": "x!"})[0] == 422
         assert DB.participant_key(srv.db, 4) is None
         assert not any(s["consent_at"] for s in DB.sessions(srv.db) if s["participant"] == 4)
-        assert DB.participant_key(srv.db, 5, give=True, key="A" * 20) == "A" * 20
-        assert DB.participant_key(srv.db, 5, give=True, key="B" * 20) == "A" * 20   # the server compares: 403
+        assert DB.participant_key(srv.db, 5, give="A" * 20) == "A" * 20
+        assert DB.participant_key(srv.db, 5, give="B" * 20) == "A" * 20   # the server compares: 403
         assert srv.post("/api/start", {"participant": 1, "session": "typed", "design": d["id"]})[0] == 200
         assert DB.assign(srv.db, "panel-id", sorted(int(n) for n in d["participants"]), hold_s=0) == 1
         status, reply = srv.post("/api/event", {"participant": 1, "session": "typed", "event": "consent"})

@@ -255,19 +255,16 @@ def check_session(path: Path, session: str, participant: int) -> bool:
         conn.close()
 
 
-def participant_key(path: Path, participant: int, give: bool = False, key: str | None = None) -> str | None:
-    """The key of ``participant``'s browser, taken with their consent (None before); ``give``: take ``key`` (the
-    page's own, made before it posts the consent, so a reload right after finds it) or make one, if there is none.
-    Every later post of theirs carries it, so no one else can answer as them (a security review: their number, or
-    their panel ID, was all it took to answer, screen them out or end their study)."""
-    import secrets
-
+def participant_key(path: Path, participant: int, give: str | None = None) -> str | None:
+    """The key of ``participant``'s browser, taken with their consent (None before); ``give``: the key to take if
+    there is none yet (the page's own, made before it posts the consent, so a reload right after finds it, or the
+    server's).  Every later post of theirs carries it, so no one else can answer as them (a security review: their
+    number, or their panel ID, was all it took to answer, screen them out or end their study)."""
     conn = connect(path)
     try:
         with _transaction(conn):
             if give:
-                conn.execute("INSERT OR IGNORE INTO participant_keys VALUES (?, ?)",
-                             (participant, key or secrets.token_urlsafe(18)))
+                conn.execute("INSERT OR IGNORE INTO participant_keys VALUES (?, ?)", (participant, give))
             row = conn.execute("SELECT key FROM participant_keys WHERE participant = ?", (participant,)).fetchone()
             return row[0] if row else None
     finally:

@@ -343,7 +343,7 @@ class StudyHandler(_Handler):
         import secrets
 
         offered = key or secrets.token_urlsafe(18)
-        stored = DB.participant_key(self.db, p, give=True, key=offered)
+        stored = DB.participant_key(self.db, p, give=offered)
         if stored != offered:   # two pages consenting at once (a diff review: the second was handed the first one's key)
             raise _elsewhere(p)
         return 200, {"key": stored}
