@@ -188,7 +188,7 @@ def extra(run) -> dict:
     lines = curves(run.conditions)
     if not items or not lines:
         return {}
-    paths = [next(o.split("=", 1)[1] for o in i.overrides if o.startswith("input.path=")) for i in items]
+    paths = [i.path for i in items]
     first = {}   # the first recording's scores, each detector stepped over it once
     for w in sorted({(d, own) for _, d, own, _, _ in lines}):
         try:

@@ -447,8 +447,7 @@ def run(cfg, out_dir) -> dict:
             for s in seeds:
                 audio_id = item.id if len(seeds) == 1 else f"{item.id}-seed{s}"
                 samples, rate = _item_audio(item, base, s, work)
-                origin = f"synthetic:{item.profile}" if item.seed is not None else \
-                    Path(item.overrides[-1].split("=", 1)[1]).name
+                origin = f"synthetic:{item.profile}" if item.seed is not None else Path(item.path).name
                 try:
                     norm, info = normalise_loudness(samples, rate, target, max_peak)
                 except LaughlabError as exc:   # which recording (a video producer's review: 'silent audio' alone)

@@ -93,7 +93,9 @@ def test_each_detector_is_stepped_over_each_recording_once_and_a_plugin_that_can
 
     monkeypatch.setattr(de, "frame_scores", scores)
     monkeypatch.setattr(de, "truth_frames", lambda truth, n, dt: np.arange(n) >= n // 2)
-    items = [SimpleNamespace(truth=f"t{k}.json", profile="real", overrides=[f"input.path=r{k}.wav"]) for k in range(3)]
+    from laughlab.harness.corpus import Item
+
+    items = [Item(f"real-{k}", ("input=file", f"input.path=r{k}.wav"), "real", None, f"t{k}.json") for k in range(3)]
     run = SimpleNamespace(items=items, out_dir=tmp_path, cfg=OmegaConf.create({}),
                           conditions={"y": ["detector=yamnet"], "mine": ["detector=modlaugh"],
                                       "b": ["detector=broken"]})

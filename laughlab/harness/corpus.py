@@ -39,6 +39,11 @@ class Item:
     seed: int | None = None
     truth: str | None = None
 
+    @property
+    def path(self) -> str | None:
+        """The recording's file (its ``input.path=`` override); None for a synthetic input."""
+        return next((o.split("=", 1)[1] for o in self.overrides if o.startswith("input.path=")), None)
+
 
 def synthetic_items(profiles, seeds, duration_s: float) -> list[Item]:
     """Synthetic laughter: one item per profile and seed (giggle ignores the duration)."""

@@ -266,7 +266,7 @@ def input_hash(item: Item) -> str:
 
     Keyed by what the hash is of, not by the input's id: a sweep runs its experiments in one process, and the
     same id (``mild-s00``) can be another input there (another ``harness.corpus.duration_s``)."""
-    path = next((o.split("=", 1)[1] for o in item.overrides if o.startswith("input.path=")), None)
+    path = item.path
     if path is None or not Path(path).exists():
         return hashlib.sha256(json.dumps(list(item.overrides)).encode()).hexdigest()
     st = Path(path).stat()
