@@ -124,7 +124,9 @@ class FacsFace(Face):
       (0..1), and ``frame.offsets['head'] = (roll, pitch, yaw)`` (BVH order z, x, y);
     * per side (Eq. F3: gains and delays drawn once from the run's generator at
       construction) the ARKit weights of :data:`laughlab.face.facs.AU_TO_ARKIT`, as
-      channels ``arkit.NAME`` in [0, 1]; brow_raise acts as AU1 and AU2.
+      channels ``arkit.NAME`` in [0, 1]; brow_raise acts as AU1 and AU2.  The shapes without a side
+      (``jawOpen``, ``browInnerUp``) take the units' own activations: the jaw is one bone, and the mean of its
+      two sides' delayed copies answered a call a median 17 ms later than ``jaw`` (until 2026-11-29).
 
     The same channels are written every frame.
     """
@@ -202,7 +204,7 @@ class FacsFace(Face):
         for a, line, (gain, delay) in zip(acts, self.lines, self._var):
             line.push(a)
             sided.append((gain[0] * line.get(delay[0]), gain[1] * line.get(delay[1])))
-        weights = self.arkit(sided)
+        weights = self.arkit(sided, acts)
         # AU45 (blink) is symmetric: it closes both lids with AU43 by maximum
         for side in ("eyeBlinkLeft", "eyeBlinkRight"):
             if blink > weights[side]:

@@ -72,7 +72,10 @@ def test_arkit_map_by_hand():
     m = ArkitMap(["au12", "au26", "au43", "au45"])
     w = m([(0.8, 0.6), (0.5, 0.3), (0.2, 0.9), (0.7, 0.7)])
     assert w["mouthSmileLeft"] == pytest.approx(0.8) and w["mouthSmileRight"] == pytest.approx(0.6)
-    assert w["jawOpen"] == pytest.approx(0.6 * 0.5 * (0.5 + 0.3))  # midline: mean of the sides
+    assert w["jawOpen"] == pytest.approx(0.6 * 0.5 * (0.5 + 0.3))  # midline, no centre given: mean of the sides
+    wc = m([(0.8, 0.6), (0.5, 0.3), (0.2, 0.9), (0.7, 0.7)], [0.1, 0.4, 0.2, 0.7])
+    assert wc["jawOpen"] == pytest.approx(0.6 * 0.4)  # midline: the unit's own activation (Eq. F3 is per side)
+    assert {k: v for k, v in wc.items() if k != "jawOpen"} == {k: v for k, v in w.items() if k != "jawOpen"}
     assert w["eyeBlinkLeft"] == pytest.approx(0.7) and w["eyeBlinkRight"] == pytest.approx(0.9)  # max
     assert list(w) == [n for n in ARKIT_BLENDSHAPES if n in w]
     m2 = ArkitMap(["au25", "au26", "au27"])
@@ -252,6 +255,19 @@ def test_asymmetry_and_desync_present_but_small():
     assert not np.array_equal(left, right)
     v = f.sides["au12"]
     assert v.delay_s[0] != v.delay_s[1] and v.gain[0] != v.gain[1]
+
+
+def test_midline_shapes_are_the_units_without_side_delay():
+    """jawOpen and browInnerUp have no sides: the units' own activations, not the mean of two delayed, scaled copies
+    (which answered a call a median 17 ms after ``jaw`` in bench_latency's stream, docs/latency.md)."""
+    f = face(seed=3)
+    frames = drive(f, _laughter())
+    assert max(fr.channels["jaw"] for fr in frames) > 0.5
+    for fr in frames:
+        ch = fr.channels
+        assert ch["arkit.jawOpen"] == pytest.approx(min(ch["jaw"], 1.0), abs=1e-12)
+        assert ch["arkit.browInnerUp"] == pytest.approx(ch["brow_raise"], abs=1e-12)
+    assert any(fr.channels["arkit.mouthSmileLeft"] != fr.channels["au12"] for fr in frames)  # sides still vary
 
 
 def test_no_asymmetry_no_desync_gives_symmetric_sides():

@@ -76,7 +76,9 @@ than posed ones (Ekman, Hager & Friesen 1981), so the defaults are small: gains
 within 10 % and delays within 50 ms (our choice: below one blink's closing time,
 80 ms, so the sides stay visibly one expression).  With the different onset and
 offset rates of the units this gives the "not synchronized and not symmetric"
-smile the thesis asks for (6.1).  Blinks (AU45) stay symmetric and synchronous.
+smile the thesis asks for (6.1).  Blinks (AU45) stay symmetric and synchronous, and
+the midline shapes (``jawOpen``, ``browInnerUp``) take ``a_u(t)`` itself: a jaw has
+no sides, and the mean of two delayed copies opened it a median 17 ms late.
 """
 from __future__ import annotations
 
@@ -159,8 +161,9 @@ AU_TO_ARKIT: dict[str, dict[str, float]] = {
 """Weight of each action unit on each ARKit shape; ``{side}`` is ``Left`` or ``Right``.
 
 An ARKit value is ``clip(sum_u w_u a_u, 0, 1)`` over the units acting on it
-(``a_u`` of that side; a name without ``{side}`` takes the mean of the two
-sides), except the names in :data:`MAX_COMBINED`, which take the largest
+(``a_u`` of that side; a name without ``{side}``, ``jawOpen`` and ``browInnerUp``, takes
+the unit's activation before Eq. F3's per-side gain and delay when the caller gives it, else the mean of the
+two sides), except the names in :data:`MAX_COMBINED`, which take the largest
 ``w_u a_u``.  Sources and choices (after Ozel's ARKit-to-FACS cheat sheet):
 
 * AU6 -> ``cheekSquint`` (the cheek raiser itself) plus 0.4 ``eyeSquint``: the
@@ -214,14 +217,20 @@ class ArkitMap:
         self.names = tuple(n for n in ARKIT_BLENDSHAPES if n in rules)
         self._rules = [(n, n in MAX_COMBINED, tuple(rules[n])) for n in self.names]
 
-    def __call__(self, values: Sequence[tuple[float, float]]) -> dict[str, float]:
-        """ARKit weights from ``values[k] = (left, right)`` of unit ``k``; each in [0, 1]."""
+    def __call__(self, values: Sequence[tuple[float, float]],
+                 centre: Sequence[float] | None = None) -> dict[str, float]:
+        """ARKit weights from ``values[k] = (left, right)`` of unit ``k``; each in [0, 1].
+
+        ``centre[k]``, if given, is unit ``k``'s own activation, which the names without a side take (a jaw has no
+        sides: Eq. F3's two delayed copies averaged delayed ``jawOpen`` by a frame and smoothed it); without it,
+        the mean of the two sides.
+        """
         out = {}
         for name, use_max, rule in self._rules:
             acc = 0.0
             for k, s, w in rule:
                 lr = values[k]
-                v = w * (0.5 * (lr[0] + lr[1]) if s < 0 else lr[s])
+                v = w * (lr[s] if s >= 0 else 0.5 * (lr[0] + lr[1]) if centre is None else centre[k])
                 acc = max(acc, v) if use_max else acc + v
             out[name] = 0.0 if acc < 0.0 else (1.0 if acc > 1.0 else acc)
         return out
