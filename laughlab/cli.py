@@ -246,7 +246,8 @@ def _fault(exc: BaseException, where: Path | str, cfg) -> tuple[str, int]:
             os.path.abspath(str(where)))
         return os_error_line(exc, where, verb="cannot use" if outside else "cannot write"), 2
     if blame.line(exc):   # a plugin's bug: its own lines of the traceback, then the line naming it
-        print(blame.trace(exc), file=sys.stderr)
+        if blame.trace(exc):   # (none when out of memory)
+            print(blame.trace(exc), file=sys.stderr)
         return blame.line(exc), 1
     if _CLAIM is not None and not cfg.get("harness"):
         _remove_new_run_dir(Path(where))

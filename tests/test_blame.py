@@ -67,3 +67,20 @@ def test_an_exception_of_no_plugin_is_left_as_it_is():
     exc = _raised(lambda: 1 / 0)
     blame.mark(exc, [face], 3, 60.0)
     assert blame.line(exc) is None
+
+
+def test_out_of_memory_is_the_machines_limit_not_the_plugins_bug():
+    from laughlab import Face
+
+    class Big(Face):
+        name = "big"
+
+        def step(self, frame):
+            raise MemoryError()
+
+    face = Big()
+    exc = _raised(lambda: face.step(None))
+    blame.mark(exc, [face], 3, 60.0)
+    assert blame.line(exc).startswith(f"face 'big' ({__file__}, Big.step) at frame 3 (0.05 s) ran out of memory: ")
+    assert "bug" not in blame.line(exc) and "lines above" not in blame.line(exc)
+    assert blame.trace(exc) == ""    # no traceback is printed

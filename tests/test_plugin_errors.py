@@ -392,3 +392,23 @@ def test_the_slowest_stage_is_said_only_past_half_a_frame():
     assert slowest({"body a": 5.0, "face b": 3.0}, 60.0) == ""                     # 8.0 ms of 16.7: under half
     assert slowest({"body a": 5.0, "face b": 3.5}, 60.0) == "; body a 5.0 ms a frame of 16.7"
     assert slowest({}, 60.0) == ""
+
+
+def test_a_plugin_out_of_memory_is_one_line_without_a_traceback(registered, tmp_path):
+    """A MemoryError (a review: 4K video at supersample 4 beside other jobs) is the machine's limit: one line naming
+    the plugin and what needs less, no traceback, not 'a bug in laughlab'; the run's folder is removed."""
+    class Hungry(Face):
+        name = "hungry"
+
+        def step(self, frame):
+            if frame.index == 30:
+                raise MemoryError()
+            GoodFace.step(self, frame)
+
+    registered(Hungry)
+    r = run_cli("face=hungry", "detector=none", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'run'}")
+    assert r.returncode == 1 and r.stderr == (
+        f"laughlab: error: face 'hungry' ({__file__}, Hungry.step) at frame 30 (0.50 s) ran out of memory: the "
+        "machine could not give it more; a smaller output (a video's output.video.supersample, width, height), a "
+        "shorter input or fewer jobs at once needs less; the run's partial output was removed\n"), r.stderr
+    assert not (tmp_path / "run").exists() or not any((tmp_path / "run").iterdir())

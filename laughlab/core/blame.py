@@ -53,7 +53,9 @@ def mark(exc: BaseException, stages: list, frame: int | None, fps: float) -> Non
     when = f" at frame {frame} ({frame / fps:.2f} s)" if frame is not None and method == "step" else ""
     name = getattr(plugin, "name", "") or cls.__name__
     setattr(exc, WHERE, f"{kind} '{name}' ({_source_file(cls)}, {cls.__name__}.{method}){when}")
-    setattr(exc, TRACE, "".join(traceback.format_exception(type(exc), exc, tb)).rstrip())
+    # out of memory is the machine's limit, not a bug: no traceback (a review: 4K video at supersample 4)
+    setattr(exc, TRACE, "" if isinstance(exc, MemoryError) else
+            "".join(traceback.format_exception(type(exc), exc, tb)).rstrip())
     setattr(exc, BUILT_IN, cls.__module__.split(".")[0] in ("laughlab", "laughlab_plugins"))
 
 
@@ -83,6 +85,9 @@ def line(exc: BaseException) -> str | None:
     where = getattr(exc, WHERE, None)
     if not where:
         return None
+    if isinstance(exc, MemoryError):
+        return (f"{where} ran out of memory: the machine could not give it more; a smaller output (a video's "
+                "output.video.supersample, width, height), a shorter input or fewer jobs at once needs less")
     text = str(exc).strip().splitlines()
     cause = f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
     who = ("a bug in laughlab: please report it with the lines above" if getattr(exc, BUILT_IN, False)
