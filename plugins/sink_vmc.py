@@ -261,16 +261,24 @@ class VmcSink(Sink):
         pos, rot = self.bones.local(neutral[None])   # the frame at rest, made before the way back to it
         rest = self.encoder.packets(self.encoder.messages(self._t + (steps + 1) / fps, pos[0], rot[0],
                                                           ((k, 0.0) for k in self._sent)))
+        # from the last frame sent, at the frame clock (slept 1/fps a frame, they came right after a microphone's
+        # last frame, 2 ms after it, and late by the sends' own time: a game developer's review)
+        after = self._sent_ns if self._sent_ns is not None else time.perf_counter_ns()
+
+        def wait(j: int) -> None:
+            due = after + j * 1e9 / fps - time.perf_counter_ns()
+            if due > 0:
+                time.sleep(due / 1e9)
         try:
             for j in range(1, steps + 1):   # from the last frame towards rest, paced at the frame clock
                 w = j / (steps + 1)
                 pos, rot = self.bones.local((last + w * (neutral - last))[None])
                 msgs = self.encoder.messages(self._t + j / fps, pos[0], rot[0],
                                              ((k, (1.0 - w) * v) for k, v in zip(names, values)))
-                time.sleep(1.0 / fps)
+                wait(j)
                 self.sender.send(self.encoder.packets(msgs), strict=False)
             if steps:
-                time.sleep(1.0 / fps)
+                wait(steps + 1)
         finally:   # a second Ctrl-C or SIGTERM while easing back: the frame at rest at once, a third one held off
             with deferred():   # until it is sent (the avatar stayed mid-laugh, a VTuber's review)
                 self.sender.send(rest, strict=False)   # its error warned of: the frames went out
@@ -292,7 +300,7 @@ class VmcSink(Sink):
         """Frames sent and the capture-to-send latency (ms) for ``metrics.json``."""
         s = self._summary or self._latency()
         out = {"vmc_frames": int(self.n), "vmc_dropped_datagrams": int(self.sender.dropped),
-               "vmc_early_frames": int(self.early)}
+               "vmc_refused_sends": int(self.sender.refused), "vmc_early_frames": int(self.early)}
         for key in ("p50", "p90", "p99", "max"):  # None (JSON null) when nothing was measured
             out[f"vmc_latency_ms_{key}"] = s[key] if s["n"] else None
         return out

@@ -506,6 +506,46 @@ def test_the_stream_returns_to_rest_over_rest_blend_s_paced(tmp_path, capsys):
     assert f"vmc: 15 frames and 9 frames back to rest to 127.0.0.1:{rx.port} (not paced" in capsys.readouterr().out
 
 
+def test_the_frames_back_to_rest_keep_the_frame_clock_from_the_last_frame_sent(tmp_path, monkeypatch):
+    """A game developer's review: after a microphone's last frame the first frame back to rest left 2 ms later, and
+    each slept 1/fps on top of its own send's time.  On a clock of the test's own (each send takes 5 ms), frame j
+    back to rest leaves j/fps after the last frame sent."""
+    class Clock:   # the sink's time module: perf_counter_ns and sleep on a clock that only moves when told
+        now = 10**12
+
+        def perf_counter_ns(self):
+            return self.now
+
+        def sleep(self, s):
+            self.now += int(round(s * 1e9))
+
+        def __getattr__(self, name):
+            return getattr(time, name)
+
+    fake = Clock()
+    monkeypatch.setattr(sink_vmc, "time", fake)
+    with Receiver() as rx:
+        pipe = pipeline.build(config(rx.port, "input.duration_s=0.2", realtime="off", rest_on_stop=True,
+                                     rest_blend_s=0.1))
+        vmc = next(s for s in pipe.sinks if s.name == "vmc")
+        sent, opened = [], vmc.open
+
+        def open_and_time(run):
+            opened(run)
+            send = vmc.sender.send
+
+            def timed(packets, **kw):
+                send(packets, **kw)
+                sent.append(fake.now)
+                fake.now += 5_000_000   # the send's own 5 ms
+            vmc.sender.send = timed
+        monkeypatch.setattr(vmc, "open", open_and_time)
+        pipeline.execute(pipe, tmp_path, {})
+    assert vmc.rest_frames == 3 + 1 and len(sent) == 6 + 4   # 0.2 s at 30 fps, 0.1 s back to rest, the rest frame
+    last = sent[5] + 5_000_000   # the last frame's send ended here (the sink reads the clock after it)
+    np.testing.assert_allclose(np.array(sent[6:]) - last, np.arange(1, 5) * 1e9 / 30, atol=1)
+
+
 def test_rest_on_stop_false_sends_the_frames_only(tmp_path):
     with Receiver() as rx:
         pipeline.execute(pipeline.build(config(rx.port, "input.duration_s=0.5", realtime="off", rest_on_stop=False)),
@@ -604,30 +644,35 @@ def test_with_your_avatar_the_bones_at_rest_land_on_its_joints_and_the_hips_move
     tpose = rest_pose(HUMANOID)
     pos, rot = bones.local(tpose[None])
     np.testing.assert_allclose(rot[0], np.tile([0, 0, 0, 1.0], (len(bones.joints), 1)), atol=1e-12)
+    F = np.asarray(avatar.turn)
+    hips_node = avatar.bones["hips"]
+    parent = int(avatar.parents[hips_node])
+    under = avatar.rest_world[parent]      # Godette's Hips hang under a root joint 5 cm up: identity rotation
+    np.testing.assert_allclose(under[:3, :3], np.eye(3), atol=1e-9)
+    assert under[1, 3] == pytest.approx(0.05, abs=0.005)
     world = {}
     for k, j in enumerate(bones.joints):
         p = HUMANOID.parents[j]
         while p >= 0 and p not in world:
             p = HUMANOID.parents[p]
-        world[j] = pos[0, k] if p < 0 else world[p] + pos[0, k]
-    F = np.asarray(avatar.turn)
+        # the Hips' position is local to its parent node (a receiver sets localPosition): add the parent's
+        world[j] = (pos[0, k] + (F.T @ under[:3, 3]) * [-1, 1, 1]) if p < 0 else world[p] + pos[0, k]
     for j, w in world.items():
         node = avatar.bones.get(JOINT_TO_VRM.get(HUMANOID.names[j]))
         if node is not None:   # the avatar's joint in laughlab's frame (F.T p), then Unity's (-x, y, z), m
             want = F.T @ avatar.rest_world[node, :3, 3]
             np.testing.assert_allclose(w, want * [-1, 1, 1], atol=1e-9, err_msg=HUMANOID.names[j])
     hips_y = pos[0, 0, 1]
-    assert abs(hips_y - 0.95) > 0.1 and hips_y == pytest.approx(avatar.rest_world[avatar.bones["hips"], 1, 3])
+    assert abs(hips_y - 0.95) > 0.1 and hips_y == pytest.approx(avatar.rest_local[hips_node, 1, 3], abs=1e-9)
+    assert hips_y == pytest.approx(avatar.rest_world[hips_node, 1, 3] - under[1, 3], abs=1e-9)   # not the world's
     # the root's motion as output=gltf retargets it: the same hips in the avatar's frame, every frame
     rng = np.random.default_rng(3)
     poses = np.tile(tpose, (5, 1))
     poses[:, :3] += rng.uniform(-10, 10, (5, 3))
     moved = retarget(avatar, poses)
     pos, _ = bones.local(poses)
-    p = int(avatar.parents[avatar.bones["hips"]])
-    hips_world = moved.hips_translation if p < 0 else moved.hips_translation @ avatar.rest_world[p, :3, :3].T \
-        + avatar.rest_world[p, :3, 3]
-    np.testing.assert_allclose(pos[:, 0], (hips_world @ F) * [-1, 1, 1], atol=1e-9)
+    # the same local position output=gltf writes as the hips' translation (in its parent's frame)
+    np.testing.assert_allclose(pos[:, 0], (moved.hips_translation @ F) * [-1, 1, 1], atol=1e-9)
     # without an avatar: the mannequin's, as before
     plain, _ = BoneMap(HUMANOID).local(tpose[None])
     assert plain[0, 0, 1] == pytest.approx(0.95, abs=0.01)

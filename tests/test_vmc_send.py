@@ -76,6 +76,7 @@ def test_send_errors_drop_and_count_the_datagrams_and_the_run_keeps_its_files(tm
     dropped = fake.k - fake.sent - refused
     assert metrics["vmc_frames"] == 30 and dropped > 0 and metrics["vmc_dropped_datagrams"] == dropped
     assert json.loads((tmp_path / "metrics.json").read_text())["vmc_dropped_datagrams"] == dropped
+    assert refused > 0 and json.loads((tmp_path / "metrics.json").read_text())["vmc_refused_sends"] == refused
     assert (tmp_path / "channels.csv").exists()
     out = capsys.readouterr()
     lines = out.err.splitlines()

@@ -223,8 +223,10 @@ def vmc_rest(avatar: Avatar, skeleton: Skeleton, joints: list[int], offsets_cm: 
     the nearest sent ancestor, such that chained from the hips every joint the avatar has lands on its own (a joint
     it lacks at laughlab's ``offsets_cm`` from its parent, scaled by leg height), the hips' rest position,
     laughlab's rest root and the scale by which root motion is carried over (as :func:`retarget` carries it: the
-    avatar's leg height over laughlab's).  Returns
-    ``(offsets (J, 3), hips (3,), rest_root (3,), scale)``."""
+    avatar's leg height over laughlab's), and ``(A, b)``, which take the hips' world position into its parent
+    node's frame, ``A @ p + b`` (laughlab's axes, cm): a receiver sets it as the Hips' ``localPosition`` (EVMC4U), so
+    an avatar whose Hips hang under a joint off the origin (Godette's root, 5 cm up) floated by that much.  Returns
+    ``(offsets (J, 3), hips (3,), rest_root (3,), scale, (A, b))``."""
     F, drive, *_, rest_root, scale = _constants(avatar, skeleton)
     pos = avatar.rest_world[:, :3, 3] @ F * 100.0   # F.T p, per row: laughlab's frame, cm
     node = {j: avatar.bones.get(JOINT_TO_VRM.get(n)) for j, n in enumerate(skeleton.names)}
@@ -237,4 +239,11 @@ def vmc_rest(avatar: Avatar, skeleton: Skeleton, joints: list[int], offsets_cm: 
         base = world[a] if a >= 0 else np.zeros(3)
         world[j] = pos[node[j]] if node[j] is not None else base + np.asarray(offsets_cm[j], float) * scale
         out.append(world[j] - base)
-    return np.array(out).reshape(len(joints), 3), pos[avatar.bones["hips"]], np.asarray(rest_root, float), scale
+    hips = avatar.bones["hips"]
+    p = int(avatar.parents[hips])
+    A, b = np.eye(3), np.zeros(3)
+    if p >= 0:   # world (laughlab's axes, cm) -> the parent's frame: F.T M^-1 (F x / 100) * 100
+        inv = np.linalg.inv(avatar.rest_world[p])
+        A = F.T @ inv[:3, :3] @ F
+        b = F.T @ inv[:3, 3] * 100.0
+    return np.array(out).reshape(len(joints), 3), pos[hips], np.asarray(rest_root, float), scale, (A, b)

@@ -232,14 +232,19 @@ class BoneMap:
                 offsets[c] = offsets[c] + offsets[folded]
         self.offsets = offsets
         self.rest = to_unity_position(offsets[self.joints])
-        self.hips_move = None   # with an avatar: (its hips at rest, laughlab's rest root (cm), scale of the motion)
+        self.hips_move = None   # with an avatar: (its hips at rest, laughlab's rest root (cm), scale of the motion,
+        #                         the hips' world position into its parent's frame: (A, b))
 
-    def place(self, offsets_cm: np.ndarray, hips_cm: np.ndarray, rest_root_cm: np.ndarray, scale: float) -> "BoneMap":
+    def place(self, offsets_cm: np.ndarray, hips_cm: np.ndarray, rest_root_cm: np.ndarray, scale: float,
+              to_parent: tuple | None = None) -> "BoneMap":
         """Send another character's bones: their offsets (``(len(joints), 3)``, laughlab's frame, cm), its hips at
-        rest, and the root's motion from laughlab's rest root scaled by ``scale`` (an avatar's:
-        :func:`laughlab.avatar.retarget.vmc_rest`); the rotations are the same."""
+        rest, the root's motion from laughlab's rest root scaled by ``scale``, and ``to_parent = (A, b)``, which
+        takes the hips' world position into its parent's frame, ``A @ p + b`` (the Hips' local position; None:
+        the world's), as :func:`laughlab.avatar.retarget.vmc_rest` gives them; the rotations are the same."""
         self.rest = to_unity_position(np.asarray(offsets_cm, dtype=np.float64))
-        self.hips_move = (np.asarray(hips_cm, dtype=np.float64), np.asarray(rest_root_cm, dtype=np.float64), scale)
+        A, b = to_parent if to_parent is not None else (np.eye(3), np.zeros(3))
+        self.hips_move = (np.asarray(hips_cm, dtype=np.float64), np.asarray(rest_root_cm, dtype=np.float64), scale,
+                          np.asarray(A, dtype=np.float64), np.asarray(b, dtype=np.float64))
         return self
 
     def local(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -255,8 +260,8 @@ class BoneMap:
         if self.joints and self.joints[0] == 0:  # the root carries the pose's translation
             root = self.skeleton.offsets[0] + poses[:, :3]
             if self.hips_move is not None:
-                hips, rest_root, scale = self.hips_move
-                root = hips + (root - rest_root) * scale
+                hips, rest_root, scale, A, b = self.hips_move
+                root = (hips + (root - rest_root) * scale) @ A.T + b
             pos[:, 0] = to_unity_position(root)
         return pos, rot
 
