@@ -145,13 +145,8 @@ def figure_10(path: Path, res, truth=None, width: str = "page", pdf: bool = Fals
 
     ``width``: ``page`` (10 in) or ``column`` (3.5 in, every text at 7 pt or more: :func:`_figure_10_column`), as
     the run's ``output.plots.width``; ``pdf``: a vector PDF beside the PNG, as ``output.plots.pdf``."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from laughlab.render.layout import drawing, layout_of
-    from laughlab.render.savefig import save_figure
+    from laughlab.render.savefig import new_figure, save_figure
 
     runs = _bouts(res, int(0.05 * res.fps))
     bout = max(runs, key=len) if runs else []
@@ -160,7 +155,7 @@ def figure_10(path: Path, res, truth=None, width: str = "page", pdf: bool = Fals
         with drawing(layout_of(width)):
             _figure_10_column(path, res, bout, pdf)
         return {"calls": bout, "start_s": res.calls[bout[0]].call.start / res.fps if bout else None}
-    fig, ax = plt.subplots(figsize=(10, 4))
+    fig, ax = new_figure(figsize=(10, 4))
     if bout:
         f0, f1, t, top = _bout_span(res, bout)
         ax.plot(t, res.target[f0:f1], color="tab:blue", lw=1.8, label="target (from audio)")
@@ -184,7 +179,6 @@ def figure_10(path: Path, res, truth=None, width: str = "page", pdf: bool = Fals
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2, fontsize=8, frameon=False)
     fig.tight_layout()
     save_figure(fig, path, pdf, dpi=120)
-    plt.close(fig)
     return {"calls": bout, "start_s": res.calls[bout[0]].call.start / res.fps if bout else None}
 
 
@@ -195,13 +189,11 @@ COLUMN_ERROR_ROWS = 3
 def _figure_10_column(path: Path, res, bout: list, pdf: bool) -> None:
     """Fig. 10 3.5 in wide: text 7-8 pt, the per-call errors in :data:`COLUMN_ERROR_ROWS` staggered rows above the
     curves (the value axis made tall enough for them once the layout is known), the legend under the axes."""
-    import matplotlib.pyplot as plt
-
     from laughlab.render.labels import layout_now
     from laughlab.render.layout import COLUMN, thin_ticks, wrapped
-    from laughlab.render.savefig import save_figure
+    from laughlab.render.savefig import new_figure, save_figure
 
-    fig, ax = plt.subplots(figsize=(COLUMN.width_in, 2.8), dpi=150, layout="constrained")
+    fig, ax = new_figure(figsize=(COLUMN.width_in, 2.8), dpi=150, layout="constrained")
     title = "Fig. 10 style: no call found"
     if bout:
         f0, f1, t, top = _bout_span(res, bout)
@@ -232,7 +224,6 @@ def _figure_10_column(path: Path, res, bout: list, pdf: bool) -> None:
                         xytext=(0, 3 + 9.0 * (k % COLUMN_ERROR_ROWS)), textcoords="offset points", ha="center",
                         va="bottom", fontsize=7, color="0.3", annotation_clip=False).set_in_layout(False)
     save_figure(fig, path, pdf)
-    plt.close(fig)
 
 
 def figure_7(path: Path, comparison: dict, width: str = "page", pdf: bool = False) -> None:
@@ -247,10 +238,8 @@ def figure_7(path: Path, comparison: dict, width: str = "page", pdf: bool = Fals
     layout = layout_of(width)
     with drawing(layout):
         fig = figure_7_drawn(comparison, layout.column)
-        import matplotlib.pyplot as plt   # after figure_7_drawn chose Agg
         path.parent.mkdir(parents=True, exist_ok=True)
         save_figure(fig, path, pdf, dpi=120 if not layout.column else None)
-    plt.close(fig)
 
 
 #: Fig. 7's optimisers: colour, line style (each its own: two were solid and as light as each other) and name
@@ -269,19 +258,15 @@ def figure_7_drawn(comparison: dict, column: bool = False):
 
     ``column``: 3.5 in wide, one call a row (2.7 in each), text 7-8 pt (:data:`laughlab.render.layout.COLUMN`:
     draw it under :func:`laughlab.render.layout.drawing`), each call's legend under its panel in one column."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from laughlab.render.layout import COLUMN, wrapped
+    from laughlab.render.savefig import new_figure
 
     n = max(len(comparison), 1)
     if column:   # a sub-figure a call, its legend under it: the layout makes room for both
-        fig = plt.figure(figsize=(COLUMN.width_in, 2.7 * n + 0.3), dpi=150, layout="constrained")
+        fig, _ = new_figure(0, figsize=(COLUMN.width_in, 2.7 * n + 0.3), dpi=150, layout="constrained")
         axes = [sf.subplots() for sf in np.atleast_1d(fig.subfigures(n, 1))]
     else:
-        fig, axes = plt.subplots(1, n, figsize=(5.2 * n, 5.2), squeeze=False, layout="constrained")
+        fig, axes = new_figure(1, n, figsize=(5.2 * n, 5.2), squeeze=False, layout="constrained")
         axes = axes[0]
     for ax, (label, runs) in zip(axes, comparison.items()):
         for method, r in runs["methods"].items():

@@ -748,3 +748,29 @@ def test_a_runs_method_figure_shows_the_methods_own_signals(tmp_path, saved, arg
         got = [ax.get_title(loc="left").replace("\n", " ") for ax in shown[0].figure.axes]
         assert got == titles
         assert all(ax.get_ylabel() for ax in shown[0].figure.axes)   # every panel has its unit
+
+
+def test_drawing_leaves_the_users_backend_and_pyplot_alone(tmp_path):
+    """A Python user's review: importing laughlab's plotting modules called ``matplotlib.use("Agg")``, which switched
+    a notebook's inline backend away (later ``plt.show()`` showed nothing).  Every figure is now a bare ``Figure``
+    on its own Agg canvas: a run's plots, a report and a filmstrip drawn with the user's backend set to svg leave it
+    svg, and pyplot is never imported."""
+    import subprocess
+    import sys
+
+    code = f"""
+import sys, matplotlib
+matplotlib.use("svg")
+from laughlab.core import pipeline
+from laughlab.core.config import compose_config
+from omegaconf import OmegaConf
+import laughlab.harness.report, laughlab.harness.sweep_figures, laughlab.render.method_plots
+cfg = compose_config(["input.duration_s=3", "scheduler=concat"])
+cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"])
+pipeline.execute(pipeline.build(cfg), __import__("pathlib").Path({str(tmp_path)!r}), {{}})
+print(matplotlib.get_backend(), "matplotlib.pyplot" in sys.modules)
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split()[-2:] == ["svg", "False"], r.stdout
+    assert {"fig3_2_mcs.png", "fig4_2_energy.png", "filmstrip.png"} <= {p.name for p in (tmp_path / "plots").iterdir()}

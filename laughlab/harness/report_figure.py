@@ -9,14 +9,12 @@ import textwrap
 from pathlib import Path
 
 import matplotlib
+import numpy as np
+from matplotlib.ticker import MaxNLocator
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from laughlab.harness.report_format import KEY_METRICS  # noqa: E402
-from laughlab.harness.report_format import heading as _heading  # noqa: E402
-from laughlab.render.savefig import save_figure  # noqa: E402
+from laughlab.harness.report_format import KEY_METRICS
+from laughlab.harness.report_format import heading as _heading
+from laughlab.render.savefig import new_figure, save_figure
 
 
 #: means of fewer trials say how many (``(n=4)``): their bootstrap interval is too narrow to be a 95 % one
@@ -59,7 +57,7 @@ def same_everywhere(doc: dict, metric: str) -> bool:
 def condition_colors(conds: list[str]) -> dict:
     """A colour per condition: ``none`` (no detector, no scheduler: the baseline) always grey, the others tab10's
     colours in their order, so the baseline reads alike in every report (a review: colours went by position)."""
-    cmap = plt.get_cmap("tab10")
+    cmap = matplotlib.colormaps["tab10"]
     others = [c for c in conds if c != "none"]
     return {c: ("0.6" if c == "none" else cmap(others.index(c) % 10)) for c in conds}
 
@@ -138,7 +136,7 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
                          int(pw * cols * 15)) if told else []
     # a column's note: many lines; a page's had room for two (a longer one with the one-condition metrics)
     below = (0.13 * len(note) + 0.1 if narrow else 0.4 + 0.13 * max(0, len(note) - 2)) if note else 0
-    fig, axes = plt.subplots(rows, cols, figsize=(pw * cols, z["h"] * rows + below + 0.17 * (len(title) - 1)),
+    fig, axes = new_figure(rows, cols, figsize=(pw * cols, z["h"] * rows + below + 0.17 * (len(title) - 1)),
                              dpi=130, squeeze=False, layout="constrained")
     colors = condition_colors(conds)
     # condition names wider than their slot under a panel (about 0.55 em a character at 7 pt) stand upright
@@ -177,7 +175,7 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
             ax.set_xticklabels(conds, rotation=90, fontsize=z["names"])
         ax.tick_params(axis="y", labelsize=z["yticks"])
         if narrow:
-            ax.yaxis.set_major_locator(plt.MaxNLocator(4))
+            ax.yaxis.set_major_locator(MaxNLocator(4))
         ax.set_ylabel(info["units"], fontsize=z["units"])
         ax.spines[["top", "right"]].set_visible(False)
     for ax in axes.flat[len(names):]:
@@ -187,7 +185,6 @@ def _comparison_figure(doc: dict, path: Path, pdf: bool, timing: bool, narrow: b
         fig.supxlabel("\n".join(note), fontsize=z["note"], color="0.3")
     path.parent.mkdir(parents=True, exist_ok=True)
     save_figure(fig, path) if pdf else fig.savefig(path)
-    plt.close(fig)
     return path
 
 

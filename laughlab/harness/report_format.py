@@ -3,12 +3,8 @@ from __future__ import annotations
 
 import math
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from laughlab.core.errors import LaughlabError  # noqa: E402
+from laughlab.core.errors import LaughlabError
+from laughlab.render.savefig import new_figure
 
 #: metrics shown first in tables and heatmaps
 KEY_METRICS = ("intensity_r_clip", "intensity_r_kinetic", "onset_latency_median_s", "miss_rate",
@@ -78,7 +74,7 @@ def vector_link(name: str) -> str:
 def panel_grid(n: int, w: float, h: float, cols: int = 3):
     cols = max(1, min(cols, n))
     rows = max(1, math.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(w * cols, h * rows), dpi=130, squeeze=False, layout="constrained")
+    fig, axes = new_figure(rows, cols, figsize=(w * cols, h * rows), dpi=130, squeeze=False, layout="constrained")
     for ax in axes.flat[n:]:
         ax.set_visible(False)
     return fig, list(axes.flat[:n])

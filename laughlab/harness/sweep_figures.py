@@ -11,7 +11,7 @@ import textwrap
 
 import numpy as np
 
-from laughlab.harness.report_format import better_label, fmt, heading, panel_grid, param_label, plt
+from laughlab.harness.report_format import better_label, fmt, heading, panel_grid, param_label
 from laughlab.render.savefig import save_figure
 
 
@@ -149,7 +149,6 @@ def heatmaps(points, a, b, metrics, result, path, info, title: str, width: str =
                      + ", ".join(widened) + ".")
     _caption(fig, title, notes, fig.get_figwidth(), z)
     save_figure(fig, path)
-    plt.close(fig)
 
 
 def lines(points, a, metrics, result, path, info, title: str, width: str = "page") -> None:
@@ -192,4 +191,3 @@ def lines(points, a, metrics, result, path, info, title: str, width: str = "page
         notes.append("Every point's CI overlaps every other's (no difference shown): " + ", ".join(within) + ".")
     _caption(fig, title, notes, fig.get_figwidth(), z)
     save_figure(fig, path)
-    plt.close(fig)

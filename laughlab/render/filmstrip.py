@@ -4,14 +4,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Sequence
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from laughlab.render.layout import PAGE, Layout, in_layout, titled, wrapped  # noqa: E402
-from laughlab.render.savefig import save_figure  # noqa: E402
+from laughlab.render.layout import PAGE, Layout, in_layout, titled, wrapped
+from laughlab.render.savefig import new_figure, save_figure
 
 
 def filmstrip_moments(times: np.ndarray, positions: np.ndarray, n: int, blocks: Sequence = ()) -> list[int]:
@@ -122,7 +118,7 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
         extra = 0.14 * (len(lines) - 1)
         height = 2.0 + extra
         adjust = dict(top=1 - (0.32 + extra) / height, bottom=0.4 / height)
-    fig, axes = plt.subplots(rows, cols, figsize=(width, height), dpi=150, squeeze=False)
+    fig, axes = new_figure(rows, cols, figsize=(width, height), dpi=150, squeeze=False)
     if n:
         pos = forward_kinematics(skeleton, np.asarray(poses), end_sites=True)
     for k, ax in enumerate(axes.flat):
@@ -138,5 +134,4 @@ def filmstrip(path: Path, skeleton, times: np.ndarray, poses: np.ndarray, captio
     side = 0.01 if layout.column else (0.01 * strip_in + (width - strip_in) / 2) / width
     fig.subplots_adjust(left=side, right=1 - side, wspace=0.05, **adjust)
     save_figure(fig, path, pdf)
-    plt.close(fig)
     return path

@@ -56,20 +56,15 @@ def method_figure(path: Path, times: np.ndarray, data: dict, title: str = "", no
                   layout: Layout = PAGE, input_end_s: float | None = None) -> Path | None:
     """One panel per :data:`PANELS` entry the run has, stacked on one time axis; None when it has none (a run of
     van Duijn's pipeline alone: its figures are Figs. 3.1-4.2)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from laughlab.render.plots import hatch_note, shade_run_out
-    from laughlab.render.savefig import save_figure
+    from laughlab.render.savefig import new_figure, save_figure
 
     panels = method_panels(data)
     if not panels:
         return None
     col = layout.column
     width = layout.width_in if col else 7.0
-    fig, axes = plt.subplots(len(panels), 1, figsize=(width, 0.35 + 1.35 * len(panels)), dpi=150, sharex=True,
+    fig, axes = new_figure(len(panels), 1, figsize=(width, 0.35 + 1.35 * len(panels)), dpi=150, sharex=True,
                              layout="constrained", squeeze=False)
     axes = axes[:, 0]
     note = hatch_note(note, times, input_end_s, named=False)   # in each legend it widened them past a column's axes
@@ -100,5 +95,4 @@ def method_figure(path: Path, times: np.ndarray, data: dict, title: str = "", no
     fig.suptitle(wrapped(f"{head}; {note}" if note else head, width, layout.title) if col else
                  (f"{head}; {note}" if note else head), fontsize=layout.title)
     save_figure(fig, path, pdf)
-    plt.close(fig)
     return path

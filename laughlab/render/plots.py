@@ -8,16 +8,14 @@ from pathlib import Path
 from typing import Sequence
 
 import matplotlib
+import numpy as np
+from matplotlib.patches import Rectangle
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from laughlab.core.frame import clip_blocks  # noqa: E402,F401 (used here and by the plots sink)
-from laughlab.render.filmstrip import filmstrip, filmstrip_moments  # noqa: E402,F401 (the plots sink draws it)
-from laughlab.render.layout import PAGE, Layout, in_layout, thin_ticks, titled, wrapped  # noqa: E402
-from laughlab.render.savefig import save_figure  # noqa: E402
-from laughlab.signals.smoothing import THESIS_TICK_HZ, rate_limit_series  # noqa: E402
+from laughlab.core.frame import clip_blocks  # noqa: F401 (used here and by the plots sink)
+from laughlab.render.filmstrip import filmstrip, filmstrip_moments  # noqa: F401 (the plots sink draws it)
+from laughlab.render.layout import PAGE, Layout, in_layout, thin_ticks, titled, wrapped
+from laughlab.render.savefig import new_figure, save_figure
+from laughlab.signals.smoothing import THESIS_TICK_HZ, rate_limit_series
 
 #: the two rise/fall settings of the thesis' Fig. 3.2 (per tick): green 0.5/0.3, blue 0.2/0.1
 #: Fig. 3.2's rise/fall settings and their colours and line styles: the dashes tell the curves apart in greyscale and
@@ -98,10 +96,10 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
         y = rate_limit_series(raw, rise * THESIS_TICK_HZ, fall * THESIS_TICK_HZ, dt) ** power
         curves.append((y, color, 1.3, style, f"rise {rise}, fall {fall}" + (" /tick" if col else " per tick")))
     if col:
-        fig, (ax_all, ax_zoom) = plt.subplots(2, 1, figsize=(layout.width_in, 3.6), dpi=150, layout="constrained",
+        fig, (ax_all, ax_zoom) = new_figure(2, 1, figsize=(layout.width_in, 3.6), dpi=150, layout="constrained",
                                               height_ratios=(1, 1.3), sharey=True)
     else:
-        fig, (ax_all, ax_zoom) = plt.subplots(1, 2, figsize=(8.0, 2.9), dpi=150, layout="constrained",
+        fig, (ax_all, ax_zoom) = new_figure(1, 2, figsize=(8.0, 2.9), dpi=150, layout="constrained",
                                               width_ratios=(1, 1.6), sharey=True)
     # the zoom: the most laughter inside the truth's bouts when there are any (a review: on a scene of speech and
     # laughter the busiest signal was talk before the first bout), else the most signal anywhere
@@ -139,7 +137,6 @@ def figure_3_2(path: Path, times: np.ndarray, mcs_raw: np.ndarray, dt: float, po
     fig.legend(list(handles.values()), list(handles), fontsize=layout.legend, loc="outside lower center",
                ncols=2 if col else 4, frameon=False, **(_TIGHT_LEGEND if col else {}))
     save_figure(fig, path, pdf)
-    plt.close(fig)
     return path
 
 
@@ -171,7 +168,7 @@ ZERO_BLOCK = 0.02
 
 def clip_colors(names) -> dict:
     """A colour per clip name: the bundled clips' fixed ones (:data:`CLIP_COLORS`), then the spare ones."""
-    cmap = plt.get_cmap("tab20")
+    cmap = matplotlib.colormaps["tab20"]
     out, k = {}, 0
     for n in sorted(set(names)):
         if n in CLIP_COLORS:
@@ -191,7 +188,7 @@ def _draw_clip_blocks(ax, events: Sequence, end: float, top: float) -> list:
     blocks = clip_blocks(events, end)
     colors = clip_colors(b[0] for b in blocks)
     for name, t0, t1, e in blocks:
-        patch = ax.add_patch(plt.Rectangle((t0, 0), t1 - t0, e if e > 0 else ZERO_BLOCK * top,
+        patch = ax.add_patch(Rectangle((t0, 0), t1 - t0, e if e > 0 else ZERO_BLOCK * top,
                                            facecolor=colors[name], alpha=0.7 if e > 0 else 0.9, edgecolor="0.3",
                                            lw=0.4))
         patch.set_in_layout(False)  # inside the axes: the layout need not measure hundreds of them
@@ -288,7 +285,7 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
     fixed = replay(amp, replace(params, falloff_per_s=0.0, **cal), fps)
     drift = replay(amp, replace(params, **cal), fps)
     narrow = layout.column
-    fig, axes = plt.subplots(2, 2, figsize=(layout.width_in, 3.7) if narrow else (8.0, 4.4), dpi=150, sharex=True,
+    fig, axes = new_figure(2, 2, figsize=(layout.width_in, 3.7) if narrow else (8.0, 4.4), dpi=150, sharex=True,
                              sharey="row", layout="constrained", height_ratios=(1.2, 1))
     unit = "amplitude\n(dB, 10 log10 RMS)" if params.scale == "loudness" else "amplitude\n(RMS, full scale)"
     fixed_label = "min/max fixed after calibration (no falloff)" if calibration_s > 0 else "min/max fixed (no falloff)"
@@ -329,7 +326,6 @@ def figure_3_1(path: Path, times: np.ndarray, amp: np.ndarray, params, fps: floa
     fig.legend(list(handles.values()), list(handles), fontsize=layout.legend, loc="outside lower center",
                ncols=3 if narrow else 5, frameon=False, **(_TIGHT_LEGEND if narrow else {}))
     save_figure(fig, path, pdf)
-    plt.close(fig)
     return path
 
 
@@ -381,7 +377,6 @@ def figure_4_1(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
     _label_blocks(fig, ax2, blocks, [line, prim], top, layout.block_label)
     _closed_gate_note(ax2, energy, blocks, gate, layout)
     save_figure(fig, path, pdf)
-    plt.close(fig)
     return path
 
 
@@ -410,7 +405,7 @@ def _legend_with_clip_key(fig, axes, blocks, layout: Layout = PAGE) -> None:
 def _energy_axes(layout: Layout):
     """The figure and the two panels of Figs. 4.1 and 4.2: the MCS above the energy and the clips."""
     size = (layout.width_in, 3.3) if layout.column else (7.0, 4.2)
-    return plt.subplots(2, 1, figsize=size, dpi=150, sharex=True, layout="constrained", height_ratios=(1, 2))
+    return new_figure(2, 1, figsize=size, dpi=150, sharex=True, layout="constrained", height_ratios=(1, 2))
 
 
 @in_layout
@@ -456,7 +451,6 @@ def figure_4_2(path: Path, times: np.ndarray, mcs: np.ndarray, energy: np.ndarra
                  ha="center", va="center", fontsize=layout.side_label, color="0.35")
     _closed_gate_note(ax2, energy, blocks, gate, layout)
     save_figure(fig, path, pdf)
-    plt.close(fig)
     return path
 
 

@@ -1,7 +1,8 @@
 """Writing a matplotlib figure: a PNG and, for print, the same figure as a vector PDF.
 
-One function for the run's plots, the experiment and sweep reports and the perception study's figures. It
-imports neither pyplot nor a backend, so a module that draws on a bare ``Figure`` (the study's) can use it too.
+One function for the run's plots, the experiment and sweep reports and the perception study's figures, and
+:func:`new_figure`, which they draw on. It imports neither pyplot nor a backend: every figure is a bare
+``Figure`` on its own Agg canvas, and the global backend is the user's.
 """
 from __future__ import annotations
 
@@ -12,6 +13,19 @@ PDF_METADATA = {"CreationDate": None, "ModDate": None}
 #: text as embedded TrueType (Type 42) subsets, not matplotlib's default Type 3: IEEE PDF eXpress and ACM's
 #: production reject Type 3 fonts, and text in Type 42 stays selectable and searchable
 PDF_RC = {"pdf.fonttype": 42}
+
+
+def new_figure(nrows: int = 1, ncols: int = 1, *, figsize=None, dpi=None, layout=None, **subplots):
+    """A figure and its axes, as ``pyplot.subplots`` gives them, on a bare ``Figure`` with its own Agg canvas:
+    no pyplot and no ``matplotlib.use``, so a notebook's backend and open figures are left as they were (a Python
+    user's review: importing laughlab's plotting modules switched Jupyter's inline backend to Agg).  ``nrows`` 0:
+    the figure alone (``fig, None``)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize, dpi=dpi, layout=layout)
+    FigureCanvasAgg(fig)
+    return fig, (fig.subplots(nrows, ncols, **subplots) if nrows else None)
 
 
 def save_figure(fig, path, pdf: bool | str | Path = True, dpi: float | None = None) -> Path:
