@@ -15,7 +15,7 @@ import sys
 import time
 from pathlib import Path
 
-from laughlab.core import blame, clock, interrupts, quiet
+from laughlab.core import blame, callerstate, clock, interrupts, quiet
 from laughlab.core.config import (CONFIG_MODULE, GROUP_KINDS, NOT_IN_A_RUN, check_overrides,  # noqa: F401
                                   compose_config, conf_dir, given_twice, group_options, load_plugin_dirs,
                                   register_plugin_configs)
@@ -318,23 +318,20 @@ def _command(name: str):
 def main(argv: list[str] | None = None) -> None:
     """The command line; a Ctrl-C or SIGTERM at any moment ends in one line and exit 130."""
     global _STARTED, _STARTED_AS_PROCESS
-    interrupts.install()  # SIGTERM cleans up as Ctrl-C does
-    interrupts.reset()
-    quiet.closed_streams_to_devnull()
-    _STARTED_AS_PROCESS = argv is None
-    _STARTED = clock.process_start() if argv is None else time.monotonic()  # argv given: called in-process
-    try:
-        _main(list(sys.argv[1:] if argv is None else argv))
-    except SystemExit:
-        raise
-    except BaseException as exc:  # before the run directory was claimed, or after it was released
-        if not interrupts.interrupted(exc):
+    with callerstate.kept(in_process=argv is not None):   # in-process: the caller's logging and signals kept
+        interrupts.install()  # SIGTERM cleans up as Ctrl-C does
+        interrupts.reset()
+        quiet.closed_streams_to_devnull()
+        _STARTED_AS_PROCESS = argv is None
+        _STARTED = clock.process_start() if argv is None else time.monotonic()  # argv given: called in-process
+        try:
+            _main(list(sys.argv[1:] if argv is None else argv))
+        except SystemExit:
             raise
-        fail("interrupted", code=130)
-    finally:   # Hydra's record of the job, cleared as a process' end would: in-process, the next call's
-        held = sys.modules.get("hydra.core.hydra_config")   # experiment repeated this one's overrides (a CI
-        if held is not None:                                 # flake); a command without Hydra does not import it
-            held.HydraConfig.instance().cfg = None
+        except BaseException as exc:  # before the run directory was claimed, or after it was released
+            if not interrupts.interrupted(exc):
+                raise
+            fail("interrupted", code=130)
 
 
 def _main(argv: list[str]) -> None:

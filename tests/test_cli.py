@@ -1,5 +1,7 @@
 """End to end through ``python -m laughlab``: the run-directory contract, reproducibility, errors."""
+import contextlib
 import hashlib
+import io
 import json
 import subprocess
 import sys
@@ -901,6 +903,51 @@ def test_cfg_job_with_a_mistyped_key_is_one_line_as_a_run(tmp_path):
                                                   "chest_gain, belly_gain, chest_offset, belly_offset\n"), bad.stderr
     good = laughlab("face=facs", "~output.plots", "--cfg", "job", cwd=tmp_path)
     assert good.returncode == 0 and "name: facs" in good.stdout and "plots:" not in good.stdout, good.stderr
+
+
+def test_a_command_called_in_process_leaves_the_callers_logging_and_signal_handlers(tmp_path):
+    """A Python user's review: after ``cli.main([...])`` a notebook's own logger was disabled, the root logger at
+    ERROR without its handlers (Hydra's ``job_logging: disabled``), and Ctrl-C worked once: the command's stop
+    handlers stayed, and after the first signal they ignored every later one.  All are as the caller had them."""
+    import logging
+    import signal
+
+    from laughlab import cli
+    from laughlab.core import interrupts
+
+    mine = logging.getLogger("my_analysis")
+    handler = logging.StreamHandler()
+    root = logging.getLogger()
+    before = (root.level, list(root.handlers))
+    root.addHandler(handler)
+    root.setLevel(logging.INFO)
+    signals = {sig: signal.getsignal(sig) for sig in interrupts.STOP_SIGNALS}
+    try:
+        for args in (["input.duration_s=0.5", f"hydra.run.dir={tmp_path / 'run'}", "progress=off"],
+                     ["face=facs", "--cfg", "job"], ["body.bogus=1"]):
+            with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+                try:
+                    cli.main(args)
+                except SystemExit:
+                    pass
+            assert not mine.disabled and root.level == logging.INFO and handler in root.handlers, args
+            assert {sig: signal.getsignal(sig) for sig in interrupts.STOP_SIGNALS} == signals, args
+    finally:
+        root.removeHandler(handler)
+        root.setLevel(before[0])
+
+
+def test_composing_a_configuration_keeps_the_callers_own_hydra(tmp_path):
+    """A Python user's review: ``with hydra.initialize(...)``, a Session, then the caller's ``compose()`` failed
+    ('GlobalHydra is not initialized'): laughlab's composition cleared it."""
+    from hydra import compose, initialize_config_dir
+
+    from laughlab.core.config import compose_config
+
+    (tmp_path / "mine.yaml").write_text("answer: 42\n", encoding="utf-8")
+    with initialize_config_dir(config_dir=str(tmp_path), version_base="1.3"):
+        assert compose_config(["face=facs"]).face.name == "facs"
+        assert compose("mine").answer == 42
 
 
 def test_a_command_called_in_process_leaves_no_overrides_to_the_next_experiment(registered, tmp_path):

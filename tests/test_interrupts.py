@@ -235,3 +235,19 @@ def test_another_threads_half_line_does_not_take_laughlabs_line_with_it():
     t.join()
     err.write("laughlab: error: interrupted\n")
     assert out.getvalue() == "laughlab: error: interrupted\n"
+
+
+def test_a_new_command_forgets_an_earlier_commands_signal():
+    """In one process (a notebook, the tests) a Ctrl-C of one ``cli.main`` call made every exception of every later
+    call 'interrupted' (exit 130), a plugin's bug and a full disk too."""
+    import signal
+
+    from laughlab.core import interrupts
+
+    keep = interrupts.received
+    try:
+        interrupts.received = signal.SIGINT
+        interrupts.reset()
+        assert interrupts.received is None and not interrupts.interrupted(ValueError("a plugin's bug"))
+    finally:
+        interrupts.received = keep

@@ -503,3 +503,37 @@ def test_config_files_in_a_plugins_dirs_group_folders_are_said_not_read(tmp_path
     assert r.returncode == 0, r.stderr
     assert r.stderr.startswith(f"laughlab: warning: body/sway.yaml in plugins_dir {tmp_path / 'p'} not read: a "
                                "plugin's defaults are its Params dataclass")
+
+
+def test_another_folder_or_an_edited_plugin_is_loaded_afresh_in_one_process(tmp_path):
+    """A Python user's review: in one process (a notebook), an edited plugin kept its old code, and a second
+    folder's ``gape.py`` ran the first folder's (modules were kept by file name); a face only the first folder had
+    stayed registered for the second."""
+    import os
+
+    from laughlab.core import plugins
+
+    def folder(name, gain, extra=False):
+        d = tmp_path / name
+        d.mkdir(exist_ok=True)
+        (d / "gape.py").write_text(PLUGIN.replace("gain: float = 1.0", f"gain: float = {gain}"), encoding="utf-8")
+        if extra:
+            (d / "grin.py").write_text(PLUGIN.replace('"gape"', '"grin"').replace("class Gape(Face)", "class Grin(Face)")
+                                       .replace("register(Gape)", "register(Grin)"), encoding="utf-8")
+        return d
+
+    def gain():
+        return plugins.registry()["face"]["gape"].obj.Params().gain
+
+    a = folder("a", 2.0, extra=True)
+    plugins.load_plugin_dir(a)
+    assert gain() == 2.0 and "grin" in plugins.registry()["face"]
+    plugins.load_plugin_dir(a)                      # the same folder, unchanged: the same classes
+    assert gain() == 2.0
+    plugins.load_plugin_dir(folder("b", 3.0))       # another folder with a gape.py of its own
+    assert gain() == 3.0 and "grin" not in plugins.registry()["face"]
+    b = folder("b", 4.0)                            # edited (a later modification time, as an editor saves it)
+    st = (b / "gape.py").stat()
+    os.utime(b / "gape.py", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    plugins.load_plugin_dir(b)
+    assert gain() == 4.0

@@ -343,13 +343,12 @@ def valid_keys(group: str, overrides: list[str]) -> list[str]:
 def compose_config(overrides: list[str], job_name: str = "app"):
     """Compose the configuration as Hydra would, turning errors into LaughlabError."""
     from hydra import compose, initialize_config_module
-    from hydra.core.global_hydra import GlobalHydra
 
     from laughlab.core import config_files
+    from laughlab.core.callerstate import their_hydra
 
     config_files.install()
-    GlobalHydra.instance().clear()
-    with initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3", job_name=job_name):
+    with their_hydra(), initialize_config_module(config_module=CONFIG_MODULE, version_base="1.3", job_name=job_name):
         try:
             return compose("config", overrides=overrides, return_hydra_config=True)
         except Exception as exc:

@@ -42,9 +42,11 @@ _whole_process = False
 
 
 def reset() -> None:
-    """A new command (in the same process: the tests) handles stop signals again."""
-    global finished, _ignored
+    """A new command (in the same process: the tests, a notebook) handles stop signals again, and an earlier
+    command's signal is not taken for this one's (every exception after it was 'interrupted')."""
+    global finished, _ignored, received
     finished = False
+    received = None
     if _ignored:
         for sig in STOP_SIGNALS:
             if signal.getsignal(sig) == signal.SIG_IGN:
