@@ -3,7 +3,8 @@
 The public names a plugin needs are importable from here (lazily, so ``import laughlab``
 stays cheap): ``hookimpl``, the plugin bases (``Source``, ``Extractor``, ``Detector``,
 ``Face``, ``Body``, ``Scheduler``, ``Sink``), ``Context``, ``NoParams``, ``Chunk``,
-``RunInfo``, ``Frame``, ``ClipEvent``, ``LaughlabError`` and ``check_range``.
+``RunInfo``, ``Frame``, ``ClipEvent``, ``LaughlabError`` and ``check_range``; and ``Session``, the pipeline
+from a Python program's own loop (``laughlab.session``).
 
 Where things live: ``laughlab.core`` (the framework), ``laughlab.io`` (formats),
 ``laughlab.harness`` (experiments), and one subpackage per method family
@@ -23,6 +24,7 @@ _PUBLIC = {
     "hookimpl": "laughlab.core.plugins", "check_range": "laughlab.core.plugins",
     "LaughlabError": "laughlab.core.errors",
     "Frame": "laughlab.core.frame", "ClipEvent": "laughlab.core.frame",
+    "Session": "laughlab.session",   # from Python: feed audio, take frames (docs/pipeline.md)
     **{n: "laughlab.core.bases" for n in ("Source", "Extractor", "Detector", "Face", "Body", "Scheduler",
                                           "Sink", "Plugin", "Context", "NoParams", "Chunk", "RunInfo")},
 }

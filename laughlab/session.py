@@ -26,6 +26,7 @@ import numbers
 import queue
 import tempfile
 import threading
+import warnings
 import weakref
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -268,7 +269,7 @@ class Session:
         self.out_dir = Path(out_dir if out_dir is not None else self._tmp.name)
         self.out_dir.mkdir(parents=True, exist_ok=True)
         self._state = state = _State()
-        self._closed = self._fed = False
+        self._closed = self._fed = self._said_scale = False
         self._lock = threading.Lock()
         src, tmp, out_dir = self._src, self._tmp, self.out_dir
         from laughlab.harness.results import provenance
@@ -317,6 +318,11 @@ class Session:
         [-1, 1) as soundfile reads it. Feeds from several threads take turns (one lock), each returning its
         own frames."""
         x = mono_samples(samples)
+        if not self._said_scale and len(x) and float(np.nanmax(np.abs(x))) > 1.5:   # floats of int16 PCM's scale
+            self._said_scale = True   # were taken as they came and changed every output (a Python user's review)
+            warnings.warn(f"Session.feed: samples up to {float(np.nanmax(np.abs(x))):.4g}: floats are read with "
+                          "full scale at +-1, as a float WAV's are; divide int16-scale floats by 32768, or feed them "
+                          "as np.int16", stacklevel=2)
         with self._lock:
             if self._closed:
                 raise LaughlabError("the session is closed")

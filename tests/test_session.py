@@ -209,6 +209,23 @@ def test_stereo_and_pcm_integers_are_read_as_input_file_reads_them(recording, tm
             assert filecmp.cmp(tmp_path / f"s{k}" / name, tmp_path / "cli" / name, shallow=False), (k, name)
 
 
+def test_floats_at_int16_scale_are_warned_once(recording):
+    """A Python user's review: floats of int16's scale (up to 32768) were taken as they came, without a word, and
+    changed every output; one warning now says so and how to feed them (none for floats within full scale)."""
+    import warnings
+
+    x, sr = sf.read(recording, dtype="float32")
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        with Session(["detector=none"], sample_rate=sr) as s:
+            s.feed(x[:4000])
+            s.feed(x[4000:8000] * 32768)
+            s.feed(x[8000:12000] * 32768)
+    ours = [w for w in said if "Session.feed" in str(w.message)]
+    assert len(ours) == 1 and "divide int16-scale floats by 32768, or feed them as np.int16" in str(ours[0].message)
+    assert ours[0].filename == __file__   # said at the caller's line
+
+
 @pytest.mark.parametrize("block, message", [
     (np.zeros((2, 5000), np.float32), r"^feed \(frames, channels\) \(got shape \(2, 5000\): \(channels, frames\)\? "
                                       r"pass its \.T\)$"),
@@ -378,3 +395,25 @@ def test_a_sessions_metrics_say_what_made_them(tmp_path):
     assert r.returncode == 0, r.stderr
     made = json.loads((tmp_path / "run" / "metrics.json").read_text())["provenance"]
     assert made["input_path"] == str((tmp_path / "a.wav").resolve()) and len(made["input_sha256"]) == 64
+
+
+def test_the_documented_tables_of_a_sessions_frames(recording):
+    """docs/pipeline.md's notebook lines turn a session's frames into a channels table, a pose array and an ARKit
+    table: run as written on a real laugh's frames."""
+    import re
+    from pathlib import Path
+
+    import laughlab
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "pipeline.md").read_text(encoding="utf-8")
+    (doc,) = [b for b in re.findall(r"```python\n(.*?)```", page, re.S) if "pd.DataFrame([f.channels" in b]
+    x, sr = sf.read(recording, dtype="float32")
+    with laughlab.Session(["face=facs"], sample_rate=sr) as s:
+        frames = s.feed(x[: sr]) + s.close()
+    space = {"frames": frames}
+    exec(doc, space)
+    n = len(frames)
+    assert len(space["channels"]) == n and "jaw" in space["channels"]
+    assert space["channels"].index.name == "time" and space["channels"].index[1] == pytest.approx(1 / 60)
+    assert space["pose"].shape == (n, len(frames[0].pose)) and "jawOpen" in space["arkit"]
+    assert laughlab.Session is laughlab.session.Session
