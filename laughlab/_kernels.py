@@ -88,3 +88,22 @@ def state() -> str:
     if os.environ.get("OPENBLAS_CORETYPE", "").lower() != "haswell" and {"avx2", "fma"} <= cpu_flags():
         return "native (OpenBLAS chooses its kernels)"
     return "x86-64-v3 (pinned)"
+
+
+_SAID = False
+
+
+def warn_if_unpinned() -> None:
+    """Once a process, in Python (a ``Session``, ``cli.main(argv)``): numpy was imported before laughlab with its
+    AVX-512 loops, so results differ from the command line's in the last bits, and a Hill torso's by more (a Python
+    user's review: a notebook imports numpy first, and only ``results.json`` recorded it)."""
+    global _SAID
+    if _SAID or "numpy was imported before laughlab" not in state():
+        return
+    _SAID = True
+    import warnings
+
+    warnings.warn("numpy was imported before laughlab, with its AVX-512 loops: the outputs may differ from the "
+                  "command line's in the last bits (body=hill's by more). For the command line's bytes, import "
+                  "laughlab before numpy (the notebook's first cell), or start Python with "
+                  f"NPY_DISABLE_CPU_FEATURES={','.join(NUMPY_AVX512)} OPENBLAS_CORETYPE=Haswell", stacklevel=3)

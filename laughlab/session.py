@@ -218,6 +218,9 @@ class Session:
 
         if sample_rate is None:
             raise LaughlabError("Session needs sample_rate=, the rate of the samples you will feed (Hz)")
+        from laughlab import _kernels
+
+        _kernels.warn_if_unpinned()   # a notebook that imported numpy first: say what it means for the bytes
         if isinstance(overrides, str) or isinstance(outputs, str):   # "face=facs" was read as 9 overrides
             name, value = ("overrides", overrides) if isinstance(overrides, str) else ("outputs", outputs)
             raise LaughlabError(f"{name} must be a list of strings (got the string {value!r}: {name}=[{value!r}])")

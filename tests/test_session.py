@@ -417,3 +417,28 @@ def test_the_documented_tables_of_a_sessions_frames(recording):
     assert space["channels"].index.name == "time" and space["channels"].index[1] == pytest.approx(1 / 60)
     assert space["pose"].shape == (n, len(frames[0].pose)) and "jawOpen" in space["arkit"]
     assert laughlab.Session is laughlab.session.Session
+
+
+def test_a_session_after_numpy_was_imported_first_says_what_it_means_for_the_bytes():
+    """A Python user's review: a notebook imports numpy before laughlab, and on an AVX-512 machine numpy's loops are
+    then not pinned: the outputs differed from the command line's in the last bits (``body=hill``'s more), said only
+    in results.json. One warning now, at the caller's line; none when laughlab came first."""
+    import subprocess
+    import sys
+
+    from laughlab import _kernels
+
+    code = "import {}, {}\ns = laughlab.Session([], sample_rate=16000); s.close()\n" \
+           "s = laughlab.Session([], sample_rate=16000); s.close()\n"
+    env = {k: v for k, v in __import__("os").environ.items()
+           if k not in ("NPY_DISABLE_CPU_FEATURES", "OPENBLAS_CORETYPE", "LAUGHLAB_NATIVE_KERNELS")}
+    first, after = (subprocess.run([sys.executable, "-W", "always", "-c", code.format(*order)], capture_output=True,
+                                   text=True, timeout=120, env=env) for order in (("numpy", "laughlab"),
+                                                                                  ("laughlab", "numpy")))
+    assert first.returncode == 0 and after.returncode == 0, first.stderr + after.stderr
+    assert "numpy was imported before laughlab" not in after.stderr
+    avx512 = _kernels.platform.machine().lower() in ("x86_64", "amd64") and {"avx2", "fma", "avx512f"} <= \
+        _kernels.cpu_flags()
+    said = [line for line in first.stderr.splitlines() if "numpy was imported before laughlab" in line]
+    assert len(said) == (1 if avx512 else 0), first.stderr
+    assert not said or said[0].startswith("<string>:2: UserWarning:")
