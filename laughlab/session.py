@@ -240,6 +240,9 @@ class Session:
                 raise LaughlabError(f"{o}: a session's outputs are its outputs= argument (outputs=['files'])")
             if key == "input" or key.startswith("input."):
                 raise LaughlabError(f"{o}: a session's input is what feed() is given (sample_rate= its rate)")
+            if key.split(".")[0] in ("hydra", "experiment", "harness", "overwrite", "progress"):   # were taken and
+                raise LaughlabError(f"{o}: not a session's: its folder is out_dir=, overwrite= its argument; an "   # ignored
+                                    "experiment runs from the command line or laughlab.cli.main([...])")
         load_plugin_dirs(list(overrides))   # then the command line's lines: 'unknown face ...; choose one of: ...'
         check_overrides(list(overrides))
         out = list(outputs)

@@ -1,6 +1,7 @@
 """``laughlab.session.Session``: laughlab stepped from another program's loop (the game-developer review found no
 public way to). Fed any split of a recording, it gives the frames and files ``input=file`` gives (same bytes)."""
 import filecmp
+import re
 
 import numpy as np
 import pytest
@@ -142,6 +143,9 @@ def test_an_api_users_mistakes_are_one_line_too():
         Session(["face=facs", 3], sample_rate=16000)
     with pytest.raises(LaughlabError, match=r"^Session needs sample_rate=, the rate of the samples you will feed"):
         Session(["face=facs"])
+    for o in ("hydra.run.dir=foo", "experiment=smoke", "overwrite=true"):   # taken and ignored (a Python user)
+        with pytest.raises(LaughlabError, match=rf"^{re.escape(o)}: not a session's: its folder is out_dir="):
+            Session([o], sample_rate=16000)
     s = Session((o for o in ["detector=none"]), sample_rate=16000)   # any iterable of strings
     assert len(s.feed(np.zeros(800, np.float32))) == 3   # three frames of 16 kHz at 60 fps
     s.close()
