@@ -1092,3 +1092,12 @@ def test_a_sweep_run_over_with_overwrite_reports_its_own_points_and_a_parent_fol
                                               "holds 2 sweeps (s, t): report each on its own, python -m laughlab "
                                               f"report {sweep}\n"), r.stderr
     assert not (tmp_path / "sweeps" / "report").exists()
+
+
+def test_a_report_says_the_version_where_there_was_no_checkout():
+    """A packaging review: run from an installed wheel, a report said ``laughlab commit: `None```."""
+    from laughlab.harness.results import made_by
+
+    assert made_by({"git_hash": "abc123+dirty", "versions": {"laughlab": "0.2.0"}}) == "- laughlab commit: `abc123+dirty`"
+    assert made_by({"git_hash": None, "versions": {"laughlab": "0.2.0"}}) == \
+        "- laughlab 0.2.0: an installed package, no git checkout"

@@ -121,6 +121,15 @@ def git_hash(root: Path | None = None) -> str | None:
         return None
 
 
+def made_by(doc: dict) -> str:
+    """A report's line of what made the results: laughlab's commit, or its version where it ran as an installed
+    package without a git checkout (a packaging review: the report said ``commit: `None```)."""
+    if doc.get("git_hash"):
+        return f"- laughlab commit: `{doc['git_hash']}`"
+    version = (doc.get("versions") or {}).get("laughlab")
+    return f"- laughlab {version or '(version not recorded)'}: an installed package, no git checkout"
+
+
 def versions() -> dict:
     from importlib.metadata import PackageNotFoundError, version
 

@@ -10,7 +10,7 @@ from itertools import combinations
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError
-from laughlab.harness.results import read_results
+from laughlab.harness.results import made_by, read_results
 from laughlab.harness.sweep_plan import NOT_PARAMS, multirun, stale_points, swept_keys, sweep_command, unfinished
 from laughlab.harness.report_format import (EDGE, KEY_METRICS, at_search_edge, check_panels, refuse_unmeasured,
                                             vector_link)
@@ -161,7 +161,7 @@ def sweep_report(root: Path, out: Path, command: str, metrics: list[str] | None 
                 else f"condition **{conds[0]}** (")
              + f"profiles {', '.join(doc0['corpus']['profiles'])}; seeds {', '.join(map(str, seeds))}"
              + (" at the first point)" if any(p["doc"]["corpus"]["seeds"] != seeds for p in points) else ")"),
-             f"- laughlab commit: `{doc0['git_hash']}`", "",
+             made_by(doc0), "",
              "## Every point", "", "One column per metric: its name, ↑ higher is better or ↓ lower is better, and "
              f"(its units). Each cell is the mean of a point's {per_text} trial"
              f"{'' if per == [1] else 's'} of that condition; the table shows "
