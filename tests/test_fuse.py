@@ -222,3 +222,18 @@ def test_a_refit_check_tells_bytes_a_cpu_familys_rounding_and_a_real_change_apar
     assert write_or_check(far, None, bundled, True, "head", "", tolerance=0.05) == 1
     assert write_or_check(other, None, bundled, True, "head", "", tolerance=0.05) == 1       # a setting changed
     assert write_or_check('{"weights":[0.7]}\n', None, bundled, True, "head", "", tolerance=0.05) == 1  # shape
+
+
+def test_a_refit_does_not_write_over_an_installed_packages_bundled_file(tmp_path, monkeypatch, capsys):
+    """A packaging review: from an installed wheel, ``--out``'s default is the file inside site-packages."""
+    from laughlab.core import install
+    from laughlab.detector.fit import write_or_check
+
+    bundled = tmp_path / "detector.json"
+    bundled.write_text("{}\n")
+    monkeypatch.setattr(install, "clone_dir", lambda: None)
+    assert write_or_check('{"a":1}\n', str(bundled), bundled, False, "model", "") == 2
+    assert bundled.read_text() == "{}\n" and "give --out PATH" in capsys.readouterr().err
+    assert write_or_check('{"a":1}\n', str(tmp_path / "mine.json"), bundled, False, "model", "") == 0
+    monkeypatch.setattr(install, "clone_dir", lambda: tmp_path)    # a clone: the bundled file is the make target
+    assert write_or_check('{"a":2}\n', str(bundled), bundled, False, "model", "") == 0 and '"a":2' in bundled.read_text()

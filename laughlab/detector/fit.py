@@ -188,6 +188,12 @@ def write_or_check(text: str, out, bundled: Path, check: bool, what: str, summar
                 return 3
         print(f"the refit differs from the bundled {what}")
         return 1
+    from laughlab.core.install import clone_dir
+
+    if clone_dir() is None and Path(out).resolve() == bundled.resolve():   # an installed wheel's own file (a
+        print(f"laughlab: error: not written: {out} is the installed package's {what}; give --out PATH for the "
+              "refit (a clone's make regenerates the bundled file)", file=sys.stderr)   # packaging review)
+        return 2
     Path(out).write_text(text, encoding="utf-8")
     print(f"wrote {out}: {summary}")
     return 0
