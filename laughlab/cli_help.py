@@ -50,9 +50,16 @@ def help_text(extra: dict | None = None) -> str:
     packages = plugin_packages()
     if packages:   # a plugin author's review: --help named plugins_dir's plugins, not an installed package's
         lines.append(f"  installed plugin packages: {', '.join(packages)} (their plugins: python -m laughlab plugins)")
+    from laughlab.core.install import clone_dir
+
+    root = clone_dir()   # an installed wheel has no README.md or conf/ beside it (a packaging review)
+    where = (f"{root}/README.md and the docs/ pages it links" if root else
+             "the README.md and docs/ of laughlab's source repository (an installed package carries neither)")
+    confs = f"{root}/conf" if root else str(conf_dir())
     lines += ["", HELP_EXAMPLES.rstrip(), "",
-              "docs: README.md and the docs/ pages it links (pipeline.md: outputs; experiments.md; papers.md:",
-              "what each plugin implements; benchmarks.md); each conf/<group>/<option>.yaml explains its parameters.",
+              f"docs: {where}",
+              "(pipeline.md: outputs; experiments.md; papers.md: what each plugin implements; benchmarks.md);",
+              f"parameters: each {confs}/<group>/<option>.yaml explains its own.",
               "Hydra's own flags: python -m laughlab --hydra-help"]
     return "\n".join(lines)
 

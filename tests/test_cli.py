@@ -967,3 +967,17 @@ def test_a_command_called_in_process_leaves_no_overrides_to_the_next_experiment(
     cfg = compose_config(["experiment=fourier_blend", "harness.corpus.duration_s=1"])
     fourier_blend.run(cfg, tmp_path / "exp")
     assert (tmp_path / "exp" / "plots" / "fig4_2_energy.png").is_file()
+
+
+def test_help_names_where_the_docs_and_configs_are_when_installed(monkeypatch):
+    """A packaging review: an installed wheel's --help sent the user to README.md, docs/ and conf/, none of which
+    it has; it now names the configs' installed folder, and a clone's own files by their path."""
+    from laughlab import cli_help
+    from laughlab.core import install
+    from laughlab.core.config import conf_dir
+
+    text = cli_help.help_text()
+    assert f"docs: {install.clone_dir()}/README.md" in text and f"each {install.clone_dir()}/conf/<group>" in text
+    monkeypatch.setattr(install, "clone_dir", lambda: None)
+    text = cli_help.help_text()
+    assert "an installed package carries neither" in text and f"each {conf_dir()}/<group>/<option>.yaml" in text
