@@ -38,3 +38,19 @@ def test_the_scipy_lower_bound_has_what_the_harness_calls():
     (scipy,) = [d for d in deps if re.match(r"scipy\b", d)]
     assert Version(re.search(r">=\s*([\d.]+)", scipy)[1]) >= Version("1.15")
     assert "rng=" in (ROOT / "laughlab/harness/results.py").read_text(encoding="utf-8")   # still what it calls
+
+
+def test_the_sdist_holds_what_its_tests_need(tmp_path):
+    """The sdist held the 90 test modules without conftest.py, tests/data (the golden outputs), tests/assets, the
+    docs the README links or the lock the tests run from (MANIFEST.in now grafts them)."""
+    import tarfile
+
+    r = subprocess.run([sys.executable, "-c", f"from setuptools import build_meta; build_meta.build_sdist({str(tmp_path)!r})"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    (sdist,) = tmp_path.glob("laughlab-*.tar.gz")
+    with tarfile.open(sdist) as t:
+        names = {n.split("/", 1)[1] for n in t.getnames() if "/" in n}
+    assert {"tests/conftest.py", "tests/golden.py", "tests/inprocess.py", "tests/data/golden.json", "requirements.lock",
+            "constraints.txt", "Makefile", "CITATION.cff", "docs/pipeline.md", "laughlab/data/yamnet/NOTICE"} <= names
+    assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
