@@ -97,7 +97,9 @@ class ViewerSink(Sink):
         self.n, self.pacer = 0, FramePacer(run.fps)
         self.layout = None
         waits = p.wait == "on" or (p.wait == "auto" and self.paced)
-        self._say(f"laughlab: watch it live at {self.url}" + (" (the run starts when the page opens; "
+        got = self.server.httpd.server_address[1]   # moved: a page or OBS source on the port asked for sees nothing
+        taken = f"port {p.port} is taken (output.viewer.port=PORT for another); " if p.port and got != p.port else ""
+        self._say(f"laughlab: {taken}watch it live at {self.url}" + (" (the run starts when the page opens; "
                                                               "output.viewer.wait=off starts at once)" if waits else ""))
         while waits and not self.server.opened.wait(0.1):
             pass

@@ -260,3 +260,27 @@ def test_a_page_open_for_long_keeps_only_what_its_strip_can_show(tmp_path):
         assert [p for p in page.problems() if "LookAtDegreeMap" not in p] == []
     finally:
         page.close()
+
+
+def test_a_taken_port_is_said_where_the_live_viewer_moved(monkeypatch, tmp_path, capsys):
+    """The VTuber review: with 8765 taken (another laughlab, a dev server) the live viewer moved to a free port
+    without a word, and an OBS browser source set to 8765 showed nothing; the line now says the port was taken."""
+    import socket
+
+    from test_mic_session import mic_pipe, noise
+    from test_sources import FakeSoundDevice
+
+    holder = socket.socket()
+    holder.bind(("127.0.0.1", 0))
+    holder.listen()
+    taken = holder.getsockname()[1]
+    try:
+        pipe = mic_pipe(monkeypatch, FakeSoundDevice(noise(1)), "input.duration_s=0.5",
+                        outputs={"viewer": {"port": taken}})
+        sink = next(s for s in pipe.sinks if s.name == "viewer")
+        pipeline.execute(pipe, tmp_path)
+    finally:
+        holder.close()
+    assert not sink.url.endswith(f":{taken}/")
+    assert (f"laughlab: port {taken} is taken (output.viewer.port=PORT for another); watch it live at {sink.url}\n"
+            in capsys.readouterr().err)
