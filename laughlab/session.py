@@ -243,6 +243,14 @@ class Session:
             if key.split(".")[0] in ("hydra", "experiment", "harness", "overwrite", "progress"):   # were taken and
                 raise LaughlabError(f"{o}: not a session's: its folder is out_dir=, overwrite= its argument; an "   # ignored
                                     "experiment runs from the command line or laughlab.cli.main([...])")
+        from laughlab.core.config import conf_dir
+
+        known = sorted(f.name[:-5] for f in conf_dir().joinpath("output").iterdir() if f.name.endswith(".yaml"))
+        for o in outputs:   # 'bvh' was "unknown output 'bvh' in a defaults list (an experiment's override ...)"
+            if o not in known or o == "trial":
+                raise LaughlabError(f"outputs: {o!r} is not an output; choose from "
+                                    f"{', '.join(k for k in known if k != 'trial')} (files: channels.csv, events.csv, "
+                                    "motion.bvh, face_arkit.csv and plots/)")
         load_plugin_dirs(list(overrides))   # then the command line's lines: 'unknown face ...; choose one of: ...'
         check_overrides(list(overrides))
         out = list(outputs)

@@ -143,6 +143,9 @@ def test_an_api_users_mistakes_are_one_line_too():
         Session(["face=facs", 3], sample_rate=16000)
     with pytest.raises(LaughlabError, match=r"^Session needs sample_rate=, the rate of the samples you will feed"):
         Session(["face=facs"])
+    with pytest.raises(LaughlabError, match=r"^outputs: 'bvh' is not an output; choose from files, gltf, video, "
+                                            r"viewer, vmc, vrma \(files: channels.csv, events.csv, motion.bvh"):
+        Session([], sample_rate=16000, outputs=["bvh"])
     for o in ("hydra.run.dir=foo", "experiment=smoke", "overwrite=true"):   # taken and ignored (a Python user)
         with pytest.raises(LaughlabError, match=rf"^{re.escape(o)}: not a session's: its folder is out_dir="):
             Session([o], sample_rate=16000)
