@@ -37,7 +37,8 @@ class MicParams:
     Attributes
     ----------
     device : str or None
-        Input device name or index as sounddevice understands it; None = default input.
+        Input device name or index as sounddevice understands it; None = default input. ``file:PATH`` plays a
+        recording as the microphone, in real time (:mod:`laughlab.io.replay`: the live path without a microphone).
     sample_rate : int
         Capture rate (Hz).
     duration_s : float or None
@@ -85,6 +86,11 @@ class MicSource(Source):
     _spool: "FloatWavWriter | None" = None   # input.save_audio: the frames' samples so far, in a temporary file
 
     def open(self) -> None:
+        from laughlab.io.replay import PREFIX, ReplayDevice
+
+        if isinstance(self.params.device, str) and self.params.device.startswith(PREFIX):   # a recording played as
+            self._open(ReplayDevice(self.params.device), self.params.device)   # the microphone, in real time
+            return
         try:
             import sounddevice as sd
         except ImportError:
@@ -119,6 +125,9 @@ class MicSource(Source):
                    "a recording with input=file input.path=LAUGH.wav" if inputs == [] else
                    "connect one, or name it with input.device=NAME_OR_INDEX (python -m sounddevice lists them)")
             raise LaughlabError(f"no usable microphone: {which} ({cause}); {how}") from None
+        self._open(sd, device)
+
+    def _open(self, sd, device) -> None:
         self._sd, self._device = sd, device
         self.sample_rate = self.params.sample_rate
         d = self.params.duration_s
@@ -195,6 +204,12 @@ class MicSource(Source):
         try:
             return stream.read(n)
         except self._sd.PortAudioError as exc:   # a USB microphone pulled out, a device gone to sleep
+            from laughlab.io.replay import ReplayEnded
+
+            if isinstance(exc, ReplayEnded) and got:   # input.device=file:...: its end ends the input, kept
+                self.stopped_by = "end"
+                self._say(f"laughlab: the recording ended after {got / self.sample_rate:.1f} s; the session is kept")
+                return None
             self.stopped_by = "device"
             if not got:
                 raise LaughlabError(f"the microphone stopped before any audio was read ({first_line(exc)}); "

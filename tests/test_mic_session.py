@@ -618,3 +618,44 @@ def test_a_failed_session_leaves_no_spooled_audio(monkeypatch, tmp_path):
     assert spool.exists()
     mic.source.close()
     assert not spool.exists() and mic.source._spool is None
+
+
+@pytest.mark.parametrize("rate", [44100, 16000])
+def test_a_recording_played_as_the_microphone_is_a_live_session(tmp_path, rate):
+    """A game developer's review: without a microphone there was no way to try the live path (a file run is
+    offline).  ``input.device=file:PATH`` plays a recording as the microphone, in real time, resampled to
+    ``input.sample_rate`` (44.1 kHz: the samples themselves); its end ends the input and keeps the session, whose
+    saved audio replays offline to the same bytes."""
+    import soundfile as sf
+
+    from inprocess import laughlab
+    from laughlab.io.replay import ReplayDevice
+
+    from laughlab.corpora.fetch import corpus_dir
+
+    real = corpus_dir() / "files" / "ovos" / "female-132252__robinhood76__02940-insane-women-laughter.wav"
+    src, sr = sf.read(real, dtype="float32") if real.exists() else (noise(2.0, 44100), 44100)   # a real 44.1 kHz
+    src = (src if src.ndim == 1 else src.mean(axis=1))[int(0.5 * sr): int(1.7 * sr)]            # laugh, 1.2 s of it
+    sf.write(tmp_path / "laugh.wav", src, sr, subtype="FLOAT")
+    t0 = time.perf_counter()
+    r = laughlab("input=mic", f"input.device=file:{tmp_path / 'laugh.wav'}", f"input.sample_rate={rate}",
+                 "input.calibration_s=0", "input.save_audio=true", "output=files", "~output.plots",
+                 f"hydra.run.dir={tmp_path / 'live'}")
+    took = time.perf_counter() - t0
+    assert r.returncode == 0, r.stderr
+    assert "laughlab: the recording ended after 1.2 s; the session is kept\n" in r.stderr
+    assert took >= 1.1   # in real time
+    assert json.loads((tmp_path / "live" / "metrics.json").read_text())["input_stopped_by"] == "end"
+    saved, got = sf.read(tmp_path / "live" / "input.wav", dtype="float32")
+    played = ReplayDevice(f"file:{tmp_path / 'laugh.wav'}").resampled(rate)
+    assert got == rate and np.array_equal(saved, played[: len(saved)]) and len(saved) >= len(played) - rate // 60
+    if rate == sr:
+        assert np.array_equal(played, src)
+    r = laughlab("input=file", f"input.path={tmp_path / 'live' / 'input.wav'}", "extractor.calibration_s=0",
+                 "output=files", "~output.plots", f"hydra.run.dir={tmp_path / 'file'}")
+    assert r.returncode == 0, r.stderr
+    for name in ("channels.csv", "events.csv", "motion.bvh"):
+        assert (tmp_path / "live" / name).read_bytes() == (tmp_path / "file" / name).read_bytes(), name
+    bad = laughlab("input=mic", f"input.device=file:{tmp_path / 'none.wav'}", f"hydra.run.dir={tmp_path / 'bad'}")
+    assert bad.returncode == 2 and bad.stderr == (f"laughlab: error: input.device=file:{tmp_path / 'none.wav'}: "
+                                                  f"input file not found: {tmp_path / 'none.wav'}\n"), bad.stderr
