@@ -94,7 +94,7 @@ _SAID = False
 
 
 def warn_if_unpinned() -> None:
-    """Once a process, in Python (a ``Session``, ``cli.main(argv)``): numpy was imported before laughlab with its
+    """Once a process, when a ``Session`` is made (a notebook's way in): numpy was imported before laughlab with its
     AVX-512 loops, so results differ from the command line's in the last bits, and a Hill torso's by more (a Python
     user's review: a notebook imports numpy first, and only ``results.json`` recorded it)."""
     global _SAID

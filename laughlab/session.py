@@ -24,6 +24,7 @@ from __future__ import annotations
 import functools
 import numbers
 import queue
+import re
 import tempfile
 import threading
 import warnings
@@ -240,12 +241,12 @@ class Session:
                 raise LaughlabError(f"{o}: a session's outputs are its outputs= argument (outputs=['files'])")
             if key == "input" or key.startswith("input."):
                 raise LaughlabError(f"{o}: a session's input is what feed() is given (sample_rate= its rate)")
-            if key.split(".")[0] in ("hydra", "experiment", "harness", "overwrite", "progress"):   # were taken and
+            if re.split(r"[./]", key)[0] in ("hydra", "experiment", "harness", "overwrite", "progress"):   # taken and
                 raise LaughlabError(f"{o}: not a session's: its folder is out_dir=, overwrite= its argument; an "   # ignored
                                     "experiment runs from the command line or laughlab.cli.main([...])")
-        from laughlab.core.config import conf_dir
+        from laughlab.core.config import group_options
 
-        known = sorted(f.name[:-5] for f in conf_dir().joinpath("output").iterdir() if f.name.endswith(".yaml"))
+        known = group_options("output")
         for o in outputs:   # 'bvh' was "unknown output 'bvh' in a defaults list (an experiment's override ...)"
             if o not in known or o == "trial":
                 raise LaughlabError(f"outputs: {o!r} is not an output; choose from "

@@ -263,7 +263,8 @@ class VmcSink(Sink):
                                                           ((k, 0.0) for k in self._sent)))
         # from the last frame sent, at the frame clock (slept 1/fps a frame, they came right after a microphone's
         # last frame, 2 ms after it, and late by the sends' own time: a game developer's review)
-        after = self._sent_ns if self._sent_ns is not None else time.perf_counter_ns()
+        now = time.perf_counter_ns()   # a close long after the last frame (a Session that paused): from now, not
+        after = now if self._sent_ns is None else max(self._sent_ns, now - int(1e9 / fps))   # a burst (the diff review)
 
         def wait(j: int) -> None:
             due = after + j * 1e9 / fps - time.perf_counter_ns()

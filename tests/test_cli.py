@@ -944,10 +944,23 @@ def test_composing_a_configuration_keeps_the_callers_own_hydra(tmp_path):
 
     from laughlab.core.config import compose_config
 
+    from laughlab import cli
+    from laughlab.core import callerstate, interrupts
+
     (tmp_path / "mine.yaml").write_text("answer: 42\n", encoding="utf-8")
     with initialize_config_dir(config_dir=str(tmp_path), version_base="1.3"):
         assert compose_config(["face=facs"]).face.name == "facs"
         assert compose("mine").answer == 42
+        # a sweep from Python: hydra.main refused to start beside the caller's Hydra (the diff review)
+        with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()) as err:
+            cli.main(["-m", "input.duration_s=0.3", "face=smile,facs", "~output.plots",
+                      f"hydra.sweep.dir={tmp_path / 'sweep'}"])
+        assert len(list((tmp_path / "sweep").glob("*/motion.bvh"))) == 2, err.getvalue()
+        assert compose("mine").answer == 42
+    # an in-process command's Ctrl-C is not a later Session's (its feed raised it: interrupts.check)
+    with callerstate.kept(in_process=True):
+        interrupts.received = 2
+    assert interrupts.received is None
 
 
 def test_a_command_called_in_process_leaves_no_overrides_to_the_next_experiment(registered, tmp_path):

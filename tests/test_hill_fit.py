@@ -367,23 +367,15 @@ def test_quiet_calls_are_counted_but_not_driven():
 def test_fig7s_optimisers_are_told_apart_without_their_hues():
     """Fig. 7's CMA-ES (purple) and parallel direct search (blue) lines were both solid and as light as each other:
     one line in a greyscale print and for a red-green colour vision deficiency."""
-    import matplotlib.pyplot as plt
-
     from laughlab.render.labels import lines_told_apart_by_hue
     from laughlab_experiments.hill_fit import figure_7_drawn
 
     h = list(np.linspace(1.0, 0.2, 50))
     runs = {m: {"history": h, "error": 0.2, "seconds": 1.0} for m in ("nelder-mead", "annealing", "pds", "cma")}
-    fig = figure_7_drawn({"call 1": {"methods": runs}, "call 2": {"methods": runs}})
-    try:
-        assert lines_told_apart_by_hue(fig) == []
-        assert len({line.get_linestyle() for line in fig.axes[0].lines[:4]}) == 4
-    finally:
-        plt.close(fig)
+    fig = figure_7_drawn({"call 1": {"methods": runs}, "call 2": {"methods": runs}})   # a bare Figure: nothing
+    assert lines_told_apart_by_hue(fig) == []                                           # to close
+    assert len({line.get_linestyle() for line in fig.axes[0].lines[:4]}) == 4
     # a best error above 1.2 is inside the axes (a new-user review: Nelder-Mead's 1.62 was drawn nowhere)
     high = {**runs, "nelder-mead": {"history": list(np.linspace(3.0, 1.62, 50)), "error": 1.62, "seconds": 1.0}}
     fig = figure_7_drawn({"call 1": {"methods": high}})
-    try:
-        assert fig.axes[0].get_ylim()[1] >= 1.62 * 1.1 - 1e-9
-    finally:
-        plt.close(fig)
+    assert fig.axes[0].get_ylim()[1] >= 1.62 * 1.1 - 1e-9

@@ -753,8 +753,8 @@ def test_a_runs_method_figure_shows_the_methods_own_signals(tmp_path, saved, arg
 def test_drawing_leaves_the_users_backend_and_pyplot_alone(tmp_path):
     """A Python user's review: importing laughlab's plotting modules called ``matplotlib.use("Agg")``, which switched
     a notebook's inline backend away (later ``plt.show()`` showed nothing).  Every figure is now a bare ``Figure``
-    on its own Agg canvas: a run's plots, a report and a filmstrip drawn with the user's backend set to svg leave it
-    svg, and pyplot is never imported."""
+    on its own Agg canvas: the report and sweep modules imported and a run's plots and filmstrip drawn with the
+    user's backend set to svg leave it svg, and pyplot is never imported."""
     import subprocess
     import sys
 

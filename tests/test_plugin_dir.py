@@ -532,6 +532,15 @@ def test_another_folder_or_an_edited_plugin_is_loaded_afresh_in_one_process(tmp_
     assert gain() == 2.0
     plugins.load_plugin_dir(folder("b", 3.0))       # another folder with a gape.py of its own
     assert gain() == 3.0 and "grin" not in plugins.registry()["face"]
+    from laughlab.core import own_experiments
+    from laughlab.core.config import load_plugin_dirs
+
+    (a / "experiment").mkdir()
+    (a / "experiment" / "gape_vs_smile.yaml").write_text(EXPERIMENT, encoding="utf-8")
+    load_plugin_dirs([f"plugins_dir={a}"])
+    assert "gape_vs_smile" in own_experiments.LOCAL
+    load_plugin_dirs([f"plugins_dir={tmp_path / 'b'}"])   # the earlier folder's experiments go with its plugins
+    assert "gape_vs_smile" not in own_experiments.LOCAL and gain() == 3.0
     b = folder("b", 4.0)                            # edited (a later modification time, as an editor saves it)
     st = (b / "gape.py").stat()
     os.utime(b / "gape.py", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))

@@ -146,7 +146,7 @@ def test_an_api_users_mistakes_are_one_line_too():
     with pytest.raises(LaughlabError, match=r"^outputs: 'bvh' is not an output; choose from files, gltf, video, "
                                             r"viewer, vmc, vrma \(files: channels.csv, events.csv, motion.bvh"):
         Session([], sample_rate=16000, outputs=["bvh"])
-    for o in ("hydra.run.dir=foo", "experiment=smoke", "overwrite=true"):   # taken and ignored (a Python user)
+    for o in ("hydra.run.dir=foo", "hydra/launcher=joblib", "experiment=smoke", "overwrite=true"):   # taken, ignored
         with pytest.raises(LaughlabError, match=rf"^{re.escape(o)}: not a session's: its folder is out_dir="):
             Session([o], sample_rate=16000)
     s = Session((o for o in ["detector=none"]), sample_rate=16000)   # any iterable of strings

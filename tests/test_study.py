@@ -1519,7 +1519,7 @@ def test_no_one_but_the_participants_browser_answers_for_them_after_consent(stud
                             ("/api/response", answer), ("/api/check", {"participant": 6, "session": "evil",
                                                                        "attempts": ["x"]}),
                             ("/api/event", {"participant": 6, "session": "evil", "event": "finish"})):
-            for key in (None, "wrong-key-0123456789", "kkkkkkkkkkkkkkkkkkk\u00e9", 12345, ["k" * 20]):   # compared
+            for key in (None, "wrong-key-0123456789", "kkkkkkkkkkkkkkkkkkk\u00e9", "\ud800", 12345, ["k" * 20]):   # compared
                 status, reply = srv.post(route, {**body, **({"key": key} if key else {})}, keyed=False)   # in constant time
                 assert status == 403 and reply["error"].startswith(theirs), (route, key, reply)
         assert srv.post("/api/response", {**answer, "session": "mine"})[0] == 201   # their own browser's key

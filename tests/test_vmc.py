@@ -506,10 +506,12 @@ def test_the_stream_returns_to_rest_over_rest_blend_s_paced(tmp_path, capsys):
     assert f"vmc: 15 frames and 9 frames back to rest to 127.0.0.1:{rx.port} (not paced" in capsys.readouterr().out
 
 
-def test_the_frames_back_to_rest_keep_the_frame_clock_from_the_last_frame_sent(tmp_path, monkeypatch):
+@pytest.mark.parametrize("pause_s", [0.0, 1.0])
+def test_the_frames_back_to_rest_keep_the_frame_clock_from_the_last_frame_sent(tmp_path, monkeypatch, pause_s):
     """A game developer's review: after a microphone's last frame the first frame back to rest left 2 ms later, and
     each slept 1/fps on top of its own send's time.  On a clock of the test's own (each send takes 5 ms), frame j
-    back to rest leaves j/fps after the last frame sent."""
+    back to rest leaves j/fps after the last frame sent; closed a second later (a Session that paused), they leave
+    1/fps apart from the close, not in a burst to catch up (the diff review)."""
     class Clock:   # the sink's time module: perf_counter_ns and sleep on a clock that only moves when told
         now = 10**12
 
@@ -528,7 +530,12 @@ def test_the_frames_back_to_rest_keep_the_frame_clock_from_the_last_frame_sent(t
         pipe = pipeline.build(config(rx.port, "input.duration_s=0.2", realtime="off", rest_on_stop=True,
                                      rest_blend_s=0.1))
         vmc = next(s for s in pipe.sinks if s.name == "vmc")
-        sent, opened = [], vmc.open
+        sent, opened, closing = [], vmc.open, vmc.close
+
+        def close_later():
+            fake.now += int(pause_s * 1e9)
+            closing()
+        monkeypatch.setattr(vmc, "close", close_later)
 
         def open_and_time(run):
             opened(run)
@@ -543,7 +550,9 @@ def test_the_frames_back_to_rest_keep_the_frame_clock_from_the_last_frame_sent(t
         pipeline.execute(pipe, tmp_path, {})
     assert vmc.rest_frames == 3 + 1 and len(sent) == 6 + 4   # 0.2 s at 30 fps, 0.1 s back to rest, the rest frame
     last = sent[5] + 5_000_000   # the last frame's send ended here (the sink reads the clock after it)
-    np.testing.assert_allclose(np.array(sent[6:]) - last, np.arange(1, 5) * 1e9 / 30, atol=1)
+    first = 1 if not pause_s else 0   # right after the last frame: one frame on; a second later: at once, then paced
+    np.testing.assert_allclose(np.array(sent[6:]) - last - pause_s * 1e9, np.arange(first, first + 4) * 1e9 / 30,
+                               atol=1)
 
 
 def test_rest_on_stop_false_sends_the_frames_only(tmp_path):

@@ -193,9 +193,8 @@ def retarget(avatar: Avatar, poses: np.ndarray, skeleton: Skeleton = HUMANOID) -
     hips = avatar.bones["hips"]
     root = skeleton.offsets[0] + poses[:, :3]
     P = avatar.rest_world[hips, :3, 3] + ((root - rest_root) * 0.01 * scale) @ F.T
-    p = int(avatar.parents[hips])
-    if p >= 0:
-        inv = np.linalg.inv(avatar.rest_world[p])
+    inv = hips_parent_inverse(avatar)
+    if inv is not None:
         P = P @ inv[:3, :3].T + inv[:3, 3]
     return Retargeted(nodes, [node_bone[i] for i in nodes], q + 0.0, P)
 
@@ -240,10 +239,16 @@ def vmc_rest(avatar: Avatar, skeleton: Skeleton, joints: list[int], offsets_cm: 
         world[j] = pos[node[j]] if node[j] is not None else base + np.asarray(offsets_cm[j], float) * scale
         out.append(world[j] - base)
     hips = avatar.bones["hips"]
-    p = int(avatar.parents[hips])
+    inv = hips_parent_inverse(avatar)
     A, b = np.eye(3), np.zeros(3)
-    if p >= 0:   # world (laughlab's axes, cm) -> the parent's frame: F.T M^-1 (F x / 100) * 100
-        inv = np.linalg.inv(avatar.rest_world[p])
+    if inv is not None:   # world (laughlab's axes, cm) -> the parent's frame: F.T M^-1 (F x / 100) * 100
         A = F.T @ inv[:3, :3] @ F
         b = F.T @ inv[:3, 3] * 100.0
     return np.array(out).reshape(len(joints), 3), pos[hips], np.asarray(rest_root, float), scale, (A, b)
+
+
+def hips_parent_inverse(avatar: Avatar) -> np.ndarray | None:
+    """The inverse of the rest world transform (4x4, glTF's axes, m) of the node the hips hang from, which takes a
+    world position into the frame the hips' own translation is in; None when the hips are a root."""
+    p = int(avatar.parents[avatar.bones["hips"]])
+    return np.linalg.inv(avatar.rest_world[p]) if p >= 0 else None

@@ -85,9 +85,11 @@ def line(exc: BaseException) -> str | None:
     where = getattr(exc, WHERE, None)
     if not where:
         return None
-    if isinstance(exc, MemoryError):
-        return (f"{where} ran out of memory: the machine could not give it more; a smaller output (a video's "
-                "output.video.supersample, width, height), a shorter input or fewer jobs at once needs less")
+    if isinstance(exc, MemoryError):   # numpy says how much it asked for: a size that is a plugin's bug shows
+        asked = (str(exc).strip().splitlines() or [""])[0]
+        return (f"{where} ran out of memory{f' ({asked})' if asked else ''}: the machine could not give it more; a "
+                "smaller output (a video's output.video.supersample, width, height), a shorter input or fewer jobs "
+                "at once needs less")
     text = str(exc).strip().splitlines()
     cause = f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
     who = ("a bug in laughlab: please report it with the lines above" if getattr(exc, BUILT_IN, False)

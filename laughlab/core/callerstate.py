@@ -54,10 +54,26 @@ def kept(in_process: bool):
     main_thread = threading.current_thread() is threading.main_thread()
     handlers = {sig: signal.getsignal(sig) for sig in interrupts.STOP_SIGNALS} if in_process and main_thread else {}
     logs = _logging_state() if in_process else None
+    held = sys.modules.get("hydra.core.global_hydra") if in_process else None
+    theirs = None
+    if held is not None and held.GlobalHydra.instance().is_initialized():   # a caller's own hydra.initialize():
+        from hydra.initialize import get_gh_backup   # set aside for the command (a sweep's hydra.main refused to
+
+        theirs = get_gh_backup()                     # start: 'GlobalHydra is already initialized', the diff review)
+        held.GlobalHydra.instance().clear()
     try:
         yield
     finally:
         forget_hydra_job()
+        if in_process:
+            interrupts.forget()   # this command's Ctrl-C is not the caller's: a later Session's feed raised it
+            held = sys.modules.get("hydra.core.global_hydra")
+            if theirs is not None:
+                from hydra.initialize import restore_gh_from_backup
+
+                restore_gh_from_backup(theirs)
+            elif held is not None:   # as it found it: not initialized (hydra.main may leave its own behind)
+                held.GlobalHydra.instance().clear()
         if logs is not None:
             _restore_logging(logs)
         for sig, handler in handlers.items():

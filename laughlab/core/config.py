@@ -69,12 +69,15 @@ def load_plugin_dirs(overrides) -> None:
     the command line's single runs, sweeps and ``--cfg``, and an experiment's trial workers, which compose their
     own configuration in processes of their own (a review: ``face=NAME`` of a plugins_dir plugin was unknown there)."""
     from laughlab.core import plugins
+    from laughlab.core.localpackage import plugins_dir_changed
 
     one_plugins_dir(overrides)
     for ov in overrides:
         key, _, value = str(ov).partition("=")
         value = unquoted(value)
         if override_key(key) == "plugins_dir" and value and value != "null":
+            if plugins_dir_changed(value):   # another folder: the earlier one's experiments go with it
+                own_experiments.forget_plugins_dirs()
             plugins.load_plugin_dir(value)
             own_experiments.load_folder(Path(value).expanduser() / "experiment", conf_dir())
 

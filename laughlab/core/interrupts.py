@@ -54,6 +54,14 @@ def reset() -> None:
         _ignored = False
 
 
+def forget() -> None:
+    """An in-process command ended: a signal it received is not a later caller's (``laughlab.cli.main`` in a
+    notebook: a Session's next feed raised the command's Ctrl-C, ``interrupts.check``)."""
+    global received, _pending
+    received = None
+    _pending = False
+
+
 def _record(signum) -> None:
     """A stop signal came: remember it and ignore the stop signals from now on."""
     global received, _ignored

@@ -23,7 +23,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from laughlab.core import hookspecs
 from laughlab.core.errors import LaughlabError, UnknownParameter, nearest, shown_path
-from laughlab.core.localpackage import LOCAL_PACKAGE, local_package
+from laughlab.core.localpackage import LOCAL_PACKAGE, forget_if_changed, local_package
 
 hookimpl = pluggy.HookimplMarker("laughlab")
 
@@ -92,7 +92,7 @@ def load_plugin_dir(path: str | Path) -> list[str]:
             if str(path).startswith("[") else ""
         raise LaughlabError(f"plugins_dir {str(path)!r} is not a folder{more}")
     loaded = []
-    _forget_if_changed(folder)
+    forget_if_changed(folder, pm)
     local_package(folder)
     _warn_group_files(folder)
     from laughlab.core import background
@@ -124,34 +124,6 @@ def load_plugin_dir(path: str | Path) -> list[str]:
             raise
         loaded.append(mod_name)
     return loaded
-
-
-#: the plugins_dir whose modules are registered, as (folder, its files' names, sizes and modification times)
-_LOADED_DIR: tuple | None = None
-
-
-def _forget_if_changed(folder: Path) -> None:
-    """Another folder, or an edited file, since the registered plugins_dir modules were loaded (in one process: a
-    notebook's second Session, ``cli.main`` called again): unregister them and import afresh.  A Python user's
-    review: an edited plugin ran its old code, and a second folder's ``loud.py`` ran the first folder's."""
-    global _LOADED_DIR
-    try:
-        state = (str(folder.resolve()), tuple((f.name, f.stat().st_size, f.stat().st_mtime_ns)
-                                              for f in sorted(folder.glob("*.py"))))
-    except OSError:
-        state = None
-    if state == _LOADED_DIR:
-        return
-    if _LOADED_DIR is not None:
-        for name, plugin in pm.list_name_plugin():
-            if name.startswith(LOCAL_PACKAGE + "."):
-                pm.unregister(plugin)
-        for name in [m for m in sys.modules if m.startswith(LOCAL_PACKAGE + ".")]:
-            del sys.modules[name]
-        pkg = sys.modules.get(LOCAL_PACKAGE)
-        if pkg is not None:
-            pkg.__path__ = []
-    _LOADED_DIR = state
 
 
 _GROUP_FILES_SAID: set = set()

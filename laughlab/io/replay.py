@@ -36,7 +36,7 @@ class ReplayDevice:
     PortAudioError = PortAudioError
 
     def __init__(self, device: str):
-        from laughlab.io.audio import probe_file, read_blocks
+        from laughlab.io.audio import probe_file
 
         self.path = device[len(PREFIX):]
         if not self.path:
@@ -46,7 +46,16 @@ class ReplayDevice:
         except LaughlabError as exc:
             raise LaughlabError(f"input.device={device}: {exc}") from None
         self.rate = int(info.samplerate)
-        self.audio = np.concatenate(list(read_blocks(self.path)))
+        self._audio: np.ndarray | None = None   # decoded when a stream starts: a run builds its source twice
+
+    @property
+    def audio(self) -> np.ndarray:
+        """The recording, mono float32 (its channels mixed by the mean, as ``input=file`` mixes them)."""
+        if self._audio is None:
+            from laughlab.io.audio import read_blocks
+
+            self._audio = np.concatenate(list(read_blocks(self.path)))
+        return self._audio
 
     def check_input_settings(self, device=None, channels=1, samplerate=None, dtype="float32") -> None:
         """Any rate: the recording is resampled to it."""

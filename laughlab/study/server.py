@@ -220,7 +220,8 @@ class StudyHandler(_Handler):
         """Refuse a post for ``p`` without the key their browser was given when they consented (403)."""
         key = DB.participant_key(self.db, p)
         given = body.get("key")   # compared in constant time: a key's bytes are not told apart by the answer's time
-        if key is not None and not (isinstance(given, str) and hmac.compare_digest(given.encode(), key.encode())):
+        if key is not None and not (isinstance(given, str)   # a lone surrogate ('\ud800', legal JSON) encodes too
+                                    and hmac.compare_digest(given.encode("utf-8", "surrogatepass"), key.encode())):
             raise _elsewhere(p)
 
     def _consented(self, p: int, session: str) -> None:
