@@ -255,7 +255,7 @@ class MicSource(Source):
         that :meth:`save_artifacts` puts into the run directory as ``input.wav``."""
         fd, name = tempfile.mkstemp(prefix="laughlab-mic-", suffix=".wav")
         os.close(fd)
-        self._spool = spool = FloatWavWriter(name, self.sample_rate)
+        self._spool = spool = FloatWavWriter(name, self.sample_rate, long=True)   # RF64 past 4 GiB (6.8 h at 44.1 kHz)
         for block in frames:
             spool.write(block)
             yield block

@@ -994,3 +994,18 @@ def test_help_names_where_the_docs_and_configs_are_when_installed(monkeypatch):
     monkeypatch.setattr(install, "clone_dir", lambda: None)
     text = cli_help.help_text()
     assert "an installed package carries neither" in text and f"each {conf_dir()}/<group>/<option>.yaml" in text
+
+
+def test_progress_without_a_total_in_a_log_is_a_line_a_minute(monkeypatch):
+    """A soak review: ``progress=on`` on a microphone session into a service's journal (no total, stderr not a
+    terminal) drew tqdm's carriage returns onto one endless line (32 MB a day); it is a plain line a minute."""
+    from laughlab.core import progress
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: False, raising=False)
+    p = progress.bar(None, "laughlab", "frames", unit="frame", leave=False)
+    assert isinstance(p, progress.LogProgress) and p.every_s == 60.0
+    p.stream = buf = io.StringIO()
+    p.update(120)
+    p.close()
+    assert buf.getvalue().startswith("laughlab: 120 frames, ") and "\r" not in buf.getvalue()
+    assert not isinstance(progress.bar(None, "x", "trials", disable=True), progress.LogProgress)   # progress off

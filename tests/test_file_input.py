@@ -117,3 +117,30 @@ def test_a_file_it_may_not_read_says_permission_denied(tmp_path, monkeypatch):
     monkeypatch.setattr(audio, "open", refused, raising=False)
     with pytest.raises(LaughlabError, match=rf"^cannot read audio from {path}: Permission denied$"):
         audio.probe_file(path)
+
+
+@pytest.mark.parametrize("limit", [None, 100])
+def test_a_long_sessions_float_wav_becomes_rf64_past_riffs_4_gib(tmp_path, monkeypatch, limit):
+    """A soak review: a microphone session saved with its audio (``input.save_audio``) reached RIFF's 4 GiB after
+    6.8 h at 44.1 kHz, and the header's struct.pack error removed the whole session.  The spool reserves a JUNK
+    chunk that becomes RF64's ds64 past the limit (EBU Tech 3306); both forms read back as written (the limit set
+    to 100 bytes here, to write an RF64 file of a few kilobytes)."""
+    import struct
+
+    import soundfile as sf
+
+    from laughlab.io.audio import FloatWavWriter
+
+    if limit is not None:
+        monkeypatch.setattr(FloatWavWriter, "RIFF_LIMIT", limit)
+    x = np.sin(np.arange(3000) / 7.0).astype(np.float32) * 0.5
+    with FloatWavWriter(tmp_path / "s.wav", 44100, long=True) as w:
+        w.write(x[:1000])
+        w.write(x[1000:])
+    head = (tmp_path / "s.wav").read_bytes()[:16]
+    assert head[:4] == (b"RIFF" if limit is None else b"RF64") and head[12:16] == (b"JUNK" if limit is None else b"ds64")
+    if limit is not None:
+        riff, data, n = struct.unpack("<QQQ", (tmp_path / "s.wav").read_bytes()[20:44])
+        assert data == 4 * 3000 and n == 3000 and riff == (tmp_path / "s.wav").stat().st_size - 8
+    y, sr = sf.read(tmp_path / "s.wav", dtype="float32")
+    assert sr == 44100 and np.array_equal(y, x)

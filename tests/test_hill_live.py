@@ -176,3 +176,13 @@ def test_live_params_validate():
         with pytest.raises(ValueError):
             LiveParams(**bad)
     assert isinstance(LiveParams(fit={"max_evals": 10}).fit, hf.FitParams)
+
+
+def test_a_live_fitter_keeps_the_latest_fits_only(monkeypatch):
+    """A soak review: every fit's record was kept for the whole session (6 MB an hour of laughter, for ever, at an
+    always-on installation); the latest ``FITS_KEPT`` are, and ``fitted`` counts them all."""
+    from laughlab.hill import live as live_mod
+
+    monkeypatch.setattr(live_mod, "FITS_KEPT", 2)
+    body, _ = run_body(pulses(6), threaded="no")
+    assert body.live.fitted == 6 and [r["start"] for r in body.live.fits] == [6 + 15 * i for i in (4, 5)]

@@ -540,3 +540,32 @@ def test_a_blink_interval_below_half_a_second_is_half_a_second():
     draws = np.array([b._interval() for _ in range(20000)])
     assert draws.min() == 0.5
     assert abs((draws == 0.5).mean() - 0.0401) < 0.005
+
+
+def test_the_stage_timings_take_constant_memory(monkeypatch):
+    """A soak review: each timed frame's ns were kept in a list for the whole run (0.7 MB an hour, for ever, for an
+    always-on microphone); each stage keeps its total and count, and the mean is the same."""
+    import itertools
+
+    from laughlab.core.stages import Stepper
+
+    class Stage:
+        def __init__(self, name):
+            self.name = name
+
+        def step(self, *args):
+            pass
+
+        def advance(self, frame):
+            pass
+
+    stepper = Stepper(*(Stage(n) for n in ("e", "d", "s", "b", "f")), Stage("mixer"))
+    clock = itertools.count(0, 1000)
+    import laughlab.core.stages as stages
+
+    monkeypatch.setattr(stages.time, "perf_counter_ns", lambda: next(clock))   # each reading 1 us after the last
+    for _ in range(5000):
+        stepper.timed(None, None)
+    monkeypatch.undo()
+    assert all(len(v) == 2 and v[1] == 5000 for v in stepper.ns.values())
+    assert stepper.stage_ms() == {name: 0.001 for name in stepper.names()}

@@ -9,7 +9,7 @@ class LogProgress:
     """Progress for a log file (stderr not a terminal): a plain line every ``every_s`` seconds and one at
     the end, instead of a bar's thousands of carriage-return updates."""
 
-    def __init__(self, total: float, desc: str, every_s: float = 10.0, stream=None, unit: str = "trials",
+    def __init__(self, total: float | None, desc: str, every_s: float = 10.0, stream=None, unit: str = "trials",
                  digits: int | None = None):
         self.total, self.desc, self.every_s, self.unit = total, desc, every_s, unit
         self.fmt = f".{digits}f" if digits is not None else ".10g"   # seconds of audio: 0.1 s
@@ -26,7 +26,8 @@ class LogProgress:
             self._line(now)
 
     def _line(self, now: float) -> None:
-        line = f"{self.desc}: {self.n:{self.fmt}}/{self.total:{self.fmt}} {self.unit}, {now - self.t0:.0f} s"
+        done = f"{self.n:{self.fmt}}" + (f"/{self.total:{self.fmt}}" if self.total is not None else "")
+        line = f"{self.desc}: {done} {self.unit}, {now - self.t0:.0f} s"
         if line != self.said:   # the closing line is not the last update's again (a review: printed twice)
             print(line, file=self.stream, flush=True)
             self.said = line
@@ -44,9 +45,11 @@ class LogProgress:
 
 def bar(total, desc: str, log_unit: str, digits: int | None = None, **tqdm_kwargs):
     """Progress on stderr: a tqdm bar on a terminal (``tqdm_kwargs``: its unit, format...), or
-    :class:`LogProgress` lines in ``log_unit`` when stderr is not one (a log, CI) and the total is known."""
-    if total is not None and not sys.stderr.isatty():
-        return LogProgress(total, desc, unit=log_unit, digits=digits)
+    :class:`LogProgress` lines in ``log_unit`` when stderr is not one (a log, CI): every 10 s, or every minute
+    without a total (a session that runs until stopped: a bar's carriage returns made one endless line in a
+    service's journal, 32 MB a day, a soak review)."""
+    if not sys.stderr.isatty() and not tqdm_kwargs.get("disable"):
+        return LogProgress(total, desc, every_s=10.0 if total is not None else 60.0, unit=log_unit, digits=digits)
     import threading
 
     from tqdm import tqdm

@@ -52,6 +52,7 @@ live it holds each call's first frame for the whole fit.
 """
 from __future__ import annotations
 
+import collections
 import math
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -61,6 +62,9 @@ import numpy as np
 
 from laughlab.hill.fit import CallProblem, FitParams, call_span, optimise, play, with_secondary
 from laughlab.core.plugins import check_range
+
+#: how many of the latest fits a live fitter keeps (``LiveFitter.fits``): about 25 minutes of laughter's calls
+FITS_KEPT = 4096
 
 #: the template before any call has been fitted (physical, ``PARAMS``) and the call peak it was made for (cm H2O):
 #: a typical fit of a call of average height (0.1 cm H2O) at the start of a bout of the synthetic corpus
@@ -192,7 +196,10 @@ class LiveFitter:
         self.last_end_s = None
         self.bout_start_s = 0.0      # fits of calls before the current bout's let-go are not templates
         self.pending: list = []     # (frame due, fit: a future or its record), oldest first
-        self.fits: list[dict] = []   # one record per fitted call: frames, x, error, evals, seconds
+        # one record per fitted call (frames, x, error, evals, seconds), the latest FITS_KEPT: a soak review found the
+        # list of every one grew 6 MB an hour of laughter for ever; ``fitted`` counts them all
+        self.fits: collections.deque = collections.deque(maxlen=FITS_KEPT)
+        self.fitted = 0
         self.waits: list[float] = []  # frames held for a fit due and unfinished (threaded): how long (s)
 
     # -- fitting
@@ -225,6 +232,7 @@ class LiveFitter:
 
     def _adopt(self, rec: dict) -> None:
         self.fits.append(rec)
+        self.fitted += 1
         if (rec["peak"] > 0 and rec["x"][:3].sum() > 0 and rec["end"] / self.fps >= self.bout_start_s
                 and rec["error"] < 1.0):       # a fit no better than holding still teaches nothing
             self.template = (rec["x"], rec["peak"])
