@@ -77,10 +77,12 @@ class SessionFrame:
 
 @dataclass
 class FedParams:
-    """What the session's input records in ``metrics.json``'s configuration: the rate fed (Hz), the calibration (s)."""
+    """What the session's input records in ``metrics.json``'s configuration: the rate fed (Hz), the calibration (s),
+    the high-pass (Hz; 0: none)."""
 
     sample_rate: int
     calibration_s: float
+    highpass_hz: float = 0.0
 
 
 class _FedSource:
@@ -94,9 +96,15 @@ class _FedSource:
     n_frames = None
     truth = None
 
-    def __init__(self, sample_rate: int, calibration_s: float, fps: float):
+    def __init__(self, sample_rate: int, calibration_s: float, fps: float, highpass_hz: float = 0.0):
         self.sample_rate, self.calibration_s, self.fps = int(sample_rate), float(calibration_s), fps
-        self.params = FedParams(self.sample_rate, self.calibration_s)
+        self.params = FedParams(self.sample_rate, self.calibration_s, float(highpass_hz))
+        if highpass_hz:   # input=file's input.highpass_hz: the same filter, so the same bytes
+            from laughlab.signals.highpass import CausalHighpass
+
+            self._hp = CausalHighpass(float(highpass_hz), self.sample_rate)
+        else:
+            self._hp = None
         self.samples: queue.Queue = queue.Queue()
         self.hungry = threading.Event()   # every sample fed is cut into frames, and every whole frame computed
 
@@ -107,7 +115,7 @@ class _FedSource:
             x = self.samples.get()
             if x is None:
                 return
-            yield x
+            yield x if self._hp is None else self._hp.step(x)
 
     def blocks(self):
         from laughlab.io.audio import cut_frames
@@ -201,6 +209,9 @@ class Session:
         only the streaming outputs, ``vmc`` and ``viewer``, may be asked for; a file-writing one needs ``out_dir``).
     calibration_s : float
         The rms extractor's calibration phase at the start (s; van Duijn 2014, 3.1.1): 0, as for a file.
+    highpass_hz : float
+        A causal high-pass of the samples before the extractors (Hz; 0: none): ``input=file``'s
+        ``input.highpass_hz``, which removes a DC offset (20 Hz does), the same filter and bytes.
     overwrite : bool
         Let the outputs replace files of theirs already in ``out_dir`` (refused otherwise: nothing of yours is
         overwritten without asking).
@@ -211,7 +222,7 @@ class Session:
     """
 
     def __init__(self, overrides=(), sample_rate: int | None = None, outputs=(), out_dir=None,
-                 calibration_s: float = 0.0, overwrite: bool = False):
+                 calibration_s: float = 0.0, overwrite: bool = False, highpass_hz: float = 0.0):
         from omegaconf import OmegaConf
 
         from laughlab.core import pipeline
@@ -235,6 +246,9 @@ class Session:
             raise LaughlabError(f"sample_rate must be a whole number of Hz (got {sample_rate!r})")
         if not 8000 <= int(sample_rate) <= 192000:
             raise LaughlabError(f"sample_rate must be 8000-192000 Hz (got {sample_rate})")
+        if (isinstance(highpass_hz, bool) or not isinstance(highpass_hz, numbers.Real)
+                or not 0 <= highpass_hz <= 1000):   # as input.highpass_hz: under any rate's Nyquist
+            raise LaughlabError(f"highpass_hz must be 0-1000 Hz (got {highpass_hz!r})")
         for o in overrides:
             key = override_key(o)
             if key == "output":   # an output's own parameters (output.vmc.port=...) are welcome
@@ -278,7 +292,7 @@ class Session:
             raise LaughlabError(pipeline._offline_only(pipe.scheduler, "a session fed as it goes"))
         self._frames: list[SessionFrame] = []
         pipe.ctx.calibration_s = float(calibration_s) if getattr(pipe.extractor, "calibrates", False) else 0.0
-        self._src = pipe.source = _FedSource(sample_rate, pipe.ctx.calibration_s, pipe.ctx.fps)
+        self._src = pipe.source = _FedSource(sample_rate, pipe.ctx.calibration_s, pipe.ctx.fps, highpass_hz)
         pipe.sinks.append(_Handback(self._frames))
         self._tmp = None if out_dir is not None else tempfile.TemporaryDirectory(prefix="laughlab-session-")
         self.out_dir = Path(out_dir if out_dir is not None else self._tmp.name)

@@ -137,25 +137,19 @@ class FileSource(Source):
     def _read(self):
         """The file's chunks (``channel``'s alone, high-passed at ``highpass_hz``), noting the loudest finite sample
         (a silent file says so in the run's line) and the samples' mean (so does a DC offset) as read."""
-        sos = state = None
+        hp = None
         if self.params.highpass_hz > 0:
-            from scipy.signal import butter, sosfilt, sosfilt_zi
+            from laughlab.signals.highpass import CausalHighpass
 
-            sos = butter(2, self.params.highpass_hz, "highpass", fs=self.sample_rate, output="sos")
-            zi = sosfilt_zi(sos)   # set to the first sample's level below: an offset is no step at the start (a
-            # review: from rest, the step's transient was the loudest frame and shrank the rms extractor's MCS)
+            hp = CausalHighpass(self.params.highpass_hz, self.sample_rate)
         for chunk in read_blocks(self.params.path, channel=self.params.channel):
             finite = chunk[np.isfinite(chunk)]
             if finite.size:
                 self.peak = max(self.peak, float(np.abs(finite).max()))
                 self.total += float(finite.sum(dtype=np.float64))
                 self.count += finite.size
-            if sos is not None:
-                bad = ~np.isfinite(chunk)   # filtered as silence, and left as they were: the run counts them
-                if state is None and len(chunk):
-                    state = zi * float(np.where(bad, 0.0, chunk)[0])
-                x, state = sosfilt(sos, np.where(bad, 0.0, chunk), zi=state)
-                chunk = np.where(bad, chunk, x).astype(np.float32)
+            if hp is not None:
+                chunk = hp.step(chunk)
             yield chunk
 
     def metrics(self) -> dict:

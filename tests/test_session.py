@@ -449,3 +449,23 @@ def test_a_session_after_numpy_was_imported_first_says_what_it_means_for_the_byt
     said = [line for line in first.stderr.splitlines() if "numpy was imported before laughlab" in line]
     assert len(said) == (1 if avx512 else 0), first.stderr
     assert not said or said[0].startswith("<string>:2: UserWarning:")
+
+
+def test_a_sessions_high_pass_is_input_files(recording, tmp_path):
+    """A Python user's review: a session refused every input.* override, so a DC offset could not be removed as the
+    command line removes it (input.highpass_hz=20). ``highpass_hz=`` is the same filter: the same bytes as the
+    file run, however the samples are split."""
+    x, sr = sf.read(recording, dtype="float32")
+    x = x[: 2 * sr] + np.float32(0.05)   # a DC offset
+    sf.write(tmp_path / "dc.wav", x, sr, subtype="FLOAT")
+    r = laughlab("input=file", f"input.path={tmp_path / 'dc.wav'}", "input.highpass_hz=20", "~output.plots",
+                 f"hydra.run.dir={tmp_path / 'cli'}")
+    assert r.returncode == 0, r.stderr
+    with Session(["~output.plots"], sample_rate=sr, outputs=["files"], out_dir=tmp_path / "s", highpass_hz=20) as s:
+        for a in range(0, len(x), 3001):
+            s.feed(x[a:a + 3001])
+        s.close()
+    for name in ("channels.csv", "motion.bvh"):
+        assert filecmp.cmp(tmp_path / "s" / name, tmp_path / "cli" / name, shallow=False), name
+    with pytest.raises(LaughlabError, match=r"^highpass_hz must be 0-1000 Hz \(got -1\)$"):
+        Session([], sample_rate=sr, highpass_hz=-1)
