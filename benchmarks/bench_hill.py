@@ -207,6 +207,7 @@ def live_control(profiles=("mixed", "intense", "mild", "giggle"), seeds=(0, 1), 
             e.append(float(np.sqrt(np.mean((p[c.start:c.end] - seg) ** 2)) / np.sqrt(np.mean(seg ** 2))))
         errs += e
         per_input[name] = float(np.mean(e))
+        assert body.live.fitted == len(body.live.fits), "more fits than the live fitter keeps: raise FITS_KEPT"
         for r in body.live.fits:
             fit_s.append(r["seconds"])
             fit_len.append((r["end"] - r["start"]) / 60.0)

@@ -271,10 +271,9 @@ class HillBody(Body):
     def close(self) -> None:
         if self.live is not None:
             self.live.close()
-            waits = self.live.waits
-            if waits:   # live: frames held for a fit (the fit takes longer than adopt_after_s on this machine)
-                print(f"laughlab: warning: body=hill held {len(waits)} frame(s) for a call's fit, up to "
-                      f"{1000 * max(waits):.0f} ms: this machine fits a call in more than body.live.adopt_after_s="
+            if self.live.held:   # live: frames held for a fit (the fit takes longer than adopt_after_s here)
+                print(f"laughlab: warning: body=hill held {self.live.held} frame(s) for a call's fit, up to "
+                      f"{1000 * self.live.held_max_s:.0f} ms: this machine fits a call in more than body.live.adopt_after_s="
                       f"{self.live.p.adopt_after_s:g} s; raise it for a stream without stalls", file=sys.stderr)
 
     def _preset(self, t_end: np.ndarray):

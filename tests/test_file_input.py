@@ -4,12 +4,14 @@ without a clip, and a stereo file whose channels cancel was called silent)."""
 from __future__ import annotations
 
 import json
+import sys
 
 import numpy as np
 import pytest
 import soundfile as sf
 
 from inprocess import laughlab  # the command line in this process (tests/inprocess.py)
+from laughlab.core.errors import LaughlabError
 
 ARGS = ("input=file", "detector=none", "~output.plots")
 
@@ -133,7 +135,7 @@ def test_a_long_sessions_float_wav_becomes_rf64_past_riffs_4_gib(tmp_path, monke
 
     if limit is not None:
         monkeypatch.setattr(FloatWavWriter, "RIFF_LIMIT", limit)
-    x = np.sin(np.arange(3000) / 7.0).astype(np.float32) * 0.5
+    x = np.sin(np.arange(3 * 44100) / 7.0).astype(np.float32) * 0.5
     with FloatWavWriter(tmp_path / "s.wav", 44100, long=True) as w:
         w.write(x[:1000])
         w.write(x[1000:])
@@ -141,6 +143,37 @@ def test_a_long_sessions_float_wav_becomes_rf64_past_riffs_4_gib(tmp_path, monke
     assert head[:4] == (b"RIFF" if limit is None else b"RF64") and head[12:16] == (b"JUNK" if limit is None else b"ds64")
     if limit is not None:
         riff, data, n = struct.unpack("<QQQ", (tmp_path / "s.wav").read_bytes()[20:44])
-        assert data == 4 * 3000 and n == 3000 and riff == (tmp_path / "s.wav").stat().st_size - 8
+        assert data == 4 * len(x) and n == len(x) and riff == (tmp_path / "s.wav").stat().st_size - 8
     y, sr = sf.read(tmp_path / "s.wav", dtype="float32")
     assert sr == 44100 and np.array_equal(y, x)
+    # a copy cut short is said, RF64 as RIFF (the RF64 one ran on what was left without a word: a diff review)
+    from laughlab.io.audio import probe_file
+
+    (tmp_path / "cut.wav").write_bytes((tmp_path / "s.wav").read_bytes()[:-4 * 66150])
+    with pytest.raises(LaughlabError, match=r"cut\.wav is cut short: its header promises 3\.00 s of audio, the file "
+                                            r"holds 1\.50 s"):
+        probe_file(tmp_path / "cut.wav")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="sparse files: elsewhere 4 GiB would be written")
+def test_the_float_wav_at_its_real_limit(tmp_path):
+    """At the real RIFF limit (a sparse file, no 4 GiB written): the last size RIFF holds stays RIFF, one sample more
+    is RF64, libsndfile counts both exactly; a writer without the JUNK room says so in one line (it was struct.error)."""
+    import soundfile as sf
+
+    from laughlab.io.audio import FloatWavWriter
+
+    last = FloatWavWriter.RIFF_LIMIT // 4
+    for n, magic in ((last, b"RIFF"), (last + 1, b"RF64")):
+        path = tmp_path / f"{n}.wav"
+        w = FloatWavWriter(path, 48000, long=True)
+        w.f.seek(4 * n - 4, 1)   # the audio's place, left sparse, and its last sample
+        w.write(np.array([0.25], np.float32))
+        w.n = n
+        w.close()
+        assert path.read_bytes()[:4] == magic and sf.info(str(path)).frames == n
+    w = FloatWavWriter(tmp_path / "short.wav", 48000)
+    w.n = last + 1
+    with pytest.raises(LaughlabError, match=r"short\.wav: 6\.2 h of audio at 48000 Hz is past what a WAV file holds"):
+        w.close()
+    assert w.f.closed

@@ -16,9 +16,13 @@ ROOT = Path(__file__).resolve().parents[1]
 def source_copy(tmp_path) -> Path:
     """The checkout's files (tracked, and new ones not ignored) in a folder of their own: a build writes build/ and
     *.egg-info where it runs, and a build/ left in the checkout would ship a module since deleted (the diff review)."""
+    src = tmp_path / "src"
+    if not (ROOT / ".git").exists():   # an unpacked sdist: its own files, without what a build leaves
+        shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns("build", "*.egg-info", "__pycache__", ".venv*",
+                                                                 "dist"))
+        return src
     files = subprocess.run(["git", "ls-files", "-co", "--exclude-standard", "-z"], cwd=ROOT, capture_output=True,
                            check=True).stdout.decode().split("\0")
-    src = tmp_path / "src"
     for name in filter(None, files):
         if (ROOT / name).is_file():
             (src / name).parent.mkdir(parents=True, exist_ok=True)
@@ -60,8 +64,11 @@ def test_the_sdist_holds_what_its_tests_need(tmp_path):
     import tarfile
 
     dist = tmp_path / "dist"
+    src = source_copy(tmp_path)
+    (src / "benchmarks" / "results").mkdir(exist_ok=True)   # a machine's own measurements (git ignores them)
+    (src / "benchmarks" / "results" / "latency.json").write_text("{}", encoding="utf-8")
     r = subprocess.run([sys.executable, "-c", f"from setuptools import build_meta; build_meta.build_sdist({str(dist)!r})"],
-                       cwd=source_copy(tmp_path), capture_output=True, text=True, timeout=300)
+                       cwd=src, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     (sdist,) = dist.glob("laughlab-*.tar.gz")
     with tarfile.open(sdist) as t:
@@ -69,4 +76,4 @@ def test_the_sdist_holds_what_its_tests_need(tmp_path):
     assert {"tests/conftest.py", "tests/golden.py", "tests/inprocess.py", "tests/data/golden.json", "requirements.lock",
             "constraints.txt", "Makefile", "CITATION.cff", "docs/pipeline.md", "laughlab/data/yamnet/NOTICE",
             "benchmarks/bench_latency.py"} <= names   # tests load the latency benchmark's replay
-    assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
+    assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc") or n.startswith("benchmarks/results")]

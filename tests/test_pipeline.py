@@ -560,10 +560,12 @@ def test_the_stage_timings_take_constant_memory(monkeypatch):
             pass
 
     stepper = Stepper(*(Stage(n) for n in ("e", "d", "s", "b", "f")), Stage("mixer"))
-    clock = itertools.count(0, 1000)
+    import types
+
     import laughlab.core.stages as stages
 
-    monkeypatch.setattr(stages.time, "perf_counter_ns", lambda: next(clock))   # each reading 1 us after the last
+    clock = itertools.count(0, 1000)   # each reading 1 us after the last: the module's own clock, not the process'
+    monkeypatch.setattr(stages, "time", types.SimpleNamespace(perf_counter_ns=lambda: next(clock)))
     for _ in range(5000):
         stepper.timed(None, None)
     monkeypatch.undo()

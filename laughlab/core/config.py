@@ -76,8 +76,8 @@ def load_plugin_dirs(overrides) -> None:
         key, _, value = str(ov).partition("=")
         value = unquoted(value)
         if override_key(key) == "plugins_dir" and value and value != "null":
-            if plugins_dir_changed(value):   # another folder: the earlier one's experiments go with it
-                own_experiments.forget_plugins_dirs()
+            if Path(value).expanduser().is_dir() and plugins_dir_changed(value):   # another folder: the earlier
+                own_experiments.forget_plugins_dirs()   # one's experiments go with it
             plugins.load_plugin_dir(value)
             own_experiments.load_folder(Path(value).expanduser() / "experiment", conf_dir())
 

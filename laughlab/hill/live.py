@@ -200,7 +200,9 @@ class LiveFitter:
         # list of every one grew 6 MB an hour of laughter for ever; ``fitted`` counts them all
         self.fits: collections.deque = collections.deque(maxlen=FITS_KEPT)
         self.fitted = 0
-        self.waits: list[float] = []  # frames held for a fit due and unfinished (threaded): how long (s)
+        # frames held for a fit due and unfinished (threaded): how long (s), the latest FITS_KEPT; all counted
+        self.waits: collections.deque = collections.deque(maxlen=FITS_KEPT)
+        self.held, self.held_max_s = 0, 0.0
 
     # -- fitting
     def _scaled(self, peak: float) -> np.ndarray:
@@ -245,7 +247,9 @@ class LiveFitter:
             if self._pool is not None and k is not None and not fit.done():
                 t0 = time.perf_counter()
                 fit.result()
-                self.waits.append(time.perf_counter() - t0)
+                w = time.perf_counter() - t0
+                self.waits.append(w)
+                self.held, self.held_max_s = self.held + 1, max(self.held_max_s, w)
             self._adopt(fit.result() if self._pool is not None else fit)
 
     def close(self) -> None:

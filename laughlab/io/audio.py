@@ -116,8 +116,9 @@ def _any_finite(p: Path, block: int = 65536) -> bool:
     return False
 
 
-#: libsndfile's names of RIFF WAVE files, whose header says how long their audio is (:func:`check_wav_length`)
-WAV_FORMATS = ("WAV", "WAVEX")
+#: libsndfile's names of RIFF WAVE files, whose header says how long their audio is (:func:`check_wav_length`);
+#: RF64 too (a long microphone session's saved audio: a copy cut short ran on half of it without a word)
+WAV_FORMATS = ("WAV", "WAVEX", "RF64")
 
 
 def check_wav_length(p: Path, info, shown) -> None:
@@ -128,15 +129,21 @@ def check_wav_length(p: Path, info, shown) -> None:
     size = p.stat().st_size
     with open(p, "rb") as f:
         head = f.read(12)
-        if len(head) < 12 or head[:4] != b"RIFF" or head[8:12] != b"WAVE":
+        if len(head) < 12 or head[:4] not in (b"RIFF", b"RF64") or head[8:12] != b"WAVE":
             return
+        long = None   # RF64: the data's size is ds64's 64-bit one
         while True:
             chunk = f.read(8)
             if len(chunk) < 8:
                 return
             cid, n = chunk[:4], struct.unpack("<I", chunk[4:])[0]
+            if cid == b"ds64" and n >= 16:
+                long = struct.unpack("<QQ", f.read(16))[1]
+                f.seek(n - 16 + (n & 1), 1)
+                continue
             if cid == b"data":
                 start = f.tell()
+                n = long if long is not None and n == 0xFFFFFFFF else n
                 break
             f.seek(n + (n & 1), 1)
     held = size - start
@@ -246,9 +253,14 @@ class FloatWavWriter:
         self.n += len(x)
 
     def close(self) -> None:
-        self.f.seek(0)
-        self._header()
-        self.f.close()
+        try:
+            if not self.long and 4 * self.n > self.RIFF_LIMIT:   # a WAV's 32-bit sizes (struct.error: a traceback)
+                raise LaughlabError(f"{self.f.name}: {self.n / self.sample_rate / 3600:.1f} h of audio at "
+                                    f"{self.sample_rate} Hz is past what a WAV file holds (4 GiB): a shorter input")
+            self.f.seek(0)
+            self._header()
+        finally:
+            self.f.close()
 
     def __enter__(self):
         return self

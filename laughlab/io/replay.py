@@ -54,7 +54,10 @@ class ReplayDevice:
         if self._audio is None:
             from laughlab.io.audio import read_blocks
 
-            self._audio = np.concatenate(list(read_blocks(self.path)))
+            try:
+                self._audio = np.concatenate(list(read_blocks(self.path)))
+            except LaughlabError as exc:   # a damaged file: its line names the device setting too
+                raise LaughlabError(f"input.device={PREFIX}{self.path}: {exc}") from None
         return self._audio
 
     def check_input_settings(self, device=None, channels=1, samplerate=None, dtype="float32") -> None:
