@@ -37,8 +37,8 @@ animator's knob.  Per frame:
    (ours, after minimum statistics, Martin 2001: the paper's recordings were
    clean; a room's steady noise at -50 dBFS otherwise drove the torso at the
    full reference).  ``mean_peak`` is the running mean of the peaks of
-   ``excess`` seen so far plus ``prior_weight`` peaks of the highest excess so
-   far (at least ``peak_over_noise`` times the noise floor), causal so it
+   ``excess`` seen so far (the last ``peak_memory``, exponentially, past that many) plus ``prior_weight`` peaks
+   of the highest excess so far (at least ``peak_over_noise`` times the noise floor), causal so it
    works live: a peak is a local maximum above ``peak_min_fraction`` of the
    current mean and ``peak_over_noise`` times the noise floor, counted again
    only after the signal has fallen below ``valley_fraction`` of the last
@@ -122,6 +122,11 @@ class PressureParams:
         envelope's floor), and the prior is at least that high.
     prior_weight : float
         Weight, in peaks, of the highest excess so far in the running mean (the prior).
+    peak_memory : int
+        Peaks the running mean holds: after this many, each new peak replaces ``1 / peak_memory`` of the sum (an
+        exponential window), so a session that runs for days follows a change of room or gain (ours: DiLorenzo
+        et al. normalise one recording, a cumulative mean; a soak review found it all but fixed after hours).
+        Below it, the cumulative mean, unchanged.
     peak_min_fraction : float
         A local maximum counts as a peak above this fraction of the current mean peak.
     valley_fraction : float
@@ -139,6 +144,7 @@ class PressureParams:
     noise_window_s: float = 2.0
     peak_over_noise: float = 1.0
     prior_weight: float = 1.0
+    peak_memory: int = 500
     peak_min_fraction: float = 0.3
     valley_fraction: float = 0.7
     mcs_full_cmh2o: float = 0.2
@@ -156,6 +162,7 @@ class PressureParams:
         check_range("noise_window_s", self.noise_window_s, 0, 60, lo_open=True)
         check_range("peak_over_noise", self.peak_over_noise, 0, 1e6)
         check_range("prior_weight", self.prior_weight, 1e-6)
+        check_range("peak_memory", self.peak_memory, 1, 10**9)
         check_range("peak_min_fraction", self.peak_min_fraction, 0, 1)
         check_range("valley_fraction", self.valley_fraction, 0, 1)
         check_range("mcs_full_cmh2o", self.mcs_full_cmh2o, 0, lo_open=True)
@@ -245,8 +252,11 @@ class PressureExtractor(Extractor):
         if not self.armed and raw < p.valley_fraction * self.last_peak:
             self.armed = True
         if self.armed and p1 > p2 and p1 >= raw and p1 > max(p.peak_min_fraction * self.mean_peak, self._least()):
+            if self.peak_count >= p.peak_memory:   # a long session: the oldest peaks fade (exponential window)
+                self.peak_sum -= self.peak_sum / p.peak_memory
+            else:
+                self.peak_count += 1.0
             self.peak_sum += p1
-            self.peak_count += 1.0
             self.last_peak = p1
             self.armed = raw < p.valley_fraction * p1
         self._prev = (p1, raw)

@@ -212,3 +212,28 @@ def test_works_with_every_face_and_scheduler(hill_plugins, tmp_path):
     head = (tmp_path / "channels.csv").read_text().splitlines()[0].split(",")
     for col in ("rms", "env", "pressure", "mcs", "energy", "chest", "belly", "smile", "jaw"):
         assert col in head
+
+
+def test_the_mean_peak_forgets_past_peak_memory_and_is_the_cumulative_mean_before():
+    """A soak review: the mean peak height was the cumulative mean of every peak since the start, so after hours a
+    change of room or gain barely moved it.  Below ``peak_memory`` peaks it is that mean, as before; past it each new
+    peak replaces 1/peak_memory of the sum, and a level held long enough becomes the mean."""
+    ext = PressureExtractor(PressureParams(peak_memory=20, prior_weight=1.0), Context(fps=60, sample_rate=16000))
+    ext.noise = 0.0
+
+    def pulses(height, n):
+        for _ in range(n):
+            for v in (0.0, height, 0.0):   # a local maximum, then a fall below valley_fraction of it
+                ext._peak(v)
+
+    pulses(1.0, 10)
+    assert ext.peak_count == 10 and ext.peak_sum == pytest.approx(10.0)   # the cumulative mean, as before
+    pulses(1.0, 30)
+    assert ext.peak_count == 20 and ext.peak_sum == pytest.approx(20.0)
+    pulses(3.0, 200)                                            # the room got louder and stayed so
+    prior = max(ext.top, ext._least())   # the prior's peak (step() keeps the top; here only _peak ran)
+    held = 3.0 * 20 * (1 - (1 - 1 / 20) ** 200) + 20 * (1 - 1 / 20) ** 200   # the sum after 200 louder peaks
+    assert ext.peak_count == 20 and ext.peak_sum == pytest.approx(held, rel=1e-9)
+    assert ext.mean_peak == pytest.approx((prior + held) / 21, rel=1e-9) and ext.peak_sum / 20 > 2.99
+    with pytest.raises(ValueError, match="peak_memory"):
+        PressureParams(peak_memory=0)
