@@ -8,7 +8,7 @@ laugh_energy) has p < .05 and Holm's p < .05, and the familywise share (any cont
 each with a 95 % Wilson interval; nominal 0.05 for the first and the last.
 
 The review measured, with 24 participants, 4 items and a stimulus variance of 0.5 (participant 0.64,
-residual 1.44): familywise 38/400 = 0.095.  On 2026-11-30, 12 participants, 200 studies each, seed 11: 4 items
+residual 1.44): familywise 38/400 = 0.095.  On 2026-11-29, 12 participants, 200 studies each, seed 11: 4 items
 at the default stimulus variance 0.09: 0.065; 2 items: 0.075; 2 items at 0.5: 0.185.  ``study analyze`` warns in
 its README for every question with fewer than 10 stimuli per condition (``analyze.few_stimuli_note``).
 

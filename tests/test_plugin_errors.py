@@ -119,7 +119,7 @@ def test_an_extractor_that_writes_no_mcs_is_named_not_laughlab(registered, tmp_p
 
 
 class Peak(Extractor):
-    """An extractor whose mcs is given per test (a plugin author's review, 2026-11-30)."""
+    """An extractor whose mcs is given per test (a plugin author's review, 2026-11-29)."""
     name = "peak"
     value = None
 

@@ -1,4 +1,4 @@
-"""What laughlab assumes of the operating system (a Windows/macOS portability review, 2026-11-30).
+"""What laughlab assumes of the operating system (a Windows/macOS portability review, 2026-11-29).
 
 Windows opens text files in the locale's code page (cp1252), not UTF-8: a report's README with its arrows, a Hydra
 file holding a non-ASCII path, ended in UnicodeEncodeError/UnicodeDecodeError there.  Every text file laughlab

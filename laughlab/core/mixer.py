@@ -201,7 +201,7 @@ FACE_STILL = 1e-3
 
 def settling(mixer, before, frame) -> bool:
     """``run_out`` goes on: :func:`mid_clip`, or the face still returns to rest, its ``smile`` or ``jaw`` moving by
-    more than :data:`FACE_STILL` from the frame ``before`` to ``frame`` (since 2026-11-30; a review of baked assets in
+    more than :data:`FACE_STILL` from the frame ``before`` to ``frame`` (since 2026-11-29; a review of baked assets in
     Blender: the body stood at rest and the face still smiled at 0.29, face=facs' smile falling 0.2 a second)."""
     if mid_clip(mixer):
         return True

@@ -1,7 +1,7 @@
 """A run directory's lock file, on every operating system (:mod:`laughlab.core.rundir`).
 
 POSIX (Linux, macOS): ``flock`` on the whole file, and the holder's pid read and written at offset 0 with
-``pread``/``pwrite``.  Windows has neither (a portability review, 2026-11-30: every run ended in
+``pread``/``pwrite``.  Windows has neither (a portability review, 2026-11-29: every run ended in
 ``ModuleNotFoundError: fcntl``): ``msvcrt.locking`` locks one byte far past the pid (Windows' byte-range locks are
 mandatory, so a lock over the pid would keep a second run from reading whose it is), and the pid is read and written
 with ``lseek`` and ``read``/``write``.  Either lock goes with the process, a crash included.

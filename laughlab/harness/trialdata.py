@@ -172,7 +172,7 @@ class TrialData:
 
         The ground truth's call intensities when they are graded (:attr:`Truth.graded`: the synthetic inputs);
         when its calls are not graded (real recordings, annotations), the sound's loudness inside them, 0 outside
-        (until 2026-11-30 the calls' 1.0: a data user's review found I(t) was then call activity, not intensity);
+        (until 2026-11-29 the calls' 1.0: a data user's review found I(t) was then call activity, not intensity);
         without a truth, the loudness throughout.  The loudness: the ``rms`` channel, or 10^(intensity/20) from
         the ``intensity`` control in dB, normalised by its maximum.
         """

@@ -225,7 +225,7 @@ def few_participants_note(n: int) -> str:
 def few_stimuli_note(var: dict[str, float], per_condition: int) -> str:
     """The README's warning for a question with fewer than :data:`FEW_STIMULI` stimuli per condition ("" from
     there): the Wald tests take the stimulus variance as known though it rests on few stimuli, so their p values are
-    too small, whatever that variance's estimate (a statistician's review, 2026-11-30: with the default 4 stimuli
+    too small, whatever that variance's estimate (a statistician's review, 2026-11-29: with the default 4 stimuli
     and an estimate under 5 % of the total the note had been left out, and 19 of 20 false positives came without
     it; ``benchmarks/bench_study_type1.py``'s figures in :data:`TYPE1`)."""
     if per_condition >= FEW_STIMULI:

@@ -12,7 +12,7 @@ Tables (``responses.sqlite`` in the study folder unless ``--db`` says otherwise)
     it is refused.
 ``sessions``
     one row per page load: ``session``, ``participant``, ``started_at``, ``consent_at``,
-    ``finished_at``, ``user_agent``, ``declined_at`` (since 2026-11-30: a decline was not stored), ``external_id``
+    ``finished_at``, ``user_agent``, ``declined_at`` (since 2026-11-29: a decline was not stored), ``external_id``
     (the panel's ID the page came with, if any).  Answers
     are stored only from a session the participant started, and only once they gave consent in one of
     their sessions (:func:`consented`).
@@ -104,7 +104,7 @@ def open_db(path: Path, design: dict, participants: str = "people") -> Path:
                                 "give another --db")
         conn.executescript(SCHEMA)
         have = {r[1] for r in conn.execute("PRAGMA table_info(sessions)")}
-        for column in ("declined_at", "external_id"):   # a database from before 2026-11-30
+        for column in ("declined_at", "external_id"):   # a database from before 2026-11-29
             if column not in have:
                 conn.execute(f"ALTER TABLE sessions ADD COLUMN {column} TEXT")
     except sqlite3.DatabaseError as exc:

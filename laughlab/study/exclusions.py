@@ -9,7 +9,7 @@
   participant who left part way (a study researcher's review: one who stopped after 2 of 16 trials, before any
   attention item, was counted as included, unsaid).  The trials are the design's for that participant (with
   ``--design`` or a database); without a design, the most any participant gave.  ``complete: false`` keeps them.
-- ``consent`` (since 2026-11-30): answers in a server's database with no consent in any of the participant's
+- ``consent`` (since 2026-11-29): answers in a server's database with no consent in any of the participant's
   sessions there (``laughlab.study.participation.unconsented``: a database from before the server refused them, or
   edited).  Answer files from a static host carry no consent record and are not judged by it.
 """

@@ -1,5 +1,5 @@
 """Who came, who agreed and who stayed: ``study analyze``'s participation line from the server's sessions (page loads)
-and the answers' sessions (since 2026-11-30: a study-server review found attrition, declines and participants working
+and the answers' sessions (since 2026-11-29: a study-server review found attrition, declines and participants working
 in two tabs at once not reported); and how the included fill the Latin square's rows (:func:`order_rows`).
 
 - from the databases' ``sessions`` table: participants who opened the page, gave consent, declined (and never

@@ -25,7 +25,7 @@ at most :data:`MAX_BODY` bytes):
 
 Answers (``api/response``, ``api/check``) and events are taken only from a session the participant
 started (409 otherwise: another participant's session, or none), and answers and ``finish`` only once
-the participant gave consent (403: since 2026-11-30; a review found answers stored from a page that
+the participant gave consent (403: since 2026-11-29; a review found answers stored from a page that
 never asked, and declines not stored).
 
 Everything is checked against the design before it is stored: the participant must be one of the
