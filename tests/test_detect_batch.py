@@ -150,6 +150,13 @@ def test_two_inputs_of_one_name_are_both_named(tmp_path):
     with pytest.raises(LaughlabError, match=r"^three inputs share the name 'a' \("):
         inputs([str(tmp_path)])
     (tmp_path / "a.mp3").unlink()
+    # names that differ in case only: one file on macOS' and Windows' file systems (a review at scale)
+    (tmp_path / "a.flac").unlink()
+    (tmp_path / "A.flac").write_bytes(b"x")
+    with pytest.raises(LaughlabError, match=r"^two inputs share the name 'A' and 'a', which differ in case only \(one "
+                                            r"file on macOS and Windows\) \("):
+        inputs([str(tmp_path)])
+    (tmp_path / "A.flac").unlink()
     # the same take name in two folders, given file by file (a shell glob, rec/*/*.wav; the detect review): their
     # folder names each by its path from it, and the line says so
     for day in ("day1", "day2"):
@@ -631,3 +638,22 @@ def test_a_folder_of_segments_passes_by_detects_own_tables_and_names_a_csv_witho
     with pytest.raises(LaughlabError, match="peer.csv: a table of segments needs the columns file, start, end "
                                             r"\(it has filename, start, end\)"):
         S.read_folder(tmp_path)
+
+
+def test_clips_of_a_float_recording_are_the_same_bytes_every_run(tmp_path):
+    """A review at scale: the clips cut from a 32-bit float recording differed on every run (libsndfile's PEAK chunk
+    holds the time it was written); the same recording and settings now give the same bytes."""
+    import time
+
+    from laughlab.detector.segments import Segment, write_clip
+
+    x = (np.random.default_rng(0).normal(0, 0.2, (44100, 2))).astype(np.float32)
+    sf.write(tmp_path / "take.wav", x, 44100, subtype="FLOAT")
+    seg = Segment(0.25, 0.75, 0.9)
+    write_clip(tmp_path / "a.wav", tmp_path / "take.wav", seg)
+    time.sleep(1.1)   # the stamp's resolution is a second
+    write_clip(tmp_path / "b.wav", tmp_path / "take.wav", seg)
+    assert (tmp_path / "a.wav").read_bytes() == (tmp_path / "b.wav").read_bytes()
+    got, sr = sf.read(tmp_path / "a.wav", dtype="float32")
+    assert sr == 44100 and sf.info(str(tmp_path / "a.wav")).subtype == "FLOAT"
+    assert np.array_equal(got, x[round(0.25 * 44100):round(0.75 * 44100)])

@@ -242,6 +242,10 @@ def clip_names(results: list, formats: tuple[str, ...]) -> list[str]:
     return [f"{r[0]}_laugh_{i}.wav" for r in results for i in range(len(r[2]))] if "audio" in formats else []
 
 
+#: libsndfile's command (sndfile.h) that leaves out a float WAV's PEAK chunk, whose time stamp changes every run
+SFC_SET_ADD_PEAK_CHUNK = 0x1050
+
+
 def write_clip(path: Path, media: Path, seg: Segment, channel: int | None = None) -> None:
     """The recording's samples ``[round(start * sr), round(end * sr))`` as a WAV file at ``path`` (a staging file:
     :func:`write_outputs`): its own rate and channels (or channel ``channel`` alone), its own sample format where
@@ -254,7 +258,14 @@ def write_clip(path: Path, media: Path, seg: Segment, channel: int | None = None
                     always_2d=True, dtype="float64" if subtype in ("FLOAT", "DOUBLE") else "int32")
     if channel is not None:
         x = x[:, channel]
-    sf.write(str(path), x, sr, subtype=subtype, format="WAV")
+    x = x.reshape(len(x), -1)
+    with sf.SoundFile(str(path), "w", sr, x.shape[1], subtype=subtype, format="WAV") as f:
+        if subtype in ("FLOAT", "DOUBLE"):   # libsndfile's PEAK chunk holds the time it was written: a float
+            try:                            # recording's clips were other bytes on every run (a review at scale)
+                sf._snd.sf_command(f._file, SFC_SET_ADD_PEAK_CHUNK, sf._ffi.NULL, 0)
+            except AttributeError:   # a soundfile without its libsndfile handle: the chunk stays
+                pass
+        f.write(x)
 
 
 def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...],
