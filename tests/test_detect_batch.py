@@ -183,7 +183,53 @@ def test_a_stopped_detect_closes_its_progress_before_the_error_line(tmp_path, mo
     assert lines[-2].startswith("detect: 0.0/1.0 s of audio, ")
     # what was written is said (a review: "interrupted" left the user to guess): nothing, until every input is done
     assert lines[-1] == (f"laughlab: error: interrupted after 0 of 1 input(s); nothing was written to "
-                         f"{tmp_path / 'out'} (detect writes when every input is done)")
+                         f"{tmp_path / 'out'} (detect writes when every input is done); the same command goes on "
+                         "from there")
+
+
+def test_an_interrupted_batch_goes_on_where_it_stopped(tmp_path, monkeypatch):
+    """A review at scale: a Ctrl-C 14 s into a 5.2-hour corpus, or a damaged file found late, lost every input done
+    (a batch writes all or none). The inputs done are kept, keyed on the file and the settings: the same command goes
+    on from there, with the same bytes as a run never stopped, and a batch written whole leaves nothing kept."""
+    from laughlab.detector import segments
+
+    monkeypatch.setenv("LAUGHLAB_DATA", str(tmp_path / "data"))
+    rng = np.random.default_rng(1)
+    (tmp_path / "in").mkdir()
+    for k in range(3):
+        sf.write(tmp_path / "in" / f"t{k}.wav", rng.normal(0, 0.1, 16000 * 2), 16000)
+    whole = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "whole"))
+    assert whole.returncode == 0, whole.stderr
+    assert not list((tmp_path / "data" / "detect").glob("*.json"))   # written whole: nothing kept
+    real, calls = segments.laughter_prob, []
+
+    def stops_at_the_third(*a, **k):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*a, **k)
+
+    monkeypatch.setattr(segments, "laughter_prob", stops_at_the_third)
+    r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "out"))
+    assert r.returncode == 130 and "interrupted after 2 of 3 input(s)" in r.stderr
+    assert len(list((tmp_path / "data" / "detect").glob("*.json"))) == 2
+    monkeypatch.setattr(segments, "laughter_prob", real)
+    calls.clear()
+    monkeypatch.setattr(segments, "laughter_prob", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
+    r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "out"))
+    assert r.returncode == 0 and len(calls) == 1, r.stderr   # the third alone computed
+    assert "laughlab: 2 of 3 input(s) as an earlier, unfinished run of these settings found them" in r.stderr
+    for name in ("segments.csv", "recordings.csv", "t0.TextGrid", "t2.TextGrid"):
+        assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "whole" / name).read_bytes(), name
+    assert not list((tmp_path / "data" / "detect").glob("*.json"))
+    # another setting is computed afresh, not taken from a kept one
+    monkeypatch.setattr(segments, "laughter_prob", stops_at_the_third)
+    calls.clear()
+    laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "o2"))
+    calls.clear()
+    monkeypatch.setattr(segments, "laughter_prob", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
+    r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "o2"), "--threshold", "0.6")
+    assert r.returncode == 0 and len(calls) == 3, r.stderr
 
 
 def test_ends_never_pass_the_recording_and_names_are_quoted_in_the_csv(tmp_path):

@@ -311,8 +311,19 @@ def main(argv: list[str]) -> None:
                                       "[{elapsed}<{remaining}]")
     t0 = time.perf_counter()
     results = []
+    from laughlab.detector.detect_cache import DetectCache
+
+    cache = DetectCache({"hop": ns.hop, "smooth": ns.smooth, "threshold": ns.threshold, "min_length": ns.min_length})
+    reused = 0
     try:
         for f, name, channel in named:
+            hit = cache.get(f, channel)   # an earlier, unfinished run of these settings found it (the file unchanged)
+            if hit is not None:
+                results.append((name, hit[0], hit[1], f, channel))
+                reused += 1
+                if bar is not None:
+                    bar.update(durations[name])
+                continue
             try:
                 x, sr = read_mono(f, channel)
             except LaughlabError as exc:  # damaged past its header: found only when read
@@ -322,6 +333,7 @@ def main(argv: list[str]) -> None:
             p = S.smooth(p, ns.smooth)
             dur = len(x) / sr
             results.append((name, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f, channel))
+            cache.put(f, channel, dur, results[-1][2])
     except KeyboardInterrupt:   # before any file is written: say so (a review: "interrupted" left it to guess)
         if bar is not None:
             bar.close()
@@ -329,7 +341,7 @@ def main(argv: list[str]) -> None:
         from laughlab.core.interrupts import exit_interrupted
 
         exit_interrupted(f"interrupted after {len(results)} of {len(named)} input(s); nothing was written to "
-                         f"{ns.out} (detect writes when every input is done)")
+                         f"{ns.out} (detect writes when every input is done); the same command goes on from there")
     finally:   # also on Ctrl-C: the error line then starts a line of its own, not the end of the bar's (a review)
         if bar is not None:
             bar.close()
@@ -378,6 +390,10 @@ def main(argv: list[str]) -> None:
     if others:   # a review: a run of one recording into a batch's folder removed the other recordings' files unsaid
         print(f"laughlab: --overwrite removed {counted(len(others), 'file')} an earlier detect wrote into {out} for "
               f"recordings this run did not read ({shown_names(others)})", file=sys.stderr)
+    cache.forget()   # written whole: a later run computes afresh
+    if reused:
+        print(f"laughlab: {reused} of {len(results)} input(s) as an earlier, unfinished run of these settings found "
+              "them (the files unchanged since)", file=sys.stderr)
     print(summary_line(results, gone, wall, out)
           + DS.score_summary(score_rows, sum(r[0] not in truths for r in results)))
 
