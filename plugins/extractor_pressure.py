@@ -124,9 +124,10 @@ class PressureParams:
         Weight, in peaks, of the highest excess so far in the running mean (the prior).
     peak_memory : int
         Peaks the running mean holds: after this many, each new peak replaces ``1 / peak_memory`` of the sum (an
-        exponential window), so a session that runs for days follows a change of room or gain (ours: DiLorenzo
-        et al. normalise one recording, a cumulative mean; a soak review found it all but fixed after hours).
-        Below it, the cumulative mean, unchanged.
+        exponential window), so a session that runs for days follows a louder room or gain, or one up to about
+        10 dB quieter (a peak under ``peak_min_fraction`` of the mean does not count) (ours: DiLorenzo et al.
+        normalise one recording, a cumulative mean; a soak review found it all but fixed after hours). Below it,
+        the cumulative mean, unchanged.
     peak_min_fraction : float
         A local maximum counts as a peak above this fraction of the current mean peak.
     valley_fraction : float
@@ -163,6 +164,8 @@ class PressureParams:
         check_range("peak_over_noise", self.peak_over_noise, 0, 1e6)
         check_range("prior_weight", self.prior_weight, 1e-6)
         check_range("peak_memory", self.peak_memory, 1, 10**9)
+        if int(self.peak_memory) != self.peak_memory:
+            raise ValueError(f"peak_memory must be a whole number of peaks (got {self.peak_memory})")
         check_range("peak_min_fraction", self.peak_min_fraction, 0, 1)
         check_range("valley_fraction", self.valley_fraction, 0, 1)
         check_range("mcs_full_cmh2o", self.mcs_full_cmh2o, 0, lo_open=True)

@@ -153,10 +153,17 @@ def test_two_inputs_of_one_name_are_both_named(tmp_path):
     # names that differ in case only: one file on macOS' and Windows' file systems (a review at scale)
     (tmp_path / "a.flac").unlink()
     (tmp_path / "A.flac").write_bytes(b"x")
-    with pytest.raises(LaughlabError, match=r"^two inputs share the name 'A' and 'a', which differ in case only \(one "
-                                            r"file on macOS and Windows\) \("):
+    with pytest.raises(LaughlabError, match=r"^two inputs share the name 'A' and 'a', which differ in case or Unicode "
+                                            r"form only \(one file on macOS and Windows\) \("):
         inputs([str(tmp_path)])
     (tmp_path / "A.flac").unlink()
+    (tmp_path / "a.wav").unlink()
+    for name in ("Straße.wav", "Strasse.wav"):   # two files everywhere ('ß' is not 'ss' to a file system)
+        (tmp_path / name).write_bytes(b"x")
+    assert sorted(n for _, n in inputs([str(tmp_path)])) == ["Strasse", "Straße"]
+    for name in ("Straße.wav", "Strasse.wav"):
+        (tmp_path / name).unlink()
+    (tmp_path / "a.wav").write_bytes(b"x")
     # the same take name in two folders, given file by file (a shell glob, rec/*/*.wav; the detect review): their
     # folder names each by its path from it, and the line says so
     for day in ("day1", "day2"):
@@ -198,8 +205,10 @@ def test_an_interrupted_batch_goes_on_where_it_stopped(tmp_path, monkeypatch):
     (tmp_path / "in").mkdir()
     for k in range(3):
         sf.write(tmp_path / "in" / f"t{k}.wav", rng.normal(0, 0.1, 16000 * 2), 16000)
-    whole = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "whole"))
+    args = ("--threshold", "0", "--smooth", "1")   # every file one segment holding its mean probability: rows to
+    whole = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "whole"), *args)   # compare
     assert whole.returncode == 0, whole.stderr
+    assert len((tmp_path / "whole" / "segments.csv").read_text().splitlines()) == 1 + 3
     assert not list((tmp_path / "data" / "detect").glob("*.json"))   # written whole: nothing kept
     real, calls = segments.laughter_prob, []
 
@@ -210,13 +219,14 @@ def test_an_interrupted_batch_goes_on_where_it_stopped(tmp_path, monkeypatch):
         return real(*a, **k)
 
     monkeypatch.setattr(segments, "laughter_prob", stops_at_the_third)
-    r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "out"))
+    r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "out"), *args)
     assert r.returncode == 130 and "interrupted after 2 of 3 input(s)" in r.stderr
+    assert r.stderr.rstrip().endswith("the same command goes on from there")
     assert len(list((tmp_path / "data" / "detect").glob("*.json"))) == 2
     monkeypatch.setattr(segments, "laughter_prob", real)
     calls.clear()
     monkeypatch.setattr(segments, "laughter_prob", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
-    r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "out"))
+    r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "out"), *args)
     assert r.returncode == 0 and len(calls) == 1, r.stderr   # the third alone computed
     assert "laughlab: 2 of 3 input(s) as an earlier, unfinished run of these settings found them" in r.stderr
     for name in ("segments.csv", "recordings.csv", "t0.TextGrid", "t2.TextGrid"):
@@ -225,11 +235,25 @@ def test_an_interrupted_batch_goes_on_where_it_stopped(tmp_path, monkeypatch):
     # another setting is computed afresh, not taken from a kept one
     monkeypatch.setattr(segments, "laughter_prob", stops_at_the_third)
     calls.clear()
-    laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "o2"))
+    laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "o2"), *args)
     calls.clear()
     monkeypatch.setattr(segments, "laughter_prob", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
     r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "o2"), "--threshold", "0.6")
     assert r.returncode == 0 and len(calls) == 3, r.stderr
+    # a file replaced by another of the same size and modification time (cp -p, rsync -a) is computed afresh
+    import os
+
+    src = tmp_path / "in" / "t1.wav"
+    st = src.stat()
+    sf.write(tmp_path / "other.wav", rng.normal(0, 0.3, 16000 * 2), 16000)
+    assert len(list((tmp_path / "data" / "detect").glob("*.json"))) == 2   # t0, t1 kept by o2's stopped run
+    os.replace(tmp_path / "other.wav", src)
+    os.utime(src, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert src.stat().st_size == st.st_size and src.stat().st_mtime_ns == st.st_mtime_ns
+    calls.clear()
+    monkeypatch.setattr(segments, "laughter_prob", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
+    r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "o3"), *args)
+    assert r.returncode == 0 and len(calls) == 2 and "1 of 3 input(s) as an earlier" in r.stderr, r.stderr
 
 
 def test_ends_never_pass_the_recording_and_names_are_quoted_in_the_csv(tmp_path):
@@ -703,3 +727,14 @@ def test_clips_of_a_float_recording_are_the_same_bytes_every_run(tmp_path):
     got, sr = sf.read(tmp_path / "a.wav", dtype="float32")
     assert sr == 44100 and sf.info(str(tmp_path / "a.wav")).subtype == "FLOAT"
     assert np.array_equal(got, x[round(0.25 * 44100):round(0.75 * 44100)])
+
+
+def test_an_empty_clip_of_one_channel_is_an_empty_wav(tmp_path):
+    """The diff review: a segment of no samples (2.0-2.0 s, --min-length 0) of one channel ended detect in a
+    traceback once clips were written through SoundFile (reshape of an empty array)."""
+    from laughlab.detector.segments import Segment, write_clip
+
+    sf.write(tmp_path / "st.wav", np.zeros((48000, 2), np.float32), 48000, subtype="FLOAT")
+    write_clip(tmp_path / "c.wav", tmp_path / "st.wav", Segment(0.5, 0.5, 1.0), channel=1)
+    info = sf.info(str(tmp_path / "c.wav"))
+    assert info.frames == 0 and info.channels == 1

@@ -66,12 +66,12 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
         print(f"laughlab: not read: {_unread(list(other.values()))}", file=sys.stderr)
     # case aside: Take.wav and take.flac wrote Take.TextGrid and take.TextGrid, one file on macOS' and Windows' file
     # systems (a review at scale); counted once each (names.count was quadratic: 18 s for 50,000 inputs)
-    counts = collections.Counter(n.casefold() for _, n in out)
-    dup = sorted({n.casefold() for _, n in out if counts[n.casefold()] > 1})
+    counts = collections.Counter(_folded(n) for _, n in out)
+    dup = sorted({_folded(n) for _, n in out if counts[_folded(n)] > 1})
     if dup:
-        both = [f for f, n in out if n.casefold() == dup[0]]
-        spelt = sorted({n for _, n in out if n.casefold() == dup[0]})
-        shown = repr(spelt[0]) + (f" and {spelt[1]!r}, which differ in case only (one file on macOS and Windows)"
+        both = [f for f, n in out if _folded(n) == dup[0]]
+        spelt = sorted({n for _, n in out if _folded(n) == dup[0]})
+        shown = repr(spelt[0]) + (f" and {spelt[1]!r}, which differ in case or Unicode form only (one file on macOS and Windows)"
                                   if len(spelt) > 1 else "")
         # files of one name in different folders (a shell glob, rec/*/*.wav): their common folder names each by its
         # path from it (a review: the line only said to run them separately)
@@ -250,8 +250,8 @@ def main(argv: list[str]) -> None:
         named = [(f, f"{name}.ch{c + 1}" if k > 1 else name, c if k > 1 else None)
                  for f, name, _ in named for k in [_channels(f)] for c in range(k)]
         names = [n for _, n, _ in named]
-        counts = collections.Counter(n.casefold() for n in names)
-        dup = next((n for n in names if counts[n.casefold()] > 1), None)
+        counts = collections.Counter(_folded(n) for n in names)
+        dup = next((n for n in names if counts[_folded(n)] > 1), None)
         if dup:   # take.wav's second channel and a file take.ch2.wav
             raise LaughlabError(f"two inputs share the name {dup!r} with --channels each: rename the file {dup}.*")
     scored = ["scores.csv"] if ns.score else []
@@ -311,13 +311,14 @@ def main(argv: list[str]) -> None:
                                       "[{elapsed}<{remaining}]")
     t0 = time.perf_counter()
     results = []
-    from laughlab.detector.detect_cache import DetectCache
+    from laughlab.detector import detect_cache as DC
 
-    cache = DetectCache({"hop": ns.hop, "smooth": ns.smooth, "threshold": ns.threshold, "min_length": ns.min_length})
+    cache = DC.DetectCache({"hop": ns.hop, "smooth": ns.smooth, "threshold": ns.threshold, "min_length": ns.min_length})
     reused = 0
     try:
         for f, name, channel in named:
-            hit = cache.get(f, channel)   # an earlier, unfinished run of these settings found it (the file unchanged)
+            key = DC.file_key(f)          # before it is read: a file changed while it is computed is not kept
+            hit = cache.get(key, channel)   # an earlier, unfinished run of these settings found it (the file unchanged)
             if hit is not None:
                 results.append((name, hit[0], hit[1], f, channel))
                 reused += 1
@@ -333,7 +334,10 @@ def main(argv: list[str]) -> None:
             p = S.smooth(p, ns.smooth)
             dur = len(x) / sr
             results.append((name, dur, S.segments(t, p, ns.hop, ns.threshold, ns.min_length, dur), f, channel))
-            cache.put(f, channel, dur, results[-1][2])
+            if DC.file_key(f) == key:
+                cache.put(key, channel, dur, results[-1][2])
+            else:
+                cache.ok = False
     except KeyboardInterrupt:   # before any file is written: say so (a review: "interrupted" left it to guess)
         if bar is not None:
             bar.close()
@@ -341,7 +345,8 @@ def main(argv: list[str]) -> None:
         from laughlab.core.interrupts import exit_interrupted
 
         exit_interrupted(f"interrupted after {len(results)} of {len(named)} input(s); nothing was written to "
-                         f"{ns.out} (detect writes when every input is done); the same command goes on from there")
+                         f"{ns.out} (detect writes when every input is done)"
+                         + ("; the same command goes on from there" if cache.ok else ""))
     finally:   # also on Ctrl-C: the error line then starts a line of its own, not the end of the bar's (a review)
         if bar is not None:
             bar.close()
@@ -393,9 +398,17 @@ def main(argv: list[str]) -> None:
     cache.forget()   # written whole: a later run computes afresh
     if reused:
         print(f"laughlab: {reused} of {len(results)} input(s) as an earlier, unfinished run of these settings found "
-              "them (the files unchanged since)", file=sys.stderr)
+              "them", file=sys.stderr)
     print(summary_line(results, gone, wall, out)
           + DS.score_summary(score_rows, sum(r[0] not in truths for r in results)))
+
+
+def _folded(name: str) -> str:
+    """A name as a case-insensitive file system compares it: one Unicode form (NFC: macOS keeps NFD), lower case
+    (not casefold, which makes 'ß' 'ss': Straße and Strasse are two files everywhere)."""
+    import unicodedata
+
+    return unicodedata.normalize("NFC", name).lower()
 
 
 def _channels(path: Path) -> int:

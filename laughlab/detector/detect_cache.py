@@ -13,12 +13,18 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from pathlib import Path
 
 from laughlab.detector.segments import Segment
 
-#: the detector's own files: a change to any of them computes every input again
-_CODE = ("segments.py", "yamnet.py", "yamnet_model.py", "stream16k.py", "detect_cache.py")
+#: the detector's own files and the reading of audio: a change to any of them computes every input again
+_CODE = ("segments.py", "yamnet.py", "yamnet_model.py", "stream16k.py", "detect.py", "detect_cache.py",
+         "../io/audio.py")
+#: the packages whose versions decide the figures too
+_PACKAGES = ("numpy", "scipy", "soundfile", "ai-edge-litert")
+#: entries older than this are removed when a batch starts (a run never finished, a file since edited; s)
+MAX_AGE_S = 30 * 86400
 
 
 def cache_dir() -> Path:
@@ -27,16 +33,38 @@ def cache_dir() -> Path:
     return data_dir() / "detect"
 
 
-def _detector_digest() -> str:
+def _detector_digest() -> str | None:
+    """The detector's files, the model's and the packages' versions, hashed; None where one cannot be read (the
+    cache is then off)."""
+    from importlib.metadata import PackageNotFoundError, version
+
     h = hashlib.sha256()
     here = Path(__file__).resolve().parent
-    for name in _CODE:
-        h.update((here / name).read_bytes())
-    data = here.parent / "data" / "yamnet"
-    for f in sorted(data.glob("*")):
-        if f.is_file():
-            h.update(f.name.encode() + f.read_bytes())
+    try:
+        for name in _CODE:
+            h.update((here / name).read_bytes())
+        for f in sorted((here.parent / "data" / "yamnet").glob("*")):
+            if f.is_file():
+                h.update(f.name.encode() + f.read_bytes())
+    except OSError:
+        return None
+    for pkg in _PACKAGES:
+        try:
+            h.update(f"{pkg} {version(pkg)}".encode())
+        except PackageNotFoundError:
+            h.update(pkg.encode())
     return h.hexdigest()
+
+
+def file_key(f: Path) -> tuple | None:
+    """What says a file is the same file: its resolved path, device and inode, size, and modification and change
+    times (a copy made with its old modification time, ``cp -p`` or ``rsync -a``, has a new change time; a diff
+    review's replaced file of the same size and time took the old one's segments); None if it cannot be read."""
+    try:
+        st = Path(f).stat()
+        return (str(Path(f).resolve()), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+    except OSError:
+        return None
 
 
 class DetectCache:
@@ -47,38 +75,55 @@ class DetectCache:
         self.settings = json.dumps(settings, sort_keys=True)
         self.code = _detector_digest()
         self.folder = cache_dir()
-        self.used: list[Path] = []
+        self.used: set[Path] = set()
+        self.ok = self.code is not None   # every input done is kept (the interrupt's line says so only then)
+        self._prune()
 
-    def _path(self, f: Path, channel: int | None) -> Path | None:
+    def _prune(self) -> None:
+        import time
+
         try:
-            st = Path(f).stat()
-            key = json.dumps([str(Path(f).resolve()), st.st_size, st.st_mtime_ns, channel, self.settings, self.code])
+            old = [p for p in self.folder.iterdir() if time.time() - p.stat().st_mtime > MAX_AGE_S]
         except OSError:
+            return
+        for p in old:
+            try:
+                p.unlink()
+            except OSError:
+                pass
+
+    def path(self, key: tuple | None, channel: int | None) -> Path | None:
+        """The entry of the file ``key`` (:func:`file_key`) and ``channel`` under these settings."""
+        if key is None or self.code is None:
             return None
-        p = self.folder / (hashlib.sha256(key.encode()).hexdigest()[:32] + ".json")
-        self.used.append(p)
+        text = json.dumps([*key, channel, self.settings, self.code])
+        p = self.folder / (hashlib.sha256(text.encode()).hexdigest()[:32] + ".json")
+        self.used.add(p)
         return p
 
-    def get(self, f: Path, channel: int | None) -> tuple[float, list[Segment]] | None:
-        p = self._path(f, channel)
+    def get(self, key: tuple | None, channel: int | None) -> tuple[float, list[Segment]] | None:
+        p = self.path(key, channel)
         try:
             doc = json.loads(p.read_text(encoding="utf-8")) if p is not None else None
             return (float(doc["duration"]), [Segment(*s) for s in doc["segments"]]) if doc else None
         except (OSError, ValueError, KeyError, TypeError):
             return None
 
-    def put(self, f: Path, channel: int | None, duration: float, segments: list[Segment]) -> None:
-        p = self._path(f, channel)
+    def put(self, key: tuple | None, channel: int | None, duration: float, segments: list[Segment]) -> None:
+        """Keep what the file ``key`` gave; ``key`` taken before it was read (a file changed while it was computed
+        is not kept: :func:`file_key` of it after the read differs)."""
+        p = self.path(key, channel)
         if p is None:
+            self.ok = False
             return
         doc = {"duration": duration, "segments": [[s.start, s.end, s.prob] for s in segments]}
         try:   # a cache that cannot be written costs a rerun's time, nothing else
             p.parent.mkdir(parents=True, exist_ok=True)
-            tmp = p.with_suffix(".part")
+            tmp = p.with_name(f"{p.stem}.{os.getpid()}.part")
             tmp.write_text(json.dumps(doc), encoding="utf-8")
             tmp.replace(p)
         except OSError:
-            pass
+            self.ok = False
 
     def forget(self) -> None:
         for p in self.used:

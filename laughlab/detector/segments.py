@@ -258,7 +258,8 @@ def write_clip(path: Path, media: Path, seg: Segment, channel: int | None = None
                     always_2d=True, dtype="float64" if subtype in ("FLOAT", "DOUBLE") else "int32")
     if channel is not None:
         x = x[:, channel]
-    x = x.reshape(len(x), -1)
+    if x.ndim == 1:   # one channel picked (an empty clip too: reshape(0, -1) failed, a diff review)
+        x = x[:, None]
     with sf.SoundFile(str(path), "w", sr, x.shape[1], subtype=subtype, format="WAV") as f:
         if subtype in ("FLOAT", "DOUBLE"):   # libsndfile's PEAK chunk holds the time it was written: a float
             try:                            # recording's clips were other bytes on every run (a review at scale)
