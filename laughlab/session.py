@@ -230,9 +230,6 @@ class Session:
 
         if sample_rate is None:
             raise LaughlabError("Session needs sample_rate=, the rate of the samples you will feed (Hz)")
-        from laughlab import _kernels
-
-        _kernels.warn_if_unpinned()   # a notebook that imported numpy first: say what it means for the bytes
         if isinstance(overrides, str) or isinstance(outputs, str):   # "face=facs" was read as 9 overrides
             name, value = ("overrides", overrides) if isinstance(overrides, str) else ("outputs", outputs)
             raise LaughlabError(f"{name} must be a list of strings (got the string {value!r}: {name}=[{value!r}])")
@@ -255,8 +252,9 @@ class Session:
                 raise LaughlabError(f"{o}: a session's outputs are its outputs= argument (outputs=['files'])")
             if key == "input" or key.startswith("input."):
                 raise LaughlabError(f"{o}: a session's input is what feed() is given (sample_rate= its rate)")
-            if re.split(r"[./]", key)[0] in ("hydra", "experiment", "harness", "overwrite", "progress"):   # taken and
-                raise LaughlabError(f"{o}: not a session's: its folder is out_dir=, overwrite= its argument; an "   # ignored
+            # the command line's own settings were taken and ignored (a Python user's review)
+            if re.split(r"[./]", key)[0] in ("hydra", "experiment", "harness", "overwrite", "progress"):
+                raise LaughlabError(f"{o}: not a session's: its folder is out_dir=, overwrite= its argument; an "
                                     "experiment runs from the command line or laughlab.cli.main([...])")
         from laughlab.core.config import group_options
 
@@ -266,6 +264,9 @@ class Session:
                 raise LaughlabError(f"outputs: {o!r} is not an output; choose from "
                                     f"{', '.join(k for k in known if k != 'trial')} (files: channels.csv, events.csv, "
                                     "motion.bvh, face_arkit.csv and plots/)")
+        from laughlab import _kernels
+
+        _kernels.warn_if_unpinned()   # a notebook that imported numpy first: say what it means for the bytes
         load_plugin_dirs(list(overrides))   # then the command line's lines: 'unknown face ...; choose one of: ...'
         check_overrides(list(overrides))
         out = list(outputs)
