@@ -229,23 +229,21 @@ class FloatWavWriter:
         import struct
 
         data_bytes = 4 * self.n
-        junk = 36 if self.long else 0
-        if self.long and data_bytes > self.RIFF_LIMIT:
-            self.f.write(b"RF64" + struct.pack("<I", 0xFFFFFFFF) + b"WAVE")
-            self.f.write(b"ds64" + struct.pack("<IQQQI", 28, 4 + junk + 26 + 12 + 8 + data_bytes, data_bytes,
-                                               self.n, 0))
-            self.f.write(b"fmt " + struct.pack("<IHHIIHHH", 18, 3, 1, self.sample_rate, 4 * self.sample_rate, 4, 32,
-                                               0))
-            self.f.write(b"fact" + struct.pack("<II", 4, 0xFFFFFFFF))
-            self.f.write(b"data" + struct.pack("<I", 0xFFFFFFFF))
-            return
-        self.f.write(b"RIFF" + struct.pack("<I", 4 + junk + 26 + 12 + 8 + data_bytes) + b"WAVE")
-        if junk:
+        riff_bytes = 4 + (36 if self.long else 0) + 26 + 12 + 8 + data_bytes
+        rf64 = self.long and data_bytes > self.RIFF_LIMIT
+
+        def size(n: int) -> int:   # RF64's 32-bit sizes say 'see ds64'
+            return 0xFFFFFFFF if rf64 else n
+
+        self.f.write((b"RF64" if rf64 else b"RIFF") + struct.pack("<I", size(riff_bytes)) + b"WAVE")
+        if rf64:
+            self.f.write(b"ds64" + struct.pack("<IQQQI", 28, riff_bytes, data_bytes, self.n, 0))
+        elif self.long:   # the room ds64 takes past 4 GiB
             self.f.write(b"JUNK" + struct.pack("<I", 28) + bytes(28))
         # fmt chunk: IEEE float, mono, rate, byte rate, block align 4, 32 bits, cbSize 0
         self.f.write(b"fmt " + struct.pack("<IHHIIHHH", 18, 3, 1, self.sample_rate, 4 * self.sample_rate, 4, 32, 0))
-        self.f.write(b"fact" + struct.pack("<II", 4, self.n))
-        self.f.write(b"data" + struct.pack("<I", data_bytes))
+        self.f.write(b"fact" + struct.pack("<II", 4, size(self.n)))
+        self.f.write(b"data" + struct.pack("<I", size(data_bytes)))
 
     def write(self, samples: np.ndarray) -> None:
         x = np.asarray(samples, dtype="<f4")
