@@ -66,11 +66,12 @@ def inputs(paths: list[str]) -> list[tuple[Path, str]]:
         print(f"laughlab: not read: {_unread(list(other.values()))}", file=sys.stderr)
     # case aside: Take.wav and take.flac wrote Take.TextGrid and take.TextGrid, one file on macOS' and Windows' file
     # systems (a review at scale); counted once each (names.count was quadratic: 18 s for 50,000 inputs)
-    counts = collections.Counter(_folded(n) for _, n in out)
-    dup = sorted({_folded(n) for _, n in out if counts[_folded(n)] > 1})
+    folded = [(f, n, _folded(n)) for f, n in out]
+    counts = collections.Counter(k for _, _, k in folded)
+    dup = sorted({k for _, _, k in folded if counts[k] > 1})
     if dup:
-        both = [f for f, n in out if _folded(n) == dup[0]]
-        spelt = sorted({n for _, n in out if _folded(n) == dup[0]})
+        both = [f for f, _, k in folded if k == dup[0]]
+        spelt = sorted({n for _, n, k in folded if k == dup[0]})
         shown = repr(spelt[0]) + (f" and {spelt[1]!r}, which differ in case or Unicode form only (one file on macOS and Windows)"
                                   if len(spelt) > 1 else "")
         # files of one name in different folders (a shell glob, rec/*/*.wav): their common folder names each by its
@@ -250,8 +251,9 @@ def main(argv: list[str]) -> None:
         named = [(f, f"{name}.ch{c + 1}" if k > 1 else name, c if k > 1 else None)
                  for f, name, _ in named for k in [_channels(f)] for c in range(k)]
         names = [n for _, n, _ in named]
-        counts = collections.Counter(_folded(n) for n in names)
-        dup = next((n for n in names if counts[_folded(n)] > 1), None)
+        keys = [_folded(n) for n in names]
+        counts = collections.Counter(keys)
+        dup = next((n for n, k in zip(names, keys) if counts[k] > 1), None)
         if dup:   # take.wav's second channel and a file take.ch2.wav
             raise LaughlabError(f"two inputs share the name {dup!r} with --channels each: rename the file {dup}.*")
     scored = ["scores.csv"] if ns.score else []

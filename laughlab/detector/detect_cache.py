@@ -5,9 +5,10 @@ A review at scale (2026-11-29): a Ctrl-C 14 s into a 5.2-hour corpus said ``inte
 nothing was written``, and a file damaged 30 s in, found after the whole corpus was read, lost all of it; a batch
 writes all of its outputs or none, so the work itself was lost.  Each input's segments are kept in
 ``$LAUGHLAB_DATA/detect`` (``~/.cache/laughlab/detect``) under a key of everything they depend on: the file (its
-resolved path, size and modification time), the channel, the settings (``--hop``, ``--smooth``, ``--threshold``,
-``--min-length``), and laughlab's detector itself (the model files' and the detector modules' bytes), so a changed
-file, setting or detector is computed again.  A batch written whole removes its inputs' entries.
+identity, :func:`file_key`), the channel, the settings (``--hop``, ``--smooth``, ``--threshold``, ``--min-length``),
+and laughlab's detector itself (the model files, the detector's and the audio reading's modules, the packages'
+versions: :func:`_detector_digest`), so a changed file, setting or detector is computed again.  A batch written
+whole removes its inputs' entries; entries older than :data:`MAX_AGE_S` go when a batch starts.
 """
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ import json
 import os
 from pathlib import Path
 
+from laughlab.core.outfiles import unwrite
 from laughlab.detector.segments import Segment
 
 #: the detector's own files and the reading of audio: a change to any of them computes every input again
@@ -38,13 +40,17 @@ def _detector_digest() -> str | None:
     cache is then off)."""
     from importlib.metadata import PackageNotFoundError, version
 
+    from laughlab.detector.yamnet_model import MODEL_SHA256
+
     h = hashlib.sha256()
     here = Path(__file__).resolve().parent
     try:
         for name in _CODE:
             h.update((here / name).read_bytes())
         for f in sorted((here.parent / "data" / "yamnet").glob("*")):
-            if f.is_file():
+            if f.name == "yamnet.tflite":   # loading it checked its sha256 already (Yamnet(), before the batch)
+                h.update(f.name.encode() + MODEL_SHA256.encode())
+            elif f.is_file():
                 h.update(f.name.encode() + f.read_bytes())
     except OSError:
         return None
@@ -83,14 +89,9 @@ class DetectCache:
         import time
 
         try:
-            old = [p for p in self.folder.iterdir() if time.time() - p.stat().st_mtime > MAX_AGE_S]
+            unwrite([p for p in self.folder.iterdir() if time.time() - p.stat().st_mtime > MAX_AGE_S])
         except OSError:
-            return
-        for p in old:
-            try:
-                p.unlink()
-            except OSError:
-                pass
+            pass
 
     def path(self, key: tuple | None, channel: int | None) -> Path | None:
         """The entry of the file ``key`` (:func:`file_key`) and ``channel`` under these settings."""
@@ -126,8 +127,4 @@ class DetectCache:
             self.ok = False
 
     def forget(self) -> None:
-        for p in self.used:
-            try:
-                p.unlink()
-            except OSError:
-                pass
+        unwrite(self.used)
