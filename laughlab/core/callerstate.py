@@ -54,38 +54,31 @@ def kept(in_process: bool):
     main_thread = threading.current_thread() is threading.main_thread()
     handlers = {sig: signal.getsignal(sig) for sig in interrupts.STOP_SIGNALS} if in_process and main_thread else {}
     logs = _logging_state() if in_process else None
-    held = sys.modules.get("hydra.core.global_hydra") if in_process else None
-    theirs = None
-    if held is not None and held.GlobalHydra.instance().is_initialized():   # a caller's own hydra.initialize():
-        from hydra.initialize import get_gh_backup   # set aside for the command (a sweep's hydra.main refused to
-
-        theirs = get_gh_backup()                     # start: 'GlobalHydra is already initialized', the diff review)
-        held.GlobalHydra.instance().clear()
-    try:
-        yield
-    finally:
-        forget_hydra_job()
-        if in_process:
-            interrupts.forget()   # this command's Ctrl-C is not the caller's: a later Session's feed raised it
-            held = sys.modules.get("hydra.core.global_hydra")
-            if theirs is not None:
-                from hydra.initialize import restore_gh_from_backup
-
-                restore_gh_from_backup(theirs)
-            elif held is not None:   # as it found it: not initialized (hydra.main may leave its own behind)
-                held.GlobalHydra.instance().clear()
-        if logs is not None:
-            _restore_logging(logs)
-        for sig, handler in handlers.items():
-            if handler is not None:
-                signal.signal(sig, handler)
+    # a caller's own hydra.initialize(), set aside for the command (a sweep's hydra.main refused to start beside it:
+    # 'GlobalHydra is already initialized', the diff review); Hydra not imported yet has nothing to set aside
+    aside = in_process and "hydra.core.global_hydra" in sys.modules
+    with their_hydra(clear_after=True) if aside else contextlib.nullcontext():
+        try:
+            yield
+        finally:
+            forget_hydra_job()
+            if in_process:
+                interrupts.forget()   # this command's Ctrl-C is not the caller's: a later Session's feed raised it
+                held = sys.modules.get("hydra.core.global_hydra")
+                if not aside and held is not None:   # imported by the command: left as found, not initialized
+                    held.GlobalHydra.instance().clear()   # (hydra.main may leave its own behind)
+            if logs is not None:
+                _restore_logging(logs)
+            for sig, handler in handlers.items():
+                if handler is not None:
+                    signal.signal(sig, handler)
 
 
 @contextlib.contextmanager
-def their_hydra():
+def their_hydra(clear_after: bool = False):
     """Hydra cleared for laughlab's own composition, and a caller's own initialized ``GlobalHydra`` put back after
     (``hydra.initialize(...)`` then a Session: the caller's ``compose()`` failed, 'GlobalHydra is not
-    initialized')."""
+    initialized'); with none to put back and ``clear_after``, left cleared (a command's own is not left behind)."""
     from hydra.core.global_hydra import GlobalHydra
     from hydra.initialize import get_gh_backup, restore_gh_from_backup
 
@@ -96,3 +89,5 @@ def their_hydra():
     finally:
         if theirs is not None:
             restore_gh_from_backup(theirs)
+        elif clear_after:
+            GlobalHydra.instance().clear()
