@@ -159,11 +159,56 @@ def test_a_conversations_laughter_tier_is_found_by_its_name(tmp_path, tier):
     assert A.read(p, 2.0).bouts == [(0.2, 1.0)]
     tg.addTier(textgrid.IntervalTier("laugh_B", [Interval(1.2, 1.5, "x")], 0, 2.0))
     tg.save(str(tmp_path / "b.TextGrid"), format="long_textgrid", includeBlankSpaces=True)
-    if tier == "laughs_A":   # two candidates: which one is said
-        with pytest.raises(LaughlabError, match=r"2 whose names hold 'laugh' \(laughs_A, laugh_B\): name the one"):
-            A.read(tmp_path / "b.TextGrid", 2.0)
+    if tier == "laughs_A":   # two speakers' tiers: their union
+        assert A.read(tmp_path / "b.TextGrid", 2.0).bouts == [(0.2, 1.0), (1.2, 1.5)]
     else:
         assert A.read(tmp_path / "b.TextGrid", 2.0).bouts == [(0.2, 1.0)]
+
+
+@pytest.mark.parametrize("suffix", ["TextGrid", "eaf"])
+def test_per_speaker_laughter_tiers_are_read_as_their_union_with_any_text(tmp_path, suffix):
+    """A conversation analyst's annotation: a laughter tier per speaker, two speakers laughing at once, and the
+    laughs' texts in the transcription's own notation (``@@@``, ``LA``).  The detector hears one recording: the
+    tiers' union, overlapping or touching laughs merged, is its truth; ``speech`` keeps its meaning; within one tier
+    an overlap is still refused; the project's own ``bouts`` tier still refuses an unknown text."""
+    from praatio import textgrid
+    from praatio.utilities.constants import Interval
+
+    def write(tiers):
+        if suffix == "TextGrid":
+            tg = textgrid.Textgrid()
+            for name, ivs in tiers.items():
+                tg.addTier(textgrid.IntervalTier(name, [Interval(*iv) for iv in ivs], 0, 4.0))
+            tg.save(str(tmp_path / "a.TextGrid"), format="long_textgrid", includeBlankSpaces=True)
+            return tmp_path / "a.TextGrid"
+        slots, body, n = [], [], 0
+        for name, ivs in tiers.items():
+            anns = []
+            for a, b, t in ivs:
+                slots += [f'<TIME_SLOT TIME_SLOT_ID="ts{n}" TIME_VALUE="{round(a * 1000)}"/>',
+                          f'<TIME_SLOT TIME_SLOT_ID="ts{n + 1}" TIME_VALUE="{round(b * 1000)}"/>']
+                anns.append(f'<ANNOTATION><ALIGNABLE_ANNOTATION ANNOTATION_ID="a{n}" TIME_SLOT_REF1="ts{n}" '
+                            f'TIME_SLOT_REF2="ts{n + 1}"><ANNOTATION_VALUE>{t}</ANNOTATION_VALUE>'
+                            '</ALIGNABLE_ANNOTATION></ANNOTATION>')
+                n += 2
+            body.append(f'<TIER TIER_ID="{name}" LINGUISTIC_TYPE_REF="default">{"".join(anns)}</TIER>')
+        p = tmp_path / "a.eaf"
+        p.write_text(f'<ANNOTATION_DOCUMENT><TIME_ORDER>{"".join(slots)}</TIME_ORDER>{"".join(body)}'
+                     '</ANNOTATION_DOCUMENT>', encoding="utf-8")
+        return p
+
+    p = write({"A": [(0.0, 0.5, "hello")], "laugh_A": [(0.2, 1.0, "@@@"), (3.0, 3.5, "speech")],
+               "laugh_B": [(0.8, 1.5, "LA"), (2.0, 2.4, "giggle"), (2.4, 2.6, "x")]})
+    ann = A.read(p, 4.0)
+    assert ann.bouts == [(0.2, 1.5), (2.0, 2.6)]
+    assert [(lab.start, lab.end, lab.text) for lab in ann.labels if lab.text != "laugh"] == [(3.0, 3.5, "speech")]
+    assert [r["kind"] for r in ann.truth_rows()] == ["bout", "bout"]
+    if suffix == "eaf":   # (a TextGrid's interval tier cannot hold an overlap)
+        with pytest.raises(LaughlabError, match=r"laugh_A #2: laugh 0\.500-0\.900 s overlaps the laugh on line "
+                                                r"laugh_A #1"):
+            A.read(write({"laugh_A": [(0.2, 1.0, "@@@"), (0.5, 0.9, "LA")], "laugh_B": []}), 4.0)
+    with pytest.raises(LaughlabError, match=r"unknown label '@@@'"):
+        A.read(write({"bouts": [(0.2, 1.0, "@@@")]}), 4.0)
 
 
 # ------------------------------------------------------------------ fetching, with a stand-in registry

@@ -12,7 +12,8 @@ A Praat TextGrid with tiers ``bouts`` and ``calls`` (interval texts ``laugh``
 and ``call``) is read the same way, and so is an ELAN document (``.eaf``) with those tiers.  What ``laughlab detect`` writes is an annotation too, so its segments,
 corrected in Praat or Audacity, give a recording its truth: the TextGrid's tier ``laughter`` stands for
 ``bouts`` when there is no ``bouts`` (in an ELAN file too), and the label ``laughter`` (its Audacity files until 2026-11-27) for
-``laugh``.  The bundled annotations live in
+``laugh``.  Without either, every tier whose name holds "laugh" is a bouts tier (one per speaker: their union), and a
+tier named for laughter marks laughter whatever its texts (``@@@``, ``LA``), as :func:`_tier_label` says.  The bundled annotations live in
 ``laughlab/data/annotations/<id with / as __>.txt``.
 
 A label outside [0, duration], with end <= start, with an unknown text, a bout
@@ -110,41 +111,63 @@ def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) 
         raise LaughlabError(f"bad TextGrid {path}: {first_line(exc)}") from None
     if tg is None:   # Praat's "Save as binary file" (a review: praatio's "'utf-8' codec can't decode byte 0xa0")
         raise LaughlabError(f"bad TextGrid {path}: binary Praat files are not read; save it in Praat as a text file")
-    bouts, calls = bout_tier(tg.tierNames, f"bad TextGrid {path}")
+    bouts, calls = bout_tiers(tg.tierNames, f"bad TextGrid {path}")
     # intervals numbered as Praat numbers them, the empty ones counted (a review: the 2nd was called #1), and the
     # empty ones (no text, or blanks) not labels
-    labels = [_tier_label(tier, i, a, b, t, kind) for tier, kind in ((bouts, "bouts"), (calls, "calls")) if tier
-              for i, (a, b, t) in enumerate(tg.getTier(tier).entries, 1) if t.strip()]
-    return check(Annotation(str(path), labels), duration_s)
+    labels = [_tier_label(tier, i, a, b, t, kind) for tier, kind in [(t, "bouts") for t in bouts] + [(calls, "calls")]
+              if tier for i, (a, b, t) in enumerate(tg.getTier(tier).entries, 1) if t.strip()]
+    return check(Annotation(str(path), union_of_tiers(labels, bouts, str(path))), duration_s)
 
 
-def bout_tier(names, bad: str) -> tuple[str, str | None]:
-    """The bouts tier and the calls tier (or None) among a TextGrid's or an ELAN file's tier ``names``: ``bouts``, or
-    ``laughter`` as ``laughlab detect`` writes, in any case (``Laughter``), else the one tier whose name holds
-    "laugh" (``laughs_A``: a conversation's annotation has a tier per speaker and more; a review met
-    ``speakerA``/``Laughter`` refused); ``bad``: the start of the line when there is none, or several."""
+def bout_tiers(names, bad: str) -> tuple[list[str], str | None]:
+    """The bouts tiers and the calls tier (or None) among a TextGrid's or an ELAN file's tier ``names``: ``bouts``,
+    or ``laughter`` as ``laughlab detect`` writes, in any case (``Laughter``), else every tier whose name holds
+    "laugh" (``laughs_A``, ``laughs_B``: a conversation's annotation has a tier per speaker and more; a review met
+    ``speakerA``/``Laughter`` refused), read as their union (:func:`union_of_tiers`); ``bad``: the start of the line
+    when there is none."""
     low = {n.lower(): n for n in reversed(list(names))}
     bouts = low.get("bouts") or low.get("laughter")
-    if bouts is None:
-        laughs = [n for n in names if "laugh" in n.lower()]
-        if len(laughs) > 1:
-            raise LaughlabError(f"{bad}: it has no tier 'bouts' or 'laughter' and {len(laughs)} whose names hold "
-                                f"'laugh' ({', '.join(laughs)}): name the one to read 'bouts'")
-        if not laughs:
-            raise LaughlabError(f"{bad}: it has no tier 'bouts' (nor 'laughter', as laughlab detect writes, nor one "
-                                f"whose name holds 'laugh') (tiers: {', '.join(names)})")
-        bouts = laughs[0]
-    return bouts, low.get("calls")
+    if bouts is not None:
+        return [bouts], low.get("calls")
+    laughs = [n for n in names if "laugh" in n.lower()]
+    if not laughs:
+        raise LaughlabError(f"{bad}: it has no tier 'bouts' (nor 'laughter', as laughlab detect writes, nor one "
+                            f"whose name holds 'laugh') (tiers: {', '.join(names)})")
+    return laughs, low.get("calls")
+
+
+def union_of_tiers(labels: list, tiers: list[str], where: str) -> list:
+    """With several laughter tiers (one per speaker), the laughs of all of them, those that overlap or touch merged
+    into one bout (named by its first interval): a detector hears one recording, in which two speakers laughing
+    at once are one stretch of laughter (a conversation analyst's review: per-speaker tiers were refused, and so
+    were two speakers' overlapping laughs).  Within one tier, overlapping laughs are still refused by :func:`check`."""
+    if len(tiers) < 2:
+        return labels
+    for tier in tiers:   # each tier's own laughs checked first (``where``: the file, for the line)
+        check(Annotation(where, [lab for lab in labels if lab.text == "laugh" and lab.line.startswith(f"{tier} #")]))
+    laughs = sorted((lab for lab in labels if lab.text == "laugh"), key=lambda lab: (lab.start, lab.end))
+    merged: list = []
+    for lab in laughs:
+        if merged and lab.start <= merged[-1].end + TOL_S:
+            last = merged[-1]
+            merged[-1] = Label(last.start, max(last.end, lab.end), "laugh", last.line)
+        else:
+            merged.append(lab)
+    return merged + [lab for lab in labels if lab.text != "laugh"]
 
 
 def _tier_label(tier: str, i: int, start: float, end: float, text: str, kind: str = "bouts") -> Label:
     """Interval ``i`` of a TextGrid's or an ELAN file's tier as a label: the bouts tier's (``kind`` ``bouts``:
     ``bouts``, or detect's ``laughter``) ``laugh``, ``laughter``, ``x`` or empty text is a laugh; the calls tier's
     (``kind`` ``calls``) ``call``, ``x`` or empty text a call; any other text is checked as it is (the same in both
-    readers: a diff review)."""
+    readers: a diff review).  A tier named for laughter other than ``bouts`` (``laughter``, ``Laughs_A``) marks
+    laughter whatever its texts say (a conversation analyst's ``@@@``, ``LA``, ``giggle``: refused until
+    2026-11-29), except this format's other labels (``inhale``, ``speech``, ``other``), which keep their meaning."""
     want = "call" if kind == "calls" else "laugh"
     text = text.strip().lower()
     ok = (want, "x", "") + (("laughter",) if want == "laugh" else ())
+    if want == "laugh" and tier.lower() != "bouts" and text not in LABELS:
+        text = "laugh"
     return Label(float(start), float(end), want if text in ok else text, f"{tier} #{i}")
 
 
@@ -166,15 +189,15 @@ def read_eaf_annotation(path: str | Path, duration_s: float | None = None) -> An
     except ValueError:
         raise LaughlabError(f"bad ELAN file {path}: a TIME_VALUE is not a whole number of milliseconds") from None
     tiers = {t.get("TIER_ID"): t for t in root.iter("TIER")}
-    bouts, calls = bout_tier([str(t) for t in tiers], f"bad ELAN file {path}")
+    bouts, calls = bout_tiers([str(t) for t in tiers], f"bad ELAN file {path}")
     labels = []
-    for tier, kind in ((bouts, "bouts"), (calls, "calls")):
+    for tier, kind in [(t, "bouts") for t in bouts] + [(calls, "calls")]:
         for i, ann in enumerate(tiers[tier].iter("ALIGNABLE_ANNOTATION") if tier in tiers else (), 1):
             a, b = slots.get(ann.get("TIME_SLOT_REF1")), slots.get(ann.get("TIME_SLOT_REF2"))
             if a is None or b is None:   # an unaligned slot (ELAN allows them): no time to check against
                 raise LaughlabError(f"{path}:{tier} #{i}: the annotation has no time (an unaligned time slot)")
             labels.append(_tier_label(tier, i, a, b, ann.findtext("ANNOTATION_VALUE") or "", kind))
-    return check(Annotation(str(path), labels), duration_s)
+    return check(Annotation(str(path), union_of_tiers(labels, bouts, str(path))), duration_s)
 
 
 #: the annotation formats, by suffix (lower case): Audacity labels, Praat TextGrid, ELAN
