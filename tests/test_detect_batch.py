@@ -52,10 +52,16 @@ def test_skip_unreadable_leaves_out_each_damaged_file_and_says_so(tmp_path):
                                                                           "recordings.csv", "segments.csv"]
     assert list(csv.DictReader((out / "segments.csv").open())) == []
     # the tone has no segment, and its row says so (a data user's review: no laughter looked like not read), with
-    # the settings that made it
-    assert list(csv.DictReader((out / "recordings.csv").open())) == [
-        {"file": "a_tone", "duration_s": "2.0000", "segments": "0", "laughter_s": "0.0000", "threshold": "0.5",
-         "min_length_s": "0.2", "hop_s": "0.5", "smooth_windows": "3", "channels": "mix"}]
+    # the settings that made it; the skipped files have rows too, with the reason stderr gave (not in the table
+    # before 2026-11-29)
+    settings = {"threshold": "0.5", "min_length_s": "0.2", "hop_s": "0.5", "smooth_windows": "3", "channels": "mix"}
+    rows = list(csv.DictReader((out / "recordings.csv").open()))
+    assert rows[0] == {"file": "a_tone", "duration_s": "2.0000", "segments": "0", "laughter_s": "0.0000", **settings,
+                       "skipped": ""}
+    assert [r["file"] for r in rows[1:]] == ["b_notes", "c_cut"]
+    for r, line in zip(rows[1:], lines):
+        assert r == {"file": r["file"], "duration_s": "", "segments": "", "laughter_s": "", **settings,
+                     "skipped": line.removeprefix("laughlab: skipped: ")}
     (rec / "a_tone.wav").unlink()
     r = laughlab("detect", str(rec), "--out", str(tmp_path / "out2"), "--skip-unreadable")
     assert r.returncode == 2 and "no readable audio among the inputs" in r.stderr.strip().splitlines()[-1]

@@ -258,7 +258,7 @@ def main(argv: list[str]) -> None:
             raise LaughlabError(f"two inputs share the name {dup!r} with --channels each: rename the file {dup}.*")
     scored = ["scores.csv"] if ns.score else []
     stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n, _ in named], formats) + scored)
-    total_s, kept, gone, durations = 0.0, [], [], {}   # gone: the names of the inputs left out (--skip-unreadable)
+    total_s, kept, gone, durations = 0.0, [], {}, {}   # gone: the inputs left out (--skip-unreadable): name -> why
 
     bar = None
 
@@ -273,7 +273,7 @@ def main(argv: list[str]) -> None:
             bar.refresh()
         else:
             print(f"laughlab: skipped: {exc}", file=sys.stderr)
-        gone.append(name)
+        gone[name] = str(exc)
 
     bad = []
     for f, name, channel in named:  # every input checked before any work or any file written: its header and first
@@ -375,7 +375,7 @@ def main(argv: list[str]) -> None:
         written = S.write_outputs(out, results, formats,   # all or none
                                   {"scores.csv": DS.scores_text(score_rows)} if ns.score else None,
                                   {"threshold": ns.threshold, "min_length_s": ns.min_length, "hop_s": ns.hop,
-                                   "smooth_windows": ns.smooth, "channels": ns.channels})
+                                   "smooth_windows": ns.smooth, "channels": ns.channels}, gone)
     except BaseException:   # a Ctrl-C or a full disk: a folder this run made goes (its manifest alone was left)
         if fresh:
             remove(out)
@@ -401,7 +401,7 @@ def main(argv: list[str]) -> None:
     if reused:
         print(f"laughlab: {reused} of {len(results)} input(s) as an earlier, unfinished run of these settings found "
               "them", file=sys.stderr)
-    print(summary_line(results, gone, wall, out)
+    print(summary_line(results, list(gone), wall, out)
           + DS.score_summary(score_rows, sum(r[0] not in truths for r in results)))
 
 
