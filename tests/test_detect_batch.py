@@ -68,28 +68,25 @@ def test_skip_unreadable_leaves_out_each_damaged_file_and_says_so(tmp_path):
     assert not (tmp_path / "out2").exists()
 
 
-def test_read_mono_fills_in_place_whatever_the_header_says(tmp_path, monkeypatch):
-    """detect reads a file into one array sized by its header (half the memory of a list of blocks and its
-    copy); a file with more or fewer samples than its header says (a compressed format's estimate, a WAV cut
-    short by less than 0.1 s) is read whole all the same, sample for sample."""
-    from laughlab.detector.detect import read_mono
-    from laughlab.io import audio
+@pytest.mark.parametrize("cuts, hint", [((), 0), ((1, 2, 44100), 10), ((0, 0, 5000, 5000, 60000), 10 ** 6),
+                                        ((22050, 22051, 100000), 132307), ((132306,), 132306)])
+def test_detect_reads_block_by_block_to_the_whole_signals_values(cuts, hint):
+    """Since 2026-11-29 detect holds a file's 16 kHz samples alone, read block by block (the whole file was held:
+    0.9 GB an hour at 48 kHz).  The times and probabilities are the whole signal's bit for bit whatever the blocks
+    (empty ones, one sample, a window's edge) and whatever the header promised (``frames_hint``: fewer samples than
+    there are, as a compressed format's estimate, or more), a NaN among them read as 0 as before."""
+    from laughlab.detector import segments as S
+    from laughlab.detector.yamnet import LaughterScore, Yamnet
 
+    model, score = Yamnet(), LaughterScore()
     x = np.random.default_rng(1).normal(0, 0.1, 44100 * 3 + 7).astype(np.float32)
-    sf.write(tmp_path / "x.flac", x, 44100, subtype="PCM_24")
-    want = sf.read(tmp_path / "x.flac", dtype="float32")[0]
-    got, sr = read_mono(tmp_path / "x.flac")
-    assert sr == 44100 and got.dtype == np.float32 and np.array_equal(got, want)
-    real = audio.read_blocks
-    for more, keep in ((want[:5000], None), (want[:1], None), (want[:0], -100)):   # more than the header says, or fewer
-        def blocks(path, block_s, channel=None, more=more, keep=keep):
-            for b in real(path, block_s, channel):
-                yield b[:keep]
-            yield more
-
-        monkeypatch.setattr(audio, "read_blocks", blocks)
-        got, _ = read_mono(tmp_path / "x.flac")
-        assert np.array_equal(got, np.concatenate([want[:keep], more]))
+    x[70000] = np.nan
+    t, p = S.laughter_prob(x, 44100, 0.5, model, score)
+    assert len(t) == 7 and np.isfinite(p).all()
+    edges = [0, *cuts, len(x)]
+    got_t, got_p, n = S.laughter_prob_blocks((x[a:b] for a, b in zip(edges, edges[1:])), 44100, 0.5, model, score,
+                                             frames_hint=hint)
+    assert n == len(x) and np.array_equal(got_t, t) and np.array_equal(got_p, p)
 
 
 def test_overwrite_keeps_the_earlier_labels_of_a_file_skipped_now(tmp_path):
@@ -189,7 +186,7 @@ def test_a_stopped_detect_closes_its_progress_before_the_error_line(tmp_path, mo
     def stopped(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(segments, "laughter_prob", stopped)
+    monkeypatch.setattr(segments, "laughter_prob_blocks", stopped)
     r = laughlab("detect", str(tmp_path / "a.wav"), "--out", str(tmp_path / "out"), "--progress", "on")
     assert r.returncode == 130 and not (tmp_path / "out").exists()
     lines = r.stderr.splitlines()
@@ -216,7 +213,7 @@ def test_an_interrupted_batch_goes_on_where_it_stopped(tmp_path, monkeypatch):
     assert whole.returncode == 0, whole.stderr
     assert len((tmp_path / "whole" / "segments.csv").read_text().splitlines()) == 1 + 3
     assert not list((tmp_path / "data" / "detect").glob("*.json"))   # written whole: nothing kept
-    real, calls = segments.laughter_prob, []
+    real, calls = segments.laughter_prob_blocks, []
 
     def stops_at_the_third(*a, **k):
         calls.append(1)
@@ -224,14 +221,14 @@ def test_an_interrupted_batch_goes_on_where_it_stopped(tmp_path, monkeypatch):
             raise KeyboardInterrupt
         return real(*a, **k)
 
-    monkeypatch.setattr(segments, "laughter_prob", stops_at_the_third)
+    monkeypatch.setattr(segments, "laughter_prob_blocks", stops_at_the_third)
     r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "out"), *args)
     assert r.returncode == 130 and "interrupted after 2 of 3 input(s)" in r.stderr
     assert r.stderr.rstrip().endswith("the same command goes on from there")
     assert len(list((tmp_path / "data" / "detect").glob("*.json"))) == 2
-    monkeypatch.setattr(segments, "laughter_prob", real)
+    monkeypatch.setattr(segments, "laughter_prob_blocks", real)
     calls.clear()
-    monkeypatch.setattr(segments, "laughter_prob", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
+    monkeypatch.setattr(segments, "laughter_prob_blocks", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
     r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "out"), *args)
     assert r.returncode == 0 and len(calls) == 1, r.stderr   # the third alone computed
     assert "laughlab: 2 of 3 input(s) as an earlier, unfinished run of these settings found them" in r.stderr
@@ -239,11 +236,11 @@ def test_an_interrupted_batch_goes_on_where_it_stopped(tmp_path, monkeypatch):
         assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "whole" / name).read_bytes(), name
     assert not list((tmp_path / "data" / "detect").glob("*.json"))
     # another setting is computed afresh, not taken from a kept one
-    monkeypatch.setattr(segments, "laughter_prob", stops_at_the_third)
+    monkeypatch.setattr(segments, "laughter_prob_blocks", stops_at_the_third)
     calls.clear()
     laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "o2"), *args)
     calls.clear()
-    monkeypatch.setattr(segments, "laughter_prob", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
+    monkeypatch.setattr(segments, "laughter_prob_blocks", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
     r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "o2"), "--threshold", "0.6")
     assert r.returncode == 0 and len(calls) == 3, r.stderr
     # a file replaced by another of the same size and modification time (cp -p, rsync -a) is computed afresh
@@ -257,7 +254,7 @@ def test_an_interrupted_batch_goes_on_where_it_stopped(tmp_path, monkeypatch):
     os.utime(src, ns=(st.st_atime_ns, st.st_mtime_ns))
     assert src.stat().st_size == st.st_size and src.stat().st_mtime_ns == st.st_mtime_ns
     calls.clear()
-    monkeypatch.setattr(segments, "laughter_prob", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
+    monkeypatch.setattr(segments, "laughter_prob_blocks", lambda *a, **k: (calls.append(1), real(*a, **k))[1])
     r = laughlab("detect", str(tmp_path / "in"), "--out", str(tmp_path / "o3"), *args)
     assert r.returncode == 0 and len(calls) == 2 and "1 of 3 input(s) as an earlier" in r.stderr, r.stderr
 
@@ -505,11 +502,21 @@ def test_the_windows_cover_the_whole_recording_and_no_more(hop, monkeypatch):
 
     seen = {}
 
-    def scores(audio, sr, ends, model, progress=None):
-        seen["ends"] = np.asarray(ends)
-        return np.zeros((len(ends), yamnet.N_CLASSES))
+    class Scores:   # the windows laughter_prob asks for, all zeros
+        def __init__(self, sr, model, frames_hint=0):
+            self.n, seen["ends"] = 0, []
 
-    monkeypatch.setattr(yamnet, "window_scores", scores)
+        def push(self, b):
+            self.n += len(b)
+
+        def want(self, ends):
+            seen["ends"] += list(ends)
+
+        def finish(self):
+            seen["ends"] = np.asarray(seen["ends"])
+            return np.zeros((len(seen["ends"]), yamnet.N_CLASSES))
+
+    monkeypatch.setattr(yamnet, "WindowScores", Scores)
 
     @settings(max_examples=60, deadline=None)
     @given(n=st.integers(1, 16000 * 9), sr=st.sampled_from([8000, 16000, 44100]))

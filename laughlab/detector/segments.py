@@ -45,19 +45,51 @@ class Segment:
 def laughter_prob(audio: np.ndarray, sample_rate: int, hop_s: float = 0.5, model=None, score=None, progress=None):
     """(times (s), probabilities) of a whole signal: the head's probability, one window every ``hop_s``
     (``progress``: see :func:`laughlab.detector.yamnet.window_scores`)."""
-    from laughlab.detector.yamnet import LaughterScore, Yamnet, window_scores
+    from laughlab.detector.yamnet import CONVERT_CHUNK
+
+    x = np.ravel(audio)
+    t, p, _ = laughter_prob_blocks((x[i:i + CONVERT_CHUNK] for i in range(0, max(len(x), 1), CONVERT_CHUNK)),
+                                   sample_rate, hop_s, model, score, progress, len(x))
+    return t, p
+
+
+def window_grid(n: int, sample_rate: int, hop_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """(times (s), window ends (input samples)) of a signal of ``n`` samples: a window for every hop that begins
+    inside the recording, the last one too (it stopped at the last whole hop's centre, and a recording's tail
+    shorter than half a hop was never judged: 4.9 s of laughter at --hop 2 was labelled to 4.0 s, a new-user
+    review); the tail's window ends at most ``SPEAKS_FOR_S`` past the recording (zeros after it), as every other
+    one does.  A window whose time is inside the first ``n`` samples has the same time and end for every longer
+    signal (``np.arange`` makes its values from the start)."""
+    sr = int(sample_rate)
+    dur = n / sr
+    times = np.arange(hop_s / 2.0, max(dur + hop_s / 2.0 - 1e-9, hop_s / 2.0 + 1e-9), hop_s)
+    return times, np.round(np.minimum(times + SPEAKS_FOR_S, dur + SPEAKS_FOR_S) * sr).astype(np.int64)
+
+
+def laughter_prob_blocks(blocks, sample_rate: int, hop_s: float = 0.5, model=None, score=None, progress=None,
+                         frames_hint: int = 0):
+    """:func:`laughter_prob` of a signal given block by block (``detect`` reads a file so: it holds the 16 kHz
+    samples alone, :class:`laughlab.detector.yamnet.WindowScores`), the same values bit for bit whatever the
+    blocks; a window goes to the model once the samples up to its time have arrived, the last ones when the
+    signal's length is known.  (times, probabilities, samples read)."""
+    from laughlab.detector.yamnet import LaughterScore, WindowScores, Yamnet
 
     sr = int(sample_rate)
-    dur = len(audio) / sr
-    # a window for every hop that begins inside the recording, the last one too: it stopped at the last whole
-    # hop's centre, and a recording's tail shorter than half a hop was never judged (4.9 s of laughter at --hop 2
-    # was labelled to 4.0 s, a new-user review)
-    times = np.arange(hop_s / 2.0, max(dur + hop_s / 2.0 - 1e-9, hop_s / 2.0 + 1e-9), hop_s)
-    # the tail's window ends at most SPEAKS_FOR_S past the recording (zeros after it), as every other one does
-    ends = np.round(np.minimum(times + SPEAKS_FOR_S, dur + SPEAKS_FOR_S) * sr).astype(np.int64)
-    S = window_scores(audio, sr, ends, model or Yamnet(), progress=progress)
+    w, k = WindowScores(sr, model or Yamnet(), frames_hint), 0   # k: the windows wanted so far
+    for b in blocks:
+        w.push(b)
+        if progress is not None:
+            progress(np.size(b) / sr)
+        times, ends = window_grid(w.n, sr, hop_s)
+        sure = int(np.searchsorted(times, w.n / sr, side="right"))   # their ends can no longer change
+        if sure > k:
+            w.want(ends[k:sure])
+            k = sure
+    times, ends = window_grid(w.n, sr, hop_s)
+    w.want(ends[k:])
+    S = w.finish()
     score = score or LaughterScore()
-    return times, np.array([_prob(score, s) for s in S])
+    return times, np.array([_prob(score, s) for s in S]), w.n
 
 
 def _prob(score, s: np.ndarray) -> float:

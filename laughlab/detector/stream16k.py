@@ -246,12 +246,13 @@ def pieces_16k(audio: np.ndarray, sample_rate: int):
     rs = Resampler16k(sample_rate)
     x = np.asarray(audio).ravel()   # each piece made float64 by push: no float64 copy of the whole signal
     for i in range(0, max(len(x), 1), CONVERT_CHUNK):
-        piece = x[i:i + CONVERT_CHUNK]
-        if not np.isfinite(piece).all():
-            # NaN/inf read as 0, as live (:func:`cleaned`): one would poison the filter's state for the rest of
-            # the file (a review: ``detect`` lost every laugh after a single NaN in a 44.1 kHz file)
-            piece = np.where(np.isfinite(piece), piece, 0.0)
-        yield rs.push(piece)
+        yield rs.push(finite(x[i:i + CONVERT_CHUNK]))
+
+
+def finite(piece: np.ndarray) -> np.ndarray:
+    """NaN/inf read as 0, as live (:func:`cleaned`): one would poison the filter's state for the rest of the file
+    (a review: ``detect`` lost every laugh after a single NaN in a 44.1 kHz file)."""
+    return piece if np.isfinite(piece).all() else np.where(np.isfinite(piece), piece, 0.0)
 
 
 def to_16k(audio: np.ndarray, sample_rate: int) -> np.ndarray:

@@ -24,7 +24,7 @@ import numpy as np
 
 from laughlab.detector import yamnet_model as _model
 from laughlab.detector.stream16k import (  # noqa: F401  (the names users of this module know)
-    CONVERT_CHUNK, Resampler16k, Window16k, cleaned, pieces_16k, sosfilt_carry, to_16k)
+    CONVERT_CHUNK, Resampler16k, Window16k, cleaned, finite, pieces_16k, sosfilt_carry, to_16k)
 from laughlab.detector.yamnet_model import (  # noqa: F401  (the names users of this module know)
     BANDS, FRAME, HOP, LAUGH_CLASSES, MODEL_SHA256, N_CLASSES, NOISE_CLASSES, NOISE_VETO, OTHER_HUMAN_CLASSES, RATE,
     RESTORE, ROWS, WINDOW, ModelFileError, Yamnet, class_names, data_dir, frame_starts, frames, frames_at, laugh_indices,
@@ -255,42 +255,92 @@ class LaughterScore:
         return (float(self.head.prob(scores)) if self.head is not None else q), q
 
 
+class WindowScores:
+    """YAMNet's scores of windows of one signal that arrives in pieces at its own rate (offline: :func:`window_scores`,
+    and ``detect``, which reads a file block by block and so holds its samples at 16 kHz only: a third of a 48 kHz
+    file's, since 2026-11-29).
+
+    ``push`` converts a piece to 16 kHz (:class:`Resampler16k`; NaN and inf read as 0, the 16 kHz samples clipped to
+    [-1, 1]) into a buffer with ``WINDOW`` zeros before it (``frames_hint``: the input samples expected, to size it
+    once; it grows past them); ``want`` queues windows by the input sample index they end at, which go to the model
+    64 at a time as soon as their samples are converted (on the process' two network threads with the bundled model,
+    while the rest is converted); ``finish`` pads the end with zeros and gives every wanted window's 521 scores, in
+    order, the one-window-at-a-time scores bit for bit whatever the pieces."""
+
+    def __init__(self, sample_rate: int, model: Yamnet | None = None, frames_hint: int = 0,
+                 threads: bool | None = None):
+        self.model = model or Yamnet()
+        self.sr = int(sample_rate)
+        self.rs = Resampler16k(self.sr)
+        self.pad = np.zeros(self.rs.j_after(frames_hint) + 2 * WINDOW, np.float32)
+        self.filled = WINDOW   # pad[:filled] holds its samples
+        self.n = 0             # input samples pushed
+        self.threads = self.model.bundled if threads is None else threads
+        self.queue: list = []
+        self.parts: list = []
+
+    def end16(self, ends) -> list[int]:
+        """The wanted windows' ends in the buffer (16 kHz samples, after its leading zeros)."""
+        return [int(round(int(e) * RATE / self.sr)) + WINDOW for e in ends]
+
+    def push(self, piece: np.ndarray) -> None:
+        x = finite(np.asarray(piece).ravel())
+        y = self.rs.push(x)
+        if self.filled + len(y) + WINDOW > len(self.pad):   # longer than the hint: grown (a quarter more at least)
+            grown = np.zeros(max(self.filled + len(y) + WINDOW, len(self.pad) + len(self.pad) // 4), np.float32)
+            grown[:self.filled] = self.pad[:self.filled]   # (a thread still reading the old one keeps it)
+            self.pad = grown
+        self.pad[self.filled:self.filled + len(y)] = np.clip(y, -1.0, 1.0)
+        self.filled += len(y)
+        self.n += len(x)
+        self._ready(False)
+
+    def want(self, ends) -> None:
+        e16 = self.end16(ends)
+        if e16 and min(e16) < WINDOW:
+            raise ValueError("a window ends outside the audio")
+        self.queue.extend(e16)
+        self._ready(False)
+
+    def _ready(self, final: bool) -> None:
+        while self.queue and (final or len(self.queue) >= 64) and max(self.queue[:64]) <= self.filled:
+            c, self.queue = self.queue[:64], self.queue[64:]
+            self.parts.append(net_pool().submit(_scores_here, self.pad, c) if self.threads
+                              else _scores_here(self.pad, c, self.model))
+
+    def finish(self) -> np.ndarray:
+        size = self.rs.j_after(self.n) + 2 * WINDOW   # the signal and WINDOW zeros after it
+        if self.queue and max(self.queue) > size:
+            raise ValueError("a window ends outside the audio")
+        if len(self.pad) < size:
+            self.pad = np.concatenate([self.pad, np.zeros(size - len(self.pad), np.float32)])
+        self.filled = size
+        self._ready(True)
+        parts = [p.result() if self.threads else p for p in self.parts]
+        return np.concatenate(parts) if parts else np.empty((0, N_CLASSES))
+
+
 def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: Yamnet | None = None,
                   progress=None) -> np.ndarray:
     """The 521 scores of the windows ending at the sample indices ``ends`` of ``audio`` (zeros before 0).
 
     Offline use (``laughlab detect``, the fits and the benchmarks).  For a window ending at input sample
     ``e`` the model hears 16 kHz samples up to ``e * 16000 / sr`` (zeros past the end).  The signal is
-    converted ``CONVERT_CHUNK`` samples at a time, and windows go to the model 64 at a time as soon as
-    their samples are converted, each distinct 10 ms frame's log-mel row computed once, on the process'
+    converted ``CONVERT_CHUNK`` samples at a time (:class:`WindowScores`), and windows go to the model 64 at a time
+    as soon as their samples are converted, each distinct 10 ms frame's log-mel row computed once, on the process'
     two network threads (the bundled model), which run while the rest is converted.  The scores are the
     one-window-at-a-time scores bit for bit.  ``progress``: called with the seconds of input converted, piece by
     piece (``detect``'s bar moves through a long file: a review saw it at 0% for the whole of a 2-hour one).
     """
     model = model or Yamnet()
-    sr = int(sample_rate)
-    pad = np.zeros(Resampler16k(sr).j_after(np.size(audio)) + 2 * WINDOW, np.float32)  # zeros around the audio
-    e16 = [int(round(int(e) * RATE / sr)) + WINDOW for e in ends]
-    if e16 and (min(e16) < WINDOW or max(e16) > len(pad)):
+    sr, x = int(sample_rate), np.ravel(audio)
+    w = WindowScores(sr, model, len(x), threads=model.bundled and len(ends) > 64)
+    e16 = w.end16(ends)
+    if e16 and (min(e16) < WINDOW or max(e16) > len(w.pad)):   # before any work
         raise ValueError("a window ends outside the audio")
-    chunks = [e16[a:a + 64] for a in range(0, len(e16), 64)]
-    threads = model.bundled and len(chunks) > 1     # the process' two network threads, 64 windows each at a time
-    parts: list = []
-    filled = WINDOW                                 # pad[:filled] holds its samples
-
-    def ready(upto: int) -> None:
-        while len(parts) < len(chunks) and max(chunks[len(parts)]) <= upto:
-            c = chunks[len(parts)]
-            parts.append(net_pool().submit(_scores_here, pad, c) if threads else _scores_here(pad, c, model))
-
-    left = len(np.ravel(audio))
-    for y in pieces_16k(audio, sr):
-        pad[filled:filled + len(y)] = np.clip(y, -1.0, 1.0)
-        filled += len(y)
-        ready(filled)
+    w.want(ends)
+    for i in range(0, max(len(x), 1), CONVERT_CHUNK):
+        w.push(x[i:i + CONVERT_CHUNK])
         if progress is not None:
-            piece, left = min(CONVERT_CHUNK, left), left - min(CONVERT_CHUNK, left)
-            progress(piece / sr)
-    ready(len(pad))
-    parts = [p.result() if threads else p for p in parts]
-    return np.concatenate(parts) if parts else np.empty((0, N_CLASSES))
+            progress(len(x[i:i + CONVERT_CHUNK]) / sr)
+    return w.finish()
