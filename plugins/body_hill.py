@@ -33,7 +33,7 @@ between calls and bouts is not the expiratory muscles' business)::
 
 (the integral leaks with time constant ``leak_s`` and is frozen while the
 activation saturates), then the paper's
-laugh recipe at that level: inner intercostals ``ribcage_ratio * a_abdomen``
+laugh recipe (section 7) at that level, the outer intercostals left at 0 (our departure: docs/fidelity.md): inner intercostals ``ribcage_ratio * a_abdomen``
 in phase with the abdomen, diaphragm tone ``diaphragm_tone`` (its "constant
 activation throughout the laughter", load balancer) while laughing (gated by
 ``a_abdomen > gate``, ramped over ``tone_s``), clavicle elevators
@@ -44,7 +44,7 @@ look-behind is the extractor's (a 5 Hz low-pass, time constant 32 ms, for ``pres
 plus the integral term, far less than one call.  Between bouts the muscles
 relax and the chest wall's recoil breathes in by itself.
 
-``fit`` (default, the paper's audio-driven control, real time): per-call
+``fit`` (default; the paper's per-call fit made causal, real time: docs/fidelity.md): per-call
 fitted activations (:mod:`laughlab.hill.live`): each call plays the seven
 parameters fitted to the last call that ended at least ``live.adopt_after_s``
 (0.25 s) before it began, scaled to its own peak, and is fitted itself

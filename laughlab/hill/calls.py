@@ -1,5 +1,5 @@
 """Calls of a laugh for the Hill fit: cut at the pressure's valleys, or found in the frame RMS
-(DiLorenzo, Zordan & Sanders 2008, 6.2: "we segmented the calls in the center of the valley between
+(DiLorenzo, Zordan & Sanders 2008, 7: "we segmented the calls in the center of the valley between
 the peaks"; :func:`segment_calls_level` is ours, for real call rates).  See :mod:`laughlab.hill.fit`.
 """
 from __future__ import annotations
