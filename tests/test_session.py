@@ -426,6 +426,31 @@ def test_the_documented_tables_of_a_sessions_frames(recording):
     assert laughlab.Session is laughlab.session.Session
 
 
+def test_the_documented_session_loop_and_tables_run_as_written(recording, tmp_path):
+    """A docs review (2026-11-29): the page's Session loop, run as written, warned that numpy came before laughlab
+    (it imported soundfile first), and its notebook tables used a ``frames`` no snippet made.  Both snippets, in
+    one fresh interpreter beside a ``laugh.wav``: no warning, every frame of the file (the same as a Session fed
+    the whole file at once), the tables as long."""
+    import re
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "pipeline.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```python\n(.*?)```", page, re.S)
+    (loop,) = [b for b in blocks if "with Session(" in b and "s.feed(block)" in b]
+    (tables,) = [b for b in blocks if "pd.DataFrame([f.channels" in b]
+    shutil.copy(recording, tmp_path / "laugh.wav")
+    code = loop + tables + "print(len(frames), len(channels), pose.shape[0], len(arkit))\n"
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "Warning" not in r.stderr, r.stderr
+    x, sr = sf.read(recording, dtype="float32")
+    with Session([], sample_rate=sr) as s:
+        n = len(s.feed(x) + s.close())
+    assert r.stdout.split() == [str(n)] * 4
+
+
 def test_a_session_after_numpy_was_imported_first_says_what_it_means_for_the_bytes():
     """A Python user's review: a notebook imports numpy before laughlab, and on an AVX-512 machine numpy's loops are
     then not pinned: the outputs differed from the command line's in the last bits (``body=hill``'s more), said only
