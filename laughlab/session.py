@@ -16,8 +16,8 @@ bytes, ``body=hill`` included): the run is :func:`laughlab.core.pipeline.execute
 (:func:`laughlab.io.audio.cut_frames`), with a sink that hands each frame back as soon as it is computed. Outputs
 (``outputs=["files"]``, ``"vmc"``, ``"viewer"``) write into ``out_dir`` or stream as they do from the command line.
 Errors are one :class:`laughlab.core.errors.LaughlabError` each (a plugin's own exception is raised as it is, once).
-The input plugin of the overrides is not used; the session is the input (not live: ``body=hill`` fits in the
-frame, as for a file; the calibration of ``extractor=rms`` is ``calibration_s``, 0 as for a file).
+The input plugin of the overrides is not used; the session is the input (not live: ``body=hill`` fits its
+calls in a thread, as live, with a file's bytes; the calibration of ``extractor=rms`` is ``calibration_s``, 0 as for a file).
 """
 from __future__ import annotations
 
@@ -274,6 +274,11 @@ class Session:
                            f"output={out[0] if len(out) == 1 else '[' + ','.join(out) + ']'}" if out else "output=trial",
                            "progress=off"])
         cfg = OmegaConf.masked_copy(cfg, [k for k in cfg if k not in ("hydra", "harness")])
+        if OmegaConf.select(cfg, "body.live.threaded") == "auto":
+            # body=hill's call fits in a thread, as for a microphone: a program's frames keep their pace (in the
+            # frame, a fit made a 60 fps game's frame 50-280 ms, 130 an hour: a frame budget review, 2026-11-29);
+            # the same bytes, which fit a call plays being fixed by frame numbers
+            cfg.body.live.threaded = "yes"
         if not out:
             cfg.output = {}
         if out_dir is not None and out and not overwrite:

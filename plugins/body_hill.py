@@ -234,9 +234,11 @@ class HillBody(Body):
         self._schedule = schedule
 
     def reset(self) -> None:
-        if getattr(self.ctx, "live", False) and not getattr(self, "_warm", False):
-            # the first step loads the compiled torso (numba, about 0.4 s): on a spare torso before the microphone
-            # opens, not in frame 0 (a hitch that overflowed the device's buffer with input.calibration_s=0)
+        if not getattr(self, "_warm", False):
+            # the first step loads the compiled torso (numba, about 0.4 s, 2 s with a cold cache): on a spare torso
+            # when the plugin is made, not in frame 0 (a hitch that overflowed the microphone's buffer with
+            # input.calibration_s=0; a Session, not live, took it in its first feed, a game's first frame: a frame
+            # budget review, 2026-11-29); the same bytes, the spare torso being another
             Torso(self.params.torso, batch=1).step(np.zeros((1, len(GROUPS))), 0.0, self.dt_sub)
             self._warm = True
         self.torso.reset()

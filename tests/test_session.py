@@ -72,6 +72,24 @@ def test_the_files_are_the_commands_byte_for_byte_and_the_frames_its_rows(record
     assert starts == [(round(t * 60), c) for t, c in zip(start["time"], start["clip"])] and starts
 
 
+def test_a_sessions_hill_fits_its_calls_in_a_thread_unless_told(monkeypatch):
+    """A frame budget review (2026-11-29): in a Session body=hill fitted each call in the frame (not live), 50-280 ms
+    feeds in a 60 fps game; ``threaded: auto`` now means a thread in a Session (the same bytes: the test above);
+    an explicit ``no`` is kept."""
+    from laughlab.hill import live
+
+    made, real = [], live.LiveFitter.__init__
+
+    def init(self, *a, **k):
+        real(self, *a, **k)
+        made.append(self.threaded)
+
+    monkeypatch.setattr(live.LiveFitter, "__init__", init)
+    Session(["body=hill"], sample_rate=16000).close()
+    Session(["body=hill", "body.live.threaded=no"], sample_rate=16000).close()
+    assert made[-2:] == [True, False]
+
+
 @pytest.fixture(scope="module")
 def second(recording, tmp_path_factory):
     """The recording's first second: a split into pieces of one sample is 44,100 feeds, not 257,000."""

@@ -39,7 +39,7 @@ except ImportError:  # pragma: no cover - numba missing
         return wrap
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, nogil=True)
 def _solve_inplace(w, r, n):
     """Solve ``w x = r`` (n x n) by Gaussian elimination with partial pivoting; ``r`` becomes ``x``."""
     for c in range(n):
@@ -67,7 +67,7 @@ def _solve_inplace(w, r, n):
         r[c] = acc / w[c, c]
 
 
-@njit(cache=True, fastmath=False)
+@njit(cache=True, fastmath=False, nogil=True)
 def step_batch(q, qd, a, spine, dt, jt_over_l, gj, k_lin, d_lin, f_pre, kp, isp, jmat, gain, g_over_l,
                w_lin, k_pe, b_pe, inv_v_max, f_max, w_fl, a_fv, b_fv, pe_cap, inv_r, v0, a_di, irc, idi,
                v_lo, inv_sw, stop_c, stop_p, c_p,

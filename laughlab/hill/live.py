@@ -39,7 +39,7 @@ Look-behind: the activations of call ``n`` come from the fit of a call that
 ended at least ``adopt_after_s`` before call ``n`` began, and call ``n``'s own
 onset and peak so far; nothing later is used.  Fitting runs either in the frame
 where the call ends (``threaded: no``, the default for files) or in a
-background thread (``threaded: yes``, the default for live input: frames keep
+background thread (``threaded: yes``, the default for live input and in a ``Session``: frames keep
 coming at their rate).  Which fit a call plays is fixed by frame numbers, not
 by when the thread finishes (a fit not finished when due holds that frame
 until it is), so both give the same bytes and a microphone session replays
