@@ -159,10 +159,10 @@ def test_a_conversations_laughter_tier_is_found_by_its_name(tmp_path, tier):
     assert A.read(p, 2.0).bouts == [(0.2, 1.0)]
     tg.addTier(textgrid.IntervalTier("laugh_B", [Interval(1.2, 1.5, "x")], 0, 2.0))
     tg.save(str(tmp_path / "b.TextGrid"), format="long_textgrid", includeBlankSpaces=True)
-    if tier == "laughs_A":   # two speakers' tiers: their union
-        assert A.read(tmp_path / "b.TextGrid", 2.0).bouts == [(0.2, 1.0), (1.2, 1.5)]
-    else:
+    if tier == "BOUTS":   # this format's own tier, read alone
         assert A.read(tmp_path / "b.TextGrid", 2.0).bouts == [(0.2, 1.0)]
+    else:                 # two speakers' tiers (detect's Laughter among them): their union
+        assert A.read(tmp_path / "b.TextGrid", 2.0).bouts == [(0.2, 1.0), (1.2, 1.5)]
 
 
 @pytest.mark.parametrize("suffix", ["TextGrid", "eaf"])
@@ -198,17 +198,48 @@ def test_per_speaker_laughter_tiers_are_read_as_their_union_with_any_text(tmp_pa
         return p
 
     p = write({"A": [(0.0, 0.5, "hello")], "laugh_A": [(0.2, 1.0, "@@@"), (3.0, 3.5, "speech")],
-               "laugh_B": [(0.8, 1.5, "LA"), (2.0, 2.4, "giggle"), (2.4, 2.6, "x")]})
+               "laugh_B": [(0.8, 1.5, "LA"), (2.0, 2.4, "giggle"), (2.4, 2.6, "call")],
+               "laughables": [(0.0, 4.0, "the joke")]})   # what was laughed at (CA): not laughter
     ann = A.read(p, 4.0)
-    assert ann.bouts == [(0.2, 1.5), (2.0, 2.6)]
+    assert ann.bouts == [(0.2, 1.5), (2.0, 2.4), (2.4, 2.6)]   # overlapping laughs merged; touching ones stay apart
     assert [(lab.start, lab.end, lab.text) for lab in ann.labels if lab.text != "laugh"] == [(3.0, 3.5, "speech")]
-    assert [r["kind"] for r in ann.truth_rows()] == ["bout", "bout"]
+    assert [r["kind"] for r in ann.truth_rows()] == ["bout", "bout", "bout"]
     if suffix == "eaf":   # (a TextGrid's interval tier cannot hold an overlap)
         with pytest.raises(LaughlabError, match=r"laugh_A #2: laugh 0\.500-0\.900 s overlaps the laugh on line "
                                                 r"laugh_A #1"):
             A.read(write({"laugh_A": [(0.2, 1.0, "@@@"), (0.5, 0.9, "LA")], "laugh_B": []}), 4.0)
     with pytest.raises(LaughlabError, match=r"unknown label '@@@'"):
         A.read(write({"bouts": [(0.2, 1.0, "@@@")]}), 4.0)
+    # a diff review: an empty second speaker's tier changed the first one's bouts (touching ones were merged)
+    one = A.read(write({"laugh_A": [(1.0, 2.0, "x"), (2.0, 3.0, "x")]}), 4.0).bouts
+    assert one == A.read(write({"laugh_A": [(1.0, 2.0, "x"), (2.0, 3.0, "x")], "laugh_B": []}), 4.0).bouts
+    assert one == [(1.0, 2.0), (2.0, 3.0)]
+    # detect's own Laughter tier beside another speaker's: both read (the second was ignored unsaid)
+    assert A.read(write({"Laughter": [(1.0, 2.0, "laugh")], "laugh_B": [(3.0, 3.5, "x")]}), 4.0).bouts == \
+        [(1.0, 2.0), (3.0, 3.5)]
+
+
+def test_a_point_tier_or_a_repeated_elan_tier_is_said_not_a_traceback(tmp_path):
+    """A diff review: a TextGrid's point tier named for laughter (laugh_peaks) beside laugh_A ended in a ValueError
+    traceback (a point has no end); an ELAN file with two tiers of one id read the last alone, the first's laughs
+    dropped unsaid."""
+    from praatio import textgrid
+    from praatio.utilities.constants import Interval, Point
+
+    tg = textgrid.Textgrid()
+    tg.addTier(textgrid.IntervalTier("laugh_A", [Interval(1.0, 2.0, "@@")], 0, 4.0))
+    tg.addTier(textgrid.PointTier("laugh_peaks", [Point(1.5, "peak")], 0, 4.0))
+    tg.save(str(tmp_path / "a.TextGrid"), format="long_textgrid", includeBlankSpaces=True)
+    assert A.read(tmp_path / "a.TextGrid", 4.0).bouts == [(1.0, 2.0)]
+    p = tmp_path / "a.eaf"
+    tier = ('<TIER TIER_ID="laugh_A" LINGUISTIC_TYPE_REF="default"><ANNOTATION><ALIGNABLE_ANNOTATION ANNOTATION_ID='
+            '"a{0}" TIME_SLOT_REF1="ts1" TIME_SLOT_REF2="ts2"><ANNOTATION_VALUE>x</ANNOTATION_VALUE>'
+            '</ALIGNABLE_ANNOTATION></ANNOTATION></TIER>')
+    p.write_text('<ANNOTATION_DOCUMENT><TIME_ORDER><TIME_SLOT TIME_SLOT_ID="ts1" TIME_VALUE="1000"/><TIME_SLOT '
+                 f'TIME_SLOT_ID="ts2" TIME_VALUE="2000"/></TIME_ORDER>{tier.format(1)}{tier.format(2)}'
+                 '</ANNOTATION_DOCUMENT>', encoding="utf-8")
+    with pytest.raises(LaughlabError, match=r"^bad ELAN file .*a\.eaf: two tiers share the id 'laugh_A'"):
+        A.read(p, 4.0)
 
 
 # ------------------------------------------------------------------ fetching, with a stand-in registry

@@ -68,23 +68,61 @@ def test_skip_unreadable_leaves_out_each_damaged_file_and_says_so(tmp_path):
     assert not (tmp_path / "out2").exists()
 
 
-@pytest.mark.parametrize("cuts, hint", [((), 0), ((1, 2, 44100), 10), ((0, 0, 5000, 5000, 60000), 10 ** 6),
-                                        ((22050, 22051, 100000), 132307), ((132306,), 132306)])
-def test_detect_reads_block_by_block_to_the_whole_signals_values(cuts, hint):
+def test_a_file_failing_part_way_takes_its_seconds_off_the_progress_bar(tmp_path):
+    """A diff review (2026-11-29): read block by block, a long file that failed 24 s in left those seconds on the bar,
+    whose total lost the whole file: '61.7/31.7 s of audio'.  Every state of the bar is at most its total, and
+    recordings.csv lists the inputs in their order, the skipped one in its place."""
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    noise = np.random.default_rng(0).normal(0, 0.1, 16000 * 40)
+    sf.write(rec / "a_cut.flac", noise, 16000)
+    data = (rec / "a_cut.flac").read_bytes()
+    (rec / "a_cut.flac").write_bytes(data[: len(data) * 6 // 10])
+    sf.write(rec / "b_good.wav", noise[: 16000 * 30], 16000)
+    r = laughlab("detect", str(rec), "--out", str(tmp_path / "out"), "--skip-unreadable", "--progress", "on")
+    assert r.returncode == 0 and "skipped: cannot decode" in r.stderr, r.stderr
+    bar = [(float(a), float(b)) for a, b in re.findall(r"(\d+\.\d)/(\d+\.\d) s of audio", r.stderr)]
+    assert bar and max(a for a, _ in bar) > 20 and all(a <= b for a, b in bar), bar
+    rows = list(csv.DictReader((tmp_path / "out" / "recordings.csv").open()))
+    assert [(r["file"], r["skipped"] != "") for r in rows] == [("a_cut", True), ("b_good", False)]
+
+
+@pytest.fixture(scope="module")
+def laughing():
+    """A real laugh the head hears (trackballs' evil laugh, 22.05 kHz, 4.6 s) when the corpus is there, else 5 s of
+    the synthetic intense laughter; a NaN in it (read as 0).  A diff review: on noise every window's probability was
+    0 (the noise veto), so the comparison below compared zeros and a wrong window passed."""
+    from laughlab.corpora.fetch import corpus_dir
+    from laughlab.synth.laughter import SyntheticLaughter
+
+    f = corpus_dir() / "files" / "trackballs" / "evillaugh.wav"
+    if f.is_file():
+        x, sr = sf.read(f, dtype="float32")
+    else:
+        synth = SyntheticLaughter(seed=0, duration_s=5.0, sample_rate=22050, profile="intense")
+        x, sr = synth.render(0, synth.n_samples).astype(np.float32), 22050
+    x = x.copy()
+    x[30000] = np.nan
+    return x, sr
+
+
+@pytest.mark.parametrize("cuts, hint", [((), 0), ((1, 2, 22050), 10), ((0, 0, 5000, 5000, 60000), 10 ** 6),
+                                        ((11025, 11026, 50000), 101293), ((101292,), 101292)])
+def test_detect_reads_block_by_block_to_the_whole_signals_values(cuts, hint, laughing):
     """Since 2026-11-29 detect holds a file's 16 kHz samples alone, read block by block (the whole file was held:
     0.9 GB an hour at 48 kHz).  The times and probabilities are the whole signal's bit for bit whatever the blocks
-    (empty ones, one sample, a window's edge) and whatever the header promised (``frames_hint``: fewer samples than
-    there are, as a compressed format's estimate, or more), a NaN among them read as 0 as before."""
+    (empty ones, one sample, half a second and one more, a window's edge) and whatever the header promised
+    (``frames_hint``: fewer samples than there are, as a compressed format's estimate, or more), at a hop that does
+    not divide the signal; the laugh's windows reach the threshold, so a window sent with a wrong end would show."""
     from laughlab.detector import segments as S
     from laughlab.detector.yamnet import LaughterScore, Yamnet
 
     model, score = Yamnet(), LaughterScore()
-    x = np.random.default_rng(1).normal(0, 0.1, 44100 * 3 + 7).astype(np.float32)
-    x[70000] = np.nan
-    t, p = S.laughter_prob(x, 44100, 0.5, model, score)
-    assert len(t) == 7 and np.isfinite(p).all()
+    x, sr = laughing
+    t, p = S.laughter_prob(x, sr, 0.37, model, score)
+    assert len(t) >= 12 and np.isfinite(p).all() and p.max() > 0.5
     edges = [0, *cuts, len(x)]
-    got_t, got_p, n = S.laughter_prob_blocks((x[a:b] for a, b in zip(edges, edges[1:])), 44100, 0.5, model, score,
+    got_t, got_p, n = S.laughter_prob_blocks((x[a:b] for a, b in zip(edges, edges[1:])), sr, 0.37, model, score,
                                              frames_hint=hint)
     assert n == len(x) and np.array_equal(got_t, t) and np.array_equal(got_p, p)
 

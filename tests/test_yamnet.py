@@ -846,8 +846,8 @@ def test_a_detect_stopped_while_writing_leaves_nothing_a_later_overwrite_refuses
     assert laughlab("detect", str(tmp_path / "c.wav"), "--out", str(out)).returncode == 0
     real = S.write_outputs
 
-    def stopped(out_dir, results, formats, extra=None, settings=None, skipped=None):   # the first input's own files,
-        # then a stop; the shared tables (segments.csv, recordings.csv) are only ever written with every input's
+    def stopped(out_dir, results, formats, extra=None, settings=None, skipped=None, order=None):
+        # the first input's own files written, then a stop; the shared tables (segments.csv, recordings.csv) are only ever written with every input's
         # files (all or none since 2026-11-28), so a stop never leaves them rewritten with the earlier hashes
         real(out_dir, results[:1], tuple(f for f in formats if f != "csv"), extra, settings)
         raise KeyboardInterrupt

@@ -12,8 +12,9 @@ A Praat TextGrid with tiers ``bouts`` and ``calls`` (interval texts ``laugh``
 and ``call``) is read the same way, and so is an ELAN document (``.eaf``) with those tiers.  What ``laughlab detect`` writes is an annotation too, so its segments,
 corrected in Praat or Audacity, give a recording its truth: the TextGrid's tier ``laughter`` stands for
 ``bouts`` when there is no ``bouts`` (in an ELAN file too), and the label ``laughter`` (its Audacity files until 2026-11-27) for
-``laugh``.  Without either, every tier whose name holds "laugh" is a bouts tier (one per speaker: their union), and a
-tier named for laughter marks laughter whatever its texts (``@@@``, ``LA``), as :func:`_tier_label` says.  The bundled annotations live in
+``laugh``.  Without ``bouts``, every interval tier whose name holds "laugh" (``laughter`` too) is a bouts tier (one
+per speaker: their union), and a tier named for laughter marks laughter whatever its texts (``@@@``, ``LA``), as
+:func:`bout_tiers` and :func:`_tier_label` say.  The bundled annotations live in
 ``laughlab/data/annotations/<id with / as __>.txt``.
 
 A label outside [0, duration], with end <= start, with an unknown text, a bout
@@ -111,7 +112,9 @@ def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) 
         raise LaughlabError(f"bad TextGrid {path}: {first_line(exc)}") from None
     if tg is None:   # Praat's "Save as binary file" (a review: praatio's "'utf-8' codec can't decode byte 0xa0")
         raise LaughlabError(f"bad TextGrid {path}: binary Praat files are not read; save it in Praat as a text file")
-    bouts, calls = bout_tiers(tg.tierNames, f"bad TextGrid {path}")
+    # interval tiers only: a point tier (``laugh_peaks``) has no stretches (its entries ended in a traceback)
+    bouts, calls = bout_tiers([n for n in tg.tierNames if isinstance(tg.getTier(n), textgrid.IntervalTier)],
+                              f"bad TextGrid {path}")
     # intervals numbered as Praat numbers them, the empty ones counted (a review: the 2nd was called #1), and the
     # empty ones (no text, or blanks) not labels
     labels = [_tier_label(tier, i, a, b, t, kind) for tier, kind in [(t, "bouts") for t in bouts] + [(calls, "calls")]
@@ -120,16 +123,15 @@ def read_textgrid_annotation(path: str | Path, duration_s: float | None = None) 
 
 
 def bout_tiers(names, bad: str) -> tuple[list[str], str | None]:
-    """The bouts tiers and the calls tier (or None) among a TextGrid's or an ELAN file's tier ``names``: ``bouts``,
-    or ``laughter`` as ``laughlab detect`` writes, in any case (``Laughter``), else every tier whose name holds
-    "laugh" (``laughs_A``, ``laughs_B``: a conversation's annotation has a tier per speaker and more; a review met
-    ``speakerA``/``Laughter`` refused), read as their union (:func:`union_of_tiers`); ``bad``: the start of the line
-    when there is none."""
+    """The bouts tiers and the calls tier (or None) among a TextGrid's interval tiers' or an ELAN file's tier
+    ``names``: ``bouts`` in any case, else every tier whose name holds "laugh" (``laughter`` as ``laughlab detect``
+    writes; ``laughs_A``, ``laughs_B``: a conversation's annotation has a tier per speaker and more, a review met
+    ``speakerA``/``Laughter`` refused), read as their union (:func:`union_of_tiers`), but not a ``laughable`` tier
+    (conversation analysis' name for what was laughed at); ``bad``: the start of the line when there is none."""
     low = {n.lower(): n for n in reversed(list(names))}
-    bouts = low.get("bouts") or low.get("laughter")
-    if bouts is not None:
-        return [bouts], low.get("calls")
-    laughs = [n for n in names if "laugh" in n.lower()]
+    if "bouts" in low:
+        return [low["bouts"]], low.get("calls")
+    laughs = [n for n in names if "laugh" in n.lower() and "laughable" not in n.lower()]
     if not laughs:
         raise LaughlabError(f"{bad}: it has no tier 'bouts' (nor 'laughter', as laughlab detect writes, nor one "
                             f"whose name holds 'laugh') (tiers: {', '.join(names)})")
@@ -137,10 +139,12 @@ def bout_tiers(names, bad: str) -> tuple[list[str], str | None]:
 
 
 def union_of_tiers(labels: list, tiers: list[str], where: str) -> list:
-    """With several laughter tiers (one per speaker), the laughs of all of them, those that overlap or touch merged
-    into one bout (named by its first interval): a detector hears one recording, in which two speakers laughing
-    at once are one stretch of laughter (a conversation analyst's review: per-speaker tiers were refused, and so
-    were two speakers' overlapping laughs).  Within one tier, overlapping laughs are still refused by :func:`check`."""
+    """With several laughter tiers (one per speaker), the laughs of all of them, those that overlap (by more than
+    ``TOL_S``) merged into one bout, named by its first interval: a detector hears one recording, in which two
+    speakers laughing at once are one stretch of laughter (a conversation analyst's review: per-speaker tiers were
+    refused, and so were two speakers' overlapping laughs).  Laughs that only touch stay apart, as within one tier,
+    so an empty second tier changes nothing (a diff review).  Within one tier, overlapping laughs are still refused
+    by :func:`check`."""
     if len(tiers) < 2:
         return labels
     for tier in tiers:   # each tier's own laughs checked first (``where``: the file, for the line)
@@ -148,7 +152,7 @@ def union_of_tiers(labels: list, tiers: list[str], where: str) -> list:
     laughs = sorted((lab for lab in labels if lab.text == "laugh"), key=lambda lab: (lab.start, lab.end))
     merged: list = []
     for lab in laughs:
-        if merged and lab.start <= merged[-1].end + TOL_S:
+        if merged and lab.start < merged[-1].end - TOL_S:
             last = merged[-1]
             merged[-1] = Label(last.start, max(last.end, lab.end), "laugh", last.line)
         else:
@@ -161,12 +165,12 @@ def _tier_label(tier: str, i: int, start: float, end: float, text: str, kind: st
     ``bouts``, or detect's ``laughter``) ``laugh``, ``laughter``, ``x`` or empty text is a laugh; the calls tier's
     (``kind`` ``calls``) ``call``, ``x`` or empty text a call; any other text is checked as it is (the same in both
     readers: a diff review).  A tier named for laughter other than ``bouts`` (``laughter``, ``Laughs_A``) marks
-    laughter whatever its texts say (a conversation analyst's ``@@@``, ``LA``, ``giggle``: refused until
-    2026-11-29), except this format's other labels (``inhale``, ``speech``, ``other``), which keep their meaning."""
+    laughter whatever its texts say (a conversation analyst's ``@@@``, ``LA``, ``giggle``, ``call``: refused until
+    2026-11-29), except this format's non-laughter labels (``inhale``, ``speech``, ``other``), which keep theirs."""
     want = "call" if kind == "calls" else "laugh"
     text = text.strip().lower()
     ok = (want, "x", "") + (("laughter",) if want == "laugh" else ())
-    if want == "laugh" and tier.lower() != "bouts" and text not in LABELS:
+    if want == "laugh" and tier.lower() != "bouts" and text not in ("inhale", "speech", "other"):
         text = "laugh"
     return Label(float(start), float(end), want if text in ok else text, f"{tier} #{i}")
 
@@ -189,6 +193,10 @@ def read_eaf_annotation(path: str | Path, duration_s: float | None = None) -> An
     except ValueError:
         raise LaughlabError(f"bad ELAN file {path}: a TIME_VALUE is not a whole number of milliseconds") from None
     tiers = {t.get("TIER_ID"): t for t in root.iter("TIER")}
+    ids = [t.get("TIER_ID") for t in root.iter("TIER")]
+    twice = sorted({str(i) for i in ids if ids.count(i) > 1})
+    if twice:   # the last of them was read alone, the others' laughs dropped unsaid (a diff review)
+        raise LaughlabError(f"bad ELAN file {path}: two tiers share the id {twice[0]!r}; ELAN needs each tier's own")
     bouts, calls = bout_tiers([str(t) for t in tiers], f"bad ELAN file {path}")
     labels = []
     for tier, kind in [(t, "bouts") for t in bouts] + [(calls, "calls")]:

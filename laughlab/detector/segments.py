@@ -256,18 +256,21 @@ def output_names(stems: list[str], formats: tuple[str, ...]) -> list[str]:
     return names + (["segments.csv", "recordings.csv"] if "csv" in formats else [])
 
 
-def recordings_text(results: list, settings: dict, skipped: dict[str, str] | None = None) -> str:
+def recordings_text(results: list, settings: dict, skipped: dict[str, str] | None = None,
+                    order: dict[str, int] | None = None) -> str:
     """``recordings.csv``: a row an input, those without laughter too (``segments.csv`` has no row for them, so "no
     laughter" and "not read" looked alike: a data user's review): its name, length (s), segments and their seconds,
     then the settings that made them (``settings``: name -> value), the same in every row, to join on, and
     ``skipped``: empty, or for an input ``--skip-unreadable`` left out (``skipped``: name -> reason; a row with no
-    length or segments since 2026-11-29: they were missing from the table, said on stderr alone)."""
+    length or segments since 2026-11-29: they were missing from the table, said on stderr alone), the rows in the
+    inputs' ``order`` (name -> place) when given, else the read ones first."""
     text = io.StringIO()
     w = csv.writer(text, lineterminator="\n")
     w.writerow(["file", "duration_s", "segments", "laughter_s", *settings, "skipped"])
-    w.writerows([name, f"{dur:.4f}", len(segs), f"{sum(s.end - s.start for s in segs):.4f}", *settings.values(), ""]
-                for name, dur, segs, *_ in results)
-    w.writerows([name, "", "", "", *settings.values(), why] for name, why in (skipped or {}).items())
+    rows = [[name, f"{dur:.4f}", len(segs), f"{sum(s.end - s.start for s in segs):.4f}", *settings.values(), ""]
+            for name, dur, segs, *_ in results]
+    rows += [[name, "", "", "", *settings.values(), why] for name, why in (skipped or {}).items()]
+    w.writerows(sorted(rows, key=lambda r: order.get(r[0], len(order))) if order else rows)
     return text.getvalue()
 
 
@@ -306,7 +309,7 @@ def write_clip(path: Path, media: Path, seg: Segment, channel: int | None = None
 
 def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]], formats: tuple[str, ...],
                   extra: dict[str, str] | None = None, settings: dict | None = None,
-                  skipped: dict[str, str] | None = None) -> list[Path]:
+                  skipped: dict[str, str] | None = None, order: dict[str, int] | None = None) -> list[Path]:
     """Write ``segments.csv``, ``recordings.csv`` (with ``settings`` and ``skipped``: :func:`recordings_text`) and
     per-input
     ``NAME.txt`` / ``NAME.TextGrid`` / ``NAME.eaf`` (and with ``audio`` each
@@ -343,7 +346,7 @@ def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]]
             w.writerows([name, f"{s.start:.4f}", f"{s.end:.4f}", f"{s.prob:.4f}"] for name, _, segs, *_ in results
                         for s in segs)
             put(out_dir / "segments.csv", text.getvalue())
-            put(out_dir / "recordings.csv", recordings_text(results, settings or {}, skipped))
+            put(out_dir / "recordings.csv", recordings_text(results, settings or {}, skipped, order))
         for name, text in (extra or {}).items():
             put(out_dir / name, text)
         with deferred():
