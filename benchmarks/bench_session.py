@@ -8,9 +8,11 @@ default detector, 3 passes over it.
 
 Run: ``python benchmarks/bench_session.py`` (about 20 s); writes ``benchmarks/results/session.json``.
 ``--paced`` feeds one block every 1/60 s, as a game's loop does (a frame budget review, 2026-11-29: back to back,
-the figures were 2.5-3 times lower than paced, where each feed wakes the session's thread); ``--overrides
+the figures were up to 2.5-3 times lower than paced under load, where each feed wakes the session's thread; 1.1-2.5
+times in quieter sittings); ``--overrides
 body=hill`` (any of the command line's) measures another pipeline.  Besides the mean, median and p99 it gives the
-first feed (warm-up), the worst after it, and how many feeds took over 1 ms and over a 60 fps frame (16.7 ms).
+first feed (warm-up), the worst of the feeds after the first 30 (the model's first windows) and how many of them
+took over 1 ms, and how many feeds of all took over a 60 fps frame (16.7 ms).
 """
 from __future__ import annotations
 

@@ -95,7 +95,8 @@ class LiveParams:
         Largest abdominal hold a call may add when played from a template (activation; the
         offline fits of the synthetic corpus add 0.01-0.06 a call): one poor fit cannot lock the abdomen.
     threaded : str
-        ``auto`` (a background thread for live input, in the frame otherwise), ``yes`` or ``no``.
+        ``auto`` (a background thread for live input and in a ``laughlab.Session``, in the frame otherwise), ``yes``
+        or ``no``.
     adopt_after_s : float
         A call's fit becomes the template of the first call starting at least this long after it ended (s).
     fit : FitParams
@@ -253,10 +254,13 @@ class LiveFitter:
             self._adopt(fit.result() if self._pool is not None else fit)
 
     def close(self) -> None:
-        """Wait for a fit in progress and stop the thread."""
-        self._collect()
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
+        """Wait for a fit in progress and stop the thread (also when the fit failed: its error is raised after; a
+        diff review found the thread left running)."""
+        try:
+            self._collect()
+        finally:
+            if self._pool is not None:
+                self._pool.shutdown(wait=True)
 
     # -- per frame
     def update(self, k: int, pressure: float, torso) -> None:
