@@ -192,8 +192,9 @@ def read_eaf_annotation(path: str | Path, duration_s: float | None = None) -> An
                  for ts in root.iter("TIME_SLOT") if ts.get("TIME_VALUE") is not None}
     except ValueError:
         raise LaughlabError(f"bad ELAN file {path}: a TIME_VALUE is not a whole number of milliseconds") from None
-    tiers = {t.get("TIER_ID"): t for t in root.iter("TIER")}
-    ids = [t.get("TIER_ID") for t in root.iter("TIER")]
+    elems = list(root.iter("TIER"))
+    ids = [t.get("TIER_ID") for t in elems]
+    tiers = dict(zip(ids, elems))
     twice = sorted({str(i) for i in ids if ids.count(i) > 1})
     if twice:   # the last of them was read alone, the others' laughs dropped unsaid (a diff review)
         raise LaughlabError(f"bad ELAN file {path}: two tiers share the id {twice[0]!r}; ELAN needs each tier's own")

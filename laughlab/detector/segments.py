@@ -45,11 +45,9 @@ class Segment:
 def laughter_prob(audio: np.ndarray, sample_rate: int, hop_s: float = 0.5, model=None, score=None, progress=None):
     """(times (s), probabilities) of a whole signal: the head's probability, one window every ``hop_s``
     (``progress``: see :func:`laughlab.detector.yamnet.window_scores`)."""
-    from laughlab.detector.yamnet import CONVERT_CHUNK
+    from laughlab.detector.yamnet import chunks
 
-    x = np.ravel(audio)
-    t, p, _ = laughter_prob_blocks((x[i:i + CONVERT_CHUNK] for i in range(0, max(len(x), 1), CONVERT_CHUNK)),
-                                   sample_rate, hop_s, model, score, progress, len(x))
+    t, p, _ = laughter_prob_blocks(chunks(audio), sample_rate, hop_s, model, score, progress, np.size(audio))
     return t, p
 
 

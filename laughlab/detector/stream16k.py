@@ -234,7 +234,7 @@ class Window16k:
         return out
 
 
-#: input samples converted at a time by ``to_16k`` and ``window_scores``: the conversion does not depend on how
+#: input samples converted at a time by ``to_16k`` and ``window_scores`` (:func:`chunks`): the conversion does not depend on how
 #: the input is cut, and on a 30-minute file the whole-signal temporaries (hundreds of MB) cost more in page
 #: faults than the arithmetic (``laughlab detect``: 10.9 s to convert it whole, 2026-11-26)
 CONVERT_CHUNK = 1 << 18
@@ -244,9 +244,14 @@ def pieces_16k(audio: np.ndarray, sample_rate: int):
     """A whole signal at 16 kHz in pieces, ``CONVERT_CHUNK`` input samples at a time (the live conversion's
     bytes, :class:`Resampler16k`); at least one piece."""
     rs = Resampler16k(sample_rate)
-    x = np.asarray(audio).ravel()   # each piece made float64 by push: no float64 copy of the whole signal
-    for i in range(0, max(len(x), 1), CONVERT_CHUNK):
-        yield rs.push(finite(x[i:i + CONVERT_CHUNK]))
+    for piece in chunks(audio):   # each piece made float64 by push: no float64 copy of the whole signal
+        yield rs.push(finite(piece))
+
+
+def chunks(audio: np.ndarray):
+    """A whole signal's samples ``CONVERT_CHUNK`` at a time, as views (at least one, empty for an empty signal)."""
+    x = np.asarray(audio).ravel()
+    return (x[i:i + CONVERT_CHUNK] for i in range(0, max(len(x), 1), CONVERT_CHUNK))
 
 
 def finite(piece: np.ndarray) -> np.ndarray:

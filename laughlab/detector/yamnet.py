@@ -24,7 +24,7 @@ import numpy as np
 
 from laughlab.detector import yamnet_model as _model
 from laughlab.detector.stream16k import (  # noqa: F401  (the names users of this module know)
-    CONVERT_CHUNK, Resampler16k, Window16k, cleaned, finite, pieces_16k, sosfilt_carry, to_16k)
+    CONVERT_CHUNK, Resampler16k, Window16k, chunks, cleaned, finite, pieces_16k, sosfilt_carry, to_16k)
 from laughlab.detector.yamnet_model import (  # noqa: F401  (the names users of this module know)
     BANDS, FRAME, HOP, LAUGH_CLASSES, MODEL_SHA256, N_CLASSES, NOISE_CLASSES, NOISE_VETO, OTHER_HUMAN_CLASSES, RATE,
     RESTORE, ROWS, WINDOW, ModelFileError, Yamnet, class_names, data_dir, frame_starts, frames, frames_at, laugh_indices,
@@ -296,7 +296,9 @@ class WindowScores:
         self._ready(False)
 
     def want(self, ends) -> None:
-        e16 = self.end16(ends)
+        self._want16(self.end16(ends))
+
+    def _want16(self, e16: list[int]) -> None:
         if e16 and min(e16) < WINDOW:
             raise ValueError("a window ends outside the audio")
         self.queue.extend(e16)
@@ -336,11 +338,11 @@ def window_scores(audio: np.ndarray, sample_rate: int, ends: np.ndarray, model: 
     sr, x = int(sample_rate), np.ravel(audio)
     w = WindowScores(sr, model, len(x), threads=model.bundled and len(ends) > 64)
     e16 = w.end16(ends)
-    if e16 and (min(e16) < WINDOW or max(e16) > len(w.pad)):   # before any work
+    if e16 and max(e16) > len(w.pad):   # before any work (one ending before the audio: _want16)
         raise ValueError("a window ends outside the audio")
-    w.want(ends)
-    for i in range(0, max(len(x), 1), CONVERT_CHUNK):
-        w.push(x[i:i + CONVERT_CHUNK])
+    w._want16(e16)
+    for piece in chunks(x):
+        w.push(piece)
         if progress is not None:
-            progress(len(x[i:i + CONVERT_CHUNK]) / sr)
+            progress(len(piece) / sr)
     return w.finish()
