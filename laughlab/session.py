@@ -21,10 +21,12 @@ calls in a thread, as live, with a file's bytes; the calibration of ``extractor=
 """
 from __future__ import annotations
 
+import atexit
 import functools
 import numbers
 import queue
 import re
+import sys
 import tempfile
 import threading
 import warnings
@@ -192,6 +194,30 @@ def _abandon(src: _FedSource, state: _State) -> None:
     src.samples.put(None)
 
 
+#: how long the interpreter's exit waits for each unclosed session to write its outputs (s)
+FINISH_AT_EXIT_S = 120.0
+
+_START = threading.Lock()   # a run that ends at once removes itself after it was added
+
+#: the runs of sessions not closed: (input, state, thread) by the thread's id, each removed when its run ends
+_RUNNING: dict[int, tuple] = {}
+
+
+@atexit.register
+def _finish_unclosed() -> None:
+    """End the input of every session still running at the interpreter's exit and wait for its outputs (a
+    Python user's program that never closed its session: the daemon thread was cut off mid-run, leaving hidden
+    ``.part`` files and no outputs, and under load Python aborted, exit 134)."""
+    running = list(_RUNNING.values())
+    for src, state, _ in running:
+        _abandon(src, state)
+    for _, _, thread in running:
+        thread.join(FINISH_AT_EXIT_S)
+        if thread.is_alive():
+            sys.stderr.write(f"laughlab: an unclosed Session did not finish within {FINISH_AT_EXIT_S:g} s of the "
+                             "program's end; its outputs are not written (close it: Session.close())\n")
+
+
 class Session:
     """A laughlab run fed by your program (module docstring).
 
@@ -320,6 +346,8 @@ class Session:
             except BaseException as exc:   # handed to the caller's thread by feed() or close()
                 state.error = exc
             finally:
+                with _START:
+                    _RUNNING.pop(threading.get_ident(), None)
                 src.hungry.set()
                 if state.abandoned and tmp is not None:
                     tmp.cleanup()
@@ -327,7 +355,9 @@ class Session:
         self._thread = threading.Thread(target=run, name="laughlab-session", daemon=True)
         # a session dropped unclosed ends its input: its thread computes the last frame, writes the outputs, stops
         self._finalizer = weakref.finalize(self, _abandon, src, state)
-        self._thread.start()
+        with _START:
+            self._thread.start()
+            _RUNNING[self._thread.ident] = (src, state, self._thread)
 
     @property
     def metrics(self) -> dict | None:

@@ -209,3 +209,24 @@ def test_a_fit_that_fails_still_stops_its_thread(monkeypatch):
             body.step(Frame(k, k / FPS, 1 / FPS, {"pressure": float(v)}))
         body.close()
     assert body.live._pool._shutdown
+
+
+def test_fits_submitted_after_the_thread_stopped_run_in_the_frame_with_the_same_bytes(monkeypatch):
+    """At the interpreter's exit Python stops the fit thread before an unclosed Session's run has ended: a call
+    that ended then was refused ("cannot schedule new futures after interpreter shutdown") and the run lost its
+    outputs. Such a fit runs in the frame: the bytes of the fit in the thread."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    target = pulses(4)
+    fit = hf.FitParams(**CHEAP)
+    _, inline = run_body(target, fit=fit, threaded="no")
+
+    class Stopped(ThreadPoolExecutor):
+        def __init__(self, *a, **kw):
+            super().__init__(*a, **kw)
+            self.shutdown()
+
+    monkeypatch.setattr("laughlab.hill.live.ThreadPoolExecutor", Stopped)
+    body, stopped = run_body(target, fit=fit, threaded="yes")
+    assert body.live.threaded and len(body.live.fits) == 4
+    np.testing.assert_array_equal(stopped, inline)

@@ -512,3 +512,29 @@ def test_a_sessions_high_pass_is_input_files(recording, tmp_path):
         assert filecmp.cmp(tmp_path / "s" / name, tmp_path / "cli" / name, shallow=False), name
     with pytest.raises(LaughlabError, match=r"^highpass_hz must be 0-1000 Hz \(got -1\)$"):
         Session([], sample_rate=sr, highpass_hz=-1)
+
+
+def test_a_session_left_unclosed_at_the_programs_end_writes_its_outputs(recording, tmp_path):
+    """The seventeenth session's note: at the interpreter's exit the daemon thread of an unclosed ``body=hill``
+    session was cut off mid-run: its outputs stayed hidden ``.part`` files (and under load Python aborted, exit
+    134). The exit now ends its input and waits for the outputs: the files a closed session writes, byte for byte."""
+    import subprocess
+    import sys
+
+    code = ("import sys, laughlab, soundfile as sf\n"
+            "x, sr = sf.read(sys.argv[1], dtype='float32')\n"
+            "s = laughlab.Session(['body=hill', 'extractor=pressure'], sample_rate=sr, outputs=['files'], "
+            "out_dir=sys.argv[2])\n"
+            "for i in range(0, len(x), 4410):\n"
+            "    s.feed(x[i:i + 4410])\n"
+            "if sys.argv[3] == 'close':\n"
+            "    s.close()\n")
+    runs = {how: subprocess.run([sys.executable, "-c", code, str(recording), str(tmp_path / how), how],
+                                capture_output=True, text=True, timeout=300) for how in ("close", "leave")}
+    for how, run in runs.items():
+        assert run.returncode == 0, (how, run.stderr[-2000:])
+    left = sorted(p.name for p in (tmp_path / "leave").iterdir())
+    assert left == sorted(p.name for p in (tmp_path / "close").iterdir()) and "motion.bvh" in left
+    assert not [n for n in left if n.endswith(".part")]
+    for name in ("channels.csv", "motion.bvh", "face_arkit.csv"):
+        assert filecmp.cmp(tmp_path / "leave" / name, tmp_path / "close" / name, shallow=False), name

@@ -55,7 +55,7 @@ from __future__ import annotations
 import collections
 import math
 import time
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -233,6 +233,16 @@ class LiveFitter:
         return {"start": start, "end": start + len(target), "x": x, "peak": float(np.max(target)) if len(target) else 0.0,
                 "error": err, "evals": problem.evals, "seconds": time.perf_counter() - t0}
 
+    def _submit(self, args) -> Future:
+        """The fit in the thread; in this one, the same fit, once the thread has stopped at the interpreter's exit
+        (an unclosed ``Session`` finishing its run there: Python's exit stops the thread first)."""
+        try:
+            return self._pool.submit(self._fit, *args)
+        except RuntimeError:   # "cannot schedule new futures after (interpreter) shutdown"
+            done = Future()
+            done.set_result(self._fit(*args))
+            return done
+
     def _adopt(self, rec: dict) -> None:
         self.fits.append(rec)
         self.fitted += 1
@@ -279,7 +289,7 @@ class LiveFitter:
                 args = (target, s, state, [_Entry(x.x.copy(), x.t_call, x.t_release) for x in earlier],
                         self.template[0])
                 due = k + self.delay
-                self.pending.append((due, self._pool.submit(self._fit, *args) if self.threaded else self._fit(*args)))
+                self.pending.append((due, self._submit(args) if self.threaded else self._fit(*args)))
                 self.current, self.buffer = None, []
                 self.last_end_s = e / self.fps
             else:
