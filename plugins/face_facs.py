@@ -142,10 +142,12 @@ class FacsFace(Face):
         self.envelope = Envelope(p.envelope_release_s, dt)
         self.sides = draw_sides(self.ctx.rng, _SIDED, p.asymmetry, p.desync_s)
         self.lines = [DelayLine(p.desync_s, dt) for _ in _SIDED]
-        self._var = [(self.sides[u].gain, self.sides[u].delay_s) for u in _SIDED]
+        # AU43 closes both eyes fully (gain 1, its delay kept): with its gain in [0.9, 1] a closed eye showed a gap
+        # (eyeBlink 0.73-0.94 where eyes_closed was 1; a facial animator's review); still drawn, the same draws after
+        self._var = [((1.0, 1.0) if u == "au43" else self.sides[u].gain, self.sides[u].delay_s) for u in _SIDED]
         self.arkit = ArkitMap(_SIDED)
         self.blinker = Blinker(self.ctx.rng, p.blink_mean_s, p.blink_sd_s, p.blink_min_interval_s,
-                               p.blink_close_s, p.blink_open_s)
+                               p.blink_close_s, p.blink_open_s, dt=self.ctx.dt)
         self.head = HeadMotion(p.head, self.ctx.clips) if p.head.enabled else None
         self._jaw = [(ACTION_UNITS.index(u), w) for u, w in _JAW_WEIGHTS.items()]
         self._i43 = ACTION_UNITS.index("au43")

@@ -71,7 +71,7 @@ class SmileFace(Face):
         self.smile = Smoother(p.smile, self.ctx.dt)
         self.jaw = Smoother(p.jaw, self.ctx.dt)
         self.blinker = Blinker(self.ctx.rng, p.blink_mean_s, p.blink_sd_s, p.blink_min_interval_s,
-                               p.blink_close_s, p.blink_open_s)
+                               p.blink_close_s, p.blink_open_s, dt=self.ctx.dt)
         self.retraction = (None if p.retract_s is None else
                            Retraction([(self.smile, "e"), (self.jaw, "e")], p.retract_s, self.ctx.dt))
         self.reset()

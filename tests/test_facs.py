@@ -142,7 +142,7 @@ def test_draw_sides_bounds_and_seed():
 
 def test_blinker_is_the_smile_face_blink_rule():
     sm = SmileFace(SmileParams(), Context(rng=np.random.default_rng(5)))
-    bl = Blinker(np.random.default_rng(5))
+    bl = Blinker(np.random.default_rng(5), dt=DT)
     eyes = (np.arange(3000) // 200) % 3 == 0  # clip closes the eyes now and then
     for k in range(3000):
         fr = Frame(k, k * DT, DT, {"mcs": 0.0})
@@ -166,6 +166,31 @@ def test_a_blink_by_hand():
     bl = Blinker(np.random.default_rng(0), mean_s=-3.0, sd_s=0.0, min_interval_s=0.5)
     assert bl.step(0.0, busy=False) == 0.0 and bl.step(0.49, busy=False) == 0.0   # a negative draw: 0.5 s
     assert bl.step(0.5, busy=False) == 0.0 and bl.step(0.54, busy=False) == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize("face", ["smile", "facs", "cgm"])
+@pytest.mark.parametrize("fps", [24, 25, 30, 60])
+def test_every_blink_closes_the_eyes_on_a_frame_at_every_frame_rate(face, fps):
+    """A facial animator's review: the blink was sampled in time, so at 30 fps no frame fell on the closed key
+    (0.08 s) and every blink stopped at 0.83 (0.97 at 24 and 60 fps). Played on the frame grid, each blink rises
+    over round(0.08 fps) frames to 1 and falls over round(0.12 fps), at every rate and in every face."""
+    from laughlab_plugins.face_cgm import CgmFace, CgmParams
+
+    make = {"smile": (SmileFace, SmileParams), "facs": (FacsFace, FacsParams), "cgm": (CgmFace, CgmParams)}[face]
+    f = make[0](make[1](), Context(fps=fps, rng=np.random.default_rng(3)))
+    blink = []
+    for k in range(40 * fps):   # silence: blinks alone, every 4 s or so
+        fr = Frame(k, k / fps, 1 / fps, {"mcs": 0.0, "rms": 0.0})
+        f.step(fr)
+        blink.append(fr.channels["blink"])
+    b = np.array(blink)
+    starts = np.flatnonzero((b[1:] > 0) & (b[:-1] == 0))
+    n_close, n_open = max(1, round(0.08 * fps)), max(1, round(0.12 * fps))
+    assert len(starts) >= 5
+    for s in starts[:-1]:
+        np.testing.assert_allclose(b[s + 1:s + n_close + n_open + 1], np.r_[np.arange(1, n_close + 1) / n_close,
+                                                                          1 - np.arange(1, n_open) / n_open, 0.0],
+                                   atol=1e-12)
 
 
 # --- the face ---------------------------------------------------------------------------------
@@ -398,3 +423,17 @@ def test_a_weight_outside_0_1_is_said_once_and_clipped(tmp_path, capsys):
     assert (tmp_path / "face_arkit.csv").read_text().splitlines()[1:3] == ["0.000000,0.200000,0.500000",
                                                                         "0.016667,0.000000,1.000000"]
 
+
+
+def test_a_closed_eye_is_closed_on_both_sides_whatever_the_sides_drawn():
+    """A facial animator's review: AU43's per-side gain (0.9-1) left a gap in an eye the face said was closed
+    (eyeBlink 0.73-0.94 where eyes_closed was 1). The closure keeps its per-side delay, not its gain."""
+    for seed in range(5):
+        f = FacsFace(FacsParams(), Context(rng=np.random.default_rng(seed)))
+        assert min(f.sides["au43"].gain) < 1.0   # a gain below 1 was drawn for it
+        for k in range(240):   # 4 s of a clip holding the eyes closed
+            fr = Frame(k, k * DT, DT, {"mcs": 0.0})
+            fr.clip_eyes = 1.0
+            f.step(fr)
+        ch = fr.channels
+        assert ch["eyes_closed"] == 1.0 and ch["arkit.eyeBlinkLeft"] == ch["arkit.eyeBlinkRight"] == 1.0

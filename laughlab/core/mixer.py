@@ -195,18 +195,21 @@ def mid_clip(mixer) -> bool:
     return (mixer.clip is not None and not mixer.clip.loop) or mixer.blend_from is not None
 
 
-#: a face whose ``smile`` and ``jaw`` moved less than this in the last frame (weights) has settled: ``run_out`` ends
+#: a face whose ``smile`` and ``jaw`` are at most this (weights) and moved at most this in the last frame is at rest:
+#: ``run_out`` ends
 FACE_STILL = 1e-3
 
 
 def settling(mixer, before, frame) -> bool:
-    """``run_out`` goes on: :func:`mid_clip`, or the face still returns to rest, its ``smile`` or ``jaw`` moving by
-    more than :data:`FACE_STILL` from the frame ``before`` to ``frame`` (since 2026-11-29; a review of baked assets in
-    Blender: the body stood at rest and the face still smiled at 0.29, face=facs' smile falling 0.2 a second)."""
+    """``run_out`` goes on: :func:`mid_clip`, or the face is not yet at rest: its ``smile`` or ``jaw`` above
+    :data:`FACE_STILL`, or moving by more than it from the frame ``before`` to ``frame`` (since 2026-11-29; a review
+    of baked assets in Blender: the body stood at rest and the face still smiled at 0.29, face=facs' smile falling
+    0.2 a second). Above, since 2026-11-29's eighteenth session: the default face's smile is clipped at 1 while its
+    state falls (thesis Eq. 3.3's output range), so it did not move, and a facial animator's review saw run_out end
+    on a full smile."""
     if mid_clip(mixer):
         return True
     if before is None or frame is None:
         return False
     a, b = before.channels, frame.channels
-    return abs(b.get("smile", 0.0) - a.get("smile", 0.0)) > FACE_STILL or \
-        abs(b.get("jaw", 0.0) - a.get("jaw", 0.0)) > FACE_STILL
+    return any(b.get(c, 0.0) > FACE_STILL or abs(b.get(c, 0.0) - a.get(c, 0.0)) > FACE_STILL for c in ("smile", "jaw"))

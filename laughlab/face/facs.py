@@ -76,7 +76,8 @@ than posed ones (Ekman, Hager & Friesen 1981), so the defaults are small: gains
 within 10 % and delays within 50 ms (our choice: below one blink's closing time,
 80 ms, so the sides stay visibly one expression).  With the different onset and
 offset rates of the units this gives the "not synchronized and not symmetric"
-smile the thesis asks for (6.1).  Blinks (AU45) stay symmetric and synchronous, and
+smile the thesis asks for (6.1).  Blinks (AU45) stay symmetric and synchronous, the eyes'
+closure (AU43) keeps its delays but not its gains (a closed eye is closed on both sides), and
 the midline shapes (``jawOpen``, ``browInnerUp``) take ``a_u(t)`` itself: a jaw has
 no sides, and the mean of two delayed copies opened it a median 17 ms late.
 """
