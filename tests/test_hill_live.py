@@ -71,12 +71,13 @@ def test_each_call_is_fitted_and_becomes_the_next_template(bout):
     assert ab[-1] < ab[6 + 15 * 5 + 6]
     # played live from an earlier call's fit (a call ends 9 frames before the next begins, so with adopt_after_s
     # 0.25 s, 15 frames, call i plays call i - 2's fit), the pressure follows the pulses: from the third call on,
-    # the normalised error of every call is below 0.6 and the pressure peaks within 2 frames of the target's
+    # the normalised error of every call is below 0.7 (0.6 before hold_feedback, which plays a call after one that
+    # overshot without an abdominal step: 0.68 here) and the pressure peaks within 2 frames of the target's
     p = out[:, 0]
     for i in range(2, 6):
         k = 6 + 15 * i
         seg, sim = target[k:k + 15], p[k:k + 15]
-        assert np.sqrt(np.mean((sim - seg) ** 2)) / np.sqrt(np.mean(seg ** 2)) < 0.6
+        assert np.sqrt(np.mean((sim - seg) ** 2)) / np.sqrt(np.mean(seg ** 2)) < 0.7
         assert abs(int(np.argmax(sim)) - int(np.argmax(seg))) <= 2
 
 
@@ -230,3 +231,50 @@ def test_fits_submitted_after_the_thread_stopped_run_in_the_frame_with_the_same_
     body, stopped = run_body(target, fit=fit, threaded="yes")
     assert body.live.threaded and len(body.live.fits) == 4
     np.testing.assert_array_equal(stopped, inline)
+
+
+def test_a_quiet_call_is_counted_not_fitted_and_never_the_template():
+    """The seventeenth session's note: on robinhood76's laugh a three-frame ripple of 0.007 cm H2O between calls
+    of 0.1 was fitted with activations of 0.6 at an error of 0.19, became the template, and the next call played it
+    at twice its scale: the pressure reached 1.5 cm H2O against a target of 0.18 (whole-file error 6.2). A call under
+    fit.quiet_frac (5%) of the highest call peak so far is counted and not fitted, as the offline fit does."""
+    target = pulses(5, height=0.2)
+    k = 6 + 15 * 2 + 7                        # a ripple at 4% of the calls' height between the third and the fourth
+    target[k:k + 3] = 0.008 * np.array([0.5, 1.0, 0.5])
+    body, _ = run_body(target, fit=hf.FitParams(**CHEAP), threaded="no")
+    live = body.live
+    assert live.quiet == 1 and live.fitted == len(live.fits) == 5
+    assert [r["start"] for r in live.fits] == [6 + 15 * i for i in range(5)]
+    assert all(r["peak"] > 0.1 for r in live.fits)
+    # the first call of a run is never quiet (it is its own loudest), however low
+    body, _ = run_body(pulses(2, height=0.01), fit=hf.FitParams(**CHEAP), threaded="no")
+    assert body.live.quiet == 0 and body.live.fitted == 2
+
+
+def test_the_abdomen_holds_more_only_after_a_call_that_fell_short_of_its_target(monkeypatch):
+    """The template's abdominal step, added call after call whatever the torso's state, ratcheted the abdomen to
+    saturation (0.66-0.88 through the synthetic laughter's bouts; 5.7x the target's pressure on hedgewars'
+    Classic laugh). A call adds to the hold only while the torso's pressure in the last call stayed at or below
+    that call's target peak (feedback the live controller has: its own torso)."""
+    seen = []
+    scaled = LiveFitter._scaled
+
+    def spy(self, peak):
+        x = scaled(self, peak)
+        seen.append((self.overshoot, float(x[0])))
+        return x
+
+    monkeypatch.setattr(LiveFitter, "_scaled", spy)
+    run_body(pulses(8), fit=hf.FitParams(**CHEAP), threaded="no")
+    over = [x for o, x in seen if o]
+    short = [x for o, x in seen if not o]
+    assert over and short and all(x == 0.0 for x in over) and max(short) > 0.0
+    live = LiveFitter(LiveParams(threaded="no"), FPS, None)
+    assert live._scaled(FIRST_TEMPLATE[1])[0] > 0.0
+    live.overshoot = True
+    x = live._scaled(FIRST_TEMPLATE[1])
+    assert x[0] == 0.0 and x[1] == pytest.approx(FIRST_TEMPLATE[0][1])   # the other muscles play as before
+    live = LiveFitter(LiveParams(threaded="no", hold_feedback=False), FPS, None)   # the rule before
+    live.overshoot = True
+    assert live._scaled(FIRST_TEMPLATE[1])[0] == pytest.approx(FIRST_TEMPLATE[0][0])
+

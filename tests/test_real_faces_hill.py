@@ -100,3 +100,27 @@ def test_hill_fits_the_example_laugh(laughs):
     s = res.summary()
     assert s["error_median"] <= 0.18                     # measured 0.134 (the level-free pressure: 0.141)
     assert s["evals_mean"] <= 1000 + 200 + 49            # the budget: max_evals + polish (+ one batch)
+
+
+@pytest.mark.parametrize("laugh, before, measured", [
+    ("ovos/female-132252__robinhood76__02940-insane-women-laughter.wav", 6.18, 1.06),
+    ("hedgewars/Classic-Laugh.ogg", 5.72, 2.05),
+])
+def test_the_live_hill_torso_does_not_blow_up_on_real_laughs(laugh, before, measured, tmp_path):
+    """The seventeenth session's note: live control (``body=hill``'s default) played these two laughs at 5-8 times
+    their target pressure (whole-file error, the paper's 6.2 measure over channels.csv: 6.18 and 5.72): a quiet
+    ripple fitted as a call became the template, and the abdomen's hold ratcheted call after call. With quiet calls
+    left unfitted and the hold fed back, 1.06 and 2.05 (the default pipeline, 2026-11-29)."""
+    import pandas as pd
+
+    from inprocess import laughlab
+
+    path = fetch.corpus_dir() / "files" / laugh
+    r = laughlab("input=file", f"input.path={path}", "extractor=pressure", "body=hill", "~output.plots",
+                 f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 0, r.stderr
+    d = pd.read_csv(tmp_path / "r" / "channels.csv")
+    target, played = d["pressure"].to_numpy(), d["lung_pressure"].to_numpy()
+    err = float(np.sqrt(np.mean((played - target) ** 2)) / np.sqrt(np.mean(target ** 2)))
+    assert err < min(2.5, before / 2), err
+    assert played.max() < 2 * target.max()

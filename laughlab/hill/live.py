@@ -17,8 +17,18 @@ from the fit of an earlier call:
    amplitudes scaled by ``sqrt(peak so far / template's peak)``, updated every
    frame until the call ends (pressure goes as the square of the flow, ``P = k
    Q^2``, the flow as the activation).  Before the first fit the template is
-   :data:`FIRST_TEMPLATE`.
-3. When a call ends, its frames are fitted (:class:`laughlab.hill.fit.CallProblem`,
+   :data:`FIRST_TEMPLATE`.  The abdomen's step (its hold, ``x[0]``, which each
+   call adds to) is played only while the torso's own pressure in the last call
+   stayed at or below that call's target peak (our feedback, since
+   2026-11-29: the template's step, added call after call whatever the state,
+   ratcheted the abdomen up to saturation and the pressure to 5-8 times the
+   target's; the offline fit chooses each step knowing the state).
+3. A call whose peak is under ``fit.quiet_frac`` (5%) of the highest call peak so
+   far is counted (``quiet``) and not fitted, as the offline fit leaves quiet
+   calls undriven (the causal counterpart of its 99th percentile of the whole
+   target: a three-frame ripple of 0.007 cm H2O fitted with activations of 0.6
+   became the template and drove the next calls at twice the template's scale).
+   When any other call ends, its frames are fitted (:class:`laughlab.hill.fit.CallProblem`,
    the offline fit's cost, optimiser and primitives) from the torso's state at
    the call's onset, on top of what the earlier calls play; the result becomes
    the template of the first call that starts at least ``adopt_after_s`` (0.25 s)
@@ -99,6 +109,9 @@ class LiveParams:
         or ``no``.
     adopt_after_s : float
         A call's fit becomes the template of the first call starting at least this long after it ended (s).
+    hold_feedback : bool
+        Add the template's abdominal step to the hold only after a call whose played pressure stayed at or below
+        its target's peak (module notes, step 2); ``False``: every call, the rule before 2026-11-29.
     fit : FitParams
         The per-call fit (:class:`laughlab.hill.fit.FitParams`); by default 400 + 100 evaluations.
     """
@@ -112,6 +125,7 @@ class LiveParams:
     max_step: float = 0.1
     threaded: str = "auto"
     adopt_after_s: float = 0.25
+    hold_feedback: bool = True
     fit: FitParams = field(default_factory=_fit_defaults)
 
     def __post_init__(self) -> None:
@@ -204,6 +218,10 @@ class LiveFitter:
         # frames held for a fit due and unfinished (threaded): how long (s), the latest FITS_KEPT; all counted
         self.waits: collections.deque = collections.deque(maxlen=FITS_KEPT)
         self.held, self.held_max_s = 0, 0.0
+        self.loudest = 0.0           # the highest call peak so far (cm H2O): quiet calls are below quiet_frac of it
+        self.quiet = 0               # quiet calls, not fitted
+        self.played_peak = 0.0       # the torso's highest pressure in the current call (cm H2O)
+        self.overshoot = False       # the last call's played pressure rose above its target's peak
 
     # -- fitting
     def _scaled(self, peak: float) -> np.ndarray:
@@ -213,6 +231,8 @@ class LiveFitter:
         out = x.copy()
         out[:3] *= s
         out[0] = min(out[0], self.p.max_step)
+        if self.overshoot and self.p.hold_feedback:   # the last call played above its target: no more abdominal hold (module notes, step 2)
+            out[0] = 0.0
         return out
 
     def _fit(self, target, start: int, state, entries: list, u_start) -> dict:
@@ -279,17 +299,22 @@ class LiveFitter:
         v = float(pressure) if np.isfinite(pressure) else 0.0
         if self.current is not None:
             self.buffer.append(v)
+            self.played_peak = max(self.played_peak, float(torso.lung.gauge_cmh2o[0]))
         for ev in self.tracker.update(k, v):
             if ev[0] == "end":
                 entry, state = self.current
                 _, s, e, peak = ev
                 entry.x = self._scaled(peak)
-                target = self.buffer[:e - s]
-                earlier = [x for x in self.entries if x is not entry]
-                args = (target, s, state, [_Entry(x.x.copy(), x.t_call, x.t_release) for x in earlier],
-                        self.template[0])
-                due = k + self.delay
-                self.pending.append((due, self._submit(args) if self.threaded else self._fit(*args)))
+                self.loudest = max(self.loudest, peak)
+                self.overshoot = self.played_peak > peak
+                self.played_peak = 0.0
+                if peak >= self.p.fit.quiet_frac * self.loudest:
+                    earlier = [x for x in self.entries if x is not entry]
+                    args = (self.buffer[:e - s], s, state, [_Entry(x.x.copy(), x.t_call, x.t_release) for x in earlier],
+                            self.template[0])
+                    self.pending.append((k + self.delay, self._submit(args) if self.threaded else self._fit(*args)))
+                else:   # a quiet call: counted, not fitted (module notes, step 3)
+                    self.quiet += 1
                 self.current, self.buffer = None, []
                 self.last_end_s = e / self.fps
             else:
