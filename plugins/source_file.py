@@ -1,6 +1,7 @@
 """Source ``file``: a recording read in blocks (any format and rate soundfile reads)."""
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Optional
@@ -114,8 +115,12 @@ class FileSource(Source):
         self.n_frames = n_frames_for(info.frames, self.sample_rate, self.ctx.fps)
         self.duration_s = info.frames / info.samplerate
         self.truth = RecordingTruth.read(self.params.truth, self.duration_s) if self.params.truth else None
-        self.peak = 0.0   # the loudest finite sample read (by any reader of the file: the same file)
-        self.total, self.count = 0.0, 0   # the finite samples' sum and number: the file's DC offset (input_dc)
+        # the loudest finite sample, and the finite samples' sum and number (the file's DC offset, input_dc), of the
+        # reader furthest into the file: the main loop's and the detector's look-ahead read it in the same order;
+        # both added to one sum from two threads, updates were lost and the order varied (a reproducibility
+        # review: input_dc differed in 1 of 25 runs, and in 1-4 of an experiment's 64 trials)
+        self.peak, self.total, self.count = 0.0, 0.0, 0
+        self._stats = threading.Lock()
 
     def save_artifacts(self, out_dir: Path) -> list[Path]:
         """``truth.csv`` from ``input.truth``, whole or not at all (nothing without it)."""
@@ -142,12 +147,16 @@ class FileSource(Source):
             from laughlab.signals.highpass import CausalHighpass
 
             hp = CausalHighpass(self.params.highpass_hz, self.sample_rate)
+        peak, total, count = 0.0, 0.0, 0
         for chunk in read_blocks(self.params.path, channel=self.params.channel):
             finite = chunk[np.isfinite(chunk)]
             if finite.size:
-                self.peak = max(self.peak, float(np.abs(finite).max()))
-                self.total += float(finite.sum(dtype=np.float64))
-                self.count += finite.size
+                peak = max(peak, float(np.abs(finite).max()))
+                total += float(finite.sum(dtype=np.float64))
+                count += finite.size
+                with self._stats:
+                    if count > self.count:
+                        self.peak, self.total, self.count = peak, total, count
             if hp is not None:
                 chunk = hp.step(chunk)
             yield chunk

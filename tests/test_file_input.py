@@ -177,3 +177,34 @@ def test_the_float_wav_at_its_real_limit(tmp_path):
     with pytest.raises(LaughlabError, match=r"short\.wav: 6\.2 h of audio at 48000 Hz is past what a WAV file holds"):
         w.close()
     assert w.f.closed
+
+
+def test_the_dc_offset_is_one_reads_whoever_else_reads_the_file(tmp_path):
+    """A reproducibility review: the detector's look-ahead and the main loop read the file at once, both adding to
+    one sum from two threads: updates were lost and their order varied, so metrics.json's input_dc differed in 1 of
+    25 runs of one file (in 1-4 of an experiment's 64 trials). The source keeps each reader's own sums and reports
+    the furthest reader's: with readers in threads, the same numbers as one read alone, to the bit."""
+    import threading
+
+    from laughlab.core.bases import Context
+    from laughlab_plugins.source_file import FileSource, FileParams
+
+    x = np.random.default_rng(0).normal(0.01, 0.2, 300_000).astype(np.float32)
+    sf.write(tmp_path / "n.wav", x, 44100, subtype="FLOAT")
+
+    def source():
+        src = FileSource(FileParams(path=str(tmp_path / "n.wav")), Context(fps=60))
+        src.open()
+        return src
+
+    alone = source()
+    for _ in alone._read():
+        pass
+    for _ in range(5):
+        both = source()
+        readers = [threading.Thread(target=lambda: [None for _ in both._read()]) for _ in range(2)]
+        for r in readers:
+            r.start()
+        for r in readers:
+            r.join()
+        assert both.metrics() == alone.metrics() and both.count == len(x)
