@@ -204,9 +204,9 @@ def settling(mixer, before, frame) -> bool:
     """``run_out`` goes on: :func:`mid_clip`, or the face is not yet at rest: its ``smile`` or ``jaw`` above
     :data:`FACE_STILL`, or moving by more than it from the frame ``before`` to ``frame`` (since 2026-11-29; a review
     of baked assets in Blender: the body stood at rest and the face still smiled at 0.29, face=facs' smile falling
-    0.2 a second). Above, since 2026-11-29's eighteenth session: the default face's smile is clipped at 1 while its
-    state falls (thesis Eq. 3.3's output range), so it did not move, and a facial animator's review saw run_out end
-    on a full smile."""
+    0.2 a second). The level counts since 2026-11-29's eighteenth session: the default face's smile is clipped at 1
+    while its state falls (thesis Eq. 3.3's output range), so it did not move, and a facial animator's review saw
+    run_out end on a full smile."""
     if mid_clip(mixer):
         return True
     if before is None or frame is None:

@@ -231,7 +231,7 @@ class LiveFitter:
         out = x.copy()
         out[:3] *= s
         out[0] = min(out[0], self.p.max_step)
-        if self.overshoot and self.p.hold_feedback:   # the last call played above its target: no more abdominal hold (module notes, step 2)
+        if self.overshoot and self.p.hold_feedback:   # the last call played above its target: no more hold (step 2)
             out[0] = 0.0
         return out
 
