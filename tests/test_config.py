@@ -65,3 +65,17 @@ def test_value_overrides_apply_in_order_to_a_copy_and_bad_ones_are_one_message()
     assert "no_such_key" in str(bad.value) and "\n" not in str(bad.value).strip()
     with pytest.raises(LaughlabError):
         compose_app(["detector=no_such_detector"])
+
+
+@pytest.mark.parametrize("given", ["face=[facs,cgm]", "body=[hill, shapes]", "detector=[none,laugh]"])
+def test_a_list_for_a_group_of_one_plugin_is_one_line_saying_so(given, tmp_path):
+    """A facial animator's review: face=[facs,cgm] (Hydra merges both configs) answered "face.au6 is a parameter of
+    face=facs, not of face=cgm: add face=facs". It says the group takes one option, and how to compare several."""
+    from inprocess import laughlab
+
+    group = given.lstrip("+").split("=")[0]
+    r = laughlab(given, "input.duration_s=1", f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1, r.stderr
+    assert r.stderr.startswith(f"laughlab: error: {group} takes one option, not a list") and "-m " in r.stderr
+    assert not (tmp_path / "r").exists()
+    assert compose_config(["output=[files,vmc]"]).output.vmc is not None   # output takes a list
