@@ -407,6 +407,7 @@ def run(cfg, out_dir) -> dict:
         "experiment": "hill_fit",
         "date": res_mod.now_iso(),
         "git_hash": res_mod.git_hash(),
+        "git_diff_sha256": res_mod.git_diff_sha256(),
         "versions": res_mod.versions(),
         "config": OmegaConf.to_container(OmegaConf.masked_copy(cfg, [k for k in cfg if k != "hydra"]), resolve=True),
         "fit_params": dict(fp.__dict__),

@@ -84,6 +84,10 @@ def state() -> str:
     except ImportError:  # another numpy than the lock's
         return "native (numpy's CPU features unknown)"
     if any(features.get(f) for f in NUMPY_AVX512):
+        own = os.environ.get("NPY_DISABLE_CPU_FEATURES")
+        if own is not None and not set(NUMPY_AVX512) <= set(own.replace(",", " ").split()):
+            # the user's own value, kept by pin(): it was not numpy's import order (a reproducibility review)
+            return f"native (NPY_DISABLE_CPU_FEATURES={own} leaves numpy's AVX-512 loops on)"
         return "native (numpy was imported before laughlab, with its AVX-512 loops)"
     if os.environ.get("OPENBLAS_CORETYPE", "").lower() != "haswell" and {"avx2", "fma"} <= cpu_flags():
         return "native (OpenBLAS chooses its kernels)"

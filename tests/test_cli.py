@@ -672,14 +672,15 @@ def test_a_single_run_records_what_made_it(tmp_path):
     (nor the input file's bytes).  metrics.json's provenance: the commit, the versions, the input's sha256."""
     import hashlib
 
-    from laughlab.harness.results import git_hash, versions
+    from laughlab.harness.results import git_diff_sha256, git_hash, versions
 
     wav = tmp_path / "in.wav"
     sf.write(wav, 0.1 * np.sin(np.arange(16000) / 7), 16000)
     r = laughlab("input=file", f"input.path={wav}", "~output.plots", f"hydra.run.dir={tmp_path / 'run'}")
     assert r.returncode == 0, r.stderr
     made = json.loads((tmp_path / "run" / "metrics.json").read_text())["provenance"]
-    assert made == {"git_hash": git_hash(), "versions": versions(), "input_path": str(wav.resolve()),
+    assert made == {"git_hash": git_hash(), "git_diff_sha256": git_diff_sha256(), "versions": versions(),
+                    "input_path": str(wav.resolve()),
                     "input_sha256": hashlib.sha256(wav.read_bytes()).hexdigest()}
     r = laughlab("input.duration_s=1", "~output.plots", f"hydra.run.dir={tmp_path / 'synth'}")
     assert json.loads((tmp_path / "synth" / "metrics.json").read_text())["provenance"]["input_sha256"] is None

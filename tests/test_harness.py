@@ -825,7 +825,7 @@ def test_the_commit_stamp_is_dirty_only_when_code_differs(tmp_path):
     '+dirty' (the reports written before it were changes); reports, docs and Markdown do not change a run."""
     import subprocess
 
-    from laughlab.harness.results import git_hash
+    from laughlab.harness.results import git_diff_sha256, git_hash
 
     def git(*args):
         subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
@@ -843,8 +843,15 @@ def test_the_commit_stamp_is_dirty_only_when_code_differs(tmp_path):
     (tmp_path / "runs").mkdir()
     (tmp_path / "runs" / "new.txt").write_text("untracked\n")
     assert git_hash(tmp_path) == clean
+    assert git_diff_sha256(tmp_path) is None
     (tmp_path / "laughlab" / "m.py").write_text("2\n")
     assert git_hash(tmp_path) == clean + "+dirty"
+    # a reproducibility review: two edits of one commit said the same; the diff's digest tells them apart
+    first = git_diff_sha256(tmp_path)
+    (tmp_path / "laughlab" / "m.py").write_text("3\n")
+    assert git_hash(tmp_path) == clean + "+dirty" and first and git_diff_sha256(tmp_path) not in (None, first)
+    (tmp_path / "laughlab" / "m.py").write_text("2\n")
+    assert git_diff_sha256(tmp_path) == first
 
 
 def test_the_commit_stamp_is_not_the_commit_of_a_repository_laughlab_is_installed_inside(tmp_path):

@@ -40,6 +40,11 @@ def test_the_users_choice_and_an_earlier_numpy_are_left_alone_and_said():
     assert first["blas"] is None
     if "avx512bw" in _kernels.cpu_flags():
         assert first["v4"] and first["state"].startswith("native (numpy was imported before laughlab")
+        # a reproducibility review: the user's own NPY_DISABLE_CPU_FEATURES without X86_V4 was said to be numpy's
+        # import order; it names the variable
+        own = probe(NPY_DISABLE_CPU_FEATURES="AVX512_SPR")
+        assert own["v4"] and own["state"] == "native (NPY_DISABLE_CPU_FEATURES=AVX512_SPR leaves numpy's AVX-512 " \
+            "loops on)"
 
 
 def test_this_test_session_runs_pinned():
@@ -49,3 +54,14 @@ def test_this_test_session_runs_pinned():
     from laughlab.harness.results import versions
 
     assert versions()["cpu_kernels"] == _kernels.state()
+    assert versions()["hill_kernel"] == ("numpy (LAUGHLAB_NUMBA=0)" if os.environ.get("LAUGHLAB_NUMBA") == "0" else
+                                         "numba")
+
+
+def test_laughlab_numba_0_is_recorded(monkeypatch):
+    """A reproducibility review: LAUGHLAB_NUMBA=0 (body=hill's torso in numpy) changes the last bits of a hill run
+    and nothing recorded it."""
+    from laughlab.harness.results import versions
+
+    monkeypatch.setenv("LAUGHLAB_NUMBA", "0")
+    assert versions()["hill_kernel"] == "numpy (LAUGHLAB_NUMBA=0)"

@@ -30,8 +30,10 @@ never leaves [0, 1] nor a count's goes below 0; and the same values give the sam
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 import json
 import math
+import os
 import platform
 import subprocess
 from pathlib import Path
@@ -121,6 +123,21 @@ def git_hash(root: Path | None = None) -> str | None:
         return None
 
 
+def git_diff_sha256(root: Path | None = None) -> str | None:
+    """The sha256 of ``git diff HEAD`` over the tracked files other than :data:`NOT_CODE`, where the checkout is
+    ``+dirty`` (None where it is clean or not laughlab's checkout): two runs of one ``+dirty`` commit with different
+    edits said the same, with different outputs (a reproducibility review)."""
+    root = Path(root or Path(__file__).resolve().parents[2]).resolve()
+    if not (git_hash(root) or "").endswith("+dirty"):
+        return None
+    try:
+        d = subprocess.run(["git", "diff", "--no-color", "--no-ext-diff", "HEAD", "--", ".", *NOT_CODE], cwd=root,
+                           capture_output=True, timeout=30)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return hashlib.sha256(d.stdout).hexdigest() if d.returncode == 0 else None
+
+
 def made_by(doc: dict) -> str:
     """A report's line of what made the results: laughlab's commit, or its version where it ran as an installed
     package without a git checkout (a packaging review: the report said ``commit: `None```)."""
@@ -139,6 +156,11 @@ def versions() -> dict:
     # numba (body=hill), Praat (extractor=phoneme), libsndfile's and ffmpeg's decoders, matplotlib (a JOSS-style
     # review: metrics.json left out what docs/pipeline.md says changes the bytes)
     out = {"python": platform.python_version(), "cpu_kernels": _kernels.state(), "cpu_family": _kernels.cpu_family()}
+    # LAUGHLAB_NUMBA=0 runs body=hill's torso in numpy: the last bits differ (a reproducibility review: unrecorded)
+    from importlib.util import find_spec
+
+    out["hill_kernel"] = ("numpy (LAUGHLAB_NUMBA=0)" if os.environ.get("LAUGHLAB_NUMBA", "1") == "0" else
+                          "numba" if find_spec("numba") else "numpy (numba missing)")
     for pkg in ("laughlab", "numpy", "scipy", "hydra-core", "pluggy", "ai-edge-litert", "numba",
                 "praat-parselmouth", "soundfile", "imageio-ffmpeg", "matplotlib"):
         try:
@@ -157,7 +179,8 @@ def provenance(input_path: str | None = None) -> dict:
 
     digest = file_sha256(input_path) if input_path else None
     where = str(Path(input_path).expanduser().resolve()) if input_path else None
-    return {"git_hash": git_hash(), "versions": versions(), "input_path": where, "input_sha256": digest}
+    return {"git_hash": git_hash(), "git_diff_sha256": git_diff_sha256(), "versions": versions(), "input_path": where,
+            "input_sha256": digest}
 
 
 def plugin_origins() -> dict:
