@@ -191,7 +191,8 @@ class Journal:
         for rec in journal_records(self.path):
             if rec.get("experiment_hash") != self.experiment_hash:
                 raise RefusedFolder(f"{self.path.parent} holds an interrupted experiment with another configuration "
-                                    "(every setting counts but harness.jobs and harness.plots, paths as written); "
+                                    "(every setting counts but harness.jobs and harness.plots, paths as written, and the "
+                                    "overrides' order); "
                                     "resume it with its own command, or choose another hydra.run.dir, or add "
                                     "overwrite=true")
             if rec.get("code_hash", "") != self.code:
