@@ -9,7 +9,7 @@ import re
 from pathlib import Path
 
 from laughlab.core.errors import LaughlabError, nearest
-from laughlab.core.overrides import override_key
+from laughlab.core.overrides import one_choice_each, override_key
 from laughlab.core.overridehints import launcher_missing, unreadable_override
 from laughlab.core import own_experiments
 
@@ -343,26 +343,11 @@ def valid_keys(group: str, overrides: list[str]) -> list[str]:
     return [f.name for f in fields(info.obj.Params)]
 
 
-def one_choice_each(overrides) -> None:
-    """Refuse a list for a group that takes one plugin (``face=[facs,cgm]``: Hydra merges both, and the run then
-    said "face.au6 is a parameter of face=facs, not of face=cgm"; a facial animator's review). ``output`` takes a
-    list; a sweep's ``face=facs,cgm`` (``-m``) is not a list."""
-    for o in overrides:
-        key, sep, value = str(o).partition("=")
-        key = key.lstrip("+~")
-        value = value.strip()
-        if sep and key in GROUP_KINDS and key != "output" and value.startswith("["):
-            items = [v.strip() for v in value.strip("[]").split(",") if v.strip()]
-            hint = f": choose one, e.g. {key}={items[0]}" if items else ""
-            raise LaughlabError(f"{key} takes one option, not a list (got {key}={value}){hint}; "
-                                f"to compare several, sweep them: -m {key}={','.join(items) or '...'}")
-
-
 def compose_config(overrides: list[str], job_name: str = "app"):
     """Compose the configuration as Hydra would, turning errors into LaughlabError."""
     from hydra import compose, initialize_config_module
 
-    one_choice_each(overrides)
+    one_choice_each(overrides, GROUP_KINDS)
 
     from laughlab.core import config_files
     from laughlab.core.callerstate import their_hydra

@@ -6,6 +6,8 @@ through here, so that ``+seed=1`` and ``~seed`` are ``seed`` everywhere.
 """
 from __future__ import annotations
 
+from laughlab.core.errors import LaughlabError
+
 #: the keys of Hydra's own settings and of the command's (overwrite, progress): an experiment's trials and a
 #: condition's check run without them
 COMMAND_ONLY = ("hydra", "overwrite", "progress")
@@ -29,3 +31,17 @@ def given_value(overrides, key: str) -> str | None:
     values = [str(o).split("=", 1)[1] for o in overrides if "=" in str(o) and override_key(o) == key]
     return values[-1] if values else None
 
+
+def one_choice_each(overrides, groups) -> None:
+    """Refuse a list for a group that takes one plugin (``face=[facs,cgm]``: Hydra merges both, and the run then
+    said "face.au6 is a parameter of face=facs, not of face=cgm"; a facial animator's review). ``output`` takes a
+    list; a sweep's ``face=facs,cgm`` (``-m``) is not a list. ``groups``: the plugin groups' names."""
+    for o in overrides:
+        key, sep, value = str(o).partition("=")
+        key = key.lstrip("+~")
+        value = value.strip()
+        if sep and key in groups and key != "output" and value.startswith("["):
+            items = [v.strip() for v in value.strip("[]").split(",") if v.strip()]
+            hint = f": choose one, e.g. {key}={items[0]}" if items else ""
+            raise LaughlabError(f"{key} takes one option, not a list (got {key}={value}){hint}; "
+                                f"to compare several, sweep them: -m {key}={','.join(items) or '...'}")
