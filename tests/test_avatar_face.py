@@ -167,9 +167,9 @@ def test_one_arkit_named_morph_does_not_switch_off_the_vrm_expressions(tmp_path)
 
 @pytest.mark.parametrize("edit, says", [
     # said before the run's face gives anything: laughlab's faces together (a review read it as the run's own count)
-    (None, "face: up to 11 of 15 morphs of {name} driven by laughlab's faces together (this run's face: counted in "
+    (None, "face: up to 10 of 15 morphs of {name} driven by laughlab's faces together (this run's face: counted in "
            "metrics.json for a video, in character.glb's scenes[0].extras.laughlab.face for output=gltf), through the "
-           "VRM expressions aa, ih, ee, happy, relaxed, sad, angry, "
+           "VRM expressions aa, ih, ee, happy, relaxed, sad, "
            "blinkLeft, blinkRight"),
     (lambda d: d["extensions"]["VRM"]["blendShapeMaster"].update(blendShapeGroups=[]),
      "face: 0 of 15 morphs of {name} driven: no ARKit-named morph and no VRM expression laughlab maps"),
@@ -191,7 +191,7 @@ def test_the_run_says_in_one_line_how_the_face_drives_the_avatar(tmp_path, edit,
     weights = [w for ch, w in _weights(doc, tmp_path / "run" / "character.glb")]
     moving = sum(int((w.max(axis=0) > w.min(axis=0)).sum()) for w in weights)
     assert face["morphs"] == 15 and (face["morphs_driven"] == moving == 0 if edit else 0 < moving <= face[
-        "morphs_driven"] == 9), (face, moving)   # face=facs: aa, ih, ee, happy, relaxed, angry and the blinks
+        "morphs_driven"] == 8), (face, moving)   # face=facs: aa, ih, ee, happy, relaxed and the blinks (angry: no more)
 
 
 def _weights(doc, path):
@@ -291,3 +291,19 @@ def test_a_chest_slider_is_left_alone_and_the_spine_breathes(tmp_path):
         doc, w = bake(again)
         want = 0.4 if kept else BREATH["chest"]
         np.testing.assert_allclose(w[node][:, names.index("chest")], want, atol=1e-7)
+
+
+def test_a_laughs_lowered_brows_do_not_make_a_vrm_avatar_angry():
+    """A facial animator's review: face=facs lowers the brows in the laugh's squint (AU4 with AU6), and the table
+    turned that into VRM 'angry' at 0.40-0.57 on VRoid avatars laughing (a whole angry face). 'angry' is not driven,
+    in a VRM Animation or on an avatar; ARKit-named brow morphs still take browDown."""
+    from laughlab.avatar.expressions import ARKIT_TO_VRM, expression_weights
+
+    n = 5
+    arkit = {"browDownLeft": np.ones(n), "browDownRight": np.ones(n), "mouthSmileLeft": np.ones(n),
+             "mouthSmileRight": np.ones(n)}
+    assert "angry" not in ARKIT_TO_VRM
+    w = expression_weights(None, arkit, n)
+    assert "angry" not in w and np.all(w["happy"] == 1.0)
+    w = expression_weights(load_avatar(GODETTE), arkit, n)
+    assert "angry" not in w and np.all(w["happy"] == 1.0)

@@ -34,7 +34,10 @@ from laughlab.avatar.load import Avatar
 from laughlab.character.body import FACE_MORPHS
 from laughlab.motion.skeleton import Skeleton
 
-#: VRM 1.0 expression <- ARKit blendshape weights (linear; the sum is clipped to [0, 1])
+#: VRM 1.0 expression <- ARKit blendshape weights (linear; the sum is clipped to [0, 1]). ``angry`` is not driven
+#: (since 2026-11-29): laughlab's faces lower the brows only in the laugh's squint (``face=facs``' AU4, with the
+#: cheeks' AU6), and a VRM avatar's angry preset is a whole face: a facial animator's review saw VRoid avatars laugh
+#: with ``angry`` at 0.40-0.57. An avatar with ARKit-named brow morphs still gets ``browDown*``.
 ARKIT_TO_VRM: dict[str, dict[str, float]] = {
     "aa": {"jawOpen": 1.0},
     "ih": {"mouthLowerDownLeft": 0.5, "mouthLowerDownRight": 0.5},
@@ -44,7 +47,6 @@ ARKIT_TO_VRM: dict[str, dict[str, float]] = {
     "happy": {"mouthSmileLeft": 0.5, "mouthSmileRight": 0.5},
     "relaxed": {"cheekSquintLeft": 0.5, "cheekSquintRight": 0.5},
     "sad": {"mouthFrownLeft": 0.5, "mouthFrownRight": 0.5},
-    "angry": {"browDownLeft": 0.5, "browDownRight": 0.5},
     "surprised": {"browInnerUp": 0.5, "browOuterUpLeft": 0.25, "browOuterUpRight": 0.25},
     "blink": {"eyeBlinkLeft": 0.5, "eyeBlinkRight": 0.5},
     "blinkLeft": {"eyeBlinkLeft": 1.0},
