@@ -15,6 +15,29 @@ from laughlab.core.outfiles import Staging
 #: prefix of the channels holding ARKit weights (``arkit.jawOpen``)
 PREFIX = "arkit."
 
+#: the 61 value columns of a Live Link Face take's CSV, in its order (after ``Timecode,BlendShapeCount``): Apple's 52
+#: blendshapes with a capital first letter (its jaw and mouth left/right pairs right first), then 9 head and eye
+#: rotations, which laughlab writes as 0 (the head's turn is in channels.csv and motion.bvh, in degrees)
+LIVELINK_COLUMNS: tuple[str, ...] = (
+    "EyeBlinkLeft", "EyeLookDownLeft", "EyeLookInLeft", "EyeLookOutLeft", "EyeLookUpLeft", "EyeSquintLeft",
+    "EyeWideLeft", "EyeBlinkRight", "EyeLookDownRight", "EyeLookInRight", "EyeLookOutRight", "EyeLookUpRight",
+    "EyeSquintRight", "EyeWideRight", "JawForward", "JawRight", "JawLeft", "JawOpen", "MouthClose", "MouthFunnel",
+    "MouthPucker", "MouthRight", "MouthLeft", "MouthSmileLeft", "MouthSmileRight", "MouthFrownLeft",
+    "MouthFrownRight", "MouthDimpleLeft", "MouthDimpleRight", "MouthStretchLeft", "MouthStretchRight",
+    "MouthRollLower", "MouthRollUpper", "MouthShrugLower", "MouthShrugUpper", "MouthPressLeft", "MouthPressRight",
+    "MouthLowerDownLeft", "MouthLowerDownRight", "MouthUpperUpLeft", "MouthUpperUpRight", "BrowDownLeft",
+    "BrowDownRight", "BrowInnerUp", "BrowOuterUpLeft", "BrowOuterUpRight", "CheekPuff", "CheekSquintLeft",
+    "CheekSquintRight", "NoseSneerLeft", "NoseSneerRight", "TongueOut", "HeadYaw", "HeadPitch", "HeadRoll",
+    "LeftEyeYaw", "LeftEyePitch", "LeftEyeRoll", "RightEyeYaw", "RightEyePitch", "RightEyeRoll")
+
+
+def livelink_timecode(frame: int, fps: float) -> str:
+    """A frame's ``HH:MM:SS:FF.mmm`` (Live Link Face's timecode: hours, minutes, seconds, the frame in its second,
+    and the sub-frame, 0 here) at ``fps`` rounded to whole frames a second, from 00:00:00:00.000."""
+    rate = max(1, int(round(fps)))
+    sec, ff = divmod(int(frame), rate)
+    return f"{sec // 3600:02d}:{sec // 60 % 60:02d}:{sec % 60:02d}:{ff:02d}.000"
+
 
 @dataclass
 class ArkitParams:
@@ -24,9 +47,12 @@ class ArkitParams:
     ----------
     precision : int
         Decimals written for the weights.
+    livelink : bool
+        Also write ``face_livelink.csv``, the layout of Epic's Live Link Face app's takes (:data:`LIVELINK_COLUMNS`).
     """
 
     precision: int = 6
+    livelink: bool = False
 
     def __post_init__(self) -> None:
         if not 1 <= self.precision <= 17:
@@ -43,18 +69,21 @@ class ArkitSink(Sink):
     make of its ``smile``, ``jaw`` and ``eyes_closed`` channels (:data:`laughlab.io.vmc.SMILE_TO_ARKIT`; a game
     developer's review asked for ARKit names with the defaults and got no file).  A run with neither writes
     nothing, so the sink can stay in the default outputs.  Streamed: each chunk is appended to a staged file that is
-    moved into place when the run succeeds and removed when it fails.
+    moved into place when the run succeeds and removed when it fails.  With ``livelink: true`` also
+    ``face_livelink.csv``, the same weights in a Live Link Face take's layout (Unreal's and the DCC importers of
+    its takes): ``Timecode`` ``HH:MM:SS:FF.mmm`` from 0 at the run's frame rate, ``BlendShapeCount`` 61, the 52
+    shapes capitalised (0 for those the face does not write) and 9 rotations at 0 (:data:`LIVELINK_COLUMNS`).
     """
 
     name = "arkit"
     background = True  # only writes files: may run in the helper process
-    files = ("face_arkit.csv",)
+    files = ("face_arkit.csv", "face_livelink.csv")
     Params = ArkitParams
 
     def open(self, run) -> None:
         super().open(run)
         self.staging = Staging()
-        self._f = None
+        self._f = self._ll = None
         self._columns: list[str] | None = None
 
     def write(self, chunk) -> None:
@@ -69,6 +98,10 @@ class ArkitSink(Sink):
                 return
             self._f = open(self.staging.path(self.run.out_dir / "face_arkit.csv"), "w", newline="", encoding="utf-8")
             self._f.write(",".join(["time", *self._columns]) + "\n")
+            if self.params.livelink:
+                self._ll = open(self.staging.path(self.run.out_dir / "face_livelink.csv"), "w", newline="",
+                                encoding="utf-8")
+                self._ll.write(",".join(["Timecode", "BlendShapeCount", *LIVELINK_COLUMNS]) + "\n")
         if not self._columns:
             return
         if self._mapped:
@@ -81,6 +114,20 @@ class ArkitSink(Sink):
         n, c = data.shape
         row = ",".join([f"%.{self.params.precision}f"] * c) + "\n"
         self._f.write((row * n) % tuple((data + 0.0).ravel().tolist()))
+        if self._ll is not None:
+            self._write_livelink(data)
+
+    def _write_livelink(self, data) -> None:
+        """The chunk's rows of ``face_livelink.csv``: each frame's timecode, 61, and the 61 values (a shape the face
+        does not write, and the rotations, 0)."""
+        index = {n[0].upper() + n[1:]: i + 1 for i, n in enumerate(self._columns)}
+        fmt = f"%.{self.params.precision}f"
+        zero = fmt % 0.0
+        for r in data:
+            frame = int(round(float(r[0]) * self.run.fps))
+            values = [fmt % (r[index[c]] + 0.0) if c in index else zero for c in LIVELINK_COLUMNS]
+            self._ll.write(",".join([livelink_timecode(frame, self.run.fps), str(len(LIVELINK_COLUMNS)), *values])
+                           + "\n")
 
     def _warn_outside(self, chunk) -> None:
         """A face's ARKit weight outside [0, 1], said once a run: this file, the stream and the character clip it,
@@ -102,10 +149,13 @@ class ArkitSink(Sink):
         if self._f is None:
             return []
         self._f.close()
+        if self._ll is not None:
+            self._ll.close()
         return self.staging.commit()
 
     def abort(self) -> None:
-        self.staging.abort(getattr(self, "_f", None))  # closes it (a buffer that cannot be written is dropped) first
+        # closes them (a buffer that cannot be written is dropped) first
+        self.staging.abort(getattr(self, "_f", None), getattr(self, "_ll", None))
 
 
 _WARNED: set = set()

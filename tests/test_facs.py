@@ -437,3 +437,31 @@ def test_a_closed_eye_is_closed_on_both_sides_whatever_the_sides_drawn():
             f.step(fr)
         ch = fr.channels
         assert ch["eyes_closed"] == 1.0 and ch["arkit.eyeBlinkLeft"] == ch["arkit.eyeBlinkRight"] == 1.0
+
+
+def test_face_livelink_csv_is_a_live_link_face_take_of_the_same_weights(tmp_path):
+    """A facial animator's review: face_arkit.csv (``time`` in seconds, Apple's camelCase, only the face's shapes)
+    does not import where a Live Link Face take does (Unreal, the Blender/Maya importers of its CSV, some by column
+    position). ``output.arkit.livelink=true`` writes face_livelink.csv beside it: Timecode HH:MM:SS:FF.mmm,
+    BlendShapeCount 61, the 52 shapes capitalised in the take's order, 9 rotations; the weights are face_arkit.csv's."""
+    from inprocess import laughlab
+    from laughlab_plugins.sink_arkit import LIVELINK_COLUMNS, livelink_timecode
+
+    r = laughlab("face=facs", "output.arkit.livelink=true", "input.duration_s=2", "detector=none", "~output.plots",
+                 f"hydra.run.dir={tmp_path / 'r'}")
+    assert r.returncode == 0, r.stderr
+    ark = pd.read_csv(tmp_path / "r" / "face_arkit.csv")
+    ll = pd.read_csv(tmp_path / "r" / "face_livelink.csv", dtype={"Timecode": str})
+    assert list(ll.columns) == ["Timecode", "BlendShapeCount", *LIVELINK_COLUMNS] and len(LIVELINK_COLUMNS) == 61
+    assert {c[0].lower() + c[1:] for c in LIVELINK_COLUMNS[:52]} == set(ARKIT_BLENDSHAPES)
+    assert len(ll) == len(ark) == 120 and (ll["BlendShapeCount"] == 61).all()
+    assert ll["Timecode"].tolist()[:2] == ["00:00:00:00.000", "00:00:00:01.000"]
+    assert ll["Timecode"].iloc[61] == "00:00:01:01.000"
+    for name in ark.columns[1:]:
+        np.testing.assert_array_equal(ll[name[0].upper() + name[1:]].to_numpy(), ark[name].to_numpy(), err_msg=name)
+    rest = [c for c in LIVELINK_COLUMNS if c[0].lower() + c[1:] not in ark.columns]
+    assert len(rest) == 61 - (len(ark.columns) - 1) and (ll[rest].to_numpy() == 0.0).all()
+    assert livelink_timecode(60 * 3725 + 7, 60) == "01:02:05:07.000" and livelink_timecode(50, 29.97) == \
+        "00:00:01:20.000"
+    off = laughlab("face=facs", "input.duration_s=1", "detector=none", "~output.plots", f"hydra.run.dir={tmp_path / 'o'}")
+    assert off.returncode == 0 and not (tmp_path / "o" / "face_livelink.csv").exists()
