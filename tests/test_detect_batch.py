@@ -496,7 +496,24 @@ def test_channels_each_finds_who_laughed_in_a_dyad(tmp_path):
     assert r.stdout.startswith("laughlab: 2 file(s) as 3 inputs (a channel each), 1 without laughter, "), r.stdout
     rows = list(csv.DictReader((out / "segments.csv").open()))
     assert {row["file"] for row in rows} == {"take.ch2", "solo"}
-    assert {p.name for p in out.glob("*.TextGrid")} == {"take.ch1.TextGrid", "take.ch2.TextGrid", "solo.TextGrid"}
+    assert {p.name for p in out.glob("*.TextGrid")} == {"take.ch1.TextGrid", "take.ch2.TextGrid", "solo.TextGrid",
+                                                         "take.TextGrid"}
+    # the recording's own TextGrid, a tier a channel (the Left of the seventeenth session's note, from a conversation
+    # analyst's review: Praat opens the stereo file with one TextGrid, not one a channel): each tier the channel's own
+    from praatio import textgrid
+
+    both = textgrid.openTextgrid(str(out / "take.TextGrid"), includeEmptyIntervals=False)
+    assert both.tierNames == ("laughter-ch1", "laughter-ch2")
+    for k in (1, 2):
+        own = textgrid.openTextgrid(str(out / f"take.ch{k}.TextGrid"), includeEmptyIntervals=False)
+        assert list(both.getTier(f"laughter-ch{k}").entries) == list(own.getTier("laughter").entries)
+        assert both.maxTimestamp == own.maxTimestamp
+    assert not both.getTier("laughter-ch1").entries and both.getTier("laughter-ch2").entries
+    # read back as an annotation of the stereo recording (its channels mixed), the laughter of either channel
+    from laughlab.corpora import annotations
+
+    assert annotations.read(out / "take.TextGrid", len(right) / sr).bouts == [
+        (e.start, e.end) for e in both.getTier("laughter-ch2").entries]
     src, _ = sf.read(rec / "take.wav", dtype="int32")
     first = next(row for row in rows if row["file"] == "take.ch2")
     clip, _ = sf.read(out / "take.ch2_laugh_0.wav", dtype="int32")

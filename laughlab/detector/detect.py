@@ -191,7 +191,8 @@ def main(argv: list[str]) -> None:
                          "default: the first three)")
     ap.add_argument("--channels", choices=("mix", "each"), default="mix",
                     help="mix: a recording's channels mixed (default); each: every channel of a multichannel "
-                         "recording its own input, NAME.ch1, NAME.ch2, ... (a dyad, one speaker a channel)")
+                         "recording its own input, NAME.ch1, NAME.ch2, ... (a dyad, one speaker a channel), and "
+                         "NAME.TextGrid a tier a channel")
     ap.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
                     help="a progress bar on stderr: auto (default) when the inputs are over a minute in all")
     ap.add_argument("--overwrite", action="store_true",
@@ -241,7 +242,14 @@ def main(argv: list[str]) -> None:
         if dup:   # take.wav's second channel and a file take.ch2.wav
             raise LaughlabError(f"two inputs share the name {dup!r} with --channels each: rename the file {dup}.*")
     scored = ["scores.csv"] if ns.score else []
-    stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n, _ in named], formats) + scored)
+    # --channels each: a multichannel recording's name, for the TextGrid of all its channels' tiers
+    recording_of = {n: n.rsplit(".ch", 1)[0] for _, n, c in named if c is not None}
+    clash = sorted(set(recording_of.values()) & {n for _, n, _ in named})
+    if clash and "textgrid" in formats:   # take.wav (two channels) and a file take.flac would write one take.TextGrid
+        raise LaughlabError(f"the input {clash[0]!r} and the channels of another recording named {clash[0]!r} would "
+                            f"write one {clash[0]}.TextGrid with --channels each: rename one of them")
+    stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n, _ in named], formats,
+                                                                        list(recording_of.values())) + scored)
     total_s, kept, gone, durations = 0.0, [], {}, {}   # gone: the inputs left out (--skip-unreadable): name -> why
     order = {n: i for i, (_, n, _) in enumerate(named)}   # recordings.csv's rows, skipped ones among them
 
@@ -346,7 +354,8 @@ def main(argv: list[str]) -> None:
     out = Path(ns.out)
     # the manifest first lists every name this run may leave (the earlier run's and this one's): a run stopped
     # while writing leaves no file that a later --overwrite would take for the user's
-    planned = S.output_names([r[0] for r in results], formats) + S.clip_names(results, formats) + scored
+    planned = S.output_names([r[0] for r in results], formats, list(S.channel_groups(results))) + \
+        S.clip_names(results, formats) + scored
     score_rows = DS.score_rows(results, truths) if ns.score else []
     if "audio" in formats:   # the clips' names are known now: a file of yours by one of them is refused as above
         stale = out_folder_check(out, ns.overwrite, planned)
@@ -371,7 +380,7 @@ def main(argv: list[str]) -> None:
             remove(out)
         raise
     # an earlier detect's files of an input skipped now stay (it could not be read again: its labels are not stale)
-    theirs = set(S.output_names(gone, formats)) - rel(written)
+    theirs = set(S.output_names(gone, formats, [recording_of[g] for g in gone if g in recording_of])) - rel(written)
     clip = re.compile("|".join(f"{re.escape(g)}_laugh_[0-9]+\\.wav" for g in gone) or "(?!)")   # their clips
     kept_old = {p for p in stale if p.relative_to(out).as_posix() in theirs
                 or clip.fullmatch(p.relative_to(out).as_posix())}
@@ -381,7 +390,7 @@ def main(argv: list[str]) -> None:
         done = sorted(rel(written) | rel(kept_old))
         S.atomic_write(out / MANIFEST, record_text(out, done))
     wall = time.perf_counter() - t0
-    read = set(S.output_names([r[0] for r in results], FORMATS))   # and their clips, any number of them
+    read = set(S.output_names([r[0] for r in results], FORMATS, list(S.channel_groups(results))))   # and their clips
     others = sorted(n for n in rel(dropped) if n not in read and not any(
         n.startswith(f"{r[0]}_laugh_") for r in results))
     if others:   # a review: a run of one recording into a batch's folder removed the other recordings' files unsaid

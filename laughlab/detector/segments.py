@@ -158,24 +158,40 @@ def textgrid_text(segs: list[Segment], duration_s: float) -> str:
     Times are written to 0.1 ms, as the segments are: the duration too is rounded (down) first, so a segment that
     ends with the recording leaves no empty interval of zero length after it (Praat and praatio refuse one); a
     recording shorter than 0.1 ms gets one interval of 0.1 ms (a review: a 1-sample file's 0 to 0 was refused)."""
+    return textgrid_tiers([("laughter", segs)], duration_s)
+
+
+def textgrid_tiers(tiers: list[tuple[str, list[Segment]]], duration_s: float) -> str:
+    """A Praat TextGrid (long text format) of interval tiers ``(name, segments)``, as :func:`textgrid_text`'s."""
     duration_s = max(floor_to(float(duration_s), 4), 1e-4)
-    iv = []
-    t = 0.0
-    for s in segs:
-        if s.start > t:
-            iv.append((t, s.start, ""))
-        iv.append((s.start, s.end, "laugh"))
-        t = s.end
-    if duration_s > t or not iv:
-        iv.append((t, max(duration_s, t), ""))
     lines = ['File type = "ooTextFile"', 'Object class = "TextGrid"', "", "xmin = 0", f"xmax = {duration_s:.4f}",
-             "tiers? <exists>", "size = 1", "item []:", "    item [1]:", '        class = "IntervalTier"',
-             '        name = "laughter"', "        xmin = 0", f"        xmax = {duration_s:.4f}",
-             f"        intervals: size = {len(iv)}"]
-    for i, (a, b, lab) in enumerate(iv, 1):
-        lines += [f"        intervals [{i}]:", f"            xmin = {a:.4f}", f"            xmax = {b:.4f}",
-                  f'            text = "{lab}"']
+             "tiers? <exists>", f"size = {len(tiers)}", "item []:"]
+    for k, (name, segs) in enumerate(tiers, 1):
+        iv = []
+        t = 0.0
+        for s in segs:
+            if s.start > t:
+                iv.append((t, s.start, ""))
+            iv.append((s.start, s.end, "laugh"))
+            t = s.end
+        if duration_s > t or not iv:
+            iv.append((t, max(duration_s, t), ""))
+        lines += [f"    item [{k}]:", '        class = "IntervalTier"', f'        name = "{name}"', "        xmin = 0",
+                  f"        xmax = {duration_s:.4f}", f"        intervals: size = {len(iv)}"]
+        for i, (a, b, lab) in enumerate(iv, 1):
+            lines += [f"        intervals [{i}]:", f"            xmin = {a:.4f}", f"            xmax = {b:.4f}",
+                      f'            text = "{lab}"']
     return "\n".join(lines) + "\n"
+
+
+def channel_groups(results: list) -> dict[str, list[tuple]]:
+    """``--channels each``: the channel inputs of each multichannel recording, by its name (``take`` of ``take.ch1``,
+    ``take.ch2``), in channel order (a result's fifth item is its channel; None for a recording read whole)."""
+    out: dict[str, list[tuple]] = {}
+    for r in results:
+        if len(r) > 4 and r[4] is not None:
+            out.setdefault(r[0].rsplit(".ch", 1)[0], []).append(r)
+    return out
 
 
 #: ELAN's MIME types of the recordings it links (any other audio: ``audio/*``, ELAN's GENERIC_AUDIO_TYPE, which it
@@ -248,9 +264,11 @@ def eaf_text(segs: list[Segment], media: Path | None = None, beside: Path | None
 SUFFIXES = {"audacity": ".txt", "textgrid": ".TextGrid", "elan": ".eaf"}
 
 
-def output_names(stems: list[str], formats: tuple[str, ...]) -> list[str]:
-    """The names ``write_outputs`` writes for inputs ``stems`` in ``formats``, in its order."""
+def output_names(stems: list[str], formats: tuple[str, ...], recordings: list[str] = ()) -> list[str]:
+    """The names ``write_outputs`` writes for inputs ``stems`` in ``formats``, in its order; ``recordings``: the
+    names of multichannel recordings read a channel each (:func:`channel_groups`), each one TextGrid of its own."""
     names = [stem + suffix for stem in stems for f, suffix in SUFFIXES.items() if f in formats]
+    names += [r + SUFFIXES["textgrid"] for r in dict.fromkeys(recordings)] if "textgrid" in formats else []
     return names + (["segments.csv", "recordings.csv"] if "csv" in formats else [])
 
 
@@ -337,6 +355,10 @@ def write_outputs(out_dir: Path, results: list[tuple[str, float, list[Segment]]]
             for i, seg in enumerate(segs if "audio" in formats else []):
                 written.append(out_dir / f"{name}_laugh_{i}.wav")
                 write_clip(stage.path(written[-1]), media[0], seg, media[1] if len(media) > 1 else None)
+        if "textgrid" in formats:   # --channels each: a recording's channels as the tiers of one TextGrid too
+            for rec, chans in channel_groups(results).items():
+                put(out_dir / (rec + SUFFIXES["textgrid"]),
+                    textgrid_tiers([(f"laughter-ch{r[4] + 1}", r[2]) for r in chans], max(r[1] for r in chans)))
         if "csv" in formats:   # through csv: a name with a comma or a quote is quoted (a review: it split the row)
             text = io.StringIO()
             w = csv.writer(text, lineterminator="\n")
