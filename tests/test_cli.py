@@ -244,8 +244,9 @@ def test_a_parameter_of_another_plugin_says_what_to_add(tmp_path, args, message)
                                          "its name, output.vmc.port"),
     (["output.max_seconds=5"], "there is no parameter output.max_seconds: an output's parameters go under its "
                                "name, output.plots.max_seconds"),
-    (["output=[files,vmc]", "output.bogus=1"], "unknown parameter output.bogus; valid: output.arkit.precision, "
-                                               "output.csv.precision, output.plots.filmstrip_frames, "
+    (["output=[files,vmc]", "output.bogus=1"], "unknown parameter output.bogus; valid: output.arkit.livelink, "
+                                               "output.arkit.precision, output.csv.precision, "
+                                               "output.plots.filmstrip_frames, "
                                                "output.plots.max_seconds, output.plots.pdf, output.plots.power, "
                                                "output.plots.width, "
                                                "output.vmc.blend_case, output.vmc.character, output.vmc.host,"),
