@@ -65,6 +65,7 @@ class RecordingTruth:
 
     bouts: list
     rows: list
+    columns: tuple = ()   # the header as read (a truth with no row, laughter-free, keeps it)
 
     @classmethod
     def read(cls, path: str, duration_s: float) -> "RecordingTruth":
@@ -77,19 +78,26 @@ class RecordingTruth:
             raise LaughlabError(f"input.truth not found: {path}")
         from laughlab.corpora.annotations import SUFFIXES, read
 
+        columns: tuple = ()
         if p.suffix.lower() in SUFFIXES:
             rows = read(p, duration_s).truth_rows()
         else:
             check_truth_csv(p, duration_s)
             with p.open(newline="", encoding="utf-8") as fh:
-                rows = [dict(r) for r in csv.DictReader(fh)]
+                reader = csv.DictReader(fh)
+                rows = [dict(r) for r in reader]
+                columns = tuple(reader.fieldnames or ())
         bouts = [Bout(float(r["onset_s"]), float(r["offset_s"])) for r in rows if r["kind"] == "bout"]
-        return cls(bouts, rows)
+        return cls(bouts, rows, columns)
 
     def write(self, path: Path) -> None:
+        """``truth.csv``: the rows under the header as read; a truth without laughter, no row, keeps its header (a
+        metrics audit: it was written as an empty line, which the metrics then could not read: a traceback)."""
         import csv
 
-        columns = list(dict.fromkeys(k for r in self.rows for k in r))
+        from laughlab.corpora.mixed import TRUTH_COLUMNS
+
+        columns = list(dict.fromkeys([*self.columns, *(k for r in self.rows for k in r)])) or list(TRUTH_COLUMNS)
         with open(path, "w", newline="", encoding="utf-8") as fh:
             w = csv.DictWriter(fh, columns, lineterminator="\n")
             w.writeheader()

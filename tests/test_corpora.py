@@ -587,6 +587,18 @@ def test_input_truth_is_checked_and_written_into_the_run(tmp_path):
                  "~output.plots", f"hydra.run.dir={tmp_path / 'run'}")
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "run" / "truth.csv").read_text() == (tmp_path / "l.truth.csv").read_text()
+    # a metrics audit: a truth without laughter (the corpus' speech, header only) was written as an empty line, and
+    # the metrics could not read the run (a traceback); its header is kept, and the metrics read it
+    from laughlab.harness.metrics import compute
+    from laughlab.harness.trialdata import TrialData
+
+    (tmp_path / "talk.truth.csv").write_text("kind,bout,onset_s,offset_s,intensity\n")
+    r = laughlab("input=file", f"input.path={tmp_path / 'l.wav'}", f"input.truth={tmp_path / 'talk.truth.csv'}",
+                 "~output.plots", f"hydra.run.dir={tmp_path / 'talk'}")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "talk" / "truth.csv").read_text() == "kind,bout,onset_s,offset_s,intensity\n"
+    m = compute(TrialData.load(tmp_path / "talk"))
+    assert m["false_starts_per_min"] == 0.0 and np.isnan(m["miss_rate"])
 
 
 @pytest.mark.parametrize("ext", ["TextGrid", "eaf"])

@@ -181,3 +181,15 @@ def test_jaw_envelope_r_allows_at_most_0_1_s_of_lag_and_prefers_arkit():
     t.channels["arkit.jawOpen"] = rms                                              # the ARKit weight wins
     assert compute(t)["jaw_envelope_r"] == pytest.approx(1.0)
     assert math.isnan(compute(trial(10.0, jaw=rms))["jaw_envelope_r"])            # no rms channel
+
+
+def test_calls_of_blank_intensity_count_one():
+    """A metrics audit: truth.csv allows a call's intensity blank (unknown); Truth.intensity wrote its NaN into the
+    call envelope, and jaw_call_r was NaN (0.645 with the intensities given). A blank call counts 1, as an
+    annotation's calls do: a jaw that follows the calls correlates."""
+    tr = truth([(1.0, 5.0, np.nan)], [(0, 1.0, 1.3, np.nan), (0, 3.0, 3.3, np.nan)])
+    t = trial(10.0, tr=tr)
+    env = tr.intensity(t.times)
+    assert set(np.unique(env)) == {0.0, 1.0}
+    t.channels["jaw"] = np.r_[np.zeros(2), env[:-2]]
+    assert compute(t)["jaw_call_r"] == pytest.approx(1.0)

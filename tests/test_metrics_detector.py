@@ -54,6 +54,16 @@ def test_false_starts_and_answered_bouts_by_hand():
     # non-laughter: 20 s - (4 + 1) - (2 + 1) = 12 s = 0.2 min; one false start
     assert m["false_starts_per_min"] == pytest.approx(1 / 0.2)
     assert m["bouts_answered"] == pytest.approx(0.5)
+    # a metrics audit: bouts closer than their 1 s tail; the tail and the next bout overlap, counted once. Bouts
+    # 2-6 and 6.5-12 with their tails span 2-13 s: 9 s of non-laughter in 20 (not 20 - 5 - 6.5 = 8.5 s); and three
+    # bouts each inside the last's tail in a 3 s input
+    tr = truth([(2.0, 6.0, 1.0), (6.5, 12.0, 1.0)])
+    m = compute(trial(tr=tr, ev=[(16.0, "start", "rofl", 90, 1.0, "")], laugh_gate=np.ones(200)))
+    assert m["false_starts_per_min"] == pytest.approx(1 / (9.0 / 60))
+    tr = truth([(0.5, 1.0, 1.0), (1.2, 1.4, 1.0), (1.5, 1.6, 1.0)])
+    m = compute(trial(3.0, tr=tr, ev=[(0.2, "start", "rofl", 90, 1.0, "")], laugh_gate=np.ones(30)))
+    # with their tails the bouts span 0.5-2.6 s: 0.9 s of non-laughter (3 - 1.5 - 1.2 - 1.1 < 0 before: NaN)
+    assert m["false_starts_per_min"] == pytest.approx(1 / (0.9 / 60))
 
 
 def test_without_truth_or_gate_the_metrics_are_nan():

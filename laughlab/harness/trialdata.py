@@ -87,10 +87,12 @@ class Truth:
         return self.calls["intensity"].dropna().nunique() > 1   # blanks (unknown) do not grade
 
     def intensity(self, times: np.ndarray) -> np.ndarray:
-        """Laughter intensity at ``times``: the call's intensity inside a call, 0 elsewhere."""
+        """Laughter intensity at ``times``: the call's intensity inside a call, 0 elsewhere; a call whose intensity is
+        blank (unknown, as ``truth.csv`` allows) counts 1, as an annotation's calls do (a metrics audit: its NaN made
+        ``jaw_call_r`` NaN)."""
         out = np.zeros(len(times))
         for on, off, inten in self.calls[["onset_s", "offset_s", "intensity"]].itertuples(index=False):
-            out[(times >= on) & (times < off)] = inten
+            out[(times >= on) & (times < off)] = 1.0 if inten != inten else inten   # NaN: blank
         return out
 
 
