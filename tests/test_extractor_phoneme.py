@@ -437,3 +437,34 @@ def test_label_hysteresis_by_hand():
     got = [ext._smooth(label, onset, k / 60) for k, (label, onset) in enumerate(raw)]
     assert got == ["silence", "vowel", "vowel", "fricative", "fricative", "click", "click", "vowel", "vowel",
                    "fricative"]
+
+
+def test_f0_on_a_real_laugh_follows_praat_not_its_harmonics():
+    """A phonetician's review: on nagwense's laugh (ovos, 48 kHz) the extractor read near 1 kHz where Praat finds
+    120-160 Hz (39 frames at 800 Hz or more where Praat's F0 is below 500 Hz; 63% of the frames both call voiced
+    within 50 cents): Praat's octave cost was applied to the compressed autocorrelation's heights of 0.10-0.18, and
+    any shorter lag 0.9 as strong was taken. Now the cost weighs heights relative to the best and a shorter lag
+    only where the best is its subharmonic: 5 frames, 72% (2026-11-29)."""
+    import soundfile as sf
+
+    from laughlab.corpora import fetch
+    from laughlab.io.audio import cut_frames
+    from laughlab.signals.prosody import frame_centers, praat_prosody
+
+    x, sr = sf.read(fetch.require(kinds=["laugh"])["ovos/female-407676__nagwense__comical-evil-laugh"],
+                    always_2d=True)
+    x = x.mean(axis=1)
+    assert sr == 48000
+    ext = PhonemeExtractor(None, Context(fps=60, sample_rate=sr))
+    f0 = []
+    for k, block in enumerate(cut_frames([x.astype(np.float32)], sr, 60)):
+        fr = Frame(k, k / 60, 1 / 60)
+        ext.step(block, fr)
+        f0.append(fr.control["f0"])
+    f0 = np.array(f0)
+    praat, _ = praat_prosody(x, sr, frame_centers(len(f0), sr, 60, 0.04), window_s=0.04, pitch_floor_hz=75,
+                             pitch_ceiling_hz=1000)
+    both = (f0 > 0) & (praat > 0)
+    cents = 1200 * np.abs(np.log2(f0[both] / praat[both]))
+    assert int(((f0 >= 800) & (praat > 0) & (praat < 500)).sum()) <= 10
+    assert np.mean(cents < 50) >= 0.68

@@ -39,9 +39,12 @@ Features (all over the last ``window_s`` of audio unless said)
   silence threshold relative to a running peak instead of the whole file.
   Praat's Viterbi path needs the future; online, the period is chosen on the
   generalised autocorrelation (spectrum compressed to |X|^(2/3), Tolonen &
-  Karjalainen 2000, so formants pull less) as the shortest candidate at least
-  ``period_ratio`` as strong as the best (YIN's guard against subharmonics,
-  de Cheveigne & Kawahara 2002), and voicing has hysteresis
+  Karjalainen 2000, so formants pull less), Praat's octave cost on heights
+  relative to the best, as the shortest candidate at least ``period_ratio`` as
+  strong as the best of which the best is a subharmonic (YIN's guard against
+  subharmonics, de Cheveigne & Kawahara 2002; both since 2026-11-29, a
+  phonetician's review: on raw heights and any shorter lag, breathy laughs read
+  near 1 kHz), and voicing has hysteresis
   (``voiced_unvoiced_cost``, Praat's V/UV cost taken greedily);
 * spectral centroid C (Hz) and the share of power above ``nasal_split_hz``;
 * zero-crossing rate Z (Hz: crossings per second / 2, a sine's frequency);
@@ -138,6 +141,9 @@ _LPC_TOP_HZ = 5500.0  # Praat's default maximum formant
 _PREEMPH_FROM_HZ = 50.0  # Praat's pre-emphasis
 
 
+#: the best period counts as a subharmonic of a shorter one within this of 2, 3 or 4 of its periods
+SUBHARMONIC_TOL = 0.1
+
 @dataclass
 class PhonemeParams:
     """Parameters of the ``phoneme`` extractor (see the module docstring for the rules).
@@ -161,8 +167,9 @@ class PhonemeParams:
         Praat's voiced/unvoiced path cost, taken greedily: voicing starts only
         if the best candidate beats Praat's unvoiced candidate by this much.
     period_ratio : float
-        Of the candidate periods at least this fraction as strong as the best,
-        the shortest is taken (subharmonics are as periodic as the period).
+        Of the candidate periods at least this fraction as strong as the best
+        and of which the best is a subharmonic (2, 3 or 4 periods), the shortest
+        is taken (subharmonics are as periodic as the period).
     peak_decay_db_per_s : float
         How fast the running peaks (amplitude, intensity, level) forget (dB/s).
     abs_silence_db : float
@@ -522,11 +529,20 @@ class PhonemeExtractor(Extractor):
             cand = self._peaks(rg[lo: hi + 1] / (rg[0] * self._rw[lo: hi + 1]), lo, 0.0) if rg[0] > 0.0 else None
             if cand is not None:
                 lag_s, r_s = cand
-                strength = r_s - p.octave_cost * np.log2(p.pitch_floor_hz * lag_s / self._sr)
+                # Praat's octave cost on Praat's scale, the heights relative to the best (a periodic window's is
+                # 1): on this compressed spectrum's autocorrelation a breathy laugh's peaks are 0.10-0.18, so 0.01
+                # an octave weighed like 0.06 and pulled the choice up to 1 kHz (a phonetician's review)
+                strength = r_s / max(float(r_s.max()), 1e-12) - p.octave_cost * np.log2(p.pitch_floor_hz * lag_s /
+                                                                                         self._sr)
                 i = int(np.argmax(strength))
                 # subharmonics (2, 3, 4 periods) are as periodic as the period itself: take the
-                # shortest lag nearly as strong as the best (YIN's rule, de Cheveigne & Kawahara 2002)
-                i = int(np.flatnonzero(strength >= p.period_ratio * strength[i])[0])
+                # shortest lag nearly as strong as the best (YIN's rule, de Cheveigne & Kawahara 2002), of which
+                # the best is a subharmonic (2, 3 or 4 of its periods, within 0.1 of one): any shorter lag took a
+                # 932 Hz peak over a 128 Hz period (0.14 against 0.15; a phonetician's review)
+                m = lag_s[i] / lag_s
+                near = (strength >= p.period_ratio * strength[i]) & (np.abs(m - np.round(m)) <= SUBHARMONIC_TOL) & \
+                    (np.round(m) <= 4)
+                i = int(np.flatnonzero(near)[0])
                 # F0 and strength from Praat's normalised autocorrelation at that peak
                 c0 = int(round(lag_s[i] * self._ov)) - lo
                 w = max(2, int(0.03 * c0))
