@@ -39,12 +39,14 @@ class CsvSink(Sink):
     pseudo-phoneme labels.  ``events.csv``: one row per clip start or stop with
     ``time`` (s), ``event``, ``clip``, ``energy``, ``speed``, ``reason``, and
     ``offset``/``end``: the stretch of clip time played (s; ``end`` empty = the
-    clip's end), which segment concatenation uses.
+    clip's end), which segment concatenation uses.  ``phonemes.TextGrid``, with the labels: the same labels as a
+    Praat interval tier ``phonemes`` (frame ``k``'s label from its ``time`` to the next frame's; a phonetician's
+    review: the labels could be checked in Praat only by hand).
     """
 
     name = "csv"
     background = True  # only writes files: may run in the helper process
-    files = ("channels.csv", "events.csv")
+    files = ("channels.csv", "events.csv", "phonemes.TextGrid")
     Params = CsvParams
 
     def open(self, run) -> None:
@@ -53,6 +55,8 @@ class CsvSink(Sink):
         self._f = open(self.staging.path(run.out_dir / "channels.csv"), "w", newline="", encoding="utf-8")
         self._events: list = []
         self._columns = None
+        self._times: list = []
+        self._label_seq: list = []
 
     def write(self, chunk) -> None:
         if self._columns is None:
@@ -65,6 +69,8 @@ class CsvSink(Sink):
         values = (data + 0.0).tolist()  # + 0.0 writes -0.0 as 0.0
         if self._labels:
             values = [[*r, lab or ""] for r, lab in zip(values, chunk.labels)]
+            self._times.extend(float(t) for t in chunk.times)
+            self._label_seq.extend(chunk.labels)
         # one %-format over the whole chunk: several times faster than np.savetxt's per-row loop
         self._f.write((row * n) % tuple(v for r in values for v in r))
         self._events.extend(chunk.events)
@@ -78,6 +84,13 @@ class CsvSink(Sink):
                 end = "" if ev.end_s is None else f"{ev.end_s:.6f}"
                 w.writerow([f"{ev.time_s:.6f}", ev.kind, ev.clip, f"{ev.energy:g}", f"{ev.speed:.6f}", ev.reason,
                             f"{ev.offset_s:.6f}", end])
+        if self._times:
+            from laughlab.io.textgrid import labels_to_intervals, write_textgrid
+
+            dt = 1.0 / self.run.fps
+            write_textgrid(self.staging.path(self.run.out_dir / "phonemes.TextGrid"),
+                           labels_to_intervals(self._times, self._label_seq, dt), tier="phonemes", xmin=0.0,
+                           xmax=self._times[-1] + dt)
         return self.staging.commit()
 
     def abort(self) -> None:

@@ -468,3 +468,27 @@ def test_f0_on_a_real_laugh_follows_praat_not_its_harmonics():
     cents = 1200 * np.abs(np.log2(f0[both] / praat[both]))
     assert int(((f0 >= 800) & (praat > 0) & (praat < 500)).sum()) <= 10
     assert np.mean(cents < 50) >= 0.68
+
+
+def test_a_runs_labels_are_a_textgrid_that_reads_back_as_the_same_labels(tmp_path):
+    """A phonetician's review: the detected labels were in channels.csv's label column alone (io/textgrid.py said it
+    wrote them; nothing did). A run with labels writes phonemes.TextGrid, tier ``phonemes``, frame k's label from its
+    time to the next frame's; given back as extractor.textgrid it gives every frame the same label."""
+    import pandas as pd
+
+    from inprocess import laughlab
+    from laughlab.io.textgrid import read_textgrid
+
+    args = ("extractor=phoneme", "input.duration_s=4", "detector=none", "~output.plots")
+    r = laughlab(*args, f"hydra.run.dir={tmp_path / 'a'}")
+    assert r.returncode == 0, r.stderr
+    labels = pd.read_csv(tmp_path / "a" / "channels.csv", keep_default_na=False)["label"].tolist()
+    iv = read_textgrid(tmp_path / "a" / "phonemes.TextGrid", tier="phonemes")
+    assert iv[0][0] == 0.0 and iv[-1][1] == pytest.approx(4.0) and len(iv) == 1 + sum(
+        a != b for a, b in zip(labels, labels[1:]))
+    assert len(set(labels)) >= 3
+    r = laughlab(*args, f"extractor.textgrid={tmp_path / 'a' / 'phonemes.TextGrid'}", f"hydra.run.dir={tmp_path / 'b'}")
+    assert r.returncode == 0, r.stderr
+    assert pd.read_csv(tmp_path / "b" / "channels.csv", keep_default_na=False)["label"].tolist() == labels
+    r = laughlab("input.duration_s=1", "detector=none", "~output.plots", f"hydra.run.dir={tmp_path / 'c'}")
+    assert r.returncode == 0 and not (tmp_path / "c" / "phonemes.TextGrid").exists()   # no labels, no file
