@@ -75,6 +75,8 @@ def test_bad_params_rejected():
         PhonemeParams(confirm_frames=0)
     with pytest.raises(ValueError, match="voicing_threshold"):
         PhonemeParams(voicing_threshold=1.5)
+    with pytest.raises(ValueError, match="grunt_max_f0_hz must be < cackle_min_f0_hz"):   # a phonetician's review
+        PhonemeParams(cackle_min_f0_hz=100.0, grunt_max_f0_hz=500.0)
     with pytest.raises(LaughlabError, match="bad parameter"):
         plugins.make_params(PhonemeExtractor, {"rms": {"scale": "log"}}, "extractor.phoneme")
 

@@ -284,6 +284,10 @@ class PhonemeParams:
                      "vowel_max_oct", "ne_max_centroid_hz", "click_crest", "click_rise_db", "plosive_rise_db",
                      "plosive_min_centroid_hz", "closure_s", "glotstop_drop_db", "min_segment_s"):
             check_range(name, getattr(self, name), 0.0)
+        # a phonetician's review: accepted, and every voiced frame was a grunt before it could be a cackle
+        if not self.grunt_max_f0_hz < self.cackle_min_f0_hz:
+            raise ValueError(f"grunt_max_f0_hz must be < cackle_min_f0_hz (got {self.grunt_max_f0_hz} >= "
+                             f"{self.cackle_min_f0_hz})")
         check_range("abs_silence_db", self.abs_silence_db, -50.0, 200.0)
         check_range("hop_s", self.hop_s, 0.001, 0.05)
         if not (isinstance(self.confirm_frames, int) and self.confirm_frames >= 1):
