@@ -41,10 +41,8 @@ Features (all over the last ``window_s`` of audio unless said)
   generalised autocorrelation (spectrum compressed to |X|^(2/3), Tolonen &
   Karjalainen 2000, so formants pull less), Praat's octave cost on heights
   relative to the best, as the shortest candidate at least ``period_ratio`` as
-  strong as the best of which the best is a subharmonic (YIN's guard against
-  subharmonics, de Cheveigne & Kawahara 2002; both since 2026-11-29, a
-  phonetician's review: on raw heights and any shorter lag, breathy laughs read
-  near 1 kHz), and voicing has hysteresis
+  strong as the best, the best its subharmonic (YIN's guard, de Cheveigne &
+  Kawahara 2002; both since 2026-11-29), and voicing has hysteresis
   (``voiced_unvoiced_cost``, Praat's V/UV cost taken greedily);
 * spectral centroid C (Hz) and the share of power above ``nasal_split_hz``;
 * zero-crossing rate Z (Hz: crossings per second / 2, a sine's frequency);
@@ -284,8 +282,7 @@ class PhonemeParams:
                      "vowel_max_oct", "ne_max_centroid_hz", "click_crest", "click_rise_db", "plosive_rise_db",
                      "plosive_min_centroid_hz", "closure_s", "glotstop_drop_db", "min_segment_s"):
             check_range(name, getattr(self, name), 0.0)
-        # a phonetician's review: accepted, and every voiced frame was a grunt before it could be a cackle
-        if not self.grunt_max_f0_hz < self.cackle_min_f0_hz:
+        if not self.grunt_max_f0_hz < self.cackle_min_f0_hz:   # (a phonetician's review: accepted before)
             raise ValueError(f"grunt_max_f0_hz must be < cackle_min_f0_hz (got {self.grunt_max_f0_hz} >= "
                              f"{self.cackle_min_f0_hz})")
         check_range("abs_silence_db", self.abs_silence_db, -50.0, 200.0)
@@ -533,16 +530,13 @@ class PhonemeExtractor(Extractor):
             cand = self._peaks(rg[lo: hi + 1] / (rg[0] * self._rw[lo: hi + 1]), lo, 0.0) if rg[0] > 0.0 else None
             if cand is not None:
                 lag_s, r_s = cand
-                # Praat's octave cost on Praat's scale, the heights relative to the best (a periodic window's is
-                # 1): on this compressed spectrum's autocorrelation a breathy laugh's peaks are 0.10-0.18, so 0.01
-                # an octave weighed like 0.06 and pulled the choice up to 1 kHz (a phonetician's review)
+                # Praat's octave cost on heights relative to the best (here 0.10-0.18 on a breathy laugh: 0.01 an
+                # octave weighed like 0.06 and pulled the choice up to 1 kHz; a phonetician's review)
                 strength = r_s / max(float(r_s.max()), 1e-12) - p.octave_cost * np.log2(p.pitch_floor_hz * lag_s /
                                                                                          self._sr)
                 i = int(np.argmax(strength))
-                # subharmonics (2, 3, 4 periods) are as periodic as the period itself: take the
-                # shortest lag nearly as strong as the best (YIN's rule, de Cheveigne & Kawahara 2002), of which
-                # the best is a subharmonic (2, 3 or 4 of its periods, within 0.1 of one): any shorter lag took a
-                # 932 Hz peak over a 128 Hz period (0.14 against 0.15; a phonetician's review)
+                # subharmonics (2, 3, 4 periods) are as periodic as the period: the shortest lag nearly as strong
+                # as the best (YIN's rule), the best its subharmonic (any shorter lag took 932 Hz over 128 Hz)
                 m = lag_s[i] / lag_s
                 near = (strength >= p.period_ratio * strength[i]) & (np.abs(m - np.round(m)) <= SUBHARMONIC_TOL) & \
                     (np.round(m) <= 4)
