@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import atexit
 import functools
+import importlib
 import numbers
 import queue
 import re
@@ -203,19 +204,31 @@ _START = threading.Lock()   # a run that ends at once removes itself after it wa
 _RUNNING: dict[int, tuple] = {}
 
 
-@atexit.register
 def _finish_unclosed() -> None:
     """End the input of every session still running at the interpreter's exit and wait for its outputs (a
     Python user's program that never closed its session: the daemon thread was cut off mid-run, leaving hidden
-    ``.part`` files and no outputs, and under load Python aborted, exit 134)."""
+    ``.part`` files and no outputs, and under load Python aborted, exit 134).  Registered to run before Python
+    stops the thread pools (``threading._register_atexit``, after ``concurrent.futures`` registered its own: they
+    run last first), so a video's frames are still drawn in theirs (a diff review: from ``atexit`` the video
+    output was refused and the folder left empty, without a word); an error that ends such a run is said."""
     running = list(_RUNNING.values())
     for src, state, _ in running:
         _abandon(src, state)
-    for _, _, thread in running:
+    for _, state, thread in running:
         thread.join(FINISH_AT_EXIT_S)
         if thread.is_alive():
             sys.stderr.write(f"laughlab: an unclosed Session did not finish within {FINISH_AT_EXIT_S:g} s of the "
                              "program's end; its outputs are not written (close it: Session.close())\n")
+        elif state.error is not None and not state.raised:
+            sys.stderr.write(f"laughlab: an unclosed Session ended on an error at the program's end, its outputs not "
+                             f"written: {type(state.error).__name__}: {state.error}\n")
+
+
+importlib.import_module("concurrent.futures.thread")   # its hook first: ours, registered after, runs before it
+
+if hasattr(threading, "_register_atexit"):
+    threading._register_atexit(_finish_unclosed)
+atexit.register(_finish_unclosed)   # a Python without it; nothing is left to finish when the first one ran
 
 
 class Session:

@@ -79,3 +79,6 @@ def test_a_list_for_a_group_of_one_plugin_is_one_line_saying_so(given, tmp_path)
     assert r.stderr.startswith(f"laughlab: error: {group} takes one option, not a list") and "-m " in r.stderr
     assert not (tmp_path / "r").exists()
     assert compose_config(["output=[files,vmc]"]).output.vmc is not None   # output takes a list
+    r = laughlab("face=[facs]", "input.duration_s=1", f"hydra.run.dir={tmp_path / 'one'}")   # a list of one: no sweep
+    assert r.returncode == 2 and r.stderr == ("laughlab: error: face takes one option, not a list (got face=[facs]): "
+                                              "write face=facs\n"), r.stderr

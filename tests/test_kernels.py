@@ -61,7 +61,14 @@ def test_this_test_session_runs_pinned():
 def test_laughlab_numba_0_is_recorded(monkeypatch):
     """A reproducibility review: LAUGHLAB_NUMBA=0 (body=hill's torso in numpy) changes the last bits of a hill run
     and nothing recorded it."""
+    import laughlab.hill.kernel  # noqa: F401  (the kernel this process runs)
     from laughlab.harness.results import versions
 
+    code = ("import laughlab.hill.kernel, json; from laughlab.harness.results import versions; "
+            "print(json.dumps(versions()['hill_kernel']))")
+    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "LAUGHLAB_NUMBA": "0"},
+                         capture_output=True, text=True, timeout=120, check=True)
+    assert json.loads(out.stdout.strip().splitlines()[-1]) == "numpy (LAUGHLAB_NUMBA=0)"
+    # what ran, not the variable read again (a diff review): this process compiled its kernel before
     monkeypatch.setenv("LAUGHLAB_NUMBA", "0")
-    assert versions()["hill_kernel"] == "numpy (LAUGHLAB_NUMBA=0)"
+    assert versions()["hill_kernel"] == "numba"

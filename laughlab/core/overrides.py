@@ -42,6 +42,8 @@ def one_choice_each(overrides, groups) -> None:
         value = value.strip()
         if sep and key in groups and key != "output" and value.startswith("["):
             items = [v.strip() for v in value.strip("[]").split(",") if v.strip()]
+            if len(items) == 1:
+                raise LaughlabError(f"{key} takes one option, not a list (got {key}={value}): write {key}={items[0]}")
             hint = f": choose one, e.g. {key}={items[0]}" if items else ""
             raise LaughlabError(f"{key} takes one option, not a list (got {key}={value}){hint}; "
                                 f"to compare several, sweep them: -m {key}={','.join(items) or '...'}")

@@ -242,12 +242,9 @@ def main(argv: list[str]) -> None:
         if dup:   # take.wav's second channel and a file take.ch2.wav
             raise LaughlabError(f"two inputs share the name {dup!r} with --channels each: rename the file {dup}.*")
     scored = ["scores.csv"] if ns.score else []
-    # --channels each: a multichannel recording's name, for the TextGrid of all its channels' tiers
+    # --channels each: a multichannel recording's name, for the TextGrid of all its channels' tiers (no other input
+    # has it: two inputs of one name are refused above)
     recording_of = {n: n.rsplit(".ch", 1)[0] for _, n, c in named if c is not None}
-    clash = sorted(set(recording_of.values()) & {n for _, n, _ in named})
-    if clash and "textgrid" in formats:   # take.wav (two channels) and a file take.flac would write one take.TextGrid
-        raise LaughlabError(f"the input {clash[0]!r} and the channels of another recording named {clash[0]!r} would "
-                            f"write one {clash[0]}.TextGrid with --channels each: rename one of them")
     stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n, _ in named], formats,
                                                                         list(recording_of.values())) + scored)
     total_s, kept, gone, durations = 0.0, [], {}, {}   # gone: the inputs left out (--skip-unreadable): name -> why

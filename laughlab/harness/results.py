@@ -36,6 +36,7 @@ import math
 import os
 import platform
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -157,10 +158,16 @@ def versions() -> dict:
     # review: metrics.json left out what docs/pipeline.md says changes the bytes)
     out = {"python": platform.python_version(), "cpu_kernels": _kernels.state(), "cpu_family": _kernels.cpu_family()}
     # LAUGHLAB_NUMBA=0 runs body=hill's torso in numpy: the last bits differ (a reproducibility review: unrecorded)
-    from importlib.util import find_spec
+    # the kernel the run used where body=hill imported it (a diff review: the variable read again could disagree)
+    kernel = sys.modules.get("laughlab.hill.kernel")
+    if kernel is not None:
+        out["hill_kernel"] = "numba" if kernel.AVAILABLE else ("numpy (LAUGHLAB_NUMBA=0)" if "LAUGHLAB_NUMBA" in
+                                                               kernel.WHY else f"numpy ({kernel.WHY})")
+    else:
+        from importlib.util import find_spec
 
-    out["hill_kernel"] = ("numpy (LAUGHLAB_NUMBA=0)" if os.environ.get("LAUGHLAB_NUMBA", "1") == "0" else
-                          "numba" if find_spec("numba") else "numpy (numba missing)")
+        out["hill_kernel"] = ("numpy (LAUGHLAB_NUMBA=0)" if os.environ.get("LAUGHLAB_NUMBA", "1") == "0" else
+                              "numba" if find_spec("numba") else "numpy (numba missing)")
     for pkg in ("laughlab", "numpy", "scipy", "hydra-core", "pluggy", "ai-edge-litert", "numba",
                 "praat-parselmouth", "soundfile", "imageio-ffmpeg", "matplotlib"):
         try:

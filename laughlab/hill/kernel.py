@@ -30,8 +30,10 @@ try:  # pragma: no cover - import guard
     from numba import njit
 
     AVAILABLE = True
-except ImportError:  # pragma: no cover - numba missing
+    WHY = ""
+except ImportError as _exc:  # pragma: no cover - numba missing
     AVAILABLE = False
+    WHY = str(_exc)   # why the numpy step runs (metrics.json's hill_kernel)
 
     def njit(*args, **kwargs):
         def wrap(fn):
