@@ -219,7 +219,7 @@ def _finish_unclosed() -> None:
         if thread.is_alive():
             sys.stderr.write(f"laughlab: an unclosed Session did not finish within {FINISH_AT_EXIT_S:g} s of the "
                              "program's end; its outputs are not written (close it: Session.close())\n")
-        elif state.error is not None and not state.raised:
+        elif state.error is not None and not state.raised and not isinstance(state.error, NoAudio):   # never fed
             sys.stderr.write(f"laughlab: an unclosed Session ended on an error at the program's end, its outputs not "
                              f"written: {type(state.error).__name__}: {state.error}\n")
 

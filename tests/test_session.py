@@ -547,3 +547,14 @@ def test_a_session_left_unclosed_at_the_programs_end_writes_its_outputs(recordin
     assert not [n for n in left if n.endswith(".part")]
     for name in files:
         assert filecmp.cmp(tmp_path / "leave" / name, tmp_path / "close" / name, shallow=False), name
+
+
+def test_a_session_never_fed_and_left_unclosed_ends_without_a_word():
+    """The exit that finishes unclosed sessions says an error that ended one; a session made and never fed (a game
+    that quit before any audio) has nothing to say, as its close() has not."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-c", "import laughlab\ns = laughlab.Session([], sample_rate=16000)\n"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "laughlab:" not in r.stderr, r.stderr
