@@ -141,12 +141,13 @@ def offset_tail_s(trial):
 
 @metric("silent_start_rate", False, "fraction")
 def silent_start_rate(trial):
-    """Fraction of clip starts in silence: more than 1 s after the last bout ended (or before any bout)."""
+    """Fraction of clip starts in silence: more than 1 s after the last bout ended (or before any bout); NaN without a
+    start, as the other rates of clips (it was 0, a perfect score for a run that never moved: a metrics audit)."""
     if trial.truth is None:
         return float("nan")
     starts = trial.starts().time.to_numpy()
     if len(starts) == 0:
-        return 0.0
+        return float("nan")
     b = trial.truth.bouts
     heard = np.zeros(len(starts), dtype=bool)
     for on, off in b[["onset_s", "offset_s"]].itertuples(index=False):

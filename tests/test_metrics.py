@@ -193,3 +193,10 @@ def test_calls_of_blank_intensity_count_one():
     assert set(np.unique(env)) == {0.0, 1.0}
     t.channels["jaw"] = np.r_[np.zeros(2), env[:-2]]
     assert compute(t)["jaw_call_r"] == pytest.approx(1.0)
+
+
+def test_a_run_without_a_clip_start_has_no_silent_start_rate():
+    """A metrics audit: with no clip start silent_start_rate was 0, a perfect score for a run that never moved (the
+    1 s input, scheduler=none), where cutoff_rate, repetition_rate and clip_entropy are NaN. It is NaN too."""
+    m = compute(trial(tr=truth([(1.0, 5.0, 0.8)])))
+    assert math.isnan(m["silent_start_rate"]) and math.isnan(m["cutoff_rate"])
