@@ -244,6 +244,7 @@ def test_a_quiet_call_is_counted_not_fitted_and_never_the_template():
     body, _ = run_body(target, fit=hf.FitParams(**CHEAP), threaded="no")
     live = body.live
     assert live.quiet == 1 and live.fitted == len(live.fits) == 5
+    assert body.metrics() == {"hill_calls_fitted": 5, "hill_calls_quiet": 1}   # metrics.json's (a diff review)
     assert [r["start"] for r in live.fits] == [6 + 15 * i for i in range(5)]
     assert all(r["peak"] > 0.1 for r in live.fits)
     # the first call of a run is never quiet (it is its own loudest), however low

@@ -124,3 +124,7 @@ def test_the_live_hill_torso_does_not_blow_up_on_real_laughs(laugh, before, meas
     err = float(np.sqrt(np.mean((played - target) ** 2)) / np.sqrt(np.mean(target ** 2)))
     assert err < min(2.5, before / 2), err
     assert played.max() < 2 * target.max()
+    import json
+
+    m = json.loads((tmp_path / "r" / "metrics.json").read_text())
+    assert m["hill_calls_fitted"] > 5 and m["hill_calls_quiet"] >= 1   # robinhood76: 15 and 4; Classic: 8 and 1

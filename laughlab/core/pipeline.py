@@ -381,7 +381,8 @@ def execute(pipe: Pipeline, out_dir: Path, config: dict | None = None, extra: di
         elif mixer.clip is not None and not mixer.clip.loop:   # said by the summary line: the last frame is mid-clip
             metrics["clip_at_end"] = mixer.clip.name
         metrics.update(rec.no_clip(sch))   # said by the summary line: why no clip started
-        for more in (getattr(p, "metrics", None) for p in (src, *opened)):  # their own (mic overflows, vmc latency)
+        # their own (mic overflows, vmc latency, body=hill's calls)
+        for more in (getattr(p, "metrics", None) for p in (src, pipe.body, *opened)):
             metrics.update((more() if callable(more) else None) or {})
         metrics.update(extra or {})
         tmp = out_dir / ".metrics.json.part"
