@@ -102,6 +102,9 @@ class ArkitSink(Sink):
                 self._ll = open(self.staging.path(self.run.out_dir / "face_livelink.csv"), "w", newline="",
                                 encoding="utf-8")
                 self._ll.write(",".join(["Timecode", "BlendShapeCount", *LIVELINK_COLUMNS]) + "\n")
+                # each Live Link column's place in a row of ``data`` (after its time), None for one not written
+                at = {n[0].upper() + n[1:]: i + 1 for i, n in enumerate(self._columns)}
+                self._ll_at = [at.get(c) for c in LIVELINK_COLUMNS]
         if not self._columns:
             return
         if self._mapped:
@@ -120,12 +123,11 @@ class ArkitSink(Sink):
     def _write_livelink(self, data) -> None:
         """The chunk's rows of ``face_livelink.csv``: each frame's timecode, 61, and the 61 values (a shape the face
         does not write, and the rotations, 0)."""
-        index = {n[0].upper() + n[1:]: i + 1 for i, n in enumerate(self._columns)}
         fmt = f"%.{self.params.precision}f"
         zero = fmt % 0.0
         for r in data:
             frame = int(round(float(r[0]) * self.run.fps))
-            values = [fmt % (r[index[c]] + 0.0) if c in index else zero for c in LIVELINK_COLUMNS]
+            values = [zero if i is None else fmt % (r[i] + 0.0) for i in self._ll_at]
             self._ll.write(",".join([livelink_timecode(frame, self.run.fps), str(len(LIVELINK_COLUMNS)), *values])
                            + "\n")
 

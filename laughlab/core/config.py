@@ -347,7 +347,7 @@ def compose_config(overrides: list[str], job_name: str = "app"):
     """Compose the configuration as Hydra would, turning errors into LaughlabError."""
     from hydra import compose, initialize_config_module
 
-    one_choice_each(overrides, GROUP_KINDS)
+    one_choice_each(overrides, [g for g in GROUP_KINDS if g != "output"])   # output: sinks, a list
 
     from laughlab.core import config_files
     from laughlab.core.callerstate import their_hydra

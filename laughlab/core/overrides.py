@@ -34,13 +34,13 @@ def given_value(overrides, key: str) -> str | None:
 
 def one_choice_each(overrides, groups) -> None:
     """Refuse a list for a group that takes one plugin (``face=[facs,cgm]``: Hydra merges both, and the run then
-    said "face.au6 is a parameter of face=facs, not of face=cgm"; a facial animator's review). ``output`` takes a
-    list; a sweep's ``face=facs,cgm`` (``-m``) is not a list. ``groups``: the plugin groups' names."""
+    said "face.au6 is a parameter of face=facs, not of face=cgm"; a facial animator's review). ``groups``: the groups
+    of one plugin (not ``output``, which takes a list); a sweep's ``face=facs,cgm`` (``-m``) is not a list."""
     for o in overrides:
         key, sep, value = str(o).partition("=")
         key = key.lstrip("+~")
         value = value.strip()
-        if sep and key in groups and key != "output" and value.startswith("["):
+        if sep and key in groups and value.startswith("["):
             items = [v.strip() for v in value.strip("[]").split(",") if v.strip()]
             if len(items) == 1:
                 raise LaughlabError(f"{key} takes one option, not a list (got {key}={value}): write {key}={items[0]}")

@@ -244,7 +244,7 @@ def main(argv: list[str]) -> None:
     scored = ["scores.csv"] if ns.score else []
     # --channels each: a multichannel recording's name, for the TextGrid of all its channels' tiers (no other input
     # has it: two inputs of one name are refused above)
-    recording_of = {n: n.rsplit(".ch", 1)[0] for _, n, c in named if c is not None}
+    recording_of = {n: S.recording_name(n) for _, n, c in named if c is not None}
     stale = out_folder_check(Path(ns.out), ns.overwrite, S.output_names([n for _, n, _ in named], formats,
                                                                         list(recording_of.values())) + scored)
     total_s, kept, gone, durations = 0.0, [], {}, {}   # gone: the inputs left out (--skip-unreadable): name -> why

@@ -184,13 +184,18 @@ def textgrid_tiers(tiers: list[tuple[str, list[Segment]]], duration_s: float) ->
     return "\n".join(lines) + "\n"
 
 
+def recording_name(channel_input: str) -> str:
+    """The recording a ``--channels each`` input is a channel of: ``take`` of ``take.ch2``."""
+    return channel_input.rsplit(".ch", 1)[0]
+
+
 def channel_groups(results: list) -> dict[str, list[tuple]]:
-    """``--channels each``: the channel inputs of each multichannel recording, by its name (``take`` of ``take.ch1``,
-    ``take.ch2``), in channel order (a result's fifth item is its channel; None for a recording read whole)."""
+    """``--channels each``: the channel inputs of each multichannel recording, by its name (:func:`recording_name`),
+    in channel order (a result's fifth item is its channel; None for a recording read whole)."""
     out: dict[str, list[tuple]] = {}
     for r in results:
         if len(r) > 4 and r[4] is not None:
-            out.setdefault(r[0].rsplit(".ch", 1)[0], []).append(r)
+            out.setdefault(recording_name(r[0]), []).append(r)
     return out
 
 

@@ -27,8 +27,9 @@ class Blinker:
                  min_interval_s: float = 0.5, close_s: float = 0.08, open_s: float = 0.12, dt: float | None = None):
         self.rng = rng
         self.mean_s, self.sd_s, self.min_interval_s = mean_s, sd_s, min_interval_s
+        self.frames = None if dt is None else tuple(max(1, round(d / dt)) for d in (close_s, open_s))
         if dt is not None:   # whole frames: the closed key on a frame
-            close_s, open_s = (max(1, round(d / dt)) * dt for d in (close_s, open_s))
+            close_s, open_s = (n * dt for n in self.frames)
         self.close_s, self.open_s, self.dt = close_s, open_s, dt
         self.reset()
 
@@ -52,7 +53,7 @@ class Blinker:
             return 0.0
         u = t - self.blink_start
         if self.dt is not None:   # frames since the blink began, exact on the frame grid
-            k, n_close, n_open = (round(v / self.dt) for v in (u, self.close_s, self.open_s))
+            k, (n_close, n_open) = round(u / self.dt), self.frames
             if k <= n_close:
                 return k / n_close
             if k < n_close + n_open:
